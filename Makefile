@@ -1,0 +1,33 @@
+# Two commands: `make render` and `make test`. Each creates .venv itself.
+PYTHON ?= python3.11
+VENV   := .venv
+PY     := $(VENV)/bin/python
+SCENE  ?= examples/whitted_1980.usda
+OUT    ?= whitted.png
+
+.PHONY: render test addon bench clean
+
+$(VENV)/.core: pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -e .
+	touch $@
+
+$(VENV)/.test: $(VENV)/.core
+	$(PY) -m pip install -q -e ".[test]"
+	touch $@
+
+render: $(VENV)/.core
+	$(VENV)/bin/whitted render $(SCENE) -o $(OUT)
+
+test: $(VENV)/.test
+	$(PY) -m pytest -q
+
+addon: $(VENV)/.core
+	$(PY) -m addon.build dist
+
+bench: $(VENV)/.test
+	$(PY) -m bench
+
+clean:
+	rm -rf $(VENV) dist build *.egg-info .pytest_cache

@@ -1,0 +1,20 @@
+"""Shared pytest fixtures. Blender-specific helpers live in tests/blender_support.py (bpy is imported lazily)."""
+
+from __future__ import annotations
+
+import os
+import sys
+
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+if ROOT not in sys.path:
+    sys.path.insert(0, ROOT)
+
+
+@pytest.fixture
+def bpy_module():
+    """The bpy module with Blender reset to an empty factory scene (bpy holds global state)."""
+    bpy = pytest.importorskip("bpy", reason="the bpy module is part of the test extra; `make test` installs it")
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    return bpy

@@ -1,0 +1,22 @@
+"""Whitted: a Whitted-style ray tracer on Embree.
+
+    from tracer import Camera, PointLight, RenderSettings, SceneBuilder, render
+    image = render(scene, RenderSettings(width=640, height=480, samples=2))
+    image.save("out.png")
+"""
+
+from .builder import SceneBuilder
+from .camera import ORTHOGRAPHIC, PERSPECTIVE, Camera, fit_apertures
+from .film import Image, read_image, write_image
+from .integrator import RAY_TYPES
+from .lights import AreaLight, DistantLight, PointLight, SpotLight
+from .materials import DEFAULT_MATERIAL, Materials, roughness_to_exponent
+from .render import RenderCancelled, render
+from .scene import Scene
+from .settings import AOV_NAMES, RenderSettings
+
+__all__ = [
+    "AOV_NAMES", "AreaLight", "Camera", "DEFAULT_MATERIAL", "DistantLight", "Image", "Materials", "ORTHOGRAPHIC",
+    "PERSPECTIVE", "PointLight", "RAY_TYPES", "RenderCancelled", "RenderSettings", "Scene", "SceneBuilder",
+    "SpotLight", "fit_apertures", "read_image", "render", "roughness_to_exponent", "write_image",
+]

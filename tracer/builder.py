@@ -1,0 +1,159 @@
+"""Assemble a :class:`~tracer.scene.Scene` from meshes in object space, one call per object.
+
+Both front ends use this: it applies object-to-world matrices (normals by the inverse transpose), concatenates
+the flat arrays and keeps material and object tables. It is also the quickest way to build scenes by hand::
+
+    b = SceneBuilder()
+    red = b.add_material(name="red", diffuse=(0.8, 0.1, 0.1))
+    b.add_mesh(vertices, triangles, material=red, name="ball")
+    b.camera = Camera.look_at((0, 1, 5), (0, 0, 0))
+    scene = b.build()
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .camera import Camera
+from .materials import Materials
+from .scene import Scene
+
+
+class SceneBuilder:
+    def __init__(self):
+        self._vertices: list[np.ndarray] = []
+        self._triangles: list[np.ndarray] = []
+        self._material_ids: list[np.ndarray] = []
+        self._object_ids: list[np.ndarray] = []
+        self._normals: list[np.ndarray | None] = []
+        self._uvs: list[np.ndarray | None] = []
+        self._n_vertices = 0
+        self.materials: list[dict] = []
+        self._material_index: dict[str, int] = {}
+        self.object_names: list[str] = []
+        self.lights: list = []
+        self.textures: list[np.ndarray] = []
+        self.camera: Camera | None = None
+        self.background = np.zeros(3, np.float32)
+        self.ambient = np.zeros(3, np.float32)
+
+    # ---------------------------------------------------------------- tables
+    def add_material(self, name: str | None = None, **fields) -> int:
+        """Add a material row (fields of :data:`tracer.materials.DEFAULT_MATERIAL`, or ``roughness``); returns
+        its index. A name already added returns the existing index."""
+        if name is not None and name in self._material_index:
+            return self._material_index[name]
+        index = len(self.materials)
+        self.materials.append(dict(fields, name=name or f"material{index}"))
+        if name is not None:
+            self._material_index[name] = index
+        return index
+
+    def add_texture(self, image: np.ndarray) -> int:
+        self.textures.append(np.asarray(image, dtype=np.float32))
+        return len(self.textures) - 1
+
+    def add_light(self, light) -> None:
+        self.lights.append(light)
+
+    # ---------------------------------------------------------------- geometry
+    def add_mesh(self, vertices, triangles, material=0, name: str | None = None, transform=None,
+                 normals=None, uvs=None, object_id: int | None = None) -> int:
+        """Add a triangle mesh; returns its object id.
+
+        vertices   (V, 3) object-space points
+        triangles  (T, 3) vertex indices
+        material   one material index, or (T,) per-triangle indices
+        transform  optional 4×4 object-to-world matrix (column vectors: p_world = M @ p)
+        normals    optional shading normals: (V, 3) per vertex or (T, 3, 3) per corner
+        uvs        optional texture coordinates: (V, 2) per vertex or (T, 3, 2) per corner
+        object_id  reuse an id (several meshes of one object); by default a new one named ``name``
+        """
+        v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+        t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+        label = name or f"object{len(self.object_names)}"
+        if t.size and (t.min() < 0 or t.max() >= len(v)):
+            raise ValueError(f"mesh {label!r}: triangle index out of range for {len(v)} vertices")
+        if transform is not None:
+            m = np.asarray(transform, dtype=np.float64)
+            if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+                raise ValueError(f"mesh {label!r}: transform must be a finite 4x4 matrix")
+            v = v @ m[:3, :3].T + m[:3, 3]
+        if object_id is None:
+            object_id = len(self.object_names)
+            self.object_names.append(label)
+        n_tri = len(t)
+        mat = np.asarray(material, dtype=np.int32)
+        mat = np.full(n_tri, int(mat), np.int32) if mat.ndim == 0 else mat.reshape(-1)
+        if mat.shape != (n_tri,):
+            raise ValueError(f"mesh {label!r}: material must be one index or {n_tri} per-triangle indices")
+
+        corner_normals = None
+        if normals is not None:
+            nr = np.asarray(normals, dtype=np.float64)
+            if nr.shape == (len(v), 3):
+                nr = nr[t]
+            if nr.shape != (n_tri, 3, 3):
+                raise ValueError(f"mesh {label!r}: normals must be per vertex ({len(v)}, 3) "
+                                 f"or per corner ({n_tri}, 3, 3), got {nr.shape}")
+            if transform is not None:
+                nm = np.linalg.inv(np.asarray(transform, dtype=np.float64)[:3, :3]).T
+                nr = nr @ nm.T
+            corner_normals = nr.astype(np.float32)
+        corner_uvs = None
+        if uvs is not None:
+            uv = np.asarray(uvs, dtype=np.float64)
+            if uv.shape == (len(v), 2):
+                uv = uv[t]
+            if uv.shape != (n_tri, 3, 2):
+                raise ValueError(f"mesh {label!r}: uvs must be per vertex ({len(v)}, 2) "
+                                 f"or per corner ({n_tri}, 3, 2), got {uv.shape}")
+            corner_uvs = uv.astype(np.float32)
+
+        self._vertices.append(v.astype(np.float32))
+        self._triangles.append((t + self._n_vertices).astype(np.int32))
+        self._n_vertices += len(v)
+        self._material_ids.append(mat)
+        self._object_ids.append(np.full(n_tri, object_id, np.int32))
+        self._normals.append(corner_normals)
+        self._uvs.append(corner_uvs)
+        return object_id
+
+    @property
+    def triangle_count(self) -> int:
+        return sum(len(t) for t in self._triangles)
+
+    def build(self) -> Scene:
+        if self.camera is None:
+            raise ValueError("SceneBuilder.build: no camera set")
+        n = self.triangle_count
+
+        def cat(parts, tail, dtype):
+            return np.concatenate(parts).astype(dtype) if parts else np.zeros((0,) + tail, dtype)
+
+        def corners(parts, fill_shape, fill):
+            if all(p is None for p in parts):
+                return None
+            filled = []
+            for p, tris in zip(parts, self._triangles):
+                filled.append(p if p is not None else np.full((len(tris),) + fill_shape, fill, np.float32))
+            return np.concatenate(filled) if filled else None
+
+        # Meshes without normals get zero normals: the integrator uses the geometric normal for those.
+        normals = corners(self._normals, (3, 3), 0.0)
+        uvs = corners(self._uvs, (3, 2), 0.0)
+        return Scene(
+            vertices=cat(self._vertices, (3,), np.float32),
+            triangles=cat(self._triangles, (3,), np.int32),
+            material_ids=cat(self._material_ids, (), np.int32) if n else np.zeros(0, np.int32),
+            object_ids=cat(self._object_ids, (), np.int32) if n else np.zeros(0, np.int32),
+            normals=normals,
+            uvs=uvs,
+            materials=Materials.from_list(self.materials),
+            camera=self.camera,
+            lights=list(self.lights),
+            textures=list(self.textures),
+            background=self.background,
+            ambient=self.ambient,
+            object_names=list(self.object_names),
+        )

@@ -1,0 +1,144 @@
+"""Eye rays: the seed's ray type 1, for perspective and orthographic cameras.
+
+The camera follows USD's ``UsdGeom.Camera`` model (Blender's is the same after conversion): it looks down its
+local −Z with +Y up; a film window of ``horizontal_aperture`` × ``vertical_aperture`` sits at distance
+``focal_length`` (perspective) and is shifted by the aperture offsets (lens shift). For an orthographic camera the
+apertures and offsets are the view's width, height and shift in world units.
+
+Image coordinates: pixel (i, j) has its top-left corner at column i, row j; a film position (u, v) in [0, 1]² has
+u growing right and v growing up, so row j spans v in [1 − (j+1)/H, 1 − j/H].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+PERSPECTIVE = "perspective"
+ORTHOGRAPHIC = "orthographic"
+
+
+@dataclass
+class Camera:
+    camera_to_world: np.ndarray = field(default_factory=lambda: np.eye(4))
+    projection: str = PERSPECTIVE
+    focal_length: float = 50.0
+    horizontal_aperture: float = 36.0
+    vertical_aperture: float = 24.0
+    horizontal_aperture_offset: float = 0.0
+    vertical_aperture_offset: float = 0.0
+    near: float = 0.0
+    far: float = np.inf
+
+    def __post_init__(self):
+        m = np.asarray(self.camera_to_world, dtype=np.float64)
+        if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+            raise ValueError(f"camera_to_world must be a finite 4x4 matrix, got shape {m.shape}")
+        if abs(np.linalg.det(m[:3, :3])) < 1e-12:
+            raise ValueError("camera_to_world is singular (zero scale?)")
+        self.camera_to_world = m
+        if self.projection not in (PERSPECTIVE, ORTHOGRAPHIC):
+            raise ValueError(f"camera projection must be '{PERSPECTIVE}' or '{ORTHOGRAPHIC}', got {self.projection!r}")
+        for name in ("focal_length", "horizontal_aperture", "vertical_aperture"):
+            v = float(getattr(self, name))
+            if not np.isfinite(v) or v <= 0:
+                if name == "focal_length" and self.projection == ORTHOGRAPHIC:
+                    setattr(self, name, v if np.isfinite(v) else 1.0)
+                    continue
+                raise ValueError(f"camera {name} must be a positive finite number, got {v}")
+            setattr(self, name, v)
+        for name in ("horizontal_aperture_offset", "vertical_aperture_offset", "near"):
+            v = float(getattr(self, name))
+            if not np.isfinite(v):
+                raise ValueError(f"camera {name} must be finite, got {v}")
+            setattr(self, name, v)
+        self.far = float(self.far)
+        if self.near < 0 or not self.far > self.near:
+            raise ValueError(f"camera clipping range must satisfy 0 <= near < far, got ({self.near}, {self.far})")
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.camera_to_world[:3, 3].copy()
+
+    def film_point(self, u, v):
+        """Camera-space film position (x, y) for film coordinates u, v in [0, 1] (u right, v up)."""
+        x = (np.asarray(u) - 0.5) * self.horizontal_aperture + self.horizontal_aperture_offset
+        y = (np.asarray(v) - 0.5) * self.vertical_aperture + self.vertical_aperture_offset
+        return x, y
+
+    def generate_rays(self, u: np.ndarray, v: np.ndarray):
+        """World-space eye rays (origins (N, 3), unit directions (N, 3), float32) through film positions u, v.
+
+        Perspective: every ray starts at the eye e and goes through the film point (x, y, −f): ray(e, u, 0, ∞).
+        Orthographic (the seed's question): every ray has the view direction −Z and starts at the film point itself.
+        Rays start at the near clipping plane.
+        """
+        x, y = self.film_point(u, v)
+        n = x.shape[0]
+        m = self.camera_to_world
+        if self.projection == PERSPECTIVE:
+            d_cam = np.stack([x / self.focal_length, y / self.focal_length, -np.ones(n)], axis=-1)
+            o_cam = np.zeros((n, 3))
+        else:
+            d_cam = np.broadcast_to(np.array([0.0, 0.0, -1.0]), (n, 3))
+            o_cam = np.stack([x, y, np.zeros(n)], axis=-1)
+        o_cam = o_cam + d_cam * self.near  # the near plane is at z = −near for both projections (d_cam.z = −1)
+        origins = o_cam @ m[:3, :3].T + m[:3, 3]
+        dirs = d_cam @ m[:3, :3].T
+        dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
+        return origins.astype(np.float32), dirs.astype(np.float32)
+
+    def project(self, points: np.ndarray, width: int, height: int) -> np.ndarray:
+        """Pixel coordinates (N, 2) (x right, y down, continuous: pixel (i, j) spans [i, i+1)×[j, j+1)) of world
+        points, and their depth along the view axis as a third column. The inverse of :meth:`generate_rays`."""
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        w2c = np.linalg.inv(self.camera_to_world)
+        pc = p @ w2c[:3, :3].T + w2c[:3, 3]
+        depth = -pc[:, 2]
+        if self.projection == PERSPECTIVE:
+            x = pc[:, 0] / depth * self.focal_length
+            y = pc[:, 1] / depth * self.focal_length
+        else:
+            x, y = pc[:, 0], pc[:, 1]
+        u = (x - self.horizontal_aperture_offset) / self.horizontal_aperture + 0.5
+        v = (y - self.vertical_aperture_offset) / self.vertical_aperture + 0.5
+        return np.stack([u * width, (1 - v) * height, depth], axis=-1)
+
+    @classmethod
+    def look_at(cls, eye, target, up=(0.0, 1.0, 0.0), **kwargs) -> "Camera":
+        """A camera at ``eye`` looking at ``target``, with ``up`` as close to its +Y as possible."""
+        eye = np.asarray(eye, dtype=np.float64)
+        fwd = np.asarray(target, dtype=np.float64) - eye
+        if np.linalg.norm(fwd) == 0:
+            raise ValueError("look_at: eye and target coincide")
+        z = -fwd / np.linalg.norm(fwd)
+        x = np.cross(np.asarray(up, dtype=np.float64), z)
+        if np.linalg.norm(x) < 1e-12:
+            raise ValueError("look_at: up is parallel to the view direction")
+        x /= np.linalg.norm(x)
+        y = np.cross(z, x)
+        m = np.eye(4)
+        m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = x, y, z, eye
+        return cls(camera_to_world=m, **kwargs)
+
+
+def fit_apertures(horizontal: float, vertical: float, width: int, height: int, policy: str = "expand"):
+    """Conform a film window to an image aspect ratio (usdrecord / UsdGeom ``ConformWindow`` policies).
+
+    ``expand`` grows the short side (everything the aperture shows stays visible), ``crop`` shrinks the long side,
+    ``horizontal`` / ``vertical`` keep that aperture and derive the other, ``none`` leaves both as they are.
+    """
+    aspect = width / height
+    if policy == "none":
+        return horizontal, vertical
+    if policy == "horizontal":
+        return horizontal, horizontal / aspect
+    if policy == "vertical":
+        return vertical * aspect, vertical
+    window = horizontal / vertical
+    if policy == "expand":
+        return (horizontal, horizontal / aspect) if window > aspect else (vertical * aspect, vertical)
+    if policy == "crop":
+        return (vertical * aspect, vertical) if window > aspect else (horizontal, horizontal / aspect)
+    raise ValueError(f"unknown aperture fit policy {policy!r}: use expand, crop, horizontal, vertical or none")

@@ -1,0 +1,113 @@
+"""The film: box-filtered pixels from samples, AOVs, and image files through OpenImageIO.
+
+PNG (8-bit) and other display formats are written through the sRGB transfer function (Blender's "Standard" view);
+EXR, HDR and TIFF-float stay scene-linear. Files are written to a temporary name and renamed, so an interrupted
+write never leaves a half-written image.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .texture import linear_to_srgb
+
+LINEAR_EXTENSIONS = (".exr", ".hdr")
+
+
+@dataclass
+class Image:
+    """A rendered frame: ``rgba`` (H, W, 4) float32 scene-linear, AOVs by name, ray counts and timings."""
+
+    rgba: np.ndarray
+    aovs: dict = field(default_factory=dict)
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def rgb(self) -> np.ndarray:
+        return self.rgba[..., :3]
+
+    def save(self, path: str, **kwargs) -> None:
+        write_image(path, self.rgba, **kwargs)
+
+
+def box_filter(values: np.ndarray, spp: int) -> np.ndarray:
+    """Average consecutive groups of ``spp`` samples (samples of one pixel are stored together)."""
+    return values.reshape((-1, spp) + values.shape[1:]).mean(axis=1)
+
+
+def majority(ids: np.ndarray, spp: int, limit: int = 16) -> np.ndarray:
+    """Per pixel, the id seen by most of its samples (ties: the smaller id); at most ``limit`` samples vote."""
+    g = ids.reshape(-1, spp)[:, :limit]
+    votes = (g[:, :, None] == g[:, None, :]).sum(axis=2)
+    best = np.max(votes, axis=1, keepdims=True)
+    return np.where(votes == best, g, np.iinfo(np.int32).max).min(axis=1).astype(np.int32)
+
+
+def to_display(rgba: np.ndarray) -> np.ndarray:
+    """sRGB-encoded 8-bit RGBA from scene-linear floats (colour channels only; alpha stays linear)."""
+    out = np.empty(rgba.shape, np.float32)
+    out[..., :3] = linear_to_srgb(rgba[..., :3])
+    out[..., 3:] = np.clip(rgba[..., 3:], 0, 1)
+    return np.round(out * 255.0).astype(np.uint8)
+
+
+def write_image(path: str, pixels: np.ndarray, channel_names=None) -> None:
+    """Write (H, W, C) float pixels: linear for EXR/HDR, sRGB 8-bit otherwise. Atomic (temp file + rename)."""
+    import OpenImageIO as oiio
+
+    path = os.fspath(path)
+    pixels = np.nan_to_num(np.asarray(pixels, dtype=np.float32), nan=0.0, posinf=0.0, neginf=0.0)
+    if pixels.ndim == 2:
+        pixels = pixels[..., None]
+    h, w, c = pixels.shape
+    ext = os.path.splitext(path)[1].lower()
+    if not ext:
+        raise ValueError(f"{path}: the output needs a file extension (.png, .exr, ...)")
+    linear = ext in LINEAR_EXTENSIONS
+    if linear:
+        data, fmt = pixels, oiio.HALF if ext == ".exr" else oiio.FLOAT
+    else:
+        if c in (3, 4):
+            data = to_display(pixels if c == 4 else np.concatenate([pixels, np.ones((h, w, 1), np.float32)], -1))
+            data = data[..., :c]
+        else:
+            data = np.round(np.clip(pixels, 0, 1) * 255).astype(np.uint8)
+        fmt = oiio.UINT8
+    spec = oiio.ImageSpec(w, h, c, fmt)
+    if channel_names:
+        spec.channelnames = tuple(channel_names)
+    directory = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(directory):
+        raise ValueError(f"{path}: directory {directory} does not exist")
+    fd, tmp = tempfile.mkstemp(prefix=".whitted-", suffix=ext, dir=directory)
+    os.close(fd)
+    try:
+        out = oiio.ImageOutput.create(tmp)
+        if out is None:
+            raise ValueError(f"{path}: OpenImageIO cannot write '{ext}' files ({oiio.geterror()})")
+        if not out.open(tmp, spec):
+            msg = out.geterror()
+            raise ValueError(f"{path}: cannot open for writing ({msg})")
+        ok = out.write_image(data)
+        out.close()
+        if not ok:
+            raise ValueError(f"{path}: write failed ({out.geterror()})")
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def read_image(path: str) -> np.ndarray:
+    """Read an image as (H, W, C) float32 (as stored: PNG values are sRGB-encoded in [0, 1])."""
+    import OpenImageIO as oiio
+
+    buf = oiio.ImageBuf(os.fspath(path))
+    if buf.has_error:
+        raise ValueError(f"cannot read {path}: {buf.geterror()}")
+    spec = buf.spec()
+    return np.asarray(buf.get_pixels(oiio.FLOAT), np.float32).reshape(spec.height, spec.width, spec.nchannels)

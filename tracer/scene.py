@@ -1,0 +1,173 @@
+"""The render-ready scene: world-space flat arrays, a material table, lights, a camera and the world colours.
+
+Front ends (``usd_io``, ``addon``) fill one of these; the tracer never learns where a scene came from.
+Build one directly or with :class:`tracer.builder.SceneBuilder`.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .camera import Camera
+from .lights import AreaLight, DistantLight, PointLight, SpotLight
+from .materials import Materials
+
+#: Triangles whose area is at most this fraction of the squared bounding-box diagonal are degenerate and skipped.
+DEGENERATE_AREA = 1e-14
+
+
+@dataclass
+class Scene:
+    """World-space geometry and everything needed to shade it.
+
+    vertices      (V, 3) float32
+    triangles     (T, 3) int32, indices into ``vertices`` (counter-clockwise = front, right-handed)
+    material_ids  (T,) int32, rows of ``materials``
+    object_ids    (T,) int32, user-facing object index (AOV "objectid"); names in ``object_names``
+    normals       optional (T, 3, 3) float32 per-corner shading normals
+    uvs           optional (T, 3, 2) float32 per-corner texture coordinates
+    textures      list of (H, W, 3) float32 linear-RGB images referenced by ``Materials.diffuse_texture``
+    background    colour of rays that hit nothing
+    ambient       L_a of the seed (the world's colour × strength): ambient term L_a·R_a
+    """
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+    materials: Materials
+    camera: Camera
+    lights: list = field(default_factory=list)
+    material_ids: np.ndarray | None = None
+    object_ids: np.ndarray | None = None
+    normals: np.ndarray | None = None
+    uvs: np.ndarray | None = None
+    textures: list = field(default_factory=list)
+    background: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
+    ambient: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
+    object_names: list = field(default_factory=list)
+    skipped_triangles: int = 0
+
+    def __post_init__(self):
+        self.validate()
+
+    # ------------------------------------------------------------------ validation
+    def validate(self) -> None:
+        """Check shapes and values; raise ``ValueError`` naming what is wrong. Drops degenerate triangles."""
+        v = np.asarray(self.vertices)
+        if v.ndim != 2 or v.shape[1] != 3:
+            raise ValueError(f"scene.vertices must have shape (V, 3), got {v.shape}")
+        if not np.all(np.isfinite(v)):
+            bad = int(np.flatnonzero(~np.isfinite(v).all(axis=1))[0])
+            raise ValueError(f"scene.vertices: vertex {bad} has a NaN or infinite coordinate {v[bad].tolist()}")
+        self.vertices = np.ascontiguousarray(v, dtype=np.float32)
+
+        t = np.asarray(self.triangles)
+        if t.size == 0:
+            t = t.reshape(0, 3)
+        if t.ndim != 2 or t.shape[1] != 3:
+            raise ValueError(f"scene.triangles must have shape (T, 3), got {t.shape}")
+        if not np.issubdtype(t.dtype, np.integer):
+            raise ValueError(f"scene.triangles must hold integer indices, got {t.dtype}")
+        if t.size and (t.min() < 0 or t.max() >= len(self.vertices)):
+            bad = int(np.flatnonzero((t < 0).any(axis=1) | (t >= len(self.vertices)).any(axis=1))[0])
+            raise ValueError(f"scene.triangles: triangle {bad} has index {t[bad].tolist()} outside "
+                             f"the {len(self.vertices)} vertices")
+        self.triangles = np.ascontiguousarray(t, dtype=np.int32)
+        n = len(self.triangles)
+
+        if not isinstance(self.materials, Materials):
+            raise ValueError("scene.materials must be a tracer.Materials table")
+        self.materials.validate(len(self.textures))
+        self.material_ids = self._per_triangle(self.material_ids, "material_ids", n)
+        if n and (self.material_ids.min() < 0 or self.material_ids.max() >= len(self.materials)):
+            bad = int(np.flatnonzero((self.material_ids < 0) | (self.material_ids >= len(self.materials)))[0])
+            raise ValueError(f"scene.material_ids: triangle {bad} uses material {int(self.material_ids[bad])}, "
+                             f"but there are {len(self.materials)} materials")
+        self.object_ids = self._per_triangle(self.object_ids, "object_ids", n)
+
+        if self.normals is not None:
+            nr = np.asarray(self.normals, dtype=np.float32)
+            if nr.shape != (n, 3, 3):
+                raise ValueError(f"scene.normals must have shape ({n}, 3, 3) (per-corner), got {nr.shape}")
+            ln = np.linalg.norm(nr, axis=-1, keepdims=True)
+            ok = np.isfinite(ln) & (ln > 0)
+            # Unusable normals fall back to the face normal at render time; mark them with zeros.
+            self.normals = np.ascontiguousarray(np.where(ok, nr / np.where(ok, ln, 1), 0), dtype=np.float32)
+        if self.uvs is not None:
+            uv = np.asarray(self.uvs, dtype=np.float32)
+            if uv.shape != (n, 3, 2):
+                raise ValueError(f"scene.uvs must have shape ({n}, 3, 2) (per-corner), got {uv.shape}")
+            self.uvs = np.ascontiguousarray(np.nan_to_num(uv, nan=0, posinf=0, neginf=0))
+
+        for i, tex in enumerate(self.textures):
+            a = np.asarray(tex)
+            if a.ndim != 3 or a.shape[2] not in (3, 4) or a.shape[0] < 1 or a.shape[1] < 1:
+                raise ValueError(f"scene.textures[{i}] must have shape (H, W, 3|4), got {a.shape}")
+            self.textures[i] = np.ascontiguousarray(np.nan_to_num(a[..., :3].astype(np.float32)))
+
+        for name in ("background", "ambient"):
+            c = np.asarray(getattr(self, name), dtype=np.float32).reshape(-1)
+            if c.shape != (3,) or not np.all(np.isfinite(c)):
+                raise ValueError(f"scene.{name} must be 3 finite numbers, got {getattr(self, name)!r}")
+            setattr(self, name, c)
+
+        if not isinstance(self.camera, Camera):
+            raise ValueError("scene.camera must be a tracer.Camera")
+        for light in self.lights:
+            if not isinstance(light, (PointLight, SpotLight, DistantLight, AreaLight)):
+                raise ValueError(f"scene.lights: {light!r} is not a tracer light")
+
+        self._drop_degenerate()
+
+    @staticmethod
+    def _per_triangle(a, name, n):
+        if a is None:
+            return np.zeros(n, np.int32)
+        a = np.asarray(a)
+        if a.shape != (n,) or (a.size and not np.issubdtype(a.dtype, np.integer)):
+            raise ValueError(f"scene.{name} must be {n} integers (one per triangle), got shape {a.shape}")
+        return np.ascontiguousarray(a, dtype=np.int32)
+
+    def _drop_degenerate(self):
+        if not len(self.triangles):
+            return
+        tri = self.vertices[self.triangles].astype(np.float64)
+        area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+        keep = area2 > DEGENERATE_AREA * max(self.diagonal**2, 1e-30)
+        dropped = int((~keep).sum())
+        if dropped:
+            warnings.warn(f"scene: skipped {dropped} degenerate (zero-area) triangle(s)", stacklevel=3)
+            self.skipped_triangles += dropped
+            self.triangles = np.ascontiguousarray(self.triangles[keep])
+            self.material_ids = np.ascontiguousarray(self.material_ids[keep])
+            self.object_ids = np.ascontiguousarray(self.object_ids[keep])
+            if self.normals is not None:
+                self.normals = np.ascontiguousarray(self.normals[keep])
+            if self.uvs is not None:
+                self.uvs = np.ascontiguousarray(self.uvs[keep])
+
+    # ------------------------------------------------------------------ queries
+    @property
+    def bounds(self) -> np.ndarray:
+        """(2, 3) min and max corner of the referenced vertices (zeros for an empty scene)."""
+        if not len(self.triangles):
+            return np.zeros((2, 3), np.float64)
+        used = self.vertices[np.unique(self.triangles)]
+        return np.stack([used.min(axis=0), used.max(axis=0)]).astype(np.float64)
+
+    @property
+    def diagonal(self) -> float:
+        lo, hi = self.bounds
+        return float(np.linalg.norm(hi - lo))
+
+    def default_epsilon(self) -> float:
+        """ε for spawned rays: 5e-5 of the scene's size, where the size is the larger of the bounding-box diagonal
+        and the largest coordinate magnitude (float32 spacing grows with distance from the origin)."""
+        lo, hi = self.bounds
+        size = max(self.diagonal, float(np.abs(np.stack([lo, hi])).max()))
+        return max(5e-5 * size, 1e-6)
+
+    def object_name(self, object_id: int) -> str:
+        return self.object_names[object_id] if 0 <= object_id < len(self.object_names) else f"object{object_id}"
