@@ -38,9 +38,11 @@ class RayCounts:
     reflection: int = 0
     transmission: int = 0
     sky: int = 0
+    #: Transmission attempts that met total internal reflection (followed the reflection instead). Not a ray type.
+    tir: int = 0
 
     def add(self, other: "RayCounts") -> None:
-        for k in RAY_TYPES:
+        for k in RAY_TYPES + ("tir",):
             setattr(self, k, getattr(self, k) + getattr(other, k))
 
     @property
@@ -48,7 +50,7 @@ class RayCounts:
         return sum(getattr(self, k) for k in RAY_TYPES)
 
     def as_dict(self) -> dict:
-        return {k: getattr(self, k) for k in RAY_TYPES} | {"total": self.total}
+        return {k: getattr(self, k) for k in RAY_TYPES} | {"total": self.total, "tir": self.tir}
 
 
 @dataclass
@@ -267,6 +269,7 @@ class Integrator:
             w_refl = weight * (k_m * m.mirror_tint[mat] + glass * fr)
             w_tran = weight * glass * (1.0 - fr) * m.transmission_tint[mat]
             w_tran[tir] = 0.0
+            counts.tir += int(np.count_nonzero(tir & (glass[:, 0] > 0)))
 
             r_dir = optics.reflect(d, h.n)
             # Interpolated normals can tilt a reflection below the surface: use the geometric normal there.
