@@ -90,6 +90,8 @@ class Integrator:
         e2 = self.tri_vertices[:, 2] - self.tri_vertices[:, 0]
         ng = np.cross(e1, e2)
         self.face_normals = (ng / np.maximum(np.linalg.norm(ng, axis=1, keepdims=True), 1e-30)).astype(np.float32)
+        self.corner_ok = (np.all(np.linalg.norm(scene.normals, axis=2) > 0, axis=1) if scene.normals is not None
+                          else None)
         m = scene.materials
         self.has_textures = bool(len(scene.textures)) and scene.uvs is not None and bool(np.any(m.diffuse_texture >= 0))
 
@@ -98,22 +100,21 @@ class Integrator:
         s = self.scene
         p = o + d * t[:, None]
         ng = self.face_normals[prim]
-        front = optics.dot(d, ng)[:, 0] < 0
-        flip = np.where(front, 1.0, -1.0).astype(np.float32)[:, None]
-        ng = ng * flip
+        front = _dot(d, ng) < 0
+        sign = np.where(front, np.float32(1), np.float32(-1))[:, None]
+        ng *= sign  # the geometric normal on the incident side
         if s.normals is not None:
-            cn = s.normals[prim]  # (N, 3, 3)
-            w0 = (1.0 - u - v)[:, None]
-            n = cn[:, 0] * w0 + cn[:, 1] * u[:, None] + cn[:, 2] * v[:, None]
-            ln = np.linalg.norm(n, axis=1, keepdims=True)
-            usable = (ln[:, 0] > 1e-6) & np.all(np.linalg.norm(cn, axis=2) > 0, axis=1)
-            n = np.where(usable[:, None], n / np.maximum(ln, 1e-30) * flip, ng)
-            # A shading normal must face the same side as the geometric one.
-            n = np.where(optics.dot(n, ng) > 0, n, ng).astype(np.float32)
+            cn = s.normals[prim]  # (N, 3, 3) per-corner shading normals
+            n = cn[:, 0] * (1.0 - u - v)[:, None] + cn[:, 1] * u[:, None] + cn[:, 2] * v[:, None]
+            ln = np.sqrt(_dot(n, n))
+            n *= (sign[:, 0] / np.maximum(ln, 1e-30))[:, None]
+            # Unusable normals, or interpolated ones facing away from the geometric side, fall back to ng.
+            bad = ~self.corner_ok[prim] | (ln <= 1e-6) | (_dot(n, ng) <= 0)
+            if bad.any():
+                n[bad] = ng[bad]
         else:
             n = ng
-        return Hits(p=p.astype(np.float32), ng=ng.astype(np.float32), n=n, front=front,
-                    material=s.material_ids[prim], prim=prim, t=t)
+        return Hits(p=p, ng=ng, n=n, front=front, material=s.material_ids[prim], prim=prim, t=t)
 
     def albedo(self, h: Hits, u, v) -> np.ndarray:
         m = self.scene.materials
@@ -145,21 +146,21 @@ class Integrator:
             l, dist, e = light.sample(h.p, st.light_samples, rand)  # (K, N, 3), (K, N), (K, N, 3)
             for k in range(l.shape[0]):
                 lk = l[k]
-                n_l = np.maximum(optics.dot(h.n, lk), 0.0)
-                lit = (n_l[:, 0] > 0) & (optics.dot(h.ng, lk)[:, 0] > 0) & np.any(e[k] > 0, axis=1)
-                if st.shadows:
-                    idx = np.flatnonzero(lit)
-                    if len(idx):
-                        counts.shadow += len(idx)
-                        blocked = self.accel.occluded(origin[idx], lk[idx], dist[k, idx] - 2 * self.eps)
-                        lit[idx[blocked]] = False
-                if not np.any(lit):
+                n_l = _dot(h.n, lk)
+                idx = np.flatnonzero((n_l > 0) & (_dot(h.ng, lk) > 0))
+                if st.shadows and len(idx):
+                    counts.shadow += len(idx)
+                    blocked = self.accel.occluded(origin[idx], lk[idx], dist[k, idx] - 2 * self.eps)
+                    idx = idx[~blocked]
+                if not len(idx):
                     continue
-                irr = np.where(lit[:, None], e[k], 0.0).astype(np.float32)
-                out += shading.lambert(n_l, diffuse, irr)
+                n_l_i = n_l[idx, None]
+                irr = e[k, idx]
+                c = shading.lambert(n_l_i, diffuse[idx], irr)
                 if has_spec:
-                    hv = shading.half_vector(lk, view)
-                    out += shading.blinn_phong(h.n, hv, n_l, specular, exponent, irr)
+                    hv = shading.half_vector(lk[idx], view[idx])
+                    c += shading.blinn_phong(h.n[idx], hv, n_l_i, specular[idx], exponent[idx], irr)
+                out[idx] += c
         return out
 
     def sky_visibility(self, h: Hits, keys, depth, counts: RayCounts) -> np.ndarray:
@@ -213,22 +214,21 @@ class Integrator:
             t, prim, u, v = self.accel.intersect(o, d, t_max)
             t_max = None
             miss = prim == NO_HIT
-            if np.any(miss):
+            if miss.any():
                 if depth == 0 and st.transparent:
                     res.alpha[sample[miss]] = 0.0
-                else:
-                    np.add.at(color, sample[miss], weight[miss] * s.background)
-            hit = ~miss
-            if not np.any(hit):
-                break
-            o, d, t, prim, u, v = o[hit], d[hit], t[hit], prim[hit], u[hit], v[hit]
-            sample, weight = sample[hit], weight[hit]
-            keys_h = keys[sample]
+                elif np.any(s.background > 0):
+                    _accumulate(color, sample[miss], weight[miss] * s.background)
+                hit = np.flatnonzero(~miss)
+                if not len(hit):
+                    break
+                o, d, t, prim, u, v = o[hit], d[hit], t[hit], prim[hit], u[hit], v[hit]
+                sample, weight = sample[hit], weight[hit]
             h = self.surface(o, d, t, prim, u, v)
             diffuse = self.albedo(h, u, v)
             mat = h.material
-            k_m = m.k_m[mat][:, None]
-            w_t = m.transmission[mat][:, None]
+            k_m = m.k_m[mat]
+            w_t = m.transmission[mat]
             opaque = (1.0 - k_m) * (1.0 - w_t)
 
             if depth == 0:
@@ -238,32 +238,36 @@ class Integrator:
                 res.object_id[sample] = s.object_ids[prim]
 
             # Local colour: emission + (1 − k_m)(1 − w_t)·(ambient + Σ lights), only where it carries weight.
-            local = m.emission[mat].copy()
-            shade = np.flatnonzero(opaque[:, 0] > 0)
+            local = m.emission[mat]
+            shade = np.flatnonzero(opaque > 0)
             if len(shade):
                 hs = _subset(h, shade)
-                view = -d[shade]
+                keys_s = keys[sample[shade]]
                 diff_s = diffuse[shade]
-                c = np.zeros_like(diff_s)
+                c = self.direct_light(hs, -d[shade], diff_s, keys_s, depth, counts)
                 if np.any(s.ambient > 0):
-                    vis = self.sky_visibility(hs, keys_h[shade], depth, counts) if st.sky_samples else None
+                    vis = self.sky_visibility(hs, keys_s, depth, counts) if st.sky_samples else None
                     c += shading.ambient(diff_s, s.ambient, vis)
-                c += self.direct_light(hs, view, diff_s, keys_h[shade], depth, counts)
-                local[shade] += opaque[shade] * c
-            np.add.at(color, sample, weight * local)
+                local[shade] += opaque[shade, None] * c
+            _accumulate(color, sample, weight * local)
 
             if depth == st.max_depth:
                 break
 
-            # Secondary rays: reflection (mirror part and glass's Fresnel part) and transmission.
-            cos_i = -optics.dot(d, h.n)[:, 0]
-            ior = m.ior[mat]
-            eta_i = np.where(h.front, 1.0, ior).astype(np.float32)
-            eta_r = np.where(h.front, ior, 1.0).astype(np.float32)
+            # Secondary rays where a mirror or glass part exists: reflection and transmission.
+            sec = np.flatnonzero(opaque < 1.0)
+            if not len(sec):
+                break
+            d, p, ng, n, front = d[sec], h.p[sec], h.ng[sec], h.n[sec], h.front[sec]
+            weight, sample, mat = weight[sec], sample[sec], mat[sec]
+            k_m, w_t = k_m[sec, None], w_t[sec, None]
             glass = (1.0 - k_m) * w_t
-            t_dir, tir = optics.refract(d, h.n, eta_i, eta_r)
+            ior = m.ior[mat]
+            eta_i = np.where(front, np.float32(1), ior)
+            eta_r = np.where(front, ior, np.float32(1))
+            t_dir, tir = optics.refract(d, n, eta_i, eta_r)
             if st.fresnel:
-                fr = optics.fresnel_dielectric(cos_i, eta_i, eta_r)[:, None]
+                fr = optics.fresnel_dielectric(-_dot(d, n), eta_i, eta_r)[:, None]
             else:
                 fr = tir.astype(np.float32)[:, None]
             w_refl = weight * (k_m * m.mirror_tint[mat] + glass * fr)
@@ -271,15 +275,14 @@ class Integrator:
             w_tran[tir] = 0.0
             counts.tir += int(np.count_nonzero(tir & (glass[:, 0] > 0)))
 
-            r_dir = optics.reflect(d, h.n)
+            r_dir = optics.reflect(d, n)
             # Interpolated normals can tilt a reflection below the surface: use the geometric normal there.
-            bad = optics.dot(r_dir, h.ng)[:, 0] <= 0
-            if np.any(bad):
-                r_dir[bad] = optics.reflect(d[bad], h.ng[bad])
-            bad = optics.dot(t_dir, h.ng)[:, 0] >= 0
-            if np.any(bad & ~tir):
-                fix = bad & ~tir
-                t_dir[fix], tir_fix = optics.refract(d[fix], h.ng[fix], eta_i[fix], eta_r[fix])
+            bad = _dot(r_dir, ng) <= 0
+            if bad.any():
+                r_dir[bad] = optics.reflect(d[bad], ng[bad])
+            fix = (_dot(t_dir, ng) >= 0) & ~tir
+            if fix.any():
+                t_dir[fix], tir_fix = optics.refract(d[fix], ng[fix], eta_i[fix], eta_r[fix])
                 w_tran[fix] = np.where(tir_fix[:, None], 0.0, w_tran[fix])
 
             cut = st.min_weight
@@ -287,14 +290,26 @@ class Integrator:
             go_t = np.flatnonzero(w_tran.max(axis=1) > cut)
             counts.reflection += len(go_r)
             counts.transmission += len(go_t)
-            o = np.concatenate([h.p[go_r] + h.ng[go_r] * self.eps, h.p[go_t] - h.ng[go_t] * self.eps])
-            d = np.concatenate([r_dir[go_r], t_dir[go_t]]).astype(np.float32)
-            d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-30)
-            weight = np.concatenate([w_refl[go_r], w_tran[go_t]]).astype(np.float32)
+            o = np.concatenate([p[go_r] + ng[go_r] * self.eps, p[go_t] - ng[go_t] * self.eps])
+            d = np.concatenate([r_dir[go_r], t_dir[go_t]])
+            d /= np.maximum(np.sqrt(_dot(d, d)), 1e-30)[:, None]
+            weight = np.concatenate([w_refl[go_r], w_tran[go_t]])
             sample = np.concatenate([sample[go_r], sample[go_t]])
 
         np.nan_to_num(color, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
         return res
+
+
+def _dot(a, b):
+    """Row-wise dot product (N,) of (N, 3) arrays."""
+    return np.einsum("ij,ij->i", a, b)
+
+
+def _accumulate(color: np.ndarray, sample: np.ndarray, values: np.ndarray) -> None:
+    """color[sample] += values, summing repeated samples (a sample's reflected and transmitted rays)."""
+    n = len(color)
+    for c in range(3):
+        color[:, c] += np.bincount(sample, weights=values[:, c], minlength=n).astype(np.float32)
 
 
 def _subset(h: Hits, idx: np.ndarray) -> Hits:

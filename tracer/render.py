@@ -60,6 +60,28 @@ def eye_samples(settings: RenderSettings, x0: int, y0: int, x1: int, y1: int):
     return u, v, keys
 
 
+def write_tile(image: Image, res, tile, spp: int) -> None:
+    """Box-filter a tile's samples into the image and its AOVs."""
+    x0, y0, x1, y1 = tile
+    th, tw = y1 - y0, x1 - x0
+    image.rgba[y0:y1, x0:x1, :3] = box_filter(res.color, spp).reshape(th, tw, 3)
+    image.rgba[y0:y1, x0:x1, 3] = box_filter(res.alpha, spp).reshape(th, tw)
+    aovs = image.aovs
+    if "depth" in aovs:
+        hit = np.isfinite(res.depth).reshape(-1, spp)
+        dsum = np.where(hit, res.depth.reshape(-1, spp), 0).sum(axis=1)
+        nhit = hit.sum(axis=1)
+        aovs["depth"][y0:y1, x0:x1] = np.where(nhit > 0, dsum / np.maximum(nhit, 1), np.inf).reshape(th, tw)
+    if "normal" in aovs:
+        nm = box_filter(res.normal, spp)
+        nm /= np.maximum(np.linalg.norm(nm, axis=1, keepdims=True), 1e-30)
+        aovs["normal"][y0:y1, x0:x1] = nm.reshape(th, tw, 3)
+    if "albedo" in aovs:
+        aovs["albedo"][y0:y1, x0:x1] = box_filter(res.albedo, spp).reshape(th, tw, 3)
+    if "objectid" in aovs:
+        aovs["objectid"][y0:y1, x0:x1] = majority(res.object_id, spp).reshape(th, tw)
+
+
 def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None, cancelled=None) -> Image:
     """Render ``scene`` and return an :class:`~tracer.film.Image`.
 
@@ -105,37 +127,25 @@ def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None
 
         bar = tqdm(total=len(tiles), unit="tile", desc="whitted", leave=False)
     was_cancelled = False
-    with ThreadPoolExecutor(max_workers=threads) as pool:
-        for tile, res in zip(tiles, pool.map(work, tiles)):
+    pool = ThreadPoolExecutor(max_workers=threads) if threads > 1 else None
+    results = pool.map(work, tiles) if pool is not None else map(work, tiles)
+    try:
+        for tile, res in zip(tiles, results):
             if res is None or cancelled():
                 was_cancelled = True
-                continue
-            x0, y0, x1, y1 = tile
-            th, tw = y1 - y0, x1 - x0
-            image.rgba[y0:y1, x0:x1, :3] = box_filter(res.color, spp).reshape(th, tw, 3)
-            image.rgba[y0:y1, x0:x1, 3] = box_filter(res.alpha, spp).reshape(th, tw)
-            if "depth" in aovs:
-                hit = np.isfinite(res.depth).reshape(-1, spp)
-                dsum = np.where(hit, res.depth.reshape(-1, spp), 0).sum(axis=1)
-                nhit = hit.sum(axis=1)
-                aovs["depth"][y0:y1, x0:x1] = np.where(nhit > 0, dsum / np.maximum(nhit, 1), np.inf).reshape(th, tw)
-            if "normal" in aovs:
-                nm = box_filter(res.normal, spp)
-                nm /= np.maximum(np.linalg.norm(nm, axis=1, keepdims=True), 1e-30)
-                aovs["normal"][y0:y1, x0:x1] = nm.reshape(th, tw, 3)
-            if "albedo" in aovs:
-                aovs["albedo"][y0:y1, x0:x1] = box_filter(res.albedo, spp).reshape(th, tw, 3)
-            if "objectid" in aovs:
-                aovs["objectid"][y0:y1, x0:x1] = majority(res.object_id, spp).reshape(th, tw)
+                break
+            write_tile(image, res, tile, spp)
             counts.add(res.counts)
             if bar is not None:
                 bar.update(1)
             if on_tile is not None:
                 on_tile(image, tile)
+    finally:
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
     if bar is not None:
         bar.close()
     elapsed = time.perf_counter() - start
-    np.nan_to_num(image.rgba, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
     image.stats = {"rays": counts.as_dict(), "seconds": elapsed, "bvh_seconds": build_time, "threads": threads,
                    "rays_per_second": counts.total / elapsed if elapsed > 0 else 0.0, "epsilon": float(integ.eps),
                    "triangles": len(scene.triangles), "intersect_seconds": accel.seconds}

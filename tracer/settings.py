@@ -31,7 +31,7 @@ class RenderSettings:
     #: Missed eye rays get alpha 0 and no background colour (Blender's Film > Transparent).
     transparent: bool = False
     #: Pixel tile edge; memory is bounded by tile size × samples, not by the image size.
-    tile_size: int = 64
+    tile_size: int = 128
     #: Worker threads (None = all cores). Images are identical for any thread count.
     threads: int | None = None
     #: Arbitrary-output variables to produce besides the colour: any of depth, normal, albedo, objectid.
