@@ -1,0 +1,251 @@
+"""The Whitted render engine: F12 exports the evaluated depsgraph and traces it, tile by tile, into Blender's
+render result; the viewport's Rendered shading draws a low-resolution progressive image where a GPU context
+exists and fails soft where it does not.
+
+The last final render's tracer statistics (ray counts per type, timings) are kept in :data:`LAST_STATS` and on
+``WhittedRenderEngine.last_stats``, for tests and for the curious.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import bpy
+import numpy as np
+
+from . import export
+
+tracer = export.tracer
+
+#: Tracer statistics of the last final render (``image.stats``: rays per type, seconds, ...), or None.
+LAST_STATS: dict | None = None
+#: Warnings of the last final render's scene export.
+LAST_WARNINGS: list[str] = []
+#: Test seam: a callable polled with ``test_break`` (True ends the render as Esc would). None in normal use.
+break_hook = None
+
+#: Blender pass name, channels, channel ids, type — for each tracer AOV.
+PASSES = {
+    "depth": ("Depth", 1, "Z", "VALUE"),
+    "normal": ("Normal", 3, "XYZ", "VECTOR"),
+    # Blender 5.0 names the object index pass "Object Index" (Cycles writes it so); older versions "IndexOB".
+    "objectid": ("Object Index" if bpy.app.version >= (5, 0, 0) else "IndexOB", 1, "X", "VALUE"),
+}
+#: Depth Blender writes where nothing was hit.
+NO_DEPTH = 1.0e10
+
+
+class WhittedRenderEngine(bpy.types.RenderEngine):
+    bl_idname = "WHITTED"
+    bl_label = "Whitted"
+    bl_use_preview = True
+    bl_use_shading_nodes_custom = False
+    bl_use_eevee_viewport = False
+
+    last_stats: dict | None = None
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._view = None  # viewport state: exported scene, cached image, resolution level
+
+    # ---------------------------------------------------------------------------------------------- passes
+    def update_render_passes(self, scene=None, renderlayer=None):
+        self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
+        if renderlayer.use_pass_z:
+            self.register_pass(scene, renderlayer, *PASSES["depth"])
+        if renderlayer.use_pass_normal:
+            self.register_pass(scene, renderlayer, *PASSES["normal"])
+        if renderlayer.use_pass_object_index:
+            self.register_pass(scene, renderlayer, *PASSES["objectid"])
+
+    # ---------------------------------------------------------------------------------------------- F12
+    def render(self, depsgraph):
+        global LAST_STATS, LAST_WARNINGS
+        bpy_scene = depsgraph.scene
+        layer_name = depsgraph.view_layer.name
+        try:
+            settings = export.settings_from_scene(bpy_scene, view_layer=depsgraph.view_layer)
+            if self.is_preview:
+                settings = settings.with_(samples=min(settings.samples, 2), light_samples=4, sky_samples=0,
+                                          max_depth=min(settings.max_depth, 4), region=None, aovs=())
+            t0 = time.perf_counter()
+            self.update_stats("", "Whitted: exporting scene")
+            scene, warnings = export.scene_from_depsgraph(depsgraph, width=settings.width, height=settings.height)
+        except Exception as exc:  # a scene we cannot export: say why, leave an empty result
+            self.report({"ERROR"}, f"Whitted: {exc}")
+            if self.is_preview:
+                self._fill_preview(settings_or_size=self._size_of(bpy_scene))
+            return
+        if not self.is_preview:
+            LAST_WARNINGS = list(warnings)
+            for w in warnings:
+                self.report({"WARNING"}, f"Whitted: {w}")
+        export_s = time.perf_counter() - t0
+        x0, y0, x1, y1 = settings.region or (0, 0, settings.width, settings.height)
+        ts = settings.tile_size
+        tiles_total = -(-(x1 - x0) // ts) * -(-(y1 - y0) // ts)
+        done = [0]
+        pass_indices = getattr(scene, "pass_indices", np.zeros(0, np.int32))
+
+        def write(image, tile):
+            tx0, ty0, tx1, ty1 = tile
+            tw, th = tx1 - tx0, ty1 - ty0
+            # Result coordinates: relative to the border, y up from the bottom.
+            rx, ry = tx0 - x0, (y1 - ty1)
+            result = self.begin_result(rx, ry, tw, th, layer=layer_name)
+            try:
+                passes = result.layers[0].passes
+                rgba = image.rgba[ty0:ty1, tx0:tx1][::-1]
+                passes["Combined"].rect.foreach_set(np.ascontiguousarray(rgba, np.float32).reshape(-1))
+                for aov, (pname, _, _, _) in PASSES.items():
+                    p = passes.get(pname)
+                    if p is None or aov not in image.aovs:
+                        continue
+                    data = image.aovs[aov][ty0:ty1, tx0:tx1][::-1]
+                    if aov == "depth":
+                        data = _tile_z(scene.camera, image.aovs["depth"], tile, settings.width,
+                                       settings.height)[::-1]
+                    elif aov == "objectid":
+                        ids = data
+                        idx = np.zeros(ids.shape, np.float32)
+                        ok = (ids >= 0) & (ids < len(pass_indices))
+                        idx[ok] = pass_indices[ids[ok]]
+                        data = idx
+                    p.rect.foreach_set(np.ascontiguousarray(data, np.float32).reshape(-1))
+            finally:
+                self.end_result(result)
+
+        def on_tile(image, tile):
+            write(image, tile)
+            done[0] += 1
+            self.update_progress(min(1.0, done[0] / max(tiles_total, 1)))
+            self.update_stats("", f"Whitted: tile {done[0]}/{tiles_total}")
+
+        stop = [False]
+        main_thread = threading.current_thread()
+
+        def cancelled():
+            # Blender's API is only called from the thread that runs render(); the tracer's worker threads
+            # read the flag (the tracer polls on the calling thread after every tile as well).
+            if not stop[0] and threading.current_thread() is main_thread:
+                stop[0] = bool(self.test_break() or (break_hook is not None and break_hook()))
+            return stop[0]
+
+        self.update_stats("", f"Whitted: tracing {len(scene.triangles):,} triangles, {len(scene.lights)} lights")
+        try:
+            image = tracer.render(scene, settings, on_tile=on_tile, cancelled=cancelled)
+        except tracer.RenderCancelled as stop:
+            image = stop.image
+            image.stats["cancelled"] = True
+        except Exception as exc:
+            self.report({"ERROR"}, f"Whitted: render failed: {exc}")
+            return
+        if not self.is_preview:
+            image.stats["export_seconds"] = export_s
+            LAST_STATS = dict(image.stats)
+            type(self).last_stats = LAST_STATS
+            rays = image.stats["rays"]
+            self.update_stats("", f"Whitted: {rays['total']:,} rays in {image.stats['seconds']:.2f} s")
+
+    @staticmethod
+    def _size_of(bpy_scene):
+        return export.render_size(bpy_scene)
+
+    def _fill_preview(self, settings_or_size):
+        """Fallback for the material preview: a flat mid-grey image, so the preview never shows garbage."""
+        w, h = settings_or_size
+        result = self.begin_result(0, 0, w, h)
+        rgba = np.tile(np.array([0.18, 0.18, 0.18, 1.0], np.float32), w * h)
+        result.layers[0].passes["Combined"].rect.foreach_set(rgba)
+        self.end_result(result)
+
+    # ---------------------------------------------------------------------------------------------- viewport
+    def view_update(self, context, depsgraph):
+        try:
+            region, rv3d = context.region, context.region_data
+            camera = viewport_camera(rv3d)
+            scene, _ = export.scene_from_depsgraph(depsgraph, width=region.width, height=region.height,
+                                                   camera=camera)
+            self._view = {"scene": scene, "key": None, "level": 8, "texture": None}
+        except Exception as exc:  # never crash Blender from the viewport
+            self._view = None
+            print(f"Whitted viewport: {exc}")
+
+    def view_draw(self, context, depsgraph):
+        try:
+            self._view_draw(context, depsgraph)
+        except Exception as exc:  # no GPU context (background mode) or anything else: fail soft
+            print(f"Whitted viewport: {exc}")
+
+    def _view_draw(self, context, depsgraph):
+        import gpu
+        from gpu_extras.presets import draw_texture_2d
+
+        if self._view is None:
+            self.view_update(context, depsgraph)
+            if self._view is None:
+                return
+        region, rv3d = context.region, context.region_data
+        camera = viewport_camera(rv3d)
+        key = (region.width, region.height, tuple(np.round(camera.camera_to_world.ravel(), 6)),
+               camera.horizontal_aperture, camera.vertical_aperture)
+        v = self._view
+        if v["key"] != key:
+            v.update(key=key, level=8, texture=None)
+        if v["texture"] is None or v["level"] > 1:
+            level = v["level"] if v["texture"] is None else max(1, v["level"] // 2)
+            w, h = max(1, region.width // level), max(1, region.height // level)
+            v["scene"].camera = camera
+            st = export.settings_from_scene(depsgraph.scene).with_(width=w, height=h, samples=1, region=None,
+                                                                   aovs=(), light_samples=4)
+            img = tracer.render(v["scene"], st)
+            view_rgba = np.ascontiguousarray(img.rgba[::-1], np.float32)
+            buf = gpu.types.Buffer("FLOAT", w * h * 4, view_rgba.reshape(-1))
+            v["texture"] = gpu.types.GPUTexture((w, h), format="RGBA16F", data=buf)
+            v["level"] = level
+            if level > 1:
+                self.tag_redraw()
+        gpu.state.blend_set("ALPHA_PREMULT")
+        self.bind_display_space_shader(depsgraph.scene)
+        draw_texture_2d(v["texture"], (0, 0), region.width, region.height)
+        self.unbind_display_space_shader()
+        gpu.state.blend_set("NONE")
+
+
+def _tile_z(camera, distance, tile, width, height):
+    """Blender's Depth pass for one tile: the tracer's hit distance (from the near plane along each pixel's
+    centre ray) projected on the camera's view axis (−Z), plus the near distance; NO_DEPTH where nothing was hit."""
+    x0, y0, x1, y1 = tile
+    py, px = np.mgrid[y0:y1, x0:x1]
+    u = ((px + 0.5) / width).reshape(-1)
+    v = (1.0 - (py + 0.5) / height).reshape(-1)
+    _, d = camera.generate_rays(u, v)
+    fwd = -camera.camera_to_world[:3, 2] / np.linalg.norm(camera.camera_to_world[:3, 2])
+    cos = (d @ fwd).reshape(y1 - y0, x1 - x0)
+    dist = distance[y0:y1, x0:x1]
+    return np.where(np.isfinite(dist), camera.near + dist * cos, NO_DEPTH).astype(np.float32)
+
+
+def viewport_camera(rv3d) -> "tracer.Camera":
+    """A tracer camera from the 3D view's view and projection matrices (OpenGL convention)."""
+    view = np.array(rv3d.view_matrix, dtype=np.float64)
+    proj = np.array(rv3d.window_matrix, dtype=np.float64)
+    c2w = np.linalg.inv(view)
+    w_ap, h_ap = 2.0 / proj[0, 0], 2.0 / proj[1, 1]
+    if rv3d.is_perspective:
+        return tracer.Camera(camera_to_world=c2w, focal_length=1.0, horizontal_aperture=w_ap,
+                             vertical_aperture=h_ap, horizontal_aperture_offset=proj[0, 2] / proj[0, 0],
+                             vertical_aperture_offset=proj[1, 2] / proj[1, 1])
+    return tracer.Camera(camera_to_world=c2w, projection=tracer.ORTHOGRAPHIC, focal_length=1.0,
+                         horizontal_aperture=w_ap, vertical_aperture=h_ap,
+                         horizontal_aperture_offset=-proj[0, 3] / proj[0, 0],
+                         vertical_aperture_offset=-proj[1, 3] / proj[1, 1])
+
+
+def register():
+    bpy.utils.register_class(WhittedRenderEngine)
+
+
+def unregister():
+    bpy.utils.unregister_class(WhittedRenderEngine)
