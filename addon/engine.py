@@ -214,8 +214,9 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
 
 
 def _tile_z(camera, distance, tile, width, height):
-    """Blender's Depth pass for one tile: the tracer's hit distance (from the near plane along each pixel's
-    centre ray) projected on the camera's view axis (−Z), plus the near distance; NO_DEPTH where nothing was hit."""
+    """Blender's Depth pass for one tile: the tracer's hit distance (from the eye, or the film plane of an
+    orthographic camera, along each pixel's centre ray) projected on the camera's view axis (−Z); NO_DEPTH where
+    nothing was hit."""
     x0, y0, x1, y1 = tile
     py, px = np.mgrid[y0:y1, x0:x1]
     u = ((px + 0.5) / width).reshape(-1)
@@ -224,7 +225,7 @@ def _tile_z(camera, distance, tile, width, height):
     fwd = -camera.camera_to_world[:3, 2] / np.linalg.norm(camera.camera_to_world[:3, 2])
     cos = (d @ fwd).reshape(y1 - y0, x1 - x0)
     dist = distance[y0:y1, x0:x1]
-    return np.where(np.isfinite(dist), camera.near + dist * cos, NO_DEPTH).astype(np.float32)
+    return np.where(np.isfinite(dist), dist * cos, NO_DEPTH).astype(np.float32)
 
 
 def viewport_camera(rv3d) -> "tracer.Camera":

@@ -70,7 +70,7 @@ class Hits:
 class TileResult:
     color: np.ndarray  # (S, 3) per eye sample
     alpha: np.ndarray  # (S,)
-    depth: np.ndarray  # (S,) distance to the first hit along the eye ray, inf where none
+    depth: np.ndarray  # (S,) distance from the eye (ortho: film plane) to the first hit along the eye ray, inf where none
     normal: np.ndarray  # (S, 3) first-hit shading normal (world space, facing the eye)
     albedo: np.ndarray  # (S, 3) first-hit diffuse colour
     object_id: np.ndarray  # (S,) first-hit object id, -1 where none

@@ -117,7 +117,13 @@ def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None
         x0, y0, x1, y1 = tile
         u, v, keys = eye_samples(settings, x0, y0, x1, y1)
         o, d = scene.camera.generate_rays(u, v)
-        return integ.trace(o, d, keys, cancelled)
+        res = integ.trace(o, d, keys, cancelled)
+        if scene.camera.near > 0:  # depth is measured from the eye (the film plane for orthographic cameras)
+            cam = scene.camera
+            start = (np.linalg.norm(o - cam.position.astype(np.float32), axis=1) if cam.projection == "perspective"
+                     else np.float32(cam.near))
+            res.depth += start
+        return res
 
     tiles = tiles_of(settings)
     threads = settings.threads or os.cpu_count() or 1

@@ -1,0 +1,157 @@
+"""UsdLux -> tracer lights in Blender's exporter units: render a lit diffuse plane and compare the centre pixel
+with the formula (DESIGN.md, "Measured facts"). a = albedo, h = light height above the plane."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade
+
+from tracer import RenderSettings, render
+from usd_io import load_stage
+
+A = 0.5  # albedo
+H = 2.0  # light height
+SIZE = 9  # odd, so the centre pixel's ray hits (0, 0, 0)
+
+
+def lit_plane(make_light):
+    s = Usd.Stage.CreateInMemory()
+    UsdGeom.SetStageUpAxis(s, "Z")
+    m = UsdGeom.Mesh.Define(s, "/Plane")
+    m.CreatePointsAttr([(-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0)])
+    m.CreateFaceVertexCountsAttr([4])
+    m.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
+    m.CreateSubdivisionSchemeAttr("none")
+    mat = UsdShade.Material.Define(s, "/Looks/Lambert")
+    sh = UsdShade.Shader.Define(s, "/Looks/Lambert/S")
+    sh.CreateIdAttr("UsdPreviewSurface")
+    sh.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set((A, A, A))
+    sh.CreateInput("useSpecularWorkflow", Sdf.ValueTypeNames.Int).Set(1)
+    sh.CreateInput("specularColor", Sdf.ValueTypeNames.Color3f).Set((0, 0, 0))
+    mat.CreateSurfaceOutput().ConnectToSource(sh.ConnectableAPI(), "surface")
+    UsdShade.MaterialBindingAPI.Apply(m.GetPrim()).Bind(mat)
+    cam = UsdGeom.Camera.Define(s, "/Cam")
+    cam.CreateProjectionAttr("orthographic")
+    cam.CreateHorizontalApertureAttr(40.0)  # 4 units
+    cam.CreateVerticalApertureAttr(40.0)
+    cam.AddTranslateOp().Set(Gf.Vec3d(0, 0, 10))
+    light = make_light(s)
+    if light is not None and not light.GetPrim().IsA(UsdLux.DistantLight) and not light.GetPrim().IsA(UsdLux.DomeLight):
+        UsdGeom.Xformable(light).AddTranslateOp().Set(Gf.Vec3d(0, 0, H))
+    scene, info = load_stage(s, width=SIZE, height=SIZE)
+    img = render(scene, RenderSettings(width=SIZE, height=SIZE, samples=1, light_samples=64, threads=1))
+    return img.rgb, scene, info
+
+
+def centre(rgb):
+    return rgb[SIZE // 2, SIZE // 2]
+
+
+def test_sphere_light_normalized_with_exposure_and_colour():
+    def mk(s):
+        l = UsdLux.SphereLight.Define(s, "/L")
+        l.CreateIntensityAttr(10.0)
+        l.CreateExposureAttr(1.0)
+        l.CreateColorAttr((1.0, 0.5, 0.25))
+        l.CreateNormalizeAttr(True)
+        l.CreateRadiusAttr(0.0)
+        return l
+    rgb, scene, _ = lit_plane(mk)
+    i = 10.0 * 2.0 * np.array([1.0, 0.5, 0.25])
+    # Blender: P = π·I, L = a·P/(4π²h²) = a·I/(4π h²)
+    np.testing.assert_allclose(centre(rgb), A * i / (4 * np.pi * H**2), rtol=2e-3)
+    np.testing.assert_allclose(scene.lights[0].intensity, i / 4)
+
+
+def test_sphere_light_unnormalized_radiance_times_area():
+    def mk(s):
+        l = UsdLux.SphereLight.Define(s, "/L")
+        l.CreateIntensityAttr(1000.0)
+        l.CreateRadiusAttr(0.1)
+        l.CreateTreatAsPointAttr(True)  # no soft shadow sampling; the power stays that of the sphere
+        return l
+    rgb, scene, _ = lit_plane(mk)
+    # radiance I over a sphere of radius R: radiant intensity I·πR², L = a/π · I·πR²/h²
+    np.testing.assert_allclose(centre(rgb), [A * 1000 * 0.01 / H**2] * 3, rtol=2e-3)
+    assert scene.lights[0].radius == 0
+
+
+def test_distant_light_blender_units():
+    def mk(s):
+        l = UsdLux.DistantLight.Define(s, "/Sun")
+        l.CreateIntensityAttr(2.0)
+        l.CreateAngleAttr(0.0)
+        return l
+    rgb, scene, _ = lit_plane(mk)
+    np.testing.assert_allclose(centre(rgb), [A * 4 * 2.0 / np.pi] * 3, rtol=2e-3)  # Blender S = 4·I
+
+
+@pytest.mark.parametrize("kind,normalize", [("RectLight", True), ("RectLight", False), ("DiskLight", True)])
+def test_area_lights(kind, normalize):
+    def mk(s):
+        l = getattr(UsdLux, kind).Define(s, "/Area")
+        if kind == "RectLight":
+            l.CreateWidthAttr(0.2)
+            l.CreateHeightAttr(0.1)
+        else:
+            l.CreateRadiusAttr(0.1)
+        l.CreateIntensityAttr(50.0)
+        l.CreateNormalizeAttr(normalize)
+        return l
+    rgb, scene, _ = lit_plane(mk)
+    area = 0.02 if kind == "RectLight" else np.pi * 0.01
+    le = 50.0 / area if normalize else 50.0
+    np.testing.assert_allclose(scene.lights[0].radiance, [le] * 3, rtol=1e-6)
+    # far field: E = Le·A/h², L = a/π·E
+    np.testing.assert_allclose(centre(rgb), [A / np.pi * le * area / H**2] * 3, rtol=0.01)
+
+
+def test_spot_light_cone():
+    def mk(s):
+        l = UsdLux.SphereLight.Define(s, "/Spot")
+        l.CreateIntensityAttr(40.0)
+        l.CreateNormalizeAttr(True)
+        l.CreateRadiusAttr(0.0)
+        sh = UsdLux.ShapingAPI.Apply(l.GetPrim())
+        sh.CreateShapingConeAngleAttr(20.0)
+        sh.CreateShapingConeSoftnessAttr(0.0)
+        return l
+    rgb, scene, _ = lit_plane(mk)
+    assert type(scene.lights[0]).__name__ == "SpotLight"
+    assert scene.lights[0].cone_angle == pytest.approx(np.radians(20))
+    np.testing.assert_allclose(centre(rgb), [A * 40 / (4 * np.pi * H**2)] * 3, rtol=2e-3)
+    assert np.all(rgb[0, 0] == 0) and np.all(rgb[SIZE // 2, 0] == 0)  # outside the 20° cone
+
+
+def test_dome_light_ambient_and_background():
+    def mk(s):
+        d = UsdLux.DomeLight.Define(s, "/Sky")
+        d.CreateColorAttr((0.2, 0.3, 0.4))
+        d.CreateIntensityAttr(2.0)
+        d.CreateDiffuseAttr(0.5)
+        return d
+    rgb, scene, _ = lit_plane(mk)
+    np.testing.assert_allclose(scene.background, [0.4, 0.6, 0.8], rtol=1e-6)
+    np.testing.assert_allclose(scene.ambient, [0.2, 0.3, 0.4], rtol=1e-6)
+    np.testing.assert_allclose(centre(rgb), A * np.array([0.2, 0.3, 0.4]), rtol=2e-3)
+
+
+def test_color_temperature_only_when_authored():
+    def mk(temperature):
+        def make(s):
+            l = UsdLux.SphereLight.Define(s, "/L")
+            l.CreateIntensityAttr(40.0)
+            l.CreateNormalizeAttr(True)
+            l.CreateRadiusAttr(0.0)
+            l.CreateEnableColorTemperatureAttr(True)  # Blender writes this on every light
+            if temperature:
+                l.CreateColorTemperatureAttr(temperature)
+            return l
+        return make
+    _, plain, _ = lit_plane(mk(None))
+    np.testing.assert_allclose(plain.lights[0].intensity, [10.0] * 3)  # unauthored: no tint
+    _, warm, _ = lit_plane(mk(3000.0))
+    ratio = np.asarray(UsdLux.BlackbodyTemperatureAsRgb(3000.0)) / np.asarray(UsdLux.BlackbodyTemperatureAsRgb(6500.0))
+    np.testing.assert_allclose(warm.lights[0].intensity, 10.0 * ratio, rtol=1e-5)
+    assert warm.lights[0].intensity[0] > warm.lights[0].intensity[2]  # 3000 K is reddish

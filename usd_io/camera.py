@@ -1,0 +1,110 @@
+"""Cameras: ``UsdGeom.Camera`` -> :class:`tracer.Camera`, image size, aperture conform, and a default framing.
+
+Units. USD gives focalLength and apertures in tenths of a stage unit (the "mm" convention); for a perspective
+camera only their ratio matters, so they pass through unchanged. Orthographic apertures and offsets are the view's
+size in tenths of a stage unit, so they are multiplied by 0.1 to get the tracer's world units.
+
+Conform policy: like usdrecord (UsdImagingGL's default window policy, ``CameraUtilMatchVertically``): the vertical
+aperture is kept and the horizontal one follows the image aspect. The image height defaults to
+``width / (horizontalAperture / verticalAperture)``, so nothing is conformed unless both width and height are given.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pxr import Sdf, UsdGeom
+
+from tracer import ORTHOGRAPHIC, PERSPECTIVE, Camera, fit_apertures
+
+from .xform import to_numpy
+
+#: usdrecord's policy (CameraUtilMatchVertically): keep the vertical aperture.
+CONFORM_POLICY = "vertical"
+DEFAULT_WIDTH = 960
+#: USD's default apertures (35 mm academy, in tenths of a unit) and focal length, for the framing camera.
+DEFAULT_APERTURE = (20.955, 15.2908)
+DEFAULT_FOCAL = 50.0
+
+
+def read_camera(prim, time):
+    """Raw camera values at ``time`` (world transform, projection, USD-unit apertures)."""
+    cam = UsdGeom.Camera(prim)
+    gf = cam.GetCamera(time)
+    ortho = gf.projection == gf.Orthographic
+    return dict(
+        path=str(prim.GetPath()),
+        camera_to_world=to_numpy(gf.transform),
+        projection=ORTHOGRAPHIC if ortho else PERSPECTIVE,
+        focal_length=float(gf.focalLength),
+        horizontal_aperture=float(gf.horizontalAperture),
+        vertical_aperture=float(gf.verticalAperture),
+        horizontal_aperture_offset=float(gf.horizontalApertureOffset),
+        vertical_aperture_offset=float(gf.verticalApertureOffset),
+        near=float(gf.clippingRange.min),
+        far=float(gf.clippingRange.max),
+    )
+
+
+def image_size(raw: dict, width=None, height=None) -> tuple[int, int]:
+    """Resolve the image size: missing sides follow the aperture aspect; the default width is 960."""
+    aspect = raw["horizontal_aperture"] / raw["vertical_aperture"]
+    if width is None and height is None:
+        width = DEFAULT_WIDTH
+    if width is None:
+        width = max(1, int(round(height * aspect)))
+    if height is None:
+        height = max(1, int(round(width / aspect)))
+    return int(width), int(height)
+
+
+def to_tracer(raw: dict, width: int, height: int, policy: str = CONFORM_POLICY) -> Camera:
+    h, v = fit_apertures(raw["horizontal_aperture"], raw["vertical_aperture"], width, height, policy)
+    ho, vo = raw["horizontal_aperture_offset"], raw["vertical_aperture_offset"]
+    scale = 0.1 if raw["projection"] == ORTHOGRAPHIC else 1.0
+    near = max(0.0, raw["near"])
+    far = raw["far"] if raw["far"] > near else np.inf
+    return Camera(camera_to_world=raw["camera_to_world"], projection=raw["projection"],
+                  focal_length=raw["focal_length"], horizontal_aperture=h * scale, vertical_aperture=v * scale,
+                  horizontal_aperture_offset=ho * scale, vertical_aperture_offset=vo * scale, near=near, far=far)
+
+
+def framing_camera(bounds: np.ndarray, up_axis: str, width: int, height: int) -> Camera:
+    """A perspective camera that sees the whole bounding box from the front-left, above, with ``up_axis`` up."""
+    lo, hi = np.asarray(bounds, dtype=np.float64)
+    center = (lo + hi) / 2
+    radius = max(float(np.linalg.norm(hi - lo)) / 2, 1e-3)
+    up = np.array([0.0, 0.0, 1.0]) if up_axis == "Z" else np.array([0.0, 1.0, 0.0])
+    # View direction: from -Y (front) for Z-up, from +Z (front) for Y-up; turned 30° and raised 25°.
+    if up_axis == "Z":
+        back = np.array([-np.sin(np.radians(30)), -np.cos(np.radians(30)), 0.0])
+    else:
+        back = np.array([-np.sin(np.radians(30)), 0.0, np.cos(np.radians(30))])
+    back = back * np.cos(np.radians(25)) + up * np.sin(np.radians(25))
+    hv, vv = fit_apertures(*DEFAULT_APERTURE, width, height, "expand")
+    half_fov = np.arctan(min(hv, vv) / 2 / DEFAULT_FOCAL)
+    dist = radius / np.sin(half_fov) * 1.05
+    eye = center + back * dist
+    return Camera.look_at(eye, center, up=up, focal_length=DEFAULT_FOCAL, horizontal_aperture=hv,
+                          vertical_aperture=vv, near=max(dist - radius * 2, 0.0) * 0.01, far=np.inf)
+
+
+def find_camera(stage, path=None, prims=None):
+    """The camera prim to use: ``path`` (error if it is not a camera), else the stage's first camera in
+    traversal order (usdrecord picks the primary camera the same way), else None."""
+    from .stage import UsdInputError
+
+    if path:
+        if not Sdf.Path.IsValidPathString(path) or not Sdf.Path(path).IsAbsolutePath():
+            raise UsdInputError(f"{stage.GetRootLayer().identifier}: camera path {path!r} is not an absolute "
+                                "prim path")
+        prim = stage.GetPrimAtPath(path)
+        if not prim or not prim.IsValid():
+            raise UsdInputError(f"{stage.GetRootLayer().identifier}: no prim at camera path {path}")
+        if not prim.IsA(UsdGeom.Camera):
+            raise UsdInputError(f"{stage.GetRootLayer().identifier}: {path} is a {prim.GetTypeName() or 'typeless'}"
+                                " prim, not a Camera")
+        return prim
+    for prim in prims or ():
+        if prim.IsA(UsdGeom.Camera):
+            return prim
+    return None

@@ -1,0 +1,229 @@
+"""The ``whitted`` command line: ``whitted render`` (USD -> PNG/EXR) and ``whitted info``.
+
+    whitted render SCENE -o OUT.png|OUT.exr [--camera PRIM_PATH] [--width W] [--height H] [--spp N]
+                   [--max-depth D] [--frames A:B[xS]] [--purposes P ...] [--threads N]
+                   [--aov depth,normal,albedo,objectid] [--quiet]
+    whitted info SCENE [--time T]
+
+Exit codes: 0 success; 2 bad input, with one line on stderr naming the file and what is wrong; 1 an internal
+fault (with a traceback). Images are written to a temporary file and renamed (tracer.film). AOVs go next to the
+image: ``out.png`` -> ``out.depth.exr``, ``out.normal.exr``, ``out.albedo.exr``, ``out.objectid.exr`` (linear EXR).
+With ``--frames``, ``#`` runs in the output name are replaced by the zero-padded frame number
+(``out.####.png``); without them, ``.####`` is inserted before the extension.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import sys
+import traceback
+import warnings
+
+import numpy as np
+
+EXIT_OK, EXIT_FAULT, EXIT_BAD_INPUT = 0, 1, 2
+
+
+class BadInput(Exception):
+    """User-fixable input problem: one line on stderr, exit 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # argparse's own errors are bad input too: one line, exit 2
+        raise BadInput(f"{self.prog}: {message}")
+
+
+def parse_frames(text: str) -> list[float]:
+    """``A:B`` or ``A:BxS`` (inclusive, step S > 0) or a single ``A`` -> time codes."""
+    m = re.fullmatch(r"\s*(-?[\d.]+)\s*(?::\s*(-?[\d.]+)\s*(?:x\s*([\d.]+))?)?\s*", text or "")
+    try:
+        if not m:
+            raise ValueError
+        a = float(m.group(1))
+        b = float(m.group(2)) if m.group(2) is not None else a
+        s = float(m.group(3)) if m.group(3) is not None else 1.0
+    except ValueError:
+        raise BadInput(f"--frames {text!r}: expected A:B or A:BxS (numbers)") from None
+    if not (np.isfinite(a) and np.isfinite(b) and np.isfinite(s)) or s <= 0:
+        raise BadInput(f"--frames {text!r}: the step must be a positive number")
+    if b < a:
+        raise BadInput(f"--frames {text!r}: the end frame {b:g} is before the start frame {a:g}")
+    n = int(np.floor((b - a) / s + 1e-9)) + 1
+    if n > 100000:
+        raise BadInput(f"--frames {text!r}: {n} frames is too many")
+    return [a + i * s for i in range(n)]
+
+
+def frame_path(pattern: str, frame: float, many: bool) -> str:
+    label = lambda width: (f"{int(frame):0{width}d}" if float(frame).is_integer()  # noqa: E731
+                           else f"{frame:0{width + 4}.3f}".rstrip("0"))
+    if re.search(r"#+", pattern):
+        return re.sub(r"#+", lambda m: label(len(m.group(0))), pattern, count=1)
+    if not many:
+        return pattern
+    root, ext = os.path.splitext(pattern)
+    return f"{root}.{label(4)}{ext}"
+
+
+def aov_path(image_path: str, aov: str) -> str:
+    root, _ext = os.path.splitext(image_path)
+    return f"{root}.{aov}.exr"
+
+
+def _check_output(path: str):
+    ext = os.path.splitext(path)[1].lower()
+    if ext not in (".png", ".exr", ".jpg", ".jpeg", ".tif", ".tiff", ".hdr"):
+        raise BadInput(f"{path}: unsupported output type {ext or '(none)'!r}; use .png or .exr")
+    directory = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(directory):
+        raise BadInput(f"{path}: output directory {directory} does not exist")
+
+
+def _parse_aovs(text):
+    from tracer import AOV_NAMES
+
+    if not text:
+        return ()
+    names = tuple(a.strip() for a in text.split(",") if a.strip())
+    bad = [a for a in names if a not in AOV_NAMES]
+    if bad:
+        raise BadInput(f"--aov: unknown AOV(s) {', '.join(bad)}; choose from {', '.join(AOV_NAMES)}")
+    return names
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = _Parser(prog="whitted", description="Render USD stages with a Whitted-style ray tracer.")
+    sub = ap.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    r = sub.add_parser("render", help="render a USD stage to PNG/EXR")
+    r.add_argument("scene", help="USD file (.usd, .usda, .usdc, .usdz)")
+    r.add_argument("-o", "--output", required=True, help="output image (.png sRGB 8-bit, .exr linear half)")
+    r.add_argument("--camera", help="camera prim path (default: the first camera in the stage)")
+    r.add_argument("--width", type=int, help="image width (default 960, or from --height and the aperture)")
+    r.add_argument("--height", type=int, help="image height (default: from the width and the camera aperture)")
+    r.add_argument("--spp", type=int, default=2, help="N for N×N anti-aliasing samples per pixel (default 2)")
+    r.add_argument("--max-depth", type=int, default=8, help="maximum reflection/refraction depth (default 8)")
+    r.add_argument("--frames", help="time codes A:B or A:BxS; output pattern out.####.png")
+    r.add_argument("--purposes", nargs="+", default=["default", "render"],
+                   help="purposes to render (default: default render)")
+    r.add_argument("--threads", type=int, help="worker threads (default: all cores)")
+    r.add_argument("--aov", help="extra outputs: comma-separated depth,normal,albedo,objectid")
+    r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    i = sub.add_parser("info", help="list cameras, lights, meshes and materials of a USD stage")
+    i.add_argument("scene")
+    i.add_argument("--time", type=float, help="time code (default: earliest)")
+    i.add_argument("--purposes", nargs="+", default=["default", "render"])
+    return ap
+
+
+def _print_warnings(info):
+    for w in info.warnings:
+        print(f"whitted: warning: {w}", file=sys.stderr)
+
+
+def cmd_render(args) -> int:
+    from tracer import RenderSettings, render
+
+    from .reader import load_stage
+    from .stage import open_stage
+
+    _check_output(args.output)
+    for name in ("width", "height"):
+        v = getattr(args, name)
+        if v is not None and v <= 0:
+            raise BadInput(f"{args.scene}: image {name} must be positive, got {v}")
+    for name, lo in (("spp", 1), ("max_depth", 0), ("threads", 1)):
+        v = getattr(args, name)
+        if v is not None and v < lo:
+            raise BadInput(f"--{name.replace('_', '-')} must be >= {lo}, got {v}")
+    aovs = _parse_aovs(args.aov)
+    frames = parse_frames(args.frames) if args.frames else [None]
+    stage = open_stage(args.scene)
+    for frame in frames:
+        scene, info = load_stage(stage, time=frame, camera=args.camera, width=args.width, height=args.height,
+                                 purposes=args.purposes)
+        if frame is None or frame == frames[0]:
+            _print_warnings(info)
+        settings = RenderSettings(width=info.width, height=info.height, samples=args.spp, max_depth=args.max_depth,
+                                  threads=args.threads, aovs=aovs, progress=not args.quiet)
+        image = render(scene, settings)
+        out = frame_path(args.output, frame, len(frames) > 1) if frame is not None else args.output
+        image.save(out)
+        for name in aovs:
+            a = image.aovs[name]
+            a = a[..., None] if a.ndim == 2 else a
+            _write_aov(aov_path(out, name), a.astype(np.float32))
+        if not args.quiet:
+            s = image.stats
+            print(f"{out}: {info.width}x{info.height}, {len(scene.triangles):,} triangles, "
+                  f"{s['rays']['total']:,} rays in {s['seconds']:.2f} s", file=sys.stderr)
+    return EXIT_OK
+
+
+def _write_aov(path, pixels):
+    from tracer import write_image
+
+    write_image(path, np.nan_to_num(pixels, posinf=0.0, neginf=0.0))
+
+
+def cmd_info(args) -> int:
+    from .reader import load_stage
+
+    scene, info = load_stage(args.scene, time=args.time, purposes=args.purposes, width=160)
+    out = sys.stdout
+    print(f"stage: {info.path}", file=out)
+    print(f"upAxis: {info.up_axis}, metersPerUnit: {info.meters_per_unit:g}", file=out)
+    print(f"cameras ({len(info.cameras)}):", file=out)
+    for c in info.cameras:
+        print(f"  {c}{'  (default)' if c == info.camera else ''}", file=out)
+    if info.camera is None:
+        print("  (none: a default camera frames the bounds)", file=out)
+    print(f"lights ({len(info.lights)}):", file=out)
+    for path, kind, light in info.lights:
+        print(f"  {path}: {kind} -> {_describe_light(light)}", file=out)
+    print(f"meshes ({len(info.meshes)}, {sum(n for _, n in info.meshes):,} triangles):", file=out)
+    for path, n in info.meshes:
+        print(f"  {path}: {n:,} triangles", file=out)
+    print(f"materials ({len(info.materials)}):", file=out)
+    for name, fields in info.materials.items():
+        print(f"  {name} -> " + ", ".join(f"{k}={v}" for k, v in fields.items()), file=out)
+    _print_warnings(info)
+    return EXIT_OK
+
+
+def _describe_light(light) -> str:
+    if isinstance(light, dict):
+        return ", ".join(f"{k}={np.round(np.asarray(v, float), 4).tolist()}" for k, v in light.items())
+    fields = {k: v for k, v in vars(light).items() if k != "name"}
+    parts = []
+    for k, v in fields.items():
+        v = np.round(np.asarray(v, float), 4).tolist()
+        parts.append(f"{k}={v}")
+    return f"{type(light).__name__}(" + ", ".join(parts) + ")"
+
+
+def main(argv=None) -> int:
+    from .stage import UsdInputError
+
+    try:
+        args = build_parser().parse_args(argv)
+        with warnings.catch_warnings():
+            warnings.simplefilter("default")
+            code = cmd_render(args) if args.command == "render" else cmd_info(args)
+    except (BadInput, UsdInputError) as exc:
+        print(f"whitted: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("whitted: interrupted", file=sys.stderr)
+        return 130
+    except SystemExit as exc:  # --help
+        return int(exc.code or 0)
+    except Exception:  # noqa: BLE001 — a real fault: show where
+        traceback.print_exc()
+        return EXIT_FAULT
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,143 @@
+"""Implicit gprims (Sphere, Cube, Cylinder, Cone, Capsule, Plane) tessellated to triangles with exact normals.
+
+``segments`` sets the resolution (around the axis; half as many along it). The shapes follow the UsdGeom
+definitions: centred at the origin, ``axis`` X, Y or Z, Cone apex at +height/2, Capsule height without its caps,
+Plane double-sided with its normal along ``axis``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+from pxr import UsdGeom
+
+from .mesh import MeshData
+
+DEFAULT_SEGMENTS = 48
+GPRIM_TYPES = ("Sphere", "Cube", "Cylinder", "Cone", "Capsule", "Plane")
+
+
+def _axis_matrix(axis: str) -> np.ndarray:
+    """Rotation taking the Z-axis shapes built here onto ``axis`` (a cyclic permutation keeps handedness)."""
+    if axis == "X":
+        return np.array([[0, 0, 1], [1, 0, 0], [0, 1, 0]], np.float64)  # z->x, x->y, y->z
+    if axis == "Y":
+        return np.array([[0, 1, 0], [0, 0, 1], [1, 0, 0]], np.float64)  # z->y, x->z, y->x
+    return np.eye(3)
+
+
+def _ring(n):
+    phi = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    return np.cos(phi), np.sin(phi)
+
+
+def _lathe(r0, z0, r1, z1, nrm, n):
+    """Side band between two rings (radius, z) with the given (radial, axial) normal components: (P, T, N)."""
+    c, s = _ring(n)
+    bottom = np.stack([r0 * c, r0 * s, np.full(n, z0)], 1)
+    top = np.stack([r1 * c, r1 * s, np.full(n, z1)], 1)
+    nr, nz = nrm
+    normals = np.stack([nr * c, nr * s, np.full(n, nz)], 1)
+    i = np.arange(n)
+    j = (i + 1) % n
+    lower, upper = np.stack([i, j, n + j], 1), np.stack([i, n + j, n + i], 1)
+    # A ring of radius 0 (cone apex, capsule pole) makes one of the two triangles of each quad degenerate.
+    tris = lower if r1 < 1e-12 else upper if r0 < 1e-12 else np.concatenate([lower, upper])
+    return np.concatenate([bottom, top]), tris, np.concatenate([normals, normals])
+
+
+def _cap(r, z, up, n):
+    c, s = _ring(n)
+    pts = np.concatenate([[[0, 0, z]], np.stack([r * c, r * s, np.full(n, z)], 1)])
+    i = np.arange(n) + 1
+    j = (np.arange(n) + 1) % n + 1
+    tris = np.stack([np.zeros(n, int), i, j], 1) if up else np.stack([np.zeros(n, int), j, i], 1)
+    return pts, tris, np.tile([0.0, 0.0, 1.0 if up else -1.0], (n + 1, 1))
+
+
+def _merge(parts):
+    pts, tris, nrm, off = [], [], [], 0
+    for p, t, n in parts:
+        pts.append(p)
+        tris.append(t + off)
+        nrm.append(n)
+        off += len(p)
+    return np.concatenate(pts), np.concatenate(tris), np.concatenate(nrm)
+
+
+def sphere(radius, segments=DEFAULT_SEGMENTS):
+    m = trimesh.creation.uv_sphere(radius=radius, count=[segments, max(segments // 2, 4)])
+    return np.asarray(m.vertices), np.asarray(m.faces), np.asarray(m.vertices) / radius
+
+
+def cube(size):
+    m = trimesh.creation.box(extents=(size, size, size))
+    return np.asarray(m.vertices), np.asarray(m.faces), None  # flat faces: geometric normals
+
+
+def cylinder(radius, height, segments=DEFAULT_SEGMENTS):
+    h = height / 2
+    return _merge([_lathe(radius, -h, radius, h, (1.0, 0.0), segments),
+                   _cap(radius, h, True, segments), _cap(radius, -h, False, segments)])
+
+
+def cone(radius, height, segments=DEFAULT_SEGMENTS):
+    h = height / 2
+    slant = np.hypot(radius, height)
+    side = _lathe(radius, -h, 0.0, h, (height / slant, radius / slant), segments)
+    return _merge([side, _cap(radius, -h, False, segments)])
+
+
+def capsule(radius, height, segments=DEFAULT_SEGMENTS):
+    rows = max(segments // 4, 3)
+    parts = [_lathe(radius, -height / 2, radius, height / 2, (1.0, 0.0), segments)]
+    theta = np.linspace(0, np.pi / 2, rows + 1)
+    theta[-1] = np.pi / 2
+    for sign in (1, -1):
+        for a0, a1 in zip(theta[:-1], theta[1:]):
+            r0, r1 = radius * np.cos(a0), radius * np.cos(a1)
+            z0, z1 = sign * (height / 2 + radius * np.sin(a0)), sign * (height / 2 + radius * np.sin(a1))
+            p, t, _ = _lathe(r0, z0, r1, z1, (1, 0), segments)
+            if sign < 0:
+                t = t[:, [0, 2, 1]]
+            centre = np.array([0, 0, sign * height / 2])
+            n = p - centre
+            parts.append((p, t, n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)))
+    return _merge(parts)
+
+
+def plane(width, length):
+    w, l = width / 2, length / 2
+    pts = np.array([[-w, -l, 0], [w, -l, 0], [w, l, 0], [-w, l, 0]], np.float64)
+    return pts, np.array([[0, 1, 2], [0, 2, 3]]), np.tile([0.0, 0.0, 1.0], (4, 1))
+
+
+def read_gprim(prim, time, segments=DEFAULT_SEGMENTS) -> MeshData | None:
+    """Tessellate a gprim in its object space, or None if the prim is not one of :data:`GPRIM_TYPES`."""
+    t = prim.GetTypeName()
+    g = lambda schema, attr: getattr(schema(prim), f"Get{attr}Attr")().Get(time)  # noqa: E731
+    if t == "Sphere":
+        p, tri, n = sphere(g(UsdGeom.Sphere, "Radius"), segments)
+        axis = "Z"
+    elif t == "Cube":
+        p, tri, n = cube(g(UsdGeom.Cube, "Size"))
+        axis = "Z"
+    elif t == "Cylinder":
+        p, tri, n = cylinder(g(UsdGeom.Cylinder, "Radius"), g(UsdGeom.Cylinder, "Height"), segments)
+        axis = g(UsdGeom.Cylinder, "Axis")
+    elif t == "Cone":
+        p, tri, n = cone(g(UsdGeom.Cone, "Radius"), g(UsdGeom.Cone, "Height"), segments)
+        axis = g(UsdGeom.Cone, "Axis")
+    elif t == "Capsule":
+        p, tri, n = capsule(g(UsdGeom.Capsule, "Radius"), g(UsdGeom.Capsule, "Height"), segments)
+        axis = g(UsdGeom.Capsule, "Axis")
+    elif t == "Plane":
+        p, tri, n = plane(g(UsdGeom.Plane, "Width"), g(UsdGeom.Plane, "Length"))
+        axis = g(UsdGeom.Plane, "Axis")
+    else:
+        return None
+    r = _axis_matrix(axis)
+    p = p @ r.T
+    n = None if n is None else n @ r.T
+    tri = np.asarray(tri, dtype=np.int64)
+    return MeshData(points=p, triangles=tri, faces=np.zeros(len(tri), np.int64), n_faces=1, normals=n)

@@ -1,0 +1,131 @@
+"""``UsdLux`` lights -> tracer lights, in the units Blender's USD exporter writes (measured against Cycles).
+
+Let I = intensity · 2^exposure · color (per channel, × the colour temperature, see below). Blender writes a point
+light of power P as a SphereLight with I = P/π, normalize = 1; Cycles' radiant intensity is P/4π. Hence:
+
+    SphereLight  normalize = 1 (or radius 0):  tracer PointLight.intensity = I/4 W/sr
+                 normalize = 0, radius R > 0:  the surface radiance is I, so the intensity is I·πR² W/sr
+                 (the same light as a normalized one of I·4πR², i.e. normalize divides by the surface area)
+                 radius -> soft shadows unless treatAsPoint; ShapingAPI cone -> SpotLight(cone_angle =
+                 shaping:cone:angle in degrees (half angle), blend = shaping:cone:softness)
+    DistantLight tracer irradiance = 4·I W/m² (Blender writes sun strength S as I = S/4); angle is USD's
+                 half angle in degrees (Blender writes angle/2), the tracer takes the full angular diameter
+    RectLight    radiance Le = I/A with normalize = 1 (A = width·height), else Le = I (Blender: I = P/π)
+    DiskLight    the same with A = π·radius²
+    DomeLight    the world: Scene.background = I (× the texture's average colour if it has one) and
+                 Scene.ambient = I · inputs:diffuse (the diffuse multiplier scales only the lighting)
+
+Colour temperature: applied only when ``enableColorTemperature`` is on *and* ``colorTemperature`` is authored.
+Blender writes ``enableColorTemperature = 1`` on every light without a temperature, meaning "no tint"; USD's
+6500 K fallback would tint every light by (1.04, 0.98, 1.03). An authored temperature is USD's blackbody colour
+divided by its 6500 K value, so 6500 K is white as in Blender.
+
+Light world transforms scale them: a sphere's radius by the mean axis scale, a rect/disk's size along its axes.
+Lights see the camera-space units of the stage (no metersPerUnit conversion), like the geometry.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pxr import UsdLux
+
+from tracer import AreaLight, DistantLight, PointLight, SpotLight
+from tracer.texture import load_texture
+
+LIGHT_TYPES = ("SphereLight", "DistantLight", "RectLight", "DiskLight", "DomeLight")
+_WHITE_6500 = np.asarray(UsdLux.BlackbodyTemperatureAsRgb(6500.0), dtype=np.float64)
+
+
+def _get(attr, time, default):
+    v = attr.Get(time) if attr else None
+    return default if v is None else v
+
+
+def light_colour(prim, time) -> np.ndarray:
+    """intensity · 2^exposure · color (· the colour temperature, where authored), per channel."""
+    api = UsdLux.LightAPI(prim)
+    i = float(_get(api.GetIntensityAttr(), time, 1.0))
+    e = float(_get(api.GetExposureAttr(), time, 0.0))
+    c = np.asarray(_get(api.GetColorAttr(), time, (1.0, 1.0, 1.0)), dtype=np.float64)
+    rgb = i * 2.0 ** e * c
+    temp_attr = api.GetColorTemperatureAttr()
+    if _get(api.GetEnableColorTemperatureAttr(), time, False) and temp_attr.HasAuthoredValue():
+        t = float(temp_attr.Get(time))
+        rgb = rgb * np.asarray(UsdLux.BlackbodyTemperatureAsRgb(t)) / _WHITE_6500
+    return rgb
+
+
+def _normalized(prim, time) -> bool:
+    return bool(_get(UsdLux.LightAPI(prim).GetNormalizeAttr(), time, False))
+
+
+def _axis_scales(m):
+    return np.linalg.norm(m[:3, :3], axis=0)
+
+
+def convert_light(prim, world: np.ndarray, time, warn):
+    """(kind, tracer light or None, world dict or None) for one UsdLux prim."""
+    t = prim.GetTypeName()
+    name = str(prim.GetPath())
+    rgb = light_colour(prim, time)
+    pos = world[:3, 3]
+    down = -world[:3, 2]  # the light's −Z
+    if t == "SphereLight":
+        lux = UsdLux.SphereLight(prim)
+        r = float(_get(lux.GetRadiusAttr(), time, 0.5)) * float(np.mean(_axis_scales(world)))
+        point = bool(_get(lux.GetTreatAsPointAttr(), time, False))
+        if _normalized(prim, time) or r <= 0:
+            intensity = rgb / 4.0
+        else:
+            intensity = rgb * np.pi * r * r
+        radius = 0.0 if point else r
+        shaping = UsdLux.ShapingAPI(prim)
+        cone = shaping.GetShapingConeAngleAttr() if prim.HasAPI(UsdLux.ShapingAPI) else None
+        if cone and cone.HasAuthoredValue():
+            angle = float(cone.Get(time))
+            soft = float(_get(shaping.GetShapingConeSoftnessAttr(), time, 0.0))
+            if 0 < angle < 180:
+                return "spot", SpotLight(position=pos, intensity=intensity, radius=radius, direction=down,
+                                         cone_angle=np.radians(angle), blend=float(np.clip(soft, 0, 1)),
+                                         name=name), None
+        return "point", PointLight(position=pos, intensity=intensity, radius=radius, name=name), None
+    if t == "DistantLight":
+        lux = UsdLux.DistantLight(prim)
+        angle = float(_get(lux.GetAngleAttr(), time, 0.53))
+        return "distant", DistantLight(direction=down, irradiance=4.0 * rgb,
+                                       angle=float(np.clip(np.radians(2 * angle), 0, np.pi - 1e-6)), name=name), None
+    if t in ("RectLight", "DiskLight"):
+        sx, sy, _ = _axis_scales(world)
+        if t == "RectLight":
+            lux = UsdLux.RectLight(prim)
+            size = (float(_get(lux.GetWidthAttr(), time, 1.0)) * sx, float(_get(lux.GetHeightAttr(), time, 1.0)) * sy)
+            shape = "rect"
+            if lux.GetTextureFileAttr().HasAuthoredValue():
+                warn(f"{name}: RectLight texture:file is not supported (uniform colour used)")
+        else:
+            r = float(_get(UsdLux.DiskLight(prim).GetRadiusAttr(), time, 0.5))
+            size, shape = (2 * r * sx, 2 * r * sy), "disk"
+        if min(size) <= 0:
+            warn(f"{name}: {t} of zero size skipped")
+            return "area", None, None
+        area = size[0] * size[1] if shape == "rect" else np.pi / 4 * size[0] * size[1]
+        radiance = rgb / area if _normalized(prim, time) else rgb
+        return "area", AreaLight(position=pos, u_axis=world[:3, 0], v_axis=world[:3, 1], normal=down,
+                                 size=size, radiance=radiance, shape=shape, name=name), None
+    if t == "DomeLight":
+        lux = UsdLux.DomeLight(prim)
+        colour = rgb
+        tex_attr = lux.GetTextureFileAttr()
+        asset = tex_attr.Get(time) if tex_attr.HasAuthoredValue() else None
+        if asset is not None and asset.path:
+            if asset.resolvedPath:
+                try:
+                    colour = rgb * load_texture(asset.resolvedPath, "auto").reshape(-1, 3).mean(axis=0)
+                except ValueError as exc:
+                    warn(f"{name}: {exc}; using the dome's colour")
+            else:
+                warn(f"{name}: dome texture {asset.path!r} not found; using the dome's colour")
+        diffuse = float(_get(UsdLux.LightAPI(prim).GetDiffuseAttr(), time, 1.0))
+        return "dome", None, dict(background=colour, ambient=colour * diffuse)
+    warn(f"{name}: light type {t} is not supported (skipped)")
+    return "unsupported", None, None

@@ -1,0 +1,206 @@
+"""``load_stage``: a USD stage at one time code -> (:class:`tracer.Scene`, :class:`StageInfo`).
+
+Geometry stays in stage space (``upAxis`` and ``metersPerUnit`` are reported, not applied): the camera lives in
+the same space, so the picture is the same, and light units are per stage unit as Blender writes them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from pxr import UsdGeom, UsdLux
+
+from tracer import SceneBuilder
+
+from . import camera as cam
+from .gprims import DEFAULT_SEGMENTS, GPRIM_TYPES, read_gprim
+from .instancing import instance_matrices, replicate
+from .lights import convert_light
+from .material import MaterialTable
+from .mesh import MeshData, read_mesh
+from .stage import (DEFAULT_PURPOSES, UsdInputError, check_purposes, composition_warnings, open_stage,
+                    renderable_prims, stage_messages, stage_time)
+from .xform import Transforms
+
+
+@dataclass
+class StageInfo:
+    """What was read: for ``whitted info``, the CLI's messages and tests."""
+
+    path: str
+    time: float | None
+    width: int = 0
+    height: int = 0
+    camera: str | None = None  # the camera prim used; None = the default framing camera
+    cameras: list = field(default_factory=list)
+    lights: list = field(default_factory=list)  # (path, kind, tracer light or world dict)
+    meshes: list = field(default_factory=list)  # (path, triangle count)
+    materials: dict = field(default_factory=dict)  # material name -> tracer fields
+    warnings: list = field(default_factory=list)
+    up_axis: str = "Y"
+    meters_per_unit: float = 0.01
+
+    def warn(self, message: str) -> None:
+        if message not in self.warnings:
+            self.warnings.append(message)
+
+
+class _Reader:
+    def __init__(self, stage, time, purposes, segments, info: StageInfo):
+        self.stage, self.time, self.purposes, self.segments, self.info = stage, time, purposes, segments, info
+        self.b = SceneBuilder()
+        self.xf = Transforms(time)
+        self.mats = MaterialTable(self.b, time, info.warn)
+        self.lo = np.full(3, np.inf)
+        self.hi = np.full(3, -np.inf)
+        self._proto_cache: dict[str, MeshData | None] = {}
+
+    # ------------------------------------------------------------------ geometry
+    def geometry(self, prim, uv_name="st") -> MeshData | None:
+        if prim.IsA(UsdGeom.Mesh):
+            try:
+                return read_mesh(prim, self.time, uv_name)
+            except ValueError as exc:
+                self.info.warn(f"{exc} (mesh skipped)")
+                return None
+        return read_gprim(prim, self.time, self.segments)
+
+    def cached_geometry(self, prim) -> MeshData | None:
+        """Geometry of an instance proxy is read once per prototype prim."""
+        if not prim.IsInstanceProxy():
+            return self.geometry(prim)
+        key = str(prim.GetPrimInPrototype().GetPath())
+        if key not in self._proto_cache:
+            self._proto_cache[key] = self.geometry(prim)
+        return self._proto_cache[key]
+
+    def shaded(self, prim, data: MeshData):
+        material, uv = self.mats.for_prim(prim, data.n_faces, data.faces)
+        if uv != "st" and prim.IsA(UsdGeom.Mesh):
+            data = self.geometry(prim, uv) or data
+        for w in data.warnings:
+            self.info.warn(w)
+        return data, material
+
+    def add_gprim(self, prim):
+        data = self.cached_geometry(prim)
+        if data is None or not len(data.triangles):
+            return
+        data, material = self.shaded(prim, data)
+        m = self.xf.world(prim)
+        tris, normals, uvs = data.triangles, data.normals, data.uvs
+        if np.linalg.det(m[:3, :3]) < 0:  # a mirroring transform turns the winding around
+            tris = tris[:, [0, 2, 1]]
+            normals = normals[:, [0, 2, 1]] if normals is not None and normals.ndim == 3 else normals
+            uvs = uvs[:, [0, 2, 1]] if uvs is not None else None
+        self.b.add_mesh(data.points, tris, material=material, name=str(prim.GetPath()), transform=m,
+                        normals=normals, uvs=uvs)
+        self._grow(data.points @ m[:3, :3].T + m[:3, 3])
+        self.info.meshes.append((str(prim.GetPath()), int(len(tris))))
+
+    def add_instancer(self, prim):
+        mats, idx, protos = instance_matrices(prim, self.time)
+        world = self.xf.world(prim)
+        total = 0
+        for p_index, p_path in enumerate(protos):
+            sel = np.flatnonzero(idx == p_index)
+            root = self.stage.GetPrimAtPath(p_path)
+            if not len(sel) or not root:
+                continue
+            for piece in renderable_prims(self.stage, self.time, self.purposes, root=root):
+                if piece.GetTypeName() not in GPRIM_TYPES and not piece.IsA(UsdGeom.Mesh):
+                    if piece.IsA(UsdGeom.PointInstancer) and piece != root:
+                        self.info.warn(f"{piece.GetPath()}: nested PointInstancer not supported (skipped)")
+                    continue
+                data = self.geometry(piece)
+                if data is None or not len(data.triangles):
+                    continue
+                data, material = self.shaded(piece, data)
+                rel = self.xf.relative(piece, root.GetParent())
+                full = world[None] @ mats[sel] @ rel[None]
+                v, t, n, uv, mat = replicate(full, data, material)
+                self.b.add_mesh(v, t, material=mat, name=f"{prim.GetPath()}[{piece.GetPath()}]", normals=n, uvs=uv)
+                self._grow(v)
+                total += len(t)
+        self.info.meshes.append((str(prim.GetPath()), int(total)))
+
+    def _grow(self, world_points):
+        if len(world_points):
+            self.lo = np.minimum(self.lo, world_points.min(axis=0))
+            self.hi = np.maximum(self.hi, world_points.max(axis=0))
+
+    # ------------------------------------------------------------------ lights
+    def add_light(self, prim):
+        kind, light, world = convert_light(prim, self.xf.world(prim), self.time, self.info.warn)
+        if light is not None:
+            self.b.add_light(light)
+            self.info.lights.append((str(prim.GetPath()), kind, light))
+        elif world is not None:
+            self.b.background = self.b.background + np.asarray(world["background"], np.float32)
+            self.b.ambient = self.b.ambient + np.asarray(world["ambient"], np.float32)
+            self.info.lights.append((str(prim.GetPath()), kind, world))
+
+    def bounds(self):
+        if not np.all(np.isfinite(self.lo)):
+            return np.array([[-1.0, -1.0, -1.0], [1.0, 1.0, 1.0]])
+        return np.stack([self.lo, self.hi])
+
+
+def load_stage(path_or_stage, time=None, camera: str | None = None, width: int | None = None,
+               height: int | None = None, purposes=DEFAULT_PURPOSES, segments: int = DEFAULT_SEGMENTS):
+    """Read a USD stage (a path or an open ``Usd.Stage``) into a render-ready :class:`tracer.Scene`.
+
+    time      time code (None: the earliest time, i.e. default values or the first time sample)
+    camera    camera prim path (None: the first camera found; no camera: frame the bounds, with a warning)
+    width, height  image size; a missing side follows the camera aperture's aspect (width defaults to 960)
+    purposes  which ``purpose`` values render (default: default and render)
+    segments  tessellation of implicit gprims
+
+    Returns ``(scene, info)``; ``info.warnings`` lists what was skipped or approximated (each message once).
+    Raises :class:`UsdInputError` (a ``ValueError``) for input the user can fix.
+    """
+    stage = open_stage(path_or_stage)
+    label = stage.GetRootLayer().identifier
+    purposes = check_purposes(purposes)
+    for name, v in (("width", width), ("height", height)):
+        if v is not None and (isinstance(v, bool) or int(v) != v or v <= 0):
+            raise UsdInputError(f"{label}: image {name} must be a positive integer, got {v!r}")
+    tc = stage_time(stage, time)
+    info = StageInfo(path=label, time=None if time is None or tc.IsDefault() else tc.GetValue(),
+                     up_axis=str(UsdGeom.GetStageUpAxis(stage)),
+                     meters_per_unit=float(UsdGeom.GetStageMetersPerUnit(stage)))
+    for w in composition_warnings(stage):
+        info.warn(w)
+    for w in stage_messages.get(id(stage), []):
+        info.warn(f"usd: {w}")
+    r = _Reader(stage, tc, purposes, segments, info)
+    prims = list(renderable_prims(stage, tc, purposes))
+    for prim in prims:
+        t = prim.GetTypeName()
+        if prim.IsA(UsdGeom.PointInstancer):
+            r.add_instancer(prim)
+        elif t in GPRIM_TYPES or prim.IsA(UsdGeom.Mesh):
+            r.add_gprim(prim)
+        elif prim.HasAPI(UsdLux.LightAPI):
+            r.add_light(prim)
+        elif prim.IsA(UsdGeom.Camera):
+            info.cameras.append(str(prim.GetPath()))
+        elif prim.IsA(UsdGeom.Gprim):
+            info.warn(f"{prim.GetPath()}: {t} is not supported (skipped)")
+    info.materials = dict(r.mats.summary)
+
+    cam_prim = cam.find_camera(stage, camera, prims)
+    if cam_prim is not None:
+        raw = cam.read_camera(cam_prim, tc)
+        info.width, info.height = cam.image_size(raw, width, height)
+        r.b.camera = cam.to_tracer(raw, info.width, info.height)
+        info.camera = str(cam_prim.GetPath())
+    else:
+        aspect = cam.DEFAULT_APERTURE[0] / cam.DEFAULT_APERTURE[1]
+        info.width, info.height = cam.image_size(dict(horizontal_aperture=aspect, vertical_aperture=1.0),
+                                                 width, height)
+        r.b.camera = cam.framing_camera(r.bounds(), info.up_axis, info.width, info.height)
+        info.warn("no camera in the stage: framing the scene's bounds with a default camera")
+    scene = r.b.build()
+    return scene, info
