@@ -96,6 +96,9 @@ def write_image(path: str, pixels: np.ndarray, channel_names=None) -> None:
         out.close()
         if not ok:
             raise ValueError(f"{path}: write failed ({out.geterror()})")
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600 files; give the image the usual permissions
         os.replace(tmp, path)
     finally:
         if os.path.exists(tmp):
