@@ -1,0 +1,474 @@
+"""The Cycles comparison harness: build a scene description in Blender, render a Whitted-equivalent Cycles reference
+(cached by content hash), build the same scene for the tracer through a front end, render ours, and compare.
+
+    desc = scenes.IMAGE_SCENES["point_shadow"]
+    ref = cycles_reference(desc)                # {"rgb": (H, W, 3) linear, "seconds": ...}
+    ours = render_ours(desc, "direct")          # tracer.Image
+    m = metrics(ours.rgb, ref["rgb"])           # {"psnr": dB on sRGB, "mae": linear}
+
+Front ends (how "ours" gets its tracer.Scene from the description):
+- ``direct``: :func:`build_direct`, numbers straight into ``tracer.SceneBuilder`` (no Blender involved);
+- ``addon``: the Blender scene built by :func:`build_bpy`, converted by ``addon.export.scene_from_depsgraph``;
+- ``usd``:   the same Blender scene written by ``bpy.ops.wm.usd_export`` and read by ``usd_io.reader.load_stage``
+  (Blender writes no orthographic camera and drops Transmission: :func:`patch_usd` authors those in the USD file,
+  the way a USD user would).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import time
+
+import numpy as np
+
+import tracer
+
+from cycles_geometry import make_mesh, triangulate
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+CACHE_DIR = os.environ.get("WHITTED_CYCLES_CACHE", os.path.join(ROOT, ".cache", "cycles-refs"))
+#: Bump to invalidate every cached reference (a change in how scenes are built in Blender).
+HARNESS_VERSION = 3
+
+FRONT_ENDS = ("direct", "addon", "usd")
+#: Timing log of Cycles renders in this process (name, kind, seconds, cached) for the runtime report.
+CYCLES_LOG: list = []
+
+
+# ====================================================================== Blender side
+def bpy():
+    import bpy as _bpy
+
+    return _bpy
+
+
+def whitted_cycles_settings(scene, *, depth: int, samples: int, seed: int = 0) -> None:
+    """Configure Cycles to reproduce a Whitted ray tracer. Every setting and why:
+
+    - device CPU: the reference must not depend on a GPU; CI has none.
+    - samples, adaptive sampling off, denoising off: a plain Monte-Carlo average, converged enough by ``samples``
+      (measured per scene), not reshaped by a denoiser or an adaptive noise threshold.
+    - fixed ``seed``: the same reference every time (and a stable cache).
+    - max_bounces = depth, glossy and transmission bounces = depth: our ``max_depth`` counts secondary rays the same
+      way (a mirror seen by the camera is one glossy bounce); diffuse bounces 0 and volume bounces 0: Whitted has no
+      indirect diffuse light.
+    - caustics (reflective, refractive) off and blur_glossy 0: no light paths through specular chains to lights
+      (Whitted's shadow rays are blocked by glass) and no roughening of sharp reflections.
+    - sample_clamp_direct/indirect 0: no clamping of bright samples (it would bias the mean).
+    - light_sampling_threshold 0 and light tree off: every light is sampled however dim, without the tree's
+      importance heuristics (several point lights must add up exactly).
+    - pixel filter BOX with width 1: each pixel averages its own square, like our N×N stratified box filter.
+    - view transform Standard, look None, exposure 0, gamma 1, film exposure 1, display sRGB: PNGs encode with the
+      plain sRGB curve we use; EXRs stay scene-linear.
+    - film not transparent: missed rays show the world colour, as our background does.
+    """
+    scene.render.engine = "CYCLES"
+    c = scene.cycles
+    c.device = "CPU"
+    c.samples = int(samples)
+    c.use_adaptive_sampling = False
+    c.use_denoising = False
+    c.seed = int(seed)
+    c.use_animated_seed = False
+    c.max_bounces = int(depth)
+    c.diffuse_bounces = 0
+    c.glossy_bounces = int(depth)
+    c.transmission_bounces = int(depth)
+    c.volume_bounces = 0
+    c.transparent_max_bounces = max(8, int(depth))
+    c.caustics_reflective = False
+    c.caustics_refractive = False
+    c.blur_glossy = 0.0
+    c.sample_clamp_direct = 0.0
+    c.sample_clamp_indirect = 0.0
+    c.light_sampling_threshold = 0.0
+    c.use_light_tree = False
+    c.pixel_filter_type = "BOX"
+    c.filter_width = 1.0
+    c.film_exposure = 1.0
+    scene.render.film_transparent = False
+    scene.render.use_persistent_data = False
+    scene.display_settings.display_device = "sRGB"
+    scene.view_settings.view_transform = "Standard"
+    scene.view_settings.look = "None"
+    scene.view_settings.exposure = 0.0
+    scene.view_settings.gamma = 1.0
+    scene.render.threads_mode = "AUTO"
+
+
+def _principled(mat, p: dict) -> None:
+    nodes = mat.node_tree.nodes
+    bsdf = nodes.get("Principled BSDF")
+    inputs = {"base_color": "Base Color", "metallic": "Metallic", "roughness": "Roughness", "ior": "IOR",
+              "specular_ior_level": "Specular IOR Level", "transmission": "Transmission Weight",
+              "emission_color": "Emission Color", "emission_strength": "Emission Strength"}
+    for key, value in p.items():
+        if key not in inputs:
+            raise ValueError(f"material {mat.name}: unknown Principled input {key!r}")
+        socket = bsdf.inputs[inputs[key]]
+        socket.default_value = (list(value) + [1.0])[:4] if isinstance(value, (list, tuple)) else value
+
+
+def build_bpy(desc: dict):
+    """Build the description as a fresh Blender scene (factory settings, empty). Returns the bpy scene."""
+    b = bpy()
+    from mathutils import Matrix
+
+    b.ops.wm.read_factory_settings(use_empty=True)
+    sc = b.context.scene
+    sc.render.resolution_x, sc.render.resolution_y = desc["width"], desc["height"]
+    sc.render.resolution_percentage = 100
+    mats = {}
+    for name, p in desc["materials"].items():
+        m = b.data.materials.new(name)
+        if m.node_tree is None:
+            m.use_nodes = True
+        _principled(m, p)
+        mats[name] = m
+    for o in desc["objects"]:
+        verts, faces, face_mat = make_mesh(o["mesh"]["kind"], **o["mesh"]["params"])
+        me = b.data.meshes.new(o["name"])
+        me.from_pydata(verts.tolist(), [], [list(map(int, f)) for f in faces])
+        for mname in o["materials"]:
+            me.materials.append(mats[mname])
+        me.polygons.foreach_set("material_index", face_mat.astype(np.int32))
+        if o["smooth"]:
+            me.shade_smooth()
+            # Exact analytic normals for spheres (our meshes are unit spheres in object space): both renderers then
+            # interpolate the very same corner normals.
+            if o["mesh"]["kind"] == "uv_sphere":
+                n = verts / np.linalg.norm(verts, axis=1, keepdims=True)
+                me.normals_split_custom_set_from_vertices(n.tolist())
+        me.update()
+        ob = b.data.objects.new(o["name"], me)
+        ob.matrix_world = Matrix(o["matrix"])
+        ob.pass_index = o["pass_index"]
+        # Cycles offsets shadow rays of smooth meshes to hide the shadow terminator; Whitted offsets by ε only.
+        ob.cycles.shadow_terminator_geometry_offset = 0.0
+        ob.cycles.shadow_terminator_offset = 0.0
+        sc.collection.objects.link(ob)
+    for li in desc["lights"]:
+        ld = b.data.lights.new(li["name"], li["type"])
+        ld.energy = li["energy"]
+        ld.color = li["color"]
+        if li["type"] in ("POINT", "SPOT"):
+            ld.shadow_soft_size = li.get("radius", 0.0)
+        if li["type"] == "SPOT":
+            ld.spot_size = li["spot_size"]
+            ld.spot_blend = li["spot_blend"]
+        if li["type"] == "SUN":
+            ld.angle = li.get("angle", 0.0)
+        if li["type"] == "AREA":
+            ld.shape = li["shape"]
+            ld.size, ld.size_y = li["size"]
+        ld.exposure = li.get("exposure", 0.0)
+        lo = b.data.objects.new(li["name"], ld)
+        lo.matrix_world = Matrix(li["matrix"])
+        sc.collection.objects.link(lo)
+    c = desc["camera"]
+    cd = b.data.cameras.new("Camera")
+    cd.type = c["type"]
+    cd.lens = c["lens"]
+    cd.sensor_width, cd.sensor_height, cd.sensor_fit = c["sensor_width"], c["sensor_height"], c["sensor_fit"]
+    cd.shift_x, cd.shift_y = c["shift_x"], c["shift_y"]
+    cd.ortho_scale = c["ortho_scale"]
+    cd.clip_start, cd.clip_end = 1e-3, 1e4
+    co = b.data.objects.new("Camera", cd)
+    co.matrix_world = Matrix(c["matrix"])
+    sc.collection.objects.link(co)
+    sc.camera = co
+    w = b.data.worlds.new("World")
+    if w.node_tree is None:
+        w.use_nodes = True
+    bg = w.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = list(desc["world"]["color"]) + [1.0]
+    bg.inputs["Strength"].default_value = desc["world"]["strength"]
+    sc.world = w
+    whitted_cycles_settings(sc, depth=desc["depth"], samples=desc["samples"])
+    return sc
+
+
+def blender_version() -> str:
+    return bpy().app.version_string
+
+
+def content_hash(*parts) -> str:
+    blob = json.dumps([HARNESS_VERSION, blender_version(), *parts], sort_keys=True, default=str)
+    return hashlib.sha256(blob.encode()).hexdigest()[:24]
+
+
+def _read_exr_channels(path: str) -> dict:
+    import OpenImageIO as oiio
+
+    buf = oiio.ImageBuf(path)
+    if buf.has_error:
+        raise ValueError(f"cannot read {path}: {buf.geterror()}")
+    spec = buf.spec()
+    px = np.asarray(buf.get_pixels(oiio.FLOAT), np.float32).reshape(spec.height, spec.width, spec.nchannels)
+    return {name: px[..., i] for i, name in enumerate(spec.channelnames)}
+
+
+def _channel(chans: dict, suffix: str) -> np.ndarray:
+    hits = [k for k in chans if k.endswith(suffix)]
+    if len(hits) != 1:
+        raise ValueError(f"expected one channel ending in {suffix!r}, found {hits} among {sorted(chans)}")
+    return chans[hits[0]]
+
+
+def cycles_reference(desc: dict, *, kind: str = "beauty") -> dict:
+    """The Cycles render of ``desc``, from the cache or rendered now.
+
+    kind "beauty": ``desc["samples"]`` samples, box filter 1 px: {"rgb"} linear.
+    kind "ids": 1 sample through the pixel centre (filter width 0.01 px): {"rgb"}; for per-pixel first-hit
+    comparisons (ids travel as emission colours: bpy 5.0 writes no IndexOB pass into the multilayer EXR headless).
+    """
+    if kind not in ("beauty", "ids"):
+        raise ValueError(f"unknown reference kind {kind!r}")
+    key = content_hash(desc, kind)
+    os.makedirs(CACHE_DIR, exist_ok=True)
+    path = os.path.join(CACHE_DIR, f"{desc['name']}-{kind}-{key}.exr")
+    cached = os.path.exists(path)
+    seconds = 0.0
+    if not cached:
+        sc = build_bpy(desc)
+        if kind == "ids":
+            sc.cycles.samples = 1
+            sc.cycles.filter_width = 0.01
+        sc.render.image_settings.media_type = "MULTI_LAYER_IMAGE"  # Blender 5: multilayer OpenEXR
+        sc.render.image_settings.file_format = "OPEN_EXR_MULTILAYER"
+        sc.render.image_settings.color_depth = "32"
+        tmp = path + f".{os.getpid()}.tmp.exr"
+        sc.render.filepath = tmp
+        t0 = time.perf_counter()
+        bpy().ops.render.render(write_still=True)
+        seconds = time.perf_counter() - t0
+        os.replace(tmp, path)
+    CYCLES_LOG.append((desc["name"], kind, seconds, cached))
+    chans = _read_exr_channels(path)
+    out = {"rgb": np.stack([_channel(chans, f"Combined.{c}") for c in "RGB"], axis=-1), "seconds": seconds,
+           "cached": cached, "path": path}
+    return out
+
+
+# ====================================================================== tracer side
+def tracer_material(p: dict) -> dict:
+    """Principled BSDF inputs -> tracer material fields (the same mapping the add-on is meant to use).
+
+    metallic -> k_m with mirror_tint = base colour; transmission -> transmission with tint = base colour;
+    the diffuse part keeps the base colour; a dielectric highlight (Specular IOR Level > 0) becomes a Blinn-Phong
+    lobe with R_s = the Fresnel F0 of the IOR scaled by 2·level, exponent from roughness (Blinn-Phong vs GGX:
+    an inherent, isolated difference)."""
+    base = np.asarray(p.get("base_color", (0.8, 0.8, 0.8)), np.float64)[:3]
+    ior = float(p.get("ior", 1.5))
+    level = float(p.get("specular_ior_level", 0.5))
+    f0 = ((ior - 1) / (ior + 1)) ** 2 * 2 * level
+    emission = np.asarray(p.get("emission_color", (0, 0, 0)), np.float64)[:3] * float(p.get("emission_strength", 0))
+    return dict(diffuse=base, specular=(f0,) * 3, roughness=float(p.get("roughness", 0.5)),
+                k_m=float(p.get("metallic", 0.0)), mirror_tint=base, transmission=float(p.get("transmission", 0.0)),
+                transmission_tint=base, ior=ior, emission=emission)
+
+
+def camera_from_description(c: dict, width: int, height: int) -> tracer.Camera:
+    """Blender's camera model (DESIGN.md, checked against world_to_camera_view): E = sensor/lens (perspective) or
+    ortho_scale; the fitted side gets E, the other E·aspect or E/aspect; shift moves by shift·E."""
+    aspect = width / height
+    fit = c["sensor_fit"]
+    if c["type"] == "ORTHO":
+        e = c["ortho_scale"]
+    else:
+        e = (c["sensor_height"] if fit == "VERTICAL" else c["sensor_width"]) / c["lens"]
+    fit_width = fit == "HORIZONTAL" or (fit == "AUTO" and width >= height)
+    w, h = (e, e / aspect) if fit_width else (e * aspect, e)
+    return tracer.Camera(camera_to_world=np.asarray(c["matrix"]),
+                         projection="orthographic" if c["type"] == "ORTHO" else "perspective",
+                         focal_length=1.0, horizontal_aperture=w, vertical_aperture=h,
+                         horizontal_aperture_offset=c["shift_x"] * e, vertical_aperture_offset=c["shift_y"] * e)
+
+
+def build_direct(desc: dict) -> tracer.Scene:
+    """The description straight into a tracer.Scene, with the unit conversions of docs/units.md."""
+    b = tracer.SceneBuilder()
+    mat_index = {name: b.add_material(name, **tracer_material(p)) for name, p in desc["materials"].items()}
+    for o in desc["objects"]:
+        verts, faces, face_mat = make_mesh(o["mesh"]["kind"], **o["mesh"]["params"])
+        tris, owner = triangulate(faces)
+        slots = np.asarray([mat_index[m] for m in o["materials"]])
+        normals = None
+        if o["smooth"] and o["mesh"]["kind"] == "uv_sphere":
+            normals = verts / np.linalg.norm(verts, axis=1, keepdims=True)
+        b.add_mesh(verts, tris, material=slots[face_mat[owner]], name=o["name"], transform=np.asarray(o["matrix"]),
+                   normals=normals)
+    for li in desc["lights"]:
+        m = np.asarray(li["matrix"])
+        color = np.asarray(li["color"], np.float64)
+        if li["type"] in ("POINT", "SPOT"):
+            kw = dict(position=m[:3, 3], intensity=color * li["energy"] / (4 * math.pi), radius=li.get("radius", 0.0),
+                      name=li["name"])
+            if li["type"] == "SPOT":
+                b.add_light(tracer.SpotLight(**kw, direction=-m[:3, 2], cone_angle=li["spot_size"] / 2,
+                                             blend=li["spot_blend"]))
+            else:
+                b.add_light(tracer.PointLight(**kw))
+        elif li["type"] == "SUN":
+            b.add_light(tracer.DistantLight(direction=-m[:3, 2], irradiance=color * li["energy"],
+                                            angle=li.get("angle", 0.0), name=li["name"]))
+        else:
+            raise ValueError(f"light type {li['type']} not supported by the comparison scenes")
+    b.camera = camera_from_description(desc["camera"], desc["width"], desc["height"])
+    world = np.asarray(desc["world"]["color"], np.float32) * desc["world"]["strength"]
+    b.background = world
+    b.ambient = world
+    return b.build()
+
+
+def build_addon(desc: dict) -> tracer.Scene:
+    from addon.export import scene_from_depsgraph
+
+    sc = build_bpy(desc)
+    depsgraph = bpy().context.evaluated_depsgraph_get()
+    scene, _warnings = scene_from_depsgraph(depsgraph, width=desc["width"], height=desc["height"])
+    return scene
+
+
+def patch_usd(path: str, desc: dict) -> None:
+    """Author in Blender's USD what its exporter leaves out, as a USD user would: Transmission (as opacity 0 with
+    the IOR kept, UsdPreviewSurface's glass), Specular IOR Level 0 (UsdPreviewSurface has no specular level: a
+    Lambert-only surface is useSpecularWorkflow 1 with specularColor 0) and an orthographic camera."""
+    from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade
+
+    stage = Usd.Stage.Open(path)
+    glassy = {n for n, p in desc["materials"].items() if p.get("transmission", 0) > 0}
+    # (not for metals: with useSpecularWorkflow 1 UsdPreviewSurface ignores metallic)
+    lambert = {n for n, p in desc["materials"].items() if p.get("specular_ior_level", 0.5) == 0
+               and p.get("metallic", 0) == 0 and p.get("transmission", 0) == 0}
+    for prim in stage.Traverse():
+        if prim.IsA(UsdShade.Shader):
+            sh = UsdShade.Shader(prim)
+            mat_name = prim.GetParent().GetName()
+            if sh.GetIdAttr().Get() != "UsdPreviewSurface":
+                continue
+            if mat_name in glassy:
+                sh.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(0.0)
+            if mat_name in lambert:
+                sh.CreateInput("useSpecularWorkflow", Sdf.ValueTypeNames.Int).Set(1)
+                sh.CreateInput("specularColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(0.0, 0.0, 0.0))
+    c = desc["camera"]
+    if c["type"] == "ORTHO":
+        cams = [p for p in stage.Traverse() if p.GetName() == "Camera"]
+        if cams:
+            cam_prim = cams[0]
+            target = cam_prim if cam_prim.IsA(UsdGeom.Camera) else cam_prim.GetChildren()[0] if \
+                cam_prim.GetChildren() else None
+            path_c = (cam_prim.GetPath().AppendChild("Camera") if target is None or not target.IsA(UsdGeom.Camera)
+                      else target.GetPath())
+            cam = UsdGeom.Camera.Define(stage, path_c)
+            cam.CreateProjectionAttr("orthographic")
+            aspect = desc["width"] / desc["height"]
+            e = c["ortho_scale"]
+            w, h = (e, e / aspect) if desc["width"] >= desc["height"] else (e * aspect, e)
+            cam.CreateHorizontalApertureAttr(w * 10)
+            cam.CreateVerticalApertureAttr(h * 10)
+            cam.CreateHorizontalApertureOffsetAttr(c["shift_x"] * e * 10)
+            cam.CreateVerticalApertureOffsetAttr(c["shift_y"] * e * 10)
+            cam.CreateClippingRangeAttr(Gf.Vec2f(1e-3, 1e4))
+    stage.Save()
+
+
+def build_usd(desc: dict, workdir: str) -> tracer.Scene:
+    from usd_io.reader import load_stage
+
+    build_bpy(desc)
+    path = os.path.join(workdir, f"{desc['name']}.usda")
+    bpy().ops.wm.usd_export(filepath=path)
+    patch_usd(path, desc)
+    scene, _info = load_stage(path, width=desc["width"], height=desc["height"])
+    return scene
+
+
+def build_ours(desc: dict, front_end: str, workdir: str | None = None) -> tracer.Scene:
+    if front_end == "direct":
+        return build_direct(desc)
+    if front_end == "addon":
+        return build_addon(desc)
+    if front_end == "usd":
+        import tempfile
+
+        return build_usd(desc, workdir or tempfile.mkdtemp(prefix="whitted-usd-"))
+    raise ValueError(f"unknown front end {front_end!r}; choose from {FRONT_ENDS}")
+
+
+def ours_settings(desc: dict, **changes) -> tracer.RenderSettings:
+    s = tracer.RenderSettings(width=desc["width"], height=desc["height"], samples=desc["ours_samples"],
+                              max_depth=desc["depth"], sky_samples=desc["sky_samples"], seed=0)
+    return s.with_(**changes)
+
+
+def render_ours(desc: dict, front_end: str = "direct", workdir: str | None = None, **changes) -> tracer.Image:
+    return tracer.render(build_ours(desc, front_end, workdir), ours_settings(desc, **changes))
+
+
+# ====================================================================== metrics
+def linear_to_srgb(x: np.ndarray) -> np.ndarray:
+    x = np.clip(np.asarray(x, np.float64), 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+
+
+def psnr_srgb(a: np.ndarray, b: np.ndarray) -> float:
+    """PSNR in dB of two linear images after the sRGB transfer function (clipped to [0, 1], peak 1)."""
+    mse = float(np.mean((linear_to_srgb(a) - linear_to_srgb(b)) ** 2))
+    return float("inf") if mse == 0 else 10 * math.log10(1.0 / mse)
+
+
+def mae_linear(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.mean(np.abs(np.asarray(a, np.float64) - np.asarray(b, np.float64))))
+
+
+def metrics(ours_rgb: np.ndarray, ref_rgb: np.ndarray) -> dict:
+    if ours_rgb.shape != ref_rgb.shape:
+        raise ValueError(f"image shapes differ: ours {ours_rgb.shape}, Cycles {ref_rgb.shape}")
+    return {"psnr": psnr_srgb(ours_rgb, ref_rgb), "mae": mae_linear(ours_rgb, ref_rgb),
+            "mean_ours": float(np.mean(ours_rgb)), "mean_cycles": float(np.mean(ref_rgb))}
+
+
+def pass_index_map(scene: tracer.Scene, desc: dict, object_ids: np.ndarray) -> np.ndarray:
+    """Our object-id AOV translated to Blender pass indices (by object name; -1 / unknown -> 0 = background)."""
+    by_name = {o["name"]: o["pass_index"] for o in desc["objects"]}
+    lut = np.zeros(len(scene.object_names) + 1, np.int32)
+    for i, name in enumerate(scene.object_names):
+        lut[i] = by_name.get(name, by_name.get(name.split("/")[-1], 0))
+    ids = np.asarray(object_ids)
+    return np.where(ids >= 0, lut[np.clip(ids, 0, len(lut) - 1)], 0)
+
+
+def id_agreement(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.mean(np.asarray(a) == np.asarray(b)))
+
+
+# ====================================================================== failure artefacts
+def save_comparison(directory: str, name: str, ours_rgb: np.ndarray, ref_rgb: np.ndarray, gain: float = 4.0) -> list:
+    """ours, Cycles and |difference|·gain as sRGB PNGs in ``directory``; returns the paths."""
+    os.makedirs(directory, exist_ok=True)
+    paths = []
+    diff = np.abs(ours_rgb.astype(np.float64) - ref_rgb) * gain
+    for tag, img in (("ours", ours_rgb), ("cycles", ref_rgb), ("diff", diff)):
+        p = os.path.join(str(directory), f"{name}-{tag}.png")
+        tracer.write_image(p, np.asarray(img, np.float32))
+        paths.append(p)
+    return paths
+
+
+def check_images(desc: dict, ours_rgb: np.ndarray, ref_rgb: np.ndarray, tmp_path, *, min_psnr: float,
+                 max_mae: float, label: str = "") -> dict:
+    """Assert PSNR and MAE; on failure write ours/Cycles/difference images to ``tmp_path`` and name them."""
+    m = metrics(ours_rgb, ref_rgb)
+    ok = m["psnr"] >= min_psnr and m["mae"] <= max_mae
+    print(f"[cycles] {desc['name']}{label}: PSNR {m['psnr']:.2f} dB (≥ {min_psnr}), MAE {m['mae']:.5f} "
+          f"(≤ {max_mae}), mean ours {m['mean_ours']:.4f} Cycles {m['mean_cycles']:.4f}")
+    if not ok:
+        paths = save_comparison(str(tmp_path), desc["name"] + label.replace(" ", "_"), ours_rgb, ref_rgb)
+        raise AssertionError(f"{desc['name']}{label}: PSNR {m['psnr']:.2f} dB (need ≥ {min_psnr}), "
+                             f"MAE {m['mae']:.5f} (need ≤ {max_mae}); images: {', '.join(paths)}")
+    return m
