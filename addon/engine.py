@@ -83,10 +83,10 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
                 self.report({"WARNING"}, f"Whitted: {w}")
         export_s = time.perf_counter() - t0
         x0, y0, x1, y1 = settings.region or (0, 0, settings.width, settings.height)
-        ts = settings.tile_size
-        tiles_total = -(-(x1 - x0) // ts) * -(-(y1 - y0) // ts)
+        tiles_total = len(tracer.tiles_of(settings))
         done = [0]
-        pass_indices = getattr(scene, "pass_indices", np.zeros(0, np.int32))
+        pass_indices = (scene.object_pass_indices if scene.object_pass_indices is not None
+                        else np.arange(len(scene.object_names), dtype=np.int32))
 
         def write(image, tile):
             tx0, ty0, tx1, ty1 = tile

@@ -10,7 +10,7 @@ particles are included):
   modifiers, curves, text, metaballs, surfaces through ``Object.to_mesh``), as loop triangles with split/custom
   normals (``Mesh.corner_normals``), the active UV map and per-face materials; ``instance.matrix_world`` places it.
   Each instance is its own object (object id); the tracer's ``objectid`` AOV maps to Blender's Object Index
-  through ``scene.pass_indices`` (an array attached to the returned scene).
+  through ``scene.object_pass_indices``.
 - Camera: Blender's exact camera model (DESIGN.md, "Blender's camera model"): sensor fit, lens, shift,
   orthographic scale, clip start/end.
 - Lights, in Blender's units: point P W -> intensity P/(4π)·colour, radius = ``shadow_soft_size``; spot: the same
@@ -369,7 +369,7 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
 
     width/height default to the scene's render size (resolution × percentage) and matter only for the camera's
     sensor fit. ``camera`` overrides the scene camera (the viewport uses this). The returned scene carries
-    ``scene.pass_indices`` (int32 per tracer object id: Blender's ``Object.pass_index``).
+    ``scene.object_pass_indices`` (int32 per tracer object id: Blender's ``Object.pass_index``).
     """
     bpy_scene = depsgraph.scene_eval if hasattr(depsgraph, "scene_eval") else depsgraph.scene
     warnings: list[str] = []
@@ -430,9 +430,8 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     colour = world_colour(bpy_scene.world, warnings)
     b.background = colour
     b.ambient = colour
-    scene = b.build()
-    scene.pass_indices = np.asarray(pass_indices, np.int32)
-    return scene, warnings
+    b.object_pass_indices = np.asarray(pass_indices, np.int32)
+    return b.build(), warnings
 
 
 class _Placed:

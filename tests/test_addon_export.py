@@ -179,7 +179,7 @@ def test_instances_and_pass_index(bpy_module):
     centres = sorted(float(scene.vertices[scene.triangles[scene.object_ids == i]].mean(axis=(0, 1))[0])
                      for i in range(4))
     np.testing.assert_allclose(centres, [0.0, 2.0, 4.0, 6.0], atol=1e-5)
-    assert list(scene.pass_indices) == [7, 7, 7, 7]
+    assert list(scene.object_pass_indices) == [7, 7, 7, 7]
 
 
 def test_settings_from_scene(bpy_module):

@@ -225,3 +225,19 @@ def test_png_and_exr_output(tmp_path):
 
     np.testing.assert_allclose(png[..., :3], linear_to_srgb(img.rgb), atol=1 / 255 + 1e-6)
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []  # no temporary left behind
+
+
+def test_terminal_rays_collect_only_background_past_max_depth():
+    scene = mirror_and_ball().build()
+    s = RenderSettings(width=W, height=H, aovs=("objectid",), max_depth=0)
+    plain = render(scene, s)
+    term = render(scene, s.with_(terminal_rays=True))
+    deeper = render(scene, s.with_(max_depth=1))
+    on_mirror = plain.aovs["objectid"] == 0
+    # Off the mirror nothing changes; on it, the terminal bounce adds the background where the reflection misses,
+    # and never the direct light that a real depth-1 bounce would add on the matte ball.
+    np.testing.assert_array_equal(term.rgb[~on_mirror], plain.rgb[~on_mirror])
+    gain = lum(term.rgb - plain.rgb)[on_mirror]
+    assert np.count_nonzero(gain > 0) > 50
+    assert np.all(lum(term.rgb)[on_mirror] <= lum(deeper.rgb)[on_mirror] + 1e-6)
+    assert np.any(lum(term.rgb)[on_mirror] < lum(deeper.rgb)[on_mirror] - 1e-3)

@@ -11,12 +11,12 @@ from .film import Image, read_image, write_image
 from .integrator import RAY_TYPES
 from .lights import AreaLight, DistantLight, PointLight, SpotLight
 from .materials import DEFAULT_MATERIAL, Materials, roughness_to_exponent
-from .render import RenderCancelled, render
+from .render import RenderCancelled, render, tiles_of
 from .scene import Scene
 from .settings import AOV_NAMES, RenderSettings
 
 __all__ = [
     "AOV_NAMES", "AreaLight", "Camera", "DEFAULT_MATERIAL", "DistantLight", "Image", "Materials", "ORTHOGRAPHIC",
     "PERSPECTIVE", "PointLight", "RAY_TYPES", "RenderCancelled", "RenderSettings", "Scene", "SceneBuilder",
-    "SpotLight", "fit_apertures", "read_image", "render", "roughness_to_exponent", "write_image",
+    "SpotLight", "fit_apertures", "read_image", "render", "roughness_to_exponent", "tiles_of", "write_image",
 ]

@@ -36,6 +36,7 @@ class SceneBuilder:
         self.camera: Camera | None = None
         self.background = np.zeros(3, np.float32)
         self.ambient = np.zeros(3, np.float32)
+        self.object_pass_indices = None  # optional per-object user pass indices (see Scene)
 
     # ---------------------------------------------------------------- tables
     def add_material(self, name: str | None = None, **fields) -> int:
@@ -156,4 +157,5 @@ class SceneBuilder:
             background=self.background,
             ambient=self.ambient,
             object_names=list(self.object_names),
+            object_pass_indices=self.object_pass_indices,
         )

@@ -208,7 +208,8 @@ class Integrator:
         if np.isfinite(s.camera.far):
             t_max = np.full(n_samples, s.camera.far - s.camera.near, np.float32)
 
-        for depth in range(st.max_depth + 1):
+        last = st.max_depth + (1 if st.terminal_rays else 0)
+        for depth in range(last + 1):
             if not len(o) or cancelled():
                 break
             t, prim, u, v = self.accel.intersect(o, d, t_max)
@@ -238,8 +239,9 @@ class Integrator:
                 res.object_id[sample] = s.object_ids[prim]
 
             # Local colour: emission + (1 − k_m)(1 − w_t)·(ambient + Σ lights), only where it carries weight.
+            # Terminal rays (past max_depth, Cycles' last bounce) collect emission and background only.
             local = m.emission[mat]
-            shade = np.flatnonzero(opaque > 0)
+            shade = np.flatnonzero(opaque > 0) if depth <= st.max_depth else np.zeros(0, np.int64)
             if len(shade):
                 hs = _subset(h, shade)
                 keys_s = keys[sample[shade]]
@@ -251,7 +253,7 @@ class Integrator:
                 local[shade] += opaque[shade, None] * c
             _accumulate(color, sample, weight * local)
 
-            if depth == st.max_depth:
+            if depth == last:
                 break
 
             # Secondary rays where a mirror or glass part exists: reflection and transmission.

@@ -32,6 +32,7 @@ class Scene:
     textures      list of (H, W, 3) float32 linear-RGB images referenced by ``Materials.diffuse_texture``
     background    colour of rays that hit nothing
     ambient       L_a of the seed (the world's colour × strength): ambient term L_a·R_a
+    object_names  name per object id; object_pass_indices optionally maps object ids to user pass indices
     """
 
     vertices: np.ndarray
@@ -47,6 +48,8 @@ class Scene:
     background: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
     ambient: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
     object_names: list = field(default_factory=list)
+    #: Optional (O,) int32 per object id: a user-facing pass index (Blender's Object.pass_index); None = the id itself.
+    object_pass_indices: np.ndarray | None = None
     skipped_triangles: int = 0
 
     def __post_init__(self):
@@ -118,6 +121,15 @@ class Scene:
         for light in self.lights:
             if not isinstance(light, (PointLight, SpotLight, DistantLight, AreaLight)):
                 raise ValueError(f"scene.lights: {light!r} is not a tracer light")
+
+        if self.object_pass_indices is not None:
+            pi = np.asarray(self.object_pass_indices)
+            if pi.ndim != 1 or (pi.size and not np.issubdtype(pi.dtype, np.integer)):
+                raise ValueError(f"scene.object_pass_indices must be a 1-D integer array, got shape {pi.shape}")
+            if len(self.object_ids) and self.object_ids.max() >= len(pi):
+                raise ValueError(f"scene.object_pass_indices has {len(pi)} entries but object id "
+                                 f"{int(self.object_ids.max())} is used")
+            self.object_pass_indices = np.ascontiguousarray(pi, dtype=np.int32)
 
         self._drop_degenerate()
 

@@ -26,6 +26,9 @@ class RenderSettings:
     #: Hemisphere shadow rays per shading point to weight the ambient term by sky visibility (0 = the classic,
     #: unoccluded ambient term; Cycles shadows its world light, so matching it needs e.g. 64).
     sky_samples: int = 0
+    #: Trace one more reflection/transmission bounce past max_depth that collects only background and emission
+    #: (what Cycles' last bounce does); False = the notes' hard cut-off.
+    terminal_rays: bool = False
     #: Paths whose accumulated weight falls below this stop early (Russian roulette-free cut-off; deterministic).
     min_weight: float = 1e-3
     #: Missed eye rays get alpha 0 and no background colour (Blender's Film > Transparent).
