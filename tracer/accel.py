@@ -37,6 +37,8 @@ class Accelerator:
             # Keep a reference: Embree reads the vertex buffer in place.
             self._triangles = np.ascontiguousarray(scene.vertices[scene.triangles], dtype=np.float32)
             self._mesh = TriangleMesh(self._embree, self._triangles)
+            # embreex builds the BVH lazily on the first query: trigger it here so it counts as set-up time.
+            self._embree.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32), query="OCCLUDED")
 
     def intersect(self, origins: np.ndarray, directions: np.ndarray, t_max: np.ndarray | None = None):
         """Closest hits: (t, prim_id, u, v) with prim_id = -1 and t = inf for misses.

@@ -74,20 +74,25 @@ class Camera:
         Orthographic (the seed's question): every ray has the view direction −Z and starts at the film point itself.
         Rays start at the near clipping plane.
         """
-        x, y = self.film_point(u, v)
+        x, y = self.film_point(np.asarray(u, np.float32), np.asarray(v, np.float32))
         n = x.shape[0]
-        m = self.camera_to_world
+        rot = self.camera_to_world[:3, :3].T.astype(np.float32)
+        eye = self.camera_to_world[:3, 3]
         if self.projection == PERSPECTIVE:
-            d_cam = np.stack([x / self.focal_length, y / self.focal_length, -np.ones(n)], axis=-1)
-            o_cam = np.zeros((n, 3))
+            d_cam = np.empty((n, 3), np.float32)
+            d_cam[:, 0] = x / np.float32(self.focal_length)
+            d_cam[:, 1] = y / np.float32(self.focal_length)
+            d_cam[:, 2] = -1.0
+            dirs = d_cam @ rot
+            # every ray starts at the eye (moved to the near plane, z = −near, when there is one)
+            origins = np.broadcast_to(eye.astype(np.float32), (n, 3)) + dirs * np.float32(self.near)
         else:
-            d_cam = np.broadcast_to(np.array([0.0, 0.0, -1.0]), (n, 3))
-            o_cam = np.stack([x, y, np.zeros(n)], axis=-1)
-        o_cam = o_cam + d_cam * self.near  # the near plane is at z = −near for both projections (d_cam.z = −1)
-        origins = o_cam @ m[:3, :3].T + m[:3, 3]
-        dirs = d_cam @ m[:3, :3].T
-        dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
-        return origins.astype(np.float32), dirs.astype(np.float32)
+            dirs = np.broadcast_to(-self.camera_to_world[:3, 2].astype(np.float32), (n, 3)).copy()
+            o_cam = np.zeros((n, 3), np.float32)
+            o_cam[:, 0], o_cam[:, 1], o_cam[:, 2] = x, y, -self.near
+            origins = (o_cam.astype(np.float64) @ self.camera_to_world[:3, :3].T + eye).astype(np.float32)
+        dirs /= np.sqrt(np.einsum("ij,ij->i", dirs, dirs))[:, None]
+        return np.ascontiguousarray(origins, np.float32), dirs
 
     def project(self, points: np.ndarray, width: int, height: int) -> np.ndarray:
         """Pixel coordinates (N, 2) (x right, y down, continuous: pixel (i, j) spans [i, i+1)×[j, j+1)) of world

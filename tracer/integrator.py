@@ -85,13 +85,11 @@ class Integrator:
         self.settings = settings
         self.accel = accel if accel is not None else Accelerator(scene)
         self.eps = np.float32(settings.epsilon if settings.epsilon is not None else scene.default_epsilon())
-        self.tri_vertices = scene.vertices[scene.triangles]  # (T, 3, 3)
-        e1 = self.tri_vertices[:, 1] - self.tri_vertices[:, 0]
-        e2 = self.tri_vertices[:, 2] - self.tri_vertices[:, 0]
-        ng = np.cross(e1, e2)
-        self.face_normals = (ng / np.maximum(np.linalg.norm(ng, axis=1, keepdims=True), 1e-30)).astype(np.float32)
-        self.corner_ok = (np.all(np.linalg.norm(scene.normals, axis=2) > 0, axis=1) if scene.normals is not None
-                          else None)
+        tri = scene.vertices[scene.triangles]  # (T, 3, 3) float32
+        ng = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        ng /= np.maximum(np.sqrt(np.einsum("ij,ij->i", ng, ng)), np.float32(1e-30))[:, None]
+        self.face_normals = ng
+        self.corner_ok = (np.all(np.any(scene.normals != 0, axis=2), axis=1) if scene.normals is not None else None)
         m = scene.materials
         self.has_textures = bool(len(scene.textures)) and scene.uvs is not None and bool(np.any(m.diffuse_texture >= 0))
 
@@ -141,7 +139,8 @@ class Integrator:
         exponent = m.exponent[h.material]
         has_spec = bool(np.any(specular > 0))
         origin = h.p + h.ng * self.eps
-        rand = sampling.uniform2(keys, _STREAM_LIGHT + depth, st.seed)
+        needs_rand = any(light.uses_random(st.light_samples) for light in s.lights)
+        rand = sampling.uniform2(keys, _STREAM_LIGHT + depth, st.seed) if needs_rand else None
         for light in s.lights:
             l, dist, e = light.sample(h.p, st.light_samples, rand)  # (K, N, 3), (K, N), (K, N, 3)
             for k in range(l.shape[0]):

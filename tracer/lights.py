@@ -74,19 +74,25 @@ class PointLight:
     def sample_count(self, requested: int) -> int:
         return 1 if self.radius == 0 else max(1, requested)
 
+    def uses_random(self, requested: int) -> bool:
+        return self.sample_count(requested) > 1
+
     def _falloff(self, to_light, dist2):
-        return np.ones_like(dist2)
+        return None
 
     def sample(self, p: np.ndarray, count: int, rand: np.ndarray):
         k = self.sample_count(count)
-        to_center = self.position[None, :].astype(np.float32) - p
+        to_center = self.position.astype(np.float32) - p
         d2 = np.einsum("ij,ij->i", to_center, to_center)
         # Blender's soft falloff: irradiance I / (r² + R²), measured against Cycles.
-        e = (self.intensity[None, :] / (d2 + self.radius**2)[:, None]).astype(np.float32)
-        e *= self._falloff(to_center, d2)[:, None]
+        inv = 1.0 / (d2 + np.float32(self.radius**2))
+        f = self._falloff(to_center, d2)  # None = no falloff (point light)
+        if f is not None:
+            inv = inv * f
+        e = inv[:, None] * self.intensity.astype(np.float32)
         if k == 1:
             dist = np.sqrt(d2)
-            l = to_center / np.maximum(dist, 1e-30)[:, None]
+            l = to_center * (1.0 / np.maximum(dist, 1e-30))[:, None]
             return l[None], dist[None], e[None]
         # Soft shadows: stratified points on the disk of the sphere that faces p.
         dist = np.sqrt(d2)
@@ -153,6 +159,9 @@ class DistantLight:
     def sample_count(self, requested: int) -> int:
         return 1 if self.angle == 0 else max(1, requested)
 
+    def uses_random(self, requested: int) -> bool:
+        return self.sample_count(requested) > 1
+
     def sample(self, p: np.ndarray, count: int, rand: np.ndarray):
         n = p.shape[0]
         k = self.sample_count(count)
@@ -209,6 +218,9 @@ class AreaLight:
 
     def sample_count(self, requested: int) -> int:
         return max(1, requested)
+
+    def uses_random(self, requested: int) -> bool:
+        return True
 
     def sample(self, p: np.ndarray, count: int, rand: np.ndarray):
         s = stratified_grid(self.sample_count(count), rand)

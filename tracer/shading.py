@@ -12,15 +12,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from .optics import dot
-
 INV_PI = np.float32(1.0 / np.pi)
 
 
 def half_vector(l, v):
     """h = (l + v) / ‖l + v‖ (the seed's halfway vector)."""
     h = l + v
-    return h / np.maximum(np.linalg.norm(h, axis=-1, keepdims=True), 1e-30)
+    h /= np.maximum(np.sqrt(np.einsum("ij,ij->i", h, h)), np.float32(1e-30))[:, None]
+    return h
 
 
 def lambert(n_dot_l, diffuse, irradiance):
@@ -30,10 +29,9 @@ def lambert(n_dot_l, diffuse, irradiance):
 
 def blinn_phong(n, h, n_dot_l, specular, exponent, irradiance):
     """L_s·R_s·(n·h)^e, energy-normalised by (e + 8)/(8π) and weighted by max(0, n·l)."""
-    n_dot_h = np.clip(dot(n, h), 0.0, 1.0)
-    e = exponent[..., None]
-    lobe = (e + 8.0) * np.float32(1.0 / (8.0 * np.pi)) * np.power(n_dot_h, e)
-    return specular * lobe * irradiance * n_dot_l
+    n_dot_h = np.clip(np.einsum("ij,ij->i", n, h), 0.0, 1.0)
+    lobe = (exponent + 8.0) * np.float32(1.0 / (8.0 * np.pi)) * np.power(n_dot_h, exponent)
+    return specular * (lobe[:, None] * n_dot_l) * irradiance
 
 
 def ambient(diffuse, ambient_radiance, sky_visibility=None):
