@@ -27,6 +27,9 @@ class WhittedSceneSettings(bpy.types.PropertyGroup):
     sky_samples: IntProperty(
         name="Sky Visibility Samples", description="Hemisphere shadow rays weighting the world (ambient) light "
         "by sky visibility, as Cycles does; 0 = Whitted's unoccluded ambient term", default=0, min=0, max=1024)
+    terminal_rays: BoolProperty(
+        name="Terminal Bounce", description="Trace one more bounce past Max Depth that collects only the world "
+        "colour and emission, as Cycles' last bounce does; off = the notes' hard cut-off", default=False)
 
 
 def settings_of(scene) -> "WhittedSceneSettings | None":

@@ -55,6 +55,7 @@ class WHITTED_PT_render(bpy.types.Panel):
         col.prop(props, "samples", text="Samples (N×N)")
         col.prop(props, "light_samples")
         col.prop(props, "sky_samples")
+        col.prop(props, "terminal_rays")
         col = layout.column(heading="Rays")
         col.prop(props, "max_depth")
         col.prop(props, "epsilon")

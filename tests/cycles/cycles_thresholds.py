@@ -28,7 +28,9 @@ INHERENT = {
     "metallic_half_dielectric": dict(psnr=33.0, mae=0.025),
     # Past the bounce limit Cycles still traces one more ray that collects the world colour (and emission) but no
     # direct light; a Whitted tracer stops at max_depth. Under a black world both agree exactly (the
-    # interreflection_d* scenes); under a sky at depth 1 they differ. Measured 22.5 dB / MAE 0.0089.
+    # interreflection_d* scenes); under a sky at depth 1 they differ. Measured 22.5 dB / MAE 0.0089 with the notes'
+    # hard cut-off; RenderSettings(terminal_rays=True) traces Cycles' extra bounce and gives 44.0 dB / MAE 0.0024
+    # (test_terminal_bounce_closes_the_sky_difference holds that to the shared bar).
     "interreflection_sky_d1": dict(psnr=21.0, mae=0.012),
 }
 

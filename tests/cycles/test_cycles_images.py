@@ -41,3 +41,12 @@ def test_comparison_can_fail(bpy_module, tmp_path):
                        max_mae=bar["mae"])
     assert sorted(p.name for p in tmp_path.glob("*.png")) == [
         "point_shadow-cycles.png", "point_shadow-diff.png", "point_shadow-ours.png"]
+
+
+def test_terminal_bounce_closes_the_sky_difference(bpy_module, tmp_path):
+    """Cycles' last bounce past the depth limit still collects the world colour; RenderSettings.terminal_rays traces
+    that bounce too, and the sky-lit inter-reflection then meets the shared bar."""
+    desc = IMAGE_SCENES["interreflection_sky_d1"]
+    ours = H.render_ours(desc, "addon", terminal_rays=True)
+    H.check_images(desc, ours.rgb, H.cycles_reference(desc)["rgb"], tmp_path, min_psnr=35.0, max_mae=0.004,
+                   label=" [terminal_rays]")
