@@ -13,7 +13,7 @@ import pytest
 
 from tests import blender_support as bs
 
-bpy = pytest.importorskip("bpy")
+import bpy  # noqa: E402  (the test extra installs bpy; a missing bpy must fail, not skip)
 
 from addon import export  # noqa: E402  (needs bpy)
 

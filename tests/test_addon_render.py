@@ -17,7 +17,7 @@ import pytest
 
 from tests import blender_support as bs
 
-bpy = pytest.importorskip("bpy")
+import bpy  # noqa: E402  (the test extra installs bpy; a missing bpy must fail, not skip)
 
 import addon  # noqa: E402
 from addon import engine  # noqa: E402
