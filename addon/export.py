@@ -408,6 +408,12 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
         g = geometry[key]
         if g is None or not len(g["triangles"]):
             continue
+        world = np.array(inst.matrix_world, dtype=np.float64)
+        det = np.linalg.det(world[:3, :3])
+        if not np.isfinite(det) or abs(det) <= 1e-12 * np.abs(world[:3, :3]).max() ** 3:
+            warnings.append(f"object {obj.name!r}: zero scale (nothing to render); skipped")
+            continue
+        tris, normals, uvs = g["triangles"], g["normals"], g["uvs"]  # add_mesh un-mirrors negative scales
         slots = [material_index(s.material) for s in obj.material_slots]
         if slots:
             table = np.asarray(slots, np.int32)
@@ -416,8 +422,7 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
             mats = default_mat
         name = obj.name if not inst.is_instance else f"{obj.name}@{inst.parent.name if inst.parent else ''}" \
                                                        f"#{inst.random_id & 0xFFFF:04x}"
-        b.add_mesh(g["vertices"], g["triangles"], material=mats, name=name,
-                   transform=np.array(inst.matrix_world, dtype=np.float64), normals=g["normals"], uvs=g["uvs"])
+        b.add_mesh(g["vertices"], tris, material=mats, name=name, transform=world, normals=normals, uvs=uvs)
         pass_indices.append(int(obj.pass_index))
 
     if camera is None:

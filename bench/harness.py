@@ -331,8 +331,9 @@ def main(argv=None) -> list:
         print(f"bench: peak-memory check at {mw}x{mh} ...", flush=True)
         mem = run_ours(a, "whitted" if not a.quick else a.scenes[0], width=mw, height=mh, runs=1, record=False)
         print(f"Peak memory at {mw}×{mh}: {mem['maxrss'] / 2**30:.2f} GB ({mem['seconds']:.1f} s)", flush=True)
-    (work / "results.json").write_text(json.dumps({"argv": a.argv, "results": results, "memory": mem,
-                                                   "machine": info}, indent=1))
+    tmp = work / "results.json.tmp"  # written whole, then renamed: a cancelled run keeps the last good file
+    tmp.write_text(json.dumps({"argv": a.argv, "results": results, "memory": mem, "machine": info}, indent=1))
+    tmp.replace(work / "results.json")
     if a.out:
         write_markdown(Path(a.out), results, mem, info, a)
         print(f"bench: wrote {a.out}", flush=True)

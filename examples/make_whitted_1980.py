@@ -126,9 +126,15 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("-o", "--output", default=os.path.join(here, "whitted_1980.usda"))
     args = ap.parse_args(argv)
-    if os.path.exists(args.output):
-        os.unlink(args.output)
-    build(args.output)
+    root, ext = os.path.splitext(args.output)
+    # Written whole, then renamed over the old file; the extension stays last (USD picks the format by it).
+    tmp = f"{root}.tmp{os.getpid()}{ext}"
+    try:
+        build(tmp)
+        os.replace(tmp, args.output)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
     print(args.output)
 
 

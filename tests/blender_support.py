@@ -338,8 +338,9 @@ def render_exr(scene=None, path: str | None = None, *, engine: str | None = None
     s.file_format = "OPEN_EXR_MULTILAYER" if multilayer else "OPEN_EXR"
     s.color_mode = "RGBA"
     s.color_depth = "32"
-    if path is None:
-        path = os.path.join(tempfile.mkdtemp(prefix="whitted-bpy-"), "render.exr")
+    if path is None:  # a temporary file, removed once read
+        with tempfile.TemporaryDirectory(prefix="whitted-bpy-") as tmp:
+            return render_exr(scene, os.path.join(tmp, "render.exr"), engine=None, passes=passes)
     scene.render.filepath = path
     scene.render.use_file_extension = False
     bpy.ops.render.render(write_still=True)

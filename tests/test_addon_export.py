@@ -182,6 +182,29 @@ def test_instances_and_pass_index(bpy_module):
     assert list(scene.object_pass_indices) == [7, 7, 7, 7]
 
 
+def test_mirrored_objects_keep_outward_front_faces_and_zero_scale_is_skipped(bpy_module):
+    """A negative scale turns the triangles' winding; the export turns it back so the geometric normal (which
+    decides entering vs leaving glass) still points out of the object. A zero-scaled object is skipped, not a
+    LinAlgError."""
+    bs.reset()
+    bs.add_camera()
+    mirrored = bs.add_uv_sphere((3, 0, 0), 1.0, segments=16, rings=8)
+    mirrored.name = "Mirrored"
+    mirrored.scale = (-1.0, 1.0, 1.0)
+    hidden = bs.add_cube((-3, 0, 0))
+    hidden.name = "Hidden"
+    hidden.scale = (0.0, 0.0, 0.0)
+    scene, warnings = export.scene_from_depsgraph(depsgraph())
+    assert scene.object_names == ["Mirrored"]
+    assert any("Hidden" in w for w in warnings)
+    p = scene.vertices[scene.triangles].astype(np.float64)
+    ng = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    outward = p.mean(axis=1) - np.array([3.0, 0.0, 0.0])
+    assert np.einsum("ij,ij->i", ng, outward).min() > 0
+    # the shading normals still agree with the geometric ones
+    assert np.einsum("tcx,tx->tc", scene.normals.astype(np.float64), ng).min() > 0
+
+
 def test_settings_from_scene(bpy_module):
     import addon
 

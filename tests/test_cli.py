@@ -146,3 +146,14 @@ def test_whitted_1980_example_renders(tmp_path):
     assert sky[2] > sky[0] + 0.3  # blue sky at the top
     floor = img[-3]
     assert floor[:, 0].max() > 0.5 and floor[:, 1].max() > 0.5  # red and yellow squares at the bottom
+
+
+def test_purposes_take_commas_or_spaces(scene_file):
+    """README writes `--purposes render,proxy,guide`; argparse alone would read that as one unknown purpose."""
+    from usd_io.cli import build_parser, split_purposes
+
+    args = build_parser().parse_args(["info", str(scene_file), "--purposes", "default,render", "proxy"])
+    assert split_purposes(args.purposes) == ["default", "render", "proxy"]
+    res = whitted("info", scene_file, "--purposes", "default,render")
+    assert res.returncode == 0 and "/Ball" in res.stdout, res.stderr
+    one_line_error(whitted("info", scene_file, "--purposes", "default,nope"), "nope")

@@ -113,3 +113,24 @@ def test_write_to_missing_directory_fails_cleanly(tmp_path):
     with pytest.raises(ValueError, match="extension"):
         img.save(tmp_path / "noext")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_mirroring_transform_keeps_front_faces_outside():
+    b = SceneBuilder()
+    b.camera = Camera()
+    mirror = np.diag([-1.0, 1.0, 1.0, 1.0])
+    b.add_mesh(TRI, [[0, 1, 2]], transform=mirror, normals=np.tile([0.0, 0.0, 1.0], (3, 1)))
+    s = b.build()
+    tri = s.vertices[s.triangles[0]]
+    face_normal = np.cross(tri[1] - tri[0], tri[2] - tri[0])
+    assert face_normal[2] > 0  # the winding was turned back: still facing +z like its shading normals
+    with pytest.raises(ValueError, match="singular"):
+        b.add_mesh(TRI, [[0, 1, 2]], transform=np.diag([0.0, 1.0, 1.0, 1.0]))
+
+
+def test_nan_area_light_size_is_rejected():
+    from tracer import AreaLight
+
+    with pytest.raises(ValueError, match="size"):
+        AreaLight(position=(0, 0, 1), u_axis=(1, 0, 0), v_axis=(0, 1, 0), normal=(0, 0, -1), size=(np.nan, 1.0),
+                  radiance=(1, 1, 1))

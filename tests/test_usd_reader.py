@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade, Vt
 
 from tracer import RenderSettings, render
 from usd_io import UsdInputError, load_stage
@@ -450,3 +450,48 @@ def test_missing_reference_renders_what_resolves_and_warns_once(tmp_path):
     assert [p for p, _ in info.meshes] == ["/Good/Ball"]
     missing = [w for w in info.warnings if "gone.usda" in w]
     assert len(missing) == 1 and "/Lost1" in missing[0] and "/Lost2" in missing[0]
+
+
+def test_malformed_values_give_a_warning_or_one_clear_error():
+    """Zero/NaN sizes, zero-scale transforms and NaN light inputs are skipped with a warning (the rest renders);
+    a camera or material the render cannot do without raises UsdInputError, never ZeroDivision/LinAlgError."""
+    s = new_stage()
+    add_camera(s)
+    UsdGeom.Sphere.Define(s, "/Good")
+    UsdGeom.Sphere.Define(s, "/Flat").CreateRadiusAttr(0.0)
+    UsdGeom.Cube.Define(s, "/Gone").AddScaleOp().Set(Gf.Vec3f(0, 0, 0))  # the common "hide by scaling" idiom
+    mesh = UsdGeom.Mesh.Define(s, "/Nan")
+    mesh.CreatePointsAttr([(0, 0, 0), (1, 0, float("nan")), (0, 1, 0)])
+    mesh.CreateFaceVertexCountsAttr([3])
+    mesh.CreateFaceVertexIndicesAttr([0, 1, 2])
+    UsdLux.DiskLight.Define(s, "/Disk").CreateRadiusAttr(float("nan"))
+    UsdLux.SphereLight.Define(s, "/Hot").CreateIntensityAttr(float("inf"))
+    UsdLux.DistantLight.Define(s, "/Sun")
+    scene, info = load_stage(s, width=16)
+    assert [p for p, _ in info.meshes] == ["/Good"]
+    assert [p for p, _, _ in info.lights] == ["/Sun"]
+    for path in ("/Flat", "/Gone", "/Nan", "/Disk", "/Hot"):
+        assert any(w.startswith(path + ":") for w in info.warnings), (path, info.warnings)
+    assert np.isfinite(scene.vertices).all()
+
+    UsdGeom.Camera(s.GetPrimAtPath("/Cam")).CreateVerticalApertureAttr(0.0)
+    with pytest.raises(UsdInputError, match="verticalAperture"):
+        load_stage(s, width=16)
+    UsdGeom.Camera(s.GetPrimAtPath("/Cam")).CreateVerticalApertureAttr(2.4)
+    UsdGeom.Camera(s.GetPrimAtPath("/Cam")).CreateFocalLengthAttr(0.0)
+    with pytest.raises(UsdInputError, match="focalLength"):
+        load_stage(s, width=16)
+
+
+def test_zero_scale_instances_are_dropped():
+    s = new_stage()
+    add_camera(s)
+    inst = UsdGeom.PointInstancer.Define(s, "/Inst")
+    UsdGeom.Cube.Define(s, "/Inst/Protos/Box")
+    inst.CreatePrototypesRel().SetTargets(["/Inst/Protos/Box"])
+    inst.CreateProtoIndicesAttr([0, 0, 0])
+    inst.CreatePositionsAttr([(0, 0, 0), (3, 0, 0), (-3, 0, 0)])
+    inst.CreateScalesAttr([(1, 1, 1), (0, 0, 0), (1, 1, 1)])
+    scene, info = load_stage(s, width=16)
+    assert len(scene.triangles) == 2 * 12
+    assert any("1 instance(s)" in w for w in info.warnings)

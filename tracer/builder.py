@@ -65,7 +65,8 @@ class SceneBuilder:
         vertices   (V, 3) object-space points
         triangles  (T, 3) vertex indices
         material   one material index, or (T,) per-triangle indices
-        transform  optional 4×4 object-to-world matrix (column vectors: p_world = M @ p)
+        transform  optional 4×4 object-to-world matrix (column vectors: p_world = M @ p); a mirroring one
+                   (negative determinant) has its triangles' winding turned back so front faces stay outside
         normals    optional shading normals: (V, 3) per vertex or (T, 3, 3) per corner
         uvs        optional texture coordinates: (V, 2) per vertex or (T, 3, 2) per corner
         object_id  reuse an id (several meshes of one object); by default a new one named ``name``
@@ -75,11 +76,16 @@ class SceneBuilder:
         label = name or f"object{len(self.object_names)}"
         if t.size and (t.min() < 0 or t.max() >= len(v)):
             raise ValueError(f"mesh {label!r}: triangle index out of range for {len(v)} vertices")
+        mirrored = False
         if transform is not None:
             m = np.asarray(transform, dtype=np.float64)
             if m.shape != (4, 4) or not np.all(np.isfinite(m)):
                 raise ValueError(f"mesh {label!r}: transform must be a finite 4x4 matrix")
+            det = np.linalg.det(m[:3, :3])
+            if abs(det) <= 1e-12 * max(np.abs(m[:3, :3]).max(), 1e-300) ** 3:
+                raise ValueError(f"mesh {label!r}: transform is singular (zero scale); skip the object instead")
             v = v @ m[:3, :3].T + m[:3, 3]
+            mirrored = det < 0
         if object_id is None:
             object_id = len(self.object_names)
             self.object_names.append(label)
@@ -111,6 +117,12 @@ class SceneBuilder:
                                  f"or per corner ({n_tri}, 3, 2), got {uv.shape}")
             corner_uvs = uv.astype(np.float32)
 
+        if mirrored:
+            # A mirroring transform turns the winding around: swap two corners so front faces stay outside
+            # (the integrator tells entering from leaving glass by the winding).
+            t = t[:, [0, 2, 1]]
+            corner_normals = None if corner_normals is None else corner_normals[:, [0, 2, 1]]
+            corner_uvs = None if corner_uvs is None else corner_uvs[:, [0, 2, 1]]
         self._vertices.append(v.astype(np.float32))
         self._triangles.append((t + self._n_vertices).astype(np.int32))
         self._n_vertices += len(v)

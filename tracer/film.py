@@ -83,7 +83,10 @@ def write_image(path: str, pixels: np.ndarray, channel_names=None) -> None:
     directory = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(directory):
         raise ValueError(f"{path}: directory {directory} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=".whitted-", suffix=ext, dir=directory)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=".whitted-", suffix=ext, dir=directory)
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot write into {directory} ({exc.strerror})") from None
     os.close(fd)
     try:
         out = oiio.ImageOutput.create(tmp)
@@ -99,7 +102,10 @@ def write_image(path: str, pixels: np.ndarray, channel_names=None) -> None:
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600 files; give the image the usual permissions
-        os.replace(tmp, path)
+        try:
+            os.replace(tmp, path)
+        except OSError as exc:
+            raise ValueError(f"{path}: cannot write ({exc.strerror})") from None
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)

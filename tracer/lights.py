@@ -126,7 +126,7 @@ class SpotLight(PointLight):
             raise ValueError(f"light {self.name}: a spot light needs a direction")
         self.direction = _normalize(self.direction, "direction")
         self.cone_angle = float(self.cone_angle)
-        self.blend = float(self.blend)
+        self.blend = float(self.blend)  # NaN fails the range checks below (comparisons with NaN are False)
         if not (0 < self.cone_angle <= np.pi):
             raise ValueError(f"light {self.name}: cone_angle must be in (0, π], got {self.cone_angle}")
         if not (0 <= self.blend <= 1):
@@ -203,7 +203,7 @@ class AreaLight:
         self.v_axis = _normalize(self.v_axis, "v_axis")
         self.normal = _normalize(self.normal, "normal")
         self.size = (float(self.size[0]), float(self.size[1]))
-        if min(self.size) <= 0:
+        if not all(np.isfinite(self.size)) or min(self.size) <= 0:
             raise ValueError(f"light {self.name}: size must be > 0, got {self.size}")
         if self.radiance is None:
             raise ValueError(f"light {self.name}: an area light needs a radiance")

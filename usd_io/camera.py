@@ -16,6 +16,7 @@ from pxr import Sdf, UsdGeom
 
 from tracer import ORTHOGRAPHIC, PERSPECTIVE, Camera, fit_apertures
 
+from .stage import UsdInputError
 from .xform import to_numpy
 
 #: usdrecord's policy (CameraUtilMatchVertically): keep the vertical aperture.
@@ -27,13 +28,26 @@ DEFAULT_FOCAL = 50.0
 
 
 def read_camera(prim, time):
-    """Raw camera values at ``time`` (world transform, projection, USD-unit apertures)."""
+    """Raw camera values at ``time`` (world transform, projection, USD-unit apertures).
+
+    Raises :class:`UsdInputError` for apertures (or a perspective focal length) that are not positive and finite,
+    and for a transform with NaN/Inf.
+    """
     cam = UsdGeom.Camera(prim)
     gf = cam.GetCamera(time)
     ortho = gf.projection == gf.Orthographic
+    checked = [("horizontalAperture", gf.horizontalAperture), ("verticalAperture", gf.verticalAperture)]
+    if not ortho:
+        checked.append(("focalLength", gf.focalLength))
+    for name, v in checked:
+        if not (np.isfinite(v) and v > 0):
+            raise UsdInputError(f"{prim.GetPath()}: camera {name} must be a positive number, got {v:g}")
+    c2w = to_numpy(gf.transform)
+    if not np.all(np.isfinite(c2w)):
+        raise UsdInputError(f"{prim.GetPath()}: camera transform has NaN or infinite values")
     return dict(
         path=str(prim.GetPath()),
-        camera_to_world=to_numpy(gf.transform),
+        camera_to_world=c2w,
         projection=ORTHOGRAPHIC if ortho else PERSPECTIVE,
         focal_length=float(gf.focalLength),
         horizontal_aperture=float(gf.horizontalAperture),
@@ -91,8 +105,6 @@ def framing_camera(bounds: np.ndarray, up_axis: str, width: int, height: int) ->
 def find_camera(stage, path=None, prims=None):
     """The camera prim to use: ``path`` (error if it is not a camera), else the stage's first camera in
     traversal order (usdrecord picks the primary camera the same way), else None."""
-    from .stage import UsdInputError
-
     if path:
         if not Sdf.Path.IsValidPathString(path) or not Sdf.Path(path).IsAbsolutePath():
             raise UsdInputError(f"{stage.GetRootLayer().identifier}: camera path {path!r} is not an absolute "

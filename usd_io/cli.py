@@ -1,7 +1,7 @@
 """The ``whitted`` command line: ``whitted render`` (USD -> PNG/EXR) and ``whitted info``.
 
     whitted render SCENE -o OUT.png|OUT.exr [--camera PRIM_PATH] [--width W] [--height H] [--spp N]
-                   [--max-depth D] [--frames A:B[xS]] [--purposes P ...] [--threads N]
+                   [--max-depth D] [--frames A:B[xS]] [--purposes P[,P...] ...] [--threads N]
                    [--aov depth,normal,albedo,objectid] [--quiet]
     whitted info SCENE [--time T]
 
@@ -93,6 +93,11 @@ def _parse_aovs(text):
     return names
 
 
+def split_purposes(values) -> list[str]:
+    """``--purposes`` takes space- or comma-separated names (``render proxy`` or ``render,proxy``)."""
+    return [p.strip() for v in values for p in v.split(",") if p.strip()]
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = _Parser(prog="whitted", description="Render USD stages with a Whitted-style ray tracer.")
     sub = ap.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -106,7 +111,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--max-depth", type=int, default=8, help="maximum reflection/refraction depth (default 8)")
     r.add_argument("--frames", help="time codes A:B or A:BxS; output pattern out.####.png")
     r.add_argument("--purposes", nargs="+", default=["default", "render"],
-                   help="purposes to render (default: default render)")
+                   help="purposes to render, space- or comma-separated (default: default render)")
     r.add_argument("--threads", type=int, help="worker threads (default: all cores)")
     r.add_argument("--aov", help="extra outputs: comma-separated depth,normal,albedo,objectid")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
@@ -142,18 +147,21 @@ def cmd_render(args) -> int:
     stage = open_stage(args.scene)
     for frame in frames:
         scene, info = load_stage(stage, time=frame, camera=args.camera, width=args.width, height=args.height,
-                                 purposes=args.purposes)
+                                 purposes=split_purposes(args.purposes))
         if frame is None or frame == frames[0]:
             _print_warnings(info)
         settings = RenderSettings(width=info.width, height=info.height, samples=args.spp, max_depth=args.max_depth,
                                   threads=args.threads, aovs=aovs, progress=not args.quiet)
         image = render(scene, settings)
         out = frame_path(args.output, frame, len(frames) > 1) if frame is not None else args.output
-        image.save(out)
-        for name in aovs:
-            a = image.aovs[name]
-            a = a[..., None] if a.ndim == 2 else a
-            _write_aov(aov_path(out, name), a.astype(np.float32))
+        try:
+            image.save(out)
+            for name in aovs:
+                a = image.aovs[name]
+                a = a[..., None] if a.ndim == 2 else a
+                _write_aov(aov_path(out, name), a.astype(np.float32))
+        except ValueError as exc:  # unwritable output (the tracer's film names the file and the reason)
+            raise BadInput(str(exc)) from None
         if not args.quiet:
             s = image.stats
             print(f"{out}: {info.width}x{info.height}, {len(scene.triangles):,} triangles, "
@@ -170,7 +178,7 @@ def _write_aov(path, pixels):
 def cmd_info(args) -> int:
     from .reader import load_stage
 
-    scene, info = load_stage(args.scene, time=args.time, purposes=args.purposes, width=160)
+    scene, info = load_stage(args.scene, time=args.time, purposes=split_purposes(args.purposes), width=160)
     out = sys.stdout
     print(f"stage: {info.path}", file=out)
     print(f"upAxis: {info.up_axis}, metersPerUnit: {info.meters_per_unit:g}", file=out)

@@ -113,9 +113,16 @@ def plane(width, length):
 
 
 def read_gprim(prim, time, segments=DEFAULT_SEGMENTS) -> MeshData | None:
-    """Tessellate a gprim in its object space, or None if the prim is not one of :data:`GPRIM_TYPES`."""
+    """Tessellate a gprim in its object space, or None if the prim is not one of :data:`GPRIM_TYPES`.
+    Raises ValueError for a size that is zero, negative or not finite."""
     t = prim.GetTypeName()
-    g = lambda schema, attr: getattr(schema(prim), f"Get{attr}Attr")().Get(time)  # noqa: E731
+
+    def g(schema, attr):
+        v = getattr(schema(prim), f"Get{attr}Attr")().Get(time)
+        if attr != "Axis" and not (v is not None and np.isfinite(v) and v > 0):
+            raise ValueError(f"{prim.GetPath()}: {t} {attr.lower()} must be a positive number, got {v}")
+        return v
+
     if t == "Sphere":
         p, tri, n = sphere(g(UsdGeom.Sphere, "Radius"), segments)
         axis = "Z"

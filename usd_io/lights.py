@@ -55,6 +55,14 @@ def light_colour(prim, time) -> np.ndarray:
     return rgb
 
 
+def _finite(v: float, what: str) -> float:
+    """``v`` as a float; ValueError (the reader warns and skips the light) when it is NaN or infinite."""
+    v = float(v)
+    if not np.isfinite(v):
+        raise ValueError(f"{what} is {v}")
+    return v
+
+
 def _normalized(prim, time) -> bool:
     return bool(_get(UsdLux.LightAPI(prim).GetNormalizeAttr(), time, False))
 
@@ -72,7 +80,7 @@ def convert_light(prim, world: np.ndarray, time, warn):
     down = -world[:3, 2]  # the light's −Z
     if t == "SphereLight":
         lux = UsdLux.SphereLight(prim)
-        r = float(_get(lux.GetRadiusAttr(), time, 0.5)) * float(np.mean(_axis_scales(world)))
+        r = _finite(_get(lux.GetRadiusAttr(), time, 0.5), "radius") * float(np.mean(_axis_scales(world)))
         point = bool(_get(lux.GetTreatAsPointAttr(), time, False))
         if _normalized(prim, time) or r <= 0:
             intensity = rgb / 4.0
@@ -82,8 +90,8 @@ def convert_light(prim, world: np.ndarray, time, warn):
         shaping = UsdLux.ShapingAPI(prim)
         cone = shaping.GetShapingConeAngleAttr() if prim.HasAPI(UsdLux.ShapingAPI) else None
         if cone and cone.HasAuthoredValue():
-            angle = float(cone.Get(time))
-            soft = float(_get(shaping.GetShapingConeSoftnessAttr(), time, 0.0))
+            angle = _finite(cone.Get(time), "shaping:cone:angle")
+            soft = _finite(_get(shaping.GetShapingConeSoftnessAttr(), time, 0.0), "shaping:cone:softness")
             if 0 < angle < 180:
                 return "spot", SpotLight(position=pos, intensity=intensity, radius=radius, direction=down,
                                          cone_angle=np.radians(angle), blend=float(np.clip(soft, 0, 1)),
@@ -91,7 +99,7 @@ def convert_light(prim, world: np.ndarray, time, warn):
         return "point", PointLight(position=pos, intensity=intensity, radius=radius, name=name), None
     if t == "DistantLight":
         lux = UsdLux.DistantLight(prim)
-        angle = float(_get(lux.GetAngleAttr(), time, 0.53))
+        angle = _finite(_get(lux.GetAngleAttr(), time, 0.53), "angle")
         return "distant", DistantLight(direction=down, irradiance=4.0 * rgb,
                                        angle=float(np.clip(np.radians(2 * angle), 0, np.pi - 1e-6)), name=name), None
     if t in ("RectLight", "DiskLight"):
@@ -105,8 +113,8 @@ def convert_light(prim, world: np.ndarray, time, warn):
         else:
             r = float(_get(UsdLux.DiskLight(prim).GetRadiusAttr(), time, 0.5))
             size, shape = (2 * r * sx, 2 * r * sy), "disk"
-        if min(size) <= 0:
-            warn(f"{name}: {t} of zero size skipped")
+        if not (np.all(np.isfinite(size)) and min(size) > 0):
+            warn(f"{name}: {t} of zero or non-finite size {size} skipped")
             return "area", None, None
         area = size[0] * size[1] if shape == "rect" else np.pi / 4 * size[0] * size[1]
         radiance = rgb / area if _normalized(prim, time) else rgb

@@ -95,9 +95,9 @@ def smooth_normals(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """Area-weighted vertex normals (V, 3)."""
     p = points[triangles]
     fn = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-    vn = np.zeros_like(points)
-    for c in range(3):
-        np.add.at(vn, triangles[:, c], fn)
+    corners = triangles.reshape(-1)
+    w = np.repeat(fn, 3, axis=0)  # each corner adds its face's (area-weighted) normal to its point
+    vn = np.stack([np.bincount(corners, w[:, k], minlength=len(points)) for k in range(3)], axis=1)
     return vn / np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-30)
 
 

@@ -21,7 +21,7 @@ from .material import MaterialTable
 from .mesh import MeshData, read_mesh
 from .stage import (DEFAULT_PURPOSES, UsdInputError, check_purposes, composition_warnings, open_stage,
                     renderable_prims, stage_messages, stage_time)
-from .xform import Transforms
+from .xform import Transforms, transform_points
 
 
 @dataclass
@@ -58,13 +58,19 @@ class _Reader:
 
     # ------------------------------------------------------------------ geometry
     def geometry(self, prim, uv_name="st") -> MeshData | None:
-        if prim.IsA(UsdGeom.Mesh):
-            try:
-                return read_mesh(prim, self.time, uv_name)
-            except ValueError as exc:
-                self.info.warn(f"{exc} (mesh skipped)")
-                return None
-        return read_gprim(prim, self.time, self.segments)
+        """Object-space geometry, or None (with a warning) where it is malformed."""
+        try:
+            if prim.IsA(UsdGeom.Mesh):
+                data = read_mesh(prim, self.time, uv_name)
+            else:
+                data = read_gprim(prim, self.time, self.segments)
+        except ValueError as exc:
+            self.info.warn(f"{exc} (skipped)")
+            return None
+        if data is not None and not np.all(np.isfinite(data.points)):
+            self.info.warn(f"{prim.GetPath()}: points with NaN or infinite coordinates (skipped)")
+            return None
+        return data
 
     def cached_geometry(self, prim) -> MeshData | None:
         """Geometry of an instance proxy is read once per prototype prim."""
@@ -87,16 +93,16 @@ class _Reader:
         data = self.cached_geometry(prim)
         if data is None or not len(data.triangles):
             return
-        data, material = self.shaded(prim, data)
         m = self.xf.world(prim)
-        tris, normals, uvs = data.triangles, data.normals, data.uvs
-        if np.linalg.det(m[:3, :3]) < 0:  # a mirroring transform turns the winding around
-            tris = tris[:, [0, 2, 1]]
-            normals = normals[:, [0, 2, 1]] if normals is not None and normals.ndim == 3 else normals
-            uvs = uvs[:, [0, 2, 1]] if uvs is not None else None
+        if not _usable(m):
+            self.info.warn(f"{prim.GetPath()}: transform is singular (zero scale) or not finite (skipped)")
+            return
+        data, material = self.shaded(prim, data)
+        tris = data.triangles
+        # add_mesh turns the winding of mirroring transforms back itself
         self.b.add_mesh(data.points, tris, material=material, name=str(prim.GetPath()), transform=m,
-                        normals=normals, uvs=uvs)
-        self._grow(data.points @ m[:3, :3].T + m[:3, 3])
+                        normals=data.normals, uvs=data.uvs)
+        self._grow(transform_points(m, data.points))
         self.info.meshes.append((str(prim.GetPath()), int(len(tris))))
 
     def add_instancer(self, prim):
@@ -119,6 +125,13 @@ class _Reader:
                 data, material = self.shaded(piece, data)
                 rel = self.xf.relative(piece, root.GetParent())
                 full = world[None] @ mats[sel] @ rel[None]
+                usable = _usable(full)
+                if not usable.all():
+                    self.info.warn(f"{prim.GetPath()}: {int((~usable).sum())} instance(s) of {piece.GetPath()} have "
+                                   "a singular (zero scale) or non-finite transform (skipped)")
+                    full = full[usable]
+                if not len(full):
+                    continue
                 v, t, n, uv, mat = replicate(full, data, material)
                 self.b.add_mesh(v, t, material=mat, name=f"{prim.GetPath()}[{piece.GetPath()}]", normals=n, uvs=uv)
                 self._grow(v)
@@ -132,7 +145,11 @@ class _Reader:
 
     # ------------------------------------------------------------------ lights
     def add_light(self, prim):
-        kind, light, world = convert_light(prim, self.xf.world(prim), self.time, self.info.warn)
+        try:
+            kind, light, world = convert_light(prim, self.xf.world(prim), self.time, self.info.warn)
+        except ValueError as exc:  # the tracer's light validation (NaN/Inf intensity, zero-length axes, ...)
+            self.info.warn(f"{prim.GetPath()}: {exc} (light skipped)")
+            return
         if light is not None:
             self.b.add_light(light)
             self.info.lights.append((str(prim.GetPath()), kind, light))
@@ -145,6 +162,14 @@ class _Reader:
         if not np.all(np.isfinite(self.lo)):
             return np.array([[-1.0, -1.0, -1.0], [1.0, 1.0, 1.0]])
         return np.stack([self.lo, self.hi])
+
+
+def _usable(m: np.ndarray) -> np.ndarray:
+    """Whether 4×4 matrices (one or a stack) are finite and invertible, so points and normals can go through."""
+    finite = np.isfinite(m).all(axis=(-2, -1))
+    a = np.where(finite[..., None, None], m, 0.0)[..., :3, :3]
+    size = np.abs(a).max(axis=(-2, -1))
+    return finite & (np.abs(np.linalg.det(a)) > 1e-12 * size ** 3)
 
 
 def load_stage(path_or_stage, time=None, camera: str | None = None, width: int | None = None,
@@ -202,5 +227,8 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
                                                  width, height)
         r.b.camera = cam.framing_camera(r.bounds(), info.up_axis, info.width, info.height)
         info.warn("no camera in the stage: framing the scene's bounds with a default camera")
-    scene = r.b.build()
+    try:
+        scene = r.b.build()
+    except ValueError as exc:  # the tracer's validation of what was read (e.g. a NaN material input)
+        raise UsdInputError(f"{label}: {exc}") from None
     return scene, info

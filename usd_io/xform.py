@@ -36,11 +36,6 @@ def transform_points(m: np.ndarray, p: np.ndarray) -> np.ndarray:
     return p @ m[:3, :3].T + m[:3, 3]
 
 
-def transform_normals(m: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """Normals by the inverse transpose (not renormalised; the tracer normalises)."""
-    return n @ np.linalg.inv(m[:3, :3])
-
-
 def batch_points(mats: np.ndarray, p: np.ndarray) -> np.ndarray:
     """(K, V, 3): points (V, 3) under K matrices (K, 4, 4), without a Python loop over K."""
     return np.einsum("kij,vj->kvi", mats[:, :3, :3], p) + mats[:, None, :3, 3]

@@ -394,9 +394,12 @@ def build_ours(desc: dict, front_end: str, workdir: str | None = None) -> tracer
     if front_end == "addon":
         return build_addon(desc)
     if front_end == "usd":
+        if workdir is not None:
+            return build_usd(desc, workdir)
         import tempfile
 
-        return build_usd(desc, workdir or tempfile.mkdtemp(prefix="whitted-usd-"))
+        with tempfile.TemporaryDirectory(prefix="whitted-usd-") as tmp:  # the scene is in memory once loaded
+            return build_usd(desc, tmp)
     raise ValueError(f"unknown front end {front_end!r}; choose from {FRONT_ENDS}")
 
 

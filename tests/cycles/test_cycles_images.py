@@ -4,7 +4,7 @@ import pytest
 
 import cycles_harness as H
 from cycles_scenes import IMAGE_SCENES, variant
-from cycles_thresholds import image_bar
+from cycles_thresholds import MAE_MAX, PSNR_MIN, image_bar
 
 pytestmark = pytest.mark.cycles
 
@@ -27,7 +27,7 @@ def test_inherent_differences_are_real(bpy_module, tmp_path):
     for name in ("metallic_half_dielectric", "interreflection_sky_d1"):
         desc = IMAGE_SCENES[name]
         m = H.metrics(H.render_ours(desc, "addon").rgb, H.cycles_reference(desc)["rgb"])
-        assert m["psnr"] < 35.0, f"{name}: the inherent difference disappeared ({m['psnr']:.1f} dB); re-measure"
+        assert m["psnr"] < PSNR_MIN, f"{name}: the inherent difference disappeared ({m['psnr']:.1f} dB); re-measure"
 
 
 def test_comparison_can_fail(bpy_module, tmp_path):
@@ -48,5 +48,5 @@ def test_terminal_bounce_closes_the_sky_difference(bpy_module, tmp_path):
     that bounce too, and the sky-lit inter-reflection then meets the shared bar."""
     desc = IMAGE_SCENES["interreflection_sky_d1"]
     ours = H.render_ours(desc, "addon", terminal_rays=True)
-    H.check_images(desc, ours.rgb, H.cycles_reference(desc)["rgb"], tmp_path, min_psnr=35.0, max_mae=0.004,
+    H.check_images(desc, ours.rgb, H.cycles_reference(desc)["rgb"], tmp_path, min_psnr=PSNR_MIN, max_mae=MAE_MAX,
                    label=" [terminal_rays]")
