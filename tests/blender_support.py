@@ -239,35 +239,14 @@ def set_world(color=(0.05, 0.05, 0.05), strength: float = 1.0):
 
 # ---------------------------------------------------------------------------------------------------- Cycles
 def set_cycles_whitted(scene=None, samples: int = 64, max_depth: int = 8, *, seed: int = 0):
-    """Tell Cycles to render what a Whitted tracer renders: point-light radius 0 and sun angle 0 (on the lights
-    now in the scene), no diffuse bounces, no caustics, no clamping, box pixel filter of one pixel, adaptive
-    sampling and denoising off, a fixed seed, Standard view transform, CPU."""
+    """Tell Cycles to render what a Whitted tracer renders: :func:`bench.cycles.whitted_cycles_settings` (every
+    setting explained there), plus point-light radius 0 and sun angle 0 on the lights now in the scene."""
     import bpy
 
+    from bench.cycles import whitted_cycles_settings
+
     scene = scene or bpy.context.scene
-    scene.render.engine = "CYCLES"
-    c = scene.cycles
-    c.device = "CPU"
-    c.samples = samples
-    c.use_adaptive_sampling = False
-    c.use_denoising = False
-    c.seed = seed
-    c.max_bounces = max_depth
-    c.diffuse_bounces = 0
-    c.glossy_bounces = max_depth
-    c.transmission_bounces = max_depth
-    c.transparent_max_bounces = max_depth
-    c.volume_bounces = 0
-    c.caustics_reflective = False
-    c.caustics_refractive = False
-    c.sample_clamp_direct = 0.0
-    c.sample_clamp_indirect = 0.0
-    c.pixel_filter_type = "BOX"
-    c.filter_width = 1.0
-    if hasattr(c, "use_light_tree"):
-        c.use_light_tree = False
-    scene.view_settings.view_transform = "Standard"
-    scene.view_settings.look = "None"
+    whitted_cycles_settings(scene, depth=max_depth, samples=samples, seed=seed)
     for obj in scene.objects:
         if obj.type == "LIGHT":
             if obj.data.type in ("POINT", "SPOT"):
