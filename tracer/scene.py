@@ -57,7 +57,11 @@ class Scene:
 
     # ------------------------------------------------------------------ validation
     def validate(self) -> None:
-        """Check shapes and values; raise ``ValueError`` naming what is wrong. Drops degenerate triangles."""
+        """Check shapes and values; raise ``ValueError`` naming what is wrong. Drops degenerate triangles.
+
+        A scene is treated as immutable once validated (derived data such as the bounds is cached); call this
+        again after changing its arrays."""
+        self._bounds = None
         v = np.asarray(self.vertices)
         if v.ndim != 2 or v.shape[1] != 3:
             raise ValueError(f"scene.vertices must have shape (V, 3), got {v.shape}")
@@ -153,6 +157,7 @@ class Scene:
             warnings.warn(f"scene: skipped {dropped} degenerate (zero-area) triangle(s)", stacklevel=3)
             self.skipped_triangles += dropped
             self.triangles = np.ascontiguousarray(self.triangles[keep])
+            self._bounds = None
             self.material_ids = np.ascontiguousarray(self.material_ids[keep])
             self.object_ids = np.ascontiguousarray(self.object_ids[keep])
             if self.normals is not None:
@@ -166,8 +171,12 @@ class Scene:
         """(2, 3) min and max corner of the referenced vertices (zeros for an empty scene)."""
         if not len(self.triangles):
             return np.zeros((2, 3), np.float64)
-        used = self.vertices[np.unique(self.triangles)]
-        return np.stack([used.min(axis=0), used.max(axis=0)]).astype(np.float64)
+        if getattr(self, "_bounds", None) is None:  # cached until the next validate()
+            used = np.zeros(len(self.vertices), bool)
+            used[self.triangles.ravel()] = True
+            v = self.vertices if used.all() else self.vertices[used]
+            self._bounds = np.stack([v.min(axis=0), v.max(axis=0)]).astype(np.float64)
+        return self._bounds.copy()
 
     @property
     def diagonal(self) -> float:
