@@ -134,6 +134,36 @@ def _ratio(x, ours):
     return "–" if x is None or not ours else f"{x / ours:.2f}×"
 
 
+def _pct(x):
+    return "–" if x is None else f"{x * 100:.0f} %"
+
+
+def comparisons(o: dict) -> dict:
+    """Our rays/s against raw embreex on the same rays, two ways, each like for like (None where not measured).
+
+    - ``end_to_end``: rays / our wall time (Embree scene build included, ``bvh_seconds``) vs rays / (raw build +
+      raw replay);
+    - ``tracing``: rays / (our wall − our ``bvh_seconds``) vs rays / raw replay (no build on either side);
+    - ``mixed``: rays / our wall vs rays / raw replay — not like for like; the figure reports before this split gave.
+
+    Results saved before the raw build was timed have no ``build_seconds``: their end-to-end ratio is None.
+    """
+    rep = o.get("replay")
+    trace_s = o.get("trace_seconds", o["seconds"] - o["split_thread_seconds"]["bvh"])
+    trace_rps = o.get("trace_rays_per_second", o["rays"]["total"] / trace_s if trace_s > 0 else 0.0)
+    out = {"trace_seconds": trace_s, "trace_rays_per_second": trace_rps,
+           "end_to_end": None, "tracing": None, "mixed": None, "raw_end_to_end_rays_per_second": None}
+    if not rep:
+        return out
+    out["mixed"] = o["rays_per_second"] / rep["rays_per_second"]
+    out["tracing"] = trace_rps / rep["rays_per_second"]
+    if "build_seconds" in rep:
+        raw_e2e = rep["rays"] / (rep["build_seconds"] + rep["seconds"])
+        out["raw_end_to_end_rays_per_second"] = raw_e2e
+        out["end_to_end"] = o["rays_per_second"] / raw_e2e
+    return out
+
+
 def scene_report(r: dict) -> str:
     """Markdown (also printed) for one scene's results."""
     o = r["ours"]
@@ -144,9 +174,11 @@ def scene_report(r: dict) -> str:
              f"{o['threads']} threads, depth {r['max_depth']}", ""]
     lines += ["| renderer | median wall | runs | ratio to ours | rays/s | peak RSS | note |",
               "|---|---|---|---|---|---|---|"]
+    cmp = comparisons(o)
     lines.append(f"| whitted (ours, {o['samples']}×{o['samples']} spp) | {_fmt_s(ours_s)} | {len(o['times'])} | 1.00× | "
                  f"{o['rays_per_second'] / 1e6:.2f} M | {_fmt_mb(o['maxrss'])} | BVH build "
-                 f"{o['split_thread_seconds']['bvh']:.2f} s included |")
+                 f"{o['split_thread_seconds']['bvh']:.2f} s included; tracing only (wall − BVH build) "
+                 f"{_fmt_s(cmp['trace_seconds'])}, {cmp['trace_rays_per_second'] / 1e6:.2f} M rays/s |")
     p = r.get("povray")
     if isinstance(p, dict):
         note = f"parse {p.get('parse', 0):.2f} s, trace {p.get('trace', 0):.2f} s (POV-Ray's report)"
@@ -162,15 +194,30 @@ def scene_report(r: dict) -> str:
     else:
         lines.append(f"| Cycles | – | – | – | – | – | skipped: {c} |")
     if rep:
+        if "build_seconds" in rep:
+            bs = rep["build_split"]
+            e2e_s = rep["build_seconds"] + rep["seconds"]
+            lines.append(f"| raw embreex build + replay | {_fmt_s(e2e_s)} | {len(rep['build_times'])} | "
+                         f"{_ratio(e2e_s, ours_s)} | {cmp['raw_end_to_end_rays_per_second'] / 1e6:.2f} M | – | "
+                         f"build {rep['build_seconds']:.3f} s (arrays {bs['triangles']:.3f}, TriangleMesh "
+                         f"{bs['mesh']:.3f}, BVH commit {bs['commit']:.3f}; rebuilt every run) + replay |")
         lines.append(f"| raw embreex replay | {_fmt_s(rep['seconds'])} | {len(rep['times'])} | "
                      f"{_ratio(rep['seconds'], ours_s)} | {rep['rays_per_second'] / 1e6:.2f} M | – | "
-                     f"{rep['rays']:,} recorded rays in {rep['batches']} batches |")
+                     f"{rep['rays']:,} recorded rays in {rep['batches']} batches; Embree scene build excluded |")
     lines.append("")
     per = ", ".join(f"{k} {v:,}" for k, v in rays.items() if k != "total")
     lines.append(f"Rays: **{rays['total']:,}** total ({per}).")
     if rep:
-        lines.append(f"End-to-end rays/s vs raw embreex: **{o['rays_per_second'] / rep['rays_per_second'] * 100:.0f} %** "
-                     f"(target ≥ 50 %).")
+        if cmp["end_to_end"] is not None:
+            lines.append(f"End-to-end rays/s vs raw embreex build + replay: **{_pct(cmp['end_to_end'])}** "
+                         f"(target ≥ 50 %; both sides include building their Embree scene: ours "
+                         f"{o['split_thread_seconds']['bvh']:.2f} s, raw {rep['build_seconds']:.2f} s).")
+        else:
+            lines.append("End-to-end rays/s vs raw embreex build + replay: – (raw build not timed in this run).")
+        lines.append(f"Tracing-only rays/s (our wall − BVH build) vs raw embreex replay: **{_pct(cmp['tracing'])}** "
+                     f"({cmp['trace_rays_per_second'] / 1e6:.2f} M vs {rep['rays_per_second'] / 1e6:.2f} M).")
+        lines.append(f"Not like for like, for comparison with earlier reports: our end to end vs the replay alone "
+                     f"{_pct(cmp['mixed'])}.")
     sp = o["split_thread_seconds"]
     tot = o["threads"] * ours_s
     lines.append(f"Our time split (thread-seconds, {o['threads']} threads × {ours_s:.2f} s = {tot:.2f}): intersection "
@@ -184,15 +231,22 @@ def scene_report(r: dict) -> str:
 def targets(results: list, mem: dict | None) -> list:
     """The issue's targets against this run's numbers, one row per scene."""
     rows = ["## Targets (issue 6) in this run", "",
-            "| scene | ours / POV-Ray time (≤ 1.0, aim 0.5) | ours / raw embreex rays/s (≥ 50 %) | "
-            "Cycles / ours time (≥ 20×) |", "|---|---|---|---|"]
+            "| scene | ours / POV-Ray time (≤ 1.0, aim 0.5) | (i) end to end: ours / raw embreex build + replay "
+            "rays/s (≥ 50 %) | (ii) tracing only: ours − BVH build / raw embreex replay rays/s | "
+            "Cycles / ours time (≥ 20×) |", "|---|---|---|---|---|"]
     for r in results:
         o = r["ours"]
-        p, c, rep = r.get("povray"), r.get("cycles"), o.get("replay")
+        p, c = r.get("povray"), r.get("cycles")
+        cmp = comparisons(o)
         pov = f"{o['seconds'] / p['seconds']:.2f}" if isinstance(p, dict) else "–"
-        emb = f"{o['rays_per_second'] / rep['rays_per_second'] * 100:.0f} %" if rep else "–"
         cyc = f"{c['seconds'] / o['seconds']:.1f}× ({c['samples']} spp)" if isinstance(c, dict) else "–"
-        rows.append(f"| {r['scene']} | {pov} | {emb} | {cyc} |")
+        rows.append(f"| {r['scene']} | {pov} | {_pct(cmp['end_to_end'])} | {_pct(cmp['tracing'])} | {cyc} |")
+    rows += ["", "The rays/s target is \"end-to-end traced rays/s ≥ 50 % of raw embreex on the same rays (shading, ray "
+             "generation and Python overhead no more than the intersection itself)\". Column (i) is end to end as "
+             "stated: both sides pay for building their Embree scene (vertex/index arrays, `TriangleMesh`, BVH). "
+             "Column (ii) leaves that build out of both sides, so ≥ 50 % there is roughly the parenthetical: "
+             "everything besides the Embree queries (shading, ray generation, Python, our integrator set-up) takes "
+             "no longer than the queries themselves."]
     if mem:
         rows += ["", f"Peak RSS at {mem['width']}×{mem['height']}: {mem['maxrss'] / 2**30:.2f} GB (≤ 3 GB)."]
     return rows + [""]

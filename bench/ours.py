@@ -4,6 +4,13 @@ Timed runs call :func:`tracer.render` without recording. A separate run with ``e
 the ray batches exactly as the integrator traced them, and :func:`replay` sends the same batches through a bare
 embreex scene on the same number of threads (batches handed to a thread pool, as our tiles are).
 
+Two comparisons are like for like:
+
+- end to end: our rays / our wall time (which includes building our Embree scene, ``image.stats["bvh_seconds"]``)
+  vs rays / (raw ``build_seconds`` + raw replay ``seconds``), where the raw build sets up a bare Embree scene the
+  way our Accelerator does (vertex and index arrays, ``TriangleMesh``, one query to force the lazy BVH build);
+- tracing only: our rays / ``trace_seconds`` (wall − ``bvh_seconds``, per run) vs rays / raw replay ``seconds``.
+
 Our time split (thread-seconds, summed over worker threads, from the timed runs):
 
 - intersection = ``image.stats["intersect_seconds"]`` (time inside Embree queries)
@@ -59,11 +66,33 @@ class TraceTimer:
         Integrator.trace = self._orig
 
 
-def replay(scene, batches, threads: int, runs: int = 3) -> dict:
-    """Trace ``batches`` [(query, origins, directions, t_max)] with raw embreex; median wall seconds of ``runs``."""
+def build_embree(scene) -> tuple:
+    """A bare embreex scene over ``scene``'s triangles, set up the way ``tracer.accel.Accelerator`` does it.
+
+    Returns (EmbreeScene, the arrays it was built from, {"triangles", "mesh", "commit": seconds}): the float32
+    vertex and int32 index arrays of the indexed mesh, ``TriangleMesh`` on them (embreex copies them into Embree
+    buffers), and one occlusion query, which makes embreex commit the scene, i.e. build the BVH (it does so lazily).
+    Our render reports the same three steps as ``image.stats["bvh_seconds"]``.
+    """
+    t0 = time.perf_counter()
     emb = rtcore_scene.EmbreeScene()
-    tris = np.ascontiguousarray(scene.vertices[scene.triangles], dtype=np.float32)
-    TriangleMesh(emb, tris)
+    verts = np.ascontiguousarray(scene.vertices, dtype=np.float32)
+    tris = np.ascontiguousarray(scene.triangles, dtype=np.int32)
+    t1 = time.perf_counter()
+    mesh = TriangleMesh(emb, verts, tris)
+    t2 = time.perf_counter()
+    emb.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32), query="OCCLUDED")
+    t3 = time.perf_counter()
+    return emb, (verts, tris, mesh), {"triangles": t1 - t0, "mesh": t2 - t1, "commit": t3 - t2}
+
+
+def replay(scene, batches, threads: int, runs: int = 3) -> dict:
+    """Trace ``batches`` [(query, origins, directions, t_max)] with raw embreex, ``runs`` times.
+
+    Each run first sets up a fresh bare Embree scene (:func:`build_embree`, timed on its own: ``build_seconds``),
+    then replays the batches through it (``seconds``); both are medians over the runs. ``rays_per_second`` is the
+    replay alone (tracing only), ``end_to_end_rays_per_second`` is rays / (build + replay) with the medians.
+    """
     n_rays = int(sum(len(b[1]) for b in batches))
 
     def prepared():
@@ -75,25 +104,36 @@ def replay(scene, batches, threads: int, runs: int = 3) -> dict:
                 out.append((q, o, d, None if t is None else np.ascontiguousarray(t, np.float32).copy()))
         return out
 
-    def one(b):
-        q, o, d, t = b
-        if q == "OCCLUDED":
-            emb.run(o, d, dists=t, query="OCCLUDED")
-        elif t is None:
-            emb.run(o, d, output=1)
-        else:
-            emb.run(o, d, output=1, dists=t)
-
-    times = []
+    times, build_times, build_splits = [], [], []
     with ThreadPoolExecutor(max_workers=threads) as pool:
         for _ in range(runs):
+            emb = keep = None  # let the previous run's scene go before building the next (1 M triangles: ~100 MB)
+            emb, keep, split = build_embree(scene)
+            build_times.append(sum(split.values()))
+            build_splits.append(split)
+
+            def one(b, emb=emb):
+                q, o, d, t = b
+                if q == "OCCLUDED":
+                    emb.run(o, d, dists=t, query="OCCLUDED")
+                elif t is None:
+                    emb.run(o, d, output=1)
+                else:
+                    emb.run(o, d, output=1, dists=t)
+
             work = prepared()
             t0 = time.perf_counter()
             list(pool.map(one, work))
             times.append(time.perf_counter() - t0)
+            del work, one
+    del emb, keep
     med = statistics.median(times)
+    build = statistics.median(build_times)
     return {"seconds": med, "times": times, "rays": n_rays, "batches": len(batches),
-            "rays_per_second": n_rays / med if med > 0 else 0.0}
+            "rays_per_second": n_rays / med if med > 0 else 0.0,
+            "build_seconds": build, "build_times": build_times,
+            "build_split": {k: statistics.median(s[k] for s in build_splits) for k in build_splits[0]},
+            "end_to_end_rays_per_second": n_rays / (build + med) if build + med > 0 else 0.0}
 
 
 def measure(name: str, width: int, height: int, threads: int, runs: int, samples: int = 1, max_depth: int = 8,
@@ -101,13 +141,14 @@ def measure(name: str, width: int, height: int, threads: int, runs: int, samples
     bs = scenes.build(name)
     scene = scenes.to_tracer(bs, width, height)
     settings = RenderSettings(width=width, height=height, samples=samples, max_depth=max_depth, threads=threads)
-    times, splits, stats = [], [], None
+    times, trace_times, splits, stats = [], [], [], None
     for _ in range(runs):
         with TraceTimer() as tt:
             t0 = time.perf_counter()
             img = tracer.render(scene, settings)
             wall = time.perf_counter() - t0
         times.append(wall)
+        trace_times.append(wall - img.stats["bvh_seconds"])
         isect = img.stats["intersect_seconds"]
         total = threads * wall
         splits.append({"intersect": isect, "shading": tt.seconds - isect, "overhead": total - tt.seconds,
@@ -116,10 +157,14 @@ def measure(name: str, width: int, height: int, threads: int, runs: int, samples
     if image:
         img.save(image)
     med = statistics.median(times)
+    trace_med = statistics.median(trace_times)
     split = {k: statistics.median(s[k] for s in splits) for k in splits[0]}
     out = {"scene": name, "triangles": int(len(scene.triangles)), "width": width, "height": height,
            "threads": threads, "samples": samples, "seconds": med, "times": times, "rays": stats["rays"],
            "rays_per_second": stats["rays"]["total"] / med, "split_thread_seconds": split,
+           # Tracing only: wall minus image.stats["bvh_seconds"] of the same run (median over runs).
+           "trace_seconds": trace_med, "trace_times": trace_times,
+           "trace_rays_per_second": stats["rays"]["total"] / trace_med if trace_med > 0 else 0.0,
            # Peak RSS of the timed renders (scene building included), taken before the recording run.
            "maxrss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}
     if record:

@@ -41,7 +41,17 @@ def test_quick_run_prints_every_peer(quick):
     else:
         assert re.search(r"^\| POV-Ray [\d.]+\S* \(AA off\) \| [\d.]+ s \| 1 \| [\d.]+×", stdout, re.M)
     assert re.search(r"^\| Cycles [\d.]+ \(4 spp\) \| [\d.]+ s \| 1 \| [\d.]+×", stdout, re.M)
-    assert re.search(r"End-to-end rays/s vs raw embreex: \*\*\d+ %\*\*", stdout)
+    # Both like-for-like comparisons with raw embreex, and the old mixed figure, labelled as such.
+    num = r"(\d+\.\d*[1-9]\d*|[1-9][\d,]*(?:\.\d+)?)"  # a positive number, as printed
+    # (Times of a 64×36 render print as a few ms; their positivity is checked on results.json below.)
+    assert re.search(r"^\| raw embreex build \+ replay \| [\d.]+ s \| 1 \| [\d.]+× \| " + num +
+                     r" M \| – \| build [\d.]+ s \(arrays [\d.]+, TriangleMesh [\d.]+, BVH commit [\d.]+; ", stdout, re.M)
+    assert re.search(r"^\| raw embreex replay \| [\d.]+ s \| 1 \| [\d.]+× \| " + num + r" M \|", stdout, re.M)
+    assert re.search(r"tracing only \(wall − BVH build\) [\d.]+ s, " + num + r" M rays/s \|", stdout)
+    assert re.search(r"End-to-end rays/s vs raw embreex build \+ replay: \*\*[1-9]\d* %\*\* \(target ≥ 50 %; both "
+                     r"sides include building their Embree scene", stdout)
+    assert re.search(r"Tracing-only rays/s \(our wall − BVH build\) vs raw embreex replay: \*\*[1-9]\d* %\*\*", stdout)
+    assert re.search(r"Not like for like, .*: our end to end vs the replay alone [1-9]\d* %", stdout)
     assert re.search(r"intersection [\d.]+ s \(\d+ %\), shading -?[\d.]+ s \(-?\d+ %\), overhead", stdout)
     assert re.search(r"Peak memory at 256×144: [\d.]+ GB", stdout)
 
@@ -59,6 +69,20 @@ def test_quick_run_ray_counts_add_up(quick):
     # The replay traced exactly the rays the integrator counted.
     assert r["ours"]["replay"]["rays"] == rays["total"] == r["ours"]["recorded_rays"]
     assert r["ours"]["maxrss"] > 10 * 2**20
+    # Raw embreex: the scene build is timed (rebuilt every run) besides the replay; ours: wall − bvh_seconds.
+    o, rep = r["ours"], r["ours"]["replay"]
+    assert len(rep["build_times"]) == len(rep["times"]) == len(o["times"]) == 1
+    assert rep["seconds"] > 0 and rep["build_seconds"] > 0
+    assert set(rep["build_split"]) == {"triangles", "mesh", "commit"}
+    assert all(v > 0 for v in rep["build_split"].values())
+    assert rep["build_seconds"] == pytest.approx(sum(rep["build_split"].values()))
+    assert rep["end_to_end_rays_per_second"] == pytest.approx(rep["rays"] / (rep["build_seconds"] + rep["seconds"]))
+    assert 0 < rep["end_to_end_rays_per_second"] < rep["rays_per_second"]
+    bvh = o["split_thread_seconds"]["bvh"]
+    assert bvh > 0
+    assert o["trace_seconds"] == pytest.approx(o["seconds"] - bvh) and 0 < o["trace_seconds"] < o["seconds"]
+    assert o["trace_rays_per_second"] == pytest.approx(rays["total"] / o["trace_seconds"])
+    assert o["trace_rays_per_second"] > o["rays_per_second"] > 0
     assert r["ours"]["triangles"] == scenes.build("tiny").triangle_count
 
 
@@ -68,11 +92,55 @@ def test_report_markdown_sections(quick):
         assert heading in md
     assert re.search(r"- CPU: .+\(\d+ logical cores visible\)", md)
     assert "| renderer | median wall | runs | ratio to ours | rays/s | peak RSS | note |" in md
+    # The targets table has both raw-embreex columns, and says which one the issue's target is.
+    assert ("| scene | ours / POV-Ray time (≤ 1.0, aim 0.5) | (i) end to end: ours / raw embreex build + replay "
+            "rays/s (≥ 50 %) | (ii) tracing only: ours − BVH build / raw embreex replay rays/s | "
+            "Cycles / ours time (≥ 20×) |") in md
+    assert re.search(r"^\| tiny \| ([\d.]+|–) \| [1-9]\d* % \| [1-9]\d* % \| [\d.]+× \(4 spp\) \|$", md, re.M)
+    assert "Column (i) is end to end as stated" in md and "Column (ii) leaves that build out of both sides" in md
     # --report-only rebuilds the same tables from results.json.
     again = work / "again.md"
     harness.main(["--quick", "--report-only", "--out", str(again), "--workdir", str(work)])
     strip = lambda s: re.sub(r"Command: .*", "", s)  # noqa: E731
     assert strip(again.read_text()) == strip(md)
+
+
+def _fake_ours(replay_build=True):
+    """A results.json 'ours' entry with round numbers: 1000 rays, wall 4 s of which 1.4 s BVH build."""
+    rays = {"eye": 400, "shadow": 400, "reflection": 100, "transmission": 100, "sky": 0, "total": 1000}
+    rep = {"seconds": 0.6, "times": [0.6], "rays": 1000, "batches": 3, "rays_per_second": 1000 / 0.6}
+    if replay_build:
+        rep.update(build_seconds=1.4, build_times=[1.4], build_split={"triangles": 0.1, "mesh": 1.0, "commit": 0.3},
+                   end_to_end_rays_per_second=1000 / 2.0)
+    return {"scene": "fake", "triangles": 10, "width": 4, "height": 3, "threads": 2, "samples": 1, "seconds": 4.0,
+            "times": [4.0], "rays": rays, "rays_per_second": 250.0, "maxrss": 2**27, "recorded_rays": 1000,
+            "split_thread_seconds": {"intersect": 1.0, "shading": 2.0, "overhead": 5.0, "bvh": 1.4},
+            "trace_seconds": 2.6, "trace_times": [2.6], "trace_rays_per_second": 1000 / 2.6, "replay": rep}
+
+
+def test_raw_embreex_comparisons_are_like_for_like():
+    """End to end: both sides include their build; tracing only: neither does; the old mixed ratio stays, labelled."""
+    c = harness.comparisons(_fake_ours())
+    assert c["end_to_end"] == pytest.approx(250 / 500)  # 1000/4 s vs 1000/(1.4 + 0.6) s
+    assert c["tracing"] == pytest.approx((1000 / 2.6) / (1000 / 0.6))
+    assert c["mixed"] == pytest.approx(250 / (1000 / 0.6))
+    r = {"scene": "fake", "max_depth": 8, "ours": _fake_ours(), "povray": "--skip povray", "cycles": "--skip cycles"}
+    text = harness.scene_report(r)
+    assert "| raw embreex build + replay | 2.000 s | 1 | 0.50× | 0.00 M | – | build 1.400 s (arrays 0.100, " in text
+    assert "End-to-end rays/s vs raw embreex build + replay: **50 %**" in text
+    assert "Tracing-only rays/s (our wall − BVH build) vs raw embreex replay: **23 %**" in text
+    assert "our end to end vs the replay alone 15 %" in text
+    assert "| fake | – | 50 % | 23 % | – |" in harness.targets([r], None)
+    # Results saved before the raw build was timed: no end-to-end figure, the rest still reported.
+    old = _fake_ours(replay_build=False)
+    del old["trace_seconds"], old["trace_times"], old["trace_rays_per_second"]
+    c = harness.comparisons(old)
+    assert c["end_to_end"] is None
+    assert c["tracing"] == pytest.approx((1000 / 2.6) / (1000 / 0.6))
+    r["ours"] = old
+    text = harness.scene_report(r)
+    assert "raw embreex build + replay |" not in text and "| raw embreex replay | 0.600 s |" in text
+    assert "| fake | – | – | 23 % | – |" in harness.targets([r], None)
 
 
 def test_bench_scene_matches_example():

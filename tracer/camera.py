@@ -15,6 +15,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import vec
+from .jit import kernel
+
 PERSPECTIVE = "perspective"
 ORTHOGRAPHIC = "orthographic"
 
@@ -67,32 +70,24 @@ class Camera:
         y = (np.asarray(v) - 0.5) * self.vertical_aperture + self.vertical_aperture_offset
         return x, y
 
-    def generate_rays(self, u: np.ndarray, v: np.ndarray):
-        """World-space eye rays (origins (N, 3), unit directions (N, 3), float32) through film positions u, v.
+    def packed(self) -> np.ndarray:
+        """The camera as the float64 row :func:`eye_ray` reads: camera-to-world rotation (9, row-major), eye (3),
+        focal length, apertures, aperture offsets, near, and 1 for perspective / 0 for orthographic."""
+        m = self.camera_to_world
+        return np.concatenate([m[:3, :3].reshape(-1), m[:3, 3],
+                               [self.focal_length, self.horizontal_aperture, self.vertical_aperture,
+                                self.horizontal_aperture_offset, self.vertical_aperture_offset, self.near,
+                                1.0 if self.projection == PERSPECTIVE else 0.0]]).astype(np.float64)
 
-        Perspective: every ray starts at the eye e and goes through the film point (x, y, −f): ray(e, u, 0, ∞).
-        Orthographic (the seed's question): every ray has the view direction −Z and starts at the film point itself.
-        Rays start at the near clipping plane.
-        """
-        x, y = self.film_point(np.asarray(u, np.float32), np.asarray(v, np.float32))
-        n = x.shape[0]
-        rot = self.camera_to_world[:3, :3].T.astype(np.float32)
-        eye = self.camera_to_world[:3, 3]
-        if self.projection == PERSPECTIVE:
-            d_cam = np.empty((n, 3), np.float32)
-            d_cam[:, 0] = x / np.float32(self.focal_length)
-            d_cam[:, 1] = y / np.float32(self.focal_length)
-            d_cam[:, 2] = -1.0
-            dirs = d_cam @ rot
-            # every ray starts at the eye (moved to the near plane, z = −near, when there is one)
-            origins = np.broadcast_to(eye.astype(np.float32), (n, 3)) + dirs * np.float32(self.near)
-        else:
-            dirs = np.broadcast_to(-self.camera_to_world[:3, 2].astype(np.float32), (n, 3)).copy()
-            o_cam = np.zeros((n, 3), np.float32)
-            o_cam[:, 0], o_cam[:, 1], o_cam[:, 2] = x, y, -self.near
-            origins = (o_cam.astype(np.float64) @ self.camera_to_world[:3, :3].T + eye).astype(np.float32)
-        dirs /= np.sqrt(np.einsum("ij,ij->i", dirs, dirs))[:, None]
-        return np.ascontiguousarray(origins, np.float32), dirs
+    def generate_rays(self, u: np.ndarray, v: np.ndarray):
+        """World-space eye rays (origins (N, 3), unit directions (N, 3), float32) through film positions u, v
+        (array form of :func:`eye_ray`)."""
+        u = np.ascontiguousarray(np.asarray(u, np.float64).reshape(-1))
+        v = np.ascontiguousarray(np.broadcast_to(np.asarray(v, np.float64).reshape(-1), u.shape))
+        o = np.empty((len(u), 3), np.float32)
+        d = np.empty((len(u), 3), np.float32)
+        _eye_rays(self.packed(), u, v, o, d)
+        return o, d
 
     def project(self, points: np.ndarray, width: int, height: int) -> np.ndarray:
         """Pixel coordinates (N, 2) (x right, y down, continuous: pixel (i, j) spans [i, i+1)×[j, j+1)) of world
@@ -126,6 +121,43 @@ class Camera:
         m = np.eye(4)
         m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = x, y, z, eye
         return cls(camera_to_world=m, **kwargs)
+
+
+_ROT, _EYE, _FOCAL, _H_AP, _V_AP, _H_OFF, _V_OFF, _NEAR, _PERSPECTIVE = 0, 9, 12, 13, 14, 15, 16, 17, 18
+
+
+@kernel(inline=True)
+def eye_ray(cam, u, v):
+    """The eye ray (origin, unit direction) through film position (u, v) of a :meth:`Camera.packed` camera.
+
+    The film point is (x, y) = ((u − ½)·aperture_h + offset_h, (v − ½)·aperture_v + offset_v).
+    Perspective: every ray starts at the eye e and goes through the film point (x, y, −f): ray(e, u, 0, ∞).
+    Orthographic (the seed's question): every ray has the view direction −Z and starts at the film point itself.
+    Rays start at the near clipping plane (camera-space z = −near).
+    """
+    x = (u - 0.5) * cam[_H_AP] + cam[_H_OFF]
+    y = (v - 0.5) * cam[_V_AP] + cam[_V_OFF]
+    near = cam[_NEAR]
+    eye = (cam[_EYE], cam[_EYE + 1], cam[_EYE + 2])
+    if cam[_PERSPECTIVE] > 0.0:
+        c = (x / cam[_FOCAL], y / cam[_FOCAL], -1.0)  # through the film point; z = −1 so that ·near lands on the plane
+        w = (cam[0] * c[0] + cam[1] * c[1] + cam[2] * c[2],
+             cam[3] * c[0] + cam[4] * c[1] + cam[5] * c[2],
+             cam[6] * c[0] + cam[7] * c[1] + cam[8] * c[2])
+        return vec.madd(eye, w, near), vec.normalize(w)
+    c = (x, y, -near)
+    o = (eye[0] + cam[0] * c[0] + cam[1] * c[1] + cam[2] * c[2],
+         eye[1] + cam[3] * c[0] + cam[4] * c[1] + cam[5] * c[2],
+         eye[2] + cam[6] * c[0] + cam[7] * c[1] + cam[8] * c[2])
+    return o, vec.normalize((-cam[2], -cam[5], -cam[8]))
+
+
+@kernel
+def _eye_rays(cam, u, v, o, d):
+    for i in range(u.shape[0]):
+        oi, di = eye_ray(cam, u[i], v[i])
+        o[i, 0], o[i, 1], o[i, 2] = oi
+        d[i, 0], d[i, 1], d[i, 2] = di
 
 
 def fit_apertures(horizontal: float, vertical: float, width: int, height: int, policy: str = "expand"):

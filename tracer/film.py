@@ -35,7 +35,10 @@ class Image:
 
 
 def box_filter(values: np.ndarray, spp: int) -> np.ndarray:
-    """Average consecutive groups of ``spp`` samples (samples of one pixel are stored together)."""
+    """Average consecutive groups of ``spp`` samples (samples of one pixel are stored together). With one sample per
+    pixel the samples themselves are returned (not a copy)."""
+    if spp == 1:
+        return values
     return values.reshape((-1, spp) + values.shape[1:]).mean(axis=1)
 
 

@@ -1,27 +1,37 @@
 """The seed's Cast-Ray, as a wavefront over one tile.
 
-Recursion becomes iteration: all rays of a tile at one depth are intersected together, shaded together, and spawn
-the next depth's reflection and transmission rays. Each ray carries the product of the weights on its path
-(its *throughput*), so the recursive colour
+Recursion becomes iteration: all rays of a tile at one depth are intersected together (Embree), then one kernel
+shades every hit and writes the rays of the next step, so the recursive colour
 
     c = (1 − k_m)·c_local + k_m·RayColor(reflected)          (ray type 3, the notes' formula)
 
-becomes: add throughput·(1 − k_m)·c_local to the pixel, and spawn the reflected ray with throughput·k_m. Glass
-(transmission weight w_t, ray type 4) splits the non-mirror remainder (1 − k_m) into a reflected part F and a
-transmitted part (1 − F) by the dielectric Fresnel factor F (or, in classic mode, F = 0, and 1 under TIR).
+becomes: add throughput·(1 − k_m)·c_local to the pixel, and spawn the reflected ray with throughput·k_m, where a
+ray's *throughput* is the product of the weights on its path. Glass (transmission weight w_t, ray type 4) splits the
+non-mirror remainder (1 − k_m) into a reflected part F and a transmitted part (1 − F) by the dielectric Fresnel factor
+F (or, in classic mode, F = 0, and 1 under TIR).
+
+Shadow rays (ray type 2) are deferred: the kernel writes one per light sample that faces the point, together with
+the colour it would add; after one batched occlusion query, the unblocked ones are added. One step of a tile is
+
+    Embree closest hits → _shade_hits (kernel) → Embree occlusion → _add_unoccluded (kernel) → next depth.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
-from . import optics, sampling, shading
-from .accel import NO_HIT, Accelerator
+from . import optics, shading, vec
+from .accel import Accelerator
+from .jit import kernel
+from .lights import pack_lights, sample_light
+from .sampling import stratum, uniform2_1
 from .scene import Scene
 from .settings import RenderSettings
-from .texture import sample_bilinear
+from .surface import geometry_of, hit_frame, hit_uv
+from .texture import bilinear, pack_textures
 
 RAY_TYPES = ("eye", "shadow", "reflection", "transmission", "sky")
 
@@ -29,6 +39,9 @@ RAY_TYPES = ("eye", "shadow", "reflection", "transmission", "sky")
 _STREAM_PIXEL = 0
 _STREAM_LIGHT = 1  # + depth
 _STREAM_SKY = 40  # + depth
+
+# Slots of the kernel's counter array.
+_N_SHADOW, _N_SKY, _N_REFLECTION, _N_TRANSMISSION, _N_TIR = 0, 1, 2, 3, 4
 
 
 @dataclass
@@ -54,19 +67,6 @@ class RayCounts:
 
 
 @dataclass
-class Hits:
-    """Surface interactions of a batch of rays that hit something."""
-
-    p: np.ndarray  # (N, 3) hit points
-    ng: np.ndarray  # (N, 3) unit geometric normal on the incident side
-    n: np.ndarray  # (N, 3) unit shading normal on the incident side
-    front: np.ndarray  # (N,) True where the ray hit the triangle's front face (entering a closed object)
-    material: np.ndarray  # (N,) material rows
-    prim: np.ndarray  # (N,) triangle ids
-    t: np.ndarray  # (N,) ray distances
-
-
-@dataclass
 class TileResult:
     color: np.ndarray  # (S, 3) per eye sample
     alpha: np.ndarray  # (S,)
@@ -77,242 +77,298 @@ class TileResult:
     counts: RayCounts = field(default_factory=RayCounts)
 
 
+class MaterialArrays(NamedTuple):
+    """:class:`tracer.Materials` as the kernels read it (float32 / int32 columns)."""
+
+    diffuse: np.ndarray
+    specular: np.ndarray
+    exponent: np.ndarray
+    k_m: np.ndarray
+    mirror_tint: np.ndarray
+    transmission: np.ndarray
+    transmission_tint: np.ndarray
+    ior: np.ndarray
+    emission: np.ndarray
+    diffuse_texture: np.ndarray
+
+
+class Options(NamedTuple):
+    """The settings and world colours the kernels need, as plain scalars."""
+
+    eps: float
+    max_depth: int
+    shadows: bool
+    fresnel: bool
+    sky_samples: int
+    min_weight: float
+    transparent: bool
+    seed: int
+    needs_light_random: bool
+    background: tuple
+    ambient: tuple
+
+
+class Tile(NamedTuple):
+    """Per-sample outputs a tile's kernels write into."""
+
+    color: np.ndarray
+    alpha: np.ndarray
+    depth: np.ndarray
+    normal: np.ndarray
+    albedo: np.ndarray
+    object_id: np.ndarray
+
+
 class Integrator:
-    """Holds what every tile needs: the scene, its BVH and the settings. ``trace`` is thread-safe."""
+    """Holds what every tile needs: the scene's arrays, its BVH and the settings. ``trace`` is thread-safe."""
 
     def __init__(self, scene: Scene, settings: RenderSettings, accel: Accelerator | None = None):
         self.scene = scene
         self.settings = settings
         self.accel = accel if accel is not None else Accelerator(scene)
-        self.eps = np.float32(settings.epsilon if settings.epsilon is not None else scene.default_epsilon())
-        tri = scene.vertices[scene.triangles]  # (T, 3, 3) float32
-        ng = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        ng /= np.maximum(np.sqrt(np.einsum("ij,ij->i", ng, ng)), np.float32(1e-30))[:, None]
-        self.face_normals = ng
-        self.corner_ok = (np.all(np.any(scene.normals != 0, axis=2), axis=1) if scene.normals is not None else None)
+        eps = settings.epsilon if settings.epsilon is not None else scene.default_epsilon()
+        self.eps = np.float32(eps)
+        self.geometry = geometry_of(scene)
         m = scene.materials
-        self.has_textures = bool(len(scene.textures)) and scene.uvs is not None and bool(np.any(m.diffuse_texture >= 0))
+        f32, i32 = (lambda a: np.ascontiguousarray(a, np.float32)), (lambda a: np.ascontiguousarray(a, np.int32))
+        self.materials = MaterialArrays(
+            diffuse=f32(m.diffuse), specular=f32(m.specular), exponent=f32(m.exponent), k_m=f32(m.k_m),
+            mirror_tint=f32(m.mirror_tint), transmission=f32(m.transmission),
+            transmission_tint=f32(m.transmission_tint), ior=f32(m.ior), emission=f32(m.emission),
+            diffuse_texture=i32(m.diffuse_texture if scene.uvs is not None else np.full(len(m), -1)))
+        self.textures = pack_textures(scene.textures)
+        self.lights = pack_lights(scene.lights, settings.light_samples)
+        self.light_samples = int(np.sum(self.lights[2] ** 2))  # shadow rays per shading point, at most
+        self.options = Options(
+            eps=float(self.eps), max_depth=int(settings.max_depth), shadows=bool(settings.shadows),
+            fresnel=bool(settings.fresnel), sky_samples=int(settings.sky_samples),
+            min_weight=float(settings.min_weight), transparent=bool(settings.transparent), seed=int(settings.seed),
+            needs_light_random=bool(np.any(self.lights[2] > 1)),
+            background=tuple(float(c) for c in scene.background), ambient=tuple(float(c) for c in scene.ambient))
+        sky = settings.sky_samples
+        self.sky_side = max(1, int(round(np.sqrt(sky)))) if sky and np.any(scene.ambient > 0) else 0
 
-    # ------------------------------------------------------------------ geometry at hits
-    def surface(self, o, d, t, prim, u, v) -> Hits:
-        s = self.scene
-        p = o + d * t[:, None]
-        ng = self.face_normals[prim]
-        front = _dot(d, ng) < 0
-        sign = np.where(front, np.float32(1), np.float32(-1))[:, None]
-        ng *= sign  # the geometric normal on the incident side
-        if s.normals is not None:
-            cn = s.normals[prim]  # (N, 3, 3) per-corner shading normals
-            n = cn[:, 0] * (1.0 - u - v)[:, None] + cn[:, 1] * u[:, None] + cn[:, 2] * v[:, None]
-            ln = np.sqrt(_dot(n, n))
-            n *= (sign[:, 0] / np.maximum(ln, 1e-30))[:, None]
-            # Unusable normals, or interpolated ones facing away from the geometric side, fall back to ng.
-            bad = ~self.corner_ok[prim] | (ln <= 1e-6) | (_dot(n, ng) <= 0)
-            if bad.any():
-                n[bad] = ng[bad]
-        else:
-            n = ng
-        return Hits(p=p, ng=ng, n=n, front=front, material=s.material_ids[prim], prim=prim, t=t)
-
-    def albedo(self, h: Hits, u, v) -> np.ndarray:
-        m = self.scene.materials
-        c = m.diffuse[h.material]
-        if self.has_textures:
-            tex = m.diffuse_texture[h.material]
-            for ti in np.unique(tex[tex >= 0]):
-                sel = np.flatnonzero(tex == ti)
-                uv = self.scene.uvs[h.prim[sel]]
-                w0 = (1.0 - u[sel] - v[sel])[:, None]
-                st = uv[:, 0] * w0 + uv[:, 1] * u[sel, None] + uv[:, 2] * v[sel, None]
-                c[sel] = c[sel] * sample_bilinear(self.scene.textures[ti], st)
-        return c
-
-    # ------------------------------------------------------------------ shadow rays and local shading
-    def direct_light(self, h: Hits, view: np.ndarray, diffuse, keys, depth, counts: RayCounts) -> np.ndarray:
-        """Σ over lights of Lambert + Blinn-Phong, each light sample tested with a shadow ray(p, l, ε, dist)."""
-        s, st = self.scene, self.settings
-        m = s.materials
-        out = np.zeros_like(diffuse)
-        if not s.lights or not len(h.p):
-            return out
-        specular = m.specular[h.material]
-        exponent = m.exponent[h.material]
-        has_spec = bool(np.any(specular > 0))
-        origin = h.p + h.ng * self.eps
-        needs_rand = any(light.uses_random(st.light_samples) for light in s.lights)
-        rand = sampling.uniform2(keys, _STREAM_LIGHT + depth, st.seed) if needs_rand else None
-        for light in s.lights:
-            l, dist, e = light.sample(h.p, st.light_samples, rand)  # (K, N, 3), (K, N), (K, N, 3)
-            for k in range(l.shape[0]):
-                lk = l[k]
-                n_l = _dot(h.n, lk)
-                idx = np.flatnonzero((n_l > 0) & (_dot(h.ng, lk) > 0))
-                if st.shadows and len(idx):
-                    counts.shadow += len(idx)
-                    blocked = self.accel.occluded(origin[idx], lk[idx], dist[k, idx] - 2 * self.eps)
-                    idx = idx[~blocked]
-                if not len(idx):
-                    continue
-                n_l_i = n_l[idx, None]
-                irr = e[k, idx]
-                c = shading.lambert(n_l_i, diffuse[idx], irr)
-                if has_spec:
-                    hv = shading.half_vector(lk[idx], view[idx])
-                    c += shading.blinn_phong(h.n[idx], hv, n_l_i, specular[idx], exponent[idx], irr)
-                out[idx] += c
-        return out
-
-    def sky_visibility(self, h: Hits, keys, depth, counts: RayCounts) -> np.ndarray:
-        """Cosine-weighted fraction of the hemisphere around n from which a ray escapes the scene."""
-        k = self.settings.sky_samples
-        n = len(h.p)
-        rand = sampling.uniform2(keys, _STREAM_SKY + depth, self.settings.seed)
-        from .lights import stratified_grid
-
-        s = stratified_grid(k, rand)  # (K, N, 2)
-        kk = s.shape[0]
-        a = np.where(np.abs(h.n[:, :1]) < 0.9, np.array([[1.0, 0, 0]], np.float32), np.array([[0, 1.0, 0]], np.float32))
-        tu = np.cross(a, h.n)
-        tu /= np.linalg.norm(tu, axis=1, keepdims=True)
-        tv = np.cross(h.n, tu)
-        r = np.sqrt(s[..., 0])
-        phi = 2 * np.pi * s[..., 1]
-        z = np.sqrt(np.maximum(0.0, 1 - s[..., 0]))
-        dirs = (r * np.cos(phi))[..., None] * tu + (r * np.sin(phi))[..., None] * tv + z[..., None] * h.n
-        origin = np.broadcast_to(h.p + h.ng * self.eps, (kk, n, 3)).reshape(-1, 3)
-        dirs = dirs.reshape(-1, 3).astype(np.float32)
-        counts.sky += len(dirs)
-        blocked = self.accel.occluded(origin, dirs, np.full(len(dirs), np.inf, np.float32))
-        return (1.0 - blocked.reshape(kk, n).mean(axis=0)).astype(np.float32)
-
-    # ------------------------------------------------------------------ the wavefront
     def trace(self, origins: np.ndarray, directions: np.ndarray, keys: np.ndarray,
               cancelled=lambda: False) -> TileResult:
         """Trace eye rays (one per sample) to the maximum depth. ``keys`` are unique per sample (for the
         deterministic random streams)."""
         s, st = self.scene, self.settings
-        m = s.materials
         n_samples = len(origins)
-        color = np.zeros((n_samples, 3), np.float32)
-        counts = RayCounts(eye=n_samples)
-        res = TileResult(color=color, alpha=np.ones(n_samples, np.float32),
-                         depth=np.full(n_samples, np.inf, np.float32), normal=np.zeros((n_samples, 3), np.float32),
-                         albedo=np.zeros((n_samples, 3), np.float32), object_id=np.full(n_samples, -1, np.int32),
-                         counts=counts)
+        out = Tile(color=np.zeros((n_samples, 3), np.float32), alpha=np.ones(n_samples, np.float32),
+                   depth=np.full(n_samples, np.inf, np.float32), normal=np.zeros((n_samples, 3), np.float32),
+                   albedo=np.zeros((n_samples, 3), np.float32), object_id=np.full(n_samples, -1, np.int32))
+        counts = np.zeros(5, np.int64)
+        keys = np.ascontiguousarray(keys, np.int64)
 
-        o, d = origins, directions
-        sample = np.arange(n_samples)
+        o = np.ascontiguousarray(origins, np.float32)
+        d = np.ascontiguousarray(directions, np.float32)
+        sample = np.arange(n_samples, dtype=np.int32)
         weight = np.ones((n_samples, 3), np.float32)
         t_max = None
         if np.isfinite(s.camera.far):
             t_max = np.full(n_samples, s.camera.far - s.camera.near, np.float32)
 
         last = st.max_depth + (1 if st.terminal_rays else 0)
+        per_hit = self.light_samples + self.sky_side**2
         for depth in range(last + 1):
-            if not len(o) or cancelled():
+            n = len(o)
+            if not n or cancelled():
                 break
             t, prim, u, v = self.accel.intersect(o, d, t_max)
             t_max = None
-            miss = prim == NO_HIT
-            if miss.any():
-                if depth == 0 and st.transparent:
-                    res.alpha[sample[miss]] = 0.0
-                elif np.any(s.background > 0):
-                    _accumulate(color, sample[miss], weight[miss] * s.background)
-                hit = np.flatnonzero(~miss)
-                if not len(hit):
-                    break
-                o, d, t, prim, u, v = o[hit], d[hit], t[hit], prim[hit], u[hit], v[hit]
-                sample, weight = sample[hit], weight[hit]
-            h = self.surface(o, d, t, prim, u, v)
-            diffuse = self.albedo(h, u, v)
-            mat = h.material
-            k_m = m.k_m[mat]
-            w_t = m.transmission[mat]
-            opaque = (1.0 - k_m) * (1.0 - w_t)
-
-            if depth == 0:
-                res.depth[sample] = t
-                res.normal[sample] = h.n
-                res.albedo[sample] = diffuse
-                res.object_id[sample] = s.object_ids[prim]
-
-            # Local colour: emission + (1 − k_m)(1 − w_t)·(ambient + Σ lights), only where it carries weight.
-            # Terminal rays (past max_depth, Cycles' last bounce) collect emission and background only.
-            local = m.emission[mat]
-            shade = np.flatnonzero(opaque > 0) if depth <= st.max_depth else np.zeros(0, np.int64)
-            if len(shade):
-                hs = _subset(h, shade)
-                keys_s = keys[sample[shade]]
-                diff_s = diffuse[shade]
-                c = self.direct_light(hs, -d[shade], diff_s, keys_s, depth, counts)
-                if np.any(s.ambient > 0):
-                    vis = self.sky_visibility(hs, keys_s, depth, counts) if st.sky_samples else None
-                    c += shading.ambient(diff_s, s.ambient, vis)
-                local[shade] += opaque[shade, None] * c
-            _accumulate(color, sample, weight * local)
-
-            if depth == last:
+            # Deferred shadow rays (origin, direction, length, sample, colour) and the next depth's rays
+            # (reflections from slot 0, transmissions from slot n).
+            cap = n * per_hit
+            so, sd = np.empty((cap, 3), np.float32), np.empty((cap, 3), np.float32)
+            sl, ss, sc = np.empty(cap, np.float32), np.empty(cap, np.int32), np.empty((cap, 3), np.float32)
+            spawn = depth < last
+            cap2 = 2 * n if spawn else 0
+            no, nd = np.empty((cap2, 3), np.float32), np.empty((cap2, 3), np.float32)
+            nw, ns = np.empty((cap2, 3), np.float32), np.empty(cap2, np.int32)
+            n_shadow, n_refl, n_tran = _shade_hits(
+                o, d, t, prim, u, v, sample, weight, keys, depth, spawn, self.geometry, self.materials,
+                self.textures[0], self.textures[1], self.lights[0], self.lights[1], self.lights[2], self.sky_side,
+                self.options, out, so, sd, sl, ss, sc, no, nd, nw, ns, counts)
+            if n_shadow:
+                blocked = self.accel.occluded(so[:n_shadow], sd[:n_shadow], sl[:n_shadow])
+                _add_unoccluded(out.color, ss[:n_shadow], sc[:n_shadow], blocked)
+            if not spawn or not (n_refl or n_tran):
                 break
-
-            # Secondary rays where a mirror or glass part exists: reflection and transmission.
-            sec = np.flatnonzero(opaque < 1.0)
-            if not len(sec):
-                break
-            d, p, ng, n, front = d[sec], h.p[sec], h.ng[sec], h.n[sec], h.front[sec]
-            weight, sample, mat = weight[sec], sample[sec], mat[sec]
-            k_m, w_t = k_m[sec, None], w_t[sec, None]
-            glass = (1.0 - k_m) * w_t
-            ior = m.ior[mat]
-            eta_i = np.where(front, np.float32(1), ior)
-            eta_r = np.where(front, ior, np.float32(1))
-            t_dir, tir = optics.refract(d, n, eta_i, eta_r)
-            if st.fresnel:
-                fr = optics.fresnel_dielectric(-_dot(d, n), eta_i, eta_r)[:, None]
+            if n_tran == 0:
+                o, d, weight, sample = no[:n_refl], nd[:n_refl], nw[:n_refl], ns[:n_refl]
             else:
-                fr = tir.astype(np.float32)[:, None]
-            w_refl = weight * (k_m * m.mirror_tint[mat] + glass * fr)
-            w_tran = weight * glass * (1.0 - fr) * m.transmission_tint[mat]
-            w_tran[tir] = 0.0
-            counts.tir += int(np.count_nonzero(tir & (glass[:, 0] > 0)))
+                o = np.concatenate((no[:n_refl], no[n:n + n_tran]))
+                d = np.concatenate((nd[:n_refl], nd[n:n + n_tran]))
+                weight = np.concatenate((nw[:n_refl], nw[n:n + n_tran]))
+                sample = np.concatenate((ns[:n_refl], ns[n:n + n_tran]))
 
-            r_dir = optics.reflect(d, n)
-            # Interpolated normals can tilt a reflection below the surface: use the geometric normal there.
-            bad = _dot(r_dir, ng) <= 0
-            if bad.any():
-                r_dir[bad] = optics.reflect(d[bad], ng[bad])
-            fix = (_dot(t_dir, ng) >= 0) & ~tir
-            if fix.any():
-                t_dir[fix], tir_fix = optics.refract(d[fix], ng[fix], eta_i[fix], eta_r[fix])
-                w_tran[fix] = np.where(tir_fix[:, None], 0.0, w_tran[fix])
-
-            cut = st.min_weight
-            go_r = np.flatnonzero(w_refl.max(axis=1) > cut)
-            go_t = np.flatnonzero(w_tran.max(axis=1) > cut)
-            counts.reflection += len(go_r)
-            counts.transmission += len(go_t)
-            o = np.concatenate([p[go_r] + ng[go_r] * self.eps, p[go_t] - ng[go_t] * self.eps])
-            d = np.concatenate([r_dir[go_r], t_dir[go_t]])
-            d /= np.maximum(np.sqrt(_dot(d, d)), 1e-30)[:, None]
-            weight = np.concatenate([w_refl[go_r], w_tran[go_t]])
-            sample = np.concatenate([sample[go_r], sample[go_t]])
-
-        np.nan_to_num(color, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
-        return res
+        np.nan_to_num(out.color, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
+        rc = RayCounts(eye=n_samples, shadow=int(counts[_N_SHADOW]), reflection=int(counts[_N_REFLECTION]),
+                       transmission=int(counts[_N_TRANSMISSION]), sky=int(counts[_N_SKY]), tir=int(counts[_N_TIR]))
+        return TileResult(color=out.color, alpha=out.alpha, depth=out.depth, normal=out.normal, albedo=out.albedo,
+                          object_id=out.object_id, counts=rc)
 
 
-def _dot(a, b):
-    """Row-wise dot product (N,) of (N, 3) arrays."""
-    return np.einsum("ij,ij->i", a, b)
+@kernel
+def _shade_hits(o, d, t, prim, u, v, sample, weight, keys, depth, spawn, geom, mats, tex_data, tex_info,
+                light_table, light_kind, light_side, sky_side, opt, out, so, sd, sl, ss, sc, no, nd, nw, ns, counts):
+    """Shade one depth's rays of a tile and write the rays they cause; returns (shadow, reflection, transmission)
+    counts written into the buffers.
+
+    Per ray: a miss adds the background (or clears alpha of a transparent film); a hit adds its emission, the
+    ambient term and, through deferred shadow rays, Σ lights of Lambert + Blinn-Phong, all weighted by
+    (1 − k_m)(1 − w_t); then spawns the reflected ray (k_m·tint + glass·F) and the transmitted one (glass·(1 − F)).
+    """
+    n_rays = o.shape[0]
+    eps = opt.eps
+    n_shadow = 0
+    n_refl = 0
+    n_tran = 0
+    n_lights = light_table.shape[0]
+    for i in range(n_rays):
+        s = sample[i]
+        w = vec.row(weight, i)
+        tri = prim[i]
+        if tri < 0:  # the ray leaves the scene
+            if depth == 0 and opt.transparent:
+                out.alpha[s] = 0.0
+            else:
+                for c in range(3):
+                    out.color[s, c] += w[c] * opt.background[c]
+            continue
+        di = vec.row(d, i)
+        p = vec.madd(vec.row(o, i), di, float(t[i]))
+        ng, n, front = hit_frame(geom, tri, di, float(u[i]), float(v[i]))
+        mat = geom.material_ids[tri]
+        diffuse = vec.row(mats.diffuse, mat)
+        ti = mats.diffuse_texture[mat]
+        if ti >= 0:
+            st = hit_uv(geom, tri, float(u[i]), float(v[i]))
+            diffuse = vec.mul(diffuse, bilinear(tex_data, tex_info, ti, st[0], st[1]))
+        k_m = float(mats.k_m[mat])
+        w_t = float(mats.transmission[mat])
+        opaque = (1.0 - k_m) * (1.0 - w_t)
+
+        if depth == 0:
+            out.depth[s] = t[i]
+            out.normal[s, 0], out.normal[s, 1], out.normal[s, 2] = n
+            out.albedo[s, 0], out.albedo[s, 1], out.albedo[s, 2] = diffuse
+            out.object_id[s] = geom.object_ids[tri]
+
+        # Local colour: emission + (1 − k_m)(1 − w_t)·(ambient + Σ lights), only where it carries weight.
+        # Terminal rays (past max_depth, Cycles' last bounce) collect emission and background only.
+        local = vec.row(mats.emission, mat)
+        if opaque > 0.0 and depth <= opt.max_depth:
+            wo = vec.scale(w, opaque)
+            origin = vec.madd(p, ng, eps)  # shadow rays leave on the incident side, ε along ng
+            key = keys[s]
+            if opt.ambient[0] > 0.0 or opt.ambient[1] > 0.0 or opt.ambient[2] > 0.0:
+                amb = shading.ambient(diffuse, opt.ambient)
+                if sky_side == 0:
+                    local = vec.madd(local, amb, opaque)
+                else:  # weight by the visible sky: cosine-weighted hemisphere rays, deferred like shadow rays
+                    kk = sky_side * sky_side
+                    c = vec.scale(vec.mul(wo, amb), 1.0 / kk)
+                    r0, r1 = uniform2_1(key, _STREAM_SKY + depth, opt.seed)
+                    tu, tv = vec.orthonormal_basis(n)
+                    for k in range(kk):
+                        s0, s1 = stratum(k, sky_side, r0, r1)
+                        r = np.sqrt(s0)
+                        phi = 2.0 * np.pi * s1
+                        dr = vec.madd(vec.madd(vec.scale(n, np.sqrt(max(0.0, 1.0 - s0))), tu, r * np.cos(phi)),
+                                      tv, r * np.sin(phi))
+                        _put(so, sd, sl, ss, sc, n_shadow, origin, dr, np.inf, s, c)
+                        n_shadow += 1
+                    counts[_N_SKY] += kk
+            r0, r1 = 0.0, 0.0
+            if opt.needs_light_random:
+                r0, r1 = uniform2_1(key, _STREAM_LIGHT + depth, opt.seed)
+            specular = vec.row(mats.specular, mat)
+            has_spec = vec.max3(specular) > 0.0
+            exponent = float(mats.exponent[mat])
+            for j in range(n_lights):
+                for k in range(light_side[j] * light_side[j]):
+                    l, dist, e = sample_light(light_table, light_kind, light_side, j, k, p, r0, r1)
+                    n_l = vec.dot(n, l)
+                    if n_l <= 0.0 or vec.dot(ng, l) <= 0.0:
+                        continue
+                    c = shading.lambert(diffuse, e, n_l)
+                    if has_spec:
+                        h = shading.half_vector(l, vec.scale(di, -1.0))
+                        c = vec.add(c, shading.blinn_phong(specular, exponent, n, h, e, n_l))
+                    c = vec.mul(wo, c)
+                    if opt.shadows:  # the shadow ray (p, l, ε, dist): counts only if nothing is in between
+                        _put(so, sd, sl, ss, sc, n_shadow, origin, l, dist - 2.0 * eps, s, c)
+                        n_shadow += 1
+                        counts[_N_SHADOW] += 1
+                    else:
+                        for ch in range(3):
+                            out.color[s, ch] += c[ch]
+        for ch in range(3):
+            out.color[s, ch] += w[ch] * local[ch]
+
+        if not spawn or opaque >= 1.0:
+            continue
+        # Secondary rays where a mirror or glass part exists: reflection and transmission.
+        glass = (1.0 - k_m) * w_t
+        mirror = vec.scale(vec.row(mats.mirror_tint, mat), k_m)
+        r_dir = optics.reflect_dir(di, n)
+        # Interpolated normals can tilt a reflection below the surface: use the geometric normal there.
+        if vec.dot(r_dir, ng) <= 0.0:
+            r_dir = optics.reflect_dir(di, ng)
+        w_refl = vec.mul(w, mirror)
+        if glass > 0.0:
+            ior = float(mats.ior[mat])
+            eta_i, eta_r = (1.0, ior) if front else (ior, 1.0)
+            t_dir, tir = optics.refract_dir(di, n, eta_i, eta_r)
+            if opt.fresnel:
+                fr = optics.fresnel_dielectric_1(-vec.dot(di, n), eta_i, eta_r)
+            else:
+                fr = 1.0 if tir else 0.0
+            w_refl = vec.madd(w_refl, w, glass * fr)
+            if tir:
+                counts[_N_TIR] += 1
+                w_tran = (0.0, 0.0, 0.0)
+            else:
+                w_tran = vec.scale(vec.mul(w, vec.row(mats.transmission_tint, mat)), glass * (1.0 - fr))
+                if vec.dot(t_dir, ng) >= 0.0:  # the shading normal bent it back out: refract about ng
+                    t_dir, tir_ng = optics.refract_dir(di, ng, eta_i, eta_r)
+                    if tir_ng:
+                        w_tran = (0.0, 0.0, 0.0)
+            if vec.max3(w_tran) > opt.min_weight:
+                j = n_rays + n_tran
+                _put_ray(no, nd, nw, ns, j, vec.madd(p, ng, -eps), vec.normalize(t_dir), w_tran, s)
+                n_tran += 1
+        if vec.max3(w_refl) > opt.min_weight:
+            _put_ray(no, nd, nw, ns, n_refl, vec.madd(p, ng, eps), vec.normalize(r_dir), w_refl, s)
+            n_refl += 1
+    counts[_N_REFLECTION] += n_refl
+    counts[_N_TRANSMISSION] += n_tran
+    return n_shadow, n_refl, n_tran
 
 
-def _accumulate(color: np.ndarray, sample: np.ndarray, values: np.ndarray) -> None:
-    """color[sample] += values, summing repeated samples (a sample's reflected and transmitted rays)."""
-    n = len(color)
-    for c in range(3):
-        color[:, c] += np.bincount(sample, weights=values[:, c], minlength=n).astype(np.float32)
+@kernel(inline=True)
+def _put(so, sd, sl, ss, sc, j, origin, direction, length, s, c):
+    so[j, 0], so[j, 1], so[j, 2] = origin
+    sd[j, 0], sd[j, 1], sd[j, 2] = direction
+    sl[j] = length
+    ss[j] = s
+    sc[j, 0], sc[j, 1], sc[j, 2] = c
 
 
-def _subset(h: Hits, idx: np.ndarray) -> Hits:
-    return Hits(p=h.p[idx], ng=h.ng[idx], n=h.n[idx], front=h.front[idx], material=h.material[idx],
-                prim=h.prim[idx], t=h.t[idx])
+@kernel(inline=True)
+def _put_ray(no, nd, nw, ns, j, origin, direction, w, s):
+    no[j, 0], no[j, 1], no[j, 2] = origin
+    nd[j, 0], nd[j, 1], nd[j, 2] = direction
+    nw[j, 0], nw[j, 1], nw[j, 2] = w
+    ns[j] = s
+
+
+@kernel
+def _add_unoccluded(color, sample, contrib, blocked):
+    """color[sample] += contrib where the shadow (or sky) ray reached its light."""
+    for i in range(sample.shape[0]):
+        if not blocked[i]:
+            s = sample[i]
+            for c in range(3):
+                color[s, c] += contrib[i, c]

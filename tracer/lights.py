@@ -1,9 +1,10 @@
-"""Light sources and what they deliver to a batch of surface points.
+"""Light sources and what they deliver to a surface point.
 
-Every light answers one question for points p (N, 3): for each of its K samples, the unit direction l towards the
+Every light answers one question for a point p: for each of its K samples, the unit direction l towards the
 light, the distance to it (the shadow ray's t_max), and E, the irradiance it delivers on a surface facing it, already
 divided by K. The shading of the seed then multiplies E by the BRDF and max(0, n·l); shadow rays decide which
-samples count.
+samples count. The light classes validate and hold a light; :func:`pack_lights` turns a scene's lights into one
+table, and :func:`sample_light` (a kernel) answers the question for one point and one sample.
 
 Units are Blender's and Cycles' (measured in ``docs/units.md``):
 
@@ -17,9 +18,14 @@ Units are Blender's and Cycles' (measured in ``docs/units.md``):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from . import vec
+from .jit import kernel
+from .sampling import stratum
 
 
 def _vec3(v, name):
@@ -35,26 +41,6 @@ def _normalize(v, name):
     if n == 0:
         raise ValueError(f"light {name} must not be the zero vector")
     return a / n
-
-
-def _orthonormal_basis(w):
-    """Two unit vectors u, v with (u, v, w) right-handed and orthonormal."""
-    a = np.array([1.0, 0.0, 0.0]) if abs(w[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    u = np.cross(a, w)
-    u /= np.linalg.norm(u)
-    return u, np.cross(w, u)
-
-
-def stratified_grid(count: int, rand: np.ndarray) -> np.ndarray:
-    """(K, N, 2) points in [0,1)²: a √K×√K grid of strata, each jittered by the per-point offsets ``rand``.
-
-    The same deterministic per-point offsets rotate the whole pattern (Cranley-Patterson), so neighbouring pixels
-    see different sample positions while every render of the same scene sees the same ones.
-    """
-    side = max(1, int(round(np.sqrt(count))))
-    gx, gy = np.meshgrid(np.arange(side), np.arange(side), indexing="ij")
-    cells = np.stack([gx.ravel(), gy.ravel()], axis=-1).astype(np.float32)  # (K, 2)
-    return ((cells[:, None, :] + rand[None, :, :]) / side) % 1.0
 
 
 @dataclass
@@ -77,41 +63,6 @@ class PointLight:
     def uses_random(self, requested: int) -> bool:
         return self.sample_count(requested) > 1
 
-    def _falloff(self, to_light, dist2):
-        return None
-
-    def sample(self, p: np.ndarray, count: int, rand: np.ndarray):
-        k = self.sample_count(count)
-        to_center = self.position.astype(np.float32) - p
-        d2 = np.einsum("ij,ij->i", to_center, to_center)
-        # Blender's soft falloff: irradiance I / (r² + R²), measured against Cycles.
-        inv = 1.0 / (d2 + np.float32(self.radius**2))
-        f = self._falloff(to_center, d2)  # None = no falloff (point light)
-        if f is not None:
-            inv = inv * f
-        e = inv[:, None] * self.intensity.astype(np.float32)
-        if k == 1:
-            dist = np.sqrt(d2)
-            l = to_center * (1.0 / np.maximum(dist, 1e-30))[:, None]
-            return l[None], dist[None], e[None]
-        # Soft shadows: stratified points on the disk of the sphere that faces p.
-        dist = np.sqrt(d2)
-        w = -to_center / np.maximum(dist, 1e-30)[:, None]
-        a = np.where(np.abs(w[:, :1]) < 0.9, np.array([[1.0, 0, 0]], np.float32), np.array([[0, 1.0, 0]], np.float32))
-        u = np.cross(a, w)
-        u /= np.linalg.norm(u, axis=1, keepdims=True)
-        v = np.cross(w, u)
-        s = stratified_grid(k, rand)
-        k = s.shape[0]
-        r = self.radius * np.sqrt(s[..., 0])
-        phi = 2 * np.pi * s[..., 1]
-        pts = (self.position[None, None, :] + (r * np.cos(phi))[..., None] * u[None]
-               + (r * np.sin(phi))[..., None] * v[None]).astype(np.float32)
-        to_l = pts - p[None]
-        ld = np.linalg.norm(to_l, axis=-1)
-        l = to_l / np.maximum(ld, 1e-30)[..., None]
-        return l, ld, np.broadcast_to(e[None] / k, (k,) + e.shape).copy()
-
 
 @dataclass
 class SpotLight(PointLight):
@@ -131,15 +82,6 @@ class SpotLight(PointLight):
             raise ValueError(f"light {self.name}: cone_angle must be in (0, π], got {self.cone_angle}")
         if not (0 <= self.blend <= 1):
             raise ValueError(f"light {self.name}: blend must be in [0, 1], got {self.blend}")
-
-    def _falloff(self, to_light, dist2):
-        """Blender's spot: smoothstep(x), x = (cos α − cos(size/2)) / ((1 − cos(size/2))·blend), in cosine."""
-        cos_a = -(to_light @ self.direction.astype(np.float32)) / np.sqrt(np.maximum(dist2, 1e-30))
-        cos_s = np.cos(self.cone_angle)
-        if self.blend <= 0:
-            return (cos_a > cos_s).astype(np.float32)
-        x = np.clip((cos_a - cos_s) / ((1 - cos_s) * self.blend), 0.0, 1.0)
-        return (x * x * (3 - 2 * x)).astype(np.float32)
 
 
 @dataclass
@@ -161,26 +103,6 @@ class DistantLight:
 
     def uses_random(self, requested: int) -> bool:
         return self.sample_count(requested) > 1
-
-    def sample(self, p: np.ndarray, count: int, rand: np.ndarray):
-        n = p.shape[0]
-        k = self.sample_count(count)
-        to_light = -self.direction
-        e = np.broadcast_to(self.irradiance.astype(np.float32), (n, 3))
-        if k == 1:
-            l = np.broadcast_to(to_light.astype(np.float32), (n, 3))
-            return l[None], np.full((1, n), np.inf, np.float32), e[None].copy()
-        # A disk of angular diameter `angle` around the direction to the sun, sampled uniformly in solid angle.
-        u, v = _orthonormal_basis(to_light)
-        s = stratified_grid(k, rand)
-        k = s.shape[0]
-        cos_max = np.cos(self.angle / 2)
-        cos_t = 1 - s[..., 0] * (1 - cos_max)
-        sin_t = np.sqrt(np.maximum(0, 1 - cos_t**2))
-        phi = 2 * np.pi * s[..., 1]
-        l = (cos_t[..., None] * to_light + (sin_t * np.cos(phi))[..., None] * u
-             + (sin_t * np.sin(phi))[..., None] * v).astype(np.float32)
-        return l, np.full((k, n), np.inf, np.float32), np.broadcast_to(e[None] / k, (k, n, 3)).copy()
 
 
 @dataclass
@@ -222,24 +144,122 @@ class AreaLight:
     def uses_random(self, requested: int) -> bool:
         return True
 
-    def sample(self, p: np.ndarray, count: int, rand: np.ndarray):
-        s = stratified_grid(self.sample_count(count), rand)
-        k = s.shape[0]
-        if self.shape == "rect":
-            a, b = s[..., 0] - 0.5, s[..., 1] - 0.5
-        else:  # concentric-free polar mapping to the unit disk, scaled to the ellipse
-            r = 0.5 * np.sqrt(s[..., 0])
-            a, b = r * np.cos(2 * np.pi * s[..., 1]), r * np.sin(2 * np.pi * s[..., 1])
-        pts = (self.position + (a * self.size[0])[..., None] * self.u_axis
-               + (b * self.size[1])[..., None] * self.v_axis).astype(np.float32)
-        to_l = pts - p[None]
-        d2 = np.maximum(np.einsum("kij,kij->ki", to_l, to_l), 1e-30)
-        dist = np.sqrt(d2)
-        l = to_l / dist[..., None]
-        cos_l = np.maximum(0.0, -(l @ self.normal.astype(np.float32)))
-        # E from a sample of a Lambertian emitter: Le · cosθ_l · A / r², averaged over the K samples.
-        e = (self.radiance.astype(np.float32) * (cos_l * self.area / d2 / k)[..., None]).astype(np.float32)
-        return l.astype(np.float32), dist.astype(np.float32), e
-
 
 Light = PointLight | SpotLight | DistantLight | AreaLight
+
+# ---------------------------------------------------------------------- the packed light table
+#: Light kinds in the packed table.
+POINT, SPOT, DISTANT, RECT, DISK = 0, 1, 2, 3, 4
+#: Columns of the packed table.
+_POS, _COLOR, _RADIUS, _DIR, _COS_CONE, _BLEND, _COS_MAX, _U, _V, _SIZE, _AREA = 0, 3, 6, 7, 10, 11, 12, 13, 16, 19, 21
+_WIDTH = 22
+
+
+def pack_lights(lights: list, light_samples: int):
+    """The lights as (table (L, 22) float64, kind (L,) int64, side (L,) int64): one row per light, read by
+    :func:`sample_light`. A light with an extent takes side×side stratified samples, side = round(√light_samples)."""
+    table = np.zeros((len(lights), _WIDTH), np.float64)
+    kind = np.zeros(len(lights), np.int64)
+    side = np.ones(len(lights), np.int64)
+    for i, light in enumerate(lights):
+        row = table[i]
+        k = light.sample_count(light_samples)
+        side[i] = max(1, int(round(np.sqrt(k))))
+        if isinstance(light, PointLight):  # SpotLight included
+            kind[i] = SPOT if isinstance(light, SpotLight) else POINT
+            row[_POS:_POS + 3] = light.position
+            row[_COLOR:_COLOR + 3] = light.intensity
+            row[_RADIUS] = light.radius
+            if kind[i] == SPOT:
+                row[_DIR:_DIR + 3] = light.direction
+                row[_COS_CONE] = np.cos(light.cone_angle)
+                row[_BLEND] = light.blend
+        elif isinstance(light, DistantLight):
+            kind[i] = DISTANT
+            row[_DIR:_DIR + 3] = light.direction
+            row[_COLOR:_COLOR + 3] = light.irradiance
+            row[_COS_MAX] = np.cos(light.angle / 2)
+        else:
+            kind[i] = RECT if light.shape == "rect" else DISK
+            row[_POS:_POS + 3] = light.position
+            row[_COLOR:_COLOR + 3] = light.radiance
+            row[_DIR:_DIR + 3] = light.normal
+            row[_U:_U + 3] = light.u_axis
+            row[_V:_V + 3] = light.v_axis
+            row[_SIZE:_SIZE + 2] = light.size
+            row[_AREA] = light.area
+    return table, kind, side
+
+
+@kernel(inline=True)
+def _col3(table, j, c):
+    return (table[j, c], table[j, c + 1], table[j, c + 2])
+
+
+@kernel(inline=True)
+def spot_falloff(cos_a, cos_cone, blend):
+    """Blender's spot: smoothstep(x), x = (cos α − cos(size/2)) / ((1 − cos(size/2))·blend), in cosine."""
+    if blend <= 0.0:
+        return 1.0 if cos_a > cos_cone else 0.0
+    x = min(max((cos_a - cos_cone) / ((1.0 - cos_cone) * blend), 0.0), 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+@kernel(inline=True)
+def sample_light(table, kind, side, j, k, p, r0, r1):
+    """Sample ``k`` (of side²) of light ``j`` seen from point p: (l, dist, E) with l the unit direction to the
+    light, dist the shadow ray's length and E the irradiance on a surface facing the light, divided by side².
+    (r0, r1) in [0,1)² rotate the stratified pattern of lights with an extent."""
+    kk = side[j] * side[j]
+    kd = kind[j]
+    if kd == POINT or kd == SPOT:
+        pos = _col3(table, j, _POS)
+        radius = table[j, _RADIUS]
+        to_c = vec.sub(pos, p)
+        d2 = vec.dot(to_c, to_c)
+        # Blender's soft falloff: irradiance I / (r² + R²), measured against Cycles.
+        inv = 1.0 / (d2 + radius * radius)
+        dist = math.sqrt(d2)
+        if kd == SPOT:
+            cos_a = -vec.dot(to_c, _col3(table, j, _DIR)) / math.sqrt(max(d2, 1e-30))
+            inv *= spot_falloff(cos_a, table[j, _COS_CONE], table[j, _BLEND])
+        e = vec.scale(_col3(table, j, _COLOR), inv / kk)
+        if kk == 1:
+            return vec.scale(to_c, 1.0 / max(dist, 1e-30)), dist, e
+        # Soft shadows: stratified points on the disk of the sphere that faces p.
+        u, v = vec.orthonormal_basis(vec.scale(to_c, -1.0 / max(dist, 1e-30)))
+        s0, s1 = stratum(k, side[j], r0, r1)
+        r = radius * math.sqrt(s0)
+        phi = 2.0 * math.pi * s1
+        to_l = vec.sub(vec.madd(vec.madd(pos, u, r * math.cos(phi)), v, r * math.sin(phi)), p)
+        ld = vec.length(to_l)
+        return vec.scale(to_l, 1.0 / max(ld, 1e-30)), ld, e
+    if kd == DISTANT:
+        to_light = vec.scale(_col3(table, j, _DIR), -1.0)
+        e = vec.scale(_col3(table, j, _COLOR), 1.0 / kk)
+        if kk == 1:
+            return to_light, math.inf, e
+        # A disk of angular diameter `angle` around the direction to the sun, sampled uniformly in solid angle.
+        u, v = vec.orthonormal_basis(to_light)
+        s0, s1 = stratum(k, side[j], r0, r1)
+        cos_t = 1.0 - s0 * (1.0 - table[j, _COS_MAX])
+        sin_t = math.sqrt(max(0.0, 1.0 - cos_t * cos_t))
+        phi = 2.0 * math.pi * s1
+        l = vec.madd(vec.madd(vec.scale(to_light, cos_t), u, sin_t * math.cos(phi)), v, sin_t * math.sin(phi))
+        return l, math.inf, e
+    # Area light: a point on the rectangle, or on the (elliptical) disk by a polar mapping.
+    s0, s1 = stratum(k, side[j], r0, r1)
+    if kd == RECT:
+        a, b = s0 - 0.5, s1 - 0.5
+    else:
+        r = 0.5 * math.sqrt(s0)
+        a, b = r * math.cos(2.0 * math.pi * s1), r * math.sin(2.0 * math.pi * s1)
+    pt = vec.madd(vec.madd(_col3(table, j, _POS), _col3(table, j, _U), a * table[j, _SIZE]),
+                  _col3(table, j, _V), b * table[j, _SIZE + 1])
+    to_l = vec.sub(pt, p)
+    d2 = max(vec.dot(to_l, to_l), 1e-30)
+    dist = math.sqrt(d2)
+    l = vec.scale(to_l, 1.0 / dist)
+    cos_l = max(0.0, -vec.dot(l, _col3(table, j, _DIR)))
+    # E from a sample of a Lambertian emitter: Le · cosθ_l · A / r², averaged over the K samples.
+    return l, dist, vec.scale(_col3(table, j, _COLOR), cos_l * table[j, _AREA] / d2 / kk)

@@ -1,63 +1,124 @@
-"""The seed's optics, vectorised over arrays of shape (..., 3). Public and stable API.
+"""The seed's optics: reflection, Snell refraction with total internal reflection, dielectric Fresnel.
 
 Convention (as in the notes): ``d`` is the unit incident direction (travelling towards the surface), ``n`` the unit
 normal on the incident side, so d·n ≤ 0 and cos θ_i = −d·n.
+
+Each equation is written once, as a scalar function on 3-tuples that the integrator's kernels call per ray
+(:func:`reflect_dir`, :func:`refract_dir`, :func:`fresnel_dielectric_1`). :func:`reflect`, :func:`refract` and
+:func:`fresnel_dielectric` are their array forms (public and stable API; arrays broadcast over the leading axes).
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-
-def dot(a, b):
-    """Row-wise dot product over the last axis, keeping it (shape (..., 1))."""
-    return np.sum(a * b, axis=-1, keepdims=True)
+from . import vec
+from .jit import kernel
 
 
-def reflect(d, n):
+@kernel(inline=True)
+def reflect_dir(d, n):
     """Mirror reflection (the notes' ray type 3, Shirley 4.8): r = d − 2(d·n)n."""
-    d = np.asarray(d)
-    n = np.asarray(n)
-    return d - 2.0 * dot(d, n) * n
+    return vec.madd(d, n, -2.0 * vec.dot(d, n))
 
 
-def refract(d, n, eta_i, eta_r):
+@kernel(inline=True)
+def refract_dir(d, n, eta_i, eta_r):
     """Transmitted direction by Snell's law, η_r sin θ_r = η_i sin θ_i (the notes' ray type 4).
 
     cos θ_r = [1 − (η_i/η_r)² (1 − cos² θ_i)]^½ and T = (η_i/η_r)(d − (d·n)n) − cos θ_r n.
 
-    ``eta_i`` is the index on the incident side, ``eta_r`` on the far side (scalars or arrays broadcasting against
-    (..., 1) or (...,)). Returns ``(t, tir)``: the unit transmitted directions and a boolean mask of total internal
-    reflection, where the square root's argument is negative; there ``t`` is set to zero (undefined), and callers
-    follow :func:`reflect` instead.
+    Returns (T, tir): under total internal reflection (the square root's argument is negative) T is the zero vector
+    and tir is True; callers follow :func:`reflect_dir` instead.
     """
-    d = np.asarray(d)
-    n = np.asarray(n)
-    ratio = np.asarray(eta_i, dtype=d.dtype) / np.asarray(eta_r, dtype=d.dtype)
-    if ratio.ndim == d.ndim - 1 and ratio.ndim > 0:
-        ratio = ratio[..., None]
-    d_n = dot(d, n)  # = −cos θ_i
+    ratio = eta_i / eta_r
+    d_n = vec.dot(d, n)  # = −cos θ_i
     radicand = 1.0 - ratio * ratio * (1.0 - d_n * d_n)  # cos² θ_r
-    tir = radicand[..., 0] < 0.0
-    cos_r = np.sqrt(np.maximum(radicand, 0.0))
-    t = ratio * (d - d_n * n) - cos_r * n
-    t = np.where(tir[..., None], 0.0, t)
-    return t.astype(d.dtype, copy=False), tir
+    if radicand < 0.0:
+        return (0.0, 0.0, 0.0), True
+    cos_r = math.sqrt(radicand)
+    t = vec.sub(vec.scale(vec.madd(d, n, -d_n), ratio), vec.scale(n, cos_r))
+    return t, False
+
+
+@kernel(inline=True)
+def fresnel_dielectric_1(cos_i, eta_i, eta_r):
+    """Unpolarised Fresnel reflectance of a smooth dielectric boundary (the average of R_s and R_p).
+
+    ``cos_i`` = cos θ_i (clamped to [0, 1]). Returns 1 under total internal reflection. Used to weight reflection
+    against transmission on glass, as Cycles' Principled BSDF does; the notes' "classic" weights skip it.
+    """
+    cos_i = min(max(cos_i, 0.0), 1.0)
+    ratio = eta_i / eta_r
+    sin2_r = ratio * ratio * (1.0 - cos_i * cos_i)
+    if sin2_r >= 1.0:
+        return 1.0
+    cos_r = math.sqrt(max(0.0, 1.0 - sin2_r))
+    r_s = (eta_i * cos_i - eta_r * cos_r) / max(eta_i * cos_i + eta_r * cos_r, 1e-30)
+    r_p = (eta_r * cos_i - eta_i * cos_r) / max(eta_r * cos_i + eta_i * cos_r, 1e-30)
+    return 0.5 * (r_s * r_s + r_p * r_p)
+
+
+# ---------------------------------------------------------------------- array forms
+@kernel
+def _reflect_rows(d, n, out):
+    for i in range(d.shape[0]):
+        r = reflect_dir(vec.row(d, i), vec.row(n, i))
+        out[i, 0], out[i, 1], out[i, 2] = r
+
+
+@kernel
+def _refract_rows(d, n, eta_i, eta_r, out, tir):
+    for i in range(d.shape[0]):
+        t, tir[i] = refract_dir(vec.row(d, i), vec.row(n, i), eta_i[i], eta_r[i])
+        out[i, 0], out[i, 1], out[i, 2] = t
+
+
+@kernel
+def _fresnel_rows(cos_i, eta_i, eta_r, out):
+    for i in range(cos_i.shape[0]):
+        out[i] = fresnel_dielectric_1(cos_i[i], eta_i[i], eta_r[i])
+
+
+def _rows(*arrays):
+    """Broadcast (..., 3) vectors and per-row scalars (shape (...) or (..., 1)) to flat float64 rows."""
+    vecs = [np.asarray(a, dtype=np.float64) for a in arrays]
+    shape = np.broadcast_shapes(*(v.shape[:-1] for v in vecs))
+    return shape, [np.ascontiguousarray(np.broadcast_to(v, shape + (3,)).reshape(-1, 3)) for v in vecs]
+
+
+def _scalars(x, shape):
+    x = np.asarray(x, dtype=np.float64)
+    if x.ndim == len(shape) + 1 and x.shape[-1] == 1:
+        x = x[..., 0]
+    return np.ascontiguousarray(np.broadcast_to(x, shape).reshape(-1))
+
+
+def reflect(d, n):
+    """Array form of :func:`reflect_dir`: r = d − 2(d·n)n for (..., 3) arrays."""
+    dtype = np.result_type(np.asarray(d).dtype, np.asarray(n).dtype, np.float32)
+    shape, (dd, nn) = _rows(d, n)
+    out = np.empty_like(dd)
+    _reflect_rows(dd, nn, out)
+    return out.reshape(shape + (3,)).astype(dtype, copy=False)
+
+
+def refract(d, n, eta_i, eta_r):
+    """Array form of :func:`refract_dir`. ``eta_i`` / ``eta_r``: the indices on the incident / far side, scalars or
+    per-row arrays. Returns ``(t, tir)``: unit transmitted directions (zero where tir) and the boolean TIR mask."""
+    dtype = np.result_type(np.asarray(d).dtype, np.asarray(n).dtype, np.float32)
+    shape, (dd, nn) = _rows(d, n)
+    out = np.empty_like(dd)
+    tir = np.empty(len(dd), np.bool_)
+    _refract_rows(dd, nn, _scalars(eta_i, shape), _scalars(eta_r, shape), out, tir)
+    return out.reshape(shape + (3,)).astype(dtype, copy=False), tir.reshape(shape)
 
 
 def fresnel_dielectric(cos_i, eta_i, eta_r):
-    """Unpolarised Fresnel reflectance of a smooth dielectric boundary (the average of R_s and R_p).
-
-    ``cos_i`` = cos θ_i ≥ 0. Returns 1 under total internal reflection. Used to weight reflection against
-    transmission on glass, as Cycles' Principled BSDF does; the notes' "classic" weights skip it.
-    """
-    cos_i = np.clip(np.asarray(cos_i, dtype=np.float64), 0.0, 1.0)
-    ratio = np.asarray(eta_i, dtype=np.float64) / np.asarray(eta_r, dtype=np.float64)
-    sin2_r = ratio * ratio * (1.0 - cos_i * cos_i)
-    tir = sin2_r >= 1.0
-    cos_r = np.sqrt(np.maximum(0.0, 1.0 - sin2_r))
-    eta_i = np.asarray(eta_i, dtype=np.float64)
-    eta_r = np.asarray(eta_r, dtype=np.float64)
-    r_s = (eta_i * cos_i - eta_r * cos_r) / np.maximum(eta_i * cos_i + eta_r * cos_r, 1e-30)
-    r_p = (eta_r * cos_i - eta_i * cos_r) / np.maximum(eta_r * cos_i + eta_i * cos_r, 1e-30)
-    return np.where(tir, 1.0, 0.5 * (r_s * r_s + r_p * r_p)).astype(np.float32)
+    """Array form of :func:`fresnel_dielectric_1` (float32 result, 1 under total internal reflection)."""
+    shape = np.broadcast_shapes(np.shape(cos_i), np.shape(eta_i), np.shape(eta_r))
+    out = np.empty(int(np.prod(shape)), np.float64)
+    _fresnel_rows(_scalars(cos_i, shape), _scalars(eta_i, shape), _scalars(eta_r, shape), out)
+    return out.reshape(shape).astype(np.float32)

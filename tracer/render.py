@@ -12,10 +12,12 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from . import sampling
 from .accel import Accelerator
+from .camera import eye_ray
 from .film import Image, box_filter, majority
 from .integrator import Integrator, RayCounts
+from .jit import kernel
+from .sampling import uniform2_1
 from .scene import Scene
 from .settings import RenderSettings
 
@@ -35,29 +37,62 @@ def tiles_of(settings: RenderSettings):
     return [(x, y, min(x + ts, x1), min(y + ts, y1)) for y in range(y0, y1, ts) for x in range(x0, x1, ts)]
 
 
-def eye_samples(settings: RenderSettings, x0: int, y0: int, x1: int, y1: int):
-    """Film positions (u, v) and hash keys of the N×N stratified samples of every pixel in a tile.
+@kernel(inline=True)
+def pixel_sample(px, py, s, n, width, height, seed):
+    """Film position (u, v) and hash key of sample s of pixel (px, py) under N×N stratified sampling.
 
-    Samples of one pixel are consecutive. With N = 1 the single sample goes through the pixel centre.
+    The key is unique per sample (pixel·N² + s, modulo 2³²); with N = 1 the single sample goes through the pixel
+    centre, otherwise it is jittered inside its stratum by the key's stream-0 random numbers.
     """
-    n = settings.samples
-    spp = n * n
-    py, px = np.mgrid[y0:y1, x0:x1]
-    pixel = (py.astype(np.int64) * settings.width + px).reshape(-1, 1)
-    s = np.arange(spp)[None, :]
-    keys = (pixel * spp + s).reshape(-1).astype(np.uint64) & np.uint64(0xFFFFFFFF)
-    keys = keys.astype(np.uint32)
+    key = ((py * width + px) * (n * n) + s) & 0xFFFFFFFF
     if n == 1:
-        jx = jy = np.full(keys.shape, 0.5, np.float32)
+        jx, jy = 0.5, 0.5
     else:
-        r = sampling.uniform2(keys, 0, settings.seed)
-        jx = (np.tile(np.arange(spp) % n, len(pixel)) + r[:, 0]) / n
-        jy = (np.tile(np.arange(spp) // n, len(pixel)) + r[:, 1]) / n
-    pxs = np.repeat(px.reshape(-1), spp)
-    pys = np.repeat(py.reshape(-1), spp)
-    u = (pxs + jx) / settings.width
-    v = 1.0 - (pys + jy) / settings.height
-    return u, v, keys
+        r0, r1 = uniform2_1(key, 0, seed)
+        jx, jy = ((s % n) + r0) / n, ((s // n) + r1) / n
+    return (px + jx) / width, 1.0 - (py + jy) / height, key
+
+
+@kernel
+def _tile_samples(x0, y0, x1, y1, n, width, height, seed, u, v, keys):
+    i = 0
+    for py in range(y0, y1):
+        for px in range(x0, x1):
+            for s in range(n * n):
+                u[i], v[i], keys[i] = pixel_sample(px, py, s, n, width, height, seed)
+                i += 1
+
+
+@kernel
+def _tile_eye_rays(cam, x0, y0, x1, y1, n, width, height, seed, o, d, keys):
+    i = 0
+    for py in range(y0, y1):
+        for px in range(x0, x1):
+            for s in range(n * n):
+                u, v, keys[i] = pixel_sample(px, py, s, n, width, height, seed)
+                oi, di = eye_ray(cam, u, v)
+                o[i, 0], o[i, 1], o[i, 2] = oi
+                d[i, 0], d[i, 1], d[i, 2] = di
+                i += 1
+
+
+def eye_samples(settings: RenderSettings, x0: int, y0: int, x1: int, y1: int):
+    """Film positions (u, v) and hash keys of the N×N stratified samples of every pixel in a tile (array form of
+    :func:`pixel_sample`). Samples of one pixel are consecutive."""
+    count = (x1 - x0) * (y1 - y0) * settings.samples**2
+    u, v, keys = np.empty(count), np.empty(count), np.empty(count, np.int64)
+    _tile_samples(x0, y0, x1, y1, settings.samples, settings.width, settings.height, settings.seed, u, v, keys)
+    return u, v, keys.astype(np.uint32)
+
+
+def eye_rays(scene: Scene, settings: RenderSettings, x0: int, y0: int, x1: int, y1: int):
+    """Eye-ray origins and directions (float32) and sample keys of a tile: :func:`eye_samples` through
+    :func:`tracer.camera.eye_ray` in one pass."""
+    count = (x1 - x0) * (y1 - y0) * settings.samples**2
+    o, d, keys = np.empty((count, 3), np.float32), np.empty((count, 3), np.float32), np.empty(count, np.int64)
+    _tile_eye_rays(scene.camera.packed(), x0, y0, x1, y1, settings.samples, settings.width, settings.height,
+                   settings.seed, o, d, keys)
+    return o, d, keys
 
 
 def write_tile(image: Image, res, tile, spp: int) -> None:
@@ -74,7 +109,7 @@ def write_tile(image: Image, res, tile, spp: int) -> None:
         aovs["depth"][y0:y1, x0:x1] = np.where(nhit > 0, dsum / np.maximum(nhit, 1), np.inf).reshape(th, tw)
     if "normal" in aovs:
         nm = box_filter(res.normal, spp)
-        nm /= np.maximum(np.linalg.norm(nm, axis=1, keepdims=True), 1e-30)
+        nm = nm / np.maximum(np.linalg.norm(nm, axis=1, keepdims=True), 1e-30)
         aovs["normal"][y0:y1, x0:x1] = nm.reshape(th, tw, 3)
     if "albedo" in aovs:
         aovs["albedo"][y0:y1, x0:x1] = box_filter(res.albedo, spp).reshape(th, tw, 3)
@@ -115,8 +150,7 @@ def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None
         if cancelled():
             return None
         x0, y0, x1, y1 = tile
-        u, v, keys = eye_samples(settings, x0, y0, x1, y1)
-        o, d = scene.camera.generate_rays(u, v)
+        o, d, keys = eye_rays(scene, settings, x0, y0, x1, y1)
         res = integ.trace(o, d, keys, cancelled)
         if scene.camera.near > 0:  # depth is measured from the eye (the film plane for orthographic cameras)
             cam = scene.camera

@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+
+from .jit import kernel
 
 
 def srgb_to_linear(c):
@@ -41,19 +45,53 @@ def load_texture(path: str, colorspace: str = "auto") -> np.ndarray:
     return np.ascontiguousarray(np.nan_to_num(rgb), dtype=np.float32)
 
 
-def sample_bilinear(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """Bilinear lookup of (N, 2) texture coordinates (u right, v up, repeat wrapping) in an (H, W, 3) image."""
-    h, w = image.shape[:2]
-    x = uv[:, 0] * w - 0.5
-    y = (1.0 - uv[:, 1]) * h - 0.5
-    x0 = np.floor(x)
-    y0 = np.floor(y)
-    fx = (x - x0)[:, None].astype(np.float32)
-    fy = (y - y0)[:, None].astype(np.float32)
-    x0 = x0.astype(np.int64) % w
-    y0 = y0.astype(np.int64) % h
+def pack_textures(textures: list):
+    """All textures in one (P, 3) float32 array plus an (n, 3) int64 table of (first row, height, width), for kernels."""
+    info = np.zeros((len(textures), 3), np.int64)
+    offset = 0
+    for i, tex in enumerate(textures):
+        info[i] = (offset, tex.shape[0], tex.shape[1])
+        offset += tex.shape[0] * tex.shape[1]
+    data = (np.concatenate([np.asarray(t, np.float32)[..., :3].reshape(-1, 3) for t in textures])
+            if textures else np.zeros((0, 3), np.float32))
+    return np.ascontiguousarray(data), info
+
+
+@kernel(inline=True)
+def bilinear(data, info, index, s, t):
+    """Bilinear lookup of texture ``index`` of a :func:`pack_textures` pair at (s, t) (s right, t up, repeat
+    wrapping): an (r, g, b) tuple."""
+    first, h, w = info[index, 0], info[index, 1], info[index, 2]
+    x = s * w - 0.5
+    y = (1.0 - t) * h - 0.5
+    xf = math.floor(x)
+    yf = math.floor(y)
+    fx = x - xf
+    fy = y - yf
+    x0 = int(xf) % w
+    y0 = int(yf) % h
     x1 = (x0 + 1) % w
     y1 = (y0 + 1) % h
-    top = image[y0, x0] * (1 - fx) + image[y0, x1] * fx
-    bottom = image[y1, x0] * (1 - fx) + image[y1, x1] * fx
-    return top * (1 - fy) + bottom * fy
+    w00 = (1.0 - fx) * (1.0 - fy)
+    w01 = fx * (1.0 - fy)
+    w10 = (1.0 - fx) * fy
+    w11 = fx * fy
+    a, b, c, d = first + y0 * w + x0, first + y0 * w + x1, first + y1 * w + x0, first + y1 * w + x1
+    return (w00 * data[a, 0] + w01 * data[b, 0] + w10 * data[c, 0] + w11 * data[d, 0],
+            w00 * data[a, 1] + w01 * data[b, 1] + w10 * data[c, 1] + w11 * data[d, 1],
+            w00 * data[a, 2] + w01 * data[b, 2] + w10 * data[c, 2] + w11 * data[d, 2])
+
+
+@kernel
+def _bilinear_rows(data, info, uv, out):
+    for i in range(uv.shape[0]):
+        out[i, 0], out[i, 1], out[i, 2] = bilinear(data, info, 0, uv[i, 0], uv[i, 1])
+
+
+def sample_bilinear(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Bilinear lookup of (N, 2) texture coordinates (u right, v up, repeat wrapping) in an (H, W, 3) image."""
+    data, info = pack_textures([image])
+    uv = np.ascontiguousarray(uv, dtype=np.float64).reshape(-1, 2)
+    out = np.empty((len(uv), 3), np.float32)
+    _bilinear_rows(data, info, uv, out)
+    return out

@@ -1,0 +1,93 @@
+"""What a ray learns where it hits a triangle: the point, the geometric and shading normals, the side it came from.
+
+:class:`Geometry` holds the per-triangle arrays the kernels read (built once per render by :func:`geometry_of`);
+:func:`hit_frame` is the per-hit computation.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from . import vec
+from .jit import kernel
+from .scene import Scene
+
+
+class Geometry(NamedTuple):
+    face_normals: np.ndarray  # (T, 3) float32 unit geometric normals (counter-clockwise front)
+    normals: np.ndarray  # (T, 3, 3) float32 per-corner shading normals, or (0, 3, 3)
+    corner_ok: np.ndarray  # (T,) bool: all three corner normals usable, or (0,)
+    uvs: np.ndarray  # (T, 3, 2) float32 per-corner texture coordinates, or (0, 3, 2)
+    material_ids: np.ndarray  # (T,) int32
+    object_ids: np.ndarray  # (T,) int32
+    has_normals: bool
+    has_uvs: bool
+
+
+def geometry_of(scene: Scene) -> Geometry:
+    has_n = scene.normals is not None
+    has_uv = scene.uvs is not None
+    n_tri = len(scene.triangles)
+    face_normals = np.empty((n_tri, 3), np.float32)
+    corner_ok = np.empty(n_tri if has_n else 0, np.bool_)
+    normals = scene.normals if has_n else np.zeros((0, 3, 3), np.float32)
+    _face_frames(scene.vertices, scene.triangles, normals, face_normals, corner_ok)
+    return Geometry(face_normals=face_normals, normals=normals, corner_ok=corner_ok,
+                    uvs=scene.uvs if has_uv else np.zeros((0, 3, 2), np.float32),
+                    material_ids=scene.material_ids, object_ids=scene.object_ids, has_normals=has_n, has_uvs=has_uv)
+
+
+@kernel
+def _face_frames(vertices, triangles, normals, face_normals, corner_ok):
+    """Unit geometric normals (p1 − p0) × (p2 − p0) / ‖·‖ of every triangle, and whether all three of its corner
+    shading normals are usable (non-zero; the scene zeroes unusable ones)."""
+    for f in range(triangles.shape[0]):
+        p0 = vec.row(vertices, triangles[f, 0])
+        ng = vec.normalize(vec.cross(vec.sub(vec.row(vertices, triangles[f, 1]), p0),
+                                     vec.sub(vec.row(vertices, triangles[f, 2]), p0)))
+        face_normals[f, 0], face_normals[f, 1], face_normals[f, 2] = ng
+    for f in range(corner_ok.shape[0]):
+        ok = True
+        for k in range(3):
+            if normals[f, k, 0] == 0.0 and normals[f, k, 1] == 0.0 and normals[f, k, 2] == 0.0:
+                ok = False
+        corner_ok[f] = ok
+
+
+@kernel(inline=True)
+def hit_frame(geom, tri, d, u, v):
+    """(ng, n, front) at barycentrics (u, v) of triangle ``tri`` hit by direction d.
+
+    ng is the unit geometric normal turned to the incident side, n the interpolated shading normal on the same side
+    (p = (1 − u − v)·p0 + u·p1 + v·p2); front is True where the ray hit the front face (entering a closed object).
+    Unusable corner normals, or interpolated ones facing away from the geometric side, fall back to ng.
+    """
+    ng = vec.row(geom.face_normals, tri)
+    front = vec.dot(d, ng) < 0.0
+    if not front:
+        ng = vec.scale(ng, -1.0)
+    n = ng
+    if geom.has_normals and geom.corner_ok[tri]:
+        w = 1.0 - u - v
+        c = geom.normals
+        m = (w * c[tri, 0, 0] + u * c[tri, 1, 0] + v * c[tri, 2, 0],
+             w * c[tri, 0, 1] + u * c[tri, 1, 1] + v * c[tri, 2, 1],
+             w * c[tri, 0, 2] + u * c[tri, 1, 2] + v * c[tri, 2, 2])
+        ln = math.sqrt(vec.dot(m, m))
+        if ln > 1e-6:
+            m = vec.scale(m, (1.0 if front else -1.0) / ln)
+            if vec.dot(m, ng) > 0.0:
+                n = m
+    return ng, n, front
+
+
+@kernel(inline=True)
+def hit_uv(geom, tri, u, v):
+    """Texture coordinates (s, t) at barycentrics (u, v) of triangle ``tri``."""
+    w = 1.0 - u - v
+    c = geom.uvs
+    return (w * c[tri, 0, 0] + u * c[tri, 1, 0] + v * c[tri, 2, 0],
+            w * c[tri, 0, 1] + u * c[tri, 1, 1] + v * c[tri, 2, 1])
