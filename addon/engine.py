@@ -132,6 +132,9 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
                 stop[0] = bool(self.test_break() or (break_hook is not None and break_hook()))
             return stop[0]
 
+        # The first render on a machine compiles the tracer's kernels (numba, cached on disk afterwards).
+        self.update_stats("", "Whitted: preparing kernels (the first render on this machine compiles them, ~10 s)")
+        tracer.compile_kernels()
         self.update_stats("", f"Whitted: tracing {len(scene.triangles):,} triangles, {len(scene.lights)} lights")
         try:
             image = tracer.render(scene, settings, on_tile=on_tile, cancelled=cancelled)

@@ -14,9 +14,11 @@ from .materials import DEFAULT_MATERIAL, Materials, roughness_to_exponent
 from .render import RenderCancelled, render, tiles_of
 from .scene import Scene
 from .settings import AOV_NAMES, RenderSettings
+from .warmup import compile_kernels
 
 __all__ = [
     "AOV_NAMES", "AreaLight", "Camera", "DEFAULT_MATERIAL", "DistantLight", "Image", "Materials", "ORTHOGRAPHIC",
     "PERSPECTIVE", "PointLight", "RAY_TYPES", "RenderCancelled", "RenderSettings", "Scene", "SceneBuilder",
-    "SpotLight", "fit_apertures", "read_image", "render", "roughness_to_exponent", "tiles_of", "write_image",
+    "SpotLight", "compile_kernels", "fit_apertures", "read_image", "render", "roughness_to_exponent", "tiles_of",
+    "write_image",
 ]

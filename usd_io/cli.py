@@ -152,6 +152,8 @@ def cmd_render(args) -> int:
             _print_warnings(info)
         settings = RenderSettings(width=info.width, height=info.height, samples=args.spp, max_depth=args.max_depth,
                                   threads=args.threads, aovs=aovs, progress=not args.quiet)
+        if frame is None or frame == frames[0]:  # after the input has been checked: bad input stays one line
+            _compile_kernels(quiet=args.quiet)
         image = render(scene, settings)
         out = frame_path(args.output, frame, len(frames) > 1) if frame is not None else args.output
         try:
@@ -167,6 +169,22 @@ def cmd_render(args) -> int:
             print(f"{out}: {info.width}x{info.height}, {len(scene.triangles):,} triangles, "
                   f"{s['rays']['total']:,} rays in {s['seconds']:.2f} s", file=sys.stderr)
     return EXIT_OK
+
+
+def _compile_kernels(quiet: bool) -> None:
+    """Compile (first run on a machine) or load the tracer's kernels, saying so when that takes a while."""
+    import threading
+
+    from tracer import compile_kernels
+
+    notice = threading.Timer(1.0, lambda: print("whitted: compiling the tracer's kernels (first run on this machine "
+                                                "only, about 10 s)", file=sys.stderr, flush=True))
+    if not quiet:
+        notice.start()
+    try:
+        compile_kernels()
+    finally:
+        notice.cancel()
 
 
 def _write_aov(path, pixels):

@@ -1,0 +1,49 @@
+"""tracer.compile_kernels() prepares every kernel specialisation a render uses, so nothing compiles mid-render."""
+
+import importlib
+
+import numpy as np
+
+import tracer
+from tracer import AreaLight, Camera, DistantLight, PointLight, RenderSettings, SceneBuilder, SpotLight
+
+from tracer_scenes import lit_sphere_on_floor
+
+
+def _kernels():
+    integrator = importlib.import_module("tracer.integrator")
+    render = importlib.import_module("tracer.render")
+    surface = importlib.import_module("tracer.surface")
+    return {"_shade_hits": integrator._shade_hits, "_add_unoccluded": integrator._add_unoccluded,
+            "_tile_eye_rays": render._tile_eye_rays, "_face_frames": surface._face_frames}
+
+
+def _flat_scene_without_normals():
+    b = SceneBuilder()
+    m = b.add_material("red", diffuse=(0.8, 0.1, 0.1))
+    b.add_mesh(np.array([[-1, -1, 0], [1, -1, 0], [0, 1, 0]], float), np.array([[0, 1, 2]]), material=m)
+    for light in (SpotLight(position=(0, 0, 3), intensity=(5, 5, 5), direction=(0, 0, -1)),
+                  DistantLight(direction=(0, 0.2, -1), irradiance=(1, 1, 1)),
+                  AreaLight(position=(0, 0, 2), u_axis=(1, 0, 0), v_axis=(0, 1, 0), normal=(0, 0, -1),
+                            radiance=(2, 2, 2))):
+        b.add_light(light)
+    b.camera = Camera.look_at((0, -3, 3), (0, 0, 0), up=(0, 0, 1), projection="orthographic",
+                              horizontal_aperture=3.0, vertical_aperture=3.0)
+    return b.build()
+
+
+def test_compile_kernels_covers_the_kernels_a_render_uses():
+    tracer.compile_kernels()
+    kernels = _kernels()
+    before = {name: len(k.signatures) for name, k in kernels.items()}
+    assert all(before.values()), f"compile_kernels left kernels uncompiled: {before}"
+    b = lit_sphere_on_floor()  # smooth normals, a point light
+    b.add_light(PointLight(position=(0, 0, 8), intensity=(5, 5, 5), radius=0.5))
+    sphere = b.build()
+    for scene, settings in ((sphere, RenderSettings(width=24, height=16, samples=2, light_samples=4)),
+                            (_flat_scene_without_normals(), RenderSettings(width=16, height=16, sky_samples=4,
+                                                                            threads=2, aovs=("normal",)))):
+        image = tracer.render(scene, settings)
+        assert image.rgba[..., :3].max() > 0  # the scenes are lit
+    after = {name: len(k.signatures) for name, k in kernels.items()}
+    assert after == before, f"a render compiled new specialisations after compile_kernels: {before} -> {after}"

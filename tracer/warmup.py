@@ -1,0 +1,44 @@
+"""Compile (or load from numba's cache) every kernel a render uses, before the first real render needs them.
+
+The first render on a machine compiles the kernels (about 10 s); later processes load them from the on-disk cache
+(well under a second). :func:`compile_kernels` renders a tiny scene that takes every path through the kernels (all
+light kinds with and without extent, shading normals, a texture, mirror, glass, emission, sky visibility), so front
+ends can say "compiling" instead of looking stuck on their first tile.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def compile_kernels() -> None:
+    """Render an 8×8 scene that touches every kernel specialisation a render uses."""
+    from .builder import SceneBuilder
+    from .camera import Camera
+    from .lights import AreaLight, DistantLight, PointLight, SpotLight
+    from .render import render
+    from .settings import RenderSettings
+
+    b = SceneBuilder()
+    tex = b.add_texture(np.ones((2, 2, 3), np.float32))
+    plain = b.add_material("plain", diffuse=(0.5, 0.5, 0.5), specular=(0.1, 0.1, 0.1), emission=(0.01, 0, 0),
+                           diffuse_texture=tex)
+    glass = b.add_material("glass", transmission=1.0, ior=1.5)
+    mirror = b.add_material("mirror", k_m=1.0)
+    quad_v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], np.float64)
+    quad_f = np.array([[0, 1, 2], [0, 2, 3]])
+    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float64)
+    b.add_mesh(quad_v, quad_f, material=plain, normals=np.tile([0.0, 0.0, 1.0], (4, 1)), uvs=uv)
+    b.add_mesh(quad_v * 0.3 + [0, 0, 0.5], quad_f, material=glass)
+    b.add_mesh(quad_v * 0.2 + [0.5, 0, 0.8], quad_f, material=mirror)
+    b.add_light(PointLight(position=(0, 0, 3), intensity=(1, 1, 1)))
+    b.add_light(PointLight(position=(1, 0, 3), intensity=(1, 1, 1), radius=0.1))
+    b.add_light(SpotLight(position=(0, 1, 3), intensity=(1, 1, 1), direction=(0, 0, -1)))
+    b.add_light(DistantLight(direction=(0, 0, -1), irradiance=(1, 1, 1), angle=0.1))
+    b.add_light(AreaLight(position=(0, 0, 2), u_axis=(1, 0, 0), v_axis=(0, 1, 0), normal=(0, 0, -1),
+                          radiance=(1, 1, 1), shape="disk"))
+    b.camera = Camera.look_at((0, -3, 2), (0, 0, 0), up=(0, 0, 1))
+    b.background = np.array([0.1, 0.1, 0.1], np.float32)
+    b.ambient = np.array([0.1, 0.1, 0.1], np.float32)
+    render(b.build(), RenderSettings(width=8, height=8, samples=2, light_samples=1, sky_samples=1, threads=1,
+                                     aovs=("depth",), transparent=True))
