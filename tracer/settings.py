@@ -5,6 +5,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 AOV_NAMES = ("depth", "normal", "albedo", "objectid")
+#: The one default anti-aliasing level (N for N×N samples per pixel) of RenderSettings, the CLI's --aa, the add-on
+#: and `make render`.
+DEFAULT_AA = 2
 
 
 @dataclass
@@ -12,7 +15,7 @@ class RenderSettings:
     width: int = 640
     height: int = 480
     #: N for N×N stratified samples per pixel (box filter). 1 = one ray through each pixel centre.
-    samples: int = 1
+    samples: int = DEFAULT_AA
     #: Maximum recursion depth of reflection/transmission rays (0 = eye rays and shadow rays only).
     max_depth: int = 8
     #: ε for spawned rays; None = :meth:`tracer.Scene.default_epsilon`.

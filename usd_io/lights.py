@@ -8,8 +8,13 @@ light of power P as a SphereLight with I = P/π, normalize = 1; Cycles' radiant 
                  (the same light as a normalized one of I·4πR², i.e. normalize divides by the surface area)
                  radius -> soft shadows unless treatAsPoint; ShapingAPI cone -> SpotLight(cone_angle =
                  shaping:cone:angle in degrees (half angle), blend = shaping:cone:softness)
-    DistantLight tracer irradiance = 4·I W/m² (Blender writes sun strength S as I = S/4); angle is USD's
-                 half angle in degrees (Blender writes angle/2), the tracer takes the full angular diameter
+    DistantLight as the spec says (any stage not written by Blender): ``angle`` is the angular diameter in
+                 degrees; with normalize = 0 ``intensity`` is the radiance of the sun's disk, so the irradiance is
+                 E = I·Ω, Ω = 2π(1 − cos(angle/2)) (the schema defaults 50000 and 0.53° give E = 3.36 W/m²); with
+                 normalize = 1 (or angle 0) it is the irradiance itself, E = I.
+                 Blender's exporter (root layer ``doc = "Blender v…"``) writes sun strength S as I = S/4 with
+                 normalize = 1 and *half* the angle: for those stages E = 4·I and the diameter is 2·angle
+                 (measured against Cycles; see docs/usd.md "Two readings of DistantLight").
     RectLight    radiance Le = I/A with normalize = 1 (A = width·height), else Le = I (Blender: I = P/π)
     DiskLight    the same with A = π·radius²
     DomeLight    the world: Scene.background = I (× the texture's average colour if it has one) and
@@ -32,8 +37,19 @@ from pxr import UsdLux
 from tracer import AreaLight, DistantLight, PointLight, SpotLight
 from tracer.texture import load_texture
 
-LIGHT_TYPES = ("SphereLight", "DistantLight", "RectLight", "DiskLight", "DomeLight")
+LIGHT_TYPES = ("SphereLight", "DistantLight", "RectLight", "DiskLight", "DomeLight", "CylinderLight")
+SPEC, BLENDER = "spec", "blender"
 _WHITE_6500 = np.asarray(UsdLux.BlackbodyTemperatureAsRgb(6500.0), dtype=np.float64)
+
+
+def light_units(stage) -> str:
+    """``"blender"`` for a stage whose root layer Blender's USD exporter wrote (its ``doc`` is "Blender vX.Y.Z"),
+    else ``"spec"``. Only DistantLight differs between the two readings (the other lights Blender writes as the
+    spec says; the Cycles suite holds that)."""
+    layer = stage.GetRootLayer()
+    doc = (layer.documentation or "").strip()
+    creator = str((layer.customLayerData or {}).get("creator", ""))
+    return BLENDER if doc.startswith("Blender v") or creator.startswith("Blender") else SPEC
 
 
 def _get(attr, time, default):
@@ -71,8 +87,20 @@ def _axis_scales(m):
     return np.linalg.norm(m[:3, :3], axis=0)
 
 
-def convert_light(prim, world: np.ndarray, time, warn):
-    """(kind, tracer light or None, world dict or None) for one UsdLux prim."""
+def distant_irradiance(rgb, angle_deg: float, normalize: bool, units: str = SPEC):
+    """(irradiance E per channel, full angular diameter in radians) of a DistantLight of colour ``rgb``
+    (intensity · 2^exposure · color) and authored ``angle`` in degrees, under the ``units`` reading."""
+    if units == BLENDER:
+        return 4.0 * rgb, float(np.radians(2 * angle_deg))
+    diameter = float(np.radians(angle_deg))
+    if normalize or diameter <= 0:
+        return rgb, diameter
+    solid_angle = 2 * np.pi * (1 - np.cos(min(diameter, 2 * np.pi) / 2))
+    return rgb * solid_angle, diameter
+
+
+def convert_light(prim, world: np.ndarray, time, warn, units: str = SPEC):
+    """(kind, tracer light or None, world dict or None) for one UsdLux prim; ``units`` from :func:`light_units`."""
     t = prim.GetTypeName()
     name = str(prim.GetPath())
     rgb = light_colour(prim, time)
@@ -89,6 +117,12 @@ def convert_light(prim, world: np.ndarray, time, warn):
         radius = 0.0 if point else r
         shaping = UsdLux.ShapingAPI(prim)
         cone = shaping.GetShapingConeAngleAttr() if prim.HasAPI(UsdLux.ShapingAPI) else None
+        focus = shaping.GetShapingFocusAttr() if prim.HasAPI(UsdLux.ShapingAPI) else None
+        if focus and focus.HasAuthoredValue() and float(focus.Get(time) or 0) != 0:
+            warn(f"{name}: ShapingAPI shaping:focus is not supported (ignored)")
+        ies = shaping.GetShapingIesFileAttr() if prim.HasAPI(UsdLux.ShapingAPI) else None
+        if ies and ies.HasAuthoredValue():
+            warn(f"{name}: ShapingAPI IES profile is not supported (ignored)")
         if cone and cone.HasAuthoredValue():
             angle = _finite(cone.Get(time), "shaping:cone:angle")
             soft = _finite(_get(shaping.GetShapingConeSoftnessAttr(), time, 0.0), "shaping:cone:softness")
@@ -100,8 +134,22 @@ def convert_light(prim, world: np.ndarray, time, warn):
     if t == "DistantLight":
         lux = UsdLux.DistantLight(prim)
         angle = _finite(_get(lux.GetAngleAttr(), time, 0.53), "angle")
-        return "distant", DistantLight(direction=down, irradiance=4.0 * rgb,
-                                       angle=float(np.clip(np.radians(2 * angle), 0, np.pi - 1e-6)), name=name), None
+        irradiance, diameter = distant_irradiance(rgb, angle, _normalized(prim, time), units)
+        return "distant", DistantLight(direction=down, irradiance=irradiance,
+                                       angle=float(np.clip(diameter, 0, np.pi - 1e-6)), name=name), None
+    if t == "CylinderLight":
+        # A tube along its local X of `length` and `radius`: emitted as a spherical light of the same power
+        # at its centre (Φ = L·π·A for a Lambertian surface of area A = 2πrl; normalize divides by A).
+        lux = UsdLux.CylinderLight(prim)
+        sx, sy, sz = _axis_scales(world)
+        length = _finite(_get(lux.GetLengthAttr(), time, 1.0), "length") * sx
+        r = _finite(_get(lux.GetRadiusAttr(), time, 0.5), "radius") * float(np.sqrt(sy * sz))
+        if _normalized(prim, time) or r <= 0 or length <= 0:
+            power = rgb * np.pi
+        else:
+            power = rgb * np.pi * 2 * np.pi * r * length
+        warn(f"{name}: CylinderLight rendered as a point light of the same power")
+        return "point", PointLight(position=pos, intensity=power / (4 * np.pi), radius=max(r, 0.0), name=name), None
     if t in ("RectLight", "DiskLight"):
         sx, sy, _ = _axis_scales(world)
         if t == "RectLight":
@@ -137,3 +185,21 @@ def convert_light(prim, world: np.ndarray, time, warn):
         return "dome", None, dict(background=colour, ambient=colour * diffuse)
     warn(f"{name}: light type {t} is not supported (skipped)")
     return "unsupported", None, None
+
+
+#: usdview / usdrecord light a stage that has no lights with one light at the camera (UsdAppUtils FrameRecorder:
+#: GlfSimpleLight at the camera position, diffuse 1, no falloff) plus a small ambient. Here: a distant light along
+#: the view direction whose irradiance π makes a white Lambertian surface facing the camera show its albedo
+#: (Storm's N·L·diffuse), and a dim uniform dome (ambient L_a = 0.1; usdview's default dome is off and its
+#: ambient term 0.2 × 0.01 would leave faces turned away from the camera black). The background stays black, as
+#: usdrecord's clear colour.
+DEFAULT_CAMERA_LIGHT_IRRADIANCE = np.pi
+DEFAULT_DOME_AMBIENT = 0.1
+
+
+def default_lights(camera):
+    """(camera light, ambient colour) for a stage without lights, seen by ``camera`` (a tracer.Camera)."""
+    forward = -np.asarray(camera.camera_to_world, np.float64)[:3, 2]
+    light = DistantLight(direction=forward, irradiance=np.full(3, DEFAULT_CAMERA_LIGHT_IRRADIANCE),
+                         angle=0.0, name="default camera light")
+    return light, np.full(3, DEFAULT_DOME_AMBIENT, np.float32)

@@ -1,7 +1,10 @@
 """``load_stage``: a USD stage at one time code -> (:class:`tracer.Scene`, :class:`StageInfo`).
 
-Geometry stays in stage space (``upAxis`` and ``metersPerUnit`` are reported, not applied): the camera lives in
-the same space, so the picture is the same, and light units are per stage unit as Blender writes them.
+Geometry stays in stage space: the camera lives in the same space, so a Y-up and a Z-up copy of an asset give the
+same picture through their cameras, and the default framing camera puts ``upAxis`` up (the same view of both).
+``metersPerUnit`` is reported, not applied: light falloff is per stage unit, as in Hydra's renderers and usdview.
+A stage without lights is lit by :func:`usd_io.lights.default_lights` (usdview's camera light) unless
+``default_light=False``.
 """
 
 from __future__ import annotations
@@ -9,16 +12,17 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from pxr import UsdGeom, UsdLux
+from pxr import Usd, UsdGeom, UsdLux
 
 from tracer import SceneBuilder
 
 from . import camera as cam
 from .gprims import DEFAULT_SEGMENTS, GPRIM_TYPES, read_gprim
 from .instancing import instance_matrices, replicate
-from .lights import convert_light
+from .lights import convert_light, default_lights, light_units
 from .material import MaterialTable
 from .mesh import MeshData, read_mesh
+from .skel import Skinning
 from .stage import (DEFAULT_PURPOSES, UsdInputError, check_purposes, composition_warnings, open_stage,
                     renderable_prims, stage_messages, stage_time)
 from .xform import Transforms, transform_points
@@ -55,6 +59,9 @@ class _Reader:
         self.lo = np.full(3, np.inf)
         self.hi = np.full(3, -np.inf)
         self._proto_cache: dict[str, MeshData | None] = {}
+        self.units = light_units(stage)
+        self._grey = None
+        self.skinning = Skinning(time, self.xf.world)
 
     # ------------------------------------------------------------------ geometry
     def geometry(self, prim, uv_name="st") -> MeshData | None:
@@ -82,7 +89,14 @@ class _Reader:
         return self._proto_cache[key]
 
     def shaded(self, prim, data: MeshData):
-        material, uv = self.mats.for_prim(prim, data.n_faces, data.faces)
+        try:
+            material, uv = self.mats.for_prim(prim, data.n_faces, data.faces)
+        except (TypeError, ValueError, IndexError) as exc:  # a shading input of an unexpected type or shape
+            self.info.warn(f"{prim.GetPath()}: its material could not be read ({type(exc).__name__}: {exc}); "
+                           "rendered grey")
+            if self._grey is None:
+                self._grey = self.b.add_material("whitted:unreadable", diffuse=(0.5, 0.5, 0.5))
+            material, uv = self._grey, "st"
         if uv != "st" and prim.IsA(UsdGeom.Mesh):
             data = self.geometry(prim, uv) or data
         for w in data.warnings:
@@ -94,6 +108,10 @@ class _Reader:
         if data is None or not len(data.triangles):
             return
         m = self.xf.world(prim)
+        if prim.IsA(UsdGeom.Mesh) and Skinning.is_skinned(prim):
+            posed = self.skinning.pose(prim, data, self.info.warn)
+            if posed is not None:
+                data, m = posed
         if not _usable(m):
             self.info.warn(f"{prim.GetPath()}: transform is singular (zero scale) or not finite (skipped)")
             return
@@ -146,7 +164,7 @@ class _Reader:
     # ------------------------------------------------------------------ lights
     def add_light(self, prim):
         try:
-            kind, light, world = convert_light(prim, self.xf.world(prim), self.time, self.info.warn)
+            kind, light, world = convert_light(prim, self.xf.world(prim), self.time, self.info.warn, self.units)
         except ValueError as exc:  # the tracer's light validation (NaN/Inf intensity, zero-length axes, ...)
             self.info.warn(f"{prim.GetPath()}: {exc} (light skipped)")
             return
@@ -164,6 +182,28 @@ class _Reader:
         return np.stack([self.lo, self.hi])
 
 
+def select_variant(stage, prim_path: str, vset: str, value: str) -> None:
+    """Select ``vset=value`` on the prim at ``prim_path`` (UsdInputError naming what does not exist)."""
+    from pxr import Sdf
+
+    label = stage.GetRootLayer().identifier
+    if not Sdf.Path.IsValidPathString(prim_path) or not Sdf.Path(prim_path).IsAbsolutePath():
+        raise UsdInputError(f"{label}: --variant {prim_path}: not an absolute prim path")
+    prim = stage.GetPrimAtPath(prim_path)
+    if not prim:
+        raise UsdInputError(f"{label}: --variant: no prim at {prim_path}")
+    sets = prim.GetVariantSets()
+    if not sets.HasVariantSet(vset):
+        raise UsdInputError(f"{label}: --variant: {prim_path} has no variant set {vset!r} "
+                            f"(it has: {', '.join(sets.GetNames()) or 'none'})")
+    vs = sets.GetVariantSet(vset)
+    if value not in vs.GetVariantNames():
+        raise UsdInputError(f"{label}: --variant: {prim_path} {vset} has no variant {value!r} "
+                            f"(choose from {', '.join(vs.GetVariantNames())})")
+    with Usd.EditContext(stage, stage.GetSessionLayer()):
+        vs.SetVariantSelection(value)
+
+
 def _usable(m: np.ndarray) -> np.ndarray:
     """Whether 4×4 matrices (one or a stack) are finite and invertible, so points and normals can go through."""
     finite = np.isfinite(m).all(axis=(-2, -1))
@@ -173,7 +213,8 @@ def _usable(m: np.ndarray) -> np.ndarray:
 
 
 def load_stage(path_or_stage, time=None, camera: str | None = None, width: int | None = None,
-               height: int | None = None, purposes=DEFAULT_PURPOSES, segments: int = DEFAULT_SEGMENTS):
+               height: int | None = None, purposes=DEFAULT_PURPOSES, segments: int = DEFAULT_SEGMENTS,
+               default_light: bool = True, variants=()):
     """Read a USD stage (a path or an open ``Usd.Stage``) into a render-ready :class:`tracer.Scene`.
 
     time      time code (None: the earliest time, i.e. default values or the first time sample)
@@ -181,12 +222,16 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     width, height  image size; a missing side follows the camera aperture's aspect (width defaults to 960)
     purposes  which ``purpose`` values render (default: default and render)
     segments  tessellation of implicit gprims
+    default_light  light a stage without lights as usdview does (a camera light and a dim dome), with a warning
+    variants  ``(prim path, variant set, variant)`` selections applied (on the session layer) before reading
 
     Returns ``(scene, info)``; ``info.warnings`` lists what was skipped or approximated (each message once).
     Raises :class:`UsdInputError` (a ``ValueError``) for input the user can fix.
     """
     stage = open_stage(path_or_stage)
     label = stage.GetRootLayer().identifier
+    for prim_path, vset, value in variants:
+        select_variant(stage, prim_path, vset, value)
     purposes = check_purposes(purposes)
     for name, v in (("width", width), ("height", height)):
         if v is not None and (isinstance(v, bool) or int(v) != v or v <= 0):
@@ -227,6 +272,12 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
                                                  width, height)
         r.b.camera = cam.framing_camera(r.bounds(), info.up_axis, info.width, info.height)
         info.warn("no camera in the stage: framing the scene's bounds with a default camera")
+    if not info.lights and default_light:
+        light, ambient = default_lights(r.b.camera)
+        r.b.add_light(light)
+        r.b.ambient = r.b.ambient + ambient
+        info.warn("no lights in the stage: lighting it as usdview does (a camera light and a dim dome); "
+                  "--no-default-light turns this off")
     try:
         scene = r.b.build()
     except ValueError as exc:  # the tracer's validation of what was read (e.g. a NaN material input)
