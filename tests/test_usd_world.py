@@ -219,3 +219,28 @@ def test_no_arguments_prints_usage():
     assert res.returncode == 2 and "usage: whitted" in res.stderr and "Traceback" not in res.stderr
     v = whitted("--version")
     assert v.returncode == 0 and v.stdout.startswith("whitted ")
+
+
+def test_nested_point_instancers_place_every_instance_with_its_own_id():
+    """Outer instancer: 2 instances at x = 0, 10; its prototype holds an inner instancer of 3 unit cubes at
+    y = 0, 2, 4, shifted by the prototype's own z = 1. Expected: 6 cubes at (x, y, 1), 6 object ids."""
+    s = Usd.Stage.CreateInMemory()
+    outer = UsdGeom.PointInstancer.Define(s, "/Outer")
+    proto = UsdGeom.Xform.Define(s, "/Outer/Protos/Group")
+    proto.AddTranslateOp().Set(Gf.Vec3d(0, 0, 1))
+    inner = UsdGeom.PointInstancer.Define(s, "/Outer/Protos/Group/Inner")
+    cube = UsdGeom.Cube.Define(s, "/Outer/Protos/Group/Inner/Protos/Box")
+    cube.CreateSizeAttr(1.0)
+    inner.CreatePrototypesRel().SetTargets([cube.GetPath()])
+    inner.CreateProtoIndicesAttr([0, 0, 0])
+    inner.CreatePositionsAttr([(0, 0, 0), (0, 2, 0), (0, 4, 0)])
+    outer.CreatePrototypesRel().SetTargets([proto.GetPath()])
+    outer.CreateProtoIndicesAttr([0, 0])
+    outer.CreatePositionsAttr([(0, 0, 0), (10, 0, 0)])
+    scene, info = load_stage(s, width=8, height=8)
+    assert not any("nested" in w for w in info.warnings), info.warnings
+    ids = scene.object_ids
+    centres = sorted(tuple(np.round(scene.vertices[np.unique(scene.triangles[ids == i])].mean(axis=0), 4))
+                     for i in np.unique(ids))
+    want = sorted((x, y, 1.0) for x in (0.0, 10.0) for y in (0.0, 2.0, 4.0))
+    assert centres == want

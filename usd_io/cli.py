@@ -182,7 +182,7 @@ def _check_args(args) -> None:
     for name in ("width", "height"):
         v = getattr(args, name)
         if v is not None and v <= 0:
-            raise BadInput(f"image {name} must be positive, got {v}")
+            raise BadInput(f"{', '.join(args.scenes)}: image {name} must be positive, got {v}")
     if args.spp_deprecated is not None:
         warn("--spp is deprecated: use --aa N (N×N samples per pixel, the same meaning)")
         if args.aa is None:

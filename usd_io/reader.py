@@ -123,26 +123,34 @@ class _Reader:
         self._grow(transform_points(m, data.points))
         self.info.meshes.append((str(prim.GetPath()), int(len(tris))))
 
-    def add_instancer(self, prim):
+    def add_instancer(self, prim, frames=None, depth=0):
+        """A PointInstancer; ``frames`` (F, 4, 4) are the world matrices of the instancer itself when it is nested
+        in another instancer's prototype (one per outer instance), else its own world matrix."""
         mats, idx, protos = instance_matrices(prim, self.time)
-        world = self.xf.world(prim)
+        frames = self.xf.world(prim)[None] if frames is None else frames
         total = 0
         for p_index, p_path in enumerate(protos):
             sel = np.flatnonzero(idx == p_index)
             root = self.stage.GetPrimAtPath(p_path)
             if not len(sel) or not root:
                 continue
+            # world matrix of every (outer instance, instance) pair before the piece's own relative transform
+            base = (frames[:, None] @ mats[sel][None]).reshape(-1, 4, 4)
             for piece in renderable_prims(self.stage, self.time, self.purposes, root=root):
+                rel = self.xf.relative(piece, root.GetParent())
+                if piece.IsA(UsdGeom.PointInstancer):
+                    if depth >= 8:
+                        self.info.warn(f"{piece.GetPath()}: PointInstancers nested more than 8 deep (skipped)")
+                    else:
+                        total += self.add_instancer(piece, base @ rel[None], depth + 1)
+                    continue
                 if piece.GetTypeName() not in GPRIM_TYPES and not piece.IsA(UsdGeom.Mesh):
-                    if piece.IsA(UsdGeom.PointInstancer) and piece != root:
-                        self.info.warn(f"{piece.GetPath()}: nested PointInstancer not supported (skipped)")
                     continue
                 data = self.geometry(piece)
                 if data is None or not len(data.triangles):
                     continue
                 data, material = self.shaded(piece, data)
-                rel = self.xf.relative(piece, root.GetParent())
-                full = world[None] @ mats[sel] @ rel[None]
+                full = base @ rel[None]
                 usable = _usable(full)
                 if not usable.all():
                     self.info.warn(f"{prim.GetPath()}: {int((~usable).sum())} instance(s) of {piece.GetPath()} have "
@@ -151,10 +159,14 @@ class _Reader:
                 if not len(full):
                     continue
                 v, t, n, uv, mat = replicate(full, data, material)
-                self.b.add_mesh(v, t, material=mat, name=f"{prim.GetPath()}[{piece.GetPath()}]", normals=n, uvs=uv)
+                # one object id per instance (AOV objectid, picking), ids consecutive in instance order
+                self.b.add_mesh(v, t, material=mat, name=f"{prim.GetPath()}[{piece.GetPath()}]", normals=n, uvs=uv,
+                                instances=len(full))
                 self._grow(v)
                 total += len(t)
-        self.info.meshes.append((str(prim.GetPath()), int(total)))
+        if depth == 0:
+            self.info.meshes.append((str(prim.GetPath()), int(total)))
+        return total
 
     def _grow(self, world_points):
         if len(world_points):
