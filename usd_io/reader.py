@@ -23,7 +23,7 @@ from .lights import convert_light, default_lights, light_units
 from .material import MaterialTable
 from .mesh import MeshData, read_mesh
 from .skel import Skinning
-from .stage import (DEFAULT_PURPOSES, UsdInputError, check_purposes, composition_warnings, open_stage,
+from .stage import (DEFAULT_PURPOSES, _first_reason, captured_stderr, UsdInputError, check_purposes, composition_warnings, open_stage,
                     renderable_prims, stage_messages, stage_time)
 from .xform import Transforms, transform_points
 
@@ -224,6 +224,22 @@ def _usable(m: np.ndarray) -> np.ndarray:
     return finite & (np.abs(np.linalg.det(a)) > 1e-12 * size ** 3)
 
 
+def _read_prims(r: _Reader, stage, tc, purposes, info: StageInfo) -> None:
+    r.prims = list(renderable_prims(stage, tc, purposes))
+    for prim in r.prims:
+        t = prim.GetTypeName()
+        if prim.IsA(UsdGeom.PointInstancer):
+            r.add_instancer(prim)
+        elif t in GPRIM_TYPES or prim.IsA(UsdGeom.Mesh):
+            r.add_gprim(prim)
+        elif prim.HasAPI(UsdLux.LightAPI):
+            r.add_light(prim)
+        elif prim.IsA(UsdGeom.Camera):
+            info.cameras.append(str(prim.GetPath()))
+        elif prim.IsA(UsdGeom.Gprim):
+            info.warn(f"{prim.GetPath()}: {t} is not supported (skipped)")
+
+
 def load_stage(path_or_stage, time=None, camera: str | None = None, width: int | None = None,
                height: int | None = None, purposes=DEFAULT_PURPOSES, segments: int = DEFAULT_SEGMENTS,
                default_light: bool = True, variants=()):
@@ -257,20 +273,15 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     for w in stage_messages.get(id(stage), []):
         info.warn(f"usd: {w}")
     r = _Reader(stage, tc, purposes, segments, info)
-    prims = list(renderable_prims(stage, tc, purposes))
-    for prim in prims:
-        t = prim.GetTypeName()
-        if prim.IsA(UsdGeom.PointInstancer):
-            r.add_instancer(prim)
-        elif t in GPRIM_TYPES or prim.IsA(UsdGeom.Mesh):
-            r.add_gprim(prim)
-        elif prim.HasAPI(UsdLux.LightAPI):
-            r.add_light(prim)
-        elif prim.IsA(UsdGeom.Camera):
-            info.cameras.append(str(prim.GetPath()))
-        elif prim.IsA(UsdGeom.Gprim):
-            info.warn(f"{prim.GetPath()}: {t} is not supported (skipped)")
+    with captured_stderr() as said:  # USD's own diagnostics while reading: warnings of ours, not raw lines
+        _read_prims(r, stage, tc, purposes, info)
+    for line in "".join(said).splitlines():
+        reason = _first_reason(line)
+        if reason:
+            info.warn(f"usd: {reason}")
+    prims = r.prims
     info.materials = dict(r.mats.summary)
+
 
     cam_prim = cam.find_camera(stage, camera, prims)
     if cam_prim is not None:
