@@ -244,3 +244,31 @@ def test_nested_point_instancers_place_every_instance_with_its_own_id():
                      for i in np.unique(ids))
     want = sorted((x, y, 1.0) for x in (0.0, 10.0) for y in (0.0, 2.0, 4.0))
     assert centres == want
+
+
+def test_points_render_as_spheres_and_curves_as_tubes():
+    """Closed form: sphere vertices lie at |v − p| = width/2 (icosphere: the mesh is inscribed), tube vertices
+    at distance width/2 from their segment's axis, within the segment's extent along it."""
+    s = Usd.Stage.CreateInMemory()
+    pts = UsdGeom.Points.Define(s, "/Dots")
+    pts.CreatePointsAttr([(0, 0, 0), (5, 0, 0)])
+    pts.CreateWidthsAttr([0.5, 1.0])
+    crv = UsdGeom.BasisCurves.Define(s, "/Hair")
+    crv.CreateTypeAttr("linear")
+    crv.CreateCurveVertexCountsAttr([3])
+    crv.CreatePointsAttr([(0, 3, 0), (0, 3, 4), (3, 3, 4)])
+    crv.CreateWidthsAttr([0.2])
+    scene, info = load_stage(s, width=16, height=16)
+    assert not any("not supported" in w for w in info.warnings), info.warnings
+    names = scene.object_names
+    dots = scene.vertices[np.unique(scene.triangles[scene.object_ids == names.index("/Dots")])]
+    d0 = np.linalg.norm(dots, axis=1)
+    d1 = np.linalg.norm(dots - [5, 0, 0], axis=1)
+    assert np.all(np.isclose(d0, 0.25, atol=1e-5) | np.isclose(d1, 0.5, atol=1e-5))
+    assert np.isclose(d0, 0.25, atol=1e-5).sum() == np.isclose(d1, 0.5, atol=1e-5).sum() > 10
+    hair = scene.vertices[np.unique(scene.triangles[scene.object_ids == names.index("/Hair")])]
+    on_first = np.isclose(np.hypot(hair[:, 0], hair[:, 1] - 3), 0.1, atol=1e-5) & (hair[:, 2] > -1e-6)
+    on_second = np.isclose(np.hypot(hair[:, 1] - 3, hair[:, 2] - 4), 0.1, atol=1e-5)
+    assert np.all(on_first | on_second) and on_first.sum() >= 8 and on_second.sum() >= 8
+    img = render(scene, RenderSettings(width=16, height=16, samples=1))
+    assert img.rgb.max() > 0.05

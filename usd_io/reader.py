@@ -17,6 +17,7 @@ from pxr import Usd, UsdGeom, UsdLux
 from tracer import SceneBuilder
 
 from . import camera as cam
+from .curves import read_curves, read_points
 from .gprims import DEFAULT_SEGMENTS, GPRIM_TYPES, read_gprim
 from .instancing import instance_matrices, replicate
 from .lights import convert_light, default_lights, light_units
@@ -69,6 +70,10 @@ class _Reader:
         try:
             if prim.IsA(UsdGeom.Mesh):
                 data = read_mesh(prim, self.time, uv_name)
+            elif prim.IsA(UsdGeom.Points):
+                data = read_points(prim, self.time)
+            elif prim.IsA(UsdGeom.BasisCurves):
+                data = read_curves(prim, self.time)
             else:
                 data = read_gprim(prim, self.time, self.segments)
         except ValueError as exc:
@@ -144,7 +149,8 @@ class _Reader:
                     else:
                         total += self.add_instancer(piece, base @ rel[None], depth + 1)
                     continue
-                if piece.GetTypeName() not in GPRIM_TYPES and not piece.IsA(UsdGeom.Mesh):
+                if (piece.GetTypeName() not in GPRIM_TYPES and not piece.IsA(UsdGeom.Mesh)
+                        and not _is_points_or_curves(piece)):
                     continue
                 data = self.geometry(piece)
                 if data is None or not len(data.triangles):
@@ -216,6 +222,10 @@ def select_variant(stage, prim_path: str, vset: str, value: str) -> None:
         vs.SetVariantSelection(value)
 
 
+def _is_points_or_curves(prim) -> bool:
+    return prim.IsA(UsdGeom.Points) or prim.IsA(UsdGeom.BasisCurves)
+
+
 def _usable(m: np.ndarray) -> np.ndarray:
     """Whether 4×4 matrices (one or a stack) are finite and invertible, so points and normals can go through."""
     finite = np.isfinite(m).all(axis=(-2, -1))
@@ -230,7 +240,7 @@ def _read_prims(r: _Reader, stage, tc, purposes, info: StageInfo) -> None:
         t = prim.GetTypeName()
         if prim.IsA(UsdGeom.PointInstancer):
             r.add_instancer(prim)
-        elif t in GPRIM_TYPES or prim.IsA(UsdGeom.Mesh):
+        elif t in GPRIM_TYPES or prim.IsA(UsdGeom.Mesh) or _is_points_or_curves(prim):
             r.add_gprim(prim)
         elif prim.HasAPI(UsdLux.LightAPI):
             r.add_light(prim)
