@@ -115,6 +115,12 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--threads", type=int, help="worker threads (default: all cores)")
     r.add_argument("--aov", help="extra outputs: comma-separated depth,normal,albedo,objectid")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    r.add_argument("--scheduler", help="render on a Dask cluster: tcp://HOST:PORT, tls://HOST:PORT, a scheduler "
+                   "file, or local:N (N local worker processes); frames are tasks, a single frame splits into tiles")
+    r.add_argument("--worker-writes", action="store_true", help="with --scheduler: workers write the frames "
+                   "themselves (OUT must be on a filesystem they share); default: the client writes every file")
+    r.add_argument("--ship-assets", action="store_true", help="with --scheduler: send the stage and its resolved "
+                   "assets to the workers as a .usdz (default: workers read SCENE's path on a shared filesystem)")
     i = sub.add_parser("info", help="list cameras, lights, meshes and materials of a USD stage")
     i.add_argument("scene")
     i.add_argument("--time", type=float, help="time code (default: earliest)")
@@ -144,7 +150,12 @@ def cmd_render(args) -> int:
             raise BadInput(f"--{name.replace('_', '-')} must be >= {lo}, got {v}")
     aovs = _parse_aovs(args.aov)
     frames = parse_frames(args.frames) if args.frames else [None]
+    for flag in ("ship_assets", "worker_writes"):
+        if getattr(args, flag) and not args.scheduler:
+            raise BadInput(f"--{flag.replace('_', '-')} needs --scheduler")
     stage = open_stage(args.scene)
+    if args.scheduler:
+        return _render_on_farm(args, frames, aovs)
     for frame in frames:
         scene, info = load_stage(stage, time=frame, camera=args.camera, width=args.width, height=args.height,
                                  purposes=split_purposes(args.purposes))
@@ -156,19 +167,35 @@ def cmd_render(args) -> int:
             _compile_kernels(quiet=args.quiet)
         image = render(scene, settings)
         out = frame_path(args.output, frame, len(frames) > 1) if frame is not None else args.output
-        try:
-            image.save(out)
-            for name in aovs:
-                a = image.aovs[name]
-                a = a[..., None] if a.ndim == 2 else a
-                _write_aov(aov_path(out, name), a.astype(np.float32))
-        except ValueError as exc:  # unwritable output (the tracer's film names the file and the reason)
-            raise BadInput(str(exc)) from None
+        write_outputs(image, out, aovs)
         if not args.quiet:
             s = image.stats
             print(f"{out}: {info.width}x{info.height}, {len(scene.triangles):,} triangles, "
                   f"{s['rays']['total']:,} rays in {s['seconds']:.2f} s", file=sys.stderr)
     return EXIT_OK
+
+
+def write_outputs(image, out, aovs) -> None:
+    try:
+        image.save(out)
+        for name in aovs:
+            a = image.aovs[name]
+            a = a[..., None] if a.ndim == 2 else a
+            _write_aov(aov_path(out, name), a.astype(np.float32))
+    except ValueError as exc:  # unwritable output (the tracer's film names the file and the reason)
+        raise BadInput(str(exc)) from None
+
+
+def _render_on_farm(args, frames, aovs) -> int:
+    """--scheduler: the same frames and files on a Dask cluster (usd_io.farm)."""
+    from .farm import FarmInputError, render_on_farm
+
+    settings = dict(samples=args.spp, max_depth=args.max_depth, threads=args.threads, aovs=aovs)
+    name = (lambda f: frame_path(args.output, f, len(frames) > 1) if f is not None else args.output)
+    try:
+        return render_on_farm(args, frames, settings, name, lambda image, out: write_outputs(image, out, aovs))
+    except FarmInputError as exc:
+        raise BadInput(str(exc)) from None
 
 
 def _compile_kernels(quiet: bool) -> None:
