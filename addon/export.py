@@ -399,7 +399,7 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
             if light is not None:
                 b.add_light(light)
             continue
-        if obj.type not in GEOMETRY_TYPES or not inst.show_self:
+        if obj.type not in GEOMETRY_TYPES or not inst.show_self or obj.get(RAYS_PROPERTY):
             continue
         key = obj.data.as_pointer() if obj.type == "MESH" and obj.data is not None else obj.as_pointer()
         key = (key, obj.original.name if obj.type != "MESH" else "")
@@ -437,6 +437,10 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     b.ambient = colour
     b.object_pass_indices = np.asarray(pass_indices, np.int32)
     return b.build(), warnings
+
+
+#: Custom property marking Explain Pixel's ray curves (addon/explain.py): shown in the viewport, never traced.
+RAYS_PROPERTY = "whitted_rays"
 
 
 class _Placed:

@@ -344,9 +344,11 @@ def draw_overlay(ex: Explanation, scene: Scene, rgba: np.ndarray) -> np.ndarray:
         pix = cam.project(pts.reshape(-1, 3), w, h)
         ok = (pix[:, 2] > max(cam.near, 1e-6)) & np.all(np.isfinite(pix), axis=1)
         x, y = np.floor(pix[ok, 0]).astype(int), np.floor(pix[ok, 1]).astype(int)
-        inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
-        out[y[inside], x[inside], :3] = TYPE_COLORS[rays[k].type]
-        out[y[inside], x[inside], 3] = 1.0
+        for dx, dy in ((0, 0), (1, 0), (0, 1), (1, 1)):  # 2-pixel-wide lines
+            xx, yy = x + dx, y + dy
+            inside = (xx >= 0) & (xx < w) & (yy >= 0) & (yy < h)
+            out[yy[inside], xx[inside], :3] = TYPE_COLORS[rays[k].type]
+            out[yy[inside], xx[inside], 3] = 1.0
     # The pixel itself: a white square with a dark outline, 5 px across.
     px, py = ex.pixel
     for r, c in ((3, (0.0, 0.0, 0.0)), (2, (1.0, 1.0, 1.0))):
