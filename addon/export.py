@@ -475,6 +475,8 @@ def settings_from_scene(bpy_scene, view_layer=None) -> "tracer.RenderSettings":
             aovs.append("normal")
         if layer.use_pass_object_index:
             aovs.append("objectid")
+    if props is not None and props.ray_type_passes:
+        aovs.extend(tracer.settings.RAY_TYPE_AOVS)
     return tracer.RenderSettings(width=w, height=h, transparent=bool(r.film_transparent), region=region,
                                  aovs=tuple(aovs), **kw).validate()
 

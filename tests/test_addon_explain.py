@@ -71,3 +71,14 @@ def test_pixel_outside_the_render_is_an_error_not_a_traceback(registered):
     _scene()
     with pytest.raises(RuntimeError, match="outside"):
         bpy.ops.whitted.explain_pixel(x=500, y=10)
+
+
+def test_ray_type_passes_sum_to_combined(registered):
+    scene = _scene()
+    scene.whitted.ray_type_passes = True
+    out = bs.render_exr(scene, engine="WHITTED", passes=("Whitted Direct",))
+    parts = [out[f"Whitted {k}"] for k in ("Direct", "Reflection", "Transmission")]
+    assert np.allclose(sum(parts), out["rgba"][..., :3], atol=1e-5)
+    assert parts[2].max() > 0.05  # the glass ball passes light through
+    depth = out["Whitted Ray Depth"]
+    assert depth.max() >= 3 and depth.min() == 0

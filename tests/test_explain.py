@@ -215,3 +215,22 @@ def test_cli_explains_the_rendered_pixel(tmp_path):
     assert png.shape[:2] == read_image(out).shape[:2]
     bad = _whitted("explain", scene_file, "--pixel", 500, 30, *args)
     assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "outside" in bad.stderr
+
+
+def test_cli_ray_type_aovs_and_raydepth_heat_map(tmp_path):
+    from tracer import read_image
+
+    scene_file = os.path.join(ROOT, "examples", "whitted_1980.usda")
+    out = tmp_path / "r.png"
+    r = _whitted("render", scene_file, "-o", out, "--width", 80, "--spp", 1, "--quiet",
+                 "--aov", "direct,reflection,transmission,raydepth")
+    assert r.returncode == 0, r.stderr
+    parts = [read_image(tmp_path / f"r.{k}.exr")[..., :3] for k in ("direct", "reflection", "transmission")]
+    beauty = read_image(out)[..., :3]  # sRGB-encoded 8-bit
+    from tracer.texture import linear_to_srgb
+
+    assert np.abs(linear_to_srgb(sum(parts)) - beauty).max() < 3 / 255  # half-float EXRs, 8-bit PNG
+    depth = read_image(tmp_path / "r.raydepth.exr")[..., 0]
+    heat = read_image(tmp_path / "r.raydepth.png")
+    assert depth.max() >= 3 and heat.shape[:2] == depth.shape
+    assert np.all(heat[depth == 0, :3] < 0.05) and np.all(heat[depth == depth.max(), :3].max(axis=-1) > 0.3)

@@ -113,7 +113,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--purposes", nargs="+", default=["default", "render"],
                    help="purposes to render, space- or comma-separated (default: default render)")
     r.add_argument("--threads", type=int, help="worker threads (default: all cores)")
-    r.add_argument("--aov", help="extra outputs: comma-separated depth,normal,albedo,objectid")
+    r.add_argument("--aov", help="extra outputs: comma-separated depth,normal,albedo,objectid (EXR), and "
+                   "direct,reflection,transmission (the beauty by first secondary ray), raydepth (EXR + heat-map PNG)")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     e = sub.add_parser("explain", help="the ray tree of one pixel: every ray that made it (tree, JSON, USD, PNG)")
     e.add_argument("scene", help="USD file")
@@ -176,6 +177,10 @@ def cmd_render(args) -> int:
                 a = image.aovs[name]
                 a = a[..., None] if a.ndim == 2 else a
                 _write_aov(aov_path(out, name), a.astype(np.float32))
+                if name == "raydepth":  # and a heat-map picture of it (black: eye rays only; yellow: max depth)
+                    from tracer.film import heat_map
+
+                    _write_aov(aov_path(out, name)[:-4] + ".png", heat_map(a[..., 0], max(args.max_depth, 1)))
         except ValueError as exc:  # unwritable output (the tracer's film names the file and the reason)
             raise BadInput(str(exc)) from None
         if not args.quiet:
