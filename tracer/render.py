@@ -15,11 +15,11 @@ import numpy as np
 from .accel import Accelerator
 from .camera import eye_ray
 from .film import Image, box_filter, majority
-from .integrator import Integrator, RayCounts
+from .integrator import PATH_TYPES, Integrator, RayCounts
 from .jit import kernel
 from .sampling import uniform2_1
 from .scene import Scene
-from .settings import RenderSettings
+from .settings import RAY_TYPE_AOVS, RenderSettings
 
 
 class RenderCancelled(Exception):
@@ -115,6 +115,11 @@ def write_tile(image: Image, res, tile, spp: int) -> None:
         aovs["albedo"][y0:y1, x0:x1] = box_filter(res.albedo, spp).reshape(th, tw, 3)
     if "objectid" in aovs:
         aovs["objectid"][y0:y1, x0:x1] = majority(res.object_id, spp).reshape(th, tw)
+    for i, name in enumerate(PATH_TYPES):
+        if name in aovs:
+            aovs[name][y0:y1, x0:x1] = box_filter(res.by_type[:, i], spp).reshape(th, tw, 3)
+    if "raydepth" in aovs:
+        aovs["raydepth"][y0:y1, x0:x1] = res.deepest.reshape(th, tw, spp).max(axis=2)
 
 
 def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None, cancelled=None) -> Image:
@@ -143,6 +148,12 @@ def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None
         aovs["albedo"] = np.zeros((h, w, 3), np.float32)
     if "objectid" in settings.aovs:
         aovs["objectid"] = np.full((h, w), -1, np.int32)
+    for name in PATH_TYPES:
+        if name in settings.aovs:
+            aovs[name] = np.zeros((h, w, 3), np.float32)
+    if "raydepth" in settings.aovs:
+        aovs["raydepth"] = np.full((h, w), -1, np.int32)
+    ray_types = any(a in RAY_TYPE_AOVS for a in settings.aovs)
     image.aovs = aovs
     counts = RayCounts()
 
@@ -151,7 +162,7 @@ def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None
             return None
         x0, y0, x1, y1 = tile
         o, d, keys = eye_rays(scene, settings, x0, y0, x1, y1)
-        res = integ.trace(o, d, keys, cancelled)
+        res = integ.trace(o, d, keys, cancelled, ray_types=ray_types)
         if scene.camera.near > 0:  # depth is measured from the eye (the film plane for orthographic cameras)
             cam = scene.camera
             start = (np.linalg.norm(o - cam.position.astype(np.float32), axis=1) if cam.projection == "perspective"
