@@ -91,7 +91,7 @@ def test_a_frame_split_into_four_tiles_equals_the_single_process_frame(anim, cli
     from tracer.farm import frame_tiles, render_tiled
     from usd_io.farm import UsdSource
 
-    settings = dict(samples=2, max_depth=4, aovs=("depth", "objectid", "normal"))
+    settings = dict(samples=2, max_depth=4, aovs=("depth", "objectid", "normal", "reflection", "raydepth"))
     source = UsdSource(path=anim, width=200, height=150, settings=settings)
     scene, st = source.load(3.0)
     assert len(frame_tiles(st, 128)) == 4

@@ -121,7 +121,7 @@ class _TileRenderer:
     def tile(self, settings: RenderSettings, tile):
         from .accel import Accelerator
         from .integrator import Integrator
-        from .render import eye_rays, write_tile
+        from .render import empty_aovs, eye_rays, uses_ray_types, write_tile
 
         with self._lock:
             if self._integ is None:
@@ -129,20 +129,14 @@ class _TileRenderer:
         x0, y0, x1, y1 = tile
         th, tw = y1 - y0, x1 - x0
         o, d, keys = eye_rays(self.scene, settings, x0, y0, x1, y1)
-        res = self._integ.trace(o, d, keys)
+        res = self._integ.trace(o, d, keys, ray_types=uses_ray_types(settings))
         cam = self.scene.camera
         if cam.near > 0:  # as tracer.render: depth from the eye (the film plane for orthographic cameras)
             res.depth += (np.linalg.norm(o - cam.position.astype(np.float32), axis=1)
                           if cam.projection == "perspective" else np.float32(cam.near))
-        img = Image(rgba=np.zeros((th, tw, 4), np.float32), aovs=_empty_aovs(settings, th, tw))
+        img = Image(rgba=np.zeros((th, tw, 4), np.float32), aovs=empty_aovs(settings, th, tw))
         write_tile(img, res, (0, 0, tw, th), settings.samples**2)
         return img.rgba, img.aovs
-
-
-def _empty_aovs(settings, h, w) -> dict:
-    empty = {"depth": lambda: np.full((h, w), np.inf, np.float32), "normal": lambda: np.zeros((h, w, 3), np.float32),
-             "albedo": lambda: np.zeros((h, w, 3), np.float32), "objectid": lambda: np.full((h, w), -1, np.int32)}
-    return {name: empty[name]() for name in settings.aovs}
 
 
 # ---------------------------------------------------------------------------------------------------- client side
@@ -194,7 +188,9 @@ def render_tiled(client, source, frame=None, *, tile_size: int = DEFAULT_FARM_TI
     settings = client.submit(_settings_task, source, frame, shipped, pure=False).result()
     tiles = frame_tiles(settings, tile_size)
     h, w = settings.height, settings.width
-    image = Image(rgba=np.zeros((h, w, 4), np.float32), aovs=_empty_aovs(settings, h, w))
+    from .render import empty_aovs
+
+    image = Image(rgba=np.zeros((h, w, 4), np.float32), aovs=empty_aovs(settings, h, w))
     start = time.perf_counter()
     futs = [client.submit(render_tile_task, source, frame, t, shipped, key=f"whitted-tile-{_token(source)}-{frame}-{t}",
                           pure=False) for t in tiles]

@@ -122,6 +122,30 @@ def write_tile(image: Image, res, tile, spp: int) -> None:
         aovs["raydepth"][y0:y1, x0:x1] = res.deepest.reshape(th, tw, spp).max(axis=2)
 
 
+def empty_aovs(settings: RenderSettings, h: int, w: int) -> dict:
+    """The AOV arrays ``settings.aovs`` asks for, (h, w[, 3]), filled with their "nothing here" value."""
+    aovs = {}
+    if "depth" in settings.aovs:
+        aovs["depth"] = np.full((h, w), np.inf, np.float32)
+    if "normal" in settings.aovs:
+        aovs["normal"] = np.zeros((h, w, 3), np.float32)
+    if "albedo" in settings.aovs:
+        aovs["albedo"] = np.zeros((h, w, 3), np.float32)
+    if "objectid" in settings.aovs:
+        aovs["objectid"] = np.full((h, w), -1, np.int32)
+    for name in PATH_TYPES:
+        if name in settings.aovs:
+            aovs[name] = np.zeros((h, w, 3), np.float32)
+    if "raydepth" in settings.aovs:
+        aovs["raydepth"] = np.full((h, w), -1, np.int32)
+    return aovs
+
+
+def uses_ray_types(settings: RenderSettings) -> bool:
+    """Whether the integrator must split colours by ray type (a ray-type AOV is asked for)."""
+    return any(a in RAY_TYPE_AOVS for a in settings.aovs)
+
+
 def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None, cancelled=None) -> Image:
     """Render ``scene`` and return an :class:`~tracer.film.Image`.
 
@@ -139,22 +163,8 @@ def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None
     w, h = settings.width, settings.height
     spp = settings.samples**2
     image = Image(rgba=np.zeros((h, w, 4), np.float32))
-    aovs = {}
-    if "depth" in settings.aovs:
-        aovs["depth"] = np.full((h, w), np.inf, np.float32)
-    if "normal" in settings.aovs:
-        aovs["normal"] = np.zeros((h, w, 3), np.float32)
-    if "albedo" in settings.aovs:
-        aovs["albedo"] = np.zeros((h, w, 3), np.float32)
-    if "objectid" in settings.aovs:
-        aovs["objectid"] = np.full((h, w), -1, np.int32)
-    for name in PATH_TYPES:
-        if name in settings.aovs:
-            aovs[name] = np.zeros((h, w, 3), np.float32)
-    if "raydepth" in settings.aovs:
-        aovs["raydepth"] = np.full((h, w), -1, np.int32)
-    ray_types = any(a in RAY_TYPE_AOVS for a in settings.aovs)
-    image.aovs = aovs
+    image.aovs = empty_aovs(settings, h, w)
+    ray_types = uses_ray_types(settings)
     counts = RayCounts()
 
     def work(tile):
