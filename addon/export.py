@@ -364,11 +364,15 @@ def render_size(bpy_scene) -> tuple[int, int]:
 
 
 def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | None = None,
-                         camera: "tracer.Camera | None" = None) -> tuple["tracer.Scene", list[str]]:
+                         camera: "tracer.Camera | None" = None,
+                         geometry_cache: dict | None = None) -> tuple["tracer.Scene", list[str]]:
     """Build a :class:`tracer.Scene` from an evaluated depsgraph; returns it and a list of warnings.
 
     width/height default to the scene's render size (resolution × percentage) and matter only for the camera's
-    sensor fit. ``camera`` overrides the scene camera (the viewport uses this). The returned scene carries
+    sensor fit. ``camera`` overrides the scene camera (the viewport uses this). ``geometry_cache`` (a dict the
+    caller keeps) holds each object's triangle arrays between calls, keyed by object and mesh name; drop the
+    entries of changed objects with :func:`forget_geometry` (the viewport does, from ``depsgraph.updates``). The
+    returned scene carries
     ``scene.object_pass_indices`` (int32 per tracer object id: Blender's ``Object.pass_index``).
     """
     bpy_scene = depsgraph.scene_eval if hasattr(depsgraph, "scene_eval") else depsgraph.scene
@@ -404,7 +408,13 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
         key = obj.data.as_pointer() if obj.type == "MESH" and obj.data is not None else obj.as_pointer()
         key = (key, obj.original.name if obj.type != "MESH" else "")
         if key not in geometry:
-            geometry[key] = _object_mesh_arrays(obj, depsgraph)
+            named = _geometry_key(obj)
+            if geometry_cache is not None and named in geometry_cache:
+                geometry[key] = geometry_cache[named]
+            else:
+                geometry[key] = _object_mesh_arrays(obj, depsgraph)
+                if geometry_cache is not None:
+                    geometry_cache[named] = geometry[key]
         g = geometry[key]
         if g is None or not len(g["triangles"]):
             continue
@@ -437,6 +447,24 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     b.ambient = colour
     b.object_pass_indices = np.asarray(pass_indices, np.int32)
     return b.build(), warnings
+
+
+def _geometry_key(obj) -> tuple:
+    """A name key for an object's evaluated triangles that stays valid between depsgraph evaluations."""
+    return (obj.original.name, obj.data.name if obj.data is not None else "", obj.type)
+
+
+def forget_geometry(cache: dict, ids) -> None:
+    """Drop the cached triangles of the changed IDs (objects or meshes, from ``depsgraph.updates``); any other kind
+    of geometry change (a node group, a collection) empties the cache."""
+    for id_ in ids:
+        kind = type(getattr(id_, "original", id_)).__name__
+        name = id_.name
+        if kind not in ("Object", "Mesh"):
+            cache.clear()
+            return
+        for key in [k for k in cache if name in (k[0], k[1])]:
+            del cache[key]
 
 
 #: Custom property marking Explain Pixel's ray curves (addon/explain.py): shown in the viewport, never traced.
