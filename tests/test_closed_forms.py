@@ -146,3 +146,24 @@ def test_a_vanishing_epsilon_shows_acne_and_a_huge_one_leaks_light():
     leaky = render(scene, RenderSettings(width=60, height=60, epsilon=1.0)).rgb[..., 0]
     col = int((-0.55 + 3) / 6 * 60)
     assert clean[30, col] < 1e-6 < leaky[30, col]
+
+
+# ------------------------------------------------------------------------------------------- Blinn-Phong
+@pytest.mark.parametrize("tilt_deg", [0.0, 8.0])
+def test_blinn_phong_highlight_has_the_normalised_lobe(tilt_deg):
+    """A purely specular plane (R_s = 0.5, exponent e) under a sun of irradiance E, seen by an orthographic camera
+    from straight above: L = R_s·E·(e+8)/(8π)·(n·h)^e·(n·l) — with the sun straight above too, h = n; tilting the
+    sun by α makes n·h = cos(α/2) and n·l = cos α."""
+    from tracer import DistantLight
+
+    e, rs, irr = 50.0, 0.5, 2.0
+    a = np.radians(tilt_deg)
+    b = SceneBuilder()
+    m = b.add_material("shiny", diffuse=(0, 0, 0), specular=(rs, rs, rs), exponent=e)
+    quad(b, (0, 0, 0), 10.0, m, "plane")
+    b.add_light(DistantLight(direction=(np.sin(a), 0, -np.cos(a)), irradiance=(irr,) * 3))
+    b.camera = Camera.look_at((0, 0, 5), (0, 0, 0), up=(0, 1, 0), projection="orthographic",
+                              horizontal_aperture=1.0, vertical_aperture=1.0)
+    img = render(b.build(), RenderSettings(width=4, height=4)).rgb
+    expected = rs * irr * (e + 8) / (8 * np.pi) * np.cos(a / 2) ** e * np.cos(a)
+    np.testing.assert_allclose(img, expected, rtol=1e-4)
