@@ -26,7 +26,7 @@ import numpy as np
 from . import optics, shading, vec
 from .accel import Accelerator
 from .jit import kernel
-from .lights import pack_lights, sample_light
+from .lights import emitting_triangles, pack_lights, sample_light
 from .sampling import stratum, uniform2_1
 from .scene import Scene
 from .settings import RenderSettings
@@ -193,13 +193,14 @@ class Integrator:
             transmission_tint=f32(m.transmission_tint), ior=f32(m.ior), emission=f32(m.emission),
             diffuse_texture=i32(m.diffuse_texture if scene.uvs is not None else np.full(len(m), -1)))
         self.textures = pack_textures(scene.textures)
-        self.lights = pack_lights(scene.lights, settings.light_samples)
-        self.light_samples = int(np.sum(self.lights[2] ** 2))  # shadow rays per shading point, at most
+        emitters = emitting_triangles(scene.vertices, scene.triangles, scene.material_ids, m.emission)
+        self.lights = pack_lights(scene.lights, settings.light_samples, emitters)
+        self.light_samples = int(np.sum(self.lights.side ** 2))  # shadow rays per shading point, at most
         self.options = Options(
             eps=float(self.eps), max_depth=int(settings.max_depth), shadows=bool(settings.shadows),
             fresnel=bool(settings.fresnel), sky_samples=int(settings.sky_samples),
             min_weight=float(settings.min_weight), transparent=bool(settings.transparent), seed=int(settings.seed),
-            needs_light_random=bool(np.any(self.lights[2] > 1)),
+            needs_light_random=bool(np.any(self.lights.side > 1)),
             background=tuple(float(c) for c in scene.background), ambient=tuple(float(c) for c in scene.ambient))
         sky = settings.sky_samples
         self.sky_side = max(1, int(round(np.sqrt(sky)))) if sky and np.any(scene.ambient > 0) else 0
@@ -228,7 +229,7 @@ class Integrator:
         rec = SpawnRecord.empty(cap, cap2)
         n_shadow, n_refl, n_tran = _shade_hits(
             rays.o, rays.d, t, prim, u, v, rays.sample, rays.weight, keys, depth, spawn, self.geometry,
-            self.materials, self.textures[0], self.textures[1], self.lights[0], self.lights[1], self.lights[2],
+            self.materials, self.textures[0], self.textures[1], self.lights,
             self.sky_side, self.options, out, so, sd, sl, ss, sc, no, nd, nw, ns, counts, rec)
         shadow = ShadowQueue(o=so[:n_shadow], d=sd[:n_shadow], t_max=sl[:n_shadow], sample=ss[:n_shadow],
                              color=sc[:n_shadow], light=rec.light[:n_shadow])
@@ -286,7 +287,7 @@ class Integrator:
 
 @kernel
 def _shade_hits(o, d, t, prim, u, v, sample, weight, keys, depth, spawn, geom, mats, tex_data, tex_info,
-                light_table, light_kind, light_side, sky_side, opt, out, so, sd, sl, ss, sc, no, nd, nw, ns, counts,
+                lights, sky_side, opt, out, so, sd, sl, ss, sc, no, nd, nw, ns, counts,
                 rec):
     """Shade one depth's rays of a tile and write the rays they cause; returns (shadow, reflection, transmission)
     counts written into the buffers.
@@ -300,7 +301,7 @@ def _shade_hits(o, d, t, prim, u, v, sample, weight, keys, depth, spawn, geom, m
     n_shadow = 0
     n_refl = 0
     n_tran = 0
-    n_lights = light_table.shape[0]
+    n_lights = lights.table.shape[0]
     for i in range(n_rays):
         s = sample[i]
         w = vec.row(weight, i)
@@ -364,8 +365,8 @@ def _shade_hits(o, d, t, prim, u, v, sample, weight, keys, depth, spawn, geom, m
             has_spec = vec.max3(specular) > 0.0
             exponent = float(mats.exponent[mat])
             for j in range(n_lights):
-                for k in range(light_side[j] * light_side[j]):
-                    l, dist, e = sample_light(light_table, light_kind, light_side, j, k, p, r0, r1)
+                for k in range(lights.side[j] * lights.side[j]):
+                    l, dist, e = sample_light(lights, j, k, p, r0, r1)
                     n_l = vec.dot(n, l)
                     if n_l <= 0.0 or vec.dot(ng, l) <= 0.0:
                         continue

@@ -115,6 +115,14 @@ def _emissive_flat():
         note="eye rays only: emission, no lights; tests coverage of each pixel")
 
 
+def _emission_light():
+    mats = dict(BASE_MATS, glow=emissive((1.0, 0.9, 0.7), strength=6.0))
+    return scene("emission_light", camera=CAM, materials=mats, objects=_base_objects() + [
+        obj("Panel", "box", "glow", matrix=trs((0.0, 0.3, 3.2), (0, 0, 0), (2.0, 1.2, 0.05)), pass_index=5)],
+        depth=0, samples=64,
+        note="an emissive panel is the only light: mesh emission lights the floor and casts soft shadows")
+
+
 def _base_objects(mat="grey"):
     return [floor(material=mat, pass_index=1),
             sphere("Ball", (-0.9, 0.3, 1.0), 1.0, "white", 2),
@@ -265,7 +273,7 @@ def _whitted_1980():
 
 
 def image_scenes() -> dict:
-    scenes = [_emissive_flat(), _point_shadow(), _sun(), _spot(), _several_lights(), _world(), _mirror(),
+    scenes = [_emissive_flat(), _emission_light(), _point_shadow(), _sun(), _spot(), _several_lights(), _world(), _mirror(),
               _metallic_half(), _metallic_half_dielectric(), _glass_sphere(), _water_sphere(), _glass_slab(),
               _tir_prism()] + [_interreflection(d) for d in (1, 2, 4, 8)] + [
         _interreflection(1, world=(0.35, 0.5, 0.8), name="interreflection_sky_d1"), _orthographic(), _whitted_1980()]
