@@ -26,8 +26,9 @@ import numpy as np
 from . import optics, shading, vec
 from .accel import Accelerator
 from .jit import kernel
+from .environment import env_radiance, env_sample, pack_environment
 from .lights import emitting_triangles, pack_lights, sample_light
-from .sampling import stratum, uniform2_1
+from .sampling import multijitter, stratum, uniform2_1
 from .scene import Scene
 from .settings import RenderSettings
 from .surface import geometry_of, hit_frame, hit_uv
@@ -196,14 +197,19 @@ class Integrator:
         emitters = emitting_triangles(scene.vertices, scene.triangles, scene.material_ids, m.emission)
         self.lights = pack_lights(scene.lights, settings.light_samples, emitters)
         self.light_samples = int(np.sum(self.lights.side ** 2))  # shadow rays per shading point, at most
+        self.env = pack_environment(scene.environment)
+        ambient = scene.ambient
+        if scene.environment is not None and not np.any(ambient > 0):
+            ambient = scene.environment.average()
         self.options = Options(
             eps=float(self.eps), max_depth=int(settings.max_depth), shadows=bool(settings.shadows),
             fresnel=bool(settings.fresnel), sky_samples=int(settings.sky_samples),
             min_weight=float(settings.min_weight), transparent=bool(settings.transparent), seed=int(settings.seed),
             needs_light_random=bool(np.any(self.lights.side > 1)),
-            background=tuple(float(c) for c in scene.background), ambient=tuple(float(c) for c in scene.ambient))
+            background=tuple(float(c) for c in scene.background), ambient=tuple(float(c) for c in ambient))
         sky = settings.sky_samples
-        self.sky_side = max(1, int(round(np.sqrt(sky)))) if sky and np.any(scene.ambient > 0) else 0
+        lit_by_sky = scene.environment is not None or np.any(scene.ambient > 0)
+        self.sky_side = max(1, int(round(np.sqrt(sky)))) if sky and lit_by_sky else 0
 
     @property
     def last_depth(self) -> int:
@@ -229,7 +235,7 @@ class Integrator:
         rec = SpawnRecord.empty(cap, cap2)
         n_shadow, n_refl, n_tran = _shade_hits(
             rays.o, rays.d, t, prim, u, v, rays.sample, rays.weight, keys, depth, spawn, self.geometry,
-            self.materials, self.textures[0], self.textures[1], self.lights,
+            self.materials, self.textures[0], self.textures[1], self.lights, self.env,
             self.sky_side, self.options, out, so, sd, sl, ss, sc, no, nd, nw, ns, counts, rec)
         shadow = ShadowQueue(o=so[:n_shadow], d=sd[:n_shadow], t_max=sl[:n_shadow], sample=ss[:n_shadow],
                              color=sc[:n_shadow], light=rec.light[:n_shadow])
@@ -287,7 +293,7 @@ class Integrator:
 
 @kernel
 def _shade_hits(o, d, t, prim, u, v, sample, weight, keys, depth, spawn, geom, mats, tex_data, tex_info,
-                lights, sky_side, opt, out, so, sd, sl, ss, sc, no, nd, nw, ns, counts,
+                lights, env, sky_side, opt, out, so, sd, sl, ss, sc, no, nd, nw, ns, counts,
                 rec):
     """Shade one depth's rays of a tile and write the rays they cause; returns (shadow, reflection, transmission)
     counts written into the buffers.
@@ -309,6 +315,10 @@ def _shade_hits(o, d, t, prim, u, v, sample, weight, keys, depth, spawn, geom, m
         if tri < 0:  # the ray leaves the scene
             if depth == 0 and opt.transparent:
                 out.alpha[s] = 0.0
+            elif env.present:  # the environment image along the ray
+                sky = env_radiance(env, vec.row(d, i))
+                for c in range(3):
+                    out.color[s, c] += w[c] * sky[c]
             else:
                 for c in range(3):
                     out.color[s, c] += w[c] * opt.background[c]
@@ -339,7 +349,22 @@ def _shade_hits(o, d, t, prim, u, v, sample, weight, keys, depth, spawn, geom, m
             wo = vec.scale(w, opaque)
             origin = vec.madd(p, ng, eps)  # shadow rays leave on the incident side, ε along ng
             key = keys[s]
-            if opt.ambient[0] > 0.0 or opt.ambient[1] > 0.0 or opt.ambient[2] > 0.0:
+            if env.present and sky_side > 0:  # the environment as a light: importance-sampled by luminance
+                kk = sky_side * sky_side
+                r0, r1 = uniform2_1(key, _STREAM_SKY + depth, opt.seed)
+                for k in range(kk):
+                    s0, s1 = multijitter(k, sky_side, r0, r1)
+                    dr, pdf = env_sample(env, s0, s1)
+                    n_l = vec.dot(n, dr)
+                    if n_l <= 0.0 or vec.dot(ng, dr) <= 0.0 or pdf <= 0.0:
+                        continue
+                    # R_d/π · L(ω)·cos θ / pdf(ω), averaged over the kk samples; counts if the sky is visible
+                    c = vec.scale(vec.mul(wo, vec.mul(diffuse, env_radiance(env, dr))), n_l / (np.pi * pdf * kk))
+                    _put(so, sd, sl, ss, sc, n_shadow, origin, dr, np.inf, s, c)
+                    rec.light[n_shadow] = -1
+                    n_shadow += 1
+                    counts[_N_SKY] += 1
+            elif opt.ambient[0] > 0.0 or opt.ambient[1] > 0.0 or opt.ambient[2] > 0.0:
                 amb = shading.ambient(diffuse, opt.ambient)
                 if sky_side == 0:
                     local = vec.madd(local, amb, opaque)
