@@ -77,7 +77,7 @@ def aov_path(image_path: str, aov: str) -> str:
     return f"{root}.{aov}.exr"
 
 
-def _check_output(path: str):
+def check_output(path: str):
     ext = os.path.splitext(path)[1].lower()
     if ext not in (".png", ".exr", ".jpg", ".jpeg", ".tif", ".tiff", ".hdr"):
         raise BadInput(f"{path}: unsupported output type {ext or '(none)'!r}; use .png, .exr, .jpg, .tif or .hdr")
@@ -146,14 +146,21 @@ def _add_render_flags(r) -> None:
                    help="purposes to render, space- or comma-separated (default: default render)")
     r.add_argument("--variant", action="append", type=_variant, default=[], metavar="/PRIM:SET=VALUE",
                    help="select a variant before reading (repeatable)")
-    r.add_argument("--no-default-light", "--disableCameraLight", dest="default_light", action="store_false",
-                   help="do not light a stage without lights with usdview's camera light and dim dome")
+    r.add_argument("--no-default-light", "--disableCameraLight", dest="no_default_light", action="store_true",
+                   help="leave a stage without lights unlit (default: a camera headlight and a dim dome, as usdview)")
     r.add_argument("--exposure", type=float, default=0.0, help="exposure in stops: pixels × 2^EV (default 0)")
     r.add_argument("--transparent", action="store_true",
                    help="alpha 0 where eye rays see only background (PNG/EXR/TIFF alpha; Blender's Film > Transparent)")
     r.add_argument("--threads", type=int, help="worker threads (default: all cores)")
-    r.add_argument("--aov", help="extra outputs (float32 EXR): comma-separated depth,normal,albedo,objectid")
+    r.add_argument("--aov", help="extra outputs (float32 EXR): comma-separated depth,normal,albedo,objectid, and "
+                   "direct,reflection,transmission (the beauty by first secondary ray), raydepth (EXR + heat-map PNG)")
     r.add_argument("--quiet", "-q", action="store_true", help="no progress bar or summary")
+    r.add_argument("--scheduler", help="render on a Dask cluster: tcp://HOST:PORT, tls://HOST:PORT, a scheduler "
+                   "file, or local:N (N local worker processes); frames are tasks, a single frame splits into tiles")
+    r.add_argument("--worker-writes", action="store_true", help="with --scheduler: workers write the frames "
+                   "themselves (OUT must be on a filesystem they share); default: the client writes every file")
+    r.add_argument("--ship-assets", action="store_true", help="with --scheduler: send the stage and its resolved "
+                   "assets to the workers as a .usdz (default: workers read SCENE's path on a shared filesystem)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -161,6 +168,22 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--version", action="version", version=f"whitted {_version()}")
     sub = ap.add_subparsers(dest="command", required=True, parser_class=_Parser)
     _add_render_flags(sub.add_parser("render", help="render USD stages to PNG/EXR/JPEG/TIFF"))
+    e = sub.add_parser("explain", help="the ray tree of one pixel: every ray that made it (tree, JSON, USD, PNG)")
+    e.add_argument("scene", help="USD file")
+    e.add_argument("--pixel", nargs=2, type=int, required=True, metavar=("X", "Y"),
+                   help="image pixel, origin top-left (the same image as render's --width/--height)")
+    e.add_argument("--camera", help="camera prim path (default: the first camera in the stage)")
+    e.add_argument("--frame", type=float, help="time code (default: the stage's default time)")
+    e.add_argument("--width", type=int, help="image width (default 960, or from --height and the aperture)")
+    e.add_argument("--height", type=int, help="image height")
+    e.add_argument("--spp", type=int, default=2, help="N for N×N samples per pixel, as render (default 2)")
+    e.add_argument("--max-depth", type=int, default=8, help="maximum reflection/refraction depth (default 8)")
+    e.add_argument("--purposes", nargs="+", default=["default", "render"])
+    e.add_argument("--no-default-light", "--disableCameraLight", dest="no_default_light", action="store_true",
+                   help="leave a stage without lights unlit")
+    e.add_argument("--json", help="write the tree as JSON (format in README)")
+    e.add_argument("--usd", help="write the tree as BasisCurves + camera over the stage (.usda)")
+    e.add_argument("--png", help="write the rendered image with the pixel marked and the rays drawn")
     i = sub.add_parser("info", help="list cameras, lights, meshes and materials of a USD stage")
     i.add_argument("scene")
     i.add_argument("--time", type=float, help="time code (default: earliest)")
@@ -174,6 +197,8 @@ def warn(message: str) -> None:
 
 
 def _print_warnings(info):
+    for n in getattr(info, "notes", ()):
+        print(f"whitted: note: {n}", file=sys.stderr)
     for w in info.warnings:
         warn(w)
 
@@ -197,6 +222,9 @@ def _check_args(args) -> None:
             raise BadInput(f"--{name.replace('_', '-')} must be >= {lo}, got {v}")
     if not np.isfinite(args.exposure):
         raise BadInput(f"--exposure must be a finite number, got {args.exposure}")
+    for flag in ("ship_assets", "worker_writes"):
+        if getattr(args, flag) and not args.scheduler:
+            raise BadInput(f"--{flag.replace('_', '-')} needs --scheduler")
     if args.frames and args.time is not None:
         raise BadInput("--frames and --time are exclusive")
     if len(args.scenes) > 1 and not re.search(r"\{(stem|name)\}", args.output):
@@ -218,8 +246,9 @@ def cmd_render(args) -> int:
     for scene_path in args.scenes:
         out = output_for(args.output, scene_path)
         try:
-            _check_output(out)
-            render_file(scene_path, out, frames, aovs, args)
+            check_output(out)
+            if render_file(scene_path, out, frames, aovs, args) != EXIT_OK:
+                failed += 1
         except (BadInput, ValueError) as exc:  # UsdInputError is a ValueError
             if len(args.scenes) == 1:
                 raise
@@ -232,7 +261,8 @@ def cmd_render(args) -> int:
                   f"{' '.join(str(exc).split())}", file=sys.stderr)
             failed += 1
     if failed:
-        print(f"whitted: {failed} of {len(args.scenes)} scenes failed", file=sys.stderr)
+        if len(args.scenes) > 1:
+            print(f"whitted: {failed} of {len(args.scenes)} scenes failed", file=sys.stderr)
         return EXIT_BAD_INPUT
     return EXIT_OK
 
@@ -240,8 +270,9 @@ def cmd_render(args) -> int:
 _kernels_ready = False
 
 
-def render_file(scene_path: str, output: str, frames, aovs, args) -> None:
-    """Render one scene (all its frames) to ``output``; BadInput/UsdInputError for what the user can fix."""
+def render_file(scene_path: str, output: str, frames, aovs, args) -> int:
+    """Render one scene (all its frames) to ``output``; BadInput/UsdInputError for what the user can fix.
+    Returns the exit code (a farm reports failed frames itself and returns 2)."""
     global _kernels_ready
     from tracer import RenderSettings, render
 
@@ -249,10 +280,12 @@ def render_file(scene_path: str, output: str, frames, aovs, args) -> None:
     from .stage import open_stage
 
     stage = open_stage(scene_path)
+    if args.scheduler:  # the farm reads the scene and output from its own copy of the arguments
+        return _render_on_farm(argparse.Namespace(**dict(vars(args), scene=scene_path, output=output)), frames, aovs)
     many = len(frames) > 1
     for frame in frames:
         scene, info = load_stage(stage, time=frame, camera=args.camera, width=args.width, height=args.height,
-                                 purposes=split_purposes(args.purposes), default_light=args.default_light,
+                                 purposes=split_purposes(args.purposes), default_light=not args.no_default_light,
                                  variants=args.variant)
         if frame == frames[0]:
             _print_warnings(info)
@@ -266,18 +299,12 @@ def render_file(scene_path: str, output: str, frames, aovs, args) -> None:
         if args.exposure:
             image.rgba[..., :3] *= np.float32(2.0 ** args.exposure)
         out = frame_path(output, frame, many) if frame is not None and many else output
-        try:
-            _save(image, out)
-            for name in aovs:
-                a = image.aovs[name]
-                a = a[..., None] if a.ndim == 2 else a
-                _write_aov(aov_path(out, name), a.astype(np.float32))
-        except ValueError as exc:  # unwritable output (the tracer's film names the file and the reason)
-            raise BadInput(str(exc)) from None
+        write_outputs(image, out, aovs, max_depth=args.max_depth)
         if not args.quiet:
             s = image.stats
             print(f"{out}: {info.width}x{info.height}, {len(scene.triangles):,} triangles, "
                   f"{s['rays']['total']:,} rays in {s['seconds']:.2f} s", file=sys.stderr)
+    return EXIT_OK
 
 
 def _save(image, out: str) -> None:
@@ -289,6 +316,42 @@ def _save(image, out: str) -> None:
         write_image(out, image.rgba[..., :3])
     else:
         image.save(out)
+
+
+def write_outputs(image, out, aovs, max_depth: int | None = None) -> None:
+    """The image and its AOVs (EXR next to it; ``raydepth`` also as a heat-map PNG scaled to ``max_depth``)."""
+    try:
+        _save(image, out)
+        for name in aovs:
+            a = image.aovs[name]
+            a = a[..., None] if a.ndim == 2 else a
+            _write_aov(aov_path(out, name), a.astype(np.float32))
+            if name == "raydepth":  # and a heat-map picture of it (black: eye rays only; yellow: max depth)
+                from tracer.film import heat_map
+
+                _write_aov(aov_path(out, name)[:-4] + ".png", heat_map(a[..., 0], max_depth))
+    except ValueError as exc:  # unwritable output (the tracer's film names the file and the reason)
+        raise BadInput(str(exc)) from None
+
+
+def _render_on_farm(args, frames, aovs) -> int:
+    """--scheduler: the same frames and files on a Dask cluster (usd_io.farm)."""
+    from .farm import FarmInputError, render_on_farm
+
+    settings = dict(samples=args.aa, max_depth=args.max_depth, threads=args.threads, aovs=aovs,
+                    transparent=args.transparent)
+    output = args.output
+    name = (lambda f: frame_path(output, f, len(frames) > 1) if f is not None and len(frames) > 1 else output)
+
+    def write(image, out):
+        if args.exposure:
+            image.rgba[..., :3] *= np.float32(2.0 ** args.exposure)
+        write_outputs(image, out, aovs, max_depth=args.max_depth)
+
+    try:
+        return render_on_farm(args, frames, settings, name, write)
+    except FarmInputError as exc:
+        raise BadInput(str(exc)) from None
 
 
 def _compile_kernels(quiet: bool) -> None:
@@ -356,6 +419,15 @@ def _describe_light(light) -> str:
     return f"{type(light).__name__}(" + ", ".join(parts) + ")"
 
 
+def cmd_explain(args) -> int:
+    from .explain import cmd_explain as run
+
+    return run(args)
+
+
+_COMMANDS = {"render": cmd_render, "info": cmd_info, "explain": cmd_explain}
+
+
 def main(argv=None) -> int:
     from .stage import UsdInputError
 
@@ -372,7 +444,7 @@ def main(argv=None) -> int:
             warnings.simplefilter("default")
             # every Python warning (numpy, OIIO, ...) in the one `whitted: warning:` form, not raw UserWarning lines
             warnings.showwarning = lambda message, category, *a, **k: warn(str(message))
-            code = cmd_render(args) if args.command == "render" else cmd_info(args)
+            code = _COMMANDS[args.command](args)
     except (BadInput, UsdInputError) as exc:
         print(f"whitted: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -20,7 +20,7 @@ from . import camera as cam
 from .curves import read_curves, read_points
 from .gprims import DEFAULT_SEGMENTS, GPRIM_TYPES, read_gprim
 from .instancing import instance_matrices, replicate
-from .lights import convert_light, default_lights, light_units
+from .lights import blender_authored, convert_light, default_lights
 from .material import MaterialTable
 from .mesh import MeshData, read_mesh
 from .skel import Skinning
@@ -43,6 +43,8 @@ class StageInfo:
     meshes: list = field(default_factory=list)  # (path, triangle count)
     materials: dict = field(default_factory=dict)  # material name -> tracer fields
     warnings: list = field(default_factory=list)
+    notes: list = field(default_factory=list)  # what was done on the user's behalf (e.g. the default lighting)
+    default_lighting: bool = False
     up_axis: str = "Y"
     meters_per_unit: float = 0.01
 
@@ -54,13 +56,13 @@ class StageInfo:
 class _Reader:
     def __init__(self, stage, time, purposes, segments, info: StageInfo):
         self.stage, self.time, self.purposes, self.segments, self.info = stage, time, purposes, segments, info
+        self.blender = blender_authored(stage)
         self.b = SceneBuilder()
         self.xf = Transforms(time)
         self.mats = MaterialTable(self.b, time, info.warn)
         self.lo = np.full(3, np.inf)
         self.hi = np.full(3, -np.inf)
         self._proto_cache: dict[str, MeshData | None] = {}
-        self.units = light_units(stage)
         self._grey = None
         self.skinning = Skinning(time, self.xf.world)
 
@@ -182,7 +184,7 @@ class _Reader:
     # ------------------------------------------------------------------ lights
     def add_light(self, prim):
         try:
-            kind, light, world = convert_light(prim, self.xf.world(prim), self.time, self.info.warn, self.units)
+            kind, light, world = convert_light(prim, self.xf.world(prim), self.time, self.info.warn, self.blender)
         except ValueError as exc:  # the tracer's light validation (NaN/Inf intensity, zero-length axes, ...)
             self.info.warn(f"{prim.GetPath()}: {exc} (light skipped)")
             return
@@ -260,7 +262,8 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     width, height  image size; a missing side follows the camera aperture's aspect (width defaults to 960)
     purposes  which ``purpose`` values render (default: default and render)
     segments  tessellation of implicit gprims
-    default_light  light a stage without lights as usdview does (a camera light and a dim dome), with a warning
+    default_light  light a stage that has no lights as usdview does (a camera headlight and a dim dome; a note
+              in ``info.notes``); False leaves it unlit (black)
     variants  ``(prim path, variant set, variant)`` selections applied (on the session layer) before reading
 
     Returns ``(scene, info)``; ``info.warnings`` lists what was skipped or approximated (each message once).
@@ -305,12 +308,14 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
                                                  width, height)
         r.b.camera = cam.framing_camera(r.bounds(), info.up_axis, info.width, info.height)
         info.warn("no camera in the stage: framing the scene's bounds with a default camera")
-    if not info.lights and default_light:
-        light, ambient = default_lights(r.b.camera)
-        r.b.add_light(light)
-        r.b.ambient = r.b.ambient + ambient
-        info.warn("no lights in the stage: lighting it as usdview does (a camera light and a dim dome); "
-                  "--no-default-light turns this off")
+    if default_light and not info.lights:
+        sun, dome = default_lights(r.b.camera)
+        r.b.add_light(sun)
+        r.b.background = r.b.background + dome
+        r.b.ambient = r.b.ambient + dome
+        info.default_lighting = True
+        info.notes.append("the stage has no lights: lit by a camera headlight and a dim dome as usdview does "
+                          "(--no-default-light turns this off)")
     try:
         scene = r.b.build()
     except ValueError as exc:  # the tracer's validation of what was read (e.g. a NaN material input)
