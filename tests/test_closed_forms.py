@@ -83,7 +83,7 @@ def _pane_scene(ior=1.5):
 
 def test_classic_weights_pass_everything_through_glass():
     """The notes' weights (fresnel=False): no reflection off glass unless TIR, so the pane is invisible."""
-    img = render(_pane_scene(), RenderSettings(samples=1, width=4, height=4, fresnel=False)).rgb
+    img = render(_pane_scene(), RenderSettings(width=4, height=4, fresnel=False)).rgb
     np.testing.assert_allclose(img, np.broadcast_to(BG, img.shape), atol=1e-6)
 
 
@@ -92,7 +92,7 @@ def test_fresnel_weights_give_the_slab_transmittance():
     background (the inner reflections that go backwards end on the black wall)."""
     n = 1.5
     f = ((n - 1) / (n + 1)) ** 2
-    img = render(_pane_scene(n), RenderSettings(samples=1, width=4, height=4, max_depth=12, min_weight=0.0)).rgb
+    img = render(_pane_scene(n), RenderSettings(width=4, height=4, max_depth=12, min_weight=0.0)).rgb
     np.testing.assert_allclose(img, np.broadcast_to(BG * (1 - f) / (1 + f), img.shape), rtol=1e-4)
 
 
@@ -122,7 +122,7 @@ def _floor_radiance(x, y):
 
 def test_default_epsilon_lights_the_floor_exactly_and_keeps_the_contact_shadow():
     scene = _lit_floor_with_block()
-    img = render(scene, RenderSettings(samples=1, width=60, height=60)).rgb
+    img = render(scene, RenderSettings(width=60, height=60, samples=1)).rgb
     xs = (np.arange(60) + 0.5) / 60 * 6 - 3
     # A row of lit floor away from the block (y = 2.05): every pixel equals the closed form (no acne).
     row = 60 - 1 - int((2.05 + 3) / 6 * 60)
@@ -138,12 +138,12 @@ def test_a_vanishing_epsilon_shows_acne_and_a_huge_one_leaks_light():
     """Why ε exists (the notes' shadow ray starts ε off the surface): with ε ≈ 0 shadow rays hit the surface they
     leave (speckled self-shadowing on the lit floor); with ε larger than the block, the contact shadow lights up."""
     scene = _lit_floor_with_block()
-    clean = render(scene, RenderSettings(samples=1, width=60, height=60)).rgb[..., 0]
-    acne = render(scene, RenderSettings(samples=1, width=60, height=60, epsilon=1e-12)).rgb[..., 0]
+    clean = render(scene, RenderSettings(width=60, height=60, samples=1)).rgb[..., 0]
+    acne = render(scene, RenderSettings(width=60, height=60, samples=1, epsilon=1e-12)).rgb[..., 0]
     lit = clean > 0.01
     speckled = np.mean(acne[lit] < 0.5 * clean[lit])
     assert speckled > 0.01, f"only {speckled:.1%} of the lit floor self-shadowed with ε ≈ 0"
-    leaky = render(scene, RenderSettings(samples=1, width=60, height=60, epsilon=1.0)).rgb[..., 0]
+    leaky = render(scene, RenderSettings(width=60, height=60, samples=1, epsilon=1.0)).rgb[..., 0]
     col = int((-0.55 + 3) / 6 * 60)
     assert clean[30, col] < 1e-6 < leaky[30, col]
 
@@ -164,6 +164,6 @@ def test_blinn_phong_highlight_has_the_normalised_lobe(tilt_deg):
     b.add_light(DistantLight(direction=(np.sin(a), 0, -np.cos(a)), irradiance=(irr,) * 3))
     b.camera = Camera.look_at((0, 0, 5), (0, 0, 0), up=(0, 1, 0), projection="orthographic",
                               horizontal_aperture=1.0, vertical_aperture=1.0)
-    img = render(b.build(), RenderSettings(samples=1, width=4, height=4)).rgb
+    img = render(b.build(), RenderSettings(width=4, height=4)).rgb
     expected = rs * irr * (e + 8) / (8 * np.pi) * np.cos(a / 2) ** e * np.cos(a)
     np.testing.assert_allclose(img, expected, rtol=1e-4)

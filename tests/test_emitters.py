@@ -39,7 +39,7 @@ def _scene(light="mesh", blocker=False):
 
 def test_a_glowing_square_lights_the_floor_as_a_lambertian_rectangle():
     e = np.pi * LE * 4 * _corner_view_factor(A_HALF, A_HALF, H)  # E = π·Le·F
-    st = RenderSettings(samples=1, width=31, height=21, light_samples=1024)
+    st = RenderSettings(width=31, height=21, samples=1, light_samples=1024)
     img = render(_scene(), st).rgb
     centre = img[10, 15]
     np.testing.assert_allclose(centre, ALBEDO / np.pi * e, rtol=0.01)
@@ -49,7 +49,7 @@ def test_a_glowing_square_lights_the_floor_as_a_lambertian_rectangle():
 
 
 def test_a_glowing_square_casts_a_soft_shadow():
-    st = RenderSettings(samples=1, width=61, height=41, light_samples=256)
+    st = RenderSettings(width=61, height=41, light_samples=256)
     lit = render(_scene(), st).rgb[..., 0]
     shaded = render(_scene(blocker=True), st).rgb[..., 0]
     ratio = shaded[lit > 0.05] / lit[lit > 0.05]
@@ -61,6 +61,6 @@ def test_emission_alone_lights_a_room():
     """The issue's report: a plane with emission as the only light gave an entirely black image."""
     scene = _scene()
     assert not scene.lights
-    img = render(scene, RenderSettings(samples=1, width=32, height=24)).rgb
+    img = render(scene, RenderSettings(width=32, height=24)).rgb
     panel_free = img[img.max(axis=-1) < LE * 0.99]
     assert np.median(panel_free) > 0.02
