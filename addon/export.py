@@ -331,6 +331,45 @@ def light_from_blender(obj, warnings: list):
 
 
 # ---------------------------------------------------------------------------------------------------- world
+def world_environment(world, warnings: list) -> "tracer.Environment | None":
+    """The world's Environment Texture (or Image Texture) feeding the Background node's Color, as a lat-long
+    :class:`tracer.Environment` × the Background strength, in Blender's equirectangular orientation (the tracer
+    uses the same). A Mapping node in front of it (Point type) turns it: its rotation becomes the environment's
+    world -> environment rotation. None where the world has no such image."""
+    tree = _node_tree(world) if world is not None else None
+    if tree is None:
+        return None
+    outs = [n for n in tree.nodes if n.type == "OUTPUT_WORLD"]
+    active = [n for n in outs if n.is_active_output] or outs
+    bg = _linked_node(active[0].inputs.get("Surface")) if active else None
+    if bg is None or bg.type != "BACKGROUND" or not bg.inputs["Color"].is_linked:
+        return None
+    tex = _linked_node(bg.inputs["Color"])
+    if tex is None or tex.type not in ("TEX_ENVIRONMENT", "TEX_IMAGE") or tex.image is None:
+        return None
+    if tex.type == "TEX_ENVIRONMENT" and tex.projection != "EQUIRECTANGULAR":
+        warnings.append(f"world {world.name!r}: {tex.projection.lower()} environment projection is not supported; "
+                        "reading the image as equirectangular")
+    try:
+        pixels = image_pixels(tex.image)
+    except ValueError as exc:
+        warnings.append(f"world {world.name!r}: {exc}; using the Background colour")
+        return None
+    rotation = np.eye(3)
+    vec_in = tex.inputs.get("Vector")
+    mapping = _linked_node(vec_in) if vec_in is not None and vec_in.is_linked else None
+    if mapping is not None and mapping.type == "MAPPING":
+        rx, ry, rz = (float(a) for a in mapping.inputs["Rotation"].default_value)
+        cx, sx, cy, sy, cz, sz = math.cos(rx), math.sin(rx), math.cos(ry), math.sin(ry), math.cos(rz), math.sin(rz)
+        rot = (np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]]) @ np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+               @ np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]]))
+        rotation = rot  # the Mapping node turns the lookup vector: world -> environment
+    elif mapping is not None:
+        warnings.append(f"world {world.name!r}: {mapping.bl_idname} before the environment texture is not "
+                        "supported (ignored)")
+    return tracer.Environment(image=pixels, strength=float(bg.inputs["Strength"].default_value), rotation=rotation)
+
+
 def world_colour(world, warnings: list) -> np.ndarray:
     """Colour × strength of the world: the Background node feeding the World Output, else ``world.color``."""
     if world is None:
@@ -342,9 +381,10 @@ def world_colour(world, warnings: list) -> np.ndarray:
         if active:
             bg = _linked_node(active[0].inputs.get("Surface"))
             if bg is not None and bg.type == "BACKGROUND":
-                if bg.inputs["Color"].is_linked:
-                    warnings.append(f"world {world.name!r}: textured backgrounds are not supported; "
-                                    "using the Background node's colour")
+                linked = _linked_node(bg.inputs["Color"]) if bg.inputs["Color"].is_linked else None
+                if linked is not None and linked.type not in ("TEX_ENVIRONMENT", "TEX_IMAGE"):
+                    warnings.append(f"world {world.name!r}: {linked.bl_idname} on the Background colour is not "
+                                    "supported; using the Background node's colour")
                 c = np.asarray(bg.inputs["Color"].default_value[:3], np.float32)
                 return (c * float(bg.inputs["Strength"].default_value)).astype(np.float32)
             if bg is not None:
@@ -364,11 +404,15 @@ def render_size(bpy_scene) -> tuple[int, int]:
 
 
 def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | None = None,
-                         camera: "tracer.Camera | None" = None) -> tuple["tracer.Scene", list[str]]:
+                         camera: "tracer.Camera | None" = None,
+                         geometry_cache: dict | None = None) -> tuple["tracer.Scene", list[str]]:
     """Build a :class:`tracer.Scene` from an evaluated depsgraph; returns it and a list of warnings.
 
     width/height default to the scene's render size (resolution × percentage) and matter only for the camera's
-    sensor fit. ``camera`` overrides the scene camera (the viewport uses this). The returned scene carries
+    sensor fit. ``camera`` overrides the scene camera (the viewport uses this). ``geometry_cache`` (a dict the
+    caller keeps) holds each object's triangle arrays between calls, keyed by object and mesh name; drop the
+    entries of changed objects with :func:`forget_geometry` (the viewport does, from ``depsgraph.updates``). The
+    returned scene carries
     ``scene.object_pass_indices`` (int32 per tracer object id: Blender's ``Object.pass_index``).
     """
     bpy_scene = depsgraph.scene_eval if hasattr(depsgraph, "scene_eval") else depsgraph.scene
@@ -399,12 +443,18 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
             if light is not None:
                 b.add_light(light)
             continue
-        if obj.type not in GEOMETRY_TYPES or not inst.show_self:
+        if obj.type not in GEOMETRY_TYPES or not inst.show_self or obj.get(RAYS_PROPERTY):
             continue
         key = obj.data.as_pointer() if obj.type == "MESH" and obj.data is not None else obj.as_pointer()
         key = (key, obj.original.name if obj.type != "MESH" else "")
         if key not in geometry:
-            geometry[key] = _object_mesh_arrays(obj, depsgraph)
+            named = _geometry_key(obj)
+            if geometry_cache is not None and named in geometry_cache:
+                geometry[key] = geometry_cache[named]
+            else:
+                geometry[key] = _object_mesh_arrays(obj, depsgraph)
+                if geometry_cache is not None:
+                    geometry_cache[named] = geometry[key]
         g = geometry[key]
         if g is None or not len(g["triangles"]):
             continue
@@ -433,10 +483,34 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
                                      bpy_scene.render.pixel_aspect_x / bpy_scene.render.pixel_aspect_y)
     b.camera = camera
     colour = world_colour(bpy_scene.world, warnings)
+    env = world_environment(bpy_scene.world, warnings)
     b.background = colour
-    b.ambient = colour
+    b.ambient = colour if env is None else env.average()
+    b.environment = env
     b.object_pass_indices = np.asarray(pass_indices, np.int32)
     return b.build(), warnings
+
+
+def _geometry_key(obj) -> tuple:
+    """A name key for an object's evaluated triangles that stays valid between depsgraph evaluations."""
+    return (obj.original.name, obj.data.name if obj.data is not None else "", obj.type)
+
+
+def forget_geometry(cache: dict, ids) -> None:
+    """Drop the cached triangles of the changed IDs (objects or meshes, from ``depsgraph.updates``); any other kind
+    of geometry change (a node group, a collection) empties the cache."""
+    for id_ in ids:
+        kind = type(getattr(id_, "original", id_)).__name__
+        name = id_.name
+        if kind not in ("Object", "Mesh"):
+            cache.clear()
+            return
+        for key in [k for k in cache if name in (k[0], k[1])]:
+            del cache[key]
+
+
+#: Custom property marking Explain Pixel's ray curves (addon/explain.py): shown in the viewport, never traced.
+RAYS_PROPERTY = "whitted_rays"
 
 
 class _Placed:
@@ -471,6 +545,8 @@ def settings_from_scene(bpy_scene, view_layer=None) -> "tracer.RenderSettings":
             aovs.append("normal")
         if layer.use_pass_object_index:
             aovs.append("objectid")
+    if props is not None and props.ray_type_passes:
+        aovs.extend(tracer.settings.RAY_TYPE_AOVS)
     return tracer.RenderSettings(width=w, height=h, transparent=bool(r.film_transparent), region=region,
                                  aovs=tuple(aovs), **kw).validate()
 

@@ -53,15 +53,18 @@ def test_critical_angle_leaving_glass():
     assert sin_angle_from_normal(-t_below, N_UP) == pytest.approx(1.5 * np.sin(np.radians(critical - 0.5)), abs=1e-9)
 
 
-def test_tir_mask_is_exactly_where_the_radicand_is_negative():
+def test_tir_is_exactly_beyond_the_critical_angle():
+    """Snell's law has no solution where η_i·sin θ_i > η_r (sin θ_r would exceed 1): the critical angle, computed
+    here from the angle between d and n, independently of the notes' square-root form."""
     rng = np.random.default_rng(1)
     d, n = random_pairs(rng, 20000)
     eta_i = rng.uniform(1.0, 2.4, size=len(d))
     eta_r = rng.uniform(1.0, 2.4, size=len(d))
     _, tir = refract(d, n, eta_i, eta_r)
-    cos_i = -np.sum(d * n, axis=1)
-    radicand = 1 - (eta_i / eta_r) ** 2 * (1 - cos_i**2)
-    np.testing.assert_array_equal(tir, radicand < 0)
+    sin_i = np.linalg.norm(np.cross(d, n), axis=1)
+    margin = eta_i * sin_i - eta_r
+    clear = np.abs(margin) > 1e-9  # leave out the float ties at the critical angle itself
+    np.testing.assert_array_equal(tir[clear], margin[clear] > 0)
     assert tir.any() and (~tir).any()
 
 
@@ -112,3 +115,16 @@ def test_fresnel_limits():
     ti = np.radians(30.0)
     tr = np.arcsin(np.sin(ti) / 1.5)
     assert fresnel_dielectric(np.cos(ti), 1.0, 1.5) == pytest.approx(fresnel_dielectric(np.cos(tr), 1.5, 1.0), abs=1e-6)
+
+
+@pytest.mark.parametrize("angle", [20.0, 45.0, 56.31, 70.0, 85.0])
+def test_fresnel_matches_the_angle_form_of_fresnels_equations(angle):
+    """R = (R_s + R_p)/2 with R_s = sin²(θi−θt)/sin²(θi+θt), R_p = tan²(θi−θt)/tan²(θi+θt) (Hecht 4.42-4.43),
+    a different form from the implementation's cosines; at Brewster's angle (56.31° for n = 1.5) R_p vanishes."""
+    ti = np.radians(angle)
+    tt = np.arcsin(np.sin(ti) / 1.5)
+    r_s = (np.sin(ti - tt) / np.sin(ti + tt)) ** 2
+    r_p = (np.tan(ti - tt) / np.tan(ti + tt)) ** 2
+    assert fresnel_dielectric(np.cos(ti), 1.0, 1.5) == pytest.approx((r_s + r_p) / 2, abs=1e-6)
+    if angle == 56.31:
+        assert r_p < 1e-8

@@ -31,6 +31,7 @@ class SceneBuilder:
         self.materials: list[dict] = []
         self._material_index: dict[str, int] = {}
         self.object_names: list[str] = []
+        self.environment = None  # tracer.Environment or None
         self.lights: list = []
         self.textures: list[np.ndarray] = []
         self.camera: Camera | None = None
@@ -168,6 +169,7 @@ class SceneBuilder:
             textures=list(self.textures),
             background=self.background,
             ambient=self.ambient,
+            environment=self.environment,
             object_names=list(self.object_names),
             object_pass_indices=self.object_pass_indices,
         )
