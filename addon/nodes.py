@@ -22,6 +22,11 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+try:  # inside the installed extension the tracer is bundled next to this module
+    from .tracer.texture import srgb_to_linear
+except ImportError:  # the repository's ``addon`` package uses the top-level tracer
+    from tracer.texture import srgb_to_linear
+
 #: Luminance weights Blender uses when a colour socket feeds a float socket (Rec.709, its default scene linear).
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722], np.float32)
 #: Blender's Extension (Image Texture) -> the tracer's wrap mode.
@@ -66,6 +71,7 @@ class Reader:
         self._warn = warn
         self.images = images  # image name -> (H, W, 4) pixels, shared by the whole export
         self._said: set = set()
+        self.viewport_colour = (0.8, 0.8, 0.8)
 
     def warn(self, key: str, message: str) -> None:
         if key not in self._said:
@@ -436,7 +442,7 @@ def shader_fields(r: Reader, node) -> dict:
             colour = r.colour(sock)[0]
             break
     if colour is None:
-        colour = np.asarray([0.8, 0.8, 0.8], np.float32)
+        colour = np.asarray(r.viewport_colour, np.float32)
     r.warn(node.name, f"shader {node.name!r} ({node.bl_idname}) is not supported; using a diffuse surface of "
                       f"its colour {tuple(np.round(colour, 3))}")
     return {"base_color": tuple(map(float, colour)), "specular": 0.0}
@@ -445,6 +451,7 @@ def shader_fields(r: Reader, node) -> dict:
 def read_material(material, warn, images: dict) -> dict:
     """The Principled fields of a Blender material (see the module docstring)."""
     r = Reader(f"material {material.name!r}", warn, images)
+    r.viewport_colour = tuple(material.diffuse_color[:3])
     tree = material.node_tree
     fallback = {"base_color": tuple(material.diffuse_color[:3]), "metallic": float(material.metallic),
                 "roughness": float(material.roughness)}
@@ -623,8 +630,6 @@ def image_rgba(image) -> np.ndarray:
 
     ``Image.pixels`` holds float images linear (Blender converts at load) and byte images as stored, so byte
     images are decoded from their colour space: sRGB with the sRGB transfer function; Non-Color / Linear as is."""
-    from tracer.texture import srgb_to_linear  # noqa: PLC0415 (the bundled tracer when installed)
-
     w, h = image.size
     c = image.channels
     if w == 0 or h == 0:

@@ -1,0 +1,244 @@
+"""Blender shader node trees through the add-on, against Cycles: one small scene per feature of addon/nodes.py.
+
+Each scene is built in Blender by a function here (node trees, UV maps, colour attributes the description-based
+harness does not carry), rendered once by Cycles at Whitted-equivalent settings (bench.cycles) and cached by a hash
+of the builder's source and its parameters, and rendered by Whitted from the same depsgraph through
+``addon.export.scene_from_depsgraph``. Bars in cycles_thresholds.py.
+"""
+
+from __future__ import annotations
+
+import inspect
+import math
+import os
+import time
+
+import numpy as np
+import pytest
+
+import cycles_harness as H
+from cycles_thresholds import MAE_MAX, PSNR_MIN
+
+from tests import blender_support as bs
+
+pytestmark = pytest.mark.cycles
+
+SIZE = (80, 80)
+
+
+# ---------------------------------------------------------------------------------------------------- helpers
+def asymmetric_pixels(w=24, h=16) -> np.ndarray:
+    """(h, w, 4) RGBA, top row first: 4×4-texel blocks of distinct colours, so any flip, transpose or turn of the
+    lookup changes the picture (red rises to the right, green to the top, blue in one corner)."""
+    rows, cols = np.mgrid[0:h, 0:w]
+    bx, by = cols // 4, (h - 1 - rows) // 4  # block index from the bottom-left
+    r = (bx + 1) / (w // 4)
+    g = (by + 1) / (h // 4)
+    b = np.where((bx == 0) & (by == h // 4 - 1), 0.9, 0.1)
+    return np.stack([r, g, b, np.ones_like(r)], -1).astype(np.float32)
+
+
+def image_block(name, pixels, *, srgb=False):
+    """A Blender image holding ``pixels`` (top row first). Float images are linear; byte images store sRGB."""
+    import bpy
+
+    h, w = pixels.shape[:2]
+    img = bpy.data.images.new(name, w, h, alpha=True, float_buffer=not srgb)
+    if srgb:
+        img.colorspace_settings.name = "sRGB"
+    else:
+        img.colorspace_settings.name = "Linear Rec.709"
+    img.pixels.foreach_set(np.ascontiguousarray(pixels[::-1]).ravel())
+    img.pack()
+    return img
+
+
+def node_material(name):
+    import bpy
+
+    mat = bpy.data.materials.new(name)
+    nt = mat.node_tree
+    for n in list(nt.nodes):
+        if n.type != "OUTPUT_MATERIAL":
+            nt.nodes.remove(n)
+    out = next(n for n in nt.nodes if n.type == "OUTPUT_MATERIAL")
+    return mat, nt, out
+
+
+def grid(name, size=2.0, n=8, material=None, location=(0, 0, 0)):
+    """A plane of n×n quads with a UV map, facing +Z."""
+    import bmesh
+
+    mesh = bs._bmesh_mesh(name, lambda bm: bmesh.ops.create_grid(bm, x_segments=n, y_segments=n, size=size / 2,
+                                                                   calc_uvs=True))
+    return bs._mesh_object(name, mesh, location, material, False)
+
+
+def top_view(scene, scale=2.5):
+    """Orthographic, straight down: 2.5 m over 80 px puts every edge of a 2 m plane of 2^k quads on a pixel edge
+    (so anti-aliasing differences of edges do not enter the comparison)."""
+    bs.add_camera((0, 0, 5), target=(0, 0, 0), ortho_scale=scale)
+    bs.set_world((0.0, 0.0, 0.0))
+    bs.add_sun((0.0, 0.0, -1.0), strength=3.0)
+
+
+# ---------------------------------------------------------------------------------------------------- scenes
+def scene_texture_mapping():
+    """An asymmetric float texture through a Mapping node (Point: location, 30° turn, scale) reading a second UV
+    map picked by a UV Map node; diffuse only."""
+    scene = bs.reset(SIZE)
+    top_view(scene)
+    mat, nt, out = node_material("Textured")
+    bsdf = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = image_block("asym", asymmetric_pixels())
+    mapping = nt.nodes.new("ShaderNodeMapping")
+    mapping.inputs["Location"].default_value = (0.1, -0.2, 0.0)
+    mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(30))
+    mapping.inputs["Scale"].default_value = (1.5, 0.8, 1.0)
+    uvmap = nt.nodes.new("ShaderNodeUVMap")
+    uvmap.uv_map = "Second"
+    nt.links.new(uvmap.outputs["UV"], mapping.inputs["Vector"])
+    nt.links.new(mapping.outputs["Vector"], tex.inputs["Vector"])
+    nt.links.new(tex.outputs["Color"], bsdf.inputs["Color"])
+    nt.links.new(bsdf.outputs[0], out.inputs["Surface"])
+    obj = grid("Plane", material=mat, n=1)
+    me = obj.data
+    second = me.uv_layers.new(name="Second")
+    uv = np.empty(len(me.loops) * 2, np.float32)
+    me.uv_layers["UVMap"].data.foreach_get("uv", uv)
+    uv = uv.reshape(-1, 2)
+    second.data.foreach_set("uv", np.ascontiguousarray(uv[:, ::-1] * 0.7 + 0.1).ravel())  # transposed, shrunk
+    me.uv_layers.active = me.uv_layers["UVMap"]
+    return scene
+
+
+def scene_checker_mix():
+    """Checker Texture on UVs (scale 3) in a Mix Shader (factor 0.3) with an Emission shader."""
+    scene = bs.reset(SIZE)
+    top_view(scene)
+    mat, nt, out = node_material("CheckerMix")
+    diff = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    checker = nt.nodes.new("ShaderNodeTexChecker")
+    checker.inputs["Scale"].default_value = 3.0
+    checker.inputs["Color1"].default_value = (0.9, 0.6, 0.1, 1)
+    checker.inputs["Color2"].default_value = (0.1, 0.2, 0.7, 1)
+    coord = nt.nodes.new("ShaderNodeTexCoord")
+    nt.links.new(coord.outputs["UV"], checker.inputs["Vector"])
+    nt.links.new(checker.outputs["Color"], diff.inputs["Color"])
+    emit = nt.nodes.new("ShaderNodeEmission")
+    emit.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1)
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = 0.3
+    nt.links.new(diff.outputs[0], mix.inputs[1])
+    nt.links.new(emit.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], out.inputs["Surface"])
+    grid("Plane", material=mat, n=1)
+    return scene
+
+
+def scene_color_attribute():
+    """A Principled BSDF (specular 0) whose Base Color is a corner-domain Color Attribute, one colour per face."""
+    scene = bs.reset(SIZE)
+    top_view(scene)
+    mat, nt, out = node_material("VertexColours")
+    bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    bsdf.inputs["Specular IOR Level"].default_value = 0.0
+    attr = nt.nodes.new("ShaderNodeVertexColor")
+    attr.layer_name = "Col"
+    nt.links.new(attr.outputs["Color"], bsdf.inputs["Base Color"])
+    nt.links.new(bsdf.outputs[0], out.inputs["Surface"])
+    obj = grid("Plane", material=mat, n=4)
+    me = obj.data
+    col = me.color_attributes.new("Col", "FLOAT_COLOR", "CORNER")
+    face = np.repeat(np.arange(len(me.polygons)), [p.loop_total for p in me.polygons])
+    rgb = np.stack([(face % 4 + 1) / 4, (face // 4 + 1) / 4, 0.3 + 0 * face, 1 + 0 * face], -1)
+    order = np.concatenate([np.arange(p.loop_start, p.loop_start + p.loop_total) for p in me.polygons])
+    data = np.empty((len(me.loops), 4), np.float32)
+    data[order] = rgb
+    col.data.foreach_set("color", data.ravel())
+    return scene
+
+
+def scene_glossy_emission():
+    """A Glossy BSDF mirror (roughness 0, tinted) reflecting an Emission-shaded panel (a dim light itself) over a
+    grey floor lit by a point light. (Emissive-mesh lighting at full strength is main's emission_light scene.)"""
+    scene = bs.reset(SIZE)
+    bs.add_camera((0, -5, 3), target=(0, 0, 0.6), lens=40)
+    bs.set_world((0.0, 0.0, 0.0))
+    mat, nt, out = node_material("Glossy")
+    glossy = nt.nodes.new("ShaderNodeBsdfGlossy")
+    glossy.inputs["Color"].default_value = (0.9, 0.8, 0.5, 1)
+    glossy.inputs["Roughness"].default_value = 0.0
+    nt.links.new(glossy.outputs[0], out.inputs["Surface"])
+    bs.add_uv_sphere((0.6, 0.6, 0.7), 0.7, material=mat)
+    lamp, nt, out = node_material("Lamp")
+    emit = nt.nodes.new("ShaderNodeEmission")
+    emit.inputs["Color"].default_value = (1.0, 0.9, 0.7, 1)
+    emit.inputs["Strength"].default_value = 1.5
+    bs.add_point_light((2.0, -2.0, 4.0), power=600.0)
+    nt.links.new(emit.outputs[0], out.inputs["Surface"])
+    panel = bs.add_plane((-1.0, -0.2, 2.2), 1.2, material=lamp, name="Panel")
+    panel.rotation_euler = (math.radians(180), 0, 0)
+    bs.add_plane((0, 0, 0), 8.0, material=bs.principled_material("Floor", base_color=(0.6, 0.6, 0.6),
+                                                                   specular=0.0), name="Floor")
+    return scene
+
+
+SCENES = {
+    "addon_texture_mapping": (scene_texture_mapping, dict(depth=0, samples=64, ours_samples=3)),
+    "addon_checker_mix": (scene_checker_mix, dict(depth=0, samples=64, ours_samples=3)),
+    "addon_color_attribute": (scene_color_attribute, dict(depth=0, samples=32, ours_samples=2)),
+    "addon_glossy_emission": (scene_glossy_emission, dict(depth=2, samples=1024, ours_samples=4,
+                                                          light_samples=256)),
+}
+
+
+def scene_source() -> str:
+    """The source of every scene builder and helper (above SCENES): any change there re-renders the references."""
+    src = inspect.getsource(inspect.getmodule(scene_source))
+    return src[: src.index("\nSCENES = {")]
+
+
+def cycles_render(name: str, build, params: dict) -> np.ndarray:
+    """Build the scene (always: ours reads the same depsgraph) and the Cycles reference, cached by the hash of the
+    builder's source and parameters."""
+    import bpy
+
+    from bench.cycles import whitted_cycles_settings
+
+    key = H.content_hash(name, scene_source(), params)
+    path = os.path.join(H.CACHE_DIR, f"{name}-{key}.exr")
+    if not os.path.exists(path):
+        scene = build()
+        whitted_cycles_settings(scene, depth=params["depth"], samples=params["samples"])
+        os.makedirs(H.CACHE_DIR, exist_ok=True)
+        tmp = path + f".{os.getpid()}.tmp.exr"
+        t0 = time.perf_counter()
+        bs.render_exr(scene, tmp)
+        H.CYCLES_LOG.append((name, "beauty", time.perf_counter() - t0, False))
+        os.replace(tmp, path)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    return bs.read_exr(path)["rgba"][..., :3]
+
+
+def ours_render(build, params: dict):
+    import bpy
+
+    import tracer
+    from addon import export
+
+    scene = build()
+    ts, warnings = export.scene_from_depsgraph(bpy.context.evaluated_depsgraph_get())
+    settings = tracer.RenderSettings(width=SIZE[0], height=SIZE[1], samples=params["ours_samples"],
+                                     max_depth=params["depth"], light_samples=params.get("light_samples", 16))
+    return tracer.render(ts, settings).rgb, warnings
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_node_scene_matches_cycles(bpy_module, tmp_path, name):
+    build, params = SCENES[name]
+    ref = cycles_render(name, build, params)
+    ours, warnings = ours_render(build, params)
+    assert not warnings, warnings  # every node of these scenes is supported
+    H.check_images({"name": name}, ours, ref, tmp_path, min_psnr=PSNR_MIN, max_mae=MAE_MAX, label=" [addon]")
