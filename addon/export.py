@@ -165,7 +165,11 @@ def camera_from_blender(cam_obj, width: int, height: int, pixel_aspect: float = 
 
 # ---------------------------------------------------------------------------------------------------- lights
 def light_from_blender(obj, warnings: list):
-    """A tracer light for a Blender light object (None for unsupported types), in Blender's power units."""
+    """A tracer light for a Blender light object (None for unsupported types), in Blender's power units.
+
+    ``normalize`` off (Blender's USD importer sets it) stops Cycles dividing the power by the emitter's size, so the
+    light is brighter by that size (measured against Cycles, tests/cycles/test_cycles_units.py): area lights × the
+    area A, point and spot lights × 4π·radius², sun × π·(angle/2)² (:func:`unnormalized_factor`)."""
     light = obj.data
     m = np.array(obj.matrix_world, dtype=np.float64)
     pos = m[:3, 3]
@@ -173,6 +177,8 @@ def light_from_blender(obj, warnings: list):
     colour = np.asarray(light.color[:3], np.float64) * 2.0 ** float(getattr(light, "exposure", 0.0))
     power = float(light.energy)
     name = obj.name
+    if not getattr(light, "normalize", True):
+        power *= unnormalized_factor(light, m)
     if light.type in ("POINT", "SPOT"):
         intensity = colour * power / (4.0 * math.pi)
         radius = float(light.shadow_soft_size)
@@ -201,6 +207,23 @@ def light_from_blender(obj, warnings: list):
                                 name=name)
     warnings.append(f"light {name!r}: {light.type} lights are not supported")
     return None
+
+
+def unnormalized_factor(light, m: np.ndarray) -> float:
+    """How much brighter Cycles renders a light with ``normalize`` off: its emitter's size (area A of an area light
+    in world units; 4π·r² of a point/spot sphere; π·(angle/2)² of the sun's disk), 1 for zero-size emitters."""
+    if light.type in ("POINT", "SPOT"):
+        r = float(light.shadow_soft_size)
+        return 4.0 * math.pi * r * r if r > 0 else 1.0
+    if light.type == "SUN":
+        a = float(light.angle) / 2.0
+        return math.pi * a * a if a > 0 else 1.0
+    if light.type == "AREA":
+        sx = float(light.size) * np.linalg.norm(m[:3, 0])
+        sy = float(light.size_y if light.shape in ("RECTANGLE", "ELLIPSE") else light.size) * np.linalg.norm(m[:3, 1])
+        area = math.pi / 4.0 * sx * sy if light.shape in ("DISK", "ELLIPSE") else sx * sy
+        return area if area > 0 else 1.0
+    return 1.0
 
 
 # ---------------------------------------------------------------------------------------------------- world
