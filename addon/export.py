@@ -16,7 +16,8 @@ particles are included):
 - Lights, in Blender's units: point P W -> intensity P/(4π)·colour, radius = ``shadow_soft_size``; spot: the same
   with cone half-angle ``spot_size/2`` and ``spot_blend``; sun strength S -> irradiance S·colour, ``angle``; area
   power P -> radiance P/(π·A)·colour (A in world units, emitting along the light's -Z). ``2^exposure`` multiplies.
-- World: the Background node's Color × Strength (or ``world.color``) -> ``scene.background`` and ``scene.ambient``.
+- World: :func:`addon.world.world_from_blender` (Background colour × strength, an Environment Texture as
+  ``tracer.Environment``, anything else baked to a lat-long image by Cycles).
 - Materials: node trees read by :mod:`addon.nodes` (one function per node type) into the Principled description,
   written into the tracer's model by :mod:`addon.model` (the supported-node table is in docs/addon.md).
 """
@@ -34,32 +35,13 @@ except ImportError:  # the repository's ``addon`` package uses the top-level tra
 
 from .model import MaterialWriter
 from .nodes import image_rgba
+from .world import world_from_blender
 
 #: Object types that become triangles through ``Object.to_mesh``.
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT"}
 
 
 # ---------------------------------------------------------------------------------------------------- materials
-def _node_tree(idblock):
-    """The node tree of a material or world if it uses nodes (Blender 5.0 always does; ``use_nodes`` is
-    deprecated there)."""
-    import bpy
-
-    if bpy.app.version < (5, 0, 0) and not idblock.use_nodes:
-        return None
-    return idblock.node_tree
-
-
-def _linked_node(sock):
-    if sock is None or not sock.is_linked:
-        return None
-    link = sock.links[0]
-    node = link.from_node
-    while node.type == "REROUTE" and node.inputs[0].is_linked:
-        node = node.inputs[0].links[0].from_node
-    return node
-
-
 def image_pixels(image) -> np.ndarray:
     """(H, W, 3) scene-linear float32 pixels of a Blender image, top row first (see :func:`nodes.image_rgba`)."""
     return np.ascontiguousarray(image_rgba(image)[..., :3])
@@ -227,68 +209,7 @@ def unnormalized_factor(light, m: np.ndarray) -> float:
 
 
 # ---------------------------------------------------------------------------------------------------- world
-def world_environment(world, warnings: list) -> "tracer.Environment | None":
-    """The world's Environment Texture (or Image Texture) feeding the Background node's Color, as a lat-long
-    :class:`tracer.Environment` × the Background strength, in Blender's equirectangular orientation (the tracer
-    uses the same). A Mapping node in front of it (Point type) turns it: its rotation becomes the environment's
-    world -> environment rotation. None where the world has no such image."""
-    tree = _node_tree(world) if world is not None else None
-    if tree is None:
-        return None
-    outs = [n for n in tree.nodes if n.type == "OUTPUT_WORLD"]
-    active = [n for n in outs if n.is_active_output] or outs
-    bg = _linked_node(active[0].inputs.get("Surface")) if active else None
-    if bg is None or bg.type != "BACKGROUND" or not bg.inputs["Color"].is_linked:
-        return None
-    tex = _linked_node(bg.inputs["Color"])
-    if tex is None or tex.type not in ("TEX_ENVIRONMENT", "TEX_IMAGE") or tex.image is None:
-        return None
-    if tex.type == "TEX_ENVIRONMENT" and tex.projection != "EQUIRECTANGULAR":
-        warnings.append(f"world {world.name!r}: {tex.projection.lower()} environment projection is not supported; "
-                        "reading the image as equirectangular")
-    try:
-        pixels = image_pixels(tex.image)
-    except ValueError as exc:
-        warnings.append(f"world {world.name!r}: {exc}; using the Background colour")
-        return None
-    rotation = np.eye(3)
-    vec_in = tex.inputs.get("Vector")
-    mapping = _linked_node(vec_in) if vec_in is not None and vec_in.is_linked else None
-    if mapping is not None and mapping.type == "MAPPING":
-        rx, ry, rz = (float(a) for a in mapping.inputs["Rotation"].default_value)
-        cx, sx, cy, sy, cz, sz = math.cos(rx), math.sin(rx), math.cos(ry), math.sin(ry), math.cos(rz), math.sin(rz)
-        rot = (np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]]) @ np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-               @ np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]]))
-        rotation = rot  # the Mapping node turns the lookup vector: world -> environment
-    elif mapping is not None:
-        warnings.append(f"world {world.name!r}: {mapping.bl_idname} before the environment texture is not "
-                        "supported (ignored)")
-    return tracer.Environment(image=pixels, strength=float(bg.inputs["Strength"].default_value), rotation=rotation)
-
-
-def world_colour(world, warnings: list) -> np.ndarray:
-    """Colour × strength of the world: the Background node feeding the World Output, else ``world.color``."""
-    if world is None:
-        return np.zeros(3, np.float32)
-    tree = _node_tree(world)
-    if tree is not None:
-        outs = [n for n in tree.nodes if n.type == "OUTPUT_WORLD"]
-        active = [n for n in outs if n.is_active_output] or outs
-        if active:
-            bg = _linked_node(active[0].inputs.get("Surface"))
-            if bg is not None and bg.type == "BACKGROUND":
-                linked = _linked_node(bg.inputs["Color"]) if bg.inputs["Color"].is_linked else None
-                if linked is not None and linked.type not in ("TEX_ENVIRONMENT", "TEX_IMAGE"):
-                    warnings.append(f"world {world.name!r}: {linked.bl_idname} on the Background colour is not "
-                                    "supported; using the Background node's colour")
-                c = np.asarray(bg.inputs["Color"].default_value[:3], np.float32)
-                return (c * float(bg.inputs["Strength"].default_value)).astype(np.float32)
-            if bg is not None:
-                warnings.append(f"world {world.name!r}: unsupported world shader {bg.bl_idname}; "
-                                "using the world's viewport colour")
-            elif active:
-                return np.zeros(3, np.float32)
-    return np.asarray(world.color[:3], np.float32)
+# world_from_blender (addon/world.py): Background colour, Environment Texture, or a Cycles bake of the world.
 
 
 # ---------------------------------------------------------------------------------------------------- the scene
@@ -370,11 +291,7 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
         camera = camera_from_blender(cam_obj, width, height,
                                      bpy_scene.render.pixel_aspect_x / bpy_scene.render.pixel_aspect_y)
     b.camera = camera
-    colour = world_colour(bpy_scene.world, warnings)
-    env = world_environment(bpy_scene.world, warnings)
-    b.background = colour
-    b.ambient = colour if env is None else env.average()
-    b.environment = env
+    b.background, b.ambient, b.environment = world_from_blender(bpy_scene.world, warnings, writer.images)
     b.object_pass_indices = np.asarray(pass_indices, np.int32)
     return b.build(), warnings
 

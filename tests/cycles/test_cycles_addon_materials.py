@@ -185,10 +185,68 @@ def scene_glossy_emission():
     return scene
 
 
+def mirror_ball_view(world_builder):
+    """A chrome ball (Glossy BSDF, roughness 0) in front of the camera, the world behind and in the ball."""
+    import bpy
+
+    scene = bs.reset(SIZE)
+    bs.add_camera((0.0, -4.0, 0.6), target=(0.0, 0.0, 0.9), lens=28)
+    mat, nt, out = node_material("Chrome")
+    glossy = nt.nodes.new("ShaderNodeBsdfGlossy")
+    glossy.inputs["Color"].default_value = (0.9, 0.9, 0.9, 1)
+    glossy.inputs["Roughness"].default_value = 0.0
+    nt.links.new(glossy.outputs[0], out.inputs["Surface"])
+    bs.add_uv_sphere((0.0, 0.0, 0.8), 0.8, material=mat, segments=64, rings=32)
+    world = bpy.data.worlds.new("World")
+    scene.world = world
+    wt = world.node_tree
+    bg = next(n for n in wt.nodes if n.type == "BACKGROUND")
+    world_builder(wt, bg)
+    return scene
+
+
+def scene_world_environment_mapping():
+    """An HDRI-like lat-long image (landmarks) on an Environment Texture turned by a Mapping node (60° about Z),
+    strength 1.5: read directly as a tracer.Environment."""
+    def build(wt, bg):
+        env = wt.nodes.new("ShaderNodeTexEnvironment")
+        env.image = H.environment_image_block("landmarks")
+        mapping = wt.nodes.new("ShaderNodeMapping")
+        mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(60))
+        coord = wt.nodes.new("ShaderNodeTexCoord")
+        wt.links.new(coord.outputs["Generated"], mapping.inputs["Vector"])
+        wt.links.new(mapping.outputs["Vector"], env.inputs["Vector"])
+        wt.links.new(env.outputs["Color"], bg.inputs["Color"])
+        bg.inputs["Strength"].default_value = 1.5
+    return mirror_ball_view(build)
+
+
+def scene_world_sky_bake():
+    """Blender's Sky Texture (no sun disc) mixed with a constant colour: no reader can follow it, so the add-on
+    bakes the world with Cycles to a lat-long image."""
+    def build(wt, bg):
+        sky = wt.nodes.new("ShaderNodeTexSky")
+        if hasattr(sky, "sun_disc"):
+            sky.sun_disc = False
+        if hasattr(sky, "sun_elevation"):
+            sky.sun_elevation = math.radians(25)
+            sky.sun_rotation = math.radians(40)
+        mix = wt.nodes.new("ShaderNodeMix")
+        mix.data_type = "RGBA"
+        mix.inputs["Factor"].default_value = 0.3
+        mix.inputs[7].default_value = (0.9, 0.3, 0.1, 1)  # B colour
+        wt.links.new(sky.outputs["Color"], mix.inputs[6])
+        wt.links.new(mix.outputs[2], bg.inputs["Color"])
+        bg.inputs["Strength"].default_value = 0.06  # Blender's sky is bright: keep it below white
+    return mirror_ball_view(build)
+
+
 SCENES = {
     "addon_texture_mapping": (scene_texture_mapping, dict(depth=0, samples=64, ours_samples=3)),
     "addon_checker_mix": (scene_checker_mix, dict(depth=0, samples=64, ours_samples=3)),
     "addon_color_attribute": (scene_color_attribute, dict(depth=0, samples=32, ours_samples=2)),
+    "addon_world_environment_mapping": (scene_world_environment_mapping, dict(depth=1, samples=64, ours_samples=3)),
+    "addon_world_sky_bake": (scene_world_sky_bake, dict(depth=1, samples=64, ours_samples=3)),
     "addon_glossy_emission": (scene_glossy_emission, dict(depth=2, samples=1024, ours_samples=4,
                                                           light_samples=256)),
 }
