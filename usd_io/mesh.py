@@ -137,9 +137,16 @@ def read_mesh(prim, time, uv_name="st") -> MeshData | None:
     points = mesh.GetPointsAttr().Get(time)
     counts = mesh.GetFaceVertexCountsAttr().Get(time)
     indices = mesh.GetFaceVertexIndicesAttr().Get(time)
-    if points is None or counts is None or indices is None or len(points) == 0 or len(counts) == 0:
+    if points is None or counts is None or indices is None:
         return None
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    for what, v in (("points", points), ("faceVertexCounts", counts), ("faceVertexIndices", indices)):
+        if not hasattr(v, "__len__"):  # authored with a scalar type (usd-wg schemaTests points_types)
+            raise ValueError(f"{label}: {what} is a {type(v).__name__}, not an array")
+    if len(points) == 0 or len(counts) == 0:
+        return None
+    points = np.asarray(points, dtype=np.float64)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise ValueError(f"{label}: points are not 3-vectors (shape {points.shape})")
     left = mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded
     holes = mesh.GetHoleIndicesAttr().Get(time) or ()
     tri = triangulate(counts, indices, len(points), holes, left, label)
@@ -154,6 +161,12 @@ def read_mesh(prim, time, uv_name="st") -> MeshData | None:
         attr = mesh.GetNormalsAttr()
         vals = attr.Get(time) if attr.HasValue() else None
         interp = mesh.GetNormalsInterpolation()
+    if vals is not None and not hasattr(vals, "__len__"):
+        data.warnings.append(f"{label}: normals authored as a {type(vals).__name__}, not an array (ignored)")
+        vals = None
+    elif vals is not None and len(vals) and np.asarray(vals).reshape(len(vals), -1).shape[1] != 3:
+        data.warnings.append(f"{label}: normals are not 3-vectors (ignored)")
+        vals = None
     if vals is not None and len(vals):
         n, why = expand_primvar(np.asarray(vals, dtype=np.float64).reshape(-1, 3), interp, tri, len(points), n_fv,
                                 f"{label} normals")
