@@ -300,3 +300,21 @@ def test_node_scene_matches_cycles(bpy_module, tmp_path, name):
     ours, warnings = ours_render(build, params)
     assert not warnings, warnings  # every node of these scenes is supported
     H.check_images({"name": name}, ours, ref, tmp_path, min_psnr=PSNR_MIN, max_mae=MAE_MAX, label=" [addon]")
+
+
+def gallery_lines(gdir: str, write_jpg) -> list[str]:
+    """docs/gallery.md's section for these scenes (make_gallery.py calls this): ours | Cycles | |diff| × 4."""
+    lines = ["## Blender node trees through the add-on", "",
+             "Scenes built from shader and world node trees in `tests/cycles/test_cycles_addon_materials.py` "
+             f"({SIZE[0]}×{SIZE[1]}), each feature of `addon/nodes.py` against Cycles.", "",
+             "| scene | PSNR (dB) | MAE | what it isolates |", "|---|---|---|---|"]
+    shots = []
+    for name, (build, params) in SCENES.items():
+        ref = cycles_render(name, build, params)
+        ours, _warnings = ours_render(build, params)
+        m = H.metrics(ours, ref)
+        write_jpg(os.path.join(gdir, f"{name}.jpg"), ours, ref)
+        doc = " ".join(build.__doc__.split())
+        lines.append(f"| {name} | {m['psnr']:.2f} | {m['mae']:.5f} | {doc} |")
+        shots += [f"![{name}](gallery/{name}.jpg)", ""]
+    return lines + [""] + shots
