@@ -122,7 +122,7 @@ def _floor_radiance(x, y):
 
 def test_default_epsilon_lights_the_floor_exactly_and_keeps_the_contact_shadow():
     scene = _lit_floor_with_block()
-    img = render(scene, RenderSettings(width=60, height=60)).rgb
+    img = render(scene, RenderSettings(width=60, height=60, samples=1)).rgb
     xs = (np.arange(60) + 0.5) / 60 * 6 - 3
     # A row of lit floor away from the block (y = 2.05): every pixel equals the closed form (no acne).
     row = 60 - 1 - int((2.05 + 3) / 6 * 60)
@@ -138,12 +138,12 @@ def test_a_vanishing_epsilon_shows_acne_and_a_huge_one_leaks_light():
     """Why ε exists (the notes' shadow ray starts ε off the surface): with ε ≈ 0 shadow rays hit the surface they
     leave (speckled self-shadowing on the lit floor); with ε larger than the block, the contact shadow lights up."""
     scene = _lit_floor_with_block()
-    clean = render(scene, RenderSettings(width=60, height=60)).rgb[..., 0]
-    acne = render(scene, RenderSettings(width=60, height=60, epsilon=1e-12)).rgb[..., 0]
+    clean = render(scene, RenderSettings(width=60, height=60, samples=1)).rgb[..., 0]
+    acne = render(scene, RenderSettings(width=60, height=60, samples=1, epsilon=1e-12)).rgb[..., 0]
     lit = clean > 0.01
     speckled = np.mean(acne[lit] < 0.5 * clean[lit])
     assert speckled > 0.01, f"only {speckled:.1%} of the lit floor self-shadowed with ε ≈ 0"
-    leaky = render(scene, RenderSettings(width=60, height=60, epsilon=1.0)).rgb[..., 0]
+    leaky = render(scene, RenderSettings(width=60, height=60, samples=1, epsilon=1.0)).rgb[..., 0]
     col = int((-0.55 + 3) / 6 * 60)
     assert clean[30, col] < 1e-6 < leaky[30, col]
 
