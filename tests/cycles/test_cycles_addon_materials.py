@@ -241,6 +241,89 @@ def scene_world_sky_bake():
     return mirror_ball_view(build)
 
 
+def textured_principled(name, socket, pixels, *, output="Color", colorspace="Non-Color", via_normal_map=False):
+    """A Principled BSDF with an Image Texture on one input (through a Normal Map node if asked)."""
+    mat, nt, out = node_material(name)
+    bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    nt.links.new(bsdf.outputs[0], out.inputs["Surface"])
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = image_block(name, pixels)
+    tex.image.colorspace_settings.name = colorspace
+    if via_normal_map:
+        nmap = nt.nodes.new("ShaderNodeNormalMap")
+        nt.links.new(tex.outputs["Color"], nmap.inputs["Color"])
+        nt.links.new(nmap.outputs["Normal"], bsdf.inputs["Normal"])
+    else:
+        nt.links.new(tex.outputs[output], bsdf.inputs[socket])
+    return mat, nt, out, bsdf
+
+
+def stripes(h=16, w=16, lo=0.15, hi=0.8):
+    px = np.full((h, w, 4), lo, np.float32)
+    px[:, w // 2:, :3] = hi
+    px[..., 3] = 1.0
+    return px
+
+
+def scene_roughness_texture():
+    """Roughness from a Non-Color texture (0.15 left, 0.8 right) on a metallic plane under a point light: the
+    highlight's width changes at the seam."""
+    scene = bs.reset(SIZE)
+    bs.add_camera((0, -3.5, 3.5), target=(0, 0, 0), lens=35)
+    bs.set_world((0.0, 0.0, 0.0))
+    bs.add_point_light((0.0, 1.2, 2.0), power=300.0)
+    mat, _nt, _out, bsdf = textured_principled("Rough", "Roughness", stripes())
+    bsdf.inputs["Base Color"].default_value = (0.9, 0.7, 0.3, 1)
+    bsdf.inputs["Metallic"].default_value = 1.0
+    grid("Plane", size=3.0, n=1, material=mat)
+    return scene
+
+
+def scene_normal_map():
+    """A tangent-space normal map (ridges tilted ±30° about the V axis) on a grey plane under a low sun."""
+    scene = bs.reset(SIZE)
+    top_view(scene)
+    for obj in scene.objects:
+        if obj.type == "LIGHT":
+            obj.rotation_euler = (0.0, math.radians(50), 0.0)
+    n = np.zeros((16, 16, 4), np.float32)
+    tilt = np.where((np.arange(16) // 4) % 2 == 0, 0.5, -0.5)[None, :]  # sin 30° = 0.5 along +U
+    n[..., 0] = tilt * 0.5 + 0.5
+    n[..., 1] = 0.5
+    n[..., 2] = math.cos(math.radians(30)) * 0.5 + 0.5
+    n[..., 3] = 1.0
+    mat, _nt, _out, bsdf = textured_principled("Ridges", "Normal", n, via_normal_map=True)
+    bsdf.inputs["Specular IOR Level"].default_value = 0.0
+    grid("Plane", material=mat, n=1)
+    return scene
+
+
+def scene_alpha_cutout():
+    """Blender's cut-out pattern: Mix Shader(Transparent, Principled) by an image's alpha (a disc), over a red
+    floor."""
+    scene = bs.reset(SIZE)
+    top_view(scene)
+    yy, xx = np.mgrid[0:32, 0:32]
+    px = np.ones((32, 32, 4), np.float32)
+    px[..., 3] = ((xx - 15.5) ** 2 + (yy - 15.5) ** 2 < 12 ** 2).astype(np.float32)
+    mat, nt, out = node_material("Leaf")
+    bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    bsdf.inputs["Base Color"].default_value = (0.2, 0.7, 0.2, 1)
+    bsdf.inputs["Specular IOR Level"].default_value = 0.0
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = image_block("leaf", px)
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    transparent = nt.nodes.new("ShaderNodeBsdfTransparent")
+    nt.links.new(tex.outputs["Alpha"], mix.inputs["Fac"])
+    nt.links.new(transparent.outputs[0], mix.inputs[1])
+    nt.links.new(bsdf.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], out.inputs["Surface"])
+    grid("Leaf", material=mat, n=1, location=(0, 0, 0.5))
+    floor = bs.principled_material("Red", base_color=(0.7, 0.1, 0.1), specular=0.0)
+    grid("Floor", size=2.0, n=1, material=floor)
+    return scene
+
+
 SCENES = {
     "addon_texture_mapping": (scene_texture_mapping, dict(depth=0, samples=64, ours_samples=3)),
     "addon_checker_mix": (scene_checker_mix, dict(depth=0, samples=64, ours_samples=3)),
@@ -255,7 +338,7 @@ SCENES = {
 def scene_source() -> str:
     """The source of every scene builder and helper (above SCENES): any change there re-renders the references."""
     src = inspect.getsource(inspect.getmodule(scene_source))
-    return src[: src.index("\nSCENES = {")]
+    return src[: src.index("\nSCENES" + " = {")]
 
 
 def cycles_render(name: str, build, params: dict) -> np.ndarray:
@@ -293,9 +376,20 @@ def ours_render(build, params: dict):
     return tracer.render(ts, settings).rgb, warnings
 
 
-@pytest.mark.parametrize("name", list(SCENES))
+#: Scenes whose textures today's tracer cannot carry (addon/model.py lowers them with a warning): strict xfail until
+#: the tracer has the Principled model of docs/materials-api.md — then they must pass the shared bar.
+NEEDS_PRINCIPLED = {
+    "addon_roughness_texture": (scene_roughness_texture, dict(depth=0, samples=64, ours_samples=3)),
+    "addon_normal_map": (scene_normal_map, dict(depth=0, samples=32, ours_samples=3)),
+    "addon_alpha_cutout": (scene_alpha_cutout, dict(depth=1, samples=64, ours_samples=3)),
+}
+
+
+@pytest.mark.parametrize("name", list(SCENES) + [
+    pytest.param(n, marks=pytest.mark.xfail(strict=True, reason="roughness, normal and alpha textures need the "
+                                            "tracer's Principled model (materials-core)")) for n in NEEDS_PRINCIPLED])
 def test_node_scene_matches_cycles(bpy_module, tmp_path, name):
-    build, params = SCENES[name]
+    build, params = {**SCENES, **NEEDS_PRINCIPLED}[name]
     ref = cycles_render(name, build, params)
     ours, warnings = ours_render(build, params)
     assert not warnings, warnings  # every node of these scenes is supported
