@@ -7,7 +7,7 @@ Principled model's fields, in which any parameter P may be a constant ``P`` plus
 (a :class:`TextureRef`) and ``P_channel`` (−1 = rgb, 0..3 = one channel):
 
     base_color (3)  roughness  metallic  specular (Specular IOR Level; 0.5 = F0 from ior)  ior  transmission
-    alpha  alpha_threshold (0 = blend)  emission (3, colour × strength)  normal_texture + normal_strength
+    alpha (Cycles' blend; Blender sets no threshold)  emission (3, colour × strength)  normal_texture + normal_strength
     vertex_color (a Color Attribute name, '' = the active one, or None)  k_m (mirror weight of smooth metals)
 
 What each node maps to, and what is approximated, is the table in docs/addon.md. Anything the reader cannot
@@ -120,7 +120,6 @@ class Reader:
             return (1.0, tex, ch) if tex is not None else (float(c[ch]), None, 0)
         if node.bl_idname == "ShaderNodeValue":
             return float(node.outputs[0].default_value), None, 0
-        c, tex, vc = self.colour(sock, (const,) * 3) if out in ("Color",) else (None, None, None)
         self.warn(node.name, f"node {node.name!r} ({node.bl_idname}) on {sock.name} is not supported; "
                              f"using the socket's value {const:.3g}")
         return const, None, 0
@@ -463,9 +462,7 @@ def read_material(material, warn, images: dict) -> dict:
         warn(f"material {material.name!r}: no surface shader connected to the Material Output; using its "
              "viewport colour")
         return fallback
-    f = shader_fields(r, shader)
-    if getattr(material, "blend_method", "HASHED") == "CLIP" and ("alpha_texture" in f or f.get("alpha", 1) < 1):
-        f["alpha_threshold"] = float(getattr(material, "alpha_threshold", 0.5))
+    f = shader_fields(r, shader)  # alpha is Cycles' stochastic blend: no threshold (EEVEE's Clip mode is not Cycles')
     if out is not None and out.inputs.get("Displacement") is not None and out.inputs["Displacement"].is_linked:
         r.warn("Displacement", "Displacement on the Material Output is not supported (ignored)")
     return f
