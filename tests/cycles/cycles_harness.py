@@ -114,6 +114,7 @@ def build_bpy(desc: dict):
             ld.shape = li["shape"]
             ld.size, ld.size_y = li["size"]
         ld.exposure = li.get("exposure", 0.0)
+        ld.normalize = li.get("normalize", True)  # off: as Blender's USD importer sets it
         lo = b.data.objects.new(li["name"], ld)
         lo.matrix_world = Matrix(li["matrix"])
         sc.collection.objects.link(lo)
