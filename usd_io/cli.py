@@ -128,6 +128,8 @@ def _add_render_flags(r) -> None:
     """Every ``whitted render`` flag, in one place (other branches add theirs here: one ``add_argument`` each)."""
     from tracer.settings import DEFAULT_AA
 
+    from .mesh import COMPLEXITY, DEFAULT_COMPLEXITY
+
     r.add_argument("scenes", nargs="+", metavar="SCENE", help="USD file(s) (.usd, .usda, .usdc, .usdz)")
     r.add_argument("-o", "--output", required=True,
                    help="output image (.png/.jpg/.tif sRGB 8-bit, .exr linear half); several scenes need {stem} "
@@ -146,6 +148,9 @@ def _add_render_flags(r) -> None:
                    help="purposes to render, space- or comma-separated (default: default render)")
     r.add_argument("--variant", action="append", type=_variant, default=[], metavar="/PRIM:SET=VALUE",
                    help="select a variant before reading (repeatable)")
+    r.add_argument("--complexity", "-c", choices=list(COMPLEXITY), default=DEFAULT_COMPLEXITY,
+                   help="subdivision surfaces: low = the control cage, medium = 1 level of Catmull-Clark (default), "
+                   "high = 2, veryhigh = 3 (usdrecord's names)")
     r.add_argument("--no-default-light", "--disableCameraLight", dest="no_default_light", action="store_true",
                    help="leave a stage without lights unlit (default: a camera headlight and a dim dome, as usdview)")
     r.add_argument("--exposure", type=float, default=0.0, help="exposure in stops: pixels × 2^EV (default 0)")
@@ -181,6 +186,8 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--purposes", nargs="+", default=["default", "render"])
     e.add_argument("--no-default-light", "--disableCameraLight", dest="no_default_light", action="store_true",
                    help="leave a stage without lights unlit")
+    e.add_argument("--complexity", choices=["low", "medium", "high", "veryhigh"], default="medium",
+                   help="subdivision surfaces, as render's --complexity")
     e.add_argument("--json", help="write the tree as JSON (format in README)")
     e.add_argument("--usd", help="write the tree as BasisCurves + camera over the stage (.usda)")
     e.add_argument("--png", help="write the rendered image with the pixel marked and the rays drawn")
@@ -286,7 +293,7 @@ def render_file(scene_path: str, output: str, frames, aovs, args) -> int:
     for frame in frames:
         scene, info = load_stage(stage, time=frame, camera=args.camera, width=args.width, height=args.height,
                                  purposes=split_purposes(args.purposes), default_light=not args.no_default_light,
-                                 variants=args.variant)
+                                 variants=args.variant, complexity=args.complexity)
         if frame == frames[0]:
             _print_warnings(info)
         settings = RenderSettings(width=info.width, height=info.height, samples=args.aa, max_depth=args.max_depth,

@@ -22,7 +22,7 @@ from .gprims import DEFAULT_SEGMENTS, GPRIM_TYPES, read_gprim
 from .instancing import instance_matrices, replicate
 from .lights import blender_authored, convert_light, default_lights
 from .material import MaterialTable
-from .mesh import MeshData, read_mesh
+from .mesh import COMPLEXITY, DEFAULT_COMPLEXITY, MeshData, read_mesh
 from .skel import Skinning
 from .stage import (DEFAULT_PURPOSES, _first_reason, captured_stderr, UsdInputError, check_purposes, composition_warnings, open_stage,
                     renderable_prims, stage_messages, stage_time)
@@ -65,13 +65,19 @@ class _Reader:
         self._proto_cache: dict[str, MeshData | None] = {}
         self._grey = None
         self.skinning = Skinning(time, self.xf.world)
+        self.subdivision_level = COMPLEXITY[DEFAULT_COMPLEXITY]
 
     # ------------------------------------------------------------------ geometry
     def geometry(self, prim, uv_name="st") -> MeshData | None:
         """Object-space geometry, or None (with a warning) where it is malformed."""
         try:
             if prim.IsA(UsdGeom.Mesh):
-                data = read_mesh(prim, self.time, uv_name)
+                level = self.subdivision_level
+                if level and Skinning.is_skinned(prim):  # skinning poses the cage's points: keep the cage
+                    level = 0
+                    if (UsdGeom.Mesh(prim).GetSubdivisionSchemeAttr().Get(self.time) or "catmullClark") != "none":
+                        self.info.warn(f"{prim.GetPath()}: skinned subdivision surface rendered as its posed cage")
+                data = read_mesh(prim, self.time, uv_name, level)
             elif prim.IsA(UsdGeom.Points):
                 data = read_points(prim, self.time)
             elif prim.IsA(UsdGeom.BasisCurves):
@@ -254,7 +260,7 @@ def _read_prims(r: _Reader, stage, tc, purposes, info: StageInfo) -> None:
 
 def load_stage(path_or_stage, time=None, camera: str | None = None, width: int | None = None,
                height: int | None = None, purposes=DEFAULT_PURPOSES, segments: int = DEFAULT_SEGMENTS,
-               default_light: bool = True, variants=()):
+               default_light: bool = True, variants=(), complexity: str = DEFAULT_COMPLEXITY):
     """Read a USD stage (a path or an open ``Usd.Stage``) into a render-ready :class:`tracer.Scene`.
 
     time      time code (None: the earliest time, i.e. default values or the first time sample)
@@ -265,6 +271,8 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     default_light  light a stage that has no lights as usdview does (a camera headlight and a dim dome; a note
               in ``info.notes``); False leaves it unlit (black)
     variants  ``(prim path, variant set, variant)`` selections applied (on the session layer) before reading
+    complexity  refinement of subdivision surfaces, as usdrecord's: low (the control cage), medium (one level of
+              Catmull-Clark, the default), high (2), veryhigh (3)
 
     Returns ``(scene, info)``; ``info.warnings`` lists what was skipped or approximated (each message once).
     Raises :class:`UsdInputError` (a ``ValueError``) for input the user can fix.
@@ -285,7 +293,10 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
         info.warn(w)
     for w in stage_messages.get(id(stage), []):
         info.warn(f"usd: {w}")
+    if complexity not in COMPLEXITY:
+        raise UsdInputError(f"complexity {complexity!r}: choose from {', '.join(COMPLEXITY)}")
     r = _Reader(stage, tc, purposes, segments, info)
+    r.subdivision_level = COMPLEXITY[complexity]
     with captured_stderr() as said:  # USD's own diagnostics while reading: warnings of ours, not raw lines
         _read_prims(r, stage, tc, purposes, info)
     for line in "".join(said).splitlines():
