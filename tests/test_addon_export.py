@@ -126,7 +126,7 @@ def test_world_materials_and_fallback_warning(bpy_module):
     np.testing.assert_allclose(m.mirror_tint[i], (0.5, 0.25, 0.1), rtol=1e-6)
     assert m.exponent[i] == pytest.approx(float(export.tracer.roughness_to_exponent(0.2)), rel=1e-5)
     f0 = ((1.45 - 1) / (1.45 + 1)) ** 2 * 2 * 0.8
-    np.testing.assert_allclose(m.specular[i], f0, rtol=1e-5)
+    np.testing.assert_allclose(m.specular_color[i], f0, rtol=1e-5)
     assert m.ior[i] == pytest.approx(1.45) and m.transmission[i] == pytest.approx(0.6)
     np.testing.assert_allclose(m.transmission_tint[i], (0.5, 0.25, 0.1), rtol=1e-6)
     np.testing.assert_allclose(m.emission[i], (3.0, 1.5, 0.0), rtol=1e-6)

@@ -333,7 +333,7 @@ def test_preview_surface_mapping_and_opacity_refracts():
     assert m.transmission[gi] == 1.0 and m.ior[gi] == pytest.approx(1.33)
     assert m.k_m[mi] == 1.0 and np.allclose(m.mirror_tint[mi], (0.9, 0.6, 0.2))
     assert np.allclose(m.emission[mi], (0.1, 0.2, 0.3))
-    assert m.specular[gi][0] == pytest.approx(((1.33 - 1) / 2.33) ** 2, rel=1e-5)
+    assert m.specular_color[gi][0] == pytest.approx(((1.33 - 1) / 2.33) ** 2, rel=1e-5)
     img = render(scene, RenderSettings(width=24, height=16, samples=1, threads=1))
     assert img.stats["rays"]["transmission"] > 50  # the glass sphere refracts
 

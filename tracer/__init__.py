@@ -15,12 +15,13 @@ from .lights import AreaLight, DistantLight, PointLight, SpotLight
 from .materials import DEFAULT_MATERIAL, Materials, roughness_to_exponent
 from .render import RenderCancelled, render, tiles_of
 from .scene import Scene
-from .settings import AOV_NAMES, RenderSettings
+from .settings import AOV_NAMES, SHADING_MODELS, RenderSettings
+from .texture import Texture
 from .warmup import compile_kernels
 
 __all__ = [
     "AOV_NAMES", "AreaLight", "Camera", "DEFAULT_MATERIAL", "DistantLight", "Environment", "Image", "Materials", "ORTHOGRAPHIC",
     "PERSPECTIVE", "PointLight", "RAY_TYPES", "RenderCancelled", "RenderSettings", "Scene", "SceneBuilder",
-    "SpotLight", "compile_kernels", "explain_pixel", "fit_apertures", "read_image", "render", "roughness_to_exponent", "tiles_of",
+    "SHADING_MODELS", "SpotLight", "Texture", "compile_kernels", "explain_pixel", "fit_apertures", "read_image", "render", "roughness_to_exponent", "tiles_of",
     "write_image",
 ]

@@ -189,7 +189,7 @@ class Integrator:
         m = scene.materials
         f32, i32 = (lambda a: np.ascontiguousarray(a, np.float32)), (lambda a: np.ascontiguousarray(a, np.int32))
         self.materials = MaterialArrays(
-            diffuse=f32(m.diffuse), specular=f32(m.specular), exponent=f32(m.exponent), k_m=f32(m.k_m),
+            diffuse=f32(m.diffuse), specular=f32(m.specular_color), exponent=f32(m.exponent), k_m=f32(m.k_m),
             mirror_tint=f32(m.mirror_tint), transmission=f32(m.transmission),
             transmission_tint=f32(m.transmission_tint), ior=f32(m.ior), emission=f32(m.emission),
             diffuse_texture=i32(m.diffuse_texture if scene.uvs is not None else np.full(len(m), -1)))
@@ -235,7 +235,7 @@ class Integrator:
         rec = SpawnRecord.empty(cap, cap2)
         n_shadow, n_refl, n_tran = _shade_hits(
             rays.o, rays.d, t, prim, u, v, rays.sample, rays.weight, keys, depth, spawn, self.geometry,
-            self.materials, self.textures[0], self.textures[1], self.lights, self.env,
+            self.materials, self.textures.data, self.textures.info, self.lights, self.env,
             self.sky_side, self.options, out, so, sd, sl, ss, sc, no, nd, nw, ns, counts, rec)
         shadow = ShadowQueue(o=so[:n_shadow], d=sd[:n_shadow], t_max=sl[:n_shadow], sample=ss[:n_shadow],
                              color=sc[:n_shadow], light=rec.light[:n_shadow])
