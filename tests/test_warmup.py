@@ -23,7 +23,9 @@ def _kernels():
     integrator = importlib.import_module("tracer.integrator")
     render = importlib.import_module("tracer.render")
     surface = importlib.import_module("tracer.surface")
-    return {"_shade_hits": integrator._shade_hits, "_add_unoccluded": integrator._add_unoccluded,
+    stages = ("_surfaces", "_first_hits", "_emitted", "_direct_light", "_sky", "_spawn_secondary", "_pass_shadow",
+              "_add_unoccluded")
+    return {**{name: getattr(integrator, name) for name in stages},
             "_tile_eye_rays": render._tile_eye_rays, "_face_frames": surface._face_frames}
 
 

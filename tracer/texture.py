@@ -37,7 +37,9 @@ class Texture:
     uv_set     index into ``Scene.uv_sets`` (0 = ``Scene.uvs``)
     transform  (3, 3) affine map applied to (s, t, 1) before the lookup (UsdTransform2d, Blender's Mapping node)
     scale, bias  (4,) value = texel·scale + bias per channel (UsdUVTexture's scale and bias)
-    fallback   (4,) the value (after scale and bias) where a surface has no coordinates in ``uv_set``
+    fallback   (4,) the value where a surface has no coordinates in ``uv_set`` (scale and bias not applied); the
+               default 1 leaves the parameter at its constant (UsdUVTexture's own default is (0, 0, 0, 1): front ends
+               pass the value their file format specifies)
     """
 
     image: np.ndarray
@@ -47,7 +49,7 @@ class Texture:
     transform: np.ndarray = field(default_factory=lambda: np.eye(3))
     scale: tuple = (1.0, 1.0, 1.0, 1.0)
     bias: tuple = (0.0, 0.0, 0.0, 0.0)
-    fallback: tuple = (0.0, 0.0, 0.0, 1.0)
+    fallback: tuple = (1.0, 1.0, 1.0, 1.0)
 
     def __post_init__(self):
         self.validate()
@@ -208,11 +210,11 @@ def _texel(data, first, w, x, y, c):
     return data[first + y * w + x, c]
 
 
-@kernel(inline=True)
-def bilinear4(data, info, index, s, t, wrap_s, wrap_t):
-    """Bilinear lookup of texture ``index`` at (s, t) (s right, t up; row 0 = top) with the given wrap codes:
-    an (r, g, b, a) tuple."""
-    first, h, w = info[index, 0], info[index, 1], info[index, 2]
+@kernel
+def bilinear4(data, first, h, w, s, t, wrap_s, wrap_t):
+    """Bilinear lookup at (s, t) (s right, t up; row 0 = top) of the h×w texture whose texels start at row
+    ``first`` of ``data``, with the given wrap codes: an (r, g, b, a) tuple. (Not inlined: one array argument, so
+    the call is cheap and the kernels that use it compile quickly.)"""
     x = s * w - 0.5
     y = (1.0 - t) * h - 0.5
     xf = math.floor(x)
@@ -227,21 +229,20 @@ def bilinear4(data, info, index, s, t, wrap_s, wrap_t):
     w01 = fx * (1.0 - fy)
     w10 = (1.0 - fx) * fy
     w11 = fx * fy
-    out0 = (w00 * _texel(data, first, w, x0, y0, 0) + w01 * _texel(data, first, w, x1, y0, 0)
-            + w10 * _texel(data, first, w, x0, y1, 0) + w11 * _texel(data, first, w, x1, y1, 0))
-    out1 = (w00 * _texel(data, first, w, x0, y0, 1) + w01 * _texel(data, first, w, x1, y0, 1)
-            + w10 * _texel(data, first, w, x0, y1, 1) + w11 * _texel(data, first, w, x1, y1, 1))
-    out2 = (w00 * _texel(data, first, w, x0, y0, 2) + w01 * _texel(data, first, w, x1, y0, 2)
-            + w10 * _texel(data, first, w, x0, y1, 2) + w11 * _texel(data, first, w, x1, y1, 2))
-    out3 = (w00 * _texel(data, first, w, x0, y0, 3) + w01 * _texel(data, first, w, x1, y0, 3)
+    return (w00 * _texel(data, first, w, x0, y0, 0) + w01 * _texel(data, first, w, x1, y0, 0)
+            + w10 * _texel(data, first, w, x0, y1, 0) + w11 * _texel(data, first, w, x1, y1, 0),
+            w00 * _texel(data, first, w, x0, y0, 1) + w01 * _texel(data, first, w, x1, y0, 1)
+            + w10 * _texel(data, first, w, x0, y1, 1) + w11 * _texel(data, first, w, x1, y1, 1),
+            w00 * _texel(data, first, w, x0, y0, 2) + w01 * _texel(data, first, w, x1, y0, 2)
+            + w10 * _texel(data, first, w, x0, y1, 2) + w11 * _texel(data, first, w, x1, y1, 2),
+            w00 * _texel(data, first, w, x0, y0, 3) + w01 * _texel(data, first, w, x1, y0, 3)
             + w10 * _texel(data, first, w, x0, y1, 3) + w11 * _texel(data, first, w, x1, y1, 3))
-    return out0, out1, out2, out3
 
 
 @kernel(inline=True)
 def bilinear(data, info, index, s, t):
     """RGB of a repeat-wrapped bilinear lookup (the seed's texture read): an (r, g, b) tuple."""
-    c = bilinear4(data, info, index, s, t, _REPEAT, _REPEAT)
+    c = bilinear4(data, info[index, 0], info[index, 1], info[index, 2], s, t, _REPEAT, _REPEAT)
     return c[0], c[1], c[2]
 
 
@@ -257,7 +258,8 @@ def lookup(tex, index, s, t, has_uv):
         m = tex.xform
         s, t = (m[index, 0, 0] * s + m[index, 0, 1] * t + m[index, 0, 2],
                 m[index, 1, 0] * s + m[index, 1, 1] * t + m[index, 1, 2])
-    c = bilinear4(tex.data, tex.info, index, s, t, tex.wrap[index, 0], tex.wrap[index, 1])
+    c = bilinear4(tex.data, tex.info[index, 0], tex.info[index, 1], tex.info[index, 2], s, t, tex.wrap[index, 0],
+                  tex.wrap[index, 1])
     sc, b = tex.scale, tex.bias
     return (c[0] * sc[index, 0] + b[index, 0], c[1] * sc[index, 1] + b[index, 1],
             c[2] * sc[index, 2] + b[index, 2], c[3] * sc[index, 3] + b[index, 3])
