@@ -16,8 +16,10 @@ from tracer import SceneBuilder
 from . import camera as cam
 from .gprims import DEFAULT_SEGMENTS, GPRIM_TYPES, read_gprim
 from .instancing import instance_matrices, replicate
+from .dome import environment
 from .lights import convert_light
 from .material import MaterialTable
+from .material_primvars import mesh_primvars, replicate_corners
 from .mesh import MeshData, read_mesh
 from .stage import (DEFAULT_PURPOSES, UsdInputError, check_purposes, composition_warnings, open_stage,
                     renderable_prims, stage_messages, stage_time)
@@ -82,12 +84,12 @@ class _Reader:
         return self._proto_cache[key]
 
     def shaded(self, prim, data: MeshData):
-        material, uv = self.mats.for_prim(prim, data.n_faces, data.faces)
-        if uv != "st" and prim.IsA(UsdGeom.Mesh):
-            data = self.geometry(prim, uv) or data
+        """(data, per-triangle material rows, add_mesh keywords for UV sets and vertex colours)"""
+        material, needs = self.mats.for_prim(prim, data.n_faces, data.faces)
+        extra = mesh_primvars(prim, data, needs, self.mats.uv_set_names, self.time, self.info.warn)
         for w in data.warnings:
             self.info.warn(w)
-        return data, material
+        return data, material, extra
 
     def add_gprim(self, prim):
         data = self.cached_geometry(prim)
@@ -97,11 +99,11 @@ class _Reader:
         if not _usable(m):
             self.info.warn(f"{prim.GetPath()}: transform is singular (zero scale) or not finite (skipped)")
             return
-        data, material = self.shaded(prim, data)
+        data, material, extra = self.shaded(prim, data)
         tris = data.triangles
         # add_mesh turns the winding of mirroring transforms back itself
         self.b.add_mesh(data.points, tris, material=material, name=str(prim.GetPath()), transform=m,
-                        normals=data.normals, uvs=data.uvs)
+                        normals=data.normals, **dict(dict(uvs=data.uvs), **extra))
         self._grow(transform_points(m, data.points))
         self.info.meshes.append((str(prim.GetPath()), int(len(tris))))
 
@@ -122,7 +124,7 @@ class _Reader:
                 data = self.geometry(piece)
                 if data is None or not len(data.triangles):
                     continue
-                data, material = self.shaded(piece, data)
+                data, material, extra = self.shaded(piece, data)
                 rel = self.xf.relative(piece, root.GetParent())
                 full = world[None] @ mats[sel] @ rel[None]
                 usable = _usable(full)
@@ -133,7 +135,9 @@ class _Reader:
                 if not len(full):
                     continue
                 v, t, n, uv, mat = replicate(full, data, material)
-                self.b.add_mesh(v, t, material=mat, name=f"{prim.GetPath()}[{piece.GetPath()}]", normals=n, uvs=uv)
+                extra = replicate_corners(full, extra)
+                self.b.add_mesh(v, t, material=mat, name=f"{prim.GetPath()}[{piece.GetPath()}]", normals=n,
+                                **dict(dict(uvs=uv), **extra))
                 self._grow(v)
                 total += len(t)
         self.info.meshes.append((str(prim.GetPath()), int(total)))
@@ -153,6 +157,12 @@ class _Reader:
         if light is not None:
             self.b.add_light(light)
             self.info.lights.append((str(prim.GetPath()), kind, light))
+        elif world is not None and world.get("environment") is not None:  # a lat-long dome texture
+            if getattr(self.b, "environment", None) is not None:
+                self.info.warn(f"{prim.GetPath()}: a second textured DomeLight is not supported (skipped)")
+                return
+            self.b.environment = environment(world["environment"])
+            self.info.lights.append((str(prim.GetPath()), kind, world))
         elif world is not None:
             self.b.background = self.b.background + np.asarray(world["background"], np.float32)
             self.b.ambient = self.b.ambient + np.asarray(world["ambient"], np.float32)

@@ -38,3 +38,16 @@ INHERENT = {
 def image_bar(name: str) -> dict:
     """{"psnr": minimum dB, "mae": maximum linear MAE} for a scene."""
     return INHERENT.get(name, dict(psnr=PSNR_MIN, mae=MAE_MAX))
+
+
+#: UsdPreviewSurface / DomeLight stages read by Blender's USD importer and rendered by Cycles, against usd_io
+#: (tests/cycles/test_cycles_usd_materials.py). The shared bar; MAE is looser than MAE_MAX because textured images
+#: have edges everywhere (each block border is anti-aliased differently: 64 random Cycles samples against our 4×4
+#: strata).
+USD_MATERIAL_PSNR_MIN = PSNR_MIN
+USD_MATERIAL_MAE_MAX = 0.01
+USD_MATERIAL_INHERENT: dict = {}
+
+
+def usd_material_bar(name: str) -> dict:
+    return USD_MATERIAL_INHERENT.get(name, dict(psnr=USD_MATERIAL_PSNR_MIN, mae=USD_MATERIAL_MAE_MAX))

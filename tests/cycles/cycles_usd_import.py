@@ -33,9 +33,13 @@ def _files_hash(stage_path: str) -> str:
 def import_into_blender(stage_path: str, width: int, height: int, samples: int, depth: int = 0):
     bpy = H.bpy()
     bpy.ops.wm.read_factory_settings(use_empty=True)
+    sc = bpy.context.scene
+    w = bpy.data.worlds.new("World")  # the importer turns a DomeLight into this world (it makes none itself)
+    w.use_nodes = True
+    w.node_tree.nodes["Background"].inputs["Color"].default_value = (0, 0, 0, 1)
+    sc.world = w
     bpy.ops.wm.usd_import(filepath=stage_path, create_world_material=True, import_usd_preview=True,
                           set_material_blend=True)
-    sc = bpy.context.scene
     cams = [o for o in sc.objects if o.type == "CAMERA"]
     if not cams:
         raise ValueError(f"{stage_path}: Blender imported no camera")
@@ -44,11 +48,6 @@ def import_into_blender(stage_path: str, width: int, height: int, samples: int, 
         if o.type == "MESH":  # Whitted offsets shadow rays by ε only (as cycles_harness.build_bpy)
             o.cycles.shadow_terminator_geometry_offset = 0.0
             o.cycles.shadow_terminator_offset = 0.0
-    if sc.world is None:
-        w = bpy.data.worlds.new("World")
-        w.use_nodes = True
-        w.node_tree.nodes["Background"].inputs["Color"].default_value = (0, 0, 0, 1)
-        sc.world = w
     sc.render.resolution_x, sc.render.resolution_y = width, height
     sc.render.resolution_percentage = 100
     H.whitted_cycles_settings(sc, depth=depth, samples=samples)
