@@ -28,6 +28,7 @@ addon: $(VENV)/.core
 
 bench: $(VENV)/.test
 	$(PY) -m bench
+	$(PY) -m bench.farm
 
 clean:
 	rm -rf $(VENV) dist build *.egg-info .pytest_cache

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import importlib
 
-_MODULES = ("properties", "engine", "ui")
+_MODULES = ("properties", "engine", "ui", "explain")
 
 
 def _modules():

@@ -31,6 +31,11 @@ PASSES = {
     "normal": ("Normal", 3, "XYZ", "VECTOR"),
     # Blender 5.0 names the object index pass "Object Index" (Cycles writes it so); older versions "IndexOB".
     "objectid": ("Object Index" if bpy.app.version >= (5, 0, 0) else "IndexOB", 1, "X", "VALUE"),
+    # With scene.whitted.ray_type_passes (tracer.settings.RAY_TYPE_AOVS):
+    "direct": ("Whitted Direct", 3, "RGB", "COLOR"),
+    "reflection": ("Whitted Reflection", 3, "RGB", "COLOR"),
+    "transmission": ("Whitted Transmission", 3, "RGB", "COLOR"),
+    "raydepth": ("Whitted Ray Depth", 1, "X", "VALUE"),
 }
 #: Depth Blender writes where nothing was hit.
 NO_DEPTH = 1.0e10
@@ -58,6 +63,10 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
             self.register_pass(scene, renderlayer, *PASSES["normal"])
         if renderlayer.use_pass_object_index:
             self.register_pass(scene, renderlayer, *PASSES["objectid"])
+        props = getattr(scene, "whitted", None)
+        if props is not None and props.ray_type_passes:
+            for aov in tracer.settings.RAY_TYPE_AOVS:
+                self.register_pass(scene, renderlayer, *PASSES[aov])
 
     # ---------------------------------------------------------------------------------------------- F12
     def render(self, depsgraph):

@@ -399,7 +399,7 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
             if light is not None:
                 b.add_light(light)
             continue
-        if obj.type not in GEOMETRY_TYPES or not inst.show_self:
+        if obj.type not in GEOMETRY_TYPES or not inst.show_self or obj.get(RAYS_PROPERTY):
             continue
         key = obj.data.as_pointer() if obj.type == "MESH" and obj.data is not None else obj.as_pointer()
         key = (key, obj.original.name if obj.type != "MESH" else "")
@@ -439,6 +439,10 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     return b.build(), warnings
 
 
+#: Custom property marking Explain Pixel's ray curves (addon/explain.py): shown in the viewport, never traced.
+RAYS_PROPERTY = "whitted_rays"
+
+
 class _Placed:
     """An object seen through an instance: its data with the instance's world matrix."""
 
@@ -471,6 +475,8 @@ def settings_from_scene(bpy_scene, view_layer=None) -> "tracer.RenderSettings":
             aovs.append("normal")
         if layer.use_pass_object_index:
             aovs.append("objectid")
+    if props is not None and props.ray_type_passes:
+        aovs.extend(tracer.settings.RAY_TYPE_AOVS)
     return tracer.RenderSettings(width=w, height=h, transparent=bool(r.film_transparent), region=region,
                                  aovs=tuple(aovs), **kw).validate()
 

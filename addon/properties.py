@@ -30,6 +30,10 @@ class WhittedSceneSettings(bpy.types.PropertyGroup):
     terminal_rays: BoolProperty(
         name="Terminal Bounce", description="Trace one more bounce past Max Depth that collects only the world "
         "colour and emission, as Cycles' last bounce does; off = the notes' hard cut-off", default=False)
+    ray_type_passes: BoolProperty(
+        name="Ray-Type Passes", description="Passes Whitted Direct / Reflection / Transmission (the beauty split by "
+        "each path's first secondary ray; they sum to Combined) and Whitted Ray Depth (deepest ray per pixel)",
+        default=False)
 
 
 def settings_of(scene) -> "WhittedSceneSettings | None":

@@ -68,6 +68,7 @@ class WHITTED_PT_render(bpy.types.Panel):
         col.prop(layer, "use_pass_z", text="Depth")
         col.prop(layer, "use_pass_normal", text="Normal")
         col.prop(layer, "use_pass_object_index", text="Object Index")
+        col.prop(props, "ray_type_passes")
         layout.prop(props, "threads")
 
 

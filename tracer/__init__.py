@@ -7,6 +7,7 @@
 
 from .builder import SceneBuilder
 from .camera import ORTHOGRAPHIC, PERSPECTIVE, Camera, fit_apertures
+from .explain import explain_pixel
 from .film import Image, read_image, write_image
 from .integrator import RAY_TYPES
 from .lights import AreaLight, DistantLight, PointLight, SpotLight
@@ -19,6 +20,6 @@ from .warmup import compile_kernels
 __all__ = [
     "AOV_NAMES", "AreaLight", "Camera", "DEFAULT_MATERIAL", "DistantLight", "Image", "Materials", "ORTHOGRAPHIC",
     "PERSPECTIVE", "PointLight", "RAY_TYPES", "RenderCancelled", "RenderSettings", "Scene", "SceneBuilder",
-    "SpotLight", "compile_kernels", "fit_apertures", "read_image", "render", "roughness_to_exponent", "tiles_of",
+    "SpotLight", "compile_kernels", "explain_pixel", "fit_apertures", "read_image", "render", "roughness_to_exponent", "tiles_of",
     "write_image",
 ]

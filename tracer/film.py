@@ -58,6 +58,24 @@ def to_display(rgba: np.ndarray) -> np.ndarray:
     return np.round(out * 255.0).astype(np.uint8)
 
 
+#: Heat-map colours (display sRGB, "inferno"-like: black → purple → orange → pale yellow) at evenly spaced stops.
+_HEAT_STOPS = np.array([[0, 0, 4], [87, 16, 110], [188, 55, 84], [249, 142, 9], [252, 255, 164]], np.float64) / 255
+
+
+def heat_map(values: np.ndarray, vmax: float | None = None) -> np.ndarray:
+    """(H, W) values -> (H, W, 3) scene-linear colours of a heat map (0 black, ``vmax`` pale yellow; negative
+    values, e.g. "nothing traced", black). For PNG pictures of integer AOVs such as ``raydepth``."""
+    v = np.asarray(values, np.float64)
+    top = float(vmax if vmax is not None else max(1.0, np.nanmax(v) if v.size else 1.0))
+    x = np.clip(np.nan_to_num(v / top), 0, 1) * (len(_HEAT_STOPS) - 1)
+    i = np.minimum(x.astype(int), len(_HEAT_STOPS) - 2)
+    f = (x - i)[..., None]
+    srgb = _HEAT_STOPS[i] * (1 - f) + _HEAT_STOPS[i + 1] * f
+    from .texture import srgb_to_linear
+
+    return srgb_to_linear(srgb).astype(np.float32)
+
+
 def write_image(path: str, pixels: np.ndarray, channel_names=None) -> None:
     """Write (H, W, C) float pixels: linear for EXR/HDR, sRGB 8-bit otherwise. Atomic (temp file + rename)."""
     import OpenImageIO as oiio

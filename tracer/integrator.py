@@ -35,6 +35,11 @@ from .texture import bilinear, pack_textures
 
 RAY_TYPES = ("eye", "shadow", "reflection", "transmission", "sky")
 
+#: How light reached the eye, by the path's first secondary ray: "direct" (lit at the eye ray's hit, or background
+#: seen directly), "reflection", "transmission". The three ray-type AOVs sum to the beauty.
+PATH_TYPES = ("direct", "reflection", "transmission")
+_REFLECTION_PATH, _TRANSMISSION_PATH = 1, 2
+
 # Sample streams (independent hash sequences) of one eye sample.
 _STREAM_PIXEL = 0
 _STREAM_LIGHT = 1  # + depth
@@ -75,6 +80,8 @@ class TileResult:
     albedo: np.ndarray  # (S, 3) first-hit diffuse colour
     object_id: np.ndarray  # (S,) first-hit object id, -1 where none
     counts: RayCounts = field(default_factory=RayCounts)
+    by_type: np.ndarray | None = None  # (S, 3, 3) colour per PATH_TYPES (with ray_types)
+    deepest: np.ndarray | None = None  # (S,) depth of the deepest ray (0 = the eye ray only) (with ray_types)
 
 
 class MaterialArrays(NamedTuple):
@@ -106,6 +113,55 @@ class Options(NamedTuple):
     needs_light_random: bool
     background: tuple
     ambient: tuple
+
+
+class RayQueue(NamedTuple):
+    """Rays of one depth: origins, unit directions, the weight (throughput) each carries, the eye sample it adds
+    to, and an optional length limit (None = unbounded)."""
+
+    o: np.ndarray
+    d: np.ndarray
+    weight: np.ndarray
+    sample: np.ndarray
+    t_max: np.ndarray | None
+
+
+class ShadowQueue(NamedTuple):
+    """Deferred shadow (and sky) rays of one depth: each adds ``color`` to its sample if nothing blocks it."""
+
+    o: np.ndarray
+    d: np.ndarray
+    t_max: np.ndarray
+    sample: np.ndarray
+    color: np.ndarray
+    light: np.ndarray  # light index, -1 for a sky-visibility ray
+
+
+class SpawnRecord(NamedTuple):
+    """Per-ray facts the kernel records beside its queues, for ``tracer.explain``: for each shadow/sky ray the
+    light it samples (-1: sky); for each spawned ray the normal and refractive indices its direction came from."""
+
+    light: np.ndarray  # (shadow capacity,) int32
+    normal: np.ndarray  # (next capacity, 3) float32
+    eta: np.ndarray  # (next capacity, 2) float32
+    tir: np.ndarray  # (next capacity,) bool
+
+    @classmethod
+    def empty(cls, n_shadow: int, n_next: int) -> "SpawnRecord":
+        return cls(np.empty(n_shadow, np.int32), np.empty((n_next, 3), np.float32), np.empty((n_next, 2), np.float32),
+                   np.empty(n_next, np.bool_))
+
+
+class Step(NamedTuple):
+    """What one depth of :meth:`Integrator.step` did: the hits (t, prim, u, v), the shadow queue and which of its
+    rays were blocked, the next depth's rays (the first ``n_reflected`` are reflections) and how they were made."""
+
+    hits: tuple
+    shadow: ShadowQueue
+    blocked: np.ndarray
+    next: RayQueue
+    spawned: SpawnRecord
+    n_reflected: int
 
 
 class Tile(NamedTuple):
@@ -148,70 +204,90 @@ class Integrator:
         sky = settings.sky_samples
         self.sky_side = max(1, int(round(np.sqrt(sky)))) if sky and np.any(scene.ambient > 0) else 0
 
+    @property
+    def last_depth(self) -> int:
+        """The deepest step: max_depth, or one more (collecting only background and emission) with terminal rays."""
+        return self.settings.max_depth + (1 if self.settings.terminal_rays else 0)
+
+    def step(self, depth: int, rays: "RayQueue", keys: np.ndarray, out: "Tile", counts: np.ndarray) -> "Step":
+        """One depth of Cast-Ray for a queue of rays: closest hits, shading (adding into ``out`` at each ray's
+        sample), the deferred shadow rays and their occlusion, and the queue of next rays (reflections, then
+        transmissions; empty past the last depth)."""
+        n = len(rays.o)
+        hits = self.accel.intersect(rays.o, rays.d, rays.t_max)
+        t, prim, u, v = hits
+        # Deferred shadow rays (origin, direction, length, sample, colour) and the next depth's rays
+        # (reflections from slot 0, transmissions from slot n).
+        cap = n * (self.light_samples + self.sky_side**2)
+        so, sd = np.empty((cap, 3), np.float32), np.empty((cap, 3), np.float32)
+        sl, ss, sc = np.empty(cap, np.float32), np.empty(cap, np.int32), np.empty((cap, 3), np.float32)
+        spawn = depth < self.last_depth
+        cap2 = 2 * n if spawn else 0
+        no, nd = np.empty((cap2, 3), np.float32), np.empty((cap2, 3), np.float32)
+        nw, ns = np.empty((cap2, 3), np.float32), np.empty(cap2, np.int32)
+        rec = SpawnRecord.empty(cap, cap2)
+        n_shadow, n_refl, n_tran = _shade_hits(
+            rays.o, rays.d, t, prim, u, v, rays.sample, rays.weight, keys, depth, spawn, self.geometry,
+            self.materials, self.textures[0], self.textures[1], self.lights[0], self.lights[1], self.lights[2],
+            self.sky_side, self.options, out, so, sd, sl, ss, sc, no, nd, nw, ns, counts, rec)
+        shadow = ShadowQueue(o=so[:n_shadow], d=sd[:n_shadow], t_max=sl[:n_shadow], sample=ss[:n_shadow],
+                             color=sc[:n_shadow], light=rec.light[:n_shadow])
+        blocked = np.zeros(0, bool)
+        if n_shadow:
+            blocked = self.accel.occluded(shadow.o, shadow.d, shadow.t_max)
+            _add_unoccluded(out.color, shadow.sample, shadow.color, blocked)
+        keep = np.r_[0:n_refl, n:n + n_tran] if n_tran else slice(0, n_refl)
+        nxt = RayQueue(o=no[keep], d=nd[keep], weight=nw[keep], sample=ns[keep], t_max=None)
+        spawned = SpawnRecord(light=rec.light[:0], normal=rec.normal[keep], eta=rec.eta[keep], tir=rec.tir[keep])
+        return Step(hits=hits, shadow=shadow, blocked=blocked, next=nxt, spawned=spawned, n_reflected=n_refl)
+
     def trace(self, origins: np.ndarray, directions: np.ndarray, keys: np.ndarray,
-              cancelled=lambda: False) -> TileResult:
+              cancelled=lambda: False, ray_types: bool = False) -> TileResult:
         """Trace eye rays (one per sample) to the maximum depth. ``keys`` are unique per sample (for the
-        deterministic random streams)."""
-        s, st = self.scene, self.settings
+        deterministic random streams). With ``ray_types`` the result also holds each sample's colour split by the
+        ray type it arrived through (:data:`PATH_TYPES`) and the depth of its deepest ray."""
+        s = self.scene
         n_samples = len(origins)
-        out = Tile(color=np.zeros((n_samples, 3), np.float32), alpha=np.ones(n_samples, np.float32),
-                   depth=np.full(n_samples, np.inf, np.float32), normal=np.zeros((n_samples, 3), np.float32),
-                   albedo=np.zeros((n_samples, 3), np.float32), object_id=np.full(n_samples, -1, np.int32))
+        # With ray_types, each eye sample owns PATH_TYPES slots and a path's contributions go to the slot of its
+        # first secondary ray (as Cycles files light under the first bounce); the slots are summed at the end.
+        k = len(PATH_TYPES) if ray_types else 1
+        out = Tile(color=np.zeros((n_samples * k, 3), np.float32), alpha=np.ones(n_samples * k, np.float32),
+                   depth=np.full(n_samples * k, np.inf, np.float32), normal=np.zeros((n_samples * k, 3), np.float32),
+                   albedo=np.zeros((n_samples * k, 3), np.float32), object_id=np.full(n_samples * k, -1, np.int32))
         counts = np.zeros(5, np.int64)
-        keys = np.ascontiguousarray(keys, np.int64)
+        keys = np.ascontiguousarray(np.repeat(keys, k), np.int64)
+        deepest = np.full(n_samples, -1, np.int32)
 
-        o = np.ascontiguousarray(origins, np.float32)
-        d = np.ascontiguousarray(directions, np.float32)
-        sample = np.arange(n_samples, dtype=np.int32)
-        weight = np.ones((n_samples, 3), np.float32)
-        t_max = None
-        if np.isfinite(s.camera.far):
-            t_max = np.full(n_samples, s.camera.far - s.camera.near, np.float32)
-
-        last = st.max_depth + (1 if st.terminal_rays else 0)
-        per_hit = self.light_samples + self.sky_side**2
-        for depth in range(last + 1):
-            n = len(o)
-            if not n or cancelled():
+        rays = RayQueue(o=np.ascontiguousarray(origins, np.float32), d=np.ascontiguousarray(directions, np.float32),
+                        weight=np.ones((n_samples, 3), np.float32),
+                        sample=np.arange(0, n_samples * k, k, dtype=np.int32),
+                        t_max=(np.full(n_samples, s.camera.far - s.camera.near, np.float32)
+                               if np.isfinite(s.camera.far) else None))
+        for depth in range(self.last_depth + 1):
+            if not len(rays.o) or cancelled():
                 break
-            t, prim, u, v = self.accel.intersect(o, d, t_max)
-            t_max = None
-            # Deferred shadow rays (origin, direction, length, sample, colour) and the next depth's rays
-            # (reflections from slot 0, transmissions from slot n).
-            cap = n * per_hit
-            so, sd = np.empty((cap, 3), np.float32), np.empty((cap, 3), np.float32)
-            sl, ss, sc = np.empty(cap, np.float32), np.empty(cap, np.int32), np.empty((cap, 3), np.float32)
-            spawn = depth < last
-            cap2 = 2 * n if spawn else 0
-            no, nd = np.empty((cap2, 3), np.float32), np.empty((cap2, 3), np.float32)
-            nw, ns = np.empty((cap2, 3), np.float32), np.empty(cap2, np.int32)
-            n_shadow, n_refl, n_tran = _shade_hits(
-                o, d, t, prim, u, v, sample, weight, keys, depth, spawn, self.geometry, self.materials,
-                self.textures[0], self.textures[1], self.lights[0], self.lights[1], self.lights[2], self.sky_side,
-                self.options, out, so, sd, sl, ss, sc, no, nd, nw, ns, counts)
-            if n_shadow:
-                blocked = self.accel.occluded(so[:n_shadow], sd[:n_shadow], sl[:n_shadow])
-                _add_unoccluded(out.color, ss[:n_shadow], sc[:n_shadow], blocked)
-            if not spawn or not (n_refl or n_tran):
-                break
-            if n_tran == 0:
-                o, d, weight, sample = no[:n_refl], nd[:n_refl], nw[:n_refl], ns[:n_refl]
-            else:
-                o = np.concatenate((no[:n_refl], no[n:n + n_tran]))
-                d = np.concatenate((nd[:n_refl], nd[n:n + n_tran]))
-                weight = np.concatenate((nw[:n_refl], nw[n:n + n_tran]))
-                sample = np.concatenate((ns[:n_refl], ns[n:n + n_tran]))
+            if ray_types:
+                np.maximum.at(deepest, rays.sample // k, depth)
+            step = self.step(depth, rays, keys, out, counts)
+            rays = step.next
+            if ray_types and depth == 0 and len(rays.o):  # the first secondary rays choose their path's slot
+                first = np.where(np.arange(len(rays.o)) < step.n_reflected, _REFLECTION_PATH, _TRANSMISSION_PATH)
+                rays = rays._replace(sample=(rays.sample + first).astype(np.int32))
 
         np.nan_to_num(out.color, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
         rc = RayCounts(eye=n_samples, shadow=int(counts[_N_SHADOW]), reflection=int(counts[_N_REFLECTION]),
                        transmission=int(counts[_N_TRANSMISSION]), sky=int(counts[_N_SKY]), tir=int(counts[_N_TIR]))
-        return TileResult(color=out.color, alpha=out.alpha, depth=out.depth, normal=out.normal, albedo=out.albedo,
-                          object_id=out.object_id, counts=rc)
+        by_type = out.color.reshape(n_samples, k, 3)
+        return TileResult(color=by_type.sum(axis=1) if k > 1 else out.color, alpha=out.alpha[::k],
+                          depth=out.depth[::k], normal=out.normal[::k], albedo=out.albedo[::k],
+                          object_id=out.object_id[::k], counts=rc, by_type=by_type if k > 1 else None,
+                          deepest=deepest if k > 1 else None)
 
 
 @kernel
 def _shade_hits(o, d, t, prim, u, v, sample, weight, keys, depth, spawn, geom, mats, tex_data, tex_info,
-                light_table, light_kind, light_side, sky_side, opt, out, so, sd, sl, ss, sc, no, nd, nw, ns, counts):
+                light_table, light_kind, light_side, sky_side, opt, out, so, sd, sl, ss, sc, no, nd, nw, ns, counts,
+                rec):
     """Shade one depth's rays of a tile and write the rays they cause; returns (shadow, reflection, transmission)
     counts written into the buffers.
 
@@ -278,6 +354,7 @@ def _shade_hits(o, d, t, prim, u, v, sample, weight, keys, depth, spawn, geom, m
                         dr = vec.madd(vec.madd(vec.scale(n, np.sqrt(max(0.0, 1.0 - s0))), tu, r * np.cos(phi)),
                                       tv, r * np.sin(phi))
                         _put(so, sd, sl, ss, sc, n_shadow, origin, dr, np.inf, s, c)
+                        rec.light[n_shadow] = -1
                         n_shadow += 1
                     counts[_N_SKY] += kk
             r0, r1 = 0.0, 0.0
@@ -299,6 +376,7 @@ def _shade_hits(o, d, t, prim, u, v, sample, weight, keys, depth, spawn, geom, m
                     c = vec.mul(wo, c)
                     if opt.shadows:  # the shadow ray (p, l, ε, dist): counts only if nothing is in between
                         _put(so, sd, sl, ss, sc, n_shadow, origin, l, dist - 2.0 * eps, s, c)
+                        rec.light[n_shadow] = j
                         n_shadow += 1
                         counts[_N_SHADOW] += 1
                     else:
@@ -313,14 +391,18 @@ def _shade_hits(o, d, t, prim, u, v, sample, weight, keys, depth, spawn, geom, m
         glass = (1.0 - k_m) * w_t
         mirror = vec.scale(vec.row(mats.mirror_tint, mat), k_m)
         r_dir = optics.reflect_dir(di, n)
+        r_n = n
         # Interpolated normals can tilt a reflection below the surface: use the geometric normal there.
         if vec.dot(r_dir, ng) <= 0.0:
             r_dir = optics.reflect_dir(di, ng)
+            r_n = ng
+        eta_i, eta_r, tir = 1.0, 1.0, False
         w_refl = vec.mul(w, mirror)
         if glass > 0.0:
             ior = float(mats.ior[mat])
             eta_i, eta_r = (1.0, ior) if front else (ior, 1.0)
             t_dir, tir = optics.refract_dir(di, n, eta_i, eta_r)
+            t_n = n
             if opt.fresnel:
                 fr = optics.fresnel_dielectric_1(-vec.dot(di, n), eta_i, eta_r)
             else:
@@ -333,14 +415,17 @@ def _shade_hits(o, d, t, prim, u, v, sample, weight, keys, depth, spawn, geom, m
                 w_tran = vec.scale(vec.mul(w, vec.row(mats.transmission_tint, mat)), glass * (1.0 - fr))
                 if vec.dot(t_dir, ng) >= 0.0:  # the shading normal bent it back out: refract about ng
                     t_dir, tir_ng = optics.refract_dir(di, ng, eta_i, eta_r)
+                    t_n = ng
                     if tir_ng:
                         w_tran = (0.0, 0.0, 0.0)
             if vec.max3(w_tran) > opt.min_weight:
                 j = n_rays + n_tran
                 _put_ray(no, nd, nw, ns, j, vec.madd(p, ng, -eps), vec.normalize(t_dir), w_tran, s)
+                _put_spawn(rec, j, t_n, eta_i, eta_r, False)
                 n_tran += 1
         if vec.max3(w_refl) > opt.min_weight:
             _put_ray(no, nd, nw, ns, n_refl, vec.madd(p, ng, eps), vec.normalize(r_dir), w_refl, s)
+            _put_spawn(rec, n_refl, r_n, eta_i, eta_r, tir)
             n_refl += 1
     counts[_N_REFLECTION] += n_refl
     counts[_N_TRANSMISSION] += n_tran
@@ -362,6 +447,15 @@ def _put_ray(no, nd, nw, ns, j, origin, direction, w, s):
     nd[j, 0], nd[j, 1], nd[j, 2] = direction
     nw[j, 0], nw[j, 1], nw[j, 2] = w
     ns[j] = s
+
+
+@kernel(inline=True)
+def _put_spawn(rec, j, n, eta_i, eta_r, tir):
+    """What a spawned ray's direction was computed from (for ``tracer.explain``): the unit normal on the incident
+    side, the two refractive indices and whether total internal reflection turned a transmission into it."""
+    rec.normal[j, 0], rec.normal[j, 1], rec.normal[j, 2] = n
+    rec.eta[j, 0], rec.eta[j, 1] = eta_i, eta_r
+    rec.tir[j] = tir
 
 
 @kernel

@@ -15,11 +15,11 @@ import numpy as np
 from .accel import Accelerator
 from .camera import eye_ray
 from .film import Image, box_filter, majority
-from .integrator import Integrator, RayCounts
+from .integrator import PATH_TYPES, Integrator, RayCounts
 from .jit import kernel
 from .sampling import uniform2_1
 from .scene import Scene
-from .settings import RenderSettings
+from .settings import RAY_TYPE_AOVS, RenderSettings
 
 
 class RenderCancelled(Exception):
@@ -115,6 +115,35 @@ def write_tile(image: Image, res, tile, spp: int) -> None:
         aovs["albedo"][y0:y1, x0:x1] = box_filter(res.albedo, spp).reshape(th, tw, 3)
     if "objectid" in aovs:
         aovs["objectid"][y0:y1, x0:x1] = majority(res.object_id, spp).reshape(th, tw)
+    for i, name in enumerate(PATH_TYPES):
+        if name in aovs:
+            aovs[name][y0:y1, x0:x1] = box_filter(res.by_type[:, i], spp).reshape(th, tw, 3)
+    if "raydepth" in aovs:
+        aovs["raydepth"][y0:y1, x0:x1] = res.deepest.reshape(th, tw, spp).max(axis=2)
+
+
+def empty_aovs(settings: RenderSettings, h: int, w: int) -> dict:
+    """The AOV arrays ``settings.aovs`` asks for, (h, w[, 3]), filled with their "nothing here" value."""
+    aovs = {}
+    if "depth" in settings.aovs:
+        aovs["depth"] = np.full((h, w), np.inf, np.float32)
+    if "normal" in settings.aovs:
+        aovs["normal"] = np.zeros((h, w, 3), np.float32)
+    if "albedo" in settings.aovs:
+        aovs["albedo"] = np.zeros((h, w, 3), np.float32)
+    if "objectid" in settings.aovs:
+        aovs["objectid"] = np.full((h, w), -1, np.int32)
+    for name in PATH_TYPES:
+        if name in settings.aovs:
+            aovs[name] = np.zeros((h, w, 3), np.float32)
+    if "raydepth" in settings.aovs:
+        aovs["raydepth"] = np.full((h, w), -1, np.int32)
+    return aovs
+
+
+def uses_ray_types(settings: RenderSettings) -> bool:
+    """Whether the integrator must split colours by ray type (a ray-type AOV is asked for)."""
+    return any(a in RAY_TYPE_AOVS for a in settings.aovs)
 
 
 def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None, cancelled=None) -> Image:
@@ -134,16 +163,8 @@ def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None
     w, h = settings.width, settings.height
     spp = settings.samples**2
     image = Image(rgba=np.zeros((h, w, 4), np.float32))
-    aovs = {}
-    if "depth" in settings.aovs:
-        aovs["depth"] = np.full((h, w), np.inf, np.float32)
-    if "normal" in settings.aovs:
-        aovs["normal"] = np.zeros((h, w, 3), np.float32)
-    if "albedo" in settings.aovs:
-        aovs["albedo"] = np.zeros((h, w, 3), np.float32)
-    if "objectid" in settings.aovs:
-        aovs["objectid"] = np.full((h, w), -1, np.int32)
-    image.aovs = aovs
+    image.aovs = empty_aovs(settings, h, w)
+    ray_types = uses_ray_types(settings)
     counts = RayCounts()
 
     def work(tile):
@@ -151,7 +172,7 @@ def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None
             return None
         x0, y0, x1, y1 = tile
         o, d, keys = eye_rays(scene, settings, x0, y0, x1, y1)
-        res = integ.trace(o, d, keys, cancelled)
+        res = integ.trace(o, d, keys, cancelled, ray_types=ray_types)
         if scene.camera.near > 0:  # depth is measured from the eye (the film plane for orthographic cameras)
             cam = scene.camera
             start = (np.linalg.norm(o - cam.position.astype(np.float32), axis=1) if cam.projection == "perspective"

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 
-AOV_NAMES = ("depth", "normal", "albedo", "objectid")
+AOV_NAMES = ("depth", "normal", "albedo", "objectid", "direct", "reflection", "transmission", "raydepth")
+#: AOVs that split the beauty by the ray type light arrived through (they sum to it), and the deepest ray per pixel.
+RAY_TYPE_AOVS = ("direct", "reflection", "transmission", "raydepth")
 
 
 @dataclass
@@ -37,7 +39,9 @@ class RenderSettings:
     tile_size: int = 128
     #: Worker threads (None = all cores). Images are identical for any thread count.
     threads: int | None = None
-    #: Arbitrary-output variables to produce besides the colour: any of depth, normal, albedo, objectid.
+    #: Arbitrary-output variables to produce besides the colour: any of depth, normal, albedo, objectid, and the
+    #: ray-type AOVs direct, reflection, transmission (colour by the path's first secondary ray; they sum to the
+    #: beauty) and raydepth (the deepest ray of the pixel's samples: 0 = eye rays only).
     aovs: tuple = ()
     #: Render only this pixel rectangle (x0, y0, x1, y1), top-left origin, exclusive upper bounds.
     region: tuple | None = None

@@ -72,7 +72,7 @@ def aov_path(image_path: str, aov: str) -> str:
     return f"{root}.{aov}.exr"
 
 
-def _check_output(path: str):
+def check_output(path: str):
     ext = os.path.splitext(path)[1].lower()
     if ext not in (".png", ".exr", ".jpg", ".jpeg", ".tif", ".tiff", ".hdr"):
         raise BadInput(f"{path}: unsupported output type {ext or '(none)'!r}; use .png or .exr")
@@ -113,8 +113,29 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--purposes", nargs="+", default=["default", "render"],
                    help="purposes to render, space- or comma-separated (default: default render)")
     r.add_argument("--threads", type=int, help="worker threads (default: all cores)")
-    r.add_argument("--aov", help="extra outputs: comma-separated depth,normal,albedo,objectid")
+    r.add_argument("--aov", help="extra outputs: comma-separated depth,normal,albedo,objectid (EXR), and "
+                   "direct,reflection,transmission (the beauty by first secondary ray), raydepth (EXR + heat-map PNG)")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    r.add_argument("--scheduler", help="render on a Dask cluster: tcp://HOST:PORT, tls://HOST:PORT, a scheduler "
+                   "file, or local:N (N local worker processes); frames are tasks, a single frame splits into tiles")
+    r.add_argument("--worker-writes", action="store_true", help="with --scheduler: workers write the frames "
+                   "themselves (OUT must be on a filesystem they share); default: the client writes every file")
+    r.add_argument("--ship-assets", action="store_true", help="with --scheduler: send the stage and its resolved "
+                   "assets to the workers as a .usdz (default: workers read SCENE's path on a shared filesystem)")
+    e = sub.add_parser("explain", help="the ray tree of one pixel: every ray that made it (tree, JSON, USD, PNG)")
+    e.add_argument("scene", help="USD file")
+    e.add_argument("--pixel", nargs=2, type=int, required=True, metavar=("X", "Y"),
+                   help="image pixel, origin top-left (the same image as render's --width/--height)")
+    e.add_argument("--camera", help="camera prim path (default: the first camera in the stage)")
+    e.add_argument("--frame", type=float, help="time code (default: the stage's default time)")
+    e.add_argument("--width", type=int, help="image width (default 960, or from --height and the aperture)")
+    e.add_argument("--height", type=int, help="image height")
+    e.add_argument("--spp", type=int, default=2, help="N for N×N samples per pixel, as render (default 2)")
+    e.add_argument("--max-depth", type=int, default=8, help="maximum reflection/refraction depth (default 8)")
+    e.add_argument("--purposes", nargs="+", default=["default", "render"])
+    e.add_argument("--json", help="write the tree as JSON (format in README)")
+    e.add_argument("--usd", help="write the tree as BasisCurves + camera over the stage (.usda)")
+    e.add_argument("--png", help="write the rendered image with the pixel marked and the rays drawn")
     i = sub.add_parser("info", help="list cameras, lights, meshes and materials of a USD stage")
     i.add_argument("scene")
     i.add_argument("--time", type=float, help="time code (default: earliest)")
@@ -133,7 +154,7 @@ def cmd_render(args) -> int:
     from .reader import load_stage
     from .stage import open_stage
 
-    _check_output(args.output)
+    check_output(args.output)
     for name in ("width", "height"):
         v = getattr(args, name)
         if v is not None and v <= 0:
@@ -144,7 +165,12 @@ def cmd_render(args) -> int:
             raise BadInput(f"--{name.replace('_', '-')} must be >= {lo}, got {v}")
     aovs = _parse_aovs(args.aov)
     frames = parse_frames(args.frames) if args.frames else [None]
+    for flag in ("ship_assets", "worker_writes"):
+        if getattr(args, flag) and not args.scheduler:
+            raise BadInput(f"--{flag.replace('_', '-')} needs --scheduler")
     stage = open_stage(args.scene)
+    if args.scheduler:
+        return _render_on_farm(args, frames, aovs)
     for frame in frames:
         scene, info = load_stage(stage, time=frame, camera=args.camera, width=args.width, height=args.height,
                                  purposes=split_purposes(args.purposes))
@@ -156,19 +182,41 @@ def cmd_render(args) -> int:
             _compile_kernels(quiet=args.quiet)
         image = render(scene, settings)
         out = frame_path(args.output, frame, len(frames) > 1) if frame is not None else args.output
-        try:
-            image.save(out)
-            for name in aovs:
-                a = image.aovs[name]
-                a = a[..., None] if a.ndim == 2 else a
-                _write_aov(aov_path(out, name), a.astype(np.float32))
-        except ValueError as exc:  # unwritable output (the tracer's film names the file and the reason)
-            raise BadInput(str(exc)) from None
+        write_outputs(image, out, aovs, max_depth=args.max_depth)
         if not args.quiet:
             s = image.stats
             print(f"{out}: {info.width}x{info.height}, {len(scene.triangles):,} triangles, "
                   f"{s['rays']['total']:,} rays in {s['seconds']:.2f} s", file=sys.stderr)
     return EXIT_OK
+
+
+def write_outputs(image, out, aovs, max_depth: int | None = None) -> None:
+    """The image and its AOVs (EXR next to it; ``raydepth`` also as a heat-map PNG scaled to ``max_depth``)."""
+    try:
+        image.save(out)
+        for name in aovs:
+            a = image.aovs[name]
+            a = a[..., None] if a.ndim == 2 else a
+            _write_aov(aov_path(out, name), a.astype(np.float32))
+            if name == "raydepth":  # and a heat-map picture of it (black: eye rays only; yellow: max depth)
+                from tracer.film import heat_map
+
+                _write_aov(aov_path(out, name)[:-4] + ".png", heat_map(a[..., 0], max_depth))
+    except ValueError as exc:  # unwritable output (the tracer's film names the file and the reason)
+        raise BadInput(str(exc)) from None
+
+
+def _render_on_farm(args, frames, aovs) -> int:
+    """--scheduler: the same frames and files on a Dask cluster (usd_io.farm)."""
+    from .farm import FarmInputError, render_on_farm
+
+    settings = dict(samples=args.spp, max_depth=args.max_depth, threads=args.threads, aovs=aovs)
+    name = (lambda f: frame_path(args.output, f, len(frames) > 1) if f is not None else args.output)
+    try:
+        return render_on_farm(args, frames, settings, name,
+                              lambda image, out: write_outputs(image, out, aovs, max_depth=args.max_depth))
+    except FarmInputError as exc:
+        raise BadInput(str(exc)) from None
 
 
 def _compile_kernels(quiet: bool) -> None:
@@ -229,6 +277,15 @@ def _describe_light(light) -> str:
     return f"{type(light).__name__}(" + ", ".join(parts) + ")"
 
 
+def cmd_explain(args) -> int:
+    from .explain import cmd_explain as run
+
+    return run(args)
+
+
+_COMMANDS = {"render": cmd_render, "info": cmd_info, "explain": cmd_explain}
+
+
 def main(argv=None) -> int:
     from .stage import UsdInputError
 
@@ -236,7 +293,7 @@ def main(argv=None) -> int:
         args = build_parser().parse_args(argv)
         with warnings.catch_warnings():
             warnings.simplefilter("default")
-            code = cmd_render(args) if args.command == "render" else cmd_info(args)
+            code = _COMMANDS[args.command](args)
     except (BadInput, UsdInputError) as exc:
         print(f"whitted: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return EXIT_BAD_INPUT

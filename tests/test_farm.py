@@ -1,0 +1,176 @@
+"""Render farm on Dask (tracer.farm, usd_io.farm, ``whitted render --scheduler``): the same files as a local render,
+bit for bit, for frames and for a frame split into tiles; a worker killed mid-run; scene errors reported once."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+
+import numpy as np
+import pytest
+from pxr import Gf, Usd, UsdGeom, UsdLux
+
+from tracer import read_image, render
+
+distributed = pytest.importorskip("distributed", reason="the farm needs dask[distributed] (test extra)")
+
+FRAMES = "1:8"
+
+
+def _stage(path, frames=8):
+    s = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(s, "Z")
+    cam = UsdGeom.Camera.Define(s, "/Cam")
+    cam.CreateHorizontalApertureAttr(4.0)
+    cam.CreateVerticalApertureAttr(3.0)
+    cam.CreateFocalLengthAttr(5.0)
+    cam.AddTranslateOp().Set(Gf.Vec3d(0, 0, 8))
+    ball = UsdGeom.Sphere.Define(s, "/Ball")
+    op = ball.AddTranslateOp()
+    op.Set(Gf.Vec3d(-2, 0, 0), 1.0)
+    op.Set(Gf.Vec3d(2, 0, 0), float(frames))
+    floor = UsdGeom.Cube.Define(s, "/Floor")
+    floor.AddTranslateOp().Set(Gf.Vec3d(0, 0, -2))
+    floor.AddScaleOp().Set(Gf.Vec3f(6, 6, 0.5))
+    light = UsdLux.SphereLight.Define(s, "/Light")
+    light.CreateIntensityAttr(300.0)
+    light.AddTranslateOp().Set(Gf.Vec3d(2, 2, 6))
+    s.GetRootLayer().Save()
+    return str(path)
+
+
+@pytest.fixture(scope="module")
+def anim(tmp_path_factory):
+    return _stage(tmp_path_factory.mktemp("farm") / "anim.usda")
+
+
+@pytest.fixture(scope="module")
+def client():
+    from dask.distributed import Client, LocalCluster
+
+    import logging
+
+    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                           dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
+    c = Client(cluster)
+    yield c
+    c.close()
+    cluster.close()
+
+
+def _cli(*args):
+    from usd_io.cli import main
+
+    return main([str(a) for a in args])
+
+
+def test_frames_on_two_workers_give_the_local_files(anim, tmp_path, capsys):
+    local, farm, shared = tmp_path / "local", tmp_path / "farm", tmp_path / "shared"
+    for d in (local, farm, shared):
+        d.mkdir()
+    common = ("--frames", FRAMES, "--width", 64, "--spp", 2, "--aov", "depth", "--quiet")
+    assert _cli("render", anim, "-o", local / "f.####.png", *common) == 0
+    assert _cli("render", anim, "-o", farm / "f.####.png", *common, "--scheduler", "local:2") == 0
+    assert _cli("render", anim, "-o", shared / "f.####.png", *common, "--scheduler", "local:2",
+                "--worker-writes") == 0  # the workers write to the (here: local, i.e. shared) directory
+    names = sorted(os.listdir(local))
+    assert len(names) == 16 and names == sorted(os.listdir(farm)) == sorted(os.listdir(shared))  # 8 + 8 AOVs
+    for other in (farm, shared):
+        for n in names:
+            if n.endswith(".png"):
+                assert (local / n).read_bytes() == (other / n).read_bytes(), other / n
+            else:  # OpenEXR stamps the write time (capDate) in the header: compare the pixels
+                assert np.array_equal(read_image(local / n), read_image(other / n)), other / n
+    # The ball moves: the frames differ from each other (the farm did not render one frame eight times).
+    assert (farm / "f.0001.png").read_bytes() != (farm / "f.0008.png").read_bytes()
+
+
+def test_a_frame_split_into_four_tiles_equals_the_single_process_frame(anim, client):
+    from tracer.farm import frame_tiles, render_tiled
+    from usd_io.farm import UsdSource
+
+    settings = dict(samples=2, max_depth=4, aovs=("depth", "objectid", "normal", "reflection", "raydepth"))
+    source = UsdSource(path=anim, width=200, height=150, settings=settings)
+    scene, st = source.load(3.0)
+    assert len(frame_tiles(st, 128)) == 4
+    tiled = render_tiled(client, source, 3.0, tile_size=128)
+    whole = render(scene, st)
+    assert np.array_equal(tiled.rgba, whole.rgba)
+    for name in settings["aovs"]:
+        assert np.array_equal(tiled.aovs[name], whole.aovs[name]), name
+    assert tiled.rgba[..., :3].max() > 0.05  # a lit picture, not an empty one
+
+
+def test_shipped_assets_render_the_same_frame(anim, client, tmp_path):
+    """--ship-assets: workers read a .usdz the client built (here the original path is hidden from them)."""
+    from tracer.farm import render_frames
+    from usd_io.farm import UsdSource, package_assets
+
+    source = UsdSource(path=anim, width=48, settings=dict(samples=1))
+    expected = render(*source.load(2.0))
+    hidden = UsdSource(path=str(tmp_path / "not-on-the-workers.usda"), width=48, settings=dict(samples=1))
+    (res,) = list(render_frames(client, hidden, [2.0], assets=package_assets(anim)))
+    assert res.error is None
+    assert np.array_equal(res.image.rgba, expected.rgba)
+
+
+def test_scene_errors_fail_each_frame_once_with_their_message(anim, tmp_path, capsys):
+    code = _cli("render", anim, "-o", tmp_path / "f.####.png", "--frames", "1:3", "--width", 32,
+                "--camera", "/NoSuchCamera", "--scheduler", "local:1", "--quiet")
+    err = capsys.readouterr().err
+    assert code == 2
+    lines = [ln for ln in err.splitlines() if ln.startswith("whitted: error: frame")]
+    assert len(lines) == 3 and all("/NoSuchCamera" in ln for ln in lines), err
+    assert "Traceback" not in err
+    assert not list(tmp_path.glob("f.*"))
+
+
+@pytest.mark.parametrize("address", ["foo", "local:0", "tls://127.0.0.1:1"])
+def test_bad_scheduler_is_one_line_exit_2(anim, tmp_path, capsys, address):
+    assert _cli("render", anim, "-o", tmp_path / "x.png", "--scheduler", address) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("whitted: error: --scheduler"), err
+
+
+def test_a_worker_killed_mid_run_still_completes_every_frame(tmp_path):
+    """SIGKILL one of two workers while it renders: Dask reschedules its task on the other (restarted) worker."""
+    from dask.distributed import Client, LocalCluster
+
+    import logging
+
+    from tracer.farm import render_frames
+    from usd_io.farm import UsdSource
+
+    path = _stage(tmp_path / "slow.usda")
+    source = UsdSource(path=path, width=240, settings=dict(samples=3))
+    frames = [float(f) for f in range(1, 9)]
+    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                           dashboard_address="127.0.0.1:0", silence_logs=logging.CRITICAL)
+    client = Client(cluster)
+    try:
+        pids = client.run(os.getpid)
+        killed = []
+
+        def kill_a_busy_worker(result):
+            if killed:
+                return
+            deadline = time.monotonic() + 10
+            while time.monotonic() < deadline:
+                busy = [w for w, keys in client.processing().items() if keys and w in pids]
+                if busy:
+                    os.kill(pids[busy[0]], signal.SIGKILL)
+                    killed.append(busy[0])
+                    return
+                time.sleep(0.01)
+
+        results = {r.frame: r for r in render_frames(client, source, frames, on_result=kill_a_busy_worker)}
+        assert killed, "no worker was busy after the first frame: the test did not exercise a failure"
+        assert sorted(results) == frames
+        assert all(r.error is None for r in results.values()), [r.error for r in results.values()]
+        for f in (frames[1], frames[-1]):
+            assert np.array_equal(results[f].image.rgba, render(*source.load(f)).rgba)
+    finally:
+        client.close()
+        cluster.close()

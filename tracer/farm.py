@@ -1,0 +1,238 @@
+"""Render farms on Dask: frames and tiles as Dask tasks, for any scene source.
+
+The tracer does not know where scenes come from, so a farm job names a *scene source*: a small picklable object
+with ``load(frame) -> (Scene, RenderSettings)`` (``usd_io.farm.UsdSource`` reads a USD stage). Workers load the scene
+themselves and keep it prepared for the tasks that share it (every tile of a frame), so nothing is exported per
+tile. The client only submits, assembles and writes:
+
+    from dask.distributed import Client
+    from tracer.farm import render_frames
+    from usd_io.farm import UsdSource
+
+    client = Client("tcp://scheduler:8786")
+    for frame, image in render_frames(client, UsdSource("/shared/shot.usd", width=1920), range(1, 241)):
+        image.save(f"/shared/out.{int(frame):04d}.png")
+
+With ``assets`` (bytes the source can unpack, e.g. a .usdz package of a stage and its dependencies), the package
+is sent to every worker once and the workers read it instead of a shared path.
+
+Pixels are those of a local render, bit for bit: sample patterns are keyed by pixel, and a tile renders its pixels
+exactly as the whole frame would. A worker that dies mid-task has its task run again elsewhere (Dask's scheduler does
+that, up to ``distributed.scheduler.allowed-failures`` times); a task that raises (a scene problem) fails once, with
+its error, and is not retried.
+"""
+
+from __future__ import annotations
+
+import collections
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .film import Image
+from .settings import RenderSettings
+
+#: Tile edge of a split frame: big enough that per-task overhead (a few ms) is small against the tile's work.
+DEFAULT_FARM_TILE = 512
+
+#: Prepared scenes a worker keeps (frames or sources beyond this are loaded again).
+WORKER_CACHE_SIZE = 2
+
+
+class FarmError(RuntimeError):
+    """A frame or tile that failed on the farm for a reason that retrying will not fix (its message says which)."""
+
+
+@dataclass(frozen=True)
+class FrameResult:
+    frame: object
+    image: Image | None
+    error: str | None = None
+
+
+# ---------------------------------------------------------------------------------------------------- worker side
+_cache: "collections.OrderedDict" = collections.OrderedDict()
+_cache_lock = threading.Lock()
+
+
+def prepared(source, frame):
+    """The worker's prepared (scene, settings, renderer) for ``source`` at ``frame``, loaded once and kept for the
+    next tasks that share it (an LRU of :data:`WORKER_CACHE_SIZE` entries per worker process)."""
+    key = (_token(source), frame)
+    with _cache_lock:
+        hit = _cache.get(key)
+        if hit is not None:
+            _cache.move_to_end(key)
+            return hit
+    scene, settings = source.load(frame)
+    if settings.threads is None:  # share the machine with the worker's other task slots
+        settings = settings.with_(threads=_threads_per_task())
+    entry = (scene, settings, _TileRenderer(scene, settings))
+    with _cache_lock:
+        _cache[key] = entry
+        while len(_cache) > WORKER_CACHE_SIZE:
+            _cache.popitem(last=False)
+    return entry
+
+
+def _threads_per_task() -> int:
+    import os
+
+    try:
+        from dask.distributed import get_worker
+
+        slots = get_worker().state.nthreads
+    except (ImportError, ValueError, AttributeError):  # not on a Dask worker
+        slots = 1
+    return max(1, (os.cpu_count() or 1) // max(1, slots))
+
+
+def render_frame_task(source, frame, assets=None, write=None) -> Image | None:
+    """Dask task: one whole frame, as the local ``tracer.render`` would give it; with ``write`` (a picklable
+    ``write(image, frame)``), the worker writes it itself and returns None (nothing travels back)."""
+    from .render import render
+
+    scene, settings, _ = prepared(_with_assets(source, assets), frame)
+    image = render(scene, settings.with_(progress=False))
+    image.stats.pop("ray_batches", None)
+    if write is not None:
+        write(image, frame)
+        return None
+    return image
+
+
+def render_tile_task(source, frame, tile, assets=None) -> tuple:
+    """Dask task: the pixels of ``tile`` = (x0, y0, x1, y1) of one frame -> (tile, rgba, aovs)."""
+    _scene, settings, renderer = prepared(_with_assets(source, assets), frame)
+    rgba, aovs = renderer.tile(settings, tile)
+    return tile, rgba, aovs
+
+
+class _TileRenderer:
+    """Renders pixel rectangles of one prepared scene into tile-sized arrays (memory bounded by the tile)."""
+
+    def __init__(self, scene, settings):
+        self.scene = scene
+        self._integ = None
+        self._lock = threading.Lock()
+
+    def tile(self, settings: RenderSettings, tile):
+        from .accel import Accelerator
+        from .integrator import Integrator
+        from .render import empty_aovs, eye_rays, uses_ray_types, write_tile
+
+        with self._lock:
+            if self._integ is None:
+                self._integ = Integrator(self.scene, settings.validate(), Accelerator(self.scene))
+        x0, y0, x1, y1 = tile
+        th, tw = y1 - y0, x1 - x0
+        o, d, keys = eye_rays(self.scene, settings, x0, y0, x1, y1)
+        res = self._integ.trace(o, d, keys, ray_types=uses_ray_types(settings))
+        cam = self.scene.camera
+        if cam.near > 0:  # as tracer.render: depth from the eye (the film plane for orthographic cameras)
+            res.depth += (np.linalg.norm(o - cam.position.astype(np.float32), axis=1)
+                          if cam.projection == "perspective" else np.float32(cam.near))
+        img = Image(rgba=np.zeros((th, tw, 4), np.float32), aovs=empty_aovs(settings, th, tw))
+        write_tile(img, res, (0, 0, tw, th), settings.samples**2)
+        return img.rgba, img.aovs
+
+
+# ---------------------------------------------------------------------------------------------------- client side
+def frame_tiles(settings: RenderSettings, tile_size: int = DEFAULT_FARM_TILE) -> list:
+    """Tile rectangles of a split frame, aligned to the renderer's own tile grid (so every pixel is traced in the
+    same tile-relative order as locally; pixels do not depend on it, but this keeps the work per task even)."""
+    step = max(settings.tile_size, (tile_size // settings.tile_size) * settings.tile_size)
+    x0, y0, x1, y1 = settings.region or (0, 0, settings.width, settings.height)
+    return [(x, y, min(x + step, x1), min(y + step, y1)) for y in range(y0, y1, step) for x in range(x0, x1, step)]
+
+
+def render_frames(client, source, frames, *, assets=None, write=None, on_result=None):
+    """Render ``frames`` of ``source`` as one Dask task each; yields :class:`FrameResult` in completion order.
+
+    With ``write`` (a picklable ``write(image, frame)`` run on the worker, e.g. to a shared filesystem), results carry
+    no image: nothing but the task's status returns to the client, which then costs nothing per frame.
+
+    Only finished frames are held on the client (each is released from the cluster as soon as it arrives). A frame
+    whose task raised yields a result with ``error`` set (once: tasks are not retried for their own errors)."""
+    from dask.distributed import as_completed
+
+    shipped = _ship(client, assets)
+    futures = {}
+    for frame in frames:
+        fut = client.submit(render_frame_task, source, frame, shipped, write, key=f"whitted-frame-{_token(source)}-{frame}",
+                            pure=False)
+        futures[fut] = frame
+    for fut in as_completed(list(futures)):
+        frame = futures.pop(fut)
+        try:
+            result = FrameResult(frame, fut.result())
+        except Exception as exc:  # noqa: BLE001 — the task's own error, reported per frame
+            result = FrameResult(frame, None, _one_line(exc))
+        fut.release()
+        if on_result is not None:
+            on_result(result)
+        yield result
+
+
+def render_tiled(client, source, frame=None, *, tile_size: int = DEFAULT_FARM_TILE, assets=None,
+                 on_tile=None) -> Image:
+    """Render one frame split into tile tasks and assemble it on the client.
+
+    Tiles stream back as they finish and are copied into the image at once, so the client holds the image plus the
+    tiles in transit, not every task's result. Raises :class:`FarmError` if a tile fails."""
+    from dask.distributed import as_completed
+
+    shipped = _ship(client, assets)
+    settings = client.submit(_settings_task, source, frame, shipped, pure=False).result()
+    tiles = frame_tiles(settings, tile_size)
+    h, w = settings.height, settings.width
+    from .render import empty_aovs
+
+    image = Image(rgba=np.zeros((h, w, 4), np.float32), aovs=empty_aovs(settings, h, w))
+    start = time.perf_counter()
+    futs = [client.submit(render_tile_task, source, frame, t, shipped, key=f"whitted-tile-{_token(source)}-{frame}-{t}",
+                          pure=False) for t in tiles]
+    for fut in as_completed(futs):
+        try:
+            (x0, y0, x1, y1), rgba, aovs = fut.result()
+        except Exception as exc:  # noqa: BLE001
+            for f in futs:
+                f.cancel()
+            raise FarmError(f"frame {frame}: a tile failed: {_one_line(exc)}") from None
+        fut.release()
+        image.rgba[y0:y1, x0:x1] = rgba
+        for name, a in aovs.items():
+            image.aovs[name][y0:y1, x0:x1] = a
+        if on_tile is not None:
+            on_tile((x0, y0, x1, y1))
+    image.stats = {"seconds": time.perf_counter() - start, "tiles": len(tiles)}
+    return image
+
+
+def _settings_task(source, frame, assets=None) -> RenderSettings:
+    return prepared(_with_assets(source, assets), frame)[1]
+
+
+def _with_assets(source, assets):
+    """A source reading the shipped package ``assets`` (bytes) instead of its own path, when one was shipped."""
+    return source if assets is None else source.unpacked(assets)
+
+
+def _ship(client, assets):
+    """Send a package's bytes to every worker once; tasks receive it as an argument (None: nothing shipped)."""
+    if assets is None:
+        return None
+    return client.scatter(assets, broadcast=True, hash=True)
+
+
+def _token(source) -> str:
+    from dask.base import tokenize
+
+    return tokenize(source)
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text

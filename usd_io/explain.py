@@ -1,0 +1,115 @@
+"""``whitted explain --usd``: a pixel's ray tree as USD ``BasisCurves`` beside the stage it explains.
+
+One linear curve per ray segment under ``/WhittedRays/<type>`` (colour per ray type as ``displayColor``, width by
+the ray's weight), the camera the pixel was rendered from as ``/WhittedRays/Camera``, and the original stage as a
+sublayer, so ``usdview`` or Blender opens the rays inside the scene.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+from pxr import Gf, Sdf, Usd, UsdGeom, Vt
+
+from tracer.camera import ORTHOGRAPHIC
+from tracer.explain import RAY_KINDS, TYPE_COLORS, segments
+
+#: Curve widths: a ray of weight 1 is this fraction of the scene's size wide; thinner with less weight.
+WIDTH_FRACTION = 0.004
+
+
+def write_ray_tree(ex, scene, path: str, stage_path: str | None = None) -> None:
+    """Write ``ex`` (a :class:`tracer.explain.Explanation` of ``scene``) to the USD file ``path``."""
+    stage = Usd.Stage.CreateInMemory()
+    layer = stage.GetRootLayer()
+    if stage_path:
+        rel = os.path.relpath(os.path.abspath(stage_path), os.path.dirname(os.path.abspath(path)))
+        layer.subLayerPaths.append(rel)
+    root = UsdGeom.Xform.Define(stage, "/WhittedRays")
+    stage.SetDefaultPrim(root.GetPrim())
+    a, b, rays = segments(ex, scene)
+    size = max(scene.diagonal, 1e-3)
+    for kind in RAY_KINDS:
+        idx = [i for i, r in enumerate(rays) if r.type == kind]
+        if not idx:
+            continue
+        curves = UsdGeom.BasisCurves.Define(stage, f"/WhittedRays/{kind}")
+        curves.CreateTypeAttr(UsdGeom.Tokens.linear)
+        pts = np.stack([a[idx], b[idx]], axis=1).reshape(-1, 3)
+        curves.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(pts.astype(np.float32)))
+        curves.CreateCurveVertexCountsAttr(Vt.IntArray([2] * len(idx)))
+        weight = np.array([float(np.max(rays[i].weight)) for i in idx])
+        widths = size * WIDTH_FRACTION * np.clip(np.sqrt(np.maximum(weight, 0)), 0.15, 1.0)
+        curves.CreateWidthsAttr(Vt.FloatArray(np.repeat(widths, 2).astype(np.float32).tolist()))
+        curves.SetWidthsInterpolation(UsdGeom.Tokens.vertex)
+        curves.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(*TYPE_COLORS[kind])]))
+        ids = UsdGeom.PrimvarsAPI(curves).CreatePrimvar("whitted:rayId", Sdf.ValueTypeNames.IntArray,
+                                                        UsdGeom.Tokens.uniform)
+        ids.Set(Vt.IntArray([int(rays[i].id) for i in idx]))
+    _camera(stage, scene.camera)
+    layer.customLayerData = {"whitted:pixel": Vt.IntArray(list(ex.pixel)),
+                             "whitted:color": Gf.Vec3f(*map(float, ex.color))}
+    layer.Export(path)
+
+
+def _camera(stage, cam) -> None:
+    uc = UsdGeom.Camera.Define(stage, "/WhittedRays/Camera")
+    uc.AddTransformOp().Set(Gf.Matrix4d(np.asarray(cam.camera_to_world, float).T.tolist()))
+    ortho = cam.projection == ORTHOGRAPHIC
+    scale = 10.0 if ortho else 1.0  # USD orthographic apertures are in tenths of a stage unit
+    uc.CreateProjectionAttr(UsdGeom.Tokens.orthographic if ortho else UsdGeom.Tokens.perspective)
+    uc.CreateFocalLengthAttr(float(cam.focal_length))
+    uc.CreateHorizontalApertureAttr(float(cam.horizontal_aperture) * scale)
+    uc.CreateVerticalApertureAttr(float(cam.vertical_aperture) * scale)
+    uc.CreateHorizontalApertureOffsetAttr(float(cam.horizontal_aperture_offset) * scale)
+    uc.CreateVerticalApertureOffsetAttr(float(cam.vertical_aperture_offset) * scale)
+    far = cam.far if np.isfinite(cam.far) else 1e6
+    uc.CreateClippingRangeAttr(Gf.Vec2f(max(cam.near, 1e-3), float(far)))
+
+
+def cmd_explain(args) -> int:
+    """``whitted explain SCENE --pixel X Y``: the tree on stdout, and the JSON / USD / PNG files asked for."""
+    import json
+    import sys
+
+    from tracer import RenderSettings, render, write_image
+    from tracer.explain import draw_overlay, explain_pixel, format_tree
+
+    from .cli import BadInput, check_output
+    from .reader import load_stage
+
+    for out, exts in ((args.json, (".json",)), (args.usd, (".usda", ".usd", ".usdc")), (args.png, (".png",))):
+        if out is None:
+            continue
+        if os.path.splitext(out)[1].lower() not in exts:
+            raise BadInput(f"{out}: expected a {' or '.join(exts)} file")
+        if not os.path.isdir(os.path.dirname(os.path.abspath(out))):
+            raise BadInput(f"{out}: output directory does not exist")
+    if args.png:
+        check_output(args.png)
+    scene, info = load_stage(args.scene, time=args.frame, camera=args.camera, width=args.width,
+                             height=args.height, purposes=args.purposes)
+    x, y = args.pixel
+    if not (0 <= x < info.width and 0 <= y < info.height):
+        raise BadInput(f"--pixel {x} {y} is outside the {info.width}x{info.height} image")
+    settings = RenderSettings(width=info.width, height=info.height, samples=args.spp, max_depth=args.max_depth)
+    ex = explain_pixel(scene, settings, x, y)
+    print(format_tree(ex))
+    if args.json:
+        _atomic_text(args.json, json.dumps(ex.to_json(), indent=1))
+    if args.usd:
+        write_ray_tree(ex, scene, args.usd, stage_path=args.scene)
+    if args.png:
+        image = render(scene, settings)
+        write_image(args.png, draw_overlay(ex, scene, image.rgba))
+    for w in info.warnings:
+        print(f"whitted: warning: {w}", file=sys.stderr)
+    return 0
+
+
+def _atomic_text(path, text) -> None:
+    tmp = f"{path}.{os.getpid()}.part"
+    with open(tmp, "w") as f:
+        f.write(text + "\n")
+    os.replace(tmp, path)
