@@ -44,7 +44,9 @@ import numpy as np
 from pxr import Sdf, UsdGeom, UsdShade
 
 from . import shade_network as net
+from .material_primvars import mesh_primvars
 from .texture_files import TextureCache, resolve_wrap
+from .tracer_model import ModelWriter, TextureSpec
 
 FALLBACK_DIFFUSE = (0.18, 0.18, 0.18)  # UsdPreviewSurface's diffuseColor fallback
 DEFAULT_DISPLAY = (0.5, 0.5, 0.5)  # Hydra's colour for geometry with neither material nor displayColor
@@ -101,8 +103,9 @@ class MaterialTable:
         self.by_path: dict[str, tuple[int, MeshNeeds]] = {}  # material path -> (row, needs)
         self.summary: dict[str, dict] = {}  # material name -> tracer fields (for `whitted info`)
         self.files = TextureCache()
-        self._textures: dict = {}  # lookup key -> texture index
+        self._textures: dict = {}  # lookup key -> TextureSpec
         self.uv_set_names: list[str] = [DEFAULT_UV]  # index in Scene.uv_sets
+        self.writer = ModelWriter(builder, warn)
 
     # ------------------------------------------------------------------ binding
     @staticmethod
@@ -145,6 +148,11 @@ class MaterialTable:
         tri_rows = per_face[faces]
         return np.where(tri_rows >= 0, tri_rows, row), needs
 
+    def mesh_inputs(self, prim, data, rows, needs: MeshNeeds):
+        """(per-triangle material rows, add_mesh keywords: UV sets and vertex colours) for one mesh."""
+        uv_sets, colors = mesh_primvars(prim, data, needs, self.uv_set_names, self.time, self.warn)
+        return self.writer.mesh_kwargs(str(prim.GetPath()), rows, len(data.triangles), uv_sets, colors)
+
     def uv_set_index(self, name: str | None) -> int:
         """Index in Scene.uv_sets of a texture's UV primvar (None and "st" read the mesh's default set 0)."""
         key = DEFAULT_UV if name in (None, "", "st") else name
@@ -169,7 +177,7 @@ class MaterialTable:
     def _plain(self, name, rgb, **extra):
         fields = self.model(base_color=tuple(float(x) for x in rgb), specular=0.0, **extra)
         self.summary.setdefault(name, fields)
-        return self.b.add_material(name, **fields)
+        return self.writer.add_material(name, fields)
 
     # ------------------------------------------------------------------ UsdShade.Material
     def material(self, mat: UsdShade.Material):
@@ -177,8 +185,9 @@ class MaterialTable:
         if key in self.by_path:
             return self.by_path[key]
         fields, needs = self.convert(mat)
-        row = self.b.add_material(key, **fields)
-        self.summary[key] = {k: (tuple(round(float(x), 4) for x in np.ravel(v)) if np.ndim(v) else
+        row = self.writer.add_material(key, fields)
+        self.summary[key] = {k: (v.label if isinstance(v, TextureSpec) else
+                                 tuple(round(float(x), 4) for x in np.ravel(v)) if np.ndim(v) else
                                  (round(float(v), 4) if isinstance(v, float) else v)) for k, v in fields.items()}
         self.by_path[key] = (row, needs)
         return row, needs
@@ -374,9 +383,8 @@ class MaterialTable:
         needs.uv_sets.add(self.uv_set_names[uv_set])
         key = (id(f.pixels), wrap_s, wrap_t, uv_set, lk.transform.round(9).tobytes(), lk.scale, lk.bias, lk.fallback)
         if key not in self._textures:
-            self._textures[key] = self.b.add_texture(self.texture(
-                f.pixels, wrap_s=wrap_s, wrap_t=wrap_t, uv_set=uv_set, transform=lk.transform, scale=lk.scale,
-                bias=lk.bias, fallback=lk.fallback))
+            self._textures[key] = TextureSpec(f.pixels, wrap_s, wrap_t, uv_set, lk.transform, lk.scale, lk.bias,
+                                              lk.fallback, label=f"{asset.path} ({lk.node})")
         return self._textures[key], None
 
     # ------------------------------------------------------------------ the tracer's model
@@ -384,12 +392,6 @@ class MaterialTable:
     def model(**fields) -> dict:
         """A tracer material row (fields of docs/materials-api.md)."""
         return dict(fields)
-
-    @staticmethod
-    def texture(pixels, **kw):
-        import tracer
-
-        return tracer.Texture(image=pixels, **kw)
 
     # ------------------------------------------------------------------ MaterialX
     def materialx(self, s: UsdShade.Shader, fields: dict, label: str) -> dict:

@@ -67,17 +67,26 @@ def corner_values(prim, name: str, tri, n_points: int, n_face_vertices: int, tim
     return (None if out is None else out.astype(np.float32)), why
 
 
-def mesh_primvars(prim, data, needs, uv_set_names: list, time, warn) -> dict:
-    """``SceneBuilder.add_mesh`` keyword arguments for what a mesh's materials read: ``uv_sets`` {set index:
-    (T, 3, 2)} (set 0 also as ``uvs``) and ``colors`` (T, 3, 3). Gprims (no primvars) get nothing."""
+def mesh_primvars(prim, data, needs, uv_set_names: list, time, warn):
+    """(uv_sets {set index: (T, 3, 2)}, colors (T, 3, 3) or None): the per-corner primvars a mesh's materials read
+    (set 0, the mesh's default set, always). Gprims (no primvars) give a constant colour fallback only."""
     from .mesh import Triangulation
 
-    out: dict = {}
+    colors = None
     if not prim.IsA(UsdGeom.Mesh) or getattr(data, "corners", None) is None:
-        if needs.color is not None:
-            out["colors"] = np.broadcast_to(np.asarray(needs.color[1], np.float32),
-                                            (len(data.triangles), 3, 3)).copy()
-        return out
+        if needs.color is not None:  # a tessellated gprim: one colour (non-constant ones averaged)
+            name, fallback = needs.color
+            pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar(name)
+            vals = pv.ComputeFlattened(time) if pv and pv.HasValue() else None
+            c = np.asarray(fallback, np.float64)
+            if vals is not None and len(vals):
+                v = np.asarray(vals, np.float64).reshape(len(vals), -1)[:, :3]
+                if len(v) > 1 and np.ptp(v, axis=0).max() > 0:
+                    warn(f"{prim.GetPath()}: primvars:{name} with {pv.GetInterpolation()} interpolation on a "
+                         f"{prim.GetTypeName()} is averaged")
+                c = v.mean(axis=0)
+            colors = np.broadcast_to(np.asarray(c, np.float32), (len(data.triangles), 3, 3)).copy()
+        return {}, colors
     tri = Triangulation(data.triangles, data.corners, data.faces, data.n_faces)
     n_points, n_fv = len(data.points), data.n_face_vertices
     sets = {}
@@ -91,19 +100,14 @@ def mesh_primvars(prim, data, needs, uv_set_names: list, time, warn) -> dict:
             warn(f"{why} (ignored)")
         if uv is not None:
             sets[index] = uv
-    if sets:
-        out["uv_sets"] = sets
-        if 0 in sets:
-            out["uvs"] = sets[0]
     if needs.color is not None:
         name, fallback = needs.color
-        col, why = corner_values(prim, name, tri, n_points, n_fv, time, 3)
+        colors, why = corner_values(prim, name, tri, n_points, n_fv, time, 3)
         if why:
             warn(f"{why} (its fallback is used)")
-        if col is None:
-            col = np.broadcast_to(np.asarray(fallback, np.float32), (len(data.triangles), 3, 3)).copy()
-        out["colors"] = col
-    return out
+        if colors is None:
+            colors = np.broadcast_to(np.asarray(fallback, np.float32), (len(data.triangles), 3, 3)).copy()
+    return sets, colors
 
 
 def replicate_corners(mats: np.ndarray, extra: dict) -> dict:
@@ -122,6 +126,8 @@ def replicate_corners(mats: np.ndarray, extra: dict) -> dict:
         out["uv_sets"] = {i: rep(a) for i, a in extra["uv_sets"].items()}
         if 0 in out["uv_sets"]:
             out["uvs"] = out["uv_sets"][0]
+    elif extra.get("uvs") is not None:
+        out["uvs"] = rep(extra["uvs"])
     if "colors" in extra:
         out["colors"] = rep(extra["colors"])
     return out

@@ -19,7 +19,7 @@ from .instancing import instance_matrices, replicate
 from .dome import environment
 from .lights import convert_light
 from .material import MaterialTable
-from .material_primvars import mesh_primvars, replicate_corners
+from .material_primvars import replicate_corners
 from .mesh import MeshData, read_mesh
 from .stage import (DEFAULT_PURPOSES, UsdInputError, check_purposes, composition_warnings, open_stage,
                     renderable_prims, stage_messages, stage_time)
@@ -86,7 +86,7 @@ class _Reader:
     def shaded(self, prim, data: MeshData):
         """(data, per-triangle material rows, add_mesh keywords for UV sets and vertex colours)"""
         material, needs = self.mats.for_prim(prim, data.n_faces, data.faces)
-        extra = mesh_primvars(prim, data, needs, self.mats.uv_set_names, self.time, self.info.warn)
+        material, extra = self.mats.mesh_inputs(prim, data, material, needs)
         for w in data.warnings:
             self.info.warn(w)
         return data, material, extra

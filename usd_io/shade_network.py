@@ -108,8 +108,9 @@ def floats(v, n: int, default) -> tuple:
         return tuple(float(x) for x in default)
     if a.size == 1:
         a = np.repeat(a, n)
-    out = list(a[:n]) + [float(x) for x in default][a.size:n]
-    return tuple(float(x) for x in out)
+    if a.size >= n:
+        return tuple(float(x) for x in a[:n])
+    return tuple(float(x) for x in a) + tuple(float(x) for x in list(default)[a.size:n])
 
 
 def source(shader: UsdShade.Shader, name: str, fallback, time=None):

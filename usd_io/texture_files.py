@@ -16,6 +16,8 @@ UsdUVTexture conventions (UsdPreviewSurface spec 2.5):
 - ``wrapS/wrapT = useMetadata``: the file's ``wrapmodes`` metadata (TIFF/OpenEXR/TX; ``periodic`` = repeat), else
   **repeat** (see docs/usd.md: the spec says black, but Blender, Arnold and the usd-wg assets expect repeat).
 - 8-bit values become [0, 1] before scale and bias (OIIO's FLOAT conversion), as the spec's outputs say.
+- colour is straight (unassociated) alpha, as the spec says of every UsdPreviewSurface input: OIIO would otherwise
+  premultiply PNG colour by its alpha and darken the edges of every cut-out.
 """
 
 from __future__ import annotations
@@ -44,7 +46,9 @@ class TextureFile:
 def _oiio_read(path: str, label: str):
     import OpenImageIO as oiio
 
-    buf = oiio.ImageBuf(path)
+    config = oiio.ImageSpec()
+    config.attribute("oiio:UnassociatedAlpha", 1)  # colour stays straight alpha, as the spec wants (PNG stores it so)
+    buf = oiio.ImageBuf(path, 0, 0, config)
     if buf.has_error:
         raise ValueError(f"cannot read texture {label}: {buf.geterror().strip()}")
     spec = buf.spec()
