@@ -17,8 +17,8 @@ import os
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade
 
-#: 4 × 4 blocks of distinct colours, 8 × 8 texels each (row 0 = top of the image as seen on a monitor).
-BLOCK = 8
+#: 4 × 4 blocks of distinct colours, 16 × 16 texels each (row 0 = top of the image as seen on a monitor).
+BLOCK = 16
 BLOCKS = np.array([[[0.9, 0.1, 0.1], [0.1, 0.9, 0.1], [0.1, 0.1, 0.9], [0.9, 0.9, 0.1]],
                    [[0.9, 0.1, 0.9], [0.1, 0.9, 0.9], [0.5, 0.5, 0.5], [0.9, 0.5, 0.1]],
                    [[0.1, 0.5, 0.9], [0.5, 0.9, 0.1], [0.9, 0.1, 0.5], [0.3, 0.1, 0.1]],
@@ -39,7 +39,7 @@ def write_png(path: str, rgba8: np.ndarray) -> str:
 
 
 def block_texture(path: str, alpha_left: bool = False) -> np.ndarray:
-    """Write the 32×32 block texture as an 8-bit PNG holding the *sRGB encoding* of BLOCKS; returns the linear
+    """Write the 64×64 block texture as an 8-bit PNG holding the *sRGB encoding* of BLOCKS; returns the linear
     block colours (4, 4, 3) that an sRGB read gives back (quantised as the file holds them)."""
     from tracer.texture import linear_to_srgb, srgb_to_linear
 
