@@ -505,3 +505,114 @@ def test_classic_tracer_lowers_with_one_warning_each(tmp_path):
     row = scene.material_ids[0]
     blocks = S.block_texture(os.path.join(d, "probe.png"))
     assert np.allclose(scene.materials.emission[row], blocks.reshape(-1, 3).mean(axis=0), atol=2e-3)
+
+
+# ---------------------------------------------------------------- the Principled description, as written
+@pytest.fixture
+def principled_recorder(monkeypatch):
+    """Run usd_io as if the tracer had the Principled model (docs/materials-api.md), recording what it is given:
+    the contract with materials-core, checked while the tracer side is not merged (and after, without rendering)."""
+    import types
+
+    import tracer
+    import usd_io.dome
+    import usd_io.reader
+    import usd_io.tracer_model as tm
+
+    class Texture(types.SimpleNamespace):
+        pass
+
+    class Environment(types.SimpleNamespace):
+        pass
+
+    class Recorder(tracer.SceneBuilder):
+        def __init__(self):
+            super().__init__()
+            self.meshes = []
+            self.environment = None
+
+        def add_texture(self, texture):
+            self.textures.append(texture)
+            return len(self.textures) - 1
+
+        def add_mesh(self, vertices, triangles, material=0, **kw):
+            self.meshes.append(dict(kw, material=material, n=len(triangles)))
+            return len(self.meshes) - 1
+
+        def build(self):
+            return self
+
+    monkeypatch.setattr(tm, "PRINCIPLED", True)
+    monkeypatch.setattr(usd_io.dome, "PRINCIPLED", True)
+    monkeypatch.setattr(tracer, "Texture", Texture, raising=False)
+    monkeypatch.setattr(tracer, "Environment", Environment, raising=False)
+    monkeypatch.setattr(usd_io.reader, "SceneBuilder", Recorder)
+    return Recorder
+
+
+def test_principled_fields_for_channels_uv_sets_and_vertex_colours(tmp_path, principled_recorder):
+    d = str(tmp_path)
+    S.write_png(os.path.join(d, "arm.png"), np.dstack([np.full((4, 4), v, np.uint8) for v in (50, 150, 250)]))
+    S.block_texture(os.path.join(d, "blocks.png"))
+    s = S.new_stage(os.path.join(d, "p.usda"))
+    S.camera(s)
+    q = S.quad(s, uv_name="map1")
+    UsdGeom.PrimvarsAPI(q).CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray, "vertex").Set(
+        [Gf.Vec3f(0.1 * i, 0.2, 0.3) for i in range(4)])
+    mat, ps = S.preview(s, lambert=False, opacityThreshold=(Sdf.ValueTypeNames.Float, 0.4))
+    arm = S.uv_texture(s, "/Looks/M", "ARM", "./arm.png", st_reader=None, sourceColorSpace="raw")
+    blk = S.uv_texture(s, "/Looks/M", "Blocks", "./blocks.png", st_reader="map1", wrapS="mirror", wrapT="clamp",
+                       scale=Gf.Vec4f(2, 2, 2, 1), bias=Gf.Vec4f(-1, -1, -1, 0))
+    S.transform2d(s, blk, "/Looks/M", 90.0, (1.0, 2.0), (0.5, 0.0))
+    S.connect(ps, "roughness", Sdf.ValueTypeNames.Float, arm, "g")
+    S.connect(ps, "metallic", Sdf.ValueTypeNames.Float, arm, "b")
+    S.connect(ps, "normal", Sdf.ValueTypeNames.Normal3f, blk, "rgb")
+    S.connect(ps, "opacity", Sdf.ValueTypeNames.Float, blk, "a")
+    S.connect(ps, "emissiveColor", Sdf.ValueTypeNames.Color3f, arm, "rgb")
+    rd = UsdShade.Shader.Define(s, "/Looks/M/Color")
+    rd.CreateIdAttr("UsdPrimvarReader_float3")
+    rd.CreateInput("varname", Sdf.ValueTypeNames.String).Set("displayColor")
+    S.connect(ps, "diffuseColor", Sdf.ValueTypeNames.Color3f, rd, "result")
+    S.bind(q, mat)
+    b, info = load_stage(S.save(s), width=8, height=8)
+    (row_fields,) = [m for m in b.materials if m["name"] == "/Looks/M"]
+    tex = b.textures
+    assert row_fields["roughness_channel"] == 1 and row_fields["metallic_channel"] == 2
+    assert row_fields["roughness_texture"] == row_fields["metallic_texture"]  # one node read once
+    rough = tex[row_fields["roughness_texture"]]
+    assert rough.uv_set == 0 and np.allclose(rough.image[..., 1], 150 / 255)  # no st: the mesh's default set
+    nrm = tex[row_fields["normal_texture"]]
+    assert nrm.uv_set == 1 and (nrm.wrap_s, nrm.wrap_t) == ("mirror", "clamp")
+    assert np.allclose(nrm.scale, (2, 2, 2, 1)) and np.allclose(nrm.bias, (-1, -1, -1, 0))
+    assert np.allclose(nrm.transform, [[0, -2, 0.5], [1, 0, 0], [0, 0, 1]], atol=1e-9)  # T · R(90°) · S(1, 2)
+    assert row_fields["alpha_texture"] == row_fields["normal_texture"] and row_fields["alpha_channel"] == 3
+    assert row_fields["alpha_threshold"] == pytest.approx(0.4)
+    assert row_fields["emission_texture"] == row_fields["roughness_texture"]
+    assert row_fields["emission_channel"] == -1
+    assert row_fields["vertex_color"] is True and np.allclose(row_fields["base_color"], 1.0)
+    (mesh,) = b.meshes
+    assert set(mesh["uv_sets"]) == {0, 1}  # the default set (map1, the only UV primvar) and map1 by name
+    assert np.allclose(mesh["uv_sets"][0], mesh["uv_sets"][1]) and np.allclose(mesh["uvs"], mesh["uv_sets"][0])
+    assert mesh["colors"].shape == (2, 3, 3)
+    assert np.allclose(mesh["colors"][0, :, 0], [0.0, 0.1, 0.2], atol=1e-6)  # corners 0, 1, 2 of the fan
+
+
+def test_principled_dome_environment(tmp_path, principled_recorder):
+    """DomeLight -> tracer.Environment: the texture × intensity·2^exposure·color and the rotation P·Dᵀ into
+    Cycles' equirect frame (x_e, y_e, z_e) = (z, x, y) of the dome-local axes."""
+    _latlong(str(tmp_path / "sky.exr"))
+    s = S.new_stage(str(tmp_path / "dome.usda"), up="Y")
+    dome = UsdLux.DomeLight.Define(s, "/Dome")
+    dome.CreateTextureFileAttr("./sky.exr")
+    dome.CreateIntensityAttr(2.0)
+    UsdGeom.Xformable(dome).AddRotateYOp().Set(90.0)
+    S.camera(s)
+    b, info = load_stage(S.save(s), width=8, height=8)
+    env = b.environment
+    assert env is not None and env.image.shape == (8, 16, 3)
+    assert np.allclose(env.image[0, 0], [2.0, 0.0, 0.0])
+    # the dome turned +90° about Y: world +X is dome-local +Z (the image centre), Cycles' +X (its image centre);
+    # world +Y is the pole in both; world −Z is dome-local +X (u = 0.25), Cycles' +Y (u = 0.25)
+    assert np.allclose(env.rotation @ [1.0, 0.0, 0.0], [1.0, 0.0, 0.0], atol=1e-9)
+    assert np.allclose(env.rotation @ [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], atol=1e-9)
+    assert np.allclose(env.rotation @ [0.0, 0.0, -1.0], [0.0, 1.0, 0.0], atol=1e-9)
