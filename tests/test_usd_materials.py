@@ -616,3 +616,34 @@ def test_principled_dome_environment(tmp_path, principled_recorder):
     assert np.allclose(env.rotation @ [1.0, 0.0, 0.0], [1.0, 0.0, 0.0], atol=1e-9)
     assert np.allclose(env.rotation @ [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], atol=1e-9)
     assert np.allclose(env.rotation @ [0.0, 0.0, -1.0], [0.0, 1.0, 0.0], atol=1e-9)
+
+
+def test_point_instancer_prototype_texture_with_transform2d(tmp_path):
+    """A PointInstancer of a textured quad (UsdTransform2d on its st): every instance shows the transformed texture
+    in its own frame (corner UVs and the transform replicated with the instances)."""
+    d = str(tmp_path)
+    blocks = S.block_texture(os.path.join(d, "blocks.png"))
+    s = S.new_stage(os.path.join(d, "inst.usda"))
+    S.camera(s)
+    S.sun(s)
+    pi = UsdGeom.PointInstancer.Define(s, "/Inst")
+    proto = S.quad(s, "/Inst/Protos/Q", size=0.5)
+    mat, ps = S.preview(s)
+    tex = S.uv_texture(s, "/Looks/M", "Tex", "./blocks.png", st_reader="st", sourceColorSpace="sRGB")
+    rot, scale, trans = 30.0, (2.0, 0.7), (0.15, -0.3)
+    S.transform2d(s, tex, "/Looks/M", rot, scale, trans)
+    S.connect(ps, "diffuseColor", Sdf.ValueTypeNames.Color3f, tex, "rgb")
+    S.bind(proto, mat)
+    pi.CreatePrototypesRel().SetTargets([proto.GetPath()])
+    pi.CreateProtoIndicesAttr([0, 0])
+    pi.CreatePositionsAttr([Gf.Vec3f(-0.5, 0, 0), Gf.Vec3f(0.5, 0, 0)])
+    img, info, _ = render_stage(S.save(s))
+    p = S.pixel_points(N)
+    local = np.where((p[..., 0] < 0)[..., None], p + [0.5, 0], p - [0.5, 0])  # each instance's own frame
+    st = local + 0.5  # the half-size quad: st = local + 0.5
+    c, sn = math.cos(math.radians(rot)), math.sin(math.radians(rot))
+    q = st * scale
+    q = np.stack([c * q[..., 0] - sn * q[..., 1], sn * q[..., 0] + c * q[..., 1]], -1) + trans
+    expected, ok = S.block_lookup(q, blocks, margin=3.0 / N)
+    inside = (np.abs(local[..., 0]) < 0.5 - 2.0 / N) & (np.abs(local[..., 1]) < 0.5 - 2.0 / N)
+    assert_blocks(img, expected, ok & inside, min_checked=0.1)

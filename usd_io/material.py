@@ -106,6 +106,7 @@ class MaterialTable:
         self._textures: dict = {}  # lookup key -> TextureSpec
         self.uv_set_names: list[str] = [DEFAULT_UV]  # index in Scene.uv_sets
         self.writer = ModelWriter(builder, warn)
+        self._primvar_cache: dict = {}
 
     # ------------------------------------------------------------------ binding
     @staticmethod
@@ -150,7 +151,15 @@ class MaterialTable:
 
     def mesh_inputs(self, prim, data, rows, needs: MeshNeeds):
         """(per-triangle material rows, add_mesh keywords: UV sets and vertex colours) for one mesh."""
-        uv_sets, colors = mesh_primvars(prim, data, needs, self.uv_set_names, self.time, self.warn)
+        key = None
+        if prim.IsInstanceProxy():  # instances share their prototype's primvars: expand them once
+            key = (str(prim.GetPrimInPrototype().GetPath()), id(data), frozenset(needs.uv_sets), needs.color)
+        if key is not None and key in self._primvar_cache:
+            uv_sets, colors = self._primvar_cache[key]
+        else:
+            uv_sets, colors = mesh_primvars(prim, data, needs, self.uv_set_names, self.time, self.warn)
+            if key is not None:
+                self._primvar_cache[key] = (uv_sets, colors)
         return self.writer.mesh_kwargs(str(prim.GetPath()), rows, len(data.triangles), uv_sets, colors)
 
     def uv_set_index(self, name: str | None) -> int:

@@ -95,6 +95,9 @@ def mesh_primvars(prim, data, needs, uv_set_names: list, time, warn):
         pv_name = default_uv_name(prim, warn) if index == 0 else name
         if pv_name is None:
             continue
+        if pv_name == "st" and data.uvs is not None:  # read_mesh expanded it already
+            sets[index] = np.asarray(data.uvs, np.float32)
+            continue
         uv, why = corner_values(prim, pv_name, tri, n_points, n_fv, time, 2)
         if why:
             warn(f"{why} (ignored)")

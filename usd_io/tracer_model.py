@@ -109,11 +109,11 @@ class ModelWriter:
                 img = np.repeat(img[..., None], 3, axis=2)
             out["diffuse_texture"] = self.b.add_texture(np.ascontiguousarray(np.maximum(img, 0), np.float32))
         ior = float(f.get("ior", 1.5))
-        level = float(const("specular", 0.5))
+        level = float(np.ravel(const("specular", 0.5))[0])
         f0 = ((ior - 1) / (ior + 1)) ** 2 * 2 * level
         out["specular"] = (f0, f0, f0)
-        out["roughness"] = float(np.clip(const("roughness", 0.5), 0, 1))
-        metallic = float(np.clip(const("metallic", 0.0), 0, 1))
+        out["roughness"] = float(np.clip(np.ravel(const("roughness", 0.5))[0], 0, 1))
+        metallic = float(np.clip(np.ravel(const("metallic", 0.0))[0], 0, 1))
         if metallic > 0:
             out["k_m"] = metallic
             out["mirror_tint"] = out["diffuse"] if "diffuse_texture" not in out else (1.0, 1.0, 1.0)
