@@ -647,3 +647,24 @@ def test_point_instancer_prototype_texture_with_transform2d(tmp_path):
     expected, ok = S.block_lookup(q, blocks, margin=3.0 / N)
     inside = (np.abs(local[..., 0]) < 0.5 - 2.0 / N) & (np.abs(local[..., 1]) < 0.5 - 2.0 / N)
     assert_blocks(img, expected, ok & inside, min_checked=0.1)
+
+
+def test_non_finite_texture_parameters_warn_and_render_finite(tmp_path):
+    """NaN scale / bias and an infinite Transform2d rotation: one warning each, the spec's defaults, a finite image."""
+    d = str(tmp_path)
+    blocks = S.block_texture(os.path.join(d, "blocks.png"))
+    s = S.new_stage(os.path.join(d, "nan.usda"))
+    S.camera(s)
+    S.sun(s)
+    mat, ps = S.preview(s)
+    tex = S.uv_texture(s, "/Looks/M", "Tex", "./blocks.png", st_reader="st", sourceColorSpace="sRGB",
+                       scale=Gf.Vec4f(float("nan"), 1, 1, 1), bias=Gf.Vec4f(0, float("inf"), 0, 0))
+    S.transform2d(s, tex, "/Looks/M", float("inf"), (1.0, 1.0), (0.0, 0.0))
+    S.connect(ps, "diffuseColor", Sdf.ValueTypeNames.Color3f, tex, "rgb")
+    S.bind(S.quad(s), mat)
+    img, info, _ = render_stage(S.save(s))
+    assert np.all(np.isfinite(img))
+    for what in ("scale", "bias", "UsdTransform2d"):
+        assert len([w for w in info.warnings if what in w and "not finite" in w]) == 1, info.warnings
+    expected, ok = S.block_lookup(st_of_pixels(), blocks, margin=1.5 / N)
+    assert_blocks(img, expected, ok)

@@ -367,6 +367,14 @@ class MaterialTable:
         warning. Textures are shared between inputs that read one node the same way."""
         for note in lk.notes:
             self.warn(f"{lk.node}: {note}")
+        for what, default in (("scale", net.UV_TEXTURE_DEFAULTS["scale"]), ("bias", net.UV_TEXTURE_DEFAULTS["bias"]),
+                              ("fallback", net.UV_TEXTURE_DEFAULTS["fallback"])):
+            if not np.all(np.isfinite(getattr(lk, what))):
+                self.warn(f"{lk.node}: {what} {getattr(lk, what)} is not finite (the spec's {default} used)")
+                setattr(lk, what, tuple(default))
+        if not np.all(np.isfinite(lk.transform)):
+            self.warn(f"{lk.node}: its UsdTransform2d is not finite (ignored)")
+            lk.transform = np.eye(3)
         asset = lk.asset
         if asset is None or not asset.path:
             self.warn(f"{label}: {name} texture {lk.node!r} has no file; its fallback {lk.fallback} is used")

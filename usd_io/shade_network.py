@@ -157,6 +157,8 @@ def texture_lookup(node: UsdShade.Shader, output: str, time=None) -> TextureLook
 def transform2d_matrix(scale=(1.0, 1.0), rotation=0.0, translation=(0.0, 0.0)) -> np.ndarray:
     """The (3, 3) matrix of a UsdTransform2d on (s, t, 1): T · R · S (scale, then rotate CCW in degrees, then
     translate), the spec's ``in · scale · rotate + translation``."""
+    if not math.isfinite(rotation):
+        return np.full((3, 3), np.nan)  # the caller warns and ignores a non-finite transform
     c, s = math.cos(math.radians(rotation)), math.sin(math.radians(rotation))
     S = np.diag([scale[0], scale[1], 1.0])
     R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
