@@ -55,10 +55,10 @@ def _cutout(d):
     return path
 
 
-def _vertex_colour(d):
+def _vertex_colour(d, interp="vertex"):
     import test_usd_materials as T
 
-    path, _ = T._grid_stage(d, "vertex", True)
+    path, _ = T._grid_stage(d, interp, True)
     _use_perspective(path)
     return path
 
@@ -113,6 +113,8 @@ SCENES = {
     "usd_normal_map_dx": _normal_map,
     # Teapot 'Ceramic': UsdPrimvarReader_float3 of a vertex displayColor on diffuseColor
     "usd_vertex_colour": _vertex_colour,
+    # the same reader on a uniform (per-face) displayColor
+    "usd_face_colour": lambda d: _vertex_colour(d, "uniform"),
     # DomeLight lat-long texture seen directly (Y-up stage; and the dome turned about Y)
     "usd_dome_texture": lambda d: _dome(d),
     "usd_dome_texture_rotated": lambda d: _dome(d, rot_y=70.0),
