@@ -16,6 +16,12 @@ with D the dome prim's world rotation (scale and translation removed). ``DomeLig
 a Z-up stage, first turns the dome by +90° about X (local +Y onto +Z); the plain ``DomeLight`` schema always has
 its pole on +Y, whatever the stage's up axis (as Storm and Blender's importer read it).
 
+Checked against Cycles rendering Blender 5.0's import of the same stages (tests/cycles/test_cycles_usd_materials.py,
+the camera's rays from pxr's frustum, this rotation and a numpy equirect lookup): 91 dB for a Y-up DomeLight, plain
+and turned 70° about Y; 74 dB for a DomeLight on a Z-up stage and a DomeLight_1 with poleAxis Y. A DomeLight_1 with
+poleAxis Z is where Blender's importer differs (11 dB: its top row lands on the horizon, not on +Z); we follow the
+schema text (the top pole on +Z), checked in closed form by tests/test_usd_materials.py.
+
 Brightness: the texture is multiplied by intensity · 2^exposure · color (× colour temperature), the light colour
 every UsdLux light uses (``usd_io.lights.light_colour``). ``texture:format`` latlong, or automatic with a 2:1
 image, is read; mirroredBall, angular and cubeMapVerticalCross are not (one warning; the image's average colour

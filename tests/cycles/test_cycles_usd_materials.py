@@ -153,3 +153,49 @@ def test_usd_material_comparison_can_fail(bpy_module, tmp_path):
     with pytest.raises(AssertionError, match="PSNR|MAE"):
         H.check_images(dict(name="flipped"), ours, ref["rgb"], tmp_path, min_psnr=usd_material_bar("x")["psnr"],
                        max_mae=usd_material_bar("x")["mae"])
+
+
+def _equirect_lookup(image: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Cycles' equirectangular lookup (measured in Blender 5.0: image centre = +X, u = 0.5 − atan2(y, x)/2π,
+    top row = +Z), bilinear with wrap in u: an independent numpy reference for the environment's frame."""
+    d = d / np.linalg.norm(d, axis=-1, keepdims=True)
+    u = 0.5 - np.arctan2(d[..., 1], d[..., 0]) / (2 * math.pi)
+    v = np.arccos(np.clip(d[..., 2], -1, 1)) / math.pi  # from the top
+    h, w = image.shape[:2]
+    x, y = u * w - 0.5, v * h - 0.5
+    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+    fx, fy = (x - x0)[..., None], (y - y0)[..., None]
+    yy0, yy1 = np.clip(y0, 0, h - 1), np.clip(y0 + 1, 0, h - 1)
+    xx0, xx1 = x0 % w, (x0 + 1) % w
+    return ((1 - fx) * (1 - fy) * image[yy0, xx0] + fx * (1 - fy) * image[yy0, xx1]
+            + (1 - fx) * fy * image[yy1, xx0] + fx * fy * image[yy1, xx1])
+
+
+@pytest.mark.parametrize("name", ["usd_dome_texture", "usd_dome_texture_rotated"])
+def test_dome_orientation_matches_blender_import(bpy_module, tmp_path, name):
+    """usd_io/dome.py's world -> environment rotation, applied to the stage camera's rays (pxr's own frustum) and
+    looked up in Cycles' equirect convention (numpy), against Cycles rendering Blender's import of the same dome:
+    checks the UsdLux/OpenEXR-vs-Cycles orientation today, whatever environment the tracer has."""
+    import OpenImageIO as oiio
+    from pxr import Usd
+
+    from usd_io.dome import world_to_environment
+    from usd_io.xform import Transforms
+
+    path = SCENES[name](str(tmp_path / name))
+    ref = cycles_reference_usd(path, name, SIZE, SIZE, CYCLES_SAMPLES, depth=2)["rgb"]
+    stage = Usd.Stage.Open(path)
+    t = Usd.TimeCode.Default()
+    dome = stage.GetPrimAtPath("/Dome")
+    rot = world_to_environment(dome, Transforms(t).world(dome))
+    sky = np.asarray(oiio.ImageBuf(os.path.join(os.path.dirname(path), "sky.exr")).get_pixels(oiio.FLOAT))[..., :3]
+    frustum = UsdGeom.Camera(stage.GetPrimAtPath("/Cam")).GetCamera(t).frustum
+    k = 4  # 4×4 samples per pixel
+    offs = (np.arange(SIZE * k) + 0.5) / (SIZE * k) * 2 - 1
+    dirs = np.array([[list(frustum.ComputePickRay(Gf.Vec2d(x, -y)).direction) for x in offs] for y in offs])
+    pred = _equirect_lookup(sky, dirs @ rot.T)
+    ours = pred.reshape(SIZE, k, SIZE, k, 3).mean(axis=(1, 3))
+    H.check_images(dict(name=name), ours.astype(np.float32), ref, tmp_path, min_psnr=usd_material_bar(name)["psnr"],
+                   max_mae=usd_material_bar(name)["mae"], label=" [dome rotation, numpy lookup]")
+    wrong = _equirect_lookup(sky, dirs).reshape(SIZE, k, SIZE, k, 3).mean(axis=(1, 3))  # no rotation at all
+    assert H.metrics(wrong.astype(np.float32), ref)["psnr"] < 25
