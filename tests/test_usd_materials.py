@@ -668,3 +668,23 @@ def test_non_finite_texture_parameters_warn_and_render_finite(tmp_path):
         assert len([w for w in info.warnings if what in w and "not finite" in w]) == 1, info.warnings
     expected, ok = S.block_lookup(st_of_pixels(), blocks, margin=1.5 / N)
     assert_blocks(img, expected, ok)
+
+
+def test_varname_through_material_interface(tmp_path):
+    """The spec's sample: the primvar reader's varname connected to a Material interface input
+    (inputs:frame:stPrimvarName = "map1") on a mesh that also has an st: map1 is read."""
+    blocks = S.block_texture(str(tmp_path / "probe.png"))
+    uvs = ((1, 0), (1, 1), (0, 1), (0, 0))
+    path = S.textured_quad_stage(str(tmp_path), "iface", st_reader="st", uv_name="map1", uvs=uvs)
+    s = Usd.Stage.Open(path)
+    S.quad(s, uv_name="st")  # a second, identity st set on the mesh: reading "st" would be visibly wrong
+    mat = UsdShade.Material(s.GetPrimAtPath("/Looks/M"))
+    iface = mat.CreateInput("frame:stPrimvarName", Sdf.ValueTypeNames.String)
+    iface.Set("map1")
+    rd = UsdShade.Shader(s.GetPrimAtPath("/Looks/M/TexReader"))
+    rd.GetInput("varname").ConnectToSource(iface)
+    s.Save()
+    img, _, _ = render_stage(path)
+    p = st_of_pixels()
+    expected, ok = S.block_lookup(np.stack([1 - p[..., 1], p[..., 0]], -1), blocks, margin=1.5 / N)
+    assert_blocks(img, expected, ok)
