@@ -41,7 +41,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from pxr import Sdf, UsdGeom, UsdShade
+from pxr import UsdGeom, UsdShade
 
 from . import shade_network as net
 from .material_primvars import mesh_primvars
@@ -68,11 +68,6 @@ def ior_from_f0(f0: float) -> float:
     """The inverse of :func:`f0_from_ior`."""
     r = float(np.sqrt(np.clip(f0, 0.0, 0.999)))
     return (1.0 + r) / (1.0 - r)
-
-
-def _finite_tuple(v, n, default):
-    t = net.floats(v, n, default)
-    return t
 
 
 @dataclass

@@ -35,7 +35,8 @@ def import_into_blender(stage_path: str, width: int, height: int, samples: int, 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     sc = bpy.context.scene
     w = bpy.data.worlds.new("World")  # the importer turns a DomeLight into this world (it makes none itself)
-    w.use_nodes = True
+    if w.node_tree is None:
+        w.use_nodes = True
     w.node_tree.nodes["Background"].inputs["Color"].default_value = (0, 0, 0, 1)
     sc.world = w
     bpy.ops.wm.usd_import(filepath=stage_path, create_world_material=True, import_usd_preview=True,

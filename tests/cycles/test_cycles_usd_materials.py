@@ -12,7 +12,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__)))) 
 
 import numpy as np
 import pytest
-from pxr import Gf, Sdf, UsdGeom, UsdLux
+from pxr import Gf, UsdGeom, UsdLux
 
 import cycles_harness as H
 import usd_material_stages as S
