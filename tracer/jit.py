@@ -4,9 +4,12 @@ Every hot loop of the tracer (one iteration per ray or per hit) is a numba funct
 plain scalar Python that reads like the notes, and runs at compiled speed on the tile threads. ``kernel`` is the
 one decorator they all use:
 
-- ``cache=True``: compiled machine code is stored in ``NUMBA_CACHE_DIR`` when that is set, else next to the module
-  (``__pycache__``), else, where that folder is not writable, in the user's cache directory; only the first render
-  on a machine pays the compilation (about 10 s for all kernels);
+- ``cache=True``: compiled machine code is stored in ``NUMBA_CACHE_DIR`` when that is set, else in
+  ``tracer/__pycache__/kernels-<hash>``, else, where that folder is not writable, in the user's cache directory;
+  only the first render on a machine pays the compilation (about 10 s for all kernels). ``<hash>`` is a hash of
+  every tracer source file: numba's own cache check looks only at the file a kernel is defined in, so a kernel
+  that inlines a function from another module (the integrator calls ``optics.reflect_dir``) would otherwise keep
+  running stale machine code after that module changed;
 - ``nogil=True``: tiles run their kernels in parallel on the render thread pool;
 - ``error_model="numpy"``: a division by zero gives inf/NaN as numpy would (the integrator clears non-finite
   pixels) instead of raising, and lets loops compile without the checks.
@@ -17,9 +20,51 @@ distant lights) behaving as IEEE says.
 
 from __future__ import annotations
 
+import hashlib
+import os
+
 import numba
 
 _OPTIONS = dict(cache=True, nogil=True, error_model="numpy")
+
+
+def _cache_dir() -> str | None:
+    """Where this version of the tracer's sources keeps its kernels (None: ``NUMBA_CACHE_DIR`` decides)."""
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return None
+    here = os.path.dirname(os.path.abspath(__file__))
+    h = hashlib.sha1()
+    for name in sorted(os.listdir(here)):
+        if name.endswith(".py"):
+            with open(os.path.join(here, name), "rb") as f:
+                h.update(name.encode() + b"\0" + f.read())
+    leaf = f"kernels-{h.hexdigest()[:16]}"
+    _prune(os.path.join(here, "__pycache__"), leaf)
+    for base in (os.path.join(here, "__pycache__"),
+                 os.path.join(os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "whitted")):
+        try:
+            os.makedirs(os.path.join(base, leaf), exist_ok=True)
+            if os.access(os.path.join(base, leaf), os.W_OK):
+                return os.path.join(base, leaf)
+        except OSError:
+            continue
+    return None
+
+
+def _prune(base: str, keep: str, versions: int = 3) -> None:
+    """Remove kernel folders of older source versions beyond the newest few (best effort)."""
+    import shutil
+
+    try:
+        old = sorted((e for e in os.scandir(base) if e.is_dir() and e.name.startswith("kernels-") and e.name != keep),
+                     key=lambda e: e.stat().st_mtime, reverse=True)
+    except OSError:
+        return
+    for e in old[versions:]:
+        shutil.rmtree(e.path, ignore_errors=True)
+
+
+_CACHE_DIR = _cache_dir()
 
 
 def kernel(fn=None, *, inline: bool = False):
@@ -27,6 +72,14 @@ def kernel(fn=None, *, inline: bool = False):
     opts = dict(_OPTIONS, inline="always") if inline else _OPTIONS
 
     def wrap(f):
-        return numba.njit(**opts)(f)
+        # numba picks a function's cache location when it is decorated: point it at this source version's folder
+        # for the tracer's kernels only (other numba users in the process keep their own setting).
+        saved = numba.config.CACHE_DIR
+        if _CACHE_DIR is not None:
+            numba.config.CACHE_DIR = _CACHE_DIR
+        try:
+            return numba.njit(**opts)(f)
+        finally:
+            numba.config.CACHE_DIR = saved
 
     return wrap(fn) if fn is not None else wrap
