@@ -1,7 +1,9 @@
-"""Eye rays: a ray through a pixel centre passes through the world point that projects to it."""
+"""Eye rays: a ray through a pixel centre passes through the world point that projects to it — projected by
+pxr's ``Gf.Camera`` frustum (USD's own camera model), not by the tracer's ``Camera.project``."""
 
 import numpy as np
 import pytest
+from pxr import Gf
 
 from tracer import Camera, RenderSettings
 from tracer.camera import fit_apertures
@@ -21,6 +23,22 @@ def cameras():
                                          horizontal_aperture_offset=0.5, vertical_aperture_offset=0.25)
 
 
+def pxr_project(cam, pts, width, height):
+    """Pixel coordinates (x right, y down) of world points through pxr's Gf.Camera with the same parameters."""
+    ortho = cam.projection == "orthographic"
+    k = 10.0 if ortho else 1.0  # Gf.Camera takes orthographic apertures in tenths of a world unit
+    g = Gf.Camera(Gf.Matrix4d(np.asarray(cam.camera_to_world).T.tolist()),
+                  Gf.Camera.Orthographic if ortho else Gf.Camera.Perspective,
+                  cam.horizontal_aperture * k, cam.vertical_aperture * k,
+                  cam.horizontal_aperture_offset * k, cam.vertical_aperture_offset * k, cam.focal_length)
+    m = g.frustum.ComputeViewMatrix() * g.frustum.ComputeProjectionMatrix()
+    out = []
+    for p in np.asarray(pts, np.float64):
+        c = Gf.Vec4d(*p, 1.0) * m  # row vectors in Gf
+        out.append(((c[0] / c[3] + 1) / 2 * width, (1 - c[1] / c[3]) / 2 * height))
+    return np.array(out)
+
+
 @pytest.mark.parametrize("name,cam", list(cameras()), ids=[c[0] for c in cameras()])
 def test_pixel_centre_ray_hits_the_projected_point(name, cam):
     rng = np.random.default_rng(7)
@@ -29,14 +47,14 @@ def test_pixel_centre_ray_hits_the_projected_point(name, cam):
     o, d = cam.generate_rays(u, v)
     depth = rng.uniform(1.0, 8.0, 200)
     pts = o.astype(np.float64) + d * depth[:, None]
-    px = cam.project(pts, W, H)
+    px = pxr_project(cam, pts, W, H)
     np.testing.assert_allclose(px[:, 0], u * W, atol=1e-4)
     np.testing.assert_allclose(px[:, 1], (1 - v) * H, atol=1e-4)
     # the renderer's own pixel-centre rays: project back onto the pixel centres
     settings = RenderSettings(width=W, height=H)
     uu, vv, _ = eye_samples(settings, 0, 0, W, H)
     o2, d2 = cam.generate_rays(uu, vv)
-    p2 = cam.project(o2 + 3.0 * d2, W, H)
+    p2 = pxr_project(cam, o2 + 3.0 * d2, W, H)
     cols, rows = np.meshgrid(np.arange(W) + 0.5, np.arange(H) + 0.5)
     np.testing.assert_allclose(p2[:, 0], cols.ravel(), atol=2e-3)
     np.testing.assert_allclose(p2[:, 1], rows.ravel(), atol=2e-3)
@@ -56,9 +74,12 @@ def test_perspective_rays_start_at_the_eye_and_orthographic_rays_are_parallel():
 def test_lens_shift_moves_the_image_not_the_view_direction():
     base = Camera(focal_length=50, horizontal_aperture=36, vertical_aperture=24)
     shifted = Camera(focal_length=50, horizontal_aperture=36, vertical_aperture=24, horizontal_aperture_offset=3.6)
-    p = np.array([[0.0, 0.0, -10.0]])
-    a, b = base.project(p, 100, 100)[0], shifted.project(p, 100, 100)[0]
-    assert a[0] == pytest.approx(50.0) and b[0] == pytest.approx(40.0)  # shifted right by 1/10 of the frame
+    # Closed form: an offset of 3.6 on a 36-wide aperture moves the image by 1/10 of the frame, so the view axis
+    # (0, 0, -1) is seen at u = 0.4 instead of 0.5, and the eye stays where it was.
+    for cam, u in ((base, 0.5), (shifted, 0.4)):
+        o, d = cam.generate_rays(np.array([u]), np.array([0.5]))
+        np.testing.assert_allclose(d[0], [0, 0, -1], atol=1e-7)
+        np.testing.assert_allclose(o[0], [0, 0, 0], atol=1e-7)
 
 
 def test_stratified_samples_cover_each_pixel():

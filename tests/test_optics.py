@@ -53,15 +53,18 @@ def test_critical_angle_leaving_glass():
     assert sin_angle_from_normal(-t_below, N_UP) == pytest.approx(1.5 * np.sin(np.radians(critical - 0.5)), abs=1e-9)
 
 
-def test_tir_mask_is_exactly_where_the_radicand_is_negative():
+def test_tir_is_exactly_beyond_the_critical_angle():
+    """Snell's law has no solution where η_i·sin θ_i > η_r (sin θ_r would exceed 1): the critical angle, computed
+    here from the angle between d and n, independently of the notes' square-root form."""
     rng = np.random.default_rng(1)
     d, n = random_pairs(rng, 20000)
     eta_i = rng.uniform(1.0, 2.4, size=len(d))
     eta_r = rng.uniform(1.0, 2.4, size=len(d))
     _, tir = refract(d, n, eta_i, eta_r)
-    cos_i = -np.sum(d * n, axis=1)
-    radicand = 1 - (eta_i / eta_r) ** 2 * (1 - cos_i**2)
-    np.testing.assert_array_equal(tir, radicand < 0)
+    sin_i = np.linalg.norm(np.cross(d, n), axis=1)
+    margin = eta_i * sin_i - eta_r
+    clear = np.abs(margin) > 1e-9  # leave out the float ties at the critical angle itself
+    np.testing.assert_array_equal(tir[clear], margin[clear] > 0)
     assert tir.any() and (~tir).any()
 
 

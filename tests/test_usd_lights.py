@@ -15,8 +15,10 @@ H = 2.0  # light height
 SIZE = 9  # odd, so the centre pixel's ray hits (0, 0, 0)
 
 
-def lit_plane(make_light):
+def lit_plane(make_light, blender=False):
     s = Usd.Stage.CreateInMemory()
+    if blender:  # what Blender's USD exporter writes at the top of every file
+        s.GetRootLayer().documentation = "Blender v5.0.1"
     UsdGeom.SetStageUpAxis(s, "Z")
     m = UsdGeom.Mesh.Define(s, "/Plane")
     m.CreatePointsAttr([(-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0)])
@@ -82,9 +84,49 @@ def test_distant_light_blender_units():
         l = UsdLux.DistantLight.Define(s, "/Sun")
         l.CreateIntensityAttr(2.0)
         l.CreateAngleAttr(0.0)
+        l.CreateNormalizeAttr(True)
         return l
-    rgb, scene, _ = lit_plane(mk)
+    rgb, scene, _ = lit_plane(mk, blender=True)
     np.testing.assert_allclose(centre(rgb), [A * 4 * 2.0 / np.pi] * 3, rtol=2e-3)  # Blender S = 4·I
+
+
+def test_distant_light_as_the_spec_says():
+    """The schema defaults (intensity 50 000 over a 0.53° disk, normalize off): E = I·2π(1 − cos(0.265°)), a sane
+    3.36 W/m² — not 200 000 W/m² (a white frame); normalize on: E = I; a Blender-written file keeps 4·I."""
+    def mk(s):
+        return UsdLux.DistantLight.Define(s, "/Sun")
+    rgb, scene, _ = lit_plane(mk)
+    e = 50000.0 * 2 * np.pi * (1 - np.cos(np.radians(0.53 / 2)))
+    assert 3.3 < e < 3.4
+    np.testing.assert_allclose(scene.lights[0].irradiance, [e] * 3, rtol=1e-5)
+    np.testing.assert_allclose(scene.lights[0].angle, np.radians(0.53), rtol=1e-6)
+    np.testing.assert_allclose(centre(rgb), [A * e / np.pi] * 3, rtol=0.02)
+
+    def normalized(s):
+        l = UsdLux.DistantLight.Define(s, "/Sun")
+        l.CreateIntensityAttr(3.0)
+        l.CreateNormalizeAttr(True)
+        return l
+    _, scene, _ = lit_plane(normalized)
+    np.testing.assert_allclose(scene.lights[0].irradiance, [3.0] * 3, rtol=1e-6)
+    _, scene, _ = lit_plane(normalized, blender=True)
+    np.testing.assert_allclose(scene.lights[0].irradiance, [12.0] * 3, rtol=1e-6)
+    np.testing.assert_allclose(scene.lights[0].angle, np.radians(2 * 0.53), rtol=1e-6)
+
+
+def test_a_stage_without_lights_gets_a_headlight_and_a_dim_dome():
+    """As usdview: a white Lambertian plane facing the camera shows its albedo (+ the dome's ambient), not black."""
+    from usd_io.lights import DEFAULT_DOME
+
+    rgb, scene, info = lit_plane(lambda s: None)
+    assert info.default_lighting and len(info.notes) == 1 and "no lights" in info.notes[0]
+    np.testing.assert_allclose(centre(rgb), [A + A * DEFAULT_DOME] * 3, rtol=2e-3)
+
+    s = Usd.Stage.CreateInMemory()
+    UsdGeom.Sphere.Define(s, "/Ball")
+    scene, info = load_stage(s, width=8, default_light=False)
+    assert not scene.lights and not info.default_lighting and not info.notes
+    assert render(scene, RenderSettings(width=8, height=8)).rgb.max() == 0
 
 
 @pytest.mark.parametrize("kind,normalize", [("RectLight", True), ("RectLight", False), ("DiskLight", True)])

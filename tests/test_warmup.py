@@ -1,6 +1,15 @@
-"""tracer.compile_kernels() prepares every kernel specialisation a render uses, so nothing compiles mid-render."""
+"""tracer.compile_kernels() prepares every kernel specialisation a render uses, so nothing compiles mid-render.
+
+The check runs in a fresh process: in the test session other tests have already compiled (or loaded) every kernel,
+so a compile_kernels() that did nothing would pass there; a fresh interpreter sees only what compile_kernels() and
+the renders after it bring in.
+"""
 
 import importlib
+import json
+import os
+import subprocess
+import sys
 
 import numpy as np
 
@@ -33,10 +42,21 @@ def _flat_scene_without_normals():
 
 
 def test_compile_kernels_covers_the_kernels_a_render_uses():
+    here = os.path.dirname(os.path.abspath(__file__))
+    code = ("import json, sys; sys.path[:0] = [%r, %r]; import test_warmup as t; "
+            "print(json.dumps(t.check_in_this_process()))" % (os.path.dirname(here), here))
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-2000:]
+    before, after = json.loads(r.stdout.strip().splitlines()[-1])
+    assert all(before.values()), f"compile_kernels left kernels uncompiled: {before}"
+    assert after == before, f"a render compiled new specialisations after compile_kernels: {before} -> {after}"
+
+
+def check_in_this_process():
+    """Signatures per kernel after compile_kernels(), and after two renders that take other paths."""
     tracer.compile_kernels()
     kernels = _kernels()
     before = {name: len(k.signatures) for name, k in kernels.items()}
-    assert all(before.values()), f"compile_kernels left kernels uncompiled: {before}"
     b = lit_sphere_on_floor()  # smooth normals, a point light
     b.add_light(PointLight(position=(0, 0, 8), intensity=(5, 5, 5), radius=0.5))
     sphere = b.build()
@@ -46,4 +66,4 @@ def test_compile_kernels_covers_the_kernels_a_render_uses():
         image = tracer.render(scene, settings)
         assert image.rgba[..., :3].max() > 0  # the scenes are lit
     after = {name: len(k.signatures) for name, k in kernels.items()}
-    assert after == before, f"a render compiled new specialisations after compile_kernels: {before} -> {after}"
+    return before, after

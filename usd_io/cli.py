@@ -116,6 +116,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--aov", help="extra outputs: comma-separated depth,normal,albedo,objectid (EXR), and "
                    "direct,reflection,transmission (the beauty by first secondary ray), raydepth (EXR + heat-map PNG)")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    r.add_argument("--no-default-light", "--disableCameraLight", dest="no_default_light", action="store_true",
+                   help="leave a stage without lights unlit (default: a camera headlight and a dim dome, as usdview)")
     r.add_argument("--scheduler", help="render on a Dask cluster: tcp://HOST:PORT, tls://HOST:PORT, a scheduler "
                    "file, or local:N (N local worker processes); frames are tasks, a single frame splits into tiles")
     r.add_argument("--worker-writes", action="store_true", help="with --scheduler: workers write the frames "
@@ -133,6 +135,8 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--spp", type=int, default=2, help="N for N×N samples per pixel, as render (default 2)")
     e.add_argument("--max-depth", type=int, default=8, help="maximum reflection/refraction depth (default 8)")
     e.add_argument("--purposes", nargs="+", default=["default", "render"])
+    e.add_argument("--no-default-light", "--disableCameraLight", dest="no_default_light", action="store_true",
+                   help="leave a stage without lights unlit")
     e.add_argument("--json", help="write the tree as JSON (format in README)")
     e.add_argument("--usd", help="write the tree as BasisCurves + camera over the stage (.usda)")
     e.add_argument("--png", help="write the rendered image with the pixel marked and the rays drawn")
@@ -144,6 +148,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _print_warnings(info):
+    for n in getattr(info, "notes", ()):
+        print(f"whitted: note: {n}", file=sys.stderr)
     for w in info.warnings:
         print(f"whitted: warning: {w}", file=sys.stderr)
 
@@ -173,6 +179,7 @@ def cmd_render(args) -> int:
         return _render_on_farm(args, frames, aovs)
     for frame in frames:
         scene, info = load_stage(stage, time=frame, camera=args.camera, width=args.width, height=args.height,
+                                 default_light=not args.no_default_light,
                                  purposes=split_purposes(args.purposes))
         if frame is None or frame == frames[0]:
             _print_warnings(info)
@@ -272,7 +279,8 @@ def _describe_light(light) -> str:
     fields = {k: v for k, v in vars(light).items() if k != "name"}
     parts = []
     for k, v in fields.items():
-        v = np.round(np.asarray(v, float), 4).tolist()
+        if not isinstance(v, str):  # numbers and vectors rounded; names (an area light's shape) as they are
+            v = np.round(np.asarray(v, float), 4).tolist()
         parts.append(f"{k}={v}")
     return f"{type(light).__name__}(" + ", ".join(parts) + ")"
 

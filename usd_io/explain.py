@@ -89,7 +89,7 @@ def cmd_explain(args) -> int:
     if args.png:
         check_output(args.png)
     scene, info = load_stage(args.scene, time=args.frame, camera=args.camera, width=args.width,
-                             height=args.height, purposes=args.purposes)
+                             height=args.height, purposes=args.purposes, default_light=not args.no_default_light)
     x, y = args.pixel
     if not (0 <= x < info.width and 0 <= y < info.height):
         raise BadInput(f"--pixel {x} {y} is outside the {info.width}x{info.height} image")
@@ -103,8 +103,9 @@ def cmd_explain(args) -> int:
     if args.png:
         image = render(scene, settings)
         write_image(args.png, draw_overlay(ex, scene, image.rgba))
-    for w in info.warnings:
-        print(f"whitted: warning: {w}", file=sys.stderr)
+    from .cli import _print_warnings
+
+    _print_warnings(info)
     return 0
 
 

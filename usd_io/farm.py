@@ -34,6 +34,7 @@ class UsdSource:
     width: int | None = None
     height: int | None = None
     purposes: tuple = ("default", "render")
+    default_light: bool = True
     settings: dict = field(default_factory=dict, hash=False, compare=False)
     #: sha256 of the shipped package this source was unpacked from (None: read ``path`` itself).
     package: str | None = None
@@ -44,7 +45,7 @@ class UsdSource:
         from .reader import load_stage
 
         scene, info = load_stage(_open(self.path), time=frame, camera=self.camera, width=self.width,
-                                 height=self.height, purposes=list(self.purposes))
+                                 height=self.height, purposes=list(self.purposes), default_light=self.default_light)
         return scene, RenderSettings(width=info.width, height=info.height, **self.settings)
 
     def unpacked(self, assets: bytes) -> "UsdSource":
@@ -158,7 +159,7 @@ def render_on_farm(args, frames, settings: dict, out_path, write) -> int:
     path = os.path.abspath(args.scene)
     assets = package_assets(path) if args.ship_assets else None
     source = UsdSource(path=path, camera=args.camera, width=args.width, height=args.height,
-                       purposes=tuple(args.purposes), settings=settings)
+                       purposes=tuple(args.purposes), default_light=not args.no_default_light, settings=settings)
     client, cluster, threads = connect(args.scheduler)
     if threads is not None and settings.get("threads") is None:
         source = replace(source, settings=dict(settings, threads=threads))

@@ -1,4 +1,5 @@
-"""``UsdLux`` lights -> tracer lights, in the units Blender's USD exporter writes (measured against Cycles).
+"""``UsdLux`` lights -> tracer lights, as the UsdLux spec reads them, which is also how Blender's USD exporter
+writes them (measured against Cycles) except for one light, the sun (see "Which reading" below).
 
 Let I = intensity · 2^exposure · color (per channel, × the colour temperature, see below). Blender writes a point
 light of power P as a SphereLight with I = P/π, normalize = 1; Cycles' radiant intensity is P/4π. Hence:
@@ -8,12 +9,22 @@ light of power P as a SphereLight with I = P/π, normalize = 1; Cycles' radiant 
                  (the same light as a normalized one of I·4πR², i.e. normalize divides by the surface area)
                  radius -> soft shadows unless treatAsPoint; ShapingAPI cone -> SpotLight(cone_angle =
                  shaping:cone:angle in degrees (half angle), blend = shaping:cone:softness)
-    DistantLight tracer irradiance = 4·I W/m² (Blender writes sun strength S as I = S/4); angle is USD's
-                 half angle in degrees (Blender writes angle/2), the tracer takes the full angular diameter
+    DistantLight spec: ``angle`` is the angular diameter of the sun's disk (default 0.53°) and I its radiance, so
+                 the irradiance is E = I·Ω with Ω = 2π(1 − cos(angle/2)) the disk's solid angle (the schema
+                 default I = 50 000 gives E = 3.36 W/m², a sane sun); ``normalize`` = 1 makes E = I.
+                 angle = 0 (a delta sun, which the spec leaves at E = 0) takes E = I, the normalized limit.
+                 Blender's exporter: sun strength S written as I = S/4 with normalize = 1 and angle = half the
+                 diameter, so E = 4·I and the diameter is 2·angle.
     RectLight    radiance Le = I/A with normalize = 1 (A = width·height), else Le = I (Blender: I = P/π)
     DiskLight    the same with A = π·radius²
     DomeLight    the world: a lat-long texture becomes Scene.environment (usd_io/dome.py: orientation, format);
                  without one, Scene.background = I and Scene.ambient = I · inputs:diffuse
+
+Which reading: a stage whose root layer says it was written by Blender (``doc = "Blender v…"``, what
+Blender's exporter writes) takes Blender's sun; every other stage the spec's. For every other light type the two
+readings agree: a SphereLight with normalize = 1 has radiant intensity I/4 under the spec (radiance I over the
+sphere's area 4πR², seen as a disk of πR²) and Blender's point light of power P = π·I has P/4π = I/4; a normalized
+RectLight/DiskLight has radiance I/A under both.
 
 Colour temperature: applied only when ``enableColorTemperature`` is on *and* ``colorTemperature`` is authored.
 Blender writes ``enableColorTemperature = 1`` on every light without a temperature, meaning "no tint"; USD's
@@ -72,8 +83,25 @@ def _axis_scales(m):
     return np.linalg.norm(m[:3, :3], axis=0)
 
 
-def convert_light(prim, world: np.ndarray, time, warn):
-    """(kind, tracer light or None, world dict or None) for one UsdLux prim."""
+def blender_authored(stage) -> bool:
+    """Whether the stage's root layer was written by Blender's USD exporter (``doc = "Blender v…"``)."""
+    return str(stage.GetRootLayer().documentation).startswith("Blender v")
+
+
+def sun_irradiance(rgb, angle_deg: float, normalize: bool, blender: bool):
+    """(irradiance per channel, angular diameter in radians) of a DistantLight (see the module docstring)."""
+    if blender:
+        return 4.0 * rgb, float(np.clip(np.radians(2 * angle_deg), 0, np.pi - 1e-6))
+    diameter = float(np.clip(np.radians(angle_deg), 0, np.pi - 1e-6))
+    if normalize:
+        return rgb, diameter
+    omega = 2 * np.pi * (1 - np.cos(diameter / 2))
+    return rgb * omega, diameter
+
+
+def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False):
+    """(kind, tracer light or None, world dict or None) for one UsdLux prim; ``blender``: the stage was written by
+    Blender (its sun units, see :func:`blender_authored`)."""
     t = prim.GetTypeName()
     name = str(prim.GetPath())
     rgb = light_colour(prim, time)
@@ -101,8 +129,10 @@ def convert_light(prim, world: np.ndarray, time, warn):
     if t == "DistantLight":
         lux = UsdLux.DistantLight(prim)
         angle = _finite(_get(lux.GetAngleAttr(), time, 0.53), "angle")
-        return "distant", DistantLight(direction=down, irradiance=4.0 * rgb,
-                                       angle=float(np.clip(np.radians(2 * angle), 0, np.pi - 1e-6)), name=name), None
+        irradiance, diameter = sun_irradiance(rgb, angle, _normalized(prim, time), blender)
+        if not blender and angle <= 0:  # a delta sun: the limit the normalized reading gives
+            irradiance = rgb
+        return "distant", DistantLight(direction=down, irradiance=irradiance, angle=diameter, name=name), None
     if t in ("RectLight", "DiskLight"):
         sx, sy, _ = _axis_scales(world)
         if t == "RectLight":
@@ -133,3 +163,17 @@ def convert_light(prim, world: np.ndarray, time, warn):
         return "dome", None, dict(background=colour, ambient=colour * diffuse, environment=env)
     warn(f"{name}: light type {t} is not supported (skipped)")
     return "unsupported", None, None
+
+
+#: The default lighting of a stage without lights, as usdview/usdrecord light one: a headlight along the camera's
+#: view (irradiance π: a white Lambertian surface facing the camera shows its albedo) and a dim dome (ambient).
+DEFAULT_HEADLIGHT_IRRADIANCE = np.pi
+DEFAULT_DOME = 0.1
+
+
+def default_lights(camera) -> tuple:
+    """(headlight, dome colour) for a stage with no lights, attached to the tracer ``camera``."""
+    forward = -np.asarray(camera.camera_to_world, np.float64)[:3, 2]
+    sun = DistantLight(direction=forward, irradiance=(DEFAULT_HEADLIGHT_IRRADIANCE,) * 3, angle=0.0,
+                       name="default camera light")
+    return sun, np.full(3, DEFAULT_DOME, np.float32)

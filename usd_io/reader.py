@@ -17,7 +17,7 @@ from . import camera as cam
 from .gprims import DEFAULT_SEGMENTS, GPRIM_TYPES, read_gprim
 from .instancing import instance_matrices, replicate
 from .dome import environment
-from .lights import convert_light
+from .lights import blender_authored, convert_light, default_lights
 from .material import MaterialTable
 from .material_primvars import replicate_corners
 from .mesh import MeshData, read_mesh
@@ -40,6 +40,8 @@ class StageInfo:
     meshes: list = field(default_factory=list)  # (path, triangle count)
     materials: dict = field(default_factory=dict)  # material name -> tracer fields
     warnings: list = field(default_factory=list)
+    notes: list = field(default_factory=list)  # what was done on the user's behalf (e.g. the default lighting)
+    default_lighting: bool = False
     up_axis: str = "Y"
     meters_per_unit: float = 0.01
 
@@ -51,6 +53,7 @@ class StageInfo:
 class _Reader:
     def __init__(self, stage, time, purposes, segments, info: StageInfo):
         self.stage, self.time, self.purposes, self.segments, self.info = stage, time, purposes, segments, info
+        self.blender = blender_authored(stage)
         self.b = SceneBuilder()
         self.xf = Transforms(time)
         self.mats = MaterialTable(self.b, time, info.warn)
@@ -150,7 +153,7 @@ class _Reader:
     # ------------------------------------------------------------------ lights
     def add_light(self, prim):
         try:
-            kind, light, world = convert_light(prim, self.xf.world(prim), self.time, self.info.warn)
+            kind, light, world = convert_light(prim, self.xf.world(prim), self.time, self.info.warn, self.blender)
         except ValueError as exc:  # the tracer's light validation (NaN/Inf intensity, zero-length axes, ...)
             self.info.warn(f"{prim.GetPath()}: {exc} (light skipped)")
             return
@@ -183,7 +186,8 @@ def _usable(m: np.ndarray) -> np.ndarray:
 
 
 def load_stage(path_or_stage, time=None, camera: str | None = None, width: int | None = None,
-               height: int | None = None, purposes=DEFAULT_PURPOSES, segments: int = DEFAULT_SEGMENTS):
+               height: int | None = None, purposes=DEFAULT_PURPOSES, segments: int = DEFAULT_SEGMENTS,
+               default_light: bool = True):
     """Read a USD stage (a path or an open ``Usd.Stage``) into a render-ready :class:`tracer.Scene`.
 
     time      time code (None: the earliest time, i.e. default values or the first time sample)
@@ -191,6 +195,8 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     width, height  image size; a missing side follows the camera aperture's aspect (width defaults to 960)
     purposes  which ``purpose`` values render (default: default and render)
     segments  tessellation of implicit gprims
+    default_light  light a stage that has no lights as usdview does (a camera headlight and a dim dome; a note
+              in ``info.notes``); False leaves it unlit (black)
 
     Returns ``(scene, info)``; ``info.warnings`` lists what was skipped or approximated (each message once).
     Raises :class:`UsdInputError` (a ``ValueError``) for input the user can fix.
@@ -237,6 +243,14 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
                                                  width, height)
         r.b.camera = cam.framing_camera(r.bounds(), info.up_axis, info.width, info.height)
         info.warn("no camera in the stage: framing the scene's bounds with a default camera")
+    if default_light and not info.lights:
+        sun, dome = default_lights(r.b.camera)
+        r.b.add_light(sun)
+        r.b.background = r.b.background + dome
+        r.b.ambient = r.b.ambient + dome
+        info.default_lighting = True
+        info.notes.append("the stage has no lights: lit by a camera headlight and a dim dome as usdview does "
+                          "(--no-default-light turns this off)")
     try:
         scene = r.b.build()
     except ValueError as exc:  # the tracer's validation of what was read (e.g. a NaN material input)

@@ -1,0 +1,148 @@
+"""Renders whose every pixel has a closed-form value: texture orientation, the notes' classic glass weights against
+Fresnel's slab transmittance, and what ε does (acne without it, light leaks with too much of it).
+
+Each scene is built so that one wrong sign, swap or weight changes the asserted pixels."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tracer import Camera, PointLight, RenderSettings, SceneBuilder, render
+from tracer.texture import sample_bilinear
+
+from tracer_scenes import quad
+
+N = 8  # texture size and image size: one pixel per texel
+
+
+def _texture():
+    """An asymmetric 8×8 texture: red grows to the right (column), green downwards (row 0 = the image's top as
+    files store it), blue marks the top-left texel only."""
+    rows, cols = np.mgrid[0:N, 0:N]
+    tex = np.stack([(cols + 0.5) / N, (rows + 0.5) / N, np.zeros((N, N))], axis=-1).astype(np.float32)
+    tex[0, 0, 2] = 1.0
+    return tex
+
+
+def _textured_quad_scene(uv_rotation=0):
+    """The unit square z = 0 with uv = (x, y), seen from +z by an orthographic camera that frames it exactly
+    (image right = +x, image up = +y), lit only by an ambient term of 1 so each pixel shows its texel."""
+    b = SceneBuilder()
+    tex = b.add_texture(_texture())
+    m = b.add_material("textured", diffuse=(1, 1, 1), diffuse_texture=tex)
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    uv = v[:, :2]
+    b.add_mesh(v, [[0, 1, 2], [0, 2, 3]], material=m, uvs=uv, name="square")
+    b.camera = Camera.look_at((0.5, 0.5, 5), (0.5, 0.5, 0), up=(0, 1, 0), projection="orthographic",
+                              horizontal_aperture=1.0, vertical_aperture=1.0)
+    b.ambient = np.ones(3, np.float32)
+    return b.build()
+
+
+def test_texture_is_seen_upright_and_not_transposed():
+    """A texture file's top row is at v = 1 (UsdUVTexture, Blender and OIIO agree): seen from the front with u to
+    the right and v up, the rendered image is the texture image itself, texel for texel."""
+    img = render(_textured_quad_scene(), RenderSettings(width=N, height=N, samples=1)).rgb
+    np.testing.assert_allclose(img, _texture(), atol=1e-6)
+    assert img[0, 0, 2] == 1.0 and img[-1, -1, 2] == 0.0  # the marked texel is top-left, not bottom-left
+
+
+def test_bilinear_lookup_of_the_texture_file_convention():
+    """sample_bilinear at texel centres (s right, t up) returns the texel of row (1 − t)·H, column s·W."""
+    tex = _texture()
+    rows, cols = np.mgrid[0:N, 0:N]
+    st = np.stack([(cols + 0.5) / N, 1 - (rows + 0.5) / N], axis=-1).reshape(-1, 2)
+    np.testing.assert_allclose(sample_bilinear(tex, st).reshape(N, N, 3), tex, atol=1e-6)
+    # halfway between the two top-left texels horizontally: their mean (bilinear, not nearest)
+    mid = sample_bilinear(tex, np.array([[1.0 / N, 1 - 0.5 / N]]))[0]
+    np.testing.assert_allclose(mid, (tex[0, 0] + tex[0, 1]) / 2, atol=1e-6)
+
+
+# ------------------------------------------------------------------------------------------ glass weights
+BG = np.array([0.2, 0.5, 0.9], np.float32)
+
+
+def _pane_scene(ior=1.5):
+    """A glass pane (a thin box, faces ⟂ z) between an orthographic camera looking down −z and the background;
+    behind the camera a black wall catches every reflection, so only light transmitted through the pane arrives."""
+    b = SceneBuilder()
+    glass = b.add_material("glass", diffuse=(0, 0, 0), transmission=1.0, ior=ior)
+    black = b.add_material("black", diffuse=(0, 0, 0))
+    lo, hi = np.array([-2, -2, -0.1]), np.array([2, 2, 0.1])
+    v = np.array([[x, y, z] for z in (lo[2], hi[2]) for y in (lo[1], hi[1]) for x in (lo[0], hi[0])], float)
+    faces = [[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4], [2, 6, 3], [3, 6, 7],
+             [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]]
+    b.add_mesh(v, faces, material=glass, name="pane")
+    quad(b, (0, 0, 10), 50.0, black, "wall")  # faces +z; the camera (at z = 5) sees past its back
+    b.camera = Camera.look_at((0, 0, 5), (0, 0, 0), up=(0, 1, 0), projection="orthographic",
+                              horizontal_aperture=1.0, vertical_aperture=1.0)
+    b.background = BG
+    return b.build()
+
+
+def test_classic_weights_pass_everything_through_glass():
+    """The notes' weights (fresnel=False): no reflection off glass unless TIR, so the pane is invisible."""
+    img = render(_pane_scene(), RenderSettings(width=4, height=4, fresnel=False)).rgb
+    np.testing.assert_allclose(img, np.broadcast_to(BG, img.shape), atol=1e-6)
+
+
+def test_fresnel_weights_give_the_slab_transmittance():
+    """Fresnel at normal incidence, F = ((n−1)/(n+1))²; a slab lets through (1−F)² Σ F^{2k} = (1−F)/(1+F) of the
+    background (the inner reflections that go backwards end on the black wall)."""
+    n = 1.5
+    f = ((n - 1) / (n + 1)) ** 2
+    img = render(_pane_scene(n), RenderSettings(width=4, height=4, max_depth=12, min_weight=0.0)).rgb
+    np.testing.assert_allclose(img, np.broadcast_to(BG * (1 - f) / (1 + f), img.shape), rtol=1e-4)
+
+
+# ------------------------------------------------------------------------------------------------------ ε
+def _lit_floor_with_block():
+    """A floor lit by a point light straight above a small block standing on it; the camera looks down."""
+    b = SceneBuilder()
+    grey = b.add_material("grey", diffuse=(0.5, 0.5, 0.5))
+    quad(b, (0, 0, 0), 20.0, grey, "floor")
+    s = 0.5  # a 1 × 1 × 0.5 block on the floor, from z = 0 to 0.5
+    v = np.array([[x, y, z] for z in (0.0, s) for y in (-0.5, 0.5) for x in (-0.5, 0.5)], float)
+    faces = [[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4], [2, 6, 3], [3, 6, 7],
+             [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]]
+    b.add_mesh(v, faces, material=grey, name="block")
+    b.add_light(PointLight(position=(3, 0, 4), intensity=(40.0,) * 3))
+    b.camera = Camera.look_at((0, 0, 12), (0, 0, 0), up=(0, 1, 0), projection="orthographic",
+                              horizontal_aperture=6.0, vertical_aperture=6.0)
+    return b.build()
+
+
+def _floor_radiance(x, y):
+    """Closed form of the unshadowed floor: L = a/π · I·cosθ/r² (I the radiant intensity)."""
+    d = np.array([3 - x, -y, 4.0])
+    r2 = d @ d
+    return 0.5 / np.pi * 40.0 * (4.0 / np.sqrt(r2)) / r2
+
+
+def test_default_epsilon_lights_the_floor_exactly_and_keeps_the_contact_shadow():
+    scene = _lit_floor_with_block()
+    img = render(scene, RenderSettings(width=60, height=60)).rgb
+    xs = (np.arange(60) + 0.5) / 60 * 6 - 3
+    # A row of lit floor away from the block (y = 2.05): every pixel equals the closed form (no acne).
+    row = 60 - 1 - int((2.05 + 3) / 6 * 60)
+    y = 3 - (row + 0.5) / 60 * 6
+    expected = np.array([_floor_radiance(x, y) for x in xs])
+    np.testing.assert_allclose(img[row, :, 0], expected, rtol=2e-3)
+    # The shadow of the block on the floor, just beside its left face (x = −0.55, light at +x): dark.
+    col = int((-0.55 + 3) / 6 * 60)
+    assert img[30, col, 0] < 1e-6
+
+
+def test_a_vanishing_epsilon_shows_acne_and_a_huge_one_leaks_light():
+    """Why ε exists (the notes' shadow ray starts ε off the surface): with ε ≈ 0 shadow rays hit the surface they
+    leave (speckled self-shadowing on the lit floor); with ε larger than the block, the contact shadow lights up."""
+    scene = _lit_floor_with_block()
+    clean = render(scene, RenderSettings(width=60, height=60)).rgb[..., 0]
+    acne = render(scene, RenderSettings(width=60, height=60, epsilon=1e-12)).rgb[..., 0]
+    lit = clean > 0.01
+    speckled = np.mean(acne[lit] < 0.5 * clean[lit])
+    assert speckled > 0.01, f"only {speckled:.1%} of the lit floor self-shadowed with ε ≈ 0"
+    leaky = render(scene, RenderSettings(width=60, height=60, epsilon=1.0)).rgb[..., 0]
+    col = int((-0.55 + 3) / 6 * 60)
+    assert clean[30, col] < 1e-6 < leaky[30, col]
