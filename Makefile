@@ -18,7 +18,7 @@ $(VENV)/.test: $(VENV)/.core
 	touch $@
 
 render: $(VENV)/.core
-	$(VENV)/bin/whitted render $(SCENE) -o $(OUT) --spp 3
+	$(VENV)/bin/whitted render $(SCENE) -o $(OUT)
 
 test: $(VENV)/.test
 	$(PY) -m pytest -q

@@ -14,7 +14,7 @@ import time
 import bpy
 import numpy as np
 
-from . import export
+from . import export, viewport
 
 tracer = export.tracer
 
@@ -174,55 +174,68 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
 
     # ---------------------------------------------------------------------------------------------- viewport
     def view_update(self, context, depsgraph):
+        """A depsgraph change (not a view change: those only reach view_draw): export again, on this (the main)
+        thread since bpy data is not thread-safe, reusing the mesh arrays of objects whose geometry did not
+        change; the worker thread traces (addon/viewport.py)."""
         try:
-            region, rv3d = context.region, context.region_data
-            camera = viewport_camera(rv3d)
+            region = context.region
+            first = self._view is None
+            if first:
+                self._view = viewport.ViewportRender(on_frame=self._redraw_from_thread)
+                self._mesh_cache = {}
+            else:
+                changed = [u for u in depsgraph.updates if u.is_updated_geometry]
+                export.forget_geometry(self._mesh_cache, [u.id for u in changed])
             scene, _ = export.scene_from_depsgraph(depsgraph, width=region.width, height=region.height,
-                                                   camera=camera)
-            self._view = {"scene": scene, "key": None, "level": 8, "texture": None}
+                                                   camera=viewport_camera(context.region_data),
+                                                   geometry_cache=self._mesh_cache)
+            settings = export.settings_from_scene(depsgraph.scene).with_(light_samples=4)
+            self._view.set_scene(scene, settings)
         except Exception as exc:  # never crash Blender from the viewport
-            self._view = None
             print(f"Whitted viewport: {exc}")
 
-    def view_draw(self, context, depsgraph):
+    def _redraw_from_thread(self):
         try:
-            self._view_draw(context, depsgraph)
+            self.tag_redraw()
+        except ReferenceError:  # the engine was freed (viewport closed) while a pass finished
+            pass
+
+    def view_draw(self, context, depsgraph):
+        """Draw the newest finished pass; tell the worker about the current view (it restarts if it moved).
+        Never traces."""
+        try:
+            if self._view is None:
+                self.view_update(context, depsgraph)
+                if self._view is None:
+                    return
+            region = context.region
+            self._view.set_view(viewport_camera(context.region_data), (region.width, region.height))
+            frame = self._view.latest()
+            if frame is not None:
+                self._draw_frame(frame, region, depsgraph)
         except Exception as exc:  # no GPU context (background mode) or anything else: fail soft
             print(f"Whitted viewport: {exc}")
 
-    def _view_draw(self, context, depsgraph):
+    def _draw_frame(self, frame, region, depsgraph):
         import gpu
         from gpu_extras.presets import draw_texture_2d
 
-        if self._view is None:
-            self.view_update(context, depsgraph)
-            if self._view is None:
-                return
-        region, rv3d = context.region, context.region_data
-        camera = viewport_camera(rv3d)
-        key = (region.width, region.height, tuple(np.round(camera.camera_to_world.ravel(), 6)),
-               camera.horizontal_aperture, camera.vertical_aperture)
-        v = self._view
-        if v["key"] != key:
-            v.update(key=key, level=8, texture=None)
-        if v["texture"] is None or v["level"] > 1:
-            level = v["level"] if v["texture"] is None else max(1, v["level"] // 2)
-            w, h = max(1, region.width // level), max(1, region.height // level)
-            v["scene"].camera = camera
-            st = export.settings_from_scene(depsgraph.scene).with_(width=w, height=h, samples=1, region=None,
-                                                                   aovs=(), light_samples=4)
-            img = tracer.render(v["scene"], st)
-            view_rgba = np.ascontiguousarray(img.rgba[::-1], np.float32)
-            buf = gpu.types.Buffer("FLOAT", w * h * 4, view_rgba.reshape(-1))
-            v["texture"] = gpu.types.GPUTexture((w, h), format="RGBA16F", data=buf)
-            v["level"] = level
-            if level > 1:
-                self.tag_redraw()
+        if getattr(self, "_texture_of", None) is not frame:  # upload each finished pass once
+            h, w = frame.rgba.shape[:2]
+            data = np.ascontiguousarray(frame.rgba[::-1], np.float32).reshape(-1)
+            self._texture = gpu.types.GPUTexture((w, h), format="RGBA16F", data=gpu.types.Buffer("FLOAT", data.size,
+                                                                                                   data))
+            self._texture_of = frame
         gpu.state.blend_set("ALPHA_PREMULT")
         self.bind_display_space_shader(depsgraph.scene)
-        draw_texture_2d(v["texture"], (0, 0), region.width, region.height)
+        draw_texture_2d(self._texture, (0, 0), region.width, region.height)
         self.unbind_display_space_shader()
         gpu.state.blend_set("NONE")
+
+    def __del__(self):
+        v = getattr(self, "_view", None)
+        if v is not None:
+            v.stop()
 
 
 def _tile_z(camera, distance, tile, width, height):
@@ -258,6 +271,16 @@ def viewport_camera(rv3d) -> "tracer.Camera":
 
 def register():
     bpy.utils.register_class(WhittedRenderEngine)
+    # Compile (first run on this machine) or load the kernels now, off the UI thread, so the first F12 or
+    # viewport does not freeze Blender for the ~10 s of a first compile.
+    threading.Thread(target=_prepare_kernels, name="whitted-compile", daemon=True).start()
+
+
+def _prepare_kernels():
+    try:
+        tracer.compile_kernels()
+    except Exception as exc:  # reported again, in context, by the first render that needs them
+        print(f"Whitted: preparing the kernels failed: {exc}")
 
 
 def unregister():

@@ -16,8 +16,10 @@ particles are included):
 - Lights, in Blender's units: point P W -> intensity P/(4π)·colour, radius = ``shadow_soft_size``; spot: the same
   with cone half-angle ``spot_size/2`` and ``spot_blend``; sun strength S -> irradiance S·colour, ``angle``; area
   power P -> radiance P/(π·A)·colour (A in world units, emitting along the light's -Z). ``2^exposure`` multiplies.
-- World: the Background node's Color × Strength (or ``world.color``) -> ``scene.background`` and ``scene.ambient``.
-- Materials: see :func:`material_from_blender` (the Principled BSDF mapping).
+- World: :func:`addon.world.world_from_blender` (Background colour × strength, an Environment Texture as
+  ``tracer.Environment``, anything else baked to a lat-long image by Cycles).
+- Materials: node trees read by :mod:`addon.nodes` (one function per node type) into the Principled description,
+  written into the tracer's model by :mod:`addon.model` (the supported-node table is in docs/addon.md).
 """
 
 from __future__ import annotations
@@ -31,190 +33,28 @@ try:  # inside the installed extension the tracer is bundled next to this module
 except ImportError:  # the repository's ``addon`` package uses the top-level tracer
     import tracer
 
-#: Blender's default surface (no material): 0.8 grey, Principled defaults.
-DEFAULT_SURFACE = {"diffuse": (0.8, 0.8, 0.8), "specular": (0.04, 0.04, 0.04), "roughness": 0.5}
+from .model import MaterialWriter
+from .nodes import image_rgba
+from .world import world_from_blender
+
 #: Object types that become triangles through ``Object.to_mesh``.
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT"}
 
 
-def specular_f0(ior: float, specular_ior_level: float) -> float:
-    """The Blinn-Phong specular colour R_s of a dielectric Principled BSDF.
-
-    R_s = F0 · 2·level with F0 = ((η − 1)/(η + 1))², the normal-incidence Fresnel reflectance: Blender's
-    Specular IOR Level scales F0 so that 0.5 keeps it, 0 removes the highlight and 1 doubles it.
-    """
-    f0 = ((ior - 1.0) / (ior + 1.0)) ** 2 if ior > 0 else 0.0
-    return float(f0 * 2.0 * max(specular_ior_level, 0.0))
-
-
 # ---------------------------------------------------------------------------------------------------- materials
-def _node_tree(idblock):
-    """The node tree of a material or world if it uses nodes (Blender 5.0 always does; ``use_nodes`` is
-    deprecated there)."""
-    import bpy
-
-    if bpy.app.version < (5, 0, 0) and not idblock.use_nodes:
-        return None
-    return idblock.node_tree
-
-
-def _input(node, *names):
-    """The first of ``names`` that is an input socket of ``node`` (names changed across Blender versions)."""
-    for n in names:
-        sock = node.inputs.get(n)
-        if sock is not None:
-            return sock
-    return None
-
-
-def _value(node, *names, default=0.0):
-    sock = _input(node, *names)
-    if sock is None:
-        return default
-    v = sock.default_value
-    try:
-        return tuple(float(x) for x in v)
-    except TypeError:
-        return float(v)
-
-
-def _linked_node(sock):
-    if sock is None or not sock.is_linked:
-        return None
-    link = sock.links[0]
-    node = link.from_node
-    while node.type == "REROUTE" and node.inputs[0].is_linked:
-        node = node.inputs[0].links[0].from_node
-    return node
-
-
-def _output_node(tree):
-    outs = [n for n in tree.nodes if n.type == "OUTPUT_MATERIAL"]
-    active = [n for n in outs if n.is_active_output and n.target in ("ALL", "CYCLES")]
-    return (active or [n for n in outs if n.target in ("ALL", "CYCLES")] or outs or [None])[0]
-
-
 def image_pixels(image) -> np.ndarray:
-    """(H, W, 3) scene-linear float32 pixels of a Blender image, top row first (the tracer's texture layout).
-
-    ``Image.pixels`` holds float images linear and byte images as stored, so byte images in an sRGB colour
-    space are decoded with the sRGB transfer function; Non-Color data stays as is.
-    """
-    w, h = image.size
-    c = image.channels
-    if w == 0 or h == 0:
-        raise ValueError(f"image {image.name!r} has no pixels (missing file?)")
-    buf = np.empty(w * h * c, np.float32)
-    image.pixels.foreach_get(buf)
-    px = buf.reshape(h, w, c)[::-1]
-    if c == 1:
-        rgb = np.repeat(px, 3, axis=2)
-    else:
-        rgb = px[..., :3] if c >= 3 else np.repeat(px[..., :1], 3, axis=2)
-    space = image.colorspace_settings.name.lower()
-    if not image.is_float and "srgb" in space:
-        rgb = tracer.texture.srgb_to_linear(rgb)
-    return np.ascontiguousarray(rgb, dtype=np.float32)
-
-
-def material_from_blender(material, textures: dict, builder, warnings: list) -> dict:
-    """Material row (tracer fields) for a Blender material.
-
-    Principled BSDF mapping (documented in docs/addon.md):
-
-    ============================  =====================================================================
-    Base Color                    ``diffuse`` (an Image Texture on it: ``diffuse_texture``, diffuse = 1)
-    Metallic m                    ``k_m`` = m, ``mirror_tint`` = base colour
-    Roughness r                   ``exponent`` = roughness_to_exponent(r)
-    IOR η, Specular IOR Level s   ``specular`` = ((η−1)/(η+1))²·2s × Specular Tint, ``ior`` = η
-    Transmission Weight w         ``transmission`` = w, ``transmission_tint`` = base colour
-    Alpha a < 1                   pass-through: ``transmission`` = 1 − a with ``ior`` = 1 (no bending)
-    Emission Color × Strength     ``emission``
-    ============================  =====================================================================
-
-    Diffuse BSDF and Emission shaders map to the obvious rows. Anything else falls back to the material's viewport
-    colour (``diffuse_color``) with one warning.
-    """
-    name = material.name
-    fallback = {"diffuse": tuple(material.diffuse_color[:3]), "specular": (0.0, 0.0, 0.0),
-                "k_m": float(getattr(material, "metallic", 0.0)),
-                "roughness": float(getattr(material, "roughness", 0.5))}
-    tree = _node_tree(material)
-    if tree is None:
-        return fallback
-    out = _output_node(tree)
-    shader = _linked_node(out.inputs.get("Surface")) if out is not None else None
-    if shader is None:
-        warnings.append(f"material {name!r}: no surface shader connected to the Material Output; "
-                        "using its viewport colour")
-        return fallback
-    if shader.type == "BSDF_DIFFUSE":
-        return {"diffuse": _value(shader, "Color")[:3], "specular": (0.0, 0.0, 0.0)}
-    if shader.type == "EMISSION":
-        col = np.asarray(_value(shader, "Color")[:3]) * _value(shader, "Strength", default=1.0)
-        return {"diffuse": (0.0, 0.0, 0.0), "emission": tuple(col)}
-    if shader.type != "BSDF_PRINCIPLED":
-        warnings.append(f"material {name!r}: unsupported shader {shader.bl_idname}; using its viewport colour")
-        return fallback
-
-    row: dict = {}
-    base_sock = _input(shader, "Base Color")
-    base = np.asarray(_value(shader, "Base Color", default=(0.8, 0.8, 0.8, 1.0))[:3], np.float32)
-    tex_node = _linked_node(base_sock)
-    if tex_node is not None:
-        if tex_node.type == "TEX_IMAGE" and tex_node.image is not None:
-            key = tex_node.image.name
-            if key not in textures:
-                try:
-                    textures[key] = builder.add_texture(image_pixels(tex_node.image))
-                except Exception as exc:  # missing file, unreadable pixels: keep the flat colour
-                    warnings.append(f"material {name!r}: image {key!r} not loaded ({exc})")
-                    textures[key] = None
-            if textures[key] is not None:
-                row["diffuse_texture"] = textures[key]
-                base = np.ones(3, np.float32)
-                if tex_node.inputs["Vector"].is_linked:
-                    warnings.append(f"material {name!r}: texture coordinates of {key!r} come from nodes; "
-                                    "the active UV map is used")
-        else:
-            warnings.append(f"material {name!r}: Base Color is driven by {tex_node.bl_idname}, which is not "
-                            "supported; using the socket's colour")
-    row["diffuse"] = tuple(base)
-
-    metallic = float(np.clip(_value(shader, "Metallic"), 0.0, 1.0))
-    roughness = float(np.clip(_value(shader, "Roughness", default=0.5), 0.0, 1.0))
-    ior = float(_value(shader, "IOR", default=1.5))
-    ior = ior if ior > 0 else 1.5
-    level = float(_value(shader, "Specular IOR Level", "Specular", default=0.5))
-    tint = _value(shader, "Specular Tint", default=(1.0, 1.0, 1.0, 1.0))
-    tint = np.asarray(tint[:3] if isinstance(tint, tuple) else (1.0, 1.0, 1.0), np.float32)
-    transmission = float(np.clip(_value(shader, "Transmission Weight", "Transmission"), 0.0, 1.0))
-    alpha = float(np.clip(_value(shader, "Alpha", default=1.0), 0.0, 1.0))
-    emission = np.asarray(_value(shader, "Emission Color", "Emission", default=(0.0, 0.0, 0.0, 1.0))[:3])
-    emission = emission * float(_value(shader, "Emission Strength", default=1.0))
-
-    row["k_m"] = metallic
-    row["mirror_tint"] = tuple(base) if "diffuse_texture" not in row else (1.0, 1.0, 1.0)
-    row["roughness"] = roughness
-    row["specular"] = tuple(np.clip(specular_f0(ior, level) * tint, 0.0, None))
-    row["ior"] = ior
-    row["transmission"] = transmission
-    row["transmission_tint"] = tuple(base)
-    row["emission"] = tuple(np.maximum(emission, 0.0))
-    if alpha < 1.0 and transmission == 0.0:
-        row["transmission"] = 1.0 - alpha
-        row["transmission_tint"] = (1.0, 1.0, 1.0)
-        row["ior"] = 1.0
-    elif alpha < 1.0:
-        warnings.append(f"material {name!r}: Alpha together with Transmission is not supported; Alpha ignored")
-    return row
+    """(H, W, 3) scene-linear float32 pixels of a Blender image, top row first (see :func:`nodes.image_rgba`)."""
+    return np.ascontiguousarray(image_rgba(image)[..., :3])
 
 
 # ---------------------------------------------------------------------------------------------------- geometry
 def mesh_arrays(mesh) -> dict:
     """Object-space triangle arrays of a Blender mesh: vertices (V, 3), triangles (T, 3), per-corner normals
     (T, 3, 3) from ``corner_normals`` (split/custom normals, flat faces included), per-corner UVs (T, 3, 2) of
-    the active UV map or None, per-triangle material slot indices (T,)."""
+    every UV map by name (``uv_layers``; ``uv_default`` = the active render map, ``uvs`` its UVs or None),
+    per-corner RGBA (T, 3, 4) of every point- or corner-domain Color Attribute (``colors``; ``color_default`` =
+    the render colour), per-triangle material slot indices (T,). All numpy (``foreach_get``), no Python loop
+    over vertices."""
     mesh.calc_loop_triangles()
     nv, nt = len(mesh.vertices), len(mesh.loop_triangles)
     verts = np.empty(nv * 3, np.float32)
@@ -234,14 +74,29 @@ def mesh_arrays(mesh) -> dict:
         cn = np.empty(nl * 3, np.float32)
         mesh.loops.foreach_get("normal", cn)
     normals = cn.reshape(-1, 3)[loops].reshape(nt, 3, 3)
-    uvs = None
-    layer = mesh.uv_layers.active
-    if layer is not None and nl:
-        uv = np.empty(nl * 2, np.float32)
-        layer.data.foreach_get("uv", uv)
-        uvs = uv.reshape(-1, 2)[loops].reshape(nt, 3, 2)
+    layers, default = {}, None
+    if nl:
+        for layer in mesh.uv_layers:
+            uv = np.empty(nl * 2, np.float32)
+            layer.data.foreach_get("uv", uv)
+            layers[layer.name] = uv.reshape(-1, 2)[loops].reshape(nt, 3, 2)
+            if layer.active_render or default is None:
+                default = layer.name
+    colors, color_default = {}, None
+    attrs = getattr(mesh, "color_attributes", ())
+    for attr in attrs:
+        if attr.domain not in ("POINT", "CORNER") or attr.data_type not in ("FLOAT_COLOR", "BYTE_COLOR"):
+            continue
+        c = np.empty(len(attr.data) * 4, np.float32)
+        attr.data.foreach_get("color", c)  # scene linear for both data types
+        c = c.reshape(-1, 4)
+        colors[attr.name] = (c[tris] if attr.domain == "POINT" else c[loops].reshape(-1, 4)).reshape(nt, 3, 4)
+    if colors:
+        render = getattr(attrs, "default_color_name", "") or getattr(attrs, "active_color_name", "")
+        color_default = render if render in colors else next(iter(colors))
     return {"vertices": verts.reshape(nv, 3), "triangles": tris.reshape(nt, 3), "normals": normals,
-            "uvs": uvs, "material_index": mat}
+            "uvs": layers.get(default), "uv_layers": layers, "uv_default": default, "colors": colors,
+            "color_default": color_default, "material_index": mat}
 
 
 def _object_mesh_arrays(obj, depsgraph):
@@ -292,7 +147,11 @@ def camera_from_blender(cam_obj, width: int, height: int, pixel_aspect: float = 
 
 # ---------------------------------------------------------------------------------------------------- lights
 def light_from_blender(obj, warnings: list):
-    """A tracer light for a Blender light object (None for unsupported types), in Blender's power units."""
+    """A tracer light for a Blender light object (None for unsupported types), in Blender's power units.
+
+    ``normalize`` off (Blender's USD importer sets it) stops Cycles dividing the power by the emitter's size, so the
+    light is brighter by that size (measured against Cycles, tests/cycles/test_cycles_units.py): area lights × the
+    area A, point and spot lights × 4π·radius², sun × π·(angle/2)² (:func:`unnormalized_factor`)."""
     light = obj.data
     m = np.array(obj.matrix_world, dtype=np.float64)
     pos = m[:3, 3]
@@ -300,6 +159,8 @@ def light_from_blender(obj, warnings: list):
     colour = np.asarray(light.color[:3], np.float64) * 2.0 ** float(getattr(light, "exposure", 0.0))
     power = float(light.energy)
     name = obj.name
+    if not getattr(light, "normalize", True):
+        power *= unnormalized_factor(light, m)
     if light.type in ("POINT", "SPOT"):
         intensity = colour * power / (4.0 * math.pi)
         radius = float(light.shadow_soft_size)
@@ -330,29 +191,25 @@ def light_from_blender(obj, warnings: list):
     return None
 
 
+def unnormalized_factor(light, m: np.ndarray) -> float:
+    """How much brighter Cycles renders a light with ``normalize`` off: its emitter's size (area A of an area light
+    in world units; 4π·r² of a point/spot sphere; π·(angle/2)² of the sun's disk), 1 for zero-size emitters."""
+    if light.type in ("POINT", "SPOT"):
+        r = float(light.shadow_soft_size)
+        return 4.0 * math.pi * r * r if r > 0 else 1.0
+    if light.type == "SUN":
+        a = float(light.angle) / 2.0
+        return math.pi * a * a if a > 0 else 1.0
+    if light.type == "AREA":
+        sx = float(light.size) * np.linalg.norm(m[:3, 0])
+        sy = float(light.size_y if light.shape in ("RECTANGLE", "ELLIPSE") else light.size) * np.linalg.norm(m[:3, 1])
+        area = math.pi / 4.0 * sx * sy if light.shape in ("DISK", "ELLIPSE") else sx * sy
+        return area if area > 0 else 1.0
+    return 1.0
+
+
 # ---------------------------------------------------------------------------------------------------- world
-def world_colour(world, warnings: list) -> np.ndarray:
-    """Colour × strength of the world: the Background node feeding the World Output, else ``world.color``."""
-    if world is None:
-        return np.zeros(3, np.float32)
-    tree = _node_tree(world)
-    if tree is not None:
-        outs = [n for n in tree.nodes if n.type == "OUTPUT_WORLD"]
-        active = [n for n in outs if n.is_active_output] or outs
-        if active:
-            bg = _linked_node(active[0].inputs.get("Surface"))
-            if bg is not None and bg.type == "BACKGROUND":
-                if bg.inputs["Color"].is_linked:
-                    warnings.append(f"world {world.name!r}: textured backgrounds are not supported; "
-                                    "using the Background node's colour")
-                c = np.asarray(bg.inputs["Color"].default_value[:3], np.float32)
-                return (c * float(bg.inputs["Strength"].default_value)).astype(np.float32)
-            if bg is not None:
-                warnings.append(f"world {world.name!r}: unsupported world shader {bg.bl_idname}; "
-                                "using the world's viewport colour")
-            elif active:
-                return np.zeros(3, np.float32)
-    return np.asarray(world.color[:3], np.float32)
+# world_from_blender (addon/world.py): Background colour, Environment Texture, or a Cycles bake of the world.
 
 
 # ---------------------------------------------------------------------------------------------------- the scene
@@ -364,11 +221,15 @@ def render_size(bpy_scene) -> tuple[int, int]:
 
 
 def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | None = None,
-                         camera: "tracer.Camera | None" = None) -> tuple["tracer.Scene", list[str]]:
+                         camera: "tracer.Camera | None" = None,
+                         geometry_cache: dict | None = None) -> tuple["tracer.Scene", list[str]]:
     """Build a :class:`tracer.Scene` from an evaluated depsgraph; returns it and a list of warnings.
 
     width/height default to the scene's render size (resolution × percentage) and matter only for the camera's
-    sensor fit. ``camera`` overrides the scene camera (the viewport uses this). The returned scene carries
+    sensor fit. ``camera`` overrides the scene camera (the viewport uses this). ``geometry_cache`` (a dict the
+    caller keeps) holds each object's triangle arrays between calls, keyed by object and mesh name; drop the
+    entries of changed objects with :func:`forget_geometry` (the viewport does, from ``depsgraph.updates``). The
+    returned scene carries
     ``scene.object_pass_indices`` (int32 per tracer object id: Blender's ``Object.pass_index``).
     """
     bpy_scene = depsgraph.scene_eval if hasattr(depsgraph, "scene_eval") else depsgraph.scene
@@ -376,19 +237,10 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     rw, rh = render_size(bpy_scene)
     width, height = width or rw, height or rh
     b = tracer.SceneBuilder()
-    default_mat = b.add_material("__default__", **DEFAULT_SURFACE)
-    materials: dict[str, int] = {}
-    textures: dict[str, int | None] = {}
+    writer = MaterialWriter(b, warnings)
+    default_mat = writer.default_row
     geometry: dict[int, dict | None] = {}
     pass_indices: list[int] = []
-
-    def material_index(mat):
-        if mat is None:
-            return default_mat
-        if mat.name not in materials:
-            row = material_from_blender(mat, textures, b, warnings)
-            materials[mat.name] = b.add_material(mat.name, **row)
-        return materials[mat.name]
 
     for inst in depsgraph.object_instances:
         obj = inst.object
@@ -404,7 +256,13 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
         key = obj.data.as_pointer() if obj.type == "MESH" and obj.data is not None else obj.as_pointer()
         key = (key, obj.original.name if obj.type != "MESH" else "")
         if key not in geometry:
-            geometry[key] = _object_mesh_arrays(obj, depsgraph)
+            named = _geometry_key(obj)
+            if geometry_cache is not None and named in geometry_cache:
+                geometry[key] = geometry_cache[named]
+            else:
+                geometry[key] = _object_mesh_arrays(obj, depsgraph)
+                if geometry_cache is not None:
+                    geometry_cache[named] = geometry[key]
         g = geometry[key]
         if g is None or not len(g["triangles"]):
             continue
@@ -413,13 +271,14 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
         if not np.isfinite(det) or abs(det) <= 1e-12 * np.abs(world[:3, :3]).max() ** 3:
             warnings.append(f"object {obj.name!r}: zero scale (nothing to render); skipped")
             continue
-        tris, normals, uvs = g["triangles"], g["normals"], g["uvs"]  # add_mesh un-mirrors negative scales
-        slots = [material_index(s.material) for s in obj.material_slots]
+        tris, normals = g["triangles"], g["normals"]  # add_mesh un-mirrors negative scales
+        slots = [writer.row(s.material) for s in obj.material_slots]
         if slots:
             table = np.asarray(slots, np.int32)
             mats = table[np.clip(g["material_index"], 0, len(slots) - 1)]
         else:
             mats = default_mat
+        mats, uvs = writer.mesh_inputs(obj.name, mats, g)
         name = obj.name if not inst.is_instance else f"{obj.name}@{inst.parent.name if inst.parent else ''}" \
                                                        f"#{inst.random_id & 0xFFFF:04x}"
         b.add_mesh(g["vertices"], tris, material=mats, name=name, transform=world, normals=normals, uvs=uvs)
@@ -432,11 +291,27 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
         camera = camera_from_blender(cam_obj, width, height,
                                      bpy_scene.render.pixel_aspect_x / bpy_scene.render.pixel_aspect_y)
     b.camera = camera
-    colour = world_colour(bpy_scene.world, warnings)
-    b.background = colour
-    b.ambient = colour
+    b.background, b.ambient, b.environment = world_from_blender(bpy_scene.world, warnings, writer.images)
     b.object_pass_indices = np.asarray(pass_indices, np.int32)
     return b.build(), warnings
+
+
+def _geometry_key(obj) -> tuple:
+    """A name key for an object's evaluated triangles that stays valid between depsgraph evaluations."""
+    return (obj.original.name, obj.data.name if obj.data is not None else "", obj.type)
+
+
+def forget_geometry(cache: dict, ids) -> None:
+    """Drop the cached triangles of the changed IDs (objects or meshes, from ``depsgraph.updates``); any other kind
+    of geometry change (a node group, a collection) empties the cache."""
+    for id_ in ids:
+        kind = type(getattr(id_, "original", id_)).__name__
+        name = id_.name
+        if kind not in ("Object", "Mesh"):
+            cache.clear()
+            return
+        for key in [k for k in cache if name in (k[0], k[1])]:
+            del cache[key]
 
 
 #: Custom property marking Explain Pixel's ray curves (addon/explain.py): shown in the viewport, never traced.

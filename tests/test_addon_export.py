@@ -111,6 +111,8 @@ def test_world_materials_and_fallback_warning(bpy_module):
         if n.type == "BSDF_PRINCIPLED":
             nodes.remove(n)
     toon = nodes.new("ShaderNodeBsdfToon")
+    toon.inputs["Color"].default_value = (0.1, 0.9, 0.2, 1.0)  # the colour Cycles shows: the best available
+    odd.diffuse_color = (0.5, 0.5, 0.5, 1.0)
     out = next(n for n in nodes if n.type == "OUTPUT_MATERIAL")
     odd.node_tree.links.new(toon.outputs[0], out.inputs["Surface"])
     bs.add_cube((3, 0, 0), material=odd)

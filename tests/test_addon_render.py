@@ -50,7 +50,15 @@ def test_registered_engine_and_panels(bpy_module, whitted):
     assert "WHITTED" in bpy.types.RENDER_PT_format.COMPAT_ENGINES
     assert "WHITTED" in bpy.types.EEVEE_MATERIAL_PT_surface.COMPAT_ENGINES
     assert "WHITTED" in bpy.types.DATA_PT_lens.COMPAT_ENGINES
-    assert bpy.context.scene.whitted.samples >= 1
+    # The panel's settings reach the tracer: what F12 would use follows the scene's properties.
+    props = bpy.context.scene.whitted
+    saved = props.samples, props.max_depth, props.fresnel
+    props.samples, props.max_depth, props.fresnel = 3, 2, False
+    try:
+        st = addon.export.settings_from_scene(bpy.context.scene)
+        assert (st.samples, st.max_depth, st.fresnel) == (3, 2, False)
+    finally:
+        props.samples, props.max_depth, props.fresnel = saved
 
 
 def test_default_scene_f12_matches_cycles(bpy_module, whitted, tmp_path):

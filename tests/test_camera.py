@@ -51,7 +51,7 @@ def test_pixel_centre_ray_hits_the_projected_point(name, cam):
     np.testing.assert_allclose(px[:, 0], u * W, atol=1e-4)
     np.testing.assert_allclose(px[:, 1], (1 - v) * H, atol=1e-4)
     # the renderer's own pixel-centre rays: project back onto the pixel centres
-    settings = RenderSettings(width=W, height=H)
+    settings = RenderSettings(samples=1, width=W, height=H)
     uu, vv, _ = eye_samples(settings, 0, 0, W, H)
     o2, d2 = cam.generate_rays(uu, vv)
     p2 = pxr_project(cam, o2 + 3.0 * d2, W, H)

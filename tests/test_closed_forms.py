@@ -122,7 +122,7 @@ def _floor_radiance(x, y):
 
 def test_default_epsilon_lights_the_floor_exactly_and_keeps_the_contact_shadow():
     scene = _lit_floor_with_block()
-    img = render(scene, RenderSettings(width=60, height=60)).rgb
+    img = render(scene, RenderSettings(width=60, height=60, samples=1)).rgb
     xs = (np.arange(60) + 0.5) / 60 * 6 - 3
     # A row of lit floor away from the block (y = 2.05): every pixel equals the closed form (no acne).
     row = 60 - 1 - int((2.05 + 3) / 6 * 60)
@@ -138,11 +138,32 @@ def test_a_vanishing_epsilon_shows_acne_and_a_huge_one_leaks_light():
     """Why ε exists (the notes' shadow ray starts ε off the surface): with ε ≈ 0 shadow rays hit the surface they
     leave (speckled self-shadowing on the lit floor); with ε larger than the block, the contact shadow lights up."""
     scene = _lit_floor_with_block()
-    clean = render(scene, RenderSettings(width=60, height=60)).rgb[..., 0]
-    acne = render(scene, RenderSettings(width=60, height=60, epsilon=1e-12)).rgb[..., 0]
+    clean = render(scene, RenderSettings(width=60, height=60, samples=1)).rgb[..., 0]
+    acne = render(scene, RenderSettings(width=60, height=60, samples=1, epsilon=1e-12)).rgb[..., 0]
     lit = clean > 0.01
     speckled = np.mean(acne[lit] < 0.5 * clean[lit])
     assert speckled > 0.01, f"only {speckled:.1%} of the lit floor self-shadowed with ε ≈ 0"
-    leaky = render(scene, RenderSettings(width=60, height=60, epsilon=1.0)).rgb[..., 0]
+    leaky = render(scene, RenderSettings(width=60, height=60, samples=1, epsilon=1.0)).rgb[..., 0]
     col = int((-0.55 + 3) / 6 * 60)
     assert clean[30, col] < 1e-6 < leaky[30, col]
+
+
+# ------------------------------------------------------------------------------------------- Blinn-Phong
+@pytest.mark.parametrize("tilt_deg", [0.0, 8.0])
+def test_blinn_phong_highlight_has_the_normalised_lobe(tilt_deg):
+    """A purely specular plane (R_s = 0.5, exponent e) under a sun of irradiance E, seen by an orthographic camera
+    from straight above: L = R_s·E·(e+8)/(8π)·(n·h)^e·(n·l) — with the sun straight above too, h = n; tilting the
+    sun by α makes n·h = cos(α/2) and n·l = cos α."""
+    from tracer import DistantLight
+
+    e, rs, irr = 50.0, 0.5, 2.0
+    a = np.radians(tilt_deg)
+    b = SceneBuilder()
+    m = b.add_material("shiny", diffuse=(0, 0, 0), specular=(rs, rs, rs), exponent=e)
+    quad(b, (0, 0, 0), 10.0, m, "plane")
+    b.add_light(DistantLight(direction=(np.sin(a), 0, -np.cos(a)), irradiance=(irr,) * 3))
+    b.camera = Camera.look_at((0, 0, 5), (0, 0, 0), up=(0, 1, 0), projection="orthographic",
+                              horizontal_aperture=1.0, vertical_aperture=1.0)
+    img = render(b.build(), RenderSettings(width=4, height=4)).rgb
+    expected = rs * irr * (e + 8) / (8 * np.pi) * np.cos(a / 2) ** e * np.cos(a)
+    np.testing.assert_allclose(img, expected, rtol=1e-4)

@@ -115,3 +115,16 @@ def test_fresnel_limits():
     ti = np.radians(30.0)
     tr = np.arcsin(np.sin(ti) / 1.5)
     assert fresnel_dielectric(np.cos(ti), 1.0, 1.5) == pytest.approx(fresnel_dielectric(np.cos(tr), 1.5, 1.0), abs=1e-6)
+
+
+@pytest.mark.parametrize("angle", [20.0, 45.0, 56.31, 70.0, 85.0])
+def test_fresnel_matches_the_angle_form_of_fresnels_equations(angle):
+    """R = (R_s + R_p)/2 with R_s = sin²(θi−θt)/sin²(θi+θt), R_p = tan²(θi−θt)/tan²(θi+θt) (Hecht 4.42-4.43),
+    a different form from the implementation's cosines; at Brewster's angle (56.31° for n = 1.5) R_p vanishes."""
+    ti = np.radians(angle)
+    tt = np.arcsin(np.sin(ti) / 1.5)
+    r_s = (np.sin(ti - tt) / np.sin(ti + tt)) ** 2
+    r_p = (np.tan(ti - tt) / np.tan(ti + tt)) ** 2
+    assert fresnel_dielectric(np.cos(ti), 1.0, 1.5) == pytest.approx((r_s + r_p) / 2, abs=1e-6)
+    if angle == 56.31:
+        assert r_p < 1e-8

@@ -21,7 +21,7 @@ def test_lit_diffuse_sphere_is_brighter_facing_the_light():
     b.camera = Camera.look_at((0, -6, 0), (0, 0, 0), up=(0, 0, 1), focal_length=50.0,
                               horizontal_aperture=36.0, vertical_aperture=27.0)
     scene = b.build()
-    img = render(scene, RenderSettings(width=W, height=H))
+    img = render(scene, RenderSettings(samples=1, width=W, height=H))
     right = scene.camera.project([[0.7, -0.7, 0.0]], W, H)[0].astype(int)
     left = scene.camera.project([[-0.7, -0.7, 0.0]], W, H)[0].astype(int)
     l_right = lum(img.rgb[right[1], right[0]])
@@ -39,7 +39,7 @@ def test_point_light_lambert_matches_the_radiometric_formula():
     b.add_light(PointLight(position=(0, 0, r), intensity=(intensity,) * 3))
     b.camera = Camera.look_at((0, 0, 2.0), (0, 0, 0), up=(0, 1, 0), focal_length=50.0,
                               horizontal_aperture=2.0, vertical_aperture=2.0)
-    img = render(b.build(), RenderSettings(width=9, height=9))
+    img = render(b.build(), RenderSettings(samples=1, width=9, height=9))
     centre = img.rgb[4, 4]
     expected = a / np.pi * intensity / r**2
     np.testing.assert_allclose(centre, expected, rtol=2e-3)
@@ -52,15 +52,15 @@ def test_sun_lambert_matches_the_radiometric_formula():
     theta = np.radians(30.0)
     b.add_light(DistantLight(direction=(np.sin(theta), 0, -np.cos(theta)), irradiance=(3.0, 3.0, 3.0)))
     b.camera = Camera.look_at((0, 0, 2.0), (0, 0, 0), up=(0, 1, 0))
-    img = render(b.build(), RenderSettings(width=8, height=8))
+    img = render(b.build(), RenderSettings(samples=1, width=8, height=8))
     np.testing.assert_allclose(img.rgb[4, 4], np.array([0.5, 0.25, 1.0]) * 3.0 * np.cos(theta) / np.pi, rtol=1e-4)
 
 
 def test_shadow_lands_where_the_geometry_says():
     b = lit_sphere_on_floor(light_pos=(-6.0, 0.0, 4.0))
     scene = b.build()
-    lit = render(scene, RenderSettings(width=W, height=H, shadows=False))
-    shad = render(scene, RenderSettings(width=W, height=H))
+    lit = render(scene, RenderSettings(samples=1, width=W, height=H, shadows=False))
+    shad = render(scene, RenderSettings(samples=1, width=W, height=H))
     # Where the ray from the light through the ball's centre meets the floor (z = 0):
     light, centre = np.array([-6.0, 0.0, 4.0]), np.array([0.0, 0.0, 1.0])
     floor_pt = light + (centre - light) * (light[2] / (light[2] - centre[2]))
@@ -84,7 +84,7 @@ def test_mirror_shows_the_reflected_object_on_the_correct_side():
     b.camera = Camera.look_at((0, -8, 1.0), (0, 0, 0.3), up=(0, 0, 1), focal_length=35.0,
                               horizontal_aperture=36.0, vertical_aperture=27.0)
     scene = b.build()
-    img = render(scene, RenderSettings(width=W, height=H))
+    img = render(scene, RenderSettings(samples=1, width=W, height=H))
     # The mirror image of the ball is the ball reflected through z = 0.
     x, y, _ = scene.camera.project([[1.5, 0, -1.5]], W, H)[0].astype(int)
     xb, yb, _ = scene.camera.project([[1.5, 0, 1.5]], W, H)[0].astype(int)
@@ -108,7 +108,7 @@ def test_glass_sphere_inverts_what_is_behind_it():
     b.camera = Camera.look_at((0, -6, 0), (0, 0, 0), up=(0, 0, 1), focal_length=50.0,
                               horizontal_aperture=36.0, vertical_aperture=27.0)
     scene = b.build()
-    img = render(scene, RenderSettings(width=W, height=H))
+    img = render(scene, RenderSettings(samples=1, width=W, height=H))
     cx, cy, _ = scene.camera.project([[0, 0, 0]], W, H)[0]
     inside_up = img.rgb[int(cy) - 4, int(cx)]
     inside_down = img.rgb[int(cy) + 4, int(cx)]
@@ -134,9 +134,9 @@ def glass_block_scene(ior):
 
 
 def test_total_internal_reflection_happens_in_a_glass_block_and_not_without_refraction():
-    img = render(glass_block_scene(1.5), RenderSettings(width=W, height=H, max_depth=6))
+    img = render(glass_block_scene(1.5), RenderSettings(samples=1, width=W, height=H, max_depth=6))
     assert img.stats["rays"]["tir"] > 50
-    matched = render(glass_block_scene(1.0), RenderSettings(width=W, height=H, max_depth=6))
+    matched = render(glass_block_scene(1.0), RenderSettings(samples=1, width=W, height=H, max_depth=6))
     assert matched.stats["rays"]["tir"] == 0  # η_i = η_r: the square root's argument is cos²θ_i ≥ 0
     # index 1 glass is invisible: every pixel shows the background (Fresnel reflectance is 0 at matched indices)
     np.testing.assert_allclose(matched.rgb, np.broadcast_to([0.2, 0.4, 0.8], matched.rgb.shape), atol=1e-5)
@@ -158,7 +158,7 @@ def mirror_and_ball():
 
 def test_max_depth_0_and_1_differ_exactly_on_mirror_pixels():
     scene = mirror_and_ball().build()
-    s = RenderSettings(width=W, height=H, aovs=("objectid",))
+    s = RenderSettings(samples=1, width=W, height=H, aovs=("objectid",))
     d0 = render(scene, s.with_(max_depth=0))
     d1 = render(scene, s.with_(max_depth=1))
     differs = np.any(np.abs(d0.rgb - d1.rgb) > 1e-6, axis=-1)
@@ -174,7 +174,7 @@ def test_reflection_rays_only_where_k_m_is_positive(k_m):
     b = mirror_and_ball()
     b.materials[0]["k_m"] = k_m
     scene = b.build()
-    img = render(scene, RenderSettings(width=W, height=H, aovs=("objectid",), max_depth=1))
+    img = render(scene, RenderSettings(samples=1, width=W, height=H, aovs=("objectid",), max_depth=1))
     mirror_px = int((img.aovs["objectid"] == 0).sum())
     assert img.stats["rays"]["reflection"] == (0 if k_m == 0 else mirror_px)
     assert img.stats["rays"]["eye"] == W * H
@@ -190,7 +190,7 @@ def test_same_pixels_for_any_thread_count_and_tile_size():
 
 def test_transparent_film_and_aovs():
     scene = mirror_and_ball().build()
-    img = render(scene, RenderSettings(width=W, height=H, transparent=True,
+    img = render(scene, RenderSettings(samples=1, width=W, height=H, transparent=True,
                                        aovs=("depth", "normal", "albedo", "objectid")))
     ids = img.aovs["objectid"]
     np.testing.assert_array_equal(img.rgba[..., 3] > 0.5, ids >= 0)
@@ -203,7 +203,7 @@ def test_transparent_film_and_aovs():
 
 
 def test_soft_shadow_from_a_light_with_radius_has_a_penumbra():
-    hard = render(lit_sphere_on_floor().build(), RenderSettings(width=W, height=H))
+    hard = render(lit_sphere_on_floor().build(), RenderSettings(samples=1, width=W, height=H))
     b = lit_sphere_on_floor()
     b.lights[0] = PointLight(position=b.lights[0].position, intensity=b.lights[0].intensity, radius=1.0)
     soft = render(b.build(), RenderSettings(width=W, height=H, light_samples=16))
@@ -215,7 +215,7 @@ def test_soft_shadow_from_a_light_with_radius_has_a_penumbra():
 def test_png_and_exr_output(tmp_path):
     from tracer import read_image
 
-    img = render(lit_sphere_on_floor().build(), RenderSettings(width=W, height=H))
+    img = render(lit_sphere_on_floor().build(), RenderSettings(samples=1, width=W, height=H))
     img.save(tmp_path / "a.png")
     img.save(tmp_path / "a.exr")
     png, exr = read_image(tmp_path / "a.png"), read_image(tmp_path / "a.exr")
@@ -229,7 +229,7 @@ def test_png_and_exr_output(tmp_path):
 
 def test_terminal_rays_collect_only_background_past_max_depth():
     scene = mirror_and_ball().build()
-    s = RenderSettings(width=W, height=H, aovs=("objectid",), max_depth=0)
+    s = RenderSettings(samples=1, width=W, height=H, aovs=("objectid",), max_depth=0)
     plain = render(scene, s)
     term = render(scene, s.with_(terminal_rays=True))
     deeper = render(scene, s.with_(max_depth=1))

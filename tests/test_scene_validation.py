@@ -90,7 +90,7 @@ def test_lights_validate():
                                              ("epsilon", -1.0, "epsilon"), ("aovs", ("velocity",), "unknown AOV")])
 def test_bad_settings(field, value, msg):
     with pytest.raises(ValueError, match=msg):
-        render(scene(), RenderSettings(width=8, height=8).with_(**{field: value}))
+        render(scene(), RenderSettings(samples=1, width=8, height=8).with_(**{field: value}))
 
 
 def test_render_wants_a_scene():
@@ -102,12 +102,12 @@ def test_empty_scene_renders_the_background():
     b = SceneBuilder()
     b.camera = Camera()
     b.background = np.array([0.25, 0.5, 1.0], np.float32)
-    img = render(b.build(), RenderSettings(width=4, height=3))
+    img = render(b.build(), RenderSettings(samples=1, width=4, height=3))
     np.testing.assert_allclose(img.rgb, np.broadcast_to([0.25, 0.5, 1.0], (3, 4, 3)))
 
 
 def test_write_to_missing_directory_fails_cleanly(tmp_path):
-    img = render(scene(), RenderSettings(width=4, height=4))
+    img = render(scene(), RenderSettings(samples=1, width=4, height=4))
     with pytest.raises(ValueError, match="does not exist"):
         img.save(tmp_path / "nope" / "x.png")
     with pytest.raises(ValueError, match="extension"):

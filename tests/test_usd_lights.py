@@ -81,6 +81,7 @@ def test_sphere_light_unnormalized_radiance_times_area():
 
 def test_distant_light_blender_units():
     def mk(s):
+        s.GetRootLayer().documentation = "Blender v5.0.1"  # what Blender's exporter writes: its units apply
         l = UsdLux.DistantLight.Define(s, "/Sun")
         l.CreateIntensityAttr(2.0)
         l.CreateAngleAttr(0.0)
@@ -126,7 +127,7 @@ def test_a_stage_without_lights_gets_a_headlight_and_a_dim_dome():
     UsdGeom.Sphere.Define(s, "/Ball")
     scene, info = load_stage(s, width=8, default_light=False)
     assert not scene.lights and not info.default_lighting and not info.notes
-    assert render(scene, RenderSettings(width=8, height=8)).rgb.max() == 0
+    assert render(scene, RenderSettings(samples=1, width=8, height=8)).rgb.max() == 0
 
 
 @pytest.mark.parametrize("kind,normalize", [("RectLight", True), ("RectLight", False), ("DiskLight", True)])
@@ -197,3 +198,26 @@ def test_color_temperature_only_when_authored():
     ratio = np.asarray(UsdLux.BlackbodyTemperatureAsRgb(3000.0)) / np.asarray(UsdLux.BlackbodyTemperatureAsRgb(6500.0))
     np.testing.assert_allclose(warm.lights[0].intensity, 10.0 * ratio, rtol=1e-5)
     assert warm.lights[0].intensity[0] > warm.lights[0].intensity[2]  # 3000 K is reddish
+
+
+@pytest.mark.parametrize("intensity,angle,normalize,irradiance", [
+    (None, None, False, 50000 * 2 * np.pi * (1 - np.cos(np.radians(0.53 / 2)))),  # schema defaults: 3.36 W/m²
+    (2000.0, 1.0, False, 2000 * 2 * np.pi * (1 - np.cos(np.radians(0.5)))),  # angle = angular diameter
+    (3.0, 1.0, True, 3.0),  # normalize: intensity is the irradiance, whatever the angle
+    (3.0, 0.0, False, 3.0),  # a delta sun: intensity is the irradiance
+])
+def test_distant_light_spec_units(intensity, angle, normalize, irradiance):
+    """UsdLux: a DistantLight's intensity is the radiance of the sun's disk (E = I·Ω, Ω the disk's solid angle),
+    or its irradiance when normalized. Closed form: a Lambertian plane facing it shows A·E/π."""
+    def mk(s):
+        l = UsdLux.DistantLight.Define(s, "/Sun")
+        if intensity is not None:
+            l.CreateIntensityAttr(intensity)
+        if angle is not None:
+            l.CreateAngleAttr(angle)
+        l.CreateNormalizeAttr(normalize)
+        return l
+    rgb, scene, _ = lit_plane(mk)
+    np.testing.assert_allclose(centre(rgb), [A * irradiance / np.pi] * 3, rtol=5e-3)
+    if intensity is None:
+        assert 1.0 < irradiance < 10.0  # the schema's defaults are a sane sun, not 200 000 W/m²

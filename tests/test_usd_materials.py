@@ -16,13 +16,14 @@ import usd_material_stages as S
 from tracer import RenderSettings, render
 from tracer.texture import srgb_to_linear
 from usd_io import load_stage
-from usd_io.tracer_model import PRINCIPLED
+from usd_io.tracer_model import HAS_ENVIRONMENT, PRINCIPLED
 
 N = 48
 #: Patterns the classic material table cannot carry (usd_io lowers them with one warning each); they run once the
 #: tracer has the Principled model of docs/materials-api.md (materials-core).
 needs_principled = pytest.mark.skipif(not PRINCIPLED, reason="needs the tracer's Principled material model "
-                                      "(tracer.Texture, Scene.uv_sets/colors, tracer.Environment)")  # image size of the closed-form renders
+                                      "(tracer.Texture, Scene.uv_sets/colors, tracer.Environment)")
+needs_environment = pytest.mark.skipif(not HAS_ENVIRONMENT, reason="needs tracer.Environment")  # image size of the closed-form renders
 
 
 def render_stage(path, n=N, **settings):
@@ -362,7 +363,7 @@ def _normal_stage(d, name, n_tangent, light_dir, dx_style=False):
     s = S.new_stage(os.path.join(d, f"{name}.usda"))
     S.camera(s)
     sun = UsdLux.DistantLight.Define(s, "/Sun")
-    sun.CreateIntensityAttr(math.pi / 4)
+    sun.CreateIntensityAttr(math.pi)
     sun.CreateAngleAttr(0.0)
     # the light travels along −l: rotate −Z onto −l
     l = np.asarray(light_dir, np.float64) / np.linalg.norm(light_dir)
@@ -419,7 +420,7 @@ def _openexr_latlong_block(d):
     return int(min(v * 2, 1.999)), int(min(u * 4, 3.999)), (u, v)
 
 
-@needs_principled
+@needs_environment
 @pytest.mark.parametrize("kind,dome_rot", [("DomeLight", 0.0), ("DomeLight", 90.0), ("DomeLight_1", 0.0)])
 @pytest.mark.parametrize("view", [(0.3, 0.4, 0.87), (0.9, -0.3, 0.3), (-0.8, 0.45, -0.4), (0.2, -0.6, -0.77),
                                   (-0.5, -0.3, 0.8), (0.6, 0.5, -0.6)])
@@ -461,7 +462,7 @@ def test_dome_texture_orientation(tmp_path, kind, dome_rot, view):
     assert np.allclose(centre, cols[row, col], atol=0.02), (centre, cols[row, col], (u, vv), info.warnings)
 
 
-@needs_principled
+@needs_environment
 def test_dome_intensity_exposure_color_scale_the_texture(tmp_path):
     cols = _latlong(str(tmp_path / "sky.exr"))
     s = S.new_stage(str(tmp_path / "dome.usda"), up="Y")
@@ -543,7 +544,7 @@ def principled_recorder(monkeypatch):
             return self
 
     monkeypatch.setattr(tm, "PRINCIPLED", True)
-    monkeypatch.setattr(usd_io.dome, "PRINCIPLED", True)
+    monkeypatch.setattr(usd_io.dome, "HAS_ENVIRONMENT", True)
     monkeypatch.setattr(tracer, "Texture", Texture, raising=False)
     monkeypatch.setattr(tracer, "Environment", Environment, raising=False)
     monkeypatch.setattr(usd_io.reader, "SceneBuilder", Recorder)

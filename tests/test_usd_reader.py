@@ -434,7 +434,7 @@ def test_references_and_payload_across_files(tmp_path):
     b.GetPayloads().AddPayload("./pay.usda")
     UsdGeom.Xformable(b).AddTranslateOp().Set(Gf.Vec3d(-3, 0, 0))
     root.GetRootLayer().Save()
-    scene, info = load_stage(str(tmp_path / "shot.usda"), width=16)
+    scene, info = load_stage(str(tmp_path / "shot.usda"), width=16, default_light=False)
     assert sorted(p for p, _ in info.meshes) == ["/A/Ball", "/B/Ball"]
     np.testing.assert_allclose(scene.bounds, [[-4, -1, -1], [4, 1, 1]], atol=1e-3)
     assert not info.warnings

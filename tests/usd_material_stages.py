@@ -4,8 +4,10 @@ tests/cycles/test_cycles_usd_materials.py (Cycles through Blender's USD importer
 
 The common set-up: a 2×2 quad in z = 0 (st (0,0) at its lower-left corner (−1,−1), (1,1) at (1,1)), an
 orthographic camera above it that sees exactly [−1, 1]² (or a perspective one for Blender, which imports no
-orthographic camera), and a DistantLight straight down of intensity π/4: irradiance E = 4·I = π (Blender's sun
-strength 4·I), so a Lambertian surface of albedo a has radiance a·E/π = a. Materials use the specular workflow with
+orthographic camera), and a DistantLight straight down of intensity π and angle 0: irradiance E = I = π (the spec's
+delta sun, docs/usd.md), so a Lambertian surface of albedo a has radiance a·E/π = a. (Blender's importer reads every
+DistantLight as a sun of strength 4·I: the Cycles tests mark their stages as Blender-written, which our reader
+then reads the same way, and quarter the intensity: as_blender_writes.) Materials use the specular workflow with
 specularColor 0, a Lambert surface in both renderers (Blender's importer sets Specular Tint = specularColor).
 """
 
@@ -75,7 +77,7 @@ def camera(stage, ortho: bool = True, height: float = 4.0):
     return cam
 
 
-def sun(stage, intensity: float = math.pi / 4, tilt_deg=(0.0, 0.0)):
+def sun(stage, intensity: float = math.pi, tilt_deg=(0.0, 0.0)):
     """A DistantLight along −Z, turned by tilt_deg = (about X, about Y) degrees."""
     d = UsdLux.DistantLight.Define(stage, "/Sun")
     d.CreateIntensityAttr(float(intensity))
@@ -194,6 +196,20 @@ def block_lookup(st: np.ndarray, blocks: np.ndarray, wrap: str = "repeat", margi
                         np.minimum(ft, 1 - ft) >= margin * nb)
         ok = ok_s & ok_t
     return colour, ok
+
+
+def as_blender_writes(path: str) -> str:
+    """Mark a stage as written by Blender (root layer doc "Blender v…") and quarter its /Sun's intensity: Blender's
+    importer reads any DistantLight as sun strength 4·I, and our reader reads Blender-written stages that way too,
+    so both renderers then see E = π, as the closed-form stages do."""
+    s = Usd.Stage.Open(path)
+    s.GetRootLayer().documentation = "Blender v5.0.1 (test stage, Blender's sun units)"
+    sun_prim = s.GetPrimAtPath("/Sun")
+    if sun_prim:
+        attr = UsdLux.DistantLight(sun_prim).GetIntensityAttr()
+        attr.Set(float(attr.Get()) / 4.0)
+    s.GetRootLayer().Save()
+    return path
 
 
 def save(stage) -> str:

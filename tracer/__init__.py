@@ -7,6 +7,7 @@
 
 from .builder import SceneBuilder
 from .camera import ORTHOGRAPHIC, PERSPECTIVE, Camera, fit_apertures
+from .environment import Environment
 from .explain import explain_pixel
 from .film import Image, read_image, write_image
 from .integrator import RAY_TYPES
@@ -18,7 +19,7 @@ from .settings import AOV_NAMES, RenderSettings
 from .warmup import compile_kernels
 
 __all__ = [
-    "AOV_NAMES", "AreaLight", "Camera", "DEFAULT_MATERIAL", "DistantLight", "Image", "Materials", "ORTHOGRAPHIC",
+    "AOV_NAMES", "AreaLight", "Camera", "DEFAULT_MATERIAL", "DistantLight", "Environment", "Image", "Materials", "ORTHOGRAPHIC",
     "PERSPECTIVE", "PointLight", "RAY_TYPES", "RenderCancelled", "RenderSettings", "Scene", "SceneBuilder",
     "SpotLight", "compile_kernels", "explain_pixel", "fit_apertures", "read_image", "render", "roughness_to_exponent", "tiles_of",
     "write_image",

@@ -31,6 +31,7 @@ class SceneBuilder:
         self.materials: list[dict] = []
         self._material_index: dict[str, int] = {}
         self.object_names: list[str] = []
+        self.environment = None  # tracer.Environment or None
         self.lights: list = []
         self.textures: list[np.ndarray] = []
         self.camera: Camera | None = None
@@ -59,7 +60,7 @@ class SceneBuilder:
 
     # ---------------------------------------------------------------- geometry
     def add_mesh(self, vertices, triangles, material=0, name: str | None = None, transform=None,
-                 normals=None, uvs=None, object_id: int | None = None) -> int:
+                 normals=None, uvs=None, object_id: int | None = None, instances: int = 1) -> int:
         """Add a triangle mesh; returns its object id.
 
         vertices   (V, 3) object-space points
@@ -70,6 +71,9 @@ class SceneBuilder:
         normals    optional shading normals: (V, 3) per vertex or (T, 3, 3) per corner
         uvs        optional texture coordinates: (V, 2) per vertex or (T, 3, 2) per corner
         object_id  reuse an id (several meshes of one object); by default a new one named ``name``
+        instances  K > 1: the triangles are K equal consecutive blocks (copies of one mesh, e.g. a point
+                   instancer's instances); each block is an object of its own, ids first..first+K−1 named
+                   ``name[i]``; returns the first id (``object_id`` must then be None)
         """
         v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
         t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
@@ -86,10 +90,16 @@ class SceneBuilder:
                 raise ValueError(f"mesh {label!r}: transform is singular (zero scale); skip the object instead")
             v = v @ m[:3, :3].T + m[:3, 3]
             mirrored = det < 0
-        if object_id is None:
+        n_tri = len(t)
+        instances = int(instances)
+        if instances < 1 or n_tri % instances or (instances > 1 and object_id is not None):
+            raise ValueError(f"mesh {label!r}: {n_tri} triangles cannot be {instances} instances of one mesh")
+        if object_id is None and instances > 1:
+            object_id = len(self.object_names)
+            self.object_names.extend(f"{label}[{i}]" for i in range(instances))
+        elif object_id is None:
             object_id = len(self.object_names)
             self.object_names.append(label)
-        n_tri = len(t)
         mat = np.asarray(material, dtype=np.int32)
         mat = np.full(n_tri, int(mat), np.int32) if mat.ndim == 0 else mat.reshape(-1)
         if mat.shape != (n_tri,):
@@ -127,7 +137,8 @@ class SceneBuilder:
         self._triangles.append((t + self._n_vertices).astype(np.int32))
         self._n_vertices += len(v)
         self._material_ids.append(mat)
-        self._object_ids.append(np.full(n_tri, object_id, np.int32))
+        self._object_ids.append(np.repeat(np.arange(object_id, object_id + instances, dtype=np.int32),
+                                          n_tri // instances))
         self._normals.append(corner_normals)
         self._uvs.append(corner_uvs)
         return object_id
@@ -168,6 +179,7 @@ class SceneBuilder:
             textures=list(self.textures),
             background=self.background,
             ambient=self.ambient,
+            environment=self.environment,
             object_names=list(self.object_names),
             object_pass_indices=self.object_pass_indices,
         )

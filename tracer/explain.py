@@ -259,6 +259,8 @@ def _annotate_parents(integ, records, children, depth):
 
 
 def _light_name(scene, j) -> str:
+    if j >= len(scene.lights):  # the last light of the kernels' table: every emissive triangle
+        return f"emissive meshes (light {j})"
     light = scene.lights[j]
     return f"{getattr(light, 'name', 'light')} (light {j}, {type(light).__name__})"
 

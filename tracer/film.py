@@ -76,8 +76,9 @@ def heat_map(values: np.ndarray, vmax: float | None = None) -> np.ndarray:
     return srgb_to_linear(srgb).astype(np.float32)
 
 
-def write_image(path: str, pixels: np.ndarray, channel_names=None) -> None:
-    """Write (H, W, C) float pixels: linear for EXR/HDR, sRGB 8-bit otherwise. Atomic (temp file + rename)."""
+def write_image(path: str, pixels: np.ndarray, channel_names=None, float32: bool = False) -> None:
+    """Write (H, W, C) float pixels: linear for EXR/HDR, sRGB 8-bit otherwise. Atomic (temp file + rename).
+    EXR is half float unless ``float32`` (AOVs: object ids and depths beyond half's exact range)."""
     import OpenImageIO as oiio
 
     path = os.fspath(path)
@@ -90,7 +91,7 @@ def write_image(path: str, pixels: np.ndarray, channel_names=None) -> None:
         raise ValueError(f"{path}: the output needs a file extension (.png, .exr, ...)")
     linear = ext in LINEAR_EXTENSIONS
     if linear:
-        data, fmt = pixels, oiio.HALF if ext == ".exr" else oiio.FLOAT
+        data, fmt = pixels, oiio.HALF if ext == ".exr" and not float32 else oiio.FLOAT
     else:
         if c in (3, 4):
             data = to_display(pixels if c == 4 else np.concatenate([pixels, np.ones((h, w, 1), np.float32)], -1))

@@ -26,8 +26,9 @@ import numpy as np
 from . import optics, shading, vec
 from .accel import Accelerator
 from .jit import kernel
-from .lights import pack_lights, sample_light
-from .sampling import stratum, uniform2_1
+from .environment import env_radiance, env_sample, pack_environment
+from .lights import emitting_triangles, pack_lights, sample_light
+from .sampling import multijitter, stratum, uniform2_1
 from .scene import Scene
 from .settings import RenderSettings
 from .surface import geometry_of, hit_frame, hit_uv
@@ -193,16 +194,22 @@ class Integrator:
             transmission_tint=f32(m.transmission_tint), ior=f32(m.ior), emission=f32(m.emission),
             diffuse_texture=i32(m.diffuse_texture if scene.uvs is not None else np.full(len(m), -1)))
         self.textures = pack_textures(scene.textures)
-        self.lights = pack_lights(scene.lights, settings.light_samples)
-        self.light_samples = int(np.sum(self.lights[2] ** 2))  # shadow rays per shading point, at most
+        emitters = emitting_triangles(scene.vertices, scene.triangles, scene.material_ids, m.emission)
+        self.lights = pack_lights(scene.lights, settings.light_samples, emitters)
+        self.light_samples = int(np.sum(self.lights.side ** 2))  # shadow rays per shading point, at most
+        self.env = pack_environment(scene.environment)
+        ambient = scene.ambient
+        if scene.environment is not None and not np.any(ambient > 0):
+            ambient = scene.environment.average()
         self.options = Options(
             eps=float(self.eps), max_depth=int(settings.max_depth), shadows=bool(settings.shadows),
             fresnel=bool(settings.fresnel), sky_samples=int(settings.sky_samples),
             min_weight=float(settings.min_weight), transparent=bool(settings.transparent), seed=int(settings.seed),
-            needs_light_random=bool(np.any(self.lights[2] > 1)),
-            background=tuple(float(c) for c in scene.background), ambient=tuple(float(c) for c in scene.ambient))
+            needs_light_random=bool(np.any(self.lights.side > 1)),
+            background=tuple(float(c) for c in scene.background), ambient=tuple(float(c) for c in ambient))
         sky = settings.sky_samples
-        self.sky_side = max(1, int(round(np.sqrt(sky)))) if sky and np.any(scene.ambient > 0) else 0
+        lit_by_sky = scene.environment is not None or np.any(scene.ambient > 0)
+        self.sky_side = max(1, int(round(np.sqrt(sky)))) if sky and lit_by_sky else 0
 
     @property
     def last_depth(self) -> int:
@@ -228,7 +235,7 @@ class Integrator:
         rec = SpawnRecord.empty(cap, cap2)
         n_shadow, n_refl, n_tran = _shade_hits(
             rays.o, rays.d, t, prim, u, v, rays.sample, rays.weight, keys, depth, spawn, self.geometry,
-            self.materials, self.textures[0], self.textures[1], self.lights[0], self.lights[1], self.lights[2],
+            self.materials, self.textures[0], self.textures[1], self.lights, self.env,
             self.sky_side, self.options, out, so, sd, sl, ss, sc, no, nd, nw, ns, counts, rec)
         shadow = ShadowQueue(o=so[:n_shadow], d=sd[:n_shadow], t_max=sl[:n_shadow], sample=ss[:n_shadow],
                              color=sc[:n_shadow], light=rec.light[:n_shadow])
@@ -286,7 +293,7 @@ class Integrator:
 
 @kernel
 def _shade_hits(o, d, t, prim, u, v, sample, weight, keys, depth, spawn, geom, mats, tex_data, tex_info,
-                light_table, light_kind, light_side, sky_side, opt, out, so, sd, sl, ss, sc, no, nd, nw, ns, counts,
+                lights, env, sky_side, opt, out, so, sd, sl, ss, sc, no, nd, nw, ns, counts,
                 rec):
     """Shade one depth's rays of a tile and write the rays they cause; returns (shadow, reflection, transmission)
     counts written into the buffers.
@@ -300,7 +307,7 @@ def _shade_hits(o, d, t, prim, u, v, sample, weight, keys, depth, spawn, geom, m
     n_shadow = 0
     n_refl = 0
     n_tran = 0
-    n_lights = light_table.shape[0]
+    n_lights = lights.table.shape[0]
     for i in range(n_rays):
         s = sample[i]
         w = vec.row(weight, i)
@@ -308,6 +315,10 @@ def _shade_hits(o, d, t, prim, u, v, sample, weight, keys, depth, spawn, geom, m
         if tri < 0:  # the ray leaves the scene
             if depth == 0 and opt.transparent:
                 out.alpha[s] = 0.0
+            elif env.present:  # the environment image along the ray
+                sky = env_radiance(env, vec.row(d, i))
+                for c in range(3):
+                    out.color[s, c] += w[c] * sky[c]
             else:
                 for c in range(3):
                     out.color[s, c] += w[c] * opt.background[c]
@@ -338,7 +349,22 @@ def _shade_hits(o, d, t, prim, u, v, sample, weight, keys, depth, spawn, geom, m
             wo = vec.scale(w, opaque)
             origin = vec.madd(p, ng, eps)  # shadow rays leave on the incident side, ε along ng
             key = keys[s]
-            if opt.ambient[0] > 0.0 or opt.ambient[1] > 0.0 or opt.ambient[2] > 0.0:
+            if env.present and sky_side > 0:  # the environment as a light: importance-sampled by luminance
+                kk = sky_side * sky_side
+                r0, r1 = uniform2_1(key, _STREAM_SKY + depth, opt.seed)
+                for k in range(kk):
+                    s0, s1 = multijitter(k, sky_side, r0, r1)
+                    dr, pdf = env_sample(env, s0, s1)
+                    n_l = vec.dot(n, dr)
+                    if n_l <= 0.0 or vec.dot(ng, dr) <= 0.0 or pdf <= 0.0:
+                        continue
+                    # R_d/π · L(ω)·cos θ / pdf(ω), averaged over the kk samples; counts if the sky is visible
+                    c = vec.scale(vec.mul(wo, vec.mul(diffuse, env_radiance(env, dr))), n_l / (np.pi * pdf * kk))
+                    _put(so, sd, sl, ss, sc, n_shadow, origin, dr, np.inf, s, c)
+                    rec.light[n_shadow] = -1
+                    n_shadow += 1
+                    counts[_N_SKY] += 1
+            elif opt.ambient[0] > 0.0 or opt.ambient[1] > 0.0 or opt.ambient[2] > 0.0:
                 amb = shading.ambient(diffuse, opt.ambient)
                 if sky_side == 0:
                     local = vec.madd(local, amb, opaque)
@@ -364,8 +390,8 @@ def _shade_hits(o, d, t, prim, u, v, sample, weight, keys, depth, spawn, geom, m
             has_spec = vec.max3(specular) > 0.0
             exponent = float(mats.exponent[mat])
             for j in range(n_lights):
-                for k in range(light_side[j] * light_side[j]):
-                    l, dist, e = sample_light(light_table, light_kind, light_side, j, k, p, r0, r1)
+                for k in range(lights.side[j] * lights.side[j]):
+                    l, dist, e = sample_light(lights, j, k, p, r0, r1)
                     n_l = vec.dot(n, l)
                     if n_l <= 0.0 or vec.dot(ng, l) <= 0.0:
                         continue

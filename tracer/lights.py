@@ -14,12 +14,17 @@ Units are Blender's and Cycles' (measured in ``docs/units.md``):
 - :class:`SpotLight`: a point light whose E is multiplied by smoothstep of the cosine (Blender's spot blend).
 - :class:`DistantLight`: ``irradiance`` in W/m² on a surface facing the light (Blender's sun strength).
 - :class:`AreaLight`: a one-sided Lambertian rectangle or disk of ``radiance`` Le (W/m²/sr), sampled.
+- Emissive triangles (materials with ``emission``): one light made of every emitting triangle of the scene, each a
+  two-sided Lambertian emitter of radiance Le = the material's emission (Cycles' Emission shader: colour ×
+  strength). Its K samples pick triangles in proportion to their power (area × mean Le) and a uniform point on
+  the chosen one; E = Le·cos θ_l·A/(p·r²) per sample (p the triangle's pick probability), averaged over K.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -149,18 +154,56 @@ Light = PointLight | SpotLight | DistantLight | AreaLight
 
 # ---------------------------------------------------------------------- the packed light table
 #: Light kinds in the packed table.
-POINT, SPOT, DISTANT, RECT, DISK = 0, 1, 2, 3, 4
+POINT, SPOT, DISTANT, RECT, DISK, MESH = 0, 1, 2, 3, 4, 5
 #: Columns of the packed table.
 _POS, _COLOR, _RADIUS, _DIR, _COS_CONE, _BLEND, _COS_MAX, _U, _V, _SIZE, _AREA = 0, 3, 6, 7, 10, 11, 12, 13, 16, 19, 21
 _WIDTH = 22
 
 
-def pack_lights(lights: list, light_samples: int):
-    """The lights as (table (L, 22) float64, kind (L,) int64, side (L,) int64): one row per light, read by
-    :func:`sample_light`. A light with an extent takes side×side stratified samples, side = round(√light_samples)."""
-    table = np.zeros((len(lights), _WIDTH), np.float64)
-    kind = np.zeros(len(lights), np.int64)
-    side = np.ones(len(lights), np.int64)
+class LightTables(NamedTuple):
+    """The scene's lights as the kernels read them: one ``table`` row, ``kind`` and ``side`` (√ samples) per light;
+    the emissive triangles of the MESH light (if any: the last row) as vertices, radiance and the cumulative
+    distribution of their power."""
+
+    table: np.ndarray  # (L, 22) float64
+    kind: np.ndarray  # (L,) int64
+    side: np.ndarray  # (L,) int64
+    tri: np.ndarray  # (N, 3, 3) float64 emitting triangles, world space
+    tri_le: np.ndarray  # (N, 3) float64 their radiance
+    tri_cdf: np.ndarray  # (N,) float64 cumulative pick probability (power-proportional), last = 1
+
+
+def emitting_triangles(vertices, triangles, material_ids, emission):
+    """(tri (N, 3, 3), Le (N, 3)) of the triangles whose material emits."""
+    emission = np.asarray(emission, np.float64)
+    glowing = np.flatnonzero(emission.max(axis=1) > 0) if len(emission) else np.zeros(0, np.int64)
+    sel = np.flatnonzero(np.isin(material_ids, glowing))
+    tri = np.asarray(vertices, np.float64)[np.asarray(triangles)[sel]]
+    return tri, emission[np.asarray(material_ids)[sel]]
+
+
+def pack_lights(lights: list, light_samples: int, emitters=None) -> LightTables:
+    """The lights as a :class:`LightTables`, read by :func:`sample_light`. A light with an extent takes side×side
+    stratified samples, side = round(√light_samples). ``emitters`` = (tri (N, 3, 3), Le (N, 3)) adds the emissive
+    triangles as one more light (see :func:`emitting_triangles`)."""
+    tri = np.zeros((0, 3, 3), np.float64)
+    tri_le = np.zeros((0, 3), np.float64)
+    cdf = np.zeros(0, np.float64)
+    if emitters is not None and len(emitters[0]):
+        tri, tri_le = np.ascontiguousarray(emitters[0], np.float64), np.ascontiguousarray(emitters[1], np.float64)
+        area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+        power = area * tri_le.mean(axis=1)
+        keep = power > 0
+        tri, tri_le, power = tri[keep], tri_le[keep], power[keep]
+        cdf = np.cumsum(power) / power.sum() if len(power) else cdf
+        cdf[-1:] = 1.0
+    n_mesh = 1 if len(tri) else 0
+    table = np.zeros((len(lights) + n_mesh, _WIDTH), np.float64)
+    kind = np.zeros(len(lights) + n_mesh, np.int64)
+    side = np.ones(len(lights) + n_mesh, np.int64)
+    if n_mesh:
+        kind[-1] = MESH
+        side[-1] = max(1, int(round(np.sqrt(max(1, light_samples)))))
     for i, light in enumerate(lights):
         row = table[i]
         k = light.sample_count(light_samples)
@@ -188,7 +231,40 @@ def pack_lights(lights: list, light_samples: int):
             row[_V:_V + 3] = light.v_axis
             row[_SIZE:_SIZE + 2] = light.size
             row[_AREA] = light.area
-    return table, kind, side
+    return LightTables(table, kind, side, tri, tri_le, cdf)
+
+
+@kernel(inline=True)
+def _sample_emitters(lights, k, sd, kk, p, r0, r1):
+    """Stratum k of the emissive triangles: the first coordinate picks a triangle by the power CDF (its remainder,
+    rescaled, and the second place a uniform point on it), E = Le·|cos θ_l|·A/(p_pick·r²)/K (two-sided)."""
+    s0, s1 = stratum(k, sd, r0, r1)
+    cdf = lights.tri_cdf
+    lo, hi = 0, cdf.shape[0] - 1
+    while lo < hi:  # the first triangle whose cumulative probability exceeds s0
+        mid = (lo + hi) // 2
+        if cdf[mid] > s0:
+            hi = mid
+        else:
+            lo = mid + 1
+    before = cdf[lo - 1] if lo > 0 else 0.0
+    pick = max(cdf[lo] - before, 1e-30)
+    u = min(max((s0 - before) / pick, 0.0), 1.0 - 1e-7)
+    su = math.sqrt(u)
+    a = (lights.tri[lo, 0, 0], lights.tri[lo, 0, 1], lights.tri[lo, 0, 2])
+    b = (lights.tri[lo, 1, 0], lights.tri[lo, 1, 1], lights.tri[lo, 1, 2])
+    c = (lights.tri[lo, 2, 0], lights.tri[lo, 2, 1], lights.tri[lo, 2, 2])
+    e1, e2 = vec.sub(b, a), vec.sub(c, a)
+    pt = vec.madd(vec.madd(a, e1, su * (1.0 - s1)), e2, su * s1)
+    cr = vec.cross(e1, e2)
+    twice_area = vec.length(cr)
+    to_l = vec.sub(pt, p)
+    d2 = max(vec.dot(to_l, to_l), 1e-30)
+    dist = math.sqrt(d2)
+    l = vec.scale(to_l, 1.0 / dist)
+    cos_l = abs(vec.dot(l, cr)) / max(twice_area, 1e-30)
+    le = (lights.tri_le[lo, 0], lights.tri_le[lo, 1], lights.tri_le[lo, 2])
+    return l, dist, vec.scale(le, cos_l * 0.5 * twice_area / pick / d2 / kk)
 
 
 @kernel(inline=True)
@@ -206,12 +282,15 @@ def spot_falloff(cos_a, cos_cone, blend):
 
 
 @kernel(inline=True)
-def sample_light(table, kind, side, j, k, p, r0, r1):
-    """Sample ``k`` (of side²) of light ``j`` seen from point p: (l, dist, E) with l the unit direction to the
-    light, dist the shadow ray's length and E the irradiance on a surface facing the light, divided by side².
-    (r0, r1) in [0,1)² rotate the stratified pattern of lights with an extent."""
+def sample_light(lights, j, k, p, r0, r1):
+    """Sample ``k`` (of side²) of light ``j`` of a :class:`LightTables` seen from point p: (l, dist, E) with l the
+    unit direction to the light, dist the shadow ray's length and E the irradiance on a surface facing the light,
+    divided by side². (r0, r1) in [0,1)² rotate the stratified pattern of lights with an extent."""
+    table, side = lights.table, lights.side
     kk = side[j] * side[j]
-    kd = kind[j]
+    kd = lights.kind[j]
+    if kd == MESH:
+        return _sample_emitters(lights, k, side[j], kk, p, r0, r1)
     if kd == POINT or kd == SPOT:
         pos = _col3(table, j, _POS)
         radius = table[j, _RADIUS]

@@ -10,7 +10,7 @@ Each field names the seed's symbol it feeds:
 - ``transmission``  weight of the transmission (refraction) part of the non-mirror remainder
 - ``transmission_tint`` colour the transmitted RayColor is multiplied by
 - ``ior``           η of the material (the outside is η = 1)
-- ``emission``      radiance the surface emits towards the eye (it lights nothing else)
+- ``emission``      radiance Le the surface emits (both sides): seen by the eye, and its triangles are lights
 - ``diffuse_texture`` index into ``Scene.textures`` multiplying ``diffuse``, or -1
 """
 

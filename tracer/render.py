@@ -146,18 +146,22 @@ def uses_ray_types(settings: RenderSettings) -> bool:
     return any(a in RAY_TYPE_AOVS for a in settings.aovs)
 
 
-def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None, cancelled=None) -> Image:
+def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None, cancelled=None,
+           accel: Accelerator | None = None) -> Image:
     """Render ``scene`` and return an :class:`~tracer.film.Image`.
 
     on_tile(image, (x0, y0, x1, y1)) is called after each tile is written (in the calling thread), for progressive
     display; cancelled() is polled between tiles and depths, and a True ends the render with :class:`RenderCancelled`.
+    ``accel``: an :class:`Accelerator` already built over this scene's triangles (e.g. the viewport's, kept across
+    its refinement passes and camera moves); by default one is built.
     """
     if not isinstance(scene, Scene):
         raise TypeError(f"render() expects a tracer.Scene, got {type(scene).__name__}")
     settings = (settings or RenderSettings()).validate()
     cancelled = cancelled or (lambda: False)
     start = time.perf_counter()
-    accel = Accelerator(scene, record=bool(settings.extra.get("record_rays")))
+    if accel is None or settings.extra.get("record_rays"):
+        accel = Accelerator(scene, record=bool(settings.extra.get("record_rays")))
     build_time = time.perf_counter() - start
     integ = Integrator(scene, settings, accel)
     w, h = settings.width, settings.height

@@ -66,3 +66,14 @@ def uniform(keys: np.ndarray, stream: int, seed: int = 0) -> np.ndarray:
 def uniform2(keys: np.ndarray, stream: int, seed: int = 0) -> np.ndarray:
     """(N, 2) floats in [0, 1) for ``keys``: two consecutive streams."""
     return np.stack([uniform(keys, 2 * stream, seed), uniform(keys, 2 * stream + 1, seed)], axis=-1)
+
+
+@kernel(inline=True)
+def multijitter(index, side, r0, r1):
+    """Sample ``index`` of side² points in [0,1)² that are stratified in 2-D (one per cell of a side×side grid) *and*
+    in each coordinate alone (one per 1/side² slice): the canonical multi-jittered arrangement, offset inside its
+    slices by (r0, r1). For samples whose value depends mostly on one coordinate (the height of an environment
+    direction, for a surface's cosine) it has side times finer strata than :func:`stratum`."""
+    i = index // side
+    j = index % side
+    return (i + (j + r0) / side) / side, (j + (i + r1) / side) / side

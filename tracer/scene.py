@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .camera import Camera
+from .environment import Environment
 from .lights import AreaLight, DistantLight, PointLight, SpotLight
 from .materials import Materials
 
@@ -51,6 +52,9 @@ class Scene:
     #: Optional (O,) int32 per object id: a user-facing pass index (Blender's Object.pass_index); None = the id itself.
     object_pass_indices: np.ndarray | None = None
     skipped_triangles: int = 0
+    #: Optional lat-long world (tracer.Environment): seen by rays that leave the scene instead of ``background``,
+    #: and a light (sky samples, or the ambient term with L_a = its mean radiance when ``ambient`` is zero).
+    environment: Environment | None = None
 
     def __post_init__(self):
         self.validate()
@@ -120,6 +124,8 @@ class Scene:
                 raise ValueError(f"scene.{name} must be 3 finite numbers, got {getattr(self, name)!r}")
             setattr(self, name, c)
 
+        if self.environment is not None and not isinstance(self.environment, Environment):
+            raise ValueError("scene.environment must be a tracer.Environment or None")
         if not isinstance(self.camera, Camera):
             raise ValueError("scene.camera must be a tracer.Camera")
         for light in self.lights:

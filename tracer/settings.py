@@ -7,6 +7,9 @@ from dataclasses import dataclass, field, replace
 AOV_NAMES = ("depth", "normal", "albedo", "objectid", "direct", "reflection", "transmission", "raydepth")
 #: AOVs that split the beauty by the ray type light arrived through (they sum to it), and the deepest ray per pixel.
 RAY_TYPE_AOVS = ("direct", "reflection", "transmission", "raydepth")
+#: The one default anti-aliasing level (N for N×N samples per pixel) of RenderSettings, the CLI's --aa, the add-on
+#: and `make render`.
+DEFAULT_AA = 2
 
 
 @dataclass
@@ -14,7 +17,7 @@ class RenderSettings:
     width: int = 640
     height: int = 480
     #: N for N×N stratified samples per pixel (box filter). 1 = one ray through each pixel centre.
-    samples: int = 1
+    samples: int = DEFAULT_AA
     #: Maximum recursion depth of reflection/transmission rays (0 = eye rays and shadow rays only).
     max_depth: int = 8
     #: ε for spawned rays; None = :meth:`tracer.Scene.default_epsilon`.

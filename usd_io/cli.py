@@ -1,9 +1,14 @@
 """The ``whitted`` command line: ``whitted render`` (USD -> PNG/EXR) and ``whitted info``.
 
-    whitted render SCENE -o OUT.png|OUT.exr [--camera PRIM_PATH] [--width W] [--height H] [--spp N]
-                   [--max-depth D] [--frames A:B[xS]] [--purposes P[,P...] ...] [--threads N]
-                   [--aov depth,normal,albedo,objectid] [--quiet]
-    whitted info SCENE [--time T]
+    whitted render SCENE [SCENE ...] -o OUT.png|.exr|.jpg|.tif [--camera PRIM_PATH] [--width|--imageWidth W]
+                   [--height H] [--aa N] [--max-depth D] [--frames A:B[xS] | --time T] [--purposes P[,P...]]
+                   [--variant /Prim:set=value ...] [--no-default-light|--disableCameraLight] [--exposure EV]
+                   [--transparent] [--threads N] [--aov depth,normal,albedo,objectid] [--quiet]
+    whitted info SCENE [--time T] [--variant /Prim:set=value ...]
+    whitted --version
+
+Several scenes render in one process (kernels and imports loaded once) to an output pattern with ``{stem}``;
+a scene that fails is reported on one line and the rest go on; the exit code is then 2.
 
 Exit codes: 0 success; 2 bad input, with one line on stderr naming the file and what is wrong; 1 an internal
 fault (with a traceback). Images are written to a temporary file and renamed (tracer.film). AOVs go next to the
@@ -75,7 +80,7 @@ def aov_path(image_path: str, aov: str) -> str:
 def check_output(path: str):
     ext = os.path.splitext(path)[1].lower()
     if ext not in (".png", ".exr", ".jpg", ".jpeg", ".tif", ".tiff", ".hdr"):
-        raise BadInput(f"{path}: unsupported output type {ext or '(none)'!r}; use .png or .exr")
+        raise BadInput(f"{path}: unsupported output type {ext or '(none)'!r}; use .png, .exr, .jpg, .tif or .hdr")
     directory = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(directory):
         raise BadInput(f"{path}: output directory {directory} does not exist")
@@ -98,32 +103,76 @@ def split_purposes(values) -> list[str]:
     return [p.strip() for v in values for p in v.split(",") if p.strip()]
 
 
-def build_parser() -> argparse.ArgumentParser:
-    ap = _Parser(prog="whitted", description="Render USD stages with a Whitted-style ray tracer.")
-    sub = ap.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    r = sub.add_parser("render", help="render a USD stage to PNG/EXR")
-    r.add_argument("scene", help="USD file (.usd, .usda, .usdc, .usdz)")
-    r.add_argument("-o", "--output", required=True, help="output image (.png sRGB 8-bit, .exr linear half)")
-    r.add_argument("--camera", help="camera prim path (default: the first camera in the stage)")
-    r.add_argument("--width", type=int, help="image width (default 960, or from --height and the aperture)")
+def _version() -> str:
+    try:
+        from importlib.metadata import version
+
+        return version("whitted")
+    except Exception:  # noqa: BLE001 — running from a source tree that was never installed
+        return "0.1.0 (source tree)"
+
+
+def _variant(text: str):
+    """``/Prim:set=value`` -> (prim path, set, value)."""
+    m = re.fullmatch(r"\s*(/[^:=\s]*)\s*:\s*([^=\s]+)\s*=\s*(\S+)\s*", text or "")
+    if not m:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected /Prim/Path:variantSet=variant")
+    return m.group(1), m.group(2), m.group(3)
+
+
+#: Deprecated spellings still accepted (scripts call them): old flag -> (new flag, note). Each prints ONE warning.
+DEPRECATED = {"--spp": ("--aa", "--spp N meant N×N samples per pixel")}
+
+
+def _add_render_flags(r) -> None:
+    """Every ``whitted render`` flag, in one place (other branches add theirs here: one ``add_argument`` each)."""
+    from tracer.settings import DEFAULT_AA
+
+    from .mesh import COMPLEXITY, DEFAULT_COMPLEXITY
+
+    r.add_argument("scenes", nargs="+", metavar="SCENE", help="USD file(s) (.usd, .usda, .usdc, .usdz)")
+    r.add_argument("-o", "--output", required=True,
+                   help="output image (.png/.jpg/.tif sRGB 8-bit, .exr linear half); several scenes need {stem} "
+                        "(or {name}) in it, e.g. thumbs/{stem}.png")
+    r.add_argument("--camera", "--cam", help="camera prim path (default: the first camera in the stage)")
+    r.add_argument("--width", "--imageWidth", "-w", dest="width", type=int,
+                   help="image width (default 960, or from --height and the aperture)")
     r.add_argument("--height", type=int, help="image height (default: from the width and the camera aperture)")
-    r.add_argument("--spp", type=int, default=2, help="N for N×N anti-aliasing samples per pixel (default 2)")
+    r.add_argument("--aa", type=int, default=None,
+                   help=f"anti-aliasing: N×N stratified samples per pixel (default {DEFAULT_AA})")
+    r.add_argument("--spp", dest="spp_deprecated", type=int, help=argparse.SUPPRESS)
     r.add_argument("--max-depth", type=int, default=8, help="maximum reflection/refraction depth (default 8)")
-    r.add_argument("--frames", help="time codes A:B or A:BxS; output pattern out.####.png")
+    r.add_argument("--frames", "-f", help="time codes A:B or A:BxS; output pattern out.####.png")
+    r.add_argument("--time", type=float, help="one time code to render (default: the earliest)")
     r.add_argument("--purposes", nargs="+", default=["default", "render"],
                    help="purposes to render, space- or comma-separated (default: default render)")
-    r.add_argument("--threads", type=int, help="worker threads (default: all cores)")
-    r.add_argument("--aov", help="extra outputs: comma-separated depth,normal,albedo,objectid (EXR), and "
-                   "direct,reflection,transmission (the beauty by first secondary ray), raydepth (EXR + heat-map PNG)")
-    r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    r.add_argument("--variant", action="append", type=_variant, default=[], metavar="/PRIM:SET=VALUE",
+                   help="select a variant before reading (repeatable)")
+    r.add_argument("--complexity", "-c", choices=list(COMPLEXITY), default=DEFAULT_COMPLEXITY,
+                   help="subdivision surfaces: low = the control cage, medium = 1 level of Catmull-Clark (default), "
+                   "high = 2, veryhigh = 3 (usdrecord's names)")
     r.add_argument("--no-default-light", "--disableCameraLight", dest="no_default_light", action="store_true",
                    help="leave a stage without lights unlit (default: a camera headlight and a dim dome, as usdview)")
+    r.add_argument("--exposure", type=float, default=0.0, help="exposure in stops: pixels × 2^EV (default 0)")
+    r.add_argument("--transparent", action="store_true",
+                   help="alpha 0 where eye rays see only background (PNG/EXR/TIFF alpha; Blender's Film > Transparent)")
+    r.add_argument("--threads", type=int, help="worker threads (default: all cores)")
+    r.add_argument("--aov", help="extra outputs (float32 EXR): comma-separated depth,normal,albedo,objectid, and "
+                   "direct,reflection,transmission (the beauty by first secondary ray), raydepth (EXR + heat-map PNG)")
+    r.add_argument("--quiet", "-q", action="store_true", help="no progress bar or summary")
     r.add_argument("--scheduler", help="render on a Dask cluster: tcp://HOST:PORT, tls://HOST:PORT, a scheduler "
                    "file, or local:N (N local worker processes); frames are tasks, a single frame splits into tiles")
     r.add_argument("--worker-writes", action="store_true", help="with --scheduler: workers write the frames "
                    "themselves (OUT must be on a filesystem they share); default: the client writes every file")
     r.add_argument("--ship-assets", action="store_true", help="with --scheduler: send the stage and its resolved "
                    "assets to the workers as a .usdz (default: workers read SCENE's path on a shared filesystem)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = _Parser(prog="whitted", description="Render USD stages with a Whitted-style ray tracer.")
+    ap.add_argument("--version", action="version", version=f"whitted {_version()}")
+    sub = ap.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    _add_render_flags(sub.add_parser("render", help="render USD stages to PNG/EXR/JPEG/TIFF"))
     e = sub.add_parser("explain", help="the ray tree of one pixel: every ray that made it (tree, JSON, USD, PNG)")
     e.add_argument("scene", help="USD file")
     e.add_argument("--pixel", nargs=2, type=int, required=True, metavar=("X", "Y"),
@@ -137,6 +186,8 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--purposes", nargs="+", default=["default", "render"])
     e.add_argument("--no-default-light", "--disableCameraLight", dest="no_default_light", action="store_true",
                    help="leave a stage without lights unlit")
+    e.add_argument("--complexity", choices=["low", "medium", "high", "veryhigh"], default="medium",
+                   help="subdivision surfaces, as render's --complexity")
     e.add_argument("--json", help="write the tree as JSON (format in README)")
     e.add_argument("--usd", help="write the tree as BasisCurves + camera over the stage (.usda)")
     e.add_argument("--png", help="write the rendered image with the pixel marked and the rays drawn")
@@ -144,51 +195,117 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("scene")
     i.add_argument("--time", type=float, help="time code (default: earliest)")
     i.add_argument("--purposes", nargs="+", default=["default", "render"])
+    i.add_argument("--variant", action="append", type=_variant, default=[], metavar="/PRIM:SET=VALUE")
     return ap
+
+
+def warn(message: str) -> None:
+    print(f"whitted: warning: {message}", file=sys.stderr)
 
 
 def _print_warnings(info):
     for n in getattr(info, "notes", ()):
         print(f"whitted: note: {n}", file=sys.stderr)
     for w in info.warnings:
-        print(f"whitted: warning: {w}", file=sys.stderr)
+        warn(w)
+
+
+def _check_args(args) -> None:
+    for name in ("width", "height"):
+        v = getattr(args, name)
+        if v is not None and v <= 0:
+            raise BadInput(f"{', '.join(args.scenes)}: image {name} must be positive, got {v}")
+    if args.spp_deprecated is not None:
+        warn("--spp is deprecated: use --aa N (N×N samples per pixel, the same meaning)")
+        if args.aa is None:
+            args.aa = args.spp_deprecated
+    if args.aa is None:
+        from tracer.settings import DEFAULT_AA
+
+        args.aa = DEFAULT_AA
+    for name, lo in (("aa", 1), ("max_depth", 0), ("threads", 1)):
+        v = getattr(args, name)
+        if v is not None and v < lo:
+            raise BadInput(f"--{name.replace('_', '-')} must be >= {lo}, got {v}")
+    if not np.isfinite(args.exposure):
+        raise BadInput(f"--exposure must be a finite number, got {args.exposure}")
+    for flag in ("ship_assets", "worker_writes"):
+        if getattr(args, flag) and not args.scheduler:
+            raise BadInput(f"--{flag.replace('_', '-')} needs --scheduler")
+    if args.frames and args.time is not None:
+        raise BadInput("--frames and --time are exclusive")
+    if len(args.scenes) > 1 and not re.search(r"\{(stem|name)\}", args.output):
+        raise BadInput(f"{len(args.scenes)} scenes need {{stem}} or {{name}} in the output name, "
+                       f"e.g. thumbs/{{stem}}.png (got {args.output})")
+
+
+def output_for(pattern: str, scene: str) -> str:
+    """The output path of one scene: ``{stem}`` -> file name without extension, ``{name}`` -> with it."""
+    base = os.path.basename(scene)
+    return pattern.replace("{stem}", os.path.splitext(base)[0]).replace("{name}", base)
 
 
 def cmd_render(args) -> int:
+    _check_args(args)
+    aovs = _parse_aovs(args.aov)
+    frames = parse_frames(args.frames) if args.frames else [args.time]
+    failed = 0
+    for scene_path in args.scenes:
+        out = output_for(args.output, scene_path)
+        try:
+            check_output(out)
+            if render_file(scene_path, out, frames, aovs, args) != EXIT_OK:
+                failed += 1
+        except (BadInput, ValueError) as exc:  # UsdInputError is a ValueError
+            if len(args.scenes) == 1:
+                raise
+            print(f"whitted: error: {' '.join(str(exc).split())}", file=sys.stderr)
+            failed += 1
+        except Exception as exc:  # noqa: BLE001 — a batch goes on; the fault is named on one line
+            if len(args.scenes) == 1:
+                raise
+            print(f"whitted: error: {scene_path}: internal error {type(exc).__name__}: "
+                  f"{' '.join(str(exc).split())}", file=sys.stderr)
+            failed += 1
+    if failed:
+        if len(args.scenes) > 1:
+            print(f"whitted: {failed} of {len(args.scenes)} scenes failed", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    return EXIT_OK
+
+
+_kernels_ready = False
+
+
+def render_file(scene_path: str, output: str, frames, aovs, args) -> int:
+    """Render one scene (all its frames) to ``output``; BadInput/UsdInputError for what the user can fix.
+    Returns the exit code (a farm reports failed frames itself and returns 2)."""
+    global _kernels_ready
     from tracer import RenderSettings, render
 
     from .reader import load_stage
     from .stage import open_stage
 
-    check_output(args.output)
-    for name in ("width", "height"):
-        v = getattr(args, name)
-        if v is not None and v <= 0:
-            raise BadInput(f"{args.scene}: image {name} must be positive, got {v}")
-    for name, lo in (("spp", 1), ("max_depth", 0), ("threads", 1)):
-        v = getattr(args, name)
-        if v is not None and v < lo:
-            raise BadInput(f"--{name.replace('_', '-')} must be >= {lo}, got {v}")
-    aovs = _parse_aovs(args.aov)
-    frames = parse_frames(args.frames) if args.frames else [None]
-    for flag in ("ship_assets", "worker_writes"):
-        if getattr(args, flag) and not args.scheduler:
-            raise BadInput(f"--{flag.replace('_', '-')} needs --scheduler")
-    stage = open_stage(args.scene)
-    if args.scheduler:
-        return _render_on_farm(args, frames, aovs)
+    stage = open_stage(scene_path)
+    if args.scheduler:  # the farm reads the scene and output from its own copy of the arguments
+        return _render_on_farm(argparse.Namespace(**dict(vars(args), scene=scene_path, output=output)), frames, aovs)
+    many = len(frames) > 1
     for frame in frames:
         scene, info = load_stage(stage, time=frame, camera=args.camera, width=args.width, height=args.height,
-                                 default_light=not args.no_default_light,
-                                 purposes=split_purposes(args.purposes))
-        if frame is None or frame == frames[0]:
+                                 purposes=split_purposes(args.purposes), default_light=not args.no_default_light,
+                                 variants=args.variant, complexity=args.complexity)
+        if frame == frames[0]:
             _print_warnings(info)
-        settings = RenderSettings(width=info.width, height=info.height, samples=args.spp, max_depth=args.max_depth,
-                                  threads=args.threads, aovs=aovs, progress=not args.quiet)
-        if frame is None or frame == frames[0]:  # after the input has been checked: bad input stays one line
+        settings = RenderSettings(width=info.width, height=info.height, samples=args.aa, max_depth=args.max_depth,
+                                  threads=args.threads, aovs=aovs, progress=not args.quiet,
+                                  transparent=args.transparent)
+        if not _kernels_ready:  # after the input has been checked: bad input stays one line
             _compile_kernels(quiet=args.quiet)
+            _kernels_ready = True
         image = render(scene, settings)
-        out = frame_path(args.output, frame, len(frames) > 1) if frame is not None else args.output
+        if args.exposure:
+            image.rgba[..., :3] *= np.float32(2.0 ** args.exposure)
+        out = frame_path(output, frame, many) if frame is not None and many else output
         write_outputs(image, out, aovs, max_depth=args.max_depth)
         if not args.quiet:
             s = image.stats
@@ -197,10 +314,21 @@ def cmd_render(args) -> int:
     return EXIT_OK
 
 
+def _save(image, out: str) -> None:
+    """PNG/TIFF/EXR keep alpha; JPEG has none (RGB only)."""
+    from tracer import write_image
+
+    ext = os.path.splitext(out)[1].lower()
+    if ext in (".jpg", ".jpeg"):
+        write_image(out, image.rgba[..., :3])
+    else:
+        image.save(out)
+
+
 def write_outputs(image, out, aovs, max_depth: int | None = None) -> None:
     """The image and its AOVs (EXR next to it; ``raydepth`` also as a heat-map PNG scaled to ``max_depth``)."""
     try:
-        image.save(out)
+        _save(image, out)
         for name in aovs:
             a = image.aovs[name]
             a = a[..., None] if a.ndim == 2 else a
@@ -217,11 +345,18 @@ def _render_on_farm(args, frames, aovs) -> int:
     """--scheduler: the same frames and files on a Dask cluster (usd_io.farm)."""
     from .farm import FarmInputError, render_on_farm
 
-    settings = dict(samples=args.spp, max_depth=args.max_depth, threads=args.threads, aovs=aovs)
-    name = (lambda f: frame_path(args.output, f, len(frames) > 1) if f is not None else args.output)
+    settings = dict(samples=args.aa, max_depth=args.max_depth, threads=args.threads, aovs=aovs,
+                    transparent=args.transparent)
+    output = args.output
+    name = (lambda f: frame_path(output, f, len(frames) > 1) if f is not None and len(frames) > 1 else output)
+
+    def write(image, out):
+        if args.exposure:
+            image.rgba[..., :3] *= np.float32(2.0 ** args.exposure)
+        write_outputs(image, out, aovs, max_depth=args.max_depth)
+
     try:
-        return render_on_farm(args, frames, settings, name,
-                              lambda image, out: write_outputs(image, out, aovs, max_depth=args.max_depth))
+        return render_on_farm(args, frames, settings, name, write)
     except FarmInputError as exc:
         raise BadInput(str(exc)) from None
 
@@ -245,13 +380,14 @@ def _compile_kernels(quiet: bool) -> None:
 def _write_aov(path, pixels):
     from tracer import write_image
 
-    write_image(path, np.nan_to_num(pixels, posinf=0.0, neginf=0.0))
+    write_image(path, np.nan_to_num(pixels, posinf=0.0, neginf=0.0), float32=True)
 
 
 def cmd_info(args) -> int:
     from .reader import load_stage
 
-    scene, info = load_stage(args.scene, time=args.time, purposes=split_purposes(args.purposes), width=160)
+    scene, info = load_stage(args.scene, time=args.time, purposes=split_purposes(args.purposes), width=160,
+                             variants=args.variant)
     out = sys.stdout
     print(f"stage: {info.path}", file=out)
     print(f"upAxis: {info.up_axis}, metersPerUnit: {info.meters_per_unit:g}", file=out)
@@ -273,15 +409,20 @@ def cmd_info(args) -> int:
     return EXIT_OK
 
 
+def _value(v) -> str:
+    if isinstance(v, str):
+        return v
+    try:
+        return str(np.round(np.asarray(v, float), 4).tolist())
+    except (TypeError, ValueError):  # anything else a light may carry (shape names, tuples of mixed types)
+        return repr(v)
+
+
 def _describe_light(light) -> str:
     if isinstance(light, dict):
-        return ", ".join(f"{k}={np.round(np.asarray(v, float), 4).tolist()}" for k, v in light.items())
+        return ", ".join(f"{k}={_value(v)}" for k, v in light.items())
     fields = {k: v for k, v in vars(light).items() if k != "name"}
-    parts = []
-    for k, v in fields.items():
-        if not isinstance(v, str):  # numbers and vectors rounded; names (an area light's shape) as they are
-            v = np.round(np.asarray(v, float), 4).tolist()
-        parts.append(f"{k}={v}")
+    parts = [f"{k}={_value(v)}" for k, v in fields.items()]
     return f"{type(light).__name__}(" + ", ".join(parts) + ")"
 
 
@@ -297,10 +438,19 @@ _COMMANDS = {"render": cmd_render, "info": cmd_info, "explain": cmd_explain}
 def main(argv=None) -> int:
     from .stage import UsdInputError
 
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser()
+    if not argv:
+        parser.print_usage(sys.stderr)
+        print("whitted: error: a command is required: whitted render SCENE -o OUT.png | whitted info SCENE "
+              "(whitted render --help for all options)", file=sys.stderr)
+        return EXIT_BAD_INPUT
     try:
-        args = build_parser().parse_args(argv)
+        args = parser.parse_args(argv)
         with warnings.catch_warnings():
             warnings.simplefilter("default")
+            # every Python warning (numpy, OIIO, ...) in the one `whitted: warning:` form, not raw UserWarning lines
+            warnings.showwarning = lambda message, category, *a, **k: warn(str(message))
             code = _COMMANDS[args.command](args)
     except (BadInput, UsdInputError) as exc:
         print(f"whitted: error: {' '.join(str(exc).split())}", file=sys.stderr)

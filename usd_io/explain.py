@@ -89,7 +89,8 @@ def cmd_explain(args) -> int:
     if args.png:
         check_output(args.png)
     scene, info = load_stage(args.scene, time=args.frame, camera=args.camera, width=args.width,
-                             height=args.height, purposes=args.purposes, default_light=not args.no_default_light)
+                             height=args.height, purposes=args.purposes, default_light=not args.no_default_light,
+                             complexity=args.complexity)
     x, y = args.pixel
     if not (0 <= x < info.width and 0 <= y < info.height):
         raise BadInput(f"--pixel {x} {y} is outside the {info.width}x{info.height} image")

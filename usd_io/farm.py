@@ -35,6 +35,7 @@ class UsdSource:
     height: int | None = None
     purposes: tuple = ("default", "render")
     default_light: bool = True
+    complexity: str = "medium"
     settings: dict = field(default_factory=dict, hash=False, compare=False)
     #: sha256 of the shipped package this source was unpacked from (None: read ``path`` itself).
     package: str | None = None
@@ -45,7 +46,8 @@ class UsdSource:
         from .reader import load_stage
 
         scene, info = load_stage(_open(self.path), time=frame, camera=self.camera, width=self.width,
-                                 height=self.height, purposes=list(self.purposes), default_light=self.default_light)
+                                 height=self.height, purposes=list(self.purposes), default_light=self.default_light,
+                                 complexity=self.complexity)
         return scene, RenderSettings(width=info.width, height=info.height, **self.settings)
 
     def unpacked(self, assets: bytes) -> "UsdSource":
@@ -159,7 +161,8 @@ def render_on_farm(args, frames, settings: dict, out_path, write) -> int:
     path = os.path.abspath(args.scene)
     assets = package_assets(path) if args.ship_assets else None
     source = UsdSource(path=path, camera=args.camera, width=args.width, height=args.height,
-                       purposes=tuple(args.purposes), default_light=not args.no_default_light, settings=settings)
+                       purposes=tuple(args.purposes), default_light=not args.no_default_light,
+                       complexity=getattr(args, "complexity", "medium"), settings=settings)
     client, cluster, threads = connect(args.scheduler)
     if threads is not None and settings.get("threads") is None:
         source = replace(source, settings=dict(settings, threads=threads))

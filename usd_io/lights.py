@@ -15,6 +15,7 @@ light of power P as a SphereLight with I = P/π, normalize = 1; Cycles' radiant 
                  angle = 0 (a delta sun, which the spec leaves at E = 0) takes E = I, the normalized limit.
                  Blender's exporter: sun strength S written as I = S/4 with normalize = 1 and angle = half the
                  diameter, so E = 4·I and the diameter is 2·angle.
+    CylinderLight  a point light of the same power Φ = π·I·2πrl (normalize: π·I) at its centre, with a warning
     RectLight    radiance Le = I/A with normalize = 1 (A = width·height), else Le = I (Blender: I = P/π)
     DiskLight    the same with A = π·radius²
     DomeLight    the world: a lat-long texture becomes Scene.environment (usd_io/dome.py: orientation, format);
@@ -44,7 +45,7 @@ from tracer import AreaLight, DistantLight, PointLight, SpotLight
 
 from .dome import dome_texture
 
-LIGHT_TYPES = ("SphereLight", "DistantLight", "RectLight", "DiskLight", "DomeLight", "DomeLight_1")
+LIGHT_TYPES = ("SphereLight", "DistantLight", "RectLight", "DiskLight", "DomeLight", "DomeLight_1", "CylinderLight")
 _WHITE_6500 = np.asarray(UsdLux.BlackbodyTemperatureAsRgb(6500.0), dtype=np.float64)
 
 
@@ -118,6 +119,12 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False):
         radius = 0.0 if point else r
         shaping = UsdLux.ShapingAPI(prim)
         cone = shaping.GetShapingConeAngleAttr() if prim.HasAPI(UsdLux.ShapingAPI) else None
+        focus = shaping.GetShapingFocusAttr() if prim.HasAPI(UsdLux.ShapingAPI) else None
+        if focus and focus.HasAuthoredValue() and float(focus.Get(time) or 0) != 0:
+            warn(f"{name}: ShapingAPI shaping:focus is not supported (ignored)")
+        ies = shaping.GetShapingIesFileAttr() if prim.HasAPI(UsdLux.ShapingAPI) else None
+        if ies and ies.HasAuthoredValue():
+            warn(f"{name}: ShapingAPI IES profile is not supported (ignored)")
         if cone and cone.HasAuthoredValue():
             angle = _finite(cone.Get(time), "shaping:cone:angle")
             soft = _finite(_get(shaping.GetShapingConeSoftnessAttr(), time, 0.0), "shaping:cone:softness")
@@ -133,6 +140,19 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False):
         if not blender and angle <= 0:  # a delta sun: the limit the normalized reading gives
             irradiance = rgb
         return "distant", DistantLight(direction=down, irradiance=irradiance, angle=diameter, name=name), None
+    if t == "CylinderLight":
+        # A tube along its local X of `length` and `radius`: emitted as a spherical light of the same power
+        # at its centre (Φ = L·π·A for a Lambertian surface of area A = 2πrl; normalize divides by A).
+        lux = UsdLux.CylinderLight(prim)
+        sx, sy, sz = _axis_scales(world)
+        length = _finite(_get(lux.GetLengthAttr(), time, 1.0), "length") * sx
+        r = _finite(_get(lux.GetRadiusAttr(), time, 0.5), "radius") * float(np.sqrt(sy * sz))
+        if _normalized(prim, time) or r <= 0 or length <= 0:
+            power = rgb * np.pi
+        else:
+            power = rgb * np.pi * 2 * np.pi * r * length
+        warn(f"{name}: CylinderLight rendered as a point light of the same power")
+        return "point", PointLight(position=pos, intensity=power / (4 * np.pi), radius=max(r, 0.0), name=name), None
     if t in ("RectLight", "DiskLight"):
         sx, sy, _ = _axis_scales(world)
         if t == "RectLight":

@@ -86,7 +86,9 @@ def mesh_primvars(prim, data, needs, uv_set_names: list, time, warn):
                          f"{prim.GetTypeName()} is averaged")
                 c = v.mean(axis=0)
             colors = np.broadcast_to(np.asarray(c, np.float32), (len(data.triangles), 3, 3)).copy()
-        return {}, colors
+        # a refined subdivision surface carries its st through the refinement (usd_io/mesh.py): that is set 0
+        sets = {} if getattr(data, "uvs", None) is None else {0: np.asarray(data.uvs, np.float32)}
+        return sets, colors
     tri = Triangulation(data.triangles, data.corners, data.faces, data.n_faces)
     n_points, n_fv = len(data.points), data.n_face_vertices
     sets = {}

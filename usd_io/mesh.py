@@ -133,17 +133,34 @@ def read_uvs(prim, tri: Triangulation, n_points, n_fv, time, name="st"):
     return uv, why
 
 
-def read_mesh(prim, time, uv_name="st") -> MeshData | None:
+#: usdrecord/usdview's --complexity names -> uniform refinement levels of subdivision surfaces (Hydra's refineLevel
+#: for complexity 1.0, 1.1, 1.2, 1.3).
+COMPLEXITY = {"low": 0, "medium": 1, "high": 2, "veryhigh": 3}
+DEFAULT_COMPLEXITY = "medium"
+
+
+def read_mesh(prim, time, uv_name="st", subdivision_level: int = COMPLEXITY[DEFAULT_COMPLEXITY]) -> MeshData | None:
     mesh = UsdGeom.Mesh(prim)
     label = str(prim.GetPath())
     points = mesh.GetPointsAttr().Get(time)
     counts = mesh.GetFaceVertexCountsAttr().Get(time)
     indices = mesh.GetFaceVertexIndicesAttr().Get(time)
-    if points is None or counts is None or indices is None or len(points) == 0 or len(counts) == 0:
+    if points is None or counts is None or indices is None:
         return None
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    for what, v in (("points", points), ("faceVertexCounts", counts), ("faceVertexIndices", indices)):
+        if not hasattr(v, "__len__"):  # authored with a scalar type (usd-wg schemaTests points_types)
+            raise ValueError(f"{label}: {what} is a {type(v).__name__}, not an array")
+    if len(points) == 0 or len(counts) == 0:
+        return None
+    points = np.asarray(points, dtype=np.float64)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise ValueError(f"{label}: points are not 3-vectors (shape {points.shape})")
     left = mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded
     holes = mesh.GetHoleIndicesAttr().Get(time) or ()
+    scheme = mesh.GetSubdivisionSchemeAttr().Get(time) or UsdGeom.Tokens.catmullClark
+    if scheme in (UsdGeom.Tokens.catmullClark, UsdGeom.Tokens.loop) and subdivision_level > 0:
+        return _subdivided(prim, mesh, points, counts, indices, holes, left, scheme, subdivision_level, time,
+                           uv_name, label)
     tri = triangulate(counts, indices, len(points), holes, left, label)
     n_fv = len(indices)
     data = MeshData(points, tri.triangles, tri.faces, tri.n_faces, warnings=list(tri.warnings),
@@ -157,6 +174,12 @@ def read_mesh(prim, time, uv_name="st") -> MeshData | None:
         attr = mesh.GetNormalsAttr()
         vals = attr.Get(time) if attr.HasValue() else None
         interp = mesh.GetNormalsInterpolation()
+    if vals is not None and not hasattr(vals, "__len__"):
+        data.warnings.append(f"{label}: normals authored as a {type(vals).__name__}, not an array (ignored)")
+        vals = None
+    elif vals is not None and len(vals) and np.asarray(vals).reshape(len(vals), -1).shape[1] != 3:
+        data.warnings.append(f"{label}: normals are not 3-vectors (ignored)")
+        vals = None
     if vals is not None and len(vals):
         n, why = expand_primvar(np.asarray(vals, dtype=np.float64).reshape(-1, 3), interp, tri, len(points), n_fv,
                                 f"{label} normals")
@@ -171,3 +194,72 @@ def read_mesh(prim, time, uv_name="st") -> MeshData | None:
         data.warnings.append(why + " (ignored)")
     data.uvs = uv
     return data
+
+
+def _face_varying(prim, name, counts, indices, n_points, time):
+    """A primvar as one value per face-vertex (None if absent or of the wrong size)."""
+    pv = _primvar(prim, name)
+    if pv is None:
+        return None
+    vals = pv.ComputeFlattened(time)
+    if vals is None or len(vals) == 0:
+        return None
+    v = np.asarray(vals, np.float64).reshape(len(vals), -1)
+    interp = pv.GetInterpolation()
+    n_fv = len(indices)
+    if interp == UsdGeom.Tokens.faceVarying and len(v) == n_fv:
+        return v
+    if interp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying) and len(v) == n_points:
+        return v[indices]
+    if interp == UsdGeom.Tokens.uniform and len(v) == len(counts):
+        return np.repeat(v, counts, axis=0)
+    if interp == UsdGeom.Tokens.constant:
+        return np.repeat(v[:1], n_fv, axis=0)
+    return None
+
+
+def _subdivided(prim, mesh, points, counts, indices, holes, left, scheme, level, time, uv_name, label):
+    """A subdivision surface refined ``level`` times (tracer.subdivision.catmull_clark), with its UVs carried
+    through and smooth normals of the refined surface. Authored normals are ignored, as the USD spec says for
+    subdivision surfaces."""
+    from tracer.subdivision import catmull_clark, limit_normals
+
+    warnings = []
+    counts = np.asarray(counts, np.int64)
+    indices = np.asarray(indices, np.int64)
+    if counts.sum() != len(indices) or (len(indices) and (indices.min() < 0 or indices.max() >= len(points))):
+        triangulate(counts, indices, len(points), holes, left, label)  # raises the cage's own error
+    keep = counts >= 3
+    if (~keep).any():
+        warnings.append(f"{label}: skipped {int((~keep).sum())} face(s) with fewer than 3 vertices")
+        fv_keep = np.repeat(keep, counts)
+        indices, counts = indices[fv_keep], counts[keep]
+    if scheme == UsdGeom.Tokens.loop:
+        warnings.append(f"{label}: loop subdivision refined with Catmull-Clark rules")
+    authored = [n for n, a in (("creases", mesh.GetCreaseIndicesAttr()), ("corners", mesh.GetCornerIndicesAttr()))
+                if a.HasAuthoredValue() and len(a.Get(time) or ())]
+    if authored:
+        warnings.append(f"{label}: subdivision {' and '.join(authored)} are not supported (smooth everywhere)")
+    boundary = mesh.GetInterpolateBoundaryAttr().Get(time)
+    if boundary not in (None, UsdGeom.Tokens.edgeAndCorner):
+        warnings.append(f"{label}: interpolateBoundary {boundary} refined as edgeAndCorner")
+    st = _face_varying(prim, uv_name, counts, indices, len(points), time)
+    r = catmull_clark(points, counts, indices, level, fvar=None if st is None else st[:, :2])
+    quads, face = r.indices, np.flatnonzero(keep)[r.face]
+    hole_set = np.asarray(holes, np.int64).reshape(-1)
+    if hole_set.size:
+        alive = ~np.isin(face, hole_set)
+        quads, face = quads[alive], face[alive]
+        warnings.append(f"{label}: {len(hole_set)} hole face(s) ignored (not cut; holes render as missing faces)")
+        uv_q = None if r.fvar is None else r.fvar[alive]
+    else:
+        uv_q = r.fvar
+    order = [[0, 2, 1], [0, 3, 2]] if left else [[0, 1, 2], [0, 2, 3]]
+    triangles = np.concatenate([quads[:, order[0]], quads[:, order[1]]], axis=0)
+    faces = np.concatenate([face, face])
+    uvs = None if uv_q is None else np.concatenate([uv_q[:, order[0]], uv_q[:, order[1]]], axis=0)
+    normals = limit_normals(r.points, quads)
+    if left:
+        normals = -normals
+    return MeshData(r.points, triangles, faces, len(np.asarray(counts)) + int((~keep).sum()), normals=normals,
+                    uvs=uvs, warnings=warnings)

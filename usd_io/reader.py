@@ -1,7 +1,10 @@
 """``load_stage``: a USD stage at one time code -> (:class:`tracer.Scene`, :class:`StageInfo`).
 
-Geometry stays in stage space (``upAxis`` and ``metersPerUnit`` are reported, not applied): the camera lives in
-the same space, so the picture is the same, and light units are per stage unit as Blender writes them.
+Geometry stays in stage space: the camera lives in the same space, so a Y-up and a Z-up copy of an asset give the
+same picture through their cameras, and the default framing camera puts ``upAxis`` up (the same view of both).
+``metersPerUnit`` is reported, not applied: light falloff is per stage unit, as in Hydra's renderers and usdview.
+A stage without lights is lit by :func:`usd_io.lights.default_lights` (usdview's camera light) unless
+``default_light=False``.
 """
 
 from __future__ import annotations
@@ -9,19 +12,21 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from pxr import UsdGeom, UsdLux
+from pxr import Usd, UsdGeom, UsdLux
 
 from tracer import SceneBuilder
 
 from . import camera as cam
+from .curves import read_curves, read_points
 from .gprims import DEFAULT_SEGMENTS, GPRIM_TYPES, read_gprim
 from .instancing import instance_matrices, replicate
 from .dome import environment
 from .lights import blender_authored, convert_light, default_lights
 from .material import MaterialTable
 from .material_primvars import replicate_corners
-from .mesh import MeshData, read_mesh
-from .stage import (DEFAULT_PURPOSES, UsdInputError, check_purposes, composition_warnings, open_stage,
+from .mesh import COMPLEXITY, DEFAULT_COMPLEXITY, MeshData, read_mesh
+from .skel import Skinning
+from .stage import (DEFAULT_PURPOSES, _first_reason, captured_stderr, UsdInputError, check_purposes, composition_warnings, open_stage,
                     renderable_prims, stage_messages, stage_time)
 from .xform import Transforms, transform_points
 
@@ -60,13 +65,25 @@ class _Reader:
         self.lo = np.full(3, np.inf)
         self.hi = np.full(3, -np.inf)
         self._proto_cache: dict[str, MeshData | None] = {}
+        self._grey = None
+        self.skinning = Skinning(time, self.xf.world)
+        self.subdivision_level = COMPLEXITY[DEFAULT_COMPLEXITY]
 
     # ------------------------------------------------------------------ geometry
     def geometry(self, prim, uv_name="st") -> MeshData | None:
         """Object-space geometry, or None (with a warning) where it is malformed."""
         try:
             if prim.IsA(UsdGeom.Mesh):
-                data = read_mesh(prim, self.time, uv_name)
+                level = self.subdivision_level
+                if level and Skinning.is_skinned(prim):  # skinning poses the cage's points: keep the cage
+                    level = 0
+                    if (UsdGeom.Mesh(prim).GetSubdivisionSchemeAttr().Get(self.time) or "catmullClark") != "none":
+                        self.info.warn(f"{prim.GetPath()}: skinned subdivision surface rendered as its posed cage")
+                data = read_mesh(prim, self.time, uv_name, level)
+            elif prim.IsA(UsdGeom.Points):
+                data = read_points(prim, self.time)
+            elif prim.IsA(UsdGeom.BasisCurves):
+                data = read_curves(prim, self.time)
             else:
                 data = read_gprim(prim, self.time, self.segments)
         except ValueError as exc:
@@ -88,8 +105,15 @@ class _Reader:
 
     def shaded(self, prim, data: MeshData):
         """(data, per-triangle material rows, add_mesh keywords for UV sets and vertex colours)"""
-        material, needs = self.mats.for_prim(prim, data.n_faces, data.faces)
-        material, extra = self.mats.mesh_inputs(prim, data, material, needs)
+        try:
+            material, needs = self.mats.for_prim(prim, data.n_faces, data.faces)
+            material, extra = self.mats.mesh_inputs(prim, data, material, needs)
+        except (TypeError, ValueError, IndexError) as exc:  # a shading input of an unexpected type or shape
+            self.info.warn(f"{prim.GetPath()}: its material could not be read ({type(exc).__name__}: {exc}); "
+                           "rendered grey")
+            if self._grey is None:
+                self._grey = self.mats.writer.add_material("whitted:unreadable", dict(base_color=(0.5, 0.5, 0.5)))
+            material, extra = self._grey, ({} if data.uvs is None else dict(uvs=data.uvs))
         for w in data.warnings:
             self.info.warn(w)
         return data, material, extra
@@ -99,6 +123,10 @@ class _Reader:
         if data is None or not len(data.triangles):
             return
         m = self.xf.world(prim)
+        if prim.IsA(UsdGeom.Mesh) and Skinning.is_skinned(prim):
+            posed = self.skinning.pose(prim, data, self.info.warn)
+            if posed is not None:
+                data, m = posed
         if not _usable(m):
             self.info.warn(f"{prim.GetPath()}: transform is singular (zero scale) or not finite (skipped)")
             return
@@ -110,26 +138,35 @@ class _Reader:
         self._grow(transform_points(m, data.points))
         self.info.meshes.append((str(prim.GetPath()), int(len(tris))))
 
-    def add_instancer(self, prim):
+    def add_instancer(self, prim, frames=None, depth=0):
+        """A PointInstancer; ``frames`` (F, 4, 4) are the world matrices of the instancer itself when it is nested
+        in another instancer's prototype (one per outer instance), else its own world matrix."""
         mats, idx, protos = instance_matrices(prim, self.time)
-        world = self.xf.world(prim)
+        frames = self.xf.world(prim)[None] if frames is None else frames
         total = 0
         for p_index, p_path in enumerate(protos):
             sel = np.flatnonzero(idx == p_index)
             root = self.stage.GetPrimAtPath(p_path)
             if not len(sel) or not root:
                 continue
+            # world matrix of every (outer instance, instance) pair before the piece's own relative transform
+            base = (frames[:, None] @ mats[sel][None]).reshape(-1, 4, 4)
             for piece in renderable_prims(self.stage, self.time, self.purposes, root=root):
-                if piece.GetTypeName() not in GPRIM_TYPES and not piece.IsA(UsdGeom.Mesh):
-                    if piece.IsA(UsdGeom.PointInstancer) and piece != root:
-                        self.info.warn(f"{piece.GetPath()}: nested PointInstancer not supported (skipped)")
+                rel = self.xf.relative(piece, root.GetParent())
+                if piece.IsA(UsdGeom.PointInstancer):
+                    if depth >= 8:
+                        self.info.warn(f"{piece.GetPath()}: PointInstancers nested more than 8 deep (skipped)")
+                    else:
+                        total += self.add_instancer(piece, base @ rel[None], depth + 1)
+                    continue
+                if (piece.GetTypeName() not in GPRIM_TYPES and not piece.IsA(UsdGeom.Mesh)
+                        and not _is_points_or_curves(piece)):
                     continue
                 data = self.geometry(piece)
                 if data is None or not len(data.triangles):
                     continue
                 data, material, extra = self.shaded(piece, data)
-                rel = self.xf.relative(piece, root.GetParent())
-                full = world[None] @ mats[sel] @ rel[None]
+                full = base @ rel[None]
                 usable = _usable(full)
                 if not usable.all():
                     self.info.warn(f"{prim.GetPath()}: {int((~usable).sum())} instance(s) of {piece.GetPath()} have "
@@ -139,11 +176,14 @@ class _Reader:
                     continue
                 v, t, n, uv, mat = replicate(full, data, material)
                 extra = replicate_corners(full, extra)
+                # one object id per instance (AOV objectid, picking), ids consecutive in instance order
                 self.b.add_mesh(v, t, material=mat, name=f"{prim.GetPath()}[{piece.GetPath()}]", normals=n,
-                                **dict(dict(uvs=uv), **extra))
+                                instances=len(full), **dict(dict(uvs=uv), **extra))
                 self._grow(v)
                 total += len(t)
-        self.info.meshes.append((str(prim.GetPath()), int(total)))
+        if depth == 0:
+            self.info.meshes.append((str(prim.GetPath()), int(total)))
+        return total
 
     def _grow(self, world_points):
         if len(world_points):
@@ -177,6 +217,32 @@ class _Reader:
         return np.stack([self.lo, self.hi])
 
 
+def select_variant(stage, prim_path: str, vset: str, value: str) -> None:
+    """Select ``vset=value`` on the prim at ``prim_path`` (UsdInputError naming what does not exist)."""
+    from pxr import Sdf
+
+    label = stage.GetRootLayer().identifier
+    if not Sdf.Path.IsValidPathString(prim_path) or not Sdf.Path(prim_path).IsAbsolutePath():
+        raise UsdInputError(f"{label}: --variant {prim_path}: not an absolute prim path")
+    prim = stage.GetPrimAtPath(prim_path)
+    if not prim:
+        raise UsdInputError(f"{label}: --variant: no prim at {prim_path}")
+    sets = prim.GetVariantSets()
+    if not sets.HasVariantSet(vset):
+        raise UsdInputError(f"{label}: --variant: {prim_path} has no variant set {vset!r} "
+                            f"(it has: {', '.join(sets.GetNames()) or 'none'})")
+    vs = sets.GetVariantSet(vset)
+    if value not in vs.GetVariantNames():
+        raise UsdInputError(f"{label}: --variant: {prim_path} {vset} has no variant {value!r} "
+                            f"(choose from {', '.join(vs.GetVariantNames())})")
+    with Usd.EditContext(stage, stage.GetSessionLayer()):
+        vs.SetVariantSelection(value)
+
+
+def _is_points_or_curves(prim) -> bool:
+    return prim.IsA(UsdGeom.Points) or prim.IsA(UsdGeom.BasisCurves)
+
+
 def _usable(m: np.ndarray) -> np.ndarray:
     """Whether 4×4 matrices (one or a stack) are finite and invertible, so points and normals can go through."""
     finite = np.isfinite(m).all(axis=(-2, -1))
@@ -185,9 +251,25 @@ def _usable(m: np.ndarray) -> np.ndarray:
     return finite & (np.abs(np.linalg.det(a)) > 1e-12 * size ** 3)
 
 
+def _read_prims(r: _Reader, stage, tc, purposes, info: StageInfo) -> None:
+    r.prims = list(renderable_prims(stage, tc, purposes))
+    for prim in r.prims:
+        t = prim.GetTypeName()
+        if prim.IsA(UsdGeom.PointInstancer):
+            r.add_instancer(prim)
+        elif t in GPRIM_TYPES or prim.IsA(UsdGeom.Mesh) or _is_points_or_curves(prim):
+            r.add_gprim(prim)
+        elif prim.HasAPI(UsdLux.LightAPI):
+            r.add_light(prim)
+        elif prim.IsA(UsdGeom.Camera):
+            info.cameras.append(str(prim.GetPath()))
+        elif prim.IsA(UsdGeom.Gprim):
+            info.warn(f"{prim.GetPath()}: {t} is not supported (skipped)")
+
+
 def load_stage(path_or_stage, time=None, camera: str | None = None, width: int | None = None,
                height: int | None = None, purposes=DEFAULT_PURPOSES, segments: int = DEFAULT_SEGMENTS,
-               default_light: bool = True):
+               default_light: bool = True, variants=(), complexity: str = DEFAULT_COMPLEXITY):
     """Read a USD stage (a path or an open ``Usd.Stage``) into a render-ready :class:`tracer.Scene`.
 
     time      time code (None: the earliest time, i.e. default values or the first time sample)
@@ -197,12 +279,17 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     segments  tessellation of implicit gprims
     default_light  light a stage that has no lights as usdview does (a camera headlight and a dim dome; a note
               in ``info.notes``); False leaves it unlit (black)
+    variants  ``(prim path, variant set, variant)`` selections applied (on the session layer) before reading
+    complexity  refinement of subdivision surfaces, as usdrecord's: low (the control cage), medium (one level of
+              Catmull-Clark, the default), high (2), veryhigh (3)
 
     Returns ``(scene, info)``; ``info.warnings`` lists what was skipped or approximated (each message once).
     Raises :class:`UsdInputError` (a ``ValueError``) for input the user can fix.
     """
     stage = open_stage(path_or_stage)
     label = stage.GetRootLayer().identifier
+    for prim_path, vset, value in variants:
+        select_variant(stage, prim_path, vset, value)
     purposes = check_purposes(purposes)
     for name, v in (("width", width), ("height", height)):
         if v is not None and (isinstance(v, bool) or int(v) != v or v <= 0):
@@ -215,21 +302,19 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
         info.warn(w)
     for w in stage_messages.get(id(stage), []):
         info.warn(f"usd: {w}")
+    if complexity not in COMPLEXITY:
+        raise UsdInputError(f"complexity {complexity!r}: choose from {', '.join(COMPLEXITY)}")
     r = _Reader(stage, tc, purposes, segments, info)
-    prims = list(renderable_prims(stage, tc, purposes))
-    for prim in prims:
-        t = prim.GetTypeName()
-        if prim.IsA(UsdGeom.PointInstancer):
-            r.add_instancer(prim)
-        elif t in GPRIM_TYPES or prim.IsA(UsdGeom.Mesh):
-            r.add_gprim(prim)
-        elif prim.HasAPI(UsdLux.LightAPI):
-            r.add_light(prim)
-        elif prim.IsA(UsdGeom.Camera):
-            info.cameras.append(str(prim.GetPath()))
-        elif prim.IsA(UsdGeom.Gprim):
-            info.warn(f"{prim.GetPath()}: {t} is not supported (skipped)")
+    r.subdivision_level = COMPLEXITY[complexity]
+    with captured_stderr() as said:  # USD's own diagnostics while reading: warnings of ours, not raw lines
+        _read_prims(r, stage, tc, purposes, info)
+    for line in "".join(said).splitlines():
+        reason = _first_reason(line)
+        if reason:
+            info.warn(f"usd: {reason}")
+    prims = r.prims
     info.materials = dict(r.mats.summary)
+
 
     cam_prim = cam.find_camera(stage, camera, prims)
     if cam_prim is not None:

@@ -75,6 +75,9 @@ stage_messages: dict[int, list[str]] = {}
 
 def _first_reason(text: str) -> str:
     """The first human part of a USD error: the quoted reason of "Error in '...' at line N in file F : 'why'"."""
+    m = re.search(r"([^\s']+:\d+:\d+: [^\n]*)", text)  # the parser's own FILE:LINE:COL: message comes first
+    if m:
+        return " ".join(m.group(1).split())[:300]
     m = re.search(r"Error in '[^']*' at line \d+ in file \S+ : '(.*?)'\s*(?:$|\n)", text, re.M)
     if m:
         return " ".join(m.group(1).split())[:200]

@@ -13,6 +13,7 @@ carries. Lowering to the classic table:
                         repeat: one warning when the UVs actually leave [0, 1]
     roughness/metallic/emission textures   the texture's mean (after scale and bias), one warning
     alpha/normal textures                  dropped, one warning
+    DomeLight textures  tracer.Environment whenever the tracer has it (independently of the material model)
     vertex colours      flat per triangle (the mean of its corners), one warning when they vary within triangles
     specular level s    R_s = F0(ior)·2s; metallic m -> k_m = m with mirror_tint = base colour
 """
@@ -27,6 +28,8 @@ import tracer
 
 #: The tracer carries the Principled model (materials-core): texture objects, UV sets, vertex colours, environment.
 PRINCIPLED = hasattr(tracer, "Texture") and hasattr(tracer, "Environment")
+#: The tracer has a lat-long environment (tracer.Environment: Cycles' equirect frame, world -> environment rotation).
+HAS_ENVIRONMENT = hasattr(tracer, "Environment")
 
 
 @dataclass

@@ -114,6 +114,7 @@ def build_bpy(desc: dict):
             ld.shape = li["shape"]
             ld.size, ld.size_y = li["size"]
         ld.exposure = li.get("exposure", 0.0)
+        ld.normalize = li.get("normalize", True)  # off: as Blender's USD importer sets it
         lo = b.data.objects.new(li["name"], ld)
         lo.matrix_world = Matrix(li["matrix"])
         sc.collection.objects.link(lo)
@@ -135,10 +136,44 @@ def build_bpy(desc: dict):
     bg = w.node_tree.nodes["Background"]
     bg.inputs["Color"].default_value = list(desc["world"]["color"]) + [1.0]
     bg.inputs["Strength"].default_value = desc["world"]["strength"]
+    if desc["world"].get("texture"):  # a lat-long environment image (procedural, see environment_image)
+        tex = w.node_tree.nodes.new("ShaderNodeTexEnvironment")
+        tex.image = environment_image_block(desc["world"]["texture"])
+        w.node_tree.links.new(tex.outputs["Color"], bg.inputs["Color"])
     sc.world = w
     whitted_cycles_settings(sc, depth=desc["depth"], samples=desc["samples"])
     sc.render.film_transparent = False  # missed rays show the world colour, as our background does
     return sc
+
+
+def environment_image(name: str) -> np.ndarray:
+    """The procedural lat-long test environments, (H, W, 3) linear. "landmarks": a blue sky darkening to the
+    zenith over a brown ground, a red patch where u = 0.5 (+X in Blender's mapping), a green one at u = 0.25 (+Y),
+    a yellow one at the zenith's row, so a mirrored, flipped or turned lookup shows."""
+    if name != "landmarks":
+        raise ValueError(f"unknown environment {name!r}")
+    h, w = 64, 128
+    rows, cols = np.mgrid[0:h, 0:w]
+    t = 1 - (rows + 0.5) / h  # 1 at the top (zenith)
+    img = np.where((t > 0.5)[..., None], np.stack([0.25 - 0.2 * (t - 0.5), 0.45 - 0.3 * (t - 0.5),
+                                                   0.9 - 0.4 * (t - 0.5)], -1),
+                   np.stack([0.25 + 0 * t, 0.15 + 0 * t, 0.08 + 0 * t], -1))
+    u = (cols + 0.5) / w
+    img[(np.abs(u - 0.5) < 0.06) & (np.abs(t - 0.6) < 0.1)] = (1.5, 0.1, 0.1)
+    img[(np.abs(u - 0.25) < 0.06) & (np.abs(t - 0.6) < 0.1)] = (0.1, 1.2, 0.1)
+    img[(t > 0.9) & (u < 0.1)] = (1.4, 1.3, 0.1)
+    return img.astype(np.float32)
+
+
+def environment_image_block(name: str):
+    """The environment image as a Blender image (float, linear), written once to the cache directory."""
+    path = os.path.join(CACHE_DIR, f"env-{name}.exr")
+    if not os.path.exists(path):
+        os.makedirs(CACHE_DIR, exist_ok=True)
+        tracer.write_image(path, environment_image(name))
+    img = bpy().data.images.load(path, check_existing=True)
+    img.colorspace_settings.name = "Linear Rec.709"
+    return img
 
 
 def blender_version() -> str:
@@ -271,6 +306,10 @@ def build_direct(desc: dict) -> tracer.Scene:
     world = np.asarray(desc["world"]["color"], np.float32) * desc["world"]["strength"]
     b.background = world
     b.ambient = world
+    if desc["world"].get("texture"):
+        b.environment = tracer.Environment(environment_image(desc["world"]["texture"]),
+                                           strength=desc["world"]["strength"])
+        b.ambient = b.environment.average()
     return b.build()
 
 

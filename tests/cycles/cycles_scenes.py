@@ -115,6 +115,27 @@ def _emissive_flat():
         note="eye rays only: emission, no lights; tests coverage of each pixel")
 
 
+def _emission_light():
+    mats = dict(BASE_MATS, glow=emissive((1.0, 0.9, 0.7), strength=6.0))
+    return scene("emission_light", camera=CAM, materials=mats, objects=_base_objects() + [
+        obj("Panel", "box", "glow", matrix=trs((0.0, 0.3, 3.2), (0, 0, 0), (2.0, 1.2, 0.05)), pass_index=5)],
+        depth=0, samples=64,
+        note="an emissive panel is the only light: mesh emission lights the floor and casts soft shadows")
+
+
+def _environment():
+    """A lat-long world seen directly (sky, landmarks) and in a mirror ball (turned and flipped in the mirror)."""
+    mats = dict(BASE_MATS, mirror=mirror((0.9, 0.9, 0.9)))
+    d = scene("environment", camera=camera((3.0, -6.0, 1.6), (0.0, 0.0, 1.2), lens=24.0), materials=mats,
+              objects=[floor(material="grey", pass_index=1, size=4.0),
+                       sphere("Ball", (0.0, 0.0, 1.2), 1.0, "mirror", 2)],
+              depth=2, samples=64, sky_samples=64,
+              note="an equirectangular environment: background, mirror reflections, importance-sampled sky light")
+    d["world"]["texture"] = "landmarks"
+    d["front_ends"] = ["addon", "direct"]  # Blender's USD export writes the dome; usd_io reads it on its own branch
+    return d
+
+
 def _base_objects(mat="grey"):
     return [floor(material=mat, pass_index=1),
             sphere("Ball", (-0.9, 0.3, 1.0), 1.0, "white", 2),
@@ -265,7 +286,7 @@ def _whitted_1980():
 
 
 def image_scenes() -> dict:
-    scenes = [_emissive_flat(), _point_shadow(), _sun(), _spot(), _several_lights(), _world(), _mirror(),
+    scenes = [_emissive_flat(), _emission_light(), _environment(), _point_shadow(), _sun(), _spot(), _several_lights(), _world(), _mirror(),
               _metallic_half(), _metallic_half_dielectric(), _glass_sphere(), _water_sphere(), _glass_slab(),
               _tir_prism()] + [_interreflection(d) for d in (1, 2, 4, 8)] + [
         _interreflection(1, world=(0.35, 0.5, 0.8), name="interreflection_sky_d1"), _orthographic(), _whitted_1980()]

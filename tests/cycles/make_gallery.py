@@ -21,12 +21,29 @@ from cycles_scenes import IMAGE_SCENES  # noqa: E402
 from cycles_thresholds import image_bar  # noqa: E402
 
 
+def comparison_strip(ours, ref):
+    """ours | Cycles | |difference| × 4, with 2-pixel white gaps."""
+    gap = np.ones((ours.shape[0], 2, 3))
+    return np.concatenate([ours, gap, ref, gap, np.abs(ours - ref) * 4.0], 1)
+
+
+def write_strip(path, strip):
+    import OpenImageIO as oiio
+
+    srgb = np.round(H.linear_to_srgb(strip) * 255).astype(np.uint8)
+    spec = oiio.ImageSpec(srgb.shape[1], srgb.shape[0], 3, oiio.UINT8)
+    spec.attribute("Compression", "jpeg:88")
+    out = oiio.ImageOutput.create(path)
+    out.open(path, spec)
+    out.write_image(srgb)
+    out.close()
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--front-end", default="addon", choices=H.FRONT_ENDS)
     ap.add_argument("--out", default=os.path.join(H.ROOT, "docs"))
     args = ap.parse_args(argv)
-    import OpenImageIO as oiio
 
     gdir = os.path.join(args.out, "gallery")
     os.makedirs(gdir, exist_ok=True)
@@ -36,16 +53,8 @@ def main(argv=None):
         ours = H.render_ours(desc, args.front_end).rgb
         m = H.metrics(ours, ref)
         bar = image_bar(name)
-        diff = np.abs(ours - ref) * 4.0
-        strip = np.concatenate([ours, np.ones((ours.shape[0], 2, 3)), ref, np.ones((ours.shape[0], 2, 3)), diff], 1)
-        srgb = np.round(H.linear_to_srgb(strip) * 255).astype(np.uint8)
-        path = os.path.join(gdir, f"{name}.jpg")
-        spec = oiio.ImageSpec(srgb.shape[1], srgb.shape[0], 3, oiio.UINT8)
-        spec.attribute("Compression", "jpeg:88")
-        out = oiio.ImageOutput.create(path)
-        out.open(path, spec)
-        out.write_image(srgb)
-        out.close()
+        strip = comparison_strip(ours, ref)
+        write_strip(os.path.join(gdir, f"{name}.jpg"), strip)
         ok = m["psnr"] >= bar["psnr"] and m["mae"] <= bar["mae"]
         rows.append((name, desc, m, bar, ok))
         print(f"{name}: PSNR {m['psnr']:.2f} dB, MAE {m['mae']:.5f} {'ok' if ok else 'FAIL'}", flush=True)
@@ -65,6 +74,9 @@ def main(argv=None):
     for name, desc, m, bar, ok in rows:
         lines += [f"### {name}", "", f"{desc['note']}. PSNR {m['psnr']:.2f} dB, MAE {m['mae']:.5f}, "
                   f"max depth {desc['depth']}.", "", f"![{name}](gallery/{name}.jpg)", ""]
+    if args.front_end == "addon":  # node-tree scenes exist only through the add-on
+        from test_cycles_addon_materials import gallery_lines
+        lines += gallery_lines(gdir, lambda path, ours, ref: write_strip(path, comparison_strip(ours, ref)))
     with open(os.path.join(args.out, "gallery.md"), "w") as f:
         f.write("\n".join(lines))
     total = sum(os.path.getsize(os.path.join(gdir, p)) for p in os.listdir(gdir))

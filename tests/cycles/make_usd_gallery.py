@@ -33,7 +33,7 @@ def main():
             if name in T.NEEDS_PRINCIPLED and not T.PRINCIPLED:
                 rows.append((name, None))
                 continue
-            path = build(os.path.join(tmp, name))
+            path = T.S.as_blender_writes(build(os.path.join(tmp, name)))
             ref = cycles_reference_usd(path, name, T.SIZE, T.SIZE, T.CYCLES_SAMPLES, depth=2)["rgb"]
             ours, _info = T.render_ours(path)
             m = H.metrics(ours, ref)

@@ -52,3 +52,30 @@ def test_light_units_match_cycles(bpy_module, tmp_path, key, front_end):
     if np.any(np.abs(ratio - 1) > UNIT_RATIO_TOL):
         paths = H.save_comparison(str(tmp_path), f"units_{key}", ours, ref)
         pytest.fail(f"{key} [{front_end}]: ours/Cycles = {ratio.tolist()} (tolerance {UNIT_RATIO_TOL}); {paths}")
+
+
+#: Lights with ``normalize`` off (Blender's USD importer sets it so): the power is no longer divided by the
+#: emitter's area (area lights), sphere cross-section (point and spot radius) or the sun disk's size.
+UNNORMALIZED = {
+    "area_square_unnormalized": dict(LIGHTS["area_square"], energy=150.0, size=[0.6, 0.6], normalize=False),
+    "area_disk_unnormalized": dict(LIGHTS["area_disk"], energy=150.0, size=[0.8, 0.5], normalize=False),
+    "point_radius_unnormalized": dict(LIGHTS["point_radius"], energy=800.0, radius=0.3, normalize=False),
+    "spot_radius_unnormalized": dict(LIGHTS["spot_blend"], radius=0.4, normalize=False),
+    "sun_angle_unnormalized": dict(LIGHTS["sun"], angle=0.3, normalize=False),
+}
+
+
+@pytest.mark.parametrize("key", list(UNNORMALIZED))
+def test_unnormalized_lights_match_cycles(bpy_module, tmp_path, key):
+    LIGHTS[key] = UNNORMALIZED[key]
+    try:
+        desc = units_scene(key)
+    finally:
+        del LIGHTS[key]
+    ref = H.cycles_reference(desc)["rgb"]
+    ours = H.render_ours(desc, "addon", workdir=str(tmp_path), light_samples=64).rgb
+    ratio = ours.reshape(-1, 3).mean(0) / ref.reshape(-1, 3).mean(0)
+    print(f"[cycles] units {key} [addon]: ours/Cycles per channel {np.round(ratio, 4).tolist()}")
+    if np.any(np.abs(ratio - 1) > UNIT_RATIO_TOL):
+        paths = H.save_comparison(str(tmp_path), f"units_{key}", ours, ref)
+        pytest.fail(f"{key} [addon]: ours/Cycles = {ratio.tolist()} (tolerance {UNIT_RATIO_TOL}); {paths}")

@@ -95,8 +95,7 @@ def _dome(d, rot_y=0.0, up="Y"):
 
 
 #: Scenes the classic material table cannot carry (see usd_io/tracer_model.py); they run with the Principled model.
-NEEDS_PRINCIPLED = {"usd_emissive_texture", "usd_cutout", "usd_normal_map_dx", "usd_vertex_colour", "usd_dome_texture",
-                    "usd_dome_texture_rotated"}
+NEEDS_PRINCIPLED = {"usd_emissive_texture", "usd_cutout", "usd_normal_map_dx", "usd_vertex_colour"}
 
 SCENES = {
     # UsdTransform2d (rotation, non-uniform scale, translation) on a diffuse texture, sRGB
@@ -130,7 +129,7 @@ def render_ours(path, size=SIZE, samples=OURS_SAMPLES, depth=0):
 @pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.skipif(
     n in NEEDS_PRINCIPLED and not PRINCIPLED, reason="needs the tracer's Principled material model")) for n in SCENES])
 def test_usd_material_matches_cycles(bpy_module, tmp_path, name):
-    path = SCENES[name](str(tmp_path / name))
+    path = S.as_blender_writes(SCENES[name](str(tmp_path / name)))
     ref = cycles_reference_usd(path, name, SIZE, SIZE, CYCLES_SAMPLES, depth=2)
     ours, info = render_ours(path)
     bar = usd_material_bar(name)
@@ -141,7 +140,7 @@ def test_usd_material_matches_cycles(bpy_module, tmp_path, name):
 def test_usd_material_comparison_can_fail(bpy_module, tmp_path):
     """A texture flipped upside down (st t → 1 − t) must fail the bar against Blender's import of the unflipped
     stage: the comparison sees orientation."""
-    path = SCENES["usd_texture_transform2d"](str(tmp_path / "ok"))
+    path = S.as_blender_writes(SCENES["usd_texture_transform2d"](str(tmp_path / "ok")))
     ref = cycles_reference_usd(path, "usd_texture_transform2d", SIZE, SIZE, CYCLES_SAMPLES, depth=2)
     from pxr import Usd
 

@@ -1,0 +1,135 @@
+"""The viewport without a GPU: the worker thread converges to the F12 pixels, restarts from the coarsest level when
+the view moves, traces only on its own thread; the viewport camera agrees with Blender's own projection; the
+export cache reuses unchanged meshes."""
+
+from __future__ import annotations
+
+import threading
+import types
+
+import numpy as np
+import pytest
+
+from tests import blender_support as bs
+
+import bpy  # noqa: E402
+
+import addon  # noqa: E402
+from addon import engine, export, viewport  # noqa: E402
+import tracer  # noqa: E402
+
+from tracer_scenes import lit_sphere_on_floor  # noqa: E402
+
+SIZE = (48, 32)
+
+
+@pytest.fixture()
+def scene():
+    return lit_sphere_on_floor().build()
+
+
+def _camera(x=0.0):
+    return tracer.Camera.look_at((x, -8, 3), (0, 0, 0.8), up=(0, 0, 1), focal_length=35.0,
+                                 horizontal_aperture=36.0, vertical_aperture=24.0)
+
+
+def test_progressive_passes_converge_to_the_final_render(scene):
+    frames = []
+    vr = viewport.ViewportRender(settings=tracer.RenderSettings(light_samples=4))
+    vr.on_frame = lambda: frames.append(vr.latest())
+    try:
+        vr.set_scene(scene)
+        vr.set_view(_camera(), SIZE)
+        assert vr.wait_until_converged(120)
+        last = vr.latest()
+        assert [(f.level, f.samples) for f in frames] == \
+            [(lv, 1) for lv in viewport.LEVELS] + [(1, n) for n in viewport.AA_PASSES]
+        assert frames[0].rgba.shape[:2] == (SIZE[1] // 8, SIZE[0] // 8)
+        scene.camera = _camera()
+        final = tracer.render(scene, tracer.RenderSettings(width=SIZE[0], height=SIZE[1], light_samples=4,
+                                                           samples=viewport.AA_PASSES[-1]))
+        np.testing.assert_array_equal(last.rgba, final.rgba)
+    finally:
+        vr.stop()
+
+
+def test_a_view_change_restarts_from_the_coarsest_level_and_traces_off_the_ui_thread(scene, monkeypatch):
+    threads = []
+    real = tracer.render
+
+    def spy(*a, **k):
+        threads.append(threading.current_thread().name)
+        return real(*a, **k)
+
+    monkeypatch.setattr(tracer, "render", spy)
+    frames = []
+    vr = viewport.ViewportRender(settings=tracer.RenderSettings(light_samples=4))
+    vr.on_frame = lambda: frames.append(vr.latest())
+    try:
+        vr.set_scene(scene)
+        vr.set_view(_camera(), SIZE)
+        assert vr.wait_until_converged(120)
+        assert not vr.set_view(_camera(), SIZE)  # the same view: nothing restarts
+        n = len(frames)
+        assert vr.set_view(_camera(1.0), SIZE)
+        assert vr.wait_until_converged(120)
+        moved = frames[n:]
+        assert moved[0].level == viewport.LEVELS[0] and moved[-1].level == 1
+        assert all(f.key != frames[n - 1].key for f in moved)
+        assert set(threads) == {"whitted-viewport"}  # set_view / latest (what view_draw calls) never trace
+        assert not vr.errors
+    finally:
+        vr.stop()
+
+
+def test_viewport_camera_matches_blenders_projection():
+    """A stand-in RegionView3D built from a camera's own matrices: the tracer's eye ray through the (u, v) Blender's
+    ``world_to_camera_view`` gives a world point passes through that point."""
+    from bpy_extras.object_utils import world_to_camera_view
+    from mathutils import Vector
+
+    bs.reset(size=(64, 40))
+    cam = bs.add_camera((2.0, -7.0, 3.0), (0.0, 0.0, 0.5), lens=40.0)
+    cam.data.shift_x, cam.data.shift_y = 0.1, -0.05
+    scene = bpy.context.scene
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    for ortho in (False, True):
+        cam.data.type = "ORTHO" if ortho else "PERSP"
+        cam.data.ortho_scale = 5.0
+        depsgraph.update()
+        rv3d = types.SimpleNamespace(view_matrix=cam.matrix_world.inverted(),
+                                     window_matrix=cam.calc_matrix_camera(depsgraph, x=64, y=40),
+                                     is_perspective=not ortho)
+        tc = engine.viewport_camera(rv3d)
+        rng = np.random.default_rng(3)
+        for p in rng.uniform(-2, 2, (20, 3)):
+            co = world_to_camera_view(scene, cam, Vector(p))
+            o, d = tc.generate_rays(np.array([co.x]), np.array([co.y]))
+            closest = o[0] + np.dot(p - o[0], d[0]) * d[0]
+            assert np.linalg.norm(closest - p) < 1e-4, (ortho, p)
+
+
+def test_export_cache_reuses_unchanged_meshes():
+    bs.reset(size=(32, 24))
+    a = bs.add_uv_sphere((0, 0, 1), 1.0, name="A")
+    bs.add_cube((3, 0, 1), 1.0, name="B")
+    bs.add_camera((0, -8, 3), (0, 0, 0))
+    cache = {}
+    dg = bpy.context.evaluated_depsgraph_get()
+    export.scene_from_depsgraph(dg, geometry_cache=cache)
+    before = {k: v for k, v in cache.items()}
+    a.location.x += 1.0  # a transform: the mesh arrays stay valid
+    dg.update()
+    moved, _ = export.scene_from_depsgraph(dg, geometry_cache=cache)
+    assert all(cache[k] is before[k] for k in before)
+    oid = moved.object_names.index("A")
+    xs = moved.vertices[moved.triangles[moved.object_ids == oid]][..., 0]
+    assert abs(xs.mean() - 1.0) < 0.05  # the moved sphere, from the cached arrays and the new matrix
+    mesh = a.data  # a geometry edit: forget A, keep B
+    mesh.vertices[0].co.z += 0.5
+    mesh.update()
+    dg.update()
+    export.forget_geometry(cache, [a])
+    assert any(k[0] == "B" for k in cache) and not any(k[0] == "A" for k in cache)
+    export.scene_from_depsgraph(dg, geometry_cache=cache)
+    assert any(k[0] == "A" for k in cache)

@@ -1,0 +1,118 @@
+"""Mutation check: does the test suite notice when the notes' equations are wrong?
+
+    python tools/mutation_check.py [--list] [--only NAME ...] [--jobs 1]
+
+Each mutation below is one deliberate bug in tracer/optics.py, tracer/shading.py, the texture lookup or the glass
+weights. For each, the repository is copied to a scratch directory, the bug applied there, and the tests that
+guard that code run (pytest, fresh numba cache). A mutation is *killed* when a test fails. The kill rate is
+printed at the end and recorded in docs/testing.md. Nothing in the working tree is touched.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+#: The tests that guard the mutated code (fast: no Cycles references, no Blender).
+TESTS = ["tests/test_optics.py", "tests/test_closed_forms.py", "tests/test_render.py", "tests/test_explain.py",
+         "tests/test_usd_lights.py"]
+
+#: (name, file, original text, mutated text). Each original must occur in the file exactly once.
+MUTATIONS = [
+    ("reflect: 2(d·n) -> 1.9(d·n)", "tracer/optics.py",
+     "return vec.madd(d, n, -2.0 * vec.dot(d, n))", "return vec.madd(d, n, -1.9 * vec.dot(d, n))"),
+    ("reflect: sign of the normal term", "tracer/optics.py",
+     "return vec.madd(d, n, -2.0 * vec.dot(d, n))", "return vec.madd(d, n, 2.0 * vec.dot(d, n))"),
+    ("refract: TIR test inverted at the boundary", "tracer/optics.py",
+     "if radicand < 0.0:", "if radicand < 0.01:"),
+    ("refract: η ratio inverted", "tracer/optics.py",
+     "ratio = eta_i / eta_r\n    d_n", "ratio = eta_r / eta_i\n    d_n"),
+    ("refract: + cos θ_r n", "tracer/optics.py",
+     "t = vec.sub(vec.scale(vec.madd(d, n, -d_n), ratio), vec.scale(n, cos_r))",
+     "t = vec.add(vec.scale(vec.madd(d, n, -d_n), ratio), vec.scale(n, cos_r))"),
+    ("fresnel: R_p dropped", "tracer/optics.py",
+     "return 0.5 * (r_s * r_s + r_p * r_p)", "return r_s * r_s"),
+    ("lambert: 1/π dropped", "tracer/shading.py",
+     "INV_PI * max(n_dot_l, 0.0))", "max(n_dot_l, 0.0))"),
+    ("lambert: cosine dropped", "tracer/shading.py",
+     "INV_PI * max(n_dot_l, 0.0))", "INV_PI)"),
+    ("blinn-phong: normalisation (e+8)/8π -> (e+2)/8π", "tracer/shading.py",
+     "lobe = (exponent + 8.0) * (1.0 / (8.0 * math.pi))", "lobe = (exponent + 2.0) * (1.0 / (8.0 * math.pi))"),
+    ("ambient: R_a·L_a halved", "tracer/shading.py",
+     "return vec.mul(diffuse, ambient_radiance)", "return vec.scale(vec.mul(diffuse, ambient_radiance), 0.5)"),
+    ("texture: flipped vertically", "tracer/texture.py",
+     "y = (1.0 - t) * h - 0.5", "y = t * h - 0.5"),
+    ("texture: s and t swapped", "tracer/texture.py",
+     "x = s * w - 0.5\n    y = (1.0 - t) * h - 0.5", "x = (1.0 - t) * w - 0.5\n    y = s * h - 0.5"),
+    ("texture: nearest instead of bilinear", "tracer/texture.py",
+     "fx = x - xf\n    fy = y - yf", "fx = 0.0\n    fy = 0.0"),
+    ("classic glass weights 0 -> 0.5", "tracer/integrator.py",
+     "fr = 1.0 if tir else 0.0", "fr = 1.0 if tir else 0.5"),
+    ("transmission ray leaves on the incident side (ε sign)", "tracer/integrator.py",
+     "vec.madd(p, ng, -eps), vec.normalize(t_dir)", "vec.madd(p, ng, eps), vec.normalize(t_dir)"),
+]
+
+
+def _copy_repo(dest):
+    ignore = shutil.ignore_patterns(".git", ".venv", "__pycache__", ".cache", ".pytest_cache", "dist", "build",
+                                    "*.egg-info", "bench")
+    shutil.copytree(ROOT, dest, ignore=ignore)
+
+
+def run_one(name, path, old, new, python, tests, verbose=False):
+    with tempfile.TemporaryDirectory(prefix="whitted-mutant-") as tmp:
+        repo = os.path.join(tmp, "repo")
+        _copy_repo(repo)
+        target = os.path.join(repo, path)
+        text = open(target).read()
+        if text.count(old) != 1:
+            return name, "stale", f"the original text occurs {text.count(old)} times in {path}"
+        with open(target, "w") as f:
+            f.write(text.replace(old, new))
+        env = dict(os.environ, PYTHONPATH=repo, NUMBA_CACHE_DIR=os.path.join(tmp, "numba"))
+        t0 = time.perf_counter()
+        r = subprocess.run([python, "-m", "pytest", "-x", "-q", "-p", "no:randomly", "-p", "no:cacheprovider",
+                            *tests], cwd=repo, env=env, capture_output=True, text=True)
+        took = time.perf_counter() - t0
+        failed = [ln for ln in r.stdout.splitlines() if ln.startswith("FAILED")]
+        if verbose:
+            print(r.stdout[-2000:])
+        if r.returncode == 0:
+            return name, "SURVIVED", f"{took:.0f} s"
+        if r.returncode == 1:
+            return name, "killed", (failed[0].split(" - ")[0].replace("FAILED ", "") if failed else "") + \
+                f" ({took:.0f} s)"
+        return name, "error", r.stdout[-300:] + r.stderr[-300:]
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(prog="tools/mutation_check.py")
+    ap.add_argument("--list", action="store_true", help="list the mutations and exit")
+    ap.add_argument("--only", nargs="+", help="run only mutations whose name contains one of these words")
+    ap.add_argument("--verbose", action="store_true")
+    a = ap.parse_args(argv)
+    muts = [m for m in MUTATIONS if not a.only or any(w in m[0] for w in a.only)]
+    if a.list:
+        for m in muts:
+            print(f"{m[1]}: {m[0]}")
+        return 0
+    results = []
+    for m in muts:
+        res = run_one(*m, python=sys.executable, tests=TESTS, verbose=a.verbose)
+        print(f"{res[1]:>8}  {res[0]}  {res[2]}", flush=True)
+        results.append(res)
+    killed = sum(r[1] == "killed" for r in results)
+    valid = sum(r[1] in ("killed", "SURVIVED") for r in results)
+    print(f"kill rate: {killed}/{valid} = {killed / max(valid, 1):.0%}")
+    return 0 if killed == valid else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
