@@ -4,6 +4,7 @@ export cache reuses unchanged meshes."""
 
 from __future__ import annotations
 
+import sys
 import threading
 import types
 
@@ -133,3 +134,114 @@ def test_export_cache_reuses_unchanged_meshes():
     assert any(k[0] == "B" for k in cache) and not any(k[0] == "A" for k in cache)
     export.scene_from_depsgraph(dg, geometry_cache=cache)
     assert any(k[0] == "A" for k in cache)
+
+
+# ------------------------------------------------------------------------------------ view_draw, without a GPU
+Q = 16  # texture and viewport size in pixels: four 8×8 quadrants of one colour each
+QUADRANTS = {"top-left": (0.9, 0.1, 0.1), "top-right": (0.1, 0.8, 0.1), "bottom-left": (0.1, 0.2, 0.9),
+             "bottom-right": (0.7, 0.7, 0.1)}
+
+
+def _quadrant_image():
+    img = np.zeros((Q, Q, 3), np.float32)  # row 0 = the top of the picture
+    h = Q // 2
+    img[:h, :h], img[:h, h:] = QUADRANTS["top-left"], QUADRANTS["top-right"]
+    img[h:, :h], img[h:, h:] = QUADRANTS["bottom-left"], QUADRANTS["bottom-right"]
+    return img
+
+
+def _fake_gpu(monkeypatch, drawn):
+    """Stand-ins for the ``gpu`` module and ``gpu_extras.presets``: record what the engine would put on screen."""
+
+    class Buffer:
+        def __init__(self, fmt, size, data):
+            self.values = np.array(data, np.float32).reshape(-1)[:size].copy()
+
+    class GPUTexture:
+        def __init__(self, size, format=None, data=None):
+            self.size, self.values = tuple(size), data.values
+
+    gpu = types.ModuleType("gpu")
+    gpu.types = types.SimpleNamespace(GPUTexture=GPUTexture, Buffer=Buffer)
+    gpu.state = types.SimpleNamespace(blend_set=lambda *a: None)
+    presets = types.ModuleType("gpu_extras.presets")
+    presets.draw_texture_2d = lambda texture, position, width, height: drawn.append((texture, position, width,
+                                                                                    height))
+    monkeypatch.setitem(sys.modules, "gpu", gpu)
+    monkeypatch.setitem(sys.modules, "gpu_extras", types.ModuleType("gpu_extras"))
+    monkeypatch.setitem(sys.modules, "gpu_extras.presets", presets)
+
+
+def _engine_without_blender():
+    """The engine's own methods on a plain object that stands in for the RenderEngine Blender would create (the bpy
+    module cannot instantiate one); Blender's display-shader calls are no-ops, tag_redraw counts."""
+    methods = {k: v for k, v in vars(engine.WhittedRenderEngine).items()
+               if callable(v) and k not in ("__init__", "__new__")}
+    methods.update(tag_redraw=lambda self: setattr(self, "redraws", self.redraws + 1),
+                   bind_display_space_shader=lambda self, scene: None, unbind_display_space_shader=lambda self: None)
+    fake = type("ViewportEngine", (), methods)()
+    fake._view, fake.redraws = None, 0
+    return fake
+
+
+@pytest.fixture()
+def registered():
+    addon.register()
+    yield
+    addon.unregister()
+
+
+def test_view_draw_puts_the_view_on_screen_upright_and_fails_soft_without_a_gpu(registered, monkeypatch, capsys,
+                                                                                  tmp_path):
+    """What Rendered shading shows: an ortho view straight down on a plane textured with four coloured quadrants.
+    Without a GPU (background mode) view_draw prints one message and returns; with stand-ins for ``gpu`` it draws
+    every pass over the whole region, and the full-resolution pass shows each quadrant where the texture has it
+    (a missing bottom-up flip for the GPU texture, or a flipped or mirrored viewport camera, goes red)."""
+    import time
+
+    path = str(tmp_path / "quadrants.exr")
+    tracer.write_image(path, _quadrant_image())
+    bs.reset(size=(Q, Q))
+    mat = bs.principled_material("Quadrants", **{"Specular IOR Level": 0.0})
+    tex = mat.node_tree.nodes.new("ShaderNodeTexImage")
+    tex.image = bpy.data.images.load(path)
+    mat.node_tree.links.new(tex.outputs["Color"], bs.principled_node(mat).inputs["Base Color"])
+    bs.add_plane((0, 0, 0), 2.0, material=mat)
+    cam = bs.add_camera((0, 0, 5), (0, 0, 0), rotation=(0.0, 0.0, 0.0), ortho_scale=2.0)
+    bs.set_world((1.0, 1.0, 1.0), 1.0)  # ambient 1, no lights: each pixel shows its texel
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    rv3d = types.SimpleNamespace(view_matrix=cam.matrix_world.inverted(),
+                                 window_matrix=cam.calc_matrix_camera(depsgraph, x=Q, y=Q), is_perspective=False)
+    context = types.SimpleNamespace(region=types.SimpleNamespace(width=Q, height=Q), region_data=rv3d)
+    fake = _engine_without_blender()
+    try:
+        said = ""
+        for _ in range(600):  # the real gpu module, no GPU context: once a pass is ready, drawing it fails softly
+            fake.view_draw(context, depsgraph)
+            said += capsys.readouterr().out
+            if said:
+                break
+            time.sleep(0.2)
+        assert said.count("\n") == 1 and said.startswith("Whitted viewport: "), said
+        drawn = []
+        _fake_gpu(monkeypatch, drawn)
+        full = None
+        for _ in range(600):  # until the worker's full-resolution pass is drawn (bounded: a broken worker fails)
+            fake.view_draw(context, depsgraph)
+            full = next((t for t, *_ in drawn if t.size == (Q, Q)), None)
+            if full is not None:
+                break
+            time.sleep(0.2)
+        assert full is not None, f"no full-resolution pass drawn; {capsys.readouterr().out[-500:]}"
+        assert fake.redraws >= 1  # the worker asked Blender to redraw when a pass finished
+        assert all(pos == (0, 0) and (w, h) == (Q, Q) for _, pos, w, h in drawn)  # every pass fills the region
+        screen = full.values.reshape(Q, Q, 4)[::-1]  # GPU textures are bottom row first; row 0 = top of the view
+        inner = [slice(1, Q // 2 - 1), slice(Q // 2 + 1, Q - 1)]  # away from bilinear blending at the seams
+        for (ri, ci), name in zip([(0, 0), (0, 1), (1, 0), (1, 1)], QUADRANTS):
+            block = screen[inner[ri], inner[ci]]
+            np.testing.assert_allclose(block[..., :3], np.broadcast_to(QUADRANTS[name], block[..., :3].shape),
+                                       atol=2e-3, err_msg=name)
+            assert np.all(block[..., 3] == 1.0)
+    finally:
+        if fake._view is not None:
+            fake._view.stop()
