@@ -1,11 +1,13 @@
 """The viewport without a GPU: the worker thread converges to the F12 pixels, restarts from the coarsest level when
 the view moves, traces only on its own thread; the viewport camera agrees with Blender's own projection; the
-export cache reuses unchanged meshes."""
+export cache reuses unchanged meshes; view_draw puts the newest pass on screen upright (stand-ins for ``gpu``) and
+fails soft without a GPU."""
 
 from __future__ import annotations
 
 import sys
 import threading
+import time
 import types
 
 import numpy as np
@@ -41,7 +43,7 @@ def test_progressive_passes_converge_to_the_final_render(scene):
     try:
         vr.set_scene(scene)
         vr.set_view(_camera(), SIZE)
-        assert vr.wait_until_converged(120)
+        assert vr.wait_until_converged(600)
         last = vr.latest()
         assert [(f.level, f.samples) for f in frames] == \
             [(lv, 1) for lv in viewport.LEVELS] + [(1, n) for n in viewport.AA_PASSES]
@@ -69,11 +71,11 @@ def test_a_view_change_restarts_from_the_coarsest_level_and_traces_off_the_ui_th
     try:
         vr.set_scene(scene)
         vr.set_view(_camera(), SIZE)
-        assert vr.wait_until_converged(120)
+        assert vr.wait_until_converged(600)
         assert not vr.set_view(_camera(), SIZE)  # the same view: nothing restarts
         n = len(frames)
         assert vr.set_view(_camera(1.0), SIZE)
-        assert vr.wait_until_converged(120)
+        assert vr.wait_until_converged(600)
         moved = frames[n:]
         assert moved[0].level == viewport.LEVELS[0] and moved[-1].level == 1
         assert all(f.key != frames[n - 1].key for f in moved)
@@ -197,8 +199,6 @@ def test_view_draw_puts_the_view_on_screen_upright_and_fails_soft_without_a_gpu(
     Without a GPU (background mode) view_draw prints one message and returns; with stand-ins for ``gpu`` it draws
     every pass over the whole region, and the full-resolution pass shows each quadrant where the texture has it
     (a missing bottom-up flip for the GPU texture, or a flipped or mirrored viewport camera, goes red)."""
-    import time
-
     path = str(tmp_path / "quadrants.exr")
     tracer.write_image(path, _quadrant_image())
     bs.reset(size=(Q, Q))
@@ -216,7 +216,8 @@ def test_view_draw_puts_the_view_on_screen_upright_and_fails_soft_without_a_gpu(
     fake = _engine_without_blender()
     try:
         said = ""
-        for _ in range(600):  # the real gpu module, no GPU context: once a pass is ready, drawing it fails softly
+        deadline = time.monotonic() + 600  # a hang guard for a broken worker, not a speed check
+        while time.monotonic() < deadline:  # the real gpu module, no GPU context: a ready pass fails to draw softly
             fake.view_draw(context, depsgraph)
             said += capsys.readouterr().out
             if said:
@@ -226,7 +227,7 @@ def test_view_draw_puts_the_view_on_screen_upright_and_fails_soft_without_a_gpu(
         drawn = []
         _fake_gpu(monkeypatch, drawn)
         full = None
-        for _ in range(600):  # until the worker's full-resolution pass is drawn (bounded: a broken worker fails)
+        while time.monotonic() < deadline + 600:  # until the worker's full-resolution pass is drawn
             fake.view_draw(context, depsgraph)
             full = next((t for t, *_ in drawn if t.size == (Q, Q)), None)
             if full is not None:
