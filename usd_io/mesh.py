@@ -11,8 +11,9 @@ per-corner values through the triangulation's corner table:
 
 Indexed primvars are flattened first (``Primvar.ComputeFlattened``). ``orientation = leftHanded`` reverses the
 winding so the tracer's counter-clockwise front faces match USD's; so does a mirroring (negative determinant)
-transform. Subdivision surfaces render as their control cage, with smooth (area-weighted) vertex normals when
-the mesh has none, since such a cage stands for a smooth surface.
+transform. Subdivision surfaces (``subdivisionScheme`` catmullClark, the USD default, loop or bilinear) are
+refined by ``tracer.subdivision`` to the ``--complexity`` level (:data:`COMPLEXITY`); at level 0 (low) they render
+as their control cage with its authored normals, or smooth (area-weighted) ones, as usdview does.
 """
 
 from __future__ import annotations
@@ -135,12 +136,16 @@ def read_uvs(prim, tri: Triangulation, n_points, n_fv, time, name="st"):
 #: for complexity 1.0, 1.1, 1.2, 1.3).
 COMPLEXITY = {"low": 0, "medium": 1, "high": 2, "veryhigh": 3}
 DEFAULT_COMPLEXITY = "medium"
+#: Schemes refined at complexity medium and above (the rest, "none" and unknown tokens, stay polygons).
+SUBDIVIDED = (UsdGeom.Tokens.catmullClark, UsdGeom.Tokens.loop, UsdGeom.Tokens.bilinear)
 
 
-def read_mesh(prim, time, uv_name="st", subdivision_level: int = COMPLEXITY[DEFAULT_COMPLEXITY]) -> MeshData | None:
+def read_mesh(prim, time, uv_name="st", subdivision_level: int = COMPLEXITY[DEFAULT_COMPLEXITY],
+              points=None) -> MeshData | None:
+    """The mesh at ``time``; ``points`` replaces the authored points (a skinned cage posed before refinement)."""
     mesh = UsdGeom.Mesh(prim)
     label = str(prim.GetPath())
-    points = mesh.GetPointsAttr().Get(time)
+    points = mesh.GetPointsAttr().Get(time) if points is None else points
     counts = mesh.GetFaceVertexCountsAttr().Get(time)
     indices = mesh.GetFaceVertexIndicesAttr().Get(time)
     if points is None or counts is None or indices is None:
@@ -156,7 +161,7 @@ def read_mesh(prim, time, uv_name="st", subdivision_level: int = COMPLEXITY[DEFA
     left = mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded
     holes = mesh.GetHoleIndicesAttr().Get(time) or ()
     scheme = mesh.GetSubdivisionSchemeAttr().Get(time) or UsdGeom.Tokens.catmullClark
-    if scheme in (UsdGeom.Tokens.catmullClark, UsdGeom.Tokens.loop) and subdivision_level > 0:
+    if scheme in SUBDIVIDED and subdivision_level > 0:
         return _subdivided(prim, mesh, points, counts, indices, holes, left, scheme, subdivision_level, time,
                            uv_name, label)
     tri = triangulate(counts, indices, len(points), holes, left, label)
@@ -193,70 +198,148 @@ def read_mesh(prim, time, uv_name="st", subdivision_level: int = COMPLEXITY[DEFA
     return data
 
 
-def _face_varying(prim, name, counts, indices, n_points, time):
-    """A primvar as one value per face-vertex (None if absent or of the wrong size)."""
+def _subdivision_primvar(prim, name, n_points, n_faces, n_fv, time, label, warnings):
+    """(interpolation, values (N, k), indices or None) of a primvar for refinement, or None when absent (a warning
+    when its size does not fit its interpolation)."""
     pv = _primvar(prim, name)
     if pv is None:
         return None
-    vals = pv.ComputeFlattened(time)
-    if vals is None or len(vals) == 0:
+    vals = pv.Get(time)
+    if vals is None or not hasattr(vals, "__len__") or len(vals) == 0:
         return None
-    v = np.asarray(vals, np.float64).reshape(len(vals), -1)
+    v = np.asarray(vals, np.float64)
+    v = v.reshape(len(v), -1)
+    ind = pv.GetIndices(time) if pv.IsIndexed() else None
+    ind = None if ind is None or len(ind) == 0 else np.asarray(ind, np.int64)
     interp = pv.GetInterpolation()
-    n_fv = len(indices)
-    if interp == UsdGeom.Tokens.faceVarying and len(v) == n_fv:
-        return v
-    if interp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying) and len(v) == n_points:
-        return v[indices]
-    if interp == UsdGeom.Tokens.uniform and len(v) == len(counts):
-        return np.repeat(v, counts, axis=0)
-    if interp == UsdGeom.Tokens.constant:
-        return np.repeat(v[:1], n_fv, axis=0)
-    return None
+    n = len(v) if ind is None else len(ind)
+    if ind is not None and (ind.min() < 0 or ind.max() >= len(v)):
+        warnings.append(f"{label} primvars:{name}: indices outside its {len(v)} values (ignored)")
+        return None
+    want = {UsdGeom.Tokens.faceVarying: n_fv, UsdGeom.Tokens.vertex: n_points, UsdGeom.Tokens.varying: n_points,
+            UsdGeom.Tokens.uniform: n_faces, UsdGeom.Tokens.constant: n}.get(interp)
+    if want is None or n != want:
+        warnings.append(f"{label} primvars:{name}: {interp} primvar has {n} values for {want} (ignored)")
+        return None
+    return interp, v, ind
 
 
 def _subdivided(prim, mesh, points, counts, indices, holes, left, scheme, level, time, uv_name, label):
-    """A subdivision surface refined ``level`` times (tracer.subdivision.catmull_clark), with its UVs carried
-    through and smooth normals of the refined surface. Authored normals are ignored, as the USD spec says for
-    subdivision surfaces."""
-    from tracer.subdivision import catmull_clark, limit_normals
+    """A subdivision surface refined ``level`` times by :func:`tracer.subdivision.refine` with the mesh's own
+    subdivision attributes (interpolateBoundary, faceVaryingLinearInterpolation, triangleSubdivisionRule, creases,
+    corners, holes); the UV primvar carried through by its interpolation (faceVarying by face-varying rules with
+    its indices, vertex like the points, varying linearly); per-corner limit-surface normals. Authored normals are
+    ignored, as the USD spec says of subdivision surfaces (one warning per stage)."""
+    from tracer.subdivision import refine
 
     warnings = []
-    counts = np.asarray(counts, np.int64)
-    indices = np.asarray(indices, np.int64)
+    counts = np.asarray(counts, np.int64).reshape(-1)
+    indices = np.asarray(indices, np.int64).reshape(-1)
     if counts.sum() != len(indices) or (len(indices) and (indices.min() < 0 or indices.max() >= len(points))):
         triangulate(counts, indices, len(points), holes, left, label)  # raises the cage's own error
+    n_faces_in, n_fv_in = len(counts), len(indices)
     keep = counts >= 3
+    face_ids = np.flatnonzero(keep)
+    fv_keep = np.repeat(keep, counts)
     if (~keep).any():
         warnings.append(f"{label}: skipped {int((~keep).sum())} face(s) with fewer than 3 vertices")
-        fv_keep = np.repeat(keep, counts)
         indices, counts = indices[fv_keep], counts[keep]
-    if scheme == UsdGeom.Tokens.loop:
-        warnings.append(f"{label}: loop subdivision refined with Catmull-Clark rules")
-    authored = [n for n, a in (("creases", mesh.GetCreaseIndicesAttr()), ("corners", mesh.GetCornerIndicesAttr()))
-                if a.HasAuthoredValue() and len(a.Get(time) or ())]
-    if authored:
-        warnings.append(f"{label}: subdivision {' and '.join(authored)} are not supported (smooth everywhere)")
-    boundary = mesh.GetInterpolateBoundaryAttr().Get(time)
-    if boundary not in (None, UsdGeom.Tokens.edgeAndCorner):
-        warnings.append(f"{label}: interpolateBoundary {boundary} refined as edgeAndCorner")
-    st = _face_varying(prim, uv_name, counts, indices, len(points), time)
-    r = catmull_clark(points, counts, indices, level, fvar=None if st is None else st[:, :2])
-    quads, face = r.indices, np.flatnonzero(keep)[r.face]
+    if not len(counts):
+        return None
+
+    def attr(get, default=None):
+        a = get()
+        v = a.Get(time) if a and a.HasAuthoredValue() else None
+        return default if v is None else v
+
+    boundary = attr(mesh.GetInterpolateBoundaryAttr, UsdGeom.Tokens.edgeAndCorner)
+    fvli = attr(mesh.GetFaceVaryingLinearInterpolationAttr, UsdGeom.Tokens.cornersPlus1)
+    tri_rule = attr(mesh.GetTriangleSubdivisionRuleAttr, UsdGeom.Tokens.catmullClark)
+    options = {}
+    for name, value, allowed in (("boundary", boundary, ("edgeAndCorner", "edgeOnly", "none")),
+                                 ("face_varying_interpolation", fvli,
+                                  ("cornersPlus1", "cornersOnly", "cornersPlus2", "boundaries", "all", "none")),
+                                 ("triangle_rule", tri_rule, ("catmullClark", "smooth"))):
+        if value in allowed:
+            options[name] = str(value)
+        else:
+            warnings.append(f"{label}: unknown {name.replace('_', ' ')} {value!r} (USD's default used)")
+    creases = None
+    c_idx = attr(mesh.GetCreaseIndicesAttr)
+    if c_idx is not None and len(c_idx):
+        creases = (np.asarray(c_idx), np.asarray(attr(mesh.GetCreaseLengthsAttr, [])),
+                   np.asarray(attr(mesh.GetCreaseSharpnessesAttr, [])))
+    corners = None
+    k_idx = attr(mesh.GetCornerIndicesAttr)
+    if k_idx is not None and len(k_idx):
+        corners = (np.asarray(k_idx), np.asarray(attr(mesh.GetCornerSharpnessesAttr, [])))
     hole_set = np.asarray(holes, np.int64).reshape(-1)
-    if hole_set.size:
-        alive = ~np.isin(face, hole_set)
-        quads, face = quads[alive], face[alive]
-        warnings.append(f"{label}: {len(hole_set)} hole face(s) ignored (not cut; holes render as missing faces)")
-        uv_q = None if r.fvar is None else r.fvar[alive]
+    remap = np.full(n_faces_in, -1, np.int64)
+    remap[face_ids] = np.arange(len(face_ids))
+    hole_set = remap[hole_set[(hole_set >= 0) & (hole_set < n_faces_in)]]
+    hole_set = hole_set[hole_set >= 0]
+
+    st = _subdivision_primvar(prim, uv_name, len(points), n_faces_in, n_fv_in, time, label, warnings)
+    face_varying, vertex_data, varying_data, uv_face, uv_const = (), None, None, None, None
+    if st is not None:
+        interp, vals, ind = st
+        vals = vals[:, :2] if vals.shape[1] >= 2 else None
+        if vals is None:
+            warnings.append(f"{label} primvars:{uv_name}: fewer than 2 components (ignored)")
+        elif interp == UsdGeom.Tokens.faceVarying:
+            face_varying = ((vals, ind[fv_keep]) if ind is not None else vals[fv_keep],)
+        elif interp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying):
+            flat = vals if ind is None else vals[ind]
+            if interp == UsdGeom.Tokens.vertex:
+                vertex_data = flat
+            else:
+                varying_data = flat
+        elif interp == UsdGeom.Tokens.uniform:
+            uv_face = (vals if ind is None else vals[ind])[face_ids]
+        else:
+            uv_const = (vals if ind is None else vals[ind])[0]
+
+    r = refine(points, counts, indices, level, str(scheme), creases=creases, corners=corners, holes=hole_set,
+               face_varying=face_varying, vertex_data=vertex_data, varying_data=varying_data, **options)
+    warnings += [f"{label}: {w}" for w in r.warnings]
+    q = r.faces
+    if q.shape[1] == 4:  # each quad along its shorter diagonal
+        p = r.points
+        d02 = np.einsum("ij,ij->i", *(p[q[:, 2]] - p[q[:, 0]],) * 2)
+        d13 = np.einsum("ij,ij->i", *(p[q[:, 3]] - p[q[:, 1]],) * 2)
+        split = np.where((d13 < d02)[:, None, None], [[0, 1, 3], [1, 2, 3]], [[0, 1, 2], [0, 2, 3]])
+        corner = split.reshape(len(q), 6)  # two triangles' corners (positions within the quad)
+        tri_of = np.repeat(np.arange(len(q)), 2)
+        local = corner.reshape(-1, 3)
     else:
-        uv_q = r.fvar
-    order = [[0, 2, 1], [0, 3, 2]] if left else [[0, 1, 2], [0, 2, 3]]
-    triangles = np.concatenate([quads[:, order[0]], quads[:, order[1]]], axis=0)
-    faces = np.concatenate([face, face])
-    uvs = None if uv_q is None else np.concatenate([uv_q[:, order[0]], uv_q[:, order[1]]], axis=0)
-    normals = limit_normals(r.points, quads)
+        tri_of = np.arange(len(q))
+        local = np.tile([0, 1, 2], (len(q), 1))
+    if left:
+        local = local[:, [0, 2, 1]]
+    triangles = np.take_along_axis(q[tri_of], local, axis=1)
+    normals = np.take_along_axis(r.normals[tri_of], local[..., None], axis=1)
     if left:
         normals = -normals
-    return MeshData(r.points, triangles, faces, len(np.asarray(counts)) + int((~keep).sum()), normals=normals,
-                    uvs=uvs, warnings=warnings)
+    uvs = None
+    if r.face_varying:
+        uvs = np.take_along_axis(r.face_varying[0][tri_of], local[..., None], axis=1)
+    elif r.vertex_data is not None or r.varying_data is not None:
+        uvs = (r.vertex_data if r.vertex_data is not None else r.varying_data)[triangles]
+    elif uv_face is not None:
+        uvs = np.repeat(uv_face[r.face[tri_of]][:, None, :], 3, axis=1)
+    elif uv_const is not None:
+        uvs = np.broadcast_to(uv_const, triangles.shape + (2,)).copy()
+    if _has_authored_normals(prim, mesh):
+        warnings.append(AUTHORED_NORMALS_IGNORED)
+    return MeshData(r.points, triangles, face_ids[r.face[tri_of]], n_faces_in, normals=normals, uvs=uvs,
+                    warnings=warnings)
+
+
+#: One warning per stage (no prim path, so StageInfo.warn keeps one).
+AUTHORED_NORMALS_IGNORED = ("normals authored on subdivision surfaces are ignored, as the USD spec says "
+                            "(subdivisionScheme = \"none\" keeps them; --complexity low renders the cage with them)")
+
+
+def _has_authored_normals(prim, mesh) -> bool:
+    pv = _primvar(prim, "normals")
+    return pv is not None or mesh.GetNormalsAttr().HasAuthoredValue()
