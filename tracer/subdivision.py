@@ -743,34 +743,32 @@ class _Level:
         smooth_v[idx[succ < 0]] = False  # the ring must close
         start = np.full(self.n_v, -1, np.int64)
         start[idx] = np.arange(self.n_c)
-        _, rank = _walk(succ, start[smooth_v], self.n_c)
-        sc = np.flatnonzero(rank >= 0)
-        n = self.v_nf[idx[sc]]
-        j = rank[sc]
-        top = int(n.max(initial=3)) + 1
-        nn = np.maximum(np.arange(top), 3)[:, None].astype(np.float64)  # rows below 3 are never used
-        theta = 2.0 * np.pi / nn
-        jj = np.arange(top)[None, :]
-        if cc:
-            lam = 5.0 / 16.0 + (np.cos(theta) + np.cos(theta / 2) * np.sqrt(2.0 * (9.0 + np.cos(theta)))) / 16.0
-            we1 = 4.0 * np.cos(jj * theta)
-            wf1 = (np.cos(jj * theta) + np.cos((jj + 1) * theta)) / (4.0 * lam - 1.0)
-            we2 = 4.0 * np.cos((jj - 1) * theta)  # tan2 is tan1 turned by one edge
-            wf2 = (np.cos((jj - 1) * theta) + np.cos(jj * theta)) / (4.0 * lam - 1.0)
-        else:
-            we1, we2 = np.cos(jj * theta), np.sin(jj * theta)
-        pc = np.take(p, idx, axis=0)  # one random gather; the rest reads neighbouring corners
-        e_pt = np.take(pc, np.take(nxt, sc), axis=0)
-        flat = n * top + j
-        c1 = np.take(we1.ravel(), flat)[:, None] * e_pt
-        c2 = np.take(we2.ravel(), flat)[:, None] * e_pt
-        if cc:
-            f_pt = np.take(pc, np.take(nxt, np.take(nxt, sc)), axis=0)
-            c1 += np.take(wf1.ravel(), flat)[:, None] * f_pt
-            c2 += np.take(wf2.ravel(), flat)[:, None] * f_pt
-        t1 = _scatter(np.take(idx, sc), c1, self.n_v)
-        t2 = _scatter(np.take(idx, sc), c2, self.n_v)
-        vnormal, ln = _unit(_cross(t1, t2))
+        vnormal, ln = np.zeros((self.n_v, 3)), np.zeros(self.n_v)
+        e_of = idx[nxt]  # per corner: the far point of its outgoing edge, and (quads) its far corner
+        f_of = idx[nxt[nxt]] if cc else None
+        for n in np.unique(self.v_nf[smooth_v]):  # walk every ring of n faces at once, from any corner
+            verts = np.flatnonzero(smooth_v & (self.v_nf == n))
+            c = start[verts]
+            theta = 2.0 * np.pi / n
+            j = np.arange(n)
+            if cc:
+                lam = 5.0 / 16.0 + (np.cos(theta) + np.cos(theta / 2) * np.sqrt(2.0 * (9.0 + np.cos(theta)))) / 16.0
+                we1, wf1 = 4.0 * np.cos(j * theta), (np.cos(j * theta) + np.cos((j + 1) * theta)) / (4.0 * lam - 1.0)
+                we2, wf2 = np.roll(we1, 1), np.roll(wf1, 1)  # tan2 is tan1 turned by one edge
+            else:
+                we1, we2 = np.cos(j * theta), np.sin(j * theta)
+            t1 = np.zeros((len(verts), 3))
+            t2 = np.zeros((len(verts), 3))
+            for k in range(n):
+                e = np.take(p, np.take(e_of, c), axis=0)
+                t1 += we1[k] * e
+                t2 += we2[k] * e
+                if cc:
+                    fpt = np.take(p, np.take(f_of, c), axis=0)
+                    t1 += wf1[k] * fpt
+                    t2 += wf2[k] * fpt
+                c = np.take(succ, c)
+            vnormal[verts], ln[verts] = _unit(_cross(t1, t2))
         out = vnormal[idx]
         weak = smooth_v & ~(ln > 1e-9 * np.median(ln[smooth_v])) if smooth_v.any() else smooth_v
         if weak.any():  # a degenerate ring: the mean of its faces' normals

@@ -303,36 +303,34 @@ def _subdivided(prim, mesh, points, counts, indices, holes, left, scheme, level,
                face_varying=face_varying, vertex_data=vertex_data, varying_data=varying_data, **options)
     warnings += [f"{label}: {w}" for w in r.warnings]
     q = r.faces
-    if q.shape[1] == 4:  # each quad along its shorter diagonal
+    n = q.shape[1]
+    if n == 4:  # each quad along its shorter diagonal
         p = r.points
-        d02 = np.einsum("ij,ij->i", *(p[q[:, 2]] - p[q[:, 0]],) * 2)
-        d13 = np.einsum("ij,ij->i", *(p[q[:, 3]] - p[q[:, 1]],) * 2)
-        split = np.where((d13 < d02)[:, None, None], [[0, 1, 3], [1, 2, 3]], [[0, 1, 2], [0, 2, 3]])
-        corner = split.reshape(len(q), 6)  # two triangles' corners (positions within the quad)
-        tri_of = np.repeat(np.arange(len(q)), 2)
-        local = corner.reshape(-1, 3)
+        d02 = np.square(p[q[:, 2]] - p[q[:, 0]]).sum(axis=1)
+        d13 = np.square(p[q[:, 3]] - p[q[:, 1]]).sum(axis=1)
+        local = np.where((d13 < d02)[:, None, None], [[0, 1, 3], [1, 2, 3]], [[0, 1, 2], [0, 2, 3]])
+        corner = (np.arange(len(q))[:, None, None] * 4 + local).reshape(-1, 3)  # into the quads' flat corners
     else:
-        tri_of = np.arange(len(q))
-        local = np.tile([0, 1, 2], (len(q), 1))
+        corner = np.arange(q.size).reshape(-1, 3)
     if left:
-        local = local[:, [0, 2, 1]]
-    triangles = np.take_along_axis(q[tri_of], local, axis=1)
-    normals = np.take_along_axis(r.normals[tri_of], local[..., None], axis=1)
+        corner = corner[:, [0, 2, 1]]
+    triangles = q.reshape(-1)[corner]
+    normals = r.normals.reshape(-1, 3)[corner]
     if left:
         normals = -normals
+    face_of = r.face[corner[:, 0] // n]
     uvs = None
     if r.face_varying:
-        uvs = np.take_along_axis(r.face_varying[0][tri_of], local[..., None], axis=1)
+        uvs = r.face_varying[0].reshape(-1, 2)[corner]
     elif r.vertex_data is not None or r.varying_data is not None:
         uvs = (r.vertex_data if r.vertex_data is not None else r.varying_data)[triangles]
     elif uv_face is not None:
-        uvs = np.repeat(uv_face[r.face[tri_of]][:, None, :], 3, axis=1)
+        uvs = np.repeat(uv_face[face_of][:, None, :], 3, axis=1)
     elif uv_const is not None:
         uvs = np.broadcast_to(uv_const, triangles.shape + (2,)).copy()
     if _has_authored_normals(prim, mesh):
         warnings.append(AUTHORED_NORMALS_IGNORED)
-    return MeshData(r.points, triangles, face_ids[r.face[tri_of]], n_faces_in, normals=normals, uvs=uvs,
-                    warnings=warnings)
+    return MeshData(r.points, triangles, face_ids[face_of], n_faces_in, normals=normals, uvs=uvs, warnings=warnings)
 
 
 #: One warning per stage (no prim path, so StageInfo.warn keeps one).
