@@ -577,6 +577,38 @@ def test_usd_uvs_holes_normals_and_handedness(tmp_path):
     assert (np.einsum("tj,tj->t", geo, c.mean(axis=1)) > 0).all()  # and the winding faces out too
 
 
+def test_usd_colours_and_uv_sets_ride_through_refinement():
+    """What a material reads besides st (a second UV set, a vertex displayColor through UsdPrimvarReader_float3)
+    comes through the refinement too: affine functions of a flat grid's points stay those functions of the
+    refined points (vertex data by the points' rules, faceVarying by face-varying rules)."""
+    from types import SimpleNamespace
+
+    from usd_io.material_primvars import mesh_primvars
+    from usd_io.mesh import read_mesh
+
+    s = Usd.Stage.CreateInMemory()
+    g, f = _grid(3, lambda x, y: 0.0)
+    m = UsdGeom.Mesh.Define(s, "/Grid")
+    m.CreatePointsAttr([Gf.Vec3f(*p) for p in g])
+    m.CreateFaceVertexCountsAttr([4] * len(f))
+    m.CreateFaceVertexIndicesAttr([int(i) for i in np.ravel(f)])
+    colour = lambda p: np.stack([0.1 + 0.2 * p[..., 0], 0.9 - 0.25 * p[..., 1], 0.5 + 0 * p[..., 0]], -1)
+    second = lambda p: np.stack([0.3 * p[..., 1], 1 - 0.2 * p[..., 0]], -1)
+    pv = UsdGeom.PrimvarsAPI(m)
+    pv.CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray, "vertex").Set(
+        Vt.Vec3fArray([Gf.Vec3f(*c) for c in colour(g)]))
+    pv.CreatePrimvar("map2", Sdf.ValueTypeNames.TexCoord2fArray, "faceVarying").Set(
+        Vt.Vec2fArray([Gf.Vec2f(*c) for c in second(g[np.concatenate(f)])]))
+    data = read_mesh(m.GetPrim(), Usd.TimeCode.Default(), "st", 2)
+    needs = SimpleNamespace(uv_sets={"map2"}, color=("displayColor", (0.5, 0.5, 0.5)))
+    warned = []
+    sets, colors = mesh_primvars(m.GetPrim(), data, needs, ["st", "map2"], Usd.TimeCode.Default(), warned.append)
+    corners = data.points[data.triangles]
+    assert len(data.triangles) == 2 * 9 * 16 and not warned
+    np.testing.assert_allclose(colors, colour(corners), atol=1e-6)
+    np.testing.assert_allclose(sets[1], second(corners), atol=1e-6)
+
+
 def test_usd_skinned_subdivision_surface_is_posed_then_refined(tmp_path):
     """As Hydra does: skin the cage, then refine it (the refined points are those of the moved cage)."""
     from pxr import UsdSkel

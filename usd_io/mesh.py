@@ -113,6 +113,9 @@ class MeshData:
     normals: np.ndarray | None = None  # (T, 3, 3) or (V, 3)
     uvs: np.ndarray | None = None  # (T, 3, 2)
     warnings: list = field(default_factory=list)
+    corners: np.ndarray | None = None  # (T, 3) face-vertex positions, to expand further primvars (materials)
+    n_face_vertices: int = 0
+    primvars: dict | None = None  # refined subdivision surfaces: {name: (T, 3, k) per corner} (no corners then)
 
 
 def _primvar(prim, name):
@@ -165,8 +168,9 @@ def read_mesh(prim, time, uv_name="st", subdivision_level: int = COMPLEXITY[DEFA
         return _subdivided(prim, mesh, points, counts, indices, holes, left, scheme, subdivision_level, time,
                            uv_name, label)
     tri = triangulate(counts, indices, len(points), holes, left, label)
-    data = MeshData(points, tri.triangles, tri.faces, tri.n_faces, warnings=list(tri.warnings))
     n_fv = len(indices)
+    data = MeshData(points, tri.triangles, tri.faces, tri.n_faces, warnings=list(tri.warnings),
+                    corners=tri.corners, n_face_vertices=n_fv)
 
     # Normals: primvars:normals wins over the normals attribute (UsdGeom rule).
     pv = _primvar(prim, "normals")
@@ -279,28 +283,33 @@ def _subdivided(prim, mesh, points, counts, indices, holes, left, scheme, level,
     hole_set = remap[hole_set[(hole_set >= 0) & (hole_set < n_faces_in)]]
     hole_set = hole_set[hole_set >= 0]
 
-    st = _subdivision_primvar(prim, uv_name, len(points), n_faces_in, n_fv_in, time, label, warnings)
-    face_varying, vertex_data, varying_data, uv_face, uv_const = (), None, None, None, None
-    if st is not None:
-        interp, vals, ind = st
-        vals = vals[:, :2] if vals.shape[1] >= 2 else None
-        if vals is None:
-            warnings.append(f"{label} primvars:{uv_name}: fewer than 2 components (ignored)")
-        elif interp == UsdGeom.Tokens.faceVarying:
-            face_varying = ((vals, ind[fv_keep]) if ind is not None else vals[fv_keep],)
+    # every texture-coordinate and colour primvar rides along, each by its own interpolation
+    names = _refined_primvar_names(prim, uv_name)
+    fvar_names, vertex_cols, varying_cols, per_face, constant = [], [], [], {}, {}
+    face_varying, vertex_parts, varying_parts = [], [], []
+    for name in names:
+        got = _subdivision_primvar(prim, name, len(points), n_faces_in, n_fv_in, time, label, warnings)
+        if got is None:
+            continue
+        interp, vals, ind = got
+        flat = vals if ind is None else vals[ind]
+        if interp == UsdGeom.Tokens.faceVarying:
+            fvar_names.append(name)
+            face_varying.append((vals, ind[fv_keep]) if ind is not None else vals[fv_keep])
         elif interp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying):
-            flat = vals if ind is None else vals[ind]
-            if interp == UsdGeom.Tokens.vertex:
-                vertex_data = flat
-            else:
-                varying_data = flat
+            parts, cols = (vertex_parts, vertex_cols) if interp == UsdGeom.Tokens.vertex else (varying_parts,
+                                                                                                varying_cols)
+            start = sum(p.shape[1] for p in parts)
+            cols.append((name, slice(start, start + flat.shape[1])))
+            parts.append(flat)
         elif interp == UsdGeom.Tokens.uniform:
-            uv_face = (vals if ind is None else vals[ind])[face_ids]
+            per_face[name] = flat[face_ids]
         else:
-            uv_const = (vals if ind is None else vals[ind])[0]
+            constant[name] = flat[0]
 
     r = refine(points, counts, indices, level, str(scheme), creases=creases, corners=corners, holes=hole_set,
-               face_varying=face_varying, vertex_data=vertex_data, varying_data=varying_data, **options)
+               face_varying=face_varying, vertex_data=np.concatenate(vertex_parts, axis=1) if vertex_parts else None,
+               varying_data=np.concatenate(varying_parts, axis=1) if varying_parts else None, **options)
     warnings += [f"{label}: {w}" for w in r.warnings]
     q = r.faces
     n = q.shape[1]
@@ -319,18 +328,43 @@ def _subdivided(prim, mesh, points, counts, indices, holes, left, scheme, level,
     if left:
         normals = -normals
     face_of = r.face[corner[:, 0] // n]
-    uvs = None
-    if r.face_varying:
-        uvs = r.face_varying[0].reshape(-1, 2)[corner]
-    elif r.vertex_data is not None or r.varying_data is not None:
-        uvs = (r.vertex_data if r.vertex_data is not None else r.varying_data)[triangles]
-    elif uv_face is not None:
-        uvs = np.repeat(uv_face[face_of][:, None, :], 3, axis=1)
-    elif uv_const is not None:
-        uvs = np.broadcast_to(uv_const, triangles.shape + (2,)).copy()
+    primvars = {}
+    for name, values in zip(fvar_names, r.face_varying):
+        primvars[name] = values.reshape(-1, values.shape[-1])[corner]
+    for cols, data in ((vertex_cols, r.vertex_data), (varying_cols, r.varying_data)):
+        for name, sl in cols:
+            primvars[name] = data[:, sl][triangles]
+    for name, values in per_face.items():
+        primvars[name] = np.repeat(values[face_of][:, None, :], 3, axis=1)
+    for name, value in constant.items():
+        primvars[name] = np.broadcast_to(value, triangles.shape + value.shape).copy()
+    primvars = {k: v.astype(np.float32) for k, v in primvars.items()}
+    uvs = primvars.get(uv_name)
+    if uvs is not None and uvs.shape[-1] < 2:
+        warnings.append(f"{label} primvars:{uv_name}: fewer than 2 components (ignored)")
+        uvs = None
+    uvs = None if uvs is None else uvs[..., :2]
     if _has_authored_normals(prim, mesh):
         warnings.append(AUTHORED_NORMALS_IGNORED)
-    return MeshData(r.points, triangles, face_ids[face_of], n_faces_in, normals=normals, uvs=uvs, warnings=warnings)
+    return MeshData(r.points, triangles, face_ids[face_of], n_faces_in, normals=normals, uvs=uvs, warnings=warnings,
+                    primvars=primvars)
+
+
+#: Primvar value types refined with a subdivision surface for materials (texture coordinates and colours).
+_REFINED_TYPES = {"texCoord2f[]", "texCoord2d[]", "texCoord2h[]", "float2[]", "double2[]", "half2[]", "color3f[]",
+                  "color3d[]", "color3h[]", "color4f[]", "color4d[]", "color4h[]", "float3[]", "float4[]"}
+
+
+def _refined_primvar_names(prim, uv_name) -> list:
+    """The primvars a refined mesh carries per corner: its UV primvar, displayColor/displayOpacity, and every
+    texture-coordinate or colour-typed primvar (what materials read: usd_io/material_primvars.py)."""
+    names = [uv_name]
+    for pv in UsdGeom.PrimvarsAPI(prim).GetPrimvars():
+        n = str(pv.GetPrimvarName())
+        if n not in names and pv.HasValue() and (str(pv.GetTypeName()) in _REFINED_TYPES
+                                                 or n in ("displayColor", "displayOpacity")):
+            names.append(n)
+    return names
 
 
 #: One warning per stage (no prim path, so StageInfo.warn keeps one).
