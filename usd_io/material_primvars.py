@@ -73,6 +73,9 @@ def mesh_primvars(prim, data, needs, uv_set_names: list, time, warn):
     from .mesh import Triangulation
 
     colors = None
+    refined = getattr(data, "primvars", None)
+    if refined is not None:  # a refined subdivision surface: its primvars came through the refinement (mesh.py)
+        return _refined_primvars(prim, refined, len(data.triangles), needs, uv_set_names, warn)
     if not prim.IsA(UsdGeom.Mesh) or getattr(data, "corners", None) is None:
         if needs.color is not None:  # a tessellated gprim: one colour (non-constant ones averaged)
             name, fallback = needs.color
@@ -112,6 +115,26 @@ def mesh_primvars(prim, data, needs, uv_set_names: list, time, warn):
             warn(f"{why} (its fallback is used)")
         if colors is None:
             colors = np.broadcast_to(np.asarray(fallback, np.float32), (len(data.triangles), 3, 3)).copy()
+    return sets, colors
+
+
+def _refined_primvars(prim, refined: dict, n_triangles: int, needs, uv_set_names: list, warn):
+    """``mesh_primvars`` of a refined subdivision surface, from its per-corner refined primvars."""
+    sets = {}
+    for name in needs.uv_sets | {uv_set_names[0]}:
+        index = uv_set_names.index(name)
+        pv_name = default_uv_name(prim, warn) if index == 0 else name
+        if pv_name in refined and refined[pv_name].shape[-1] >= 2:
+            sets[index] = np.ascontiguousarray(refined[pv_name][..., :2], np.float32)
+    colors = None
+    if needs.color is not None:
+        name, fallback = needs.color
+        if name in refined:
+            c = refined[name]
+            colors = np.concatenate([c, np.repeat(c[..., -1:], max(0, 3 - c.shape[-1]), axis=-1)], axis=-1)[..., :3]
+            colors = np.ascontiguousarray(colors, np.float32)
+        else:
+            colors = np.broadcast_to(np.asarray(fallback, np.float32), (n_triangles, 3, 3)).copy()
     return sets, colors
 
 

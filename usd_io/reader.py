@@ -24,7 +24,7 @@ from .dome import environment
 from .lights import blender_authored, convert_light, default_lights
 from .material import MaterialTable
 from .material_primvars import replicate_corners
-from .mesh import COMPLEXITY, DEFAULT_COMPLEXITY, MeshData, read_mesh
+from .mesh import COMPLEXITY, DEFAULT_COMPLEXITY, SUBDIVIDED, MeshData, read_mesh
 from .skel import Skinning
 from .stage import (DEFAULT_PURPOSES, _first_reason, captured_stderr, UsdInputError, check_purposes, composition_warnings, open_stage,
                     renderable_prims, stage_messages, stage_time)
@@ -74,12 +74,8 @@ class _Reader:
         """Object-space geometry, or None (with a warning) where it is malformed."""
         try:
             if prim.IsA(UsdGeom.Mesh):
-                level = self.subdivision_level
-                if level and Skinning.is_skinned(prim):  # skinning poses the cage's points: keep the cage
-                    level = 0
-                    if (UsdGeom.Mesh(prim).GetSubdivisionSchemeAttr().Get(self.time) or "catmullClark") != "none":
-                        self.info.warn(f"{prim.GetPath()}: skinned subdivision surface rendered as its posed cage")
-                data = read_mesh(prim, self.time, uv_name, level)
+                skinned = Skinning.is_skinned(prim)  # skinned: the cage now, refined once posed (add_gprim)
+                data = read_mesh(prim, self.time, uv_name, 0 if skinned else self.subdivision_level)
             elif prim.IsA(UsdGeom.Points):
                 data = read_points(prim, self.time)
             elif prim.IsA(UsdGeom.BasisCurves):
@@ -127,6 +123,10 @@ class _Reader:
             posed = self.skinning.pose(prim, data, self.info.warn)
             if posed is not None:
                 data, m = posed
+            if self.subdivision_level and (UsdGeom.Mesh(prim).GetSubdivisionSchemeAttr().Get(self.time)
+                                           or UsdGeom.Tokens.catmullClark) in SUBDIVIDED:
+                # as Hydra does: skin the cage, then refine it
+                data = read_mesh(prim, self.time, "st", self.subdivision_level, points=data.points) or data
         if not _usable(m):
             self.info.warn(f"{prim.GetPath()}: transform is singular (zero scale) or not finite (skipped)")
             return
