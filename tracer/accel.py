@@ -26,7 +26,8 @@ class Accelerator:
     rays the integrator traced against raw embreex.
     """
 
-    def __init__(self, scene: Scene, record: bool = False):
+    def __init__(self, scene: Scene, record: bool = False, quality: str = "medium"):
+        self._scene = scene
         self.seconds = 0.0
         self.record = record
         self.batches: list = []
@@ -39,6 +40,16 @@ class Accelerator:
             self._mesh = TriangleMesh(self._embree, scene.vertices, scene.triangles)
             # embreex builds the BVH lazily on the first query: trigger it here so it counts as set-up time.
             self._embree.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32), query="OCCLUDED")
+
+    # Session edits (interim: rebuild everything from the session's flattened scene).
+    def set_transform(self, object_id, delta):
+        self.__init__(self._scene, self.record)
+
+    def set_object(self, object_id, vertices, triangles):
+        pass
+
+    def set_rows(self, object_ids):
+        self.__init__(self._scene, self.record)
 
     def intersect(self, origins: np.ndarray, directions: np.ndarray, t_max: np.ndarray | None = None):
         """Closest hits: (t, prim_id, u, v) with prim_id = -1 and t = inf for misses.

@@ -55,6 +55,10 @@ class Scene:
     #: Optional lat-long world (tracer.Environment): seen by rays that leave the scene instead of ``background``,
     #: and a light (sky samples, or the ambient term with L_a = its mean radiance when ``ambient`` is zero).
     environment: Environment | None = None
+    #: Optional (O, 4, 4) float64 per object id: the object-to-world matrix its vertices were placed with
+    #: (SceneBuilder.add_mesh's transform; None = identity for all). The vertices are already in world space;
+    #: tracer.Session.set_transform moves an object from this matrix to a new one.
+    object_transforms: np.ndarray | None = None
 
     def __post_init__(self):
         self.validate()
@@ -140,6 +144,12 @@ class Scene:
                 raise ValueError(f"scene.object_pass_indices has {len(pi)} entries but object id "
                                  f"{int(self.object_ids.max())} is used")
             self.object_pass_indices = np.ascontiguousarray(pi, dtype=np.int32)
+
+        if self.object_transforms is not None:
+            ot = np.asarray(self.object_transforms, dtype=np.float64)
+            if ot.ndim != 3 or ot.shape[1:] != (4, 4) or not np.all(np.isfinite(ot)):
+                raise ValueError(f"scene.object_transforms must be finite (O, 4, 4) matrices, got shape {ot.shape}")
+            self.object_transforms = ot
 
         self._drop_degenerate()
 
