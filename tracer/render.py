@@ -164,7 +164,7 @@ def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None
     record = bool(settings.extra.get("record_rays"))
     if record:
         accel = Accelerator(scene, record=True)
-    session = Session(scene, accel=accel)
+    session = Session(scene, accel=accel, instanced=False)
     try:
         return render_session(session, settings, on_tile=on_tile, cancelled=cancelled, started=start)
     finally:

@@ -56,9 +56,13 @@ class Session:
     ``scene`` is not modified: the session works on a shallow copy (arrays are shared until an edit replaces
     them). ``quality``: Embree build quality of the object BVHs, "low" | "medium" | "high" (Embree's
     RTC_BUILD_QUALITY_*; "high" traces fastest, "low" builds fastest, for scenes edited while they are looked at).
+    ``instanced``: every object an Embree instance of its own mesh (edits touch only that object; the default),
+    or one flat BVH over all triangles (a little faster to trace, but every geometry edit rebuilds it all: what
+    the one-off :func:`tracer.render` uses). ``accel``: an already built :class:`~tracer.accel.Accelerator`.
     """
 
-    def __init__(self, scene: Scene, *, quality: str = "medium", accel: Accelerator | None = None):
+    def __init__(self, scene: Scene, *, quality: str = "medium", instanced: bool = True,
+                 accel: Accelerator | None = None):
         if not isinstance(scene, Scene):
             raise TypeError(f"Session expects a tracer.Scene, got {type(scene).__name__}")
         start = time.perf_counter()
@@ -69,7 +73,7 @@ class Session:
         self.quality = quality
         self._lock = threading.Lock()
         self._integrators: dict = {}  # settings key -> Integrator (packed tables), dropped by edits
-        self._accel = accel if accel is not None else Accelerator(self._scene, quality=quality)
+        self._accel = accel if accel is not None else Accelerator(self._scene, quality=quality, instanced=instanced)
         self._geometry = _Objects(self._scene, self._accel)
         self.stats = {"build_seconds": time.perf_counter() - start, "last_edit": None}
         self._closed = False
