@@ -20,6 +20,22 @@ from .materials import Materials
 DEGENERATE_AREA = 1e-14
 
 
+def unit_normals(normals: np.ndarray) -> np.ndarray:
+    """Per-corner shading normals scaled to unit length; unusable ones (zero, NaN) become zeros, which the
+    renderer replaces by the face normal."""
+    nr = np.asarray(normals, dtype=np.float32)
+    ln = np.linalg.norm(nr, axis=-1, keepdims=True)
+    ok = np.isfinite(ln) & (ln > 0)
+    return np.ascontiguousarray(np.where(ok, nr / np.where(ok, ln, 1), 0), dtype=np.float32)
+
+
+def non_degenerate(vertices: np.ndarray, triangles: np.ndarray, diagonal: float) -> np.ndarray:
+    """Mask of the triangles whose area is more than DEGENERATE_AREA × diagonal² (the others are skipped)."""
+    tri = vertices[triangles].astype(np.float64)
+    area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    return area2 > DEGENERATE_AREA * max(diagonal**2, 1e-30)
+
+
 @dataclass
 class Scene:
     """World-space geometry and everything needed to shade it.
@@ -106,10 +122,7 @@ class Scene:
             nr = np.asarray(self.normals, dtype=np.float32)
             if nr.shape != (n, 3, 3):
                 raise ValueError(f"scene.normals must have shape ({n}, 3, 3) (per-corner), got {nr.shape}")
-            ln = np.linalg.norm(nr, axis=-1, keepdims=True)
-            ok = np.isfinite(ln) & (ln > 0)
-            # Unusable normals fall back to the face normal at render time; mark them with zeros.
-            self.normals = np.ascontiguousarray(np.where(ok, nr / np.where(ok, ln, 1), 0), dtype=np.float32)
+            self.normals = unit_normals(nr)
         if self.uvs is not None:
             uv = np.asarray(self.uvs, dtype=np.float32)
             if uv.shape != (n, 3, 2):
@@ -165,9 +178,7 @@ class Scene:
     def _drop_degenerate(self):
         if not len(self.triangles):
             return
-        tri = self.vertices[self.triangles].astype(np.float64)
-        area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-        keep = area2 > DEGENERATE_AREA * max(self.diagonal**2, 1e-30)
+        keep = non_degenerate(self.vertices, self.triangles, self.diagonal)
         dropped = int((~keep).sum())
         if dropped:
             warnings.warn(f"scene: skipped {dropped} degenerate (zero-area) triangle(s)", stacklevel=3)

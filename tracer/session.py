@@ -33,6 +33,7 @@ from __future__ import annotations
 import copy
 import threading
 import time
+import warnings
 
 import numpy as np
 
@@ -43,7 +44,7 @@ from .environment import Environment
 from .film import Image
 from .lights import AreaLight, DistantLight, PointLight, SpotLight
 from .materials import Materials
-from .scene import Scene
+from .scene import Scene, non_degenerate, unit_normals
 from .settings import RenderSettings
 
 #: Sentinel for ``update_world`` arguments that stay as they are.
@@ -312,6 +313,7 @@ class _Objects:
         n_v = len(s.vertices)
         parts = {}
         if mesh is not None:
+            mesh = _clean(mesh, s)
             nt = len(mesh.triangles)
             parts = dict(triangles=mesh.triangles + n_v, material_ids=mesh.material_ids,
                          object_ids=np.full(nt, object_id, np.int32), normals=mesh.normals, uvs=mesh.uvs)
@@ -365,6 +367,24 @@ class _Objects:
         for i, m in self._transforms.items():
             out[i] = m
         self.scene.object_transforms = out
+
+
+def _clean(mesh, scene: Scene):
+    """A placed mesh as :meth:`Scene.validate` would leave it: unit corner normals, finite uvs, degenerate
+    triangles dropped (with the scene's one warning)."""
+    normals = None if mesh.normals is None else unit_normals(mesh.normals)
+    uvs = None if mesh.uvs is None else np.ascontiguousarray(np.nan_to_num(mesh.uvs, nan=0, posinf=0, neginf=0))
+    lo, hi = scene.bounds
+    if len(mesh.vertices):
+        lo, hi = np.minimum(lo, mesh.vertices.min(axis=0)), np.maximum(hi, mesh.vertices.max(axis=0))
+    keep = non_degenerate(mesh.vertices, mesh.triangles, float(np.linalg.norm(hi - lo)))
+    if not keep.all():
+        warnings.warn(f"scene: skipped {int((~keep).sum())} degenerate (zero-area) triangle(s)", stacklevel=4)
+        scene.skipped_triangles += int((~keep).sum())
+        mesh = mesh._replace(triangles=mesh.triangles[keep], material_ids=mesh.material_ids[keep],
+                             normals=None if normals is None else normals[keep], uvs=None if uvs is None else uvs[keep])
+        return mesh
+    return mesh._replace(normals=normals, uvs=uvs)
 
 
 def _object_mesh(s: Scene, rows):
