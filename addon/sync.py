@@ -78,6 +78,7 @@ class SceneSync:
         self.quality = quality
         self.track_camera = track_camera
         self._diffable = True
+        self._depsgraph = None
         self.geometry_cache: dict = {}
         self.images: dict = {}  # image pixels read by the material writer, kept until an Image changes
         self._entries: dict[tuple, _Entry] = {}
@@ -117,6 +118,7 @@ class SceneSync:
         self._order = [o.key for o in objects]
         self._diffable = len(self._entries) == len(objects)  # two instances under one key cannot be diffed
         self._next_id = len(scene.object_names)
+        self._depsgraph = depsgraph.as_pointer()  # another depsgraph (file reloaded): export everything again
         self._materials, self._textures = scene.materials, list(scene.textures)
         self._material_names = list(scene.materials.names)
         self._lights = list(scene.lights)
@@ -131,7 +133,7 @@ class SceneSync:
         """The edits that bring the session from the last export to ``depsgraph`` as it is now (see the module
         docstring). The first call (or after :meth:`reset`) is a :meth:`full` export. ``camera``: the camera to
         render with (None: the scene camera at width × height)."""
-        if not self.synced or not self._diffable:
+        if not self.synced or not self._diffable or depsgraph.as_pointer() != self._depsgraph:
             return self.full(depsgraph, width=width, height=height, camera=camera, cancelled=cancelled)
         start = time.perf_counter()
         updates = list(depsgraph.updates)
