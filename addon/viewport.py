@@ -8,8 +8,9 @@ is a rebuild from a full export), ``view_draw`` hands it the current view camera
 ever traces or edits the session: the worker applies the edits between two passes, so a camera move costs no
 scene work at all and a material edit only a repack.
 
-The worker refines progressively: coarse pixels first (:data:`LEVELS`: every 8th, 4th, 2nd pixel, then all), then
-more anti-aliasing samples (:data:`AA_PASSES`). Any change (camera, size, edits, settings) cancels the pass in
+The worker refines progressively: coarse pixels first (:func:`levels`: as Cycles' viewport, the first pass is about
+:data:`START_RESOLUTION` pixels across, at least every 8th pixel; then every 4th, 2nd pixel, then all), then more
+anti-aliasing samples (:data:`AA_PASSES`). Any change (camera, size, edits, settings) cancels the pass in
 flight (the tracer polls ``cancelled`` between tiles and depths) and starts again from the coarsest level. Each
 finished pass replaces the frame and calls ``on_frame`` (the engine's ``tag_redraw``: as Cycles' session does from
 its thread, it only sets a flag Blender's main loop polls).
@@ -17,6 +18,7 @@ its thread, it only sets a flag Blender's main loop polls).
 
 from __future__ import annotations
 
+import collections
 import threading
 import time
 from dataclasses import dataclass
@@ -26,12 +28,18 @@ import numpy as np
 from .export import tracer
 from .sync import apply_edits
 
-#: Pixel-size factors of the refinement passes, coarse to full resolution.
+#: Pixel-size factors of the refinement passes, coarse to full resolution, for viewports up to 512 pixels across
+#: (:func:`levels` starts coarser in larger ones).
 LEVELS = (8, 4, 2, 1)
+#: The first pass is about this many pixels across (Cycles' viewport "start resolution" does the same: 64).
+START_RESOLUTION = 64
 #: N×N anti-aliasing of the passes after the full-resolution one.
 AA_PASSES = (2, 3)
 #: Embree build quality of the viewport's session: builds (and rebuilds after edits) fastest.
 QUALITY = "low"
+#: Embree layout of the viewport's session (tracer.Session(instanced=...)): every object an instance of its own BVH,
+#: so a move is a matrix and an edited mesh rebuilds only its BVH (docs/benchmarks.md: measured against flat).
+INSTANCED = True
 
 
 @dataclass
@@ -54,9 +62,11 @@ class Frame:
 class ViewportRender:
     """Progressive rendering of one viewport on a worker thread (see the module docstring)."""
 
-    def __init__(self, on_frame=None, settings: "tracer.RenderSettings | None" = None, quality: str = QUALITY):
+    def __init__(self, on_frame=None, settings: "tracer.RenderSettings | None" = None, quality: str = QUALITY,
+                 instanced: bool = INSTANCED):
         self.on_frame = on_frame or (lambda: None)
         self.quality = quality
+        self.instanced = instanced
         self._lock = threading.Condition()
         self._edits: list = []
         self._settings = settings or tracer.RenderSettings()
@@ -68,6 +78,8 @@ class ViewportRender:
         self._stop = False
         self.session: "tracer.Session | None" = None
         self.passes_done = 0
+        #: (generation, level, samples, changed, done) of the recent passes, for benchmarks and tests.
+        self.history: collections.deque = collections.deque(maxlen=512)
         self.edits_applied: list[str] = []
         self.errors: list[str] = []
         self._thread = threading.Thread(target=self._run, name="whitted-viewport", daemon=True)
@@ -133,6 +145,15 @@ class ViewportRender:
         with self._lock:
             return self._lock.wait_for(lambda: self._converged() or self._stop, timeout=timeout) and not self._stop
 
+    def first_pass_seconds(self) -> float | None:
+        """For the current generation: seconds from the change to its first (coarsest) finished pass."""
+        with self._lock:
+            gen = self._generation
+            for g, level, samples, changed, done in self.history:
+                if g == gen:
+                    return done - changed
+        return None
+
     def wait_for(self, predicate, timeout: float = 60.0) -> bool:
         """Block until ``predicate(latest frame)`` holds for a frame of the current generation (tests, benchmarks)."""
         def ok():
@@ -157,9 +178,9 @@ class ViewportRender:
         return (self.session is not None or self._edits) and self._camera is not None and self._size is not None
 
     @staticmethod
-    def passes():
-        """(level, samples) of every refinement pass, in order."""
-        return [(level, 1) for level in LEVELS] + [(1, n) for n in AA_PASSES]
+    def passes(size=(0, 0)):
+        """(level, samples) of every refinement pass of a ``size`` viewport, in order."""
+        return [(level, 1) for level in levels(size)] + [(1, n) for n in AA_PASSES]
 
     def _run(self):
         while True:
@@ -172,7 +193,8 @@ class ViewportRender:
                 edits, self._edits = self._edits, []
             if edits:
                 try:
-                    self.session = apply_edits(self.session, edits, quality=self.quality)
+                    self.session = apply_edits(self.session, edits, quality=self.quality,
+                                               instanced=self.instanced)
                     self.edits_applied.extend(e.kind for e in edits)
                 except Exception as exc:  # keep the message; a later rebuild may succeed
                     self.session = None
@@ -183,7 +205,7 @@ class ViewportRender:
                 continue
             if session.scene.camera is not camera:
                 session.update_camera(camera)
-            passes = self.passes()
+            passes = self.passes(size)
             for index, (level, samples) in enumerate(passes):
                 f = self._frame
                 if f is not None and f.generation == gen and index <= passes.index((f.level, f.samples)):
@@ -206,6 +228,7 @@ class ViewportRender:
                     self._frame = Frame(rgba=image.rgba, key=_view_key(camera, size), level=level, samples=samples,
                                         generation=gen, changed=changed, done=time.perf_counter(), flat=flat)
                     self.passes_done += 1
+                    self.history.append((gen, level, samples, changed, self._frame.done))
                     self._lock.notify_all()
                 try:
                     self.on_frame()
@@ -217,6 +240,19 @@ class ViewportRender:
         print(f"Whitted viewport: {exc}")
         with self._lock:
             self._lock.wait_for(lambda: self._generation != gen or self._stop)
+
+
+def levels(size) -> tuple:
+    """Pixel-size factors of the refinement passes of a ``size`` viewport: powers of two from the one that makes
+    the first pass about :data:`START_RESOLUTION` pixels across (at least 8) down to 1."""
+    first = LEVELS[0]
+    while max(size) / first > 1.5 * START_RESOLUTION:
+        first *= 2
+    out = []
+    while first >= 1:
+        out.append(first)
+        first //= 2
+    return tuple(out)
 
 
 def _view_key(camera, size) -> tuple:
