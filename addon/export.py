@@ -241,6 +241,8 @@ class ExportedObject(NamedTuple):
     uvs: np.ndarray | None
     matrix: np.ndarray
     pass_index: int
+    #: The matrix keeps handedness (det > 0); False: it mirrors.
+    right_handed: bool = True
 
 
 #: How many instances :func:`export_objects` handles between two polls of ``cancelled``.
@@ -285,9 +287,14 @@ def export_objects(depsgraph, writer: MaterialWriter, warnings: list, lights: li
         g = geometry[key]
         if g is None or not len(g["triangles"]):
             continue
-        world = np.array(inst.matrix_world, dtype=np.float64)
-        det = np.linalg.det(world[:3, :3])
-        if not np.isfinite(det) or abs(det) <= 1e-12 * np.abs(world[:3, :3]).max() ** 3:
+        mw = inst.matrix_world
+        world = np.array(mw, dtype=np.float64)
+        # mathutils' C calls: numpy's det and max cost ~10 µs per instance. Singular: |det| tiny against the
+        # product of the axis lengths (its bound, Hadamard's inequality).
+        m3 = mw.to_3x3()
+        det = m3.determinant()
+        sx, sy, sz = m3.to_scale()
+        if not math.isfinite(det) or abs(det) <= 1e-12 * sx * sy * sz:
             warnings.append(f"object {obj.name!r}: zero scale (nothing to render); skipped")
             continue
         slots = tuple(writer.row(s.material) for s in obj.material_slots)
@@ -304,7 +311,7 @@ def export_objects(depsgraph, writer: MaterialWriter, warnings: list, lights: li
             ident = (obj.original.name, parent, tuple(inst.persistent_id))
         else:
             name, ident = obj.name, (obj.original.name, "", ())
-        yield ExportedObject(ident, name, g, mats, uvs, world, int(obj.pass_index))
+        yield ExportedObject(ident, name, g, mats, uvs, world, int(obj.pass_index), det > 0)
 
 
 def add_objects(b: "tracer.SceneBuilder", objects: list) -> list[np.ndarray]:
@@ -321,9 +328,8 @@ def add_objects(b: "tracer.SceneBuilder", objects: list) -> list[np.ndarray]:
     while i < len(objects):
         o = objects[i]
         j = i + 1
-        sign = np.linalg.det(o.matrix[:3, :3]) > 0
         while (j < len(objects) and objects[j].geometry is o.geometry and objects[j].material is o.material
-               and objects[j].uvs is o.uvs and (np.linalg.det(objects[j].matrix[:3, :3]) > 0) == sign):
+               and objects[j].uvs is o.uvs and objects[j].right_handed == o.right_handed):
             j += 1
         run = objects[i:j]
         if len(run) < BATCH_MIN:
@@ -366,7 +372,7 @@ def _add_batch(b, run) -> int:
     normals = None if nrm is None else np.concatenate(norms).reshape(k * nt, 3, 3)
     uvs = None if run[0].uvs is None else np.broadcast_to(run[0].uvs, (k,) + run[0].uvs.shape).reshape(-1, 3, 2)
     material = np.broadcast_to(np.asarray(run[0].material, np.int32), (nt,))
-    if np.linalg.det(mats[0, :3, :3]) < 0:  # mirrored instances: winding turned back, as place_mesh does
+    if not run[0].right_handed:  # mirrored instances: winding turned back, as place_mesh does
         tris = tris[:, [0, 2, 1]]
         normals = None if normals is None else normals[:, [0, 2, 1]]
         uvs = None if uvs is None else uvs[:, [0, 2, 1]]
