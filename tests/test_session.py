@@ -254,3 +254,33 @@ def test_bad_edits_raise_clear_errors(session):
     session.close()
     with pytest.raises(RuntimeError, match="closed"):
         session.update_camera(session.scene.camera)
+
+
+def test_cancel_stops_the_embree_build():
+    """A cancel during set-up (Esc while a big scene builds) stops it: between objects, and inside Embree's own
+    build of one object's BVH (its progress monitor)."""
+    calls = []
+
+    def after(n):
+        def cancelled():
+            calls.append(1)
+            return len(calls) > n
+        return cancelled
+
+    with pytest.raises(tracer.RenderCancelled) as stop:
+        Session(build(), cancelled=after(1))
+    assert stop.value.image is None and len(calls) == 2
+    big = trimesh.creation.icosphere(subdivisions=6)  # 82 k triangles: Embree reports progress while building
+    b = SceneBuilder()
+    b.add_mesh(big.vertices, big.faces, name="big")
+    b.camera = Camera.look_at((0, -4, 0), (0, 0, 0), up=(0, 0, 1))
+    scene = b.build()
+    calls.clear()
+    with pytest.raises(tracer.RenderCancelled):  # one object: only Embree's progress monitor can stop it
+        Session(scene, cancelled=after(1))
+    assert len(calls) == 2
+    calls.clear()
+    with pytest.raises(tracer.RenderCancelled) as stop:  # tracer.render says it with an empty frame
+        tracer.render(scene, SETTINGS, cancelled=after(1))
+    assert stop.value.image.rgba.shape == (36, 48, 4) and not stop.value.image.rgba.any()
+    assert len(calls) == 2 and "bvh_seconds" in stop.value.image.stats

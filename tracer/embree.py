@@ -73,6 +73,10 @@ class EmbreeUnavailable(RuntimeError):
     """The Embree 4 library could not be found or loaded (the message lists where it was looked for)."""
 
 
+class BuildCancelled(RuntimeError):
+    """A BVH build was stopped because its ``cancelled`` callback returned True."""
+
+
 class EmbreeError(RuntimeError):
     """Embree reported an error through its error callback (``code`` is the RTCError value)."""
 
@@ -130,6 +134,8 @@ def find_library() -> str:
 
 # ---------------------------------------------------------------------------------------------- the library
 _ERROR_FUNC = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_int, ctypes.c_char_p)
+_PROGRESS_FUNC = ctypes.CFUNCTYPE(ctypes.c_bool, ctypes.c_void_p, ctypes.c_double)
+ERROR_CANCELLED = 6
 _P, _UI, _I, _S = ctypes.c_void_p, ctypes.c_uint, ctypes.c_int, ctypes.c_size_t
 _SIGNATURES = {  # name: (restype, argtypes)
     "rtcNewDevice": (_P, [ctypes.c_char_p]),
@@ -142,6 +148,7 @@ _SIGNATURES = {  # name: (restype, argtypes)
     "rtcSetSceneFlags": (None, [_P, _I]),
     "rtcSetSceneBuildQuality": (None, [_P, _I]),
     "rtcCommitScene": (None, [_P]),
+    "rtcSetSceneProgressMonitorFunction": (None, [_P, _PROGRESS_FUNC, _P]),
     "rtcAttachGeometryByID": (None, [_P, _P, _UI]),
     "rtcAttachGeometry": (_UI, [_P, _P]),
     "rtcDetachGeometry": (None, [_P, _UI]),
@@ -272,9 +279,31 @@ class EmbreeScene:
             self._lib.call("rtcDetachGeometry", self.handle, int(geom_id))
             del self._geometries[int(geom_id)]
 
-    def commit(self) -> None:
-        """Build (or update) the BVH: only geometries changed since the last commit are rebuilt."""
-        self._lib.call("rtcCommitScene", self.handle)
+    def commit(self, cancelled=None) -> None:
+        """Build (or update) the BVH: only geometries changed since the last commit are rebuilt.
+
+        ``cancelled``: a callable Embree polls while it builds (its progress monitor, on its build threads); True
+        stops the build and raises :class:`BuildCancelled` (the scene is then left uncommitted)."""
+        if cancelled is None:
+            self._lib.call("rtcCommitScene", self.handle)
+            return
+
+        def progress(_ptr, _fraction):
+            try:
+                return not cancelled()
+            except Exception:  # an exception cannot cross Embree's frames: treat it as "go on"
+                return True
+
+        monitor = _PROGRESS_FUNC(progress)
+        self._lib.lib.rtcSetSceneProgressMonitorFunction(self.handle, monitor, None)
+        try:
+            self._lib.call("rtcCommitScene", self.handle)
+        except EmbreeError as exc:
+            if exc.code == ERROR_CANCELLED:
+                raise BuildCancelled("Embree build cancelled") from None
+            raise
+        finally:
+            self._lib.lib.rtcSetSceneProgressMonitorFunction(self.handle, _PROGRESS_FUNC(0), None)
 
     def bounds(self) -> np.ndarray:
         b = np.zeros(8, np.float32)

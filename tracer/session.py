@@ -38,6 +38,7 @@ import warnings
 import numpy as np
 
 from .accel import Accelerator
+from .embree import BuildCancelled
 from .builder import place_mesh
 from .camera import Camera
 from .environment import Environment
@@ -60,10 +61,12 @@ class Session:
     ``instanced``: every object an Embree instance of its own mesh (edits touch only that object; the default),
     or one flat BVH over all triangles (a little faster to trace, but every geometry edit rebuilds it all: what
     the one-off :func:`tracer.render` uses). ``accel``: an already built :class:`~tracer.accel.Accelerator`.
+    ``cancelled``: polled while the Embree scene is built (between objects and inside Embree's builds); True
+    stops the construction with :class:`tracer.RenderCancelled` (its ``image`` is None).
     """
 
     def __init__(self, scene: Scene, *, quality: str = "medium", instanced: bool = True,
-                 accel: Accelerator | None = None):
+                 accel: Accelerator | None = None, cancelled=None):
         if not isinstance(scene, Scene):
             raise TypeError(f"Session expects a tracer.Scene, got {type(scene).__name__}")
         start = time.perf_counter()
@@ -74,7 +77,14 @@ class Session:
         self.quality = quality
         self._lock = threading.Lock()
         self._integrators: dict = {}  # settings key -> Integrator (packed tables), dropped by edits
-        self._accel = accel if accel is not None else Accelerator(self._scene, quality=quality, instanced=instanced)
+        if accel is None:
+            try:
+                accel = Accelerator(self._scene, quality=quality, instanced=instanced, cancelled=cancelled)
+            except BuildCancelled:
+                from .render import RenderCancelled
+
+                raise RenderCancelled(None) from None
+        self._accel = accel
         self._geometry = _Objects(self._scene, self._accel)
         self.stats = {"build_seconds": time.perf_counter() - start, "last_edit": None}
         self._closed = False
