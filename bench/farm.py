@@ -1,5 +1,6 @@
-"""``python -m bench.farm``: the Dask farm on this machine — frames/s on local:1 vs local:2, per-task overhead, and
-the client's cost per frame (transfer + write), measured in one run. Numbers go to docs/benchmarks.md.
+"""``python -m bench.farm``: the Dask farm on this machine — frames/s on local:1 vs local:2 (workers writing their
+frames, as --worker-writes), per-task overhead, and what a client-written frame costs the client (receive + PNG
+encode), measured in one run. Numbers go to docs/benchmarks.md.
 
 Each task renders with one thread so the worker count is the only parallelism being compared.
 """
@@ -39,19 +40,25 @@ def frames_per_second(n_workers, frames, width, spp, out_dir):
         # Warm every worker (imports, kernel cache load, stage open) outside the timed run, as a farm would be.
         list(render_frames(client, UsdSource(path=SCENE, width=16, settings=dict(threads=1)),
                            [float(f) for f in range(n_workers * 2)]))
+        from usd_io.farm import WriteFrames
+
+        # Throughput as a farm should run: the workers write their frames (--worker-writes).
         start = time.perf_counter()
-        write = 0.0
-        for res in render_frames(client, source, [float(f) for f in range(frames)]):
-            t = time.perf_counter()
-            res.image.save(os.path.join(out_dir, f"f{int(res.frame):04d}.png"))
-            write += time.perf_counter() - t
+        list(render_frames(client, source, [float(f) for f in range(frames)],
+                           write=WriteFrames(os.path.join(out_dir, "f.####.png"), True)))
         elapsed = time.perf_counter() - start
+        # What a client-written frame costs the client (receive + encode), measured separately.
+        write = 0.0
+        for res in render_frames(client, source, [0.0, 1.0]):
+            t = time.perf_counter()
+            res.image.save(os.path.join(out_dir, f"c{int(res.frame):04d}.png"))
+            write += time.perf_counter() - t
         # Per-task overhead: round trips of empty tasks through the scheduler.
         n = 400
         t = time.perf_counter()
         client.gather(client.map(_noop, range(n), pure=False))
         overhead = (time.perf_counter() - t) / n
-        return frames / elapsed, overhead, write / frames
+        return frames / elapsed, overhead, write / 2
     finally:
         client.close()
         cluster.close()

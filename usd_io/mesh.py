@@ -112,6 +112,8 @@ class MeshData:
     normals: np.ndarray | None = None  # (T, 3, 3) or (V, 3)
     uvs: np.ndarray | None = None  # (T, 3, 2)
     warnings: list = field(default_factory=list)
+    corners: np.ndarray | None = None  # (T, 3) face-vertex positions, to expand further primvars (materials)
+    n_face_vertices: int = 0
 
 
 def _primvar(prim, name):
@@ -160,8 +162,9 @@ def read_mesh(prim, time, uv_name="st", subdivision_level: int = COMPLEXITY[DEFA
         return _subdivided(prim, mesh, points, counts, indices, holes, left, scheme, subdivision_level, time,
                            uv_name, label)
     tri = triangulate(counts, indices, len(points), holes, left, label)
-    data = MeshData(points, tri.triangles, tri.faces, tri.n_faces, warnings=list(tri.warnings))
     n_fv = len(indices)
+    data = MeshData(points, tri.triangles, tri.faces, tri.n_faces, warnings=list(tri.warnings),
+                    corners=tri.corners, n_face_vertices=n_fv)
 
     # Normals: primvars:normals wins over the normals attribute (UsdGeom rule).
     pv = _primvar(prim, "normals")
