@@ -21,8 +21,9 @@ What is used of the API, with the layouts of ``include/embree4/rtcore_*.h`` (Emb
   ``RTCIntersectArguments`` nor the context's layout is ours to keep in step with the library.
 
 The kernels (:func:`intersect_rays`, :func:`occluded_rays`) call ``rtcIntersect8`` / ``rtcOccluded8`` as numba
-external functions bound by symbol name (the library is loaded into LLVM's symbol table first), so they compile
-once and are cached on disk like every other kernel; the scene handle and struct pointers are passed as
+external functions, through LLVM symbols of our own names (``whitted_embree_rtcIntersect8``, ...) that the loader
+binds to this library's function addresses — never through the plain ``rtc*`` names, which inside Blender resolve
+to Blender's own Embree — so they compile once and are cached on disk like every other kernel; the scene handle and struct pointers are passed as
 pointer-sized integers (the same registers as pointers on every 64-bit ABI Embree supports).
 
 Errors: Embree's error callback records each error; every call made through this module checks the record and
@@ -164,6 +165,11 @@ _SIGNATURES = {  # name: (restype, argtypes)
 }
 
 
+#: Embree functions the kernels call, and the prefix of the LLVM symbols they are bound to.
+_KERNEL_FUNCTIONS = ("rtcIntersect8", "rtcOccluded8")
+_KERNEL_PREFIX = "whitted_embree_"
+
+
 class _Library:
     """The loaded library, its one device, and the error record the callback fills."""
 
@@ -181,10 +187,13 @@ class _Library:
             except AttributeError as exc:
                 raise EmbreeUnavailable(f"{path} is not an Embree 4 library (no {name})") from exc
             fn.restype, fn.argtypes = res, args
-        # Kernels call rtcIntersect1/rtcOccluded1 by symbol name: put the library in LLVM's symbol table.
+        # Kernels call rtcIntersect8/rtcOccluded8 through LLVM symbols of our own names bound to this library's
+        # functions: not the plain rtc* names, which the process may already resolve to another Embree (Blender's
+        # bpy module links its own libembree4; calling its rtcIntersect8 on our scene would crash).
         import llvmlite.binding as llvm
 
-        llvm.load_library_permanently(path)
+        for name in _KERNEL_FUNCTIONS:
+            llvm.add_symbol(_KERNEL_PREFIX + name, ctypes.cast(getattr(self.lib, name), ctypes.c_void_p).value)
         self._errors: list = []
         self._errors_lock = threading.Lock()
         self.device = self.lib.rtcNewDevice(None)
@@ -404,8 +413,10 @@ RAY8_WORDS = 96  # sizeof(RTCRay8) / 4
 RAYHIT8_WORDS = 168  # sizeof(RTCRayHit8) / 4 (RTCHit8: Ng xyz, u, v, primID, geomID, instID[1], instPrimID[1])
 
 # void rtcIntersect8(const int* valid, RTCScene, RTCRayHit8*, RTCIntersectArguments*); rtcOccluded8 alike.
-_rtcIntersect8 = types.ExternalFunction("rtcIntersect8", types.void(types.intp, types.intp, types.intp, types.intp))
-_rtcOccluded8 = types.ExternalFunction("rtcOccluded8", types.void(types.intp, types.intp, types.intp, types.intp))
+_rtcIntersect8 = types.ExternalFunction(_KERNEL_PREFIX + "rtcIntersect8",
+                                        types.void(types.intp, types.intp, types.intp, types.intp))
+_rtcOccluded8 = types.ExternalFunction(_KERNEL_PREFIX + "rtcOccluded8",
+                                       types.void(types.intp, types.intp, types.intp, types.intp))
 
 
 @kernel(inline=True)

@@ -165,15 +165,9 @@ def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None
     record = bool(settings.extra.get("record_rays"))
     if record:
         accel = Accelerator(scene, record=True)
-    try:
-        session = Session(scene, accel=accel, instanced=False, cancelled=cancelled)
-    except RenderCancelled:  # during the Embree build: an empty frame, as a cancel before the first tile gives
-        image = Image(rgba=np.zeros((settings.height, settings.width, 4), np.float32),
-                      aovs=empty_aovs(settings, settings.height, settings.width))
-        image.stats = {"rays": RayCounts().as_dict(), "seconds": time.perf_counter() - start, "bvh_seconds": 0.0,
-                       "threads": settings.threads or os.cpu_count() or 1, "rays_per_second": 0.0,
-                       "triangles": len(scene.triangles), "intersect_seconds": 0.0}
-        raise RenderCancelled(image) from None
+    # ``cancelled`` is polled between tiles and depths only, as it always was: a front end that wants Esc to stop
+    # the Embree build too makes a tracer.Session(scene, cancelled=...) itself (and then has no tile to show).
+    session = Session(scene, accel=accel, instanced=False)
     try:
         return render_session(session, settings, on_tile=on_tile, cancelled=cancelled, started=start)
     finally:
