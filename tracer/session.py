@@ -260,6 +260,9 @@ class _Objects:
         self._base = scene.object_transforms  # the matrices of the scene the session was made from (or None)
         self._transforms: dict[int, np.ndarray] = {}  # objects moved or replaced since: their matrix now
         self._built: dict[int, np.ndarray] = {}  # ... and the one their Embree geometry's vertices have
+        self._owned: set[str] = set()  # scene arrays the session has copied and may now write in place
+        self._rows: dict[int, np.ndarray] = {}  # object id -> its rows (cached until rows move)
+        self._vidx: dict[int, np.ndarray] = {}  # object id -> the vertices only it uses (cached likewise)
 
     def _base_transform(self, object_id: int) -> np.ndarray:
         b = self._base
@@ -270,10 +273,33 @@ class _Objects:
         return m if m is not None else self._base_transform(object_id)
 
     def require(self, object_id: int) -> np.ndarray:
-        rows = np.flatnonzero(self.scene.object_ids == object_id)
-        if not len(rows):
-            raise KeyError(f"object {object_id} has no triangles in this session")
+        """The rows of object ``object_id`` (KeyError if it has none)."""
+        rows = self._rows.get(object_id)
+        if rows is None:
+            rows = np.flatnonzero(self.scene.object_ids == object_id)
+            if not len(rows):
+                raise KeyError(f"object {object_id} has no triangles in this session")
+            self._rows[object_id] = rows
         return rows
+
+    def _vertices_of(self, object_id: int, rows) -> np.ndarray:
+        """The vertices only object ``object_id`` uses (shared ones are split off first; cached until rows move)."""
+        vidx = self._vidx.get(object_id)
+        if vidx is None:
+            n_v = len(self.scene.vertices)
+            vidx = _own_vertices(self.scene, rows)
+            if len(self.scene.vertices) != n_v:  # vertices were split off: both arrays are new, and ours
+                self._owned.update(("vertices", "triangles"))
+            self._vidx[object_id] = vidx
+        return vidx
+
+    def _writable(self, name: str) -> np.ndarray:
+        """The scene array ``name``, copied the first time the session writes to it (the arrays of the scene the
+        session was made from are never written), then edited in place."""
+        if name not in self._owned:
+            setattr(self.scene, name, np.array(getattr(self.scene, name)))
+            self._owned.add(name)
+        return getattr(self.scene, name)
 
     def next_object_id(self) -> int:
         s = self.scene
@@ -296,17 +322,16 @@ class _Objects:
             self._transforms[object_id] = matrix
             self.replace(object_id, mesh, placed_with=matrix, extra=extra)
             return
-        vidx = _own_vertices(s, rows)
-        v = s.vertices.copy()
+        vidx = self._vertices_of(object_id, rows)
+        v = self._writable("vertices")
         v[vidx] = (v[vidx].astype(np.float64) @ rel[:3, :3].T + rel[:3, 3]).astype(np.float32)
-        s.vertices = v
-        if s.normals is not None:
-            nm = np.linalg.inv(rel[:3, :3]).T
-            n = s.normals.copy()
-            moved = n[rows].astype(np.float64) @ nm.T
-            ln = np.linalg.norm(moved, axis=-1, keepdims=True)
-            n[rows] = np.where(ln > 0, moved / np.where(ln > 0, ln, 1), 0).astype(np.float32)
-            s.normals = n
+        if s.normals is not None:  # by the inverse transpose, renormalised (zero = unusable stays zero)
+            n = self._writable("normals")
+            span = slice(rows[0], rows[-1] + 1) if rows[-1] - rows[0] + 1 == len(rows) else rows
+            moved = n[span] @ np.linalg.inv(rel[:3, :3]).astype(np.float32)  # n @ (M^-T)^T = n @ M^-1
+            length = np.sqrt(np.einsum("rki,rki->rk", moved, moved))[..., None]
+            moved /= np.where(length > 0, length, np.float32(1))
+            n[span] = moved
         s._bounds = None
         self._transforms[object_id] = matrix
         self._sync_transforms()
@@ -336,6 +361,10 @@ class _Objects:
             nt, tris, verts = 0, s.triangles[keep], s.vertices
         for field_name, fill in PER_TRIANGLE.items():
             setattr(s, field_name, _splice(getattr(s, field_name), rows.get(field_name), keep, at, nt, fill))
+            self._owned.add(field_name)
+        self._owned.update(("vertices", "triangles"))  # new arrays below
+        self._rows.clear()  # rows moved, vertices renumbered
+        self._vidx.clear()
         # Drop the vertices no triangle uses any more (the replaced object's), renumbering the rest.
         used = np.zeros(len(verts), bool)
         used[tris.ravel()] = True
