@@ -156,20 +156,24 @@ def test_a_library_that_is_not_embree_4_is_refused():
         embree._Library(__file__)
 
 
-def test_rayhit_layout_is_96_bytes():
-    """The kernels' word offsets agree with the header's struct (checked with ctypes, which lays out C structs)."""
+def test_packet_layout_matches_the_header():
+    """The kernels' word offsets agree with RTCRayHit8 as rtcore_ray.h declares it (laid out by ctypes)."""
+    lanes = lambda t: t * embree.PACKET  # noqa: E731
 
-    class RTCRay(ctypes.Structure):
-        _fields_ = [(n, ctypes.c_float) for n in ("org_x", "org_y", "org_z", "tnear", "dir_x", "dir_y", "dir_z",
-                                                   "time", "tfar")] + [(n, ctypes.c_uint) for n in ("mask", "id",
-                                                                                                    "flags")]
+    class RTCRay8(ctypes.Structure):
+        _fields_ = ([(n, lanes(ctypes.c_float)) for n in ("org_x", "org_y", "org_z", "tnear", "dir_x", "dir_y",
+                                                           "dir_z", "time", "tfar")]
+                    + [(n, lanes(ctypes.c_uint)) for n in ("mask", "id", "flags")])
 
-    class RTCHit(ctypes.Structure):
-        _fields_ = ([(n, ctypes.c_float) for n in ("Ng_x", "Ng_y", "Ng_z", "u", "v")]
-                    + [(n, ctypes.c_uint) for n in ("primID", "geomID")]
-                    + [("instID", ctypes.c_uint * 1), ("instPrimID", ctypes.c_uint * 1), ("_pad", ctypes.c_uint * 3)])
+    class RTCHit8(ctypes.Structure):  # RTC_MAX_INSTANCE_LEVEL_COUNT = 1, RTC_GEOMETRY_INSTANCE_ARRAY on
+        _fields_ = ([(n, lanes(ctypes.c_float)) for n in ("Ng_x", "Ng_y", "Ng_z", "u", "v")]
+                    + [(n, lanes(ctypes.c_uint)) for n in ("primID", "geomID")]
+                    + [("instID", lanes(ctypes.c_uint) * 1), ("instPrimID", lanes(ctypes.c_uint) * 1)])
 
-    assert ctypes.sizeof(RTCRay) == 4 * embree.RAY_WORDS == 48
-    assert ctypes.sizeof(RTCRay) + ctypes.sizeof(RTCHit) == 4 * embree.RAYHIT_WORDS == 96
-    assert RTCRay.tfar.offset == 4 * embree._TFAR and RTCHit.u.offset + 48 == 4 * embree._U
-    assert RTCHit.primID.offset + 48 == 4 * embree._PRIM and RTCHit.instID.offset + 48 == 4 * embree._INST
+    assert ctypes.sizeof(RTCRay8) == 4 * embree.RAY8_WORDS and ctypes.sizeof(RTCHit8) % 32 == 0
+    assert ctypes.sizeof(RTCRay8) + ctypes.sizeof(RTCHit8) == 4 * embree.RAYHIT8_WORDS
+    hit = lambda f: (ctypes.sizeof(RTCRay8) + getattr(RTCHit8, f).offset) // 4  # noqa: E731
+    assert (RTCRay8.tnear.offset // 4, RTCRay8.tfar.offset // 4, RTCRay8.mask.offset // 4) == (
+        embree._P_TNEAR, embree._P_TFAR, embree._P_MASK)
+    assert (hit("u"), hit("v"), hit("primID"), hit("geomID"), hit("instID")) == (
+        embree._P_U, embree._P_V, embree._P_PRIM, embree._P_GEOM, embree._P_INST)

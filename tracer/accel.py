@@ -39,10 +39,12 @@ class Accelerator:
     ``quality``: Embree build quality of the objects' BVHs ("low" | "medium" | "high"). ``instanced``: the layout
     (see the module docstring). ``seconds`` accumulates the wall time spent inside Embree queries (summed over
     threads). With ``record=True`` every batch is kept in ``batches`` as (query, origins, directions, t_max), so a
-    benchmark can replay exactly the rays the integrator traced.
+    benchmark can replay exactly the rays the integrator traced. ``cancelled``: polled between objects and during
+    each BVH build; True stops the set-up with :class:`tracer.embree.BuildCancelled`.
     """
 
-    def __init__(self, scene: Scene, record: bool = False, quality: str = "medium", instanced: bool = False):
+    def __init__(self, scene: Scene, record: bool = False, quality: str = "medium", instanced: bool = False,
+                 cancelled=None):
         if quality not in embree.BUILD_QUALITY or quality == "refit":
             raise ValueError(f"quality must be 'low', 'medium' or 'high', got {quality!r}")
         start = time.perf_counter()
@@ -54,6 +56,7 @@ class Accelerator:
         self._lock = threading.Lock()
         self._top = embree.EmbreeScene("medium" if instanced else quality, embree.SCENE_FLAG_ROBUST)
         self._objects: dict[int, _Object] = {}
+        self._cancelled = cancelled
         self.triangle_count = len(scene.triangles)
         if self.triangle_count:
             # One padded copy of each array (Embree reads past the last element); every object's geometry reads
@@ -67,9 +70,12 @@ class Accelerator:
             starts = np.searchsorted(sorted_ids, present)
             ends = np.searchsorted(sorted_ids, present, side="right")
             for oid, s, e in zip(present.tolist(), starts.tolist(), ends.tolist()):
+                if cancelled is not None and cancelled():
+                    raise embree.BuildCancelled("Embree set-up cancelled")
                 self._add(oid, self._vertices, self._triangles[s:e])
         self.set_rows(scene.object_ids, commit=False)
-        self._top.commit()
+        self._top.commit(cancelled)
+        self._cancelled = None  # only the set-up is cancellable: edits are short
         self.build_seconds = time.perf_counter() - start
 
     # ---------------------------------------------------------------------------------------------- queries
@@ -171,7 +177,7 @@ class Accelerator:
     def _instance_of(self, geometry):
         mesh = embree.EmbreeScene(self.quality, embree.SCENE_FLAG_ROBUST)
         mesh.attach(geometry, 0)
-        mesh.commit()
+        mesh.commit(self._cancelled)
         return _Object(geometry, mesh, embree.InstanceGeometry(mesh))
 
     def _account(self, start, query, o, d, t_max):

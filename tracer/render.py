@@ -23,7 +23,8 @@ from .settings import RAY_TYPE_AOVS, RenderSettings
 
 
 class RenderCancelled(Exception):
-    """Raised by :func:`render` when its ``cancelled`` callback returned True; carries the partial image."""
+    """Raised by :func:`render` when its ``cancelled`` callback returned True; carries the partial image (None if
+    it came before any pixel, while the Embree scene was being built)."""
 
     def __init__(self, image: Image):
         super().__init__("render cancelled")
@@ -164,6 +165,8 @@ def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None
     record = bool(settings.extra.get("record_rays"))
     if record:
         accel = Accelerator(scene, record=True)
+    # ``cancelled`` is polled between tiles and depths only, as it always was: a front end that wants Esc to stop
+    # the Embree build too makes a tracer.Session(scene, cancelled=...) itself (and then has no tile to show).
     session = Session(scene, accel=accel, instanced=False)
     try:
         return render_session(session, settings, on_tile=on_tile, cancelled=cancelled, started=start)

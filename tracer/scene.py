@@ -19,6 +19,11 @@ from .materials import Materials
 #: Triangles whose area is at most this fraction of the squared bounding-box diagonal are degenerate and skipped.
 DEGENERATE_AREA = 1e-14
 
+#: The Scene fields that hold one row per triangle (row i belongs to ``triangles[i]``; list-valued ones are lists
+#: of such arrays), with the value a row without such data gets. tracer.Session's mesh edits keep every one of
+#: these in step with the triangles; a new per-triangle field belongs here.
+PER_TRIANGLE = {"material_ids": 0, "object_ids": 0, "normals": 0.0, "uvs": 0.0}
+
 
 def unit_normals(normals: np.ndarray) -> np.ndarray:
     """Per-corner shading normals scaled to unit length; unusable ones (zero, NaN) become zeros, which the

@@ -38,13 +38,14 @@ import warnings
 import numpy as np
 
 from .accel import Accelerator
+from .embree import BuildCancelled
 from .builder import place_mesh
 from .camera import Camera
 from .environment import Environment
 from .film import Image
 from .lights import AreaLight, DistantLight, PointLight, SpotLight
 from .materials import Materials
-from .scene import Scene, non_degenerate, unit_normals
+from .scene import PER_TRIANGLE, Scene, non_degenerate, unit_normals
 from .settings import RenderSettings
 
 #: Sentinel for ``update_world`` arguments that stay as they are.
@@ -60,10 +61,12 @@ class Session:
     ``instanced``: every object an Embree instance of its own mesh (edits touch only that object; the default),
     or one flat BVH over all triangles (a little faster to trace, but every geometry edit rebuilds it all: what
     the one-off :func:`tracer.render` uses). ``accel``: an already built :class:`~tracer.accel.Accelerator`.
+    ``cancelled``: polled while the Embree scene is built (between objects and inside Embree's builds); True
+    stops the construction with :class:`tracer.RenderCancelled` (its ``image`` is None).
     """
 
     def __init__(self, scene: Scene, *, quality: str = "medium", instanced: bool = True,
-                 accel: Accelerator | None = None):
+                 accel: Accelerator | None = None, cancelled=None):
         if not isinstance(scene, Scene):
             raise TypeError(f"Session expects a tracer.Scene, got {type(scene).__name__}")
         start = time.perf_counter()
@@ -74,7 +77,14 @@ class Session:
         self.quality = quality
         self._lock = threading.Lock()
         self._integrators: dict = {}  # settings key -> Integrator (packed tables), dropped by edits
-        self._accel = accel if accel is not None else Accelerator(self._scene, quality=quality, instanced=instanced)
+        if accel is None:
+            try:
+                accel = Accelerator(self._scene, quality=quality, instanced=instanced, cancelled=cancelled)
+            except BuildCancelled:
+                from .render import RenderCancelled
+
+                raise RenderCancelled(None) from None
+        self._accel = accel
         self._geometry = _Objects(self._scene, self._accel)
         self.stats = {"build_seconds": time.perf_counter() - start, "last_edit": None}
         self._closed = False
@@ -250,6 +260,9 @@ class _Objects:
         self._base = scene.object_transforms  # the matrices of the scene the session was made from (or None)
         self._transforms: dict[int, np.ndarray] = {}  # objects moved or replaced since: their matrix now
         self._built: dict[int, np.ndarray] = {}  # ... and the one their Embree geometry's vertices have
+        self._owned: set[str] = set()  # scene arrays the session has copied and may now write in place
+        self._rows: dict[int, np.ndarray] = {}  # object id -> its rows (cached until rows move)
+        self._vidx: dict[int, np.ndarray] = {}  # object id -> the vertices only it uses (cached likewise)
 
     def _base_transform(self, object_id: int) -> np.ndarray:
         b = self._base
@@ -260,10 +273,33 @@ class _Objects:
         return m if m is not None else self._base_transform(object_id)
 
     def require(self, object_id: int) -> np.ndarray:
-        rows = np.flatnonzero(self.scene.object_ids == object_id)
-        if not len(rows):
-            raise KeyError(f"object {object_id} has no triangles in this session")
+        """The rows of object ``object_id`` (KeyError if it has none)."""
+        rows = self._rows.get(object_id)
+        if rows is None:
+            rows = np.flatnonzero(self.scene.object_ids == object_id)
+            if not len(rows):
+                raise KeyError(f"object {object_id} has no triangles in this session")
+            self._rows[object_id] = rows
         return rows
+
+    def _vertices_of(self, object_id: int, rows) -> np.ndarray:
+        """The vertices only object ``object_id`` uses (shared ones are split off first; cached until rows move)."""
+        vidx = self._vidx.get(object_id)
+        if vidx is None:
+            n_v = len(self.scene.vertices)
+            vidx = _own_vertices(self.scene, rows)
+            if len(self.scene.vertices) != n_v:  # vertices were split off: both arrays are new, and ours
+                self._owned.update(("vertices", "triangles"))
+            self._vidx[object_id] = vidx
+        return vidx
+
+    def _writable(self, name: str) -> np.ndarray:
+        """The scene array ``name``, copied the first time the session writes to it (the arrays of the scene the
+        session was made from are never written), then edited in place."""
+        if name not in self._owned:
+            setattr(self.scene, name, np.array(getattr(self.scene, name)))
+            self._owned.add(name)
+        return getattr(self.scene, name)
 
     def next_object_id(self) -> int:
         s = self.scene
@@ -280,20 +316,22 @@ class _Objects:
             mesh = place_mesh(v, t, s.material_ids[rows], transform=rel,
                               normals=None if s.normals is None else s.normals[rows],
                               uvs=None if s.uvs is None else s.uvs[rows], label=s.object_name(object_id))
+            # Any other per-triangle data of these rows goes along, corners turned as place_mesh turned them.
+            extra = {f: _rows_of(getattr(s, f), rows, mirrored=True) for f in PER_TRIANGLE
+                     if f not in ("material_ids", "object_ids", "normals", "uvs")}
             self._transforms[object_id] = matrix
-            self.replace(object_id, mesh, placed_with=matrix)
+            self.replace(object_id, mesh, placed_with=matrix, extra=extra)
             return
-        vidx = _own_vertices(s, rows)
-        v = s.vertices.copy()
+        vidx = self._vertices_of(object_id, rows)
+        v = self._writable("vertices")
         v[vidx] = (v[vidx].astype(np.float64) @ rel[:3, :3].T + rel[:3, 3]).astype(np.float32)
-        s.vertices = v
-        if s.normals is not None:
-            nm = np.linalg.inv(rel[:3, :3]).T
-            n = s.normals.copy()
-            moved = n[rows].astype(np.float64) @ nm.T
-            ln = np.linalg.norm(moved, axis=-1, keepdims=True)
-            n[rows] = np.where(ln > 0, moved / np.where(ln > 0, ln, 1), 0).astype(np.float32)
-            s.normals = n
+        if s.normals is not None:  # by the inverse transpose, renormalised (zero = unusable stays zero)
+            n = self._writable("normals")
+            span = slice(rows[0], rows[-1] + 1) if rows[-1] - rows[0] + 1 == len(rows) else rows
+            moved = n[span] @ np.linalg.inv(rel[:3, :3]).astype(np.float32)  # n @ (M^-T)^T = n @ M^-1
+            length = np.sqrt(np.einsum("rki,rki->rk", moved, moved))[..., None]
+            moved /= np.where(length > 0, length, np.float32(1))
+            n[span] = moved
         s._bounds = None
         self._transforms[object_id] = matrix
         self._sync_transforms()
@@ -301,39 +339,32 @@ class _Objects:
         built = built if built is not None else self._base_transform(object_id)
         self.accel.set_transform(object_id, matrix @ np.linalg.inv(built))
 
-    def replace(self, object_id: int, mesh, name: str | None = None, placed_with=None) -> None:
-        """Object ``object_id``'s rows become ``mesh`` (a :func:`place_mesh` result; None: no triangles). Its new
-        rows go where its old ones began (the end for a new object), so the row order stays that of a scene built
-        afresh in the same object order."""
+    def replace(self, object_id: int, mesh, name: str | None = None, placed_with=None, extra=None) -> None:
+        """Object ``object_id``'s rows become ``mesh`` (a :func:`place_mesh` result; None: no triangles) and
+        ``extra`` (per-triangle fields of ``PER_TRIANGLE`` that place_mesh does not make, e.g. the old rows' data of
+        a re-placed mesh). Its new rows go where its old ones began (the end for a new object), so the row order
+        stays that of a scene built afresh in the same object order."""
         s = self.scene
         old = s.object_ids == object_id
-        at = int(np.argmax(old)) if old.any() else len(old)
-        at -= int(np.count_nonzero(old[:at]))  # (rows before `at` that are removed: none when contiguous)
+        at = int(np.argmax(old)) if old.any() else len(old)  # where its rows began (the end if it had none)
         keep = ~old
         n_v = len(s.vertices)
-        parts = {}
+        rows = dict(extra or {})
         if mesh is not None:
-            mesh = _clean(mesh, s)
+            mesh, rows = _clean(mesh, s, rows)
             nt = len(mesh.triangles)
-            parts = dict(triangles=mesh.triangles + n_v, material_ids=mesh.material_ids,
-                         object_ids=np.full(nt, object_id, np.int32), normals=mesh.normals, uvs=mesh.uvs)
+            rows.update(material_ids=mesh.material_ids, object_ids=np.full(nt, object_id, np.int32),
+                        normals=mesh.normals, uvs=mesh.uvs)
+            tris = np.concatenate([s.triangles[keep][:at], mesh.triangles + n_v, s.triangles[keep][at:]])
             verts = np.concatenate([s.vertices, mesh.vertices]).astype(np.float32)
         else:
-            nt, verts = 0, s.vertices
-
-        def splice(a, b, fill_shape):
-            if a is None and (b is None or mesh is None):
-                return None
-            a = np.zeros((len(keep),) + fill_shape, np.float32) if a is None else a
-            b = np.zeros((nt,) + fill_shape, np.float32) if b is None else b
-            kept = a[keep]
-            return np.ascontiguousarray(np.concatenate([kept[:at], b.astype(kept.dtype), kept[at:]]))
-
-        tris = splice(s.triangles, parts.get("triangles", np.zeros((0, 3), np.int32)), (3,))
-        s.material_ids = splice(s.material_ids, parts.get("material_ids", np.zeros(0, np.int32)), ())
-        s.object_ids = splice(s.object_ids, parts.get("object_ids", np.zeros(0, np.int32)), ())
-        s.normals = splice(s.normals, parts.get("normals"), (3, 3)) if (s.normals is not None or parts.get("normals") is not None) else None
-        s.uvs = splice(s.uvs, parts.get("uvs"), (3, 2)) if (s.uvs is not None or parts.get("uvs") is not None) else None
+            nt, tris, verts = 0, s.triangles[keep], s.vertices
+        for field_name, fill in PER_TRIANGLE.items():
+            setattr(s, field_name, _splice(getattr(s, field_name), rows.get(field_name), keep, at, nt, fill))
+            self._owned.add(field_name)
+        self._owned.update(("vertices", "triangles"))  # new arrays below
+        self._rows.clear()  # rows moved, vertices renumbered
+        self._vidx.clear()
         # Drop the vertices no triangle uses any more (the replaced object's), renumbering the rest.
         used = np.zeros(len(verts), bool)
         used[tris.ravel()] = True
@@ -369,22 +400,51 @@ class _Objects:
         self.scene.object_transforms = out
 
 
-def _clean(mesh, scene: Scene):
-    """A placed mesh as :meth:`Scene.validate` would leave it: unit corner normals, finite uvs, degenerate
-    triangles dropped (with the scene's one warning)."""
+def _splice(current, new, keep, at, n_new, fill):
+    """One per-triangle field after an object's rows changed: the kept rows, with ``new`` (``n_new`` rows, or
+    ``fill`` where None) inserted at ``at``. List-valued fields (several arrays) are spliced array by array."""
+    if isinstance(current, list):
+        new = new if isinstance(new, list) else [None] * len(current)
+        return [_splice(c, n, keep, at, n_new, fill) for c, n in zip(current, new + [None] * len(current))]
+    if current is None and new is None:
+        return None
+    if new is not None and n_new == 0:
+        new = None
+    if current is None:
+        current = np.full((len(keep),) + np.shape(new)[1:], fill, np.asarray(new).dtype)
+    if new is None:
+        new = np.full((n_new,) + current.shape[1:], fill, current.dtype)
+    kept = current[keep]
+    return np.ascontiguousarray(np.concatenate([kept[:at], np.asarray(new, kept.dtype), kept[at:]]))
+
+
+def _rows_of(field, rows, mirrored=False):
+    """The given rows of a per-triangle field (list-valued: of each array), corners 1 and 2 swapped if mirrored."""
+    if field is None:
+        return None
+    if isinstance(field, list):
+        return [_rows_of(f, rows, mirrored) for f in field]
+    part = field[rows]
+    return part[:, [0, 2, 1]] if mirrored and part.ndim >= 2 and part.shape[1] == 3 else part
+
+
+def _clean(mesh, scene: Scene, extra: dict):
+    """A placed mesh (and its ``extra`` per-triangle rows) as :meth:`Scene.validate` would leave it: unit corner
+    normals, finite uvs, degenerate triangles dropped (with the scene's one warning)."""
     normals = None if mesh.normals is None else unit_normals(mesh.normals)
     uvs = None if mesh.uvs is None else np.ascontiguousarray(np.nan_to_num(mesh.uvs, nan=0, posinf=0, neginf=0))
     lo, hi = scene.bounds
     if len(mesh.vertices):
         lo, hi = np.minimum(lo, mesh.vertices.min(axis=0)), np.maximum(hi, mesh.vertices.max(axis=0))
     keep = non_degenerate(mesh.vertices, mesh.triangles, float(np.linalg.norm(hi - lo)))
+    mesh = mesh._replace(normals=normals, uvs=uvs)
     if not keep.all():
         warnings.warn(f"scene: skipped {int((~keep).sum())} degenerate (zero-area) triangle(s)", stacklevel=4)
         scene.skipped_triangles += int((~keep).sum())
         mesh = mesh._replace(triangles=mesh.triangles[keep], material_ids=mesh.material_ids[keep],
                              normals=None if normals is None else normals[keep], uvs=None if uvs is None else uvs[keep])
-        return mesh
-    return mesh._replace(normals=normals, uvs=uvs)
+        extra = {k: _rows_of(v, keep) for k, v in extra.items()}
+    return mesh, extra
 
 
 def _object_mesh(s: Scene, rows):
