@@ -94,6 +94,7 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
         if not persistent:
             self._drop_final_session()
         sync_stats = None
+        stage = "export"
         try:
             settings = export.settings_from_scene(bpy_scene, view_layer=depsgraph.view_layer)
             if self.is_preview:
@@ -109,18 +110,24 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
                                                 cancelled=cancelled)
                 if cancelled():
                     raise export.ExportCancelled("export cancelled")
-                self._final_session = sync.apply_edits(self._final_session, edits, quality="medium")
-                scene, warnings = self._final_session.scene, self._final_sync.warnings
-                pass_indices = self._final_sync.pass_indices
+                stage = "build"
+                self._final_session = sync.apply_edits(self._final_session, edits, quality="medium",
+                                                       cancelled=cancelled)
+                session = self._final_session
+                warnings, pass_indices = self._final_sync.warnings, self._final_sync.pass_indices
                 sync_stats = dict(self._final_sync.stats)
             else:
                 scene, warnings = export.scene_from_depsgraph(depsgraph, width=settings.width,
                                                               height=settings.height, cancelled=cancelled)
                 pass_indices = scene.object_pass_indices
-        except export.ExportCancelled:  # Esc while exporting: nothing traced, nothing half-synced kept
+                stage = "build"  # what tracer.render(scene) builds, made here so Esc reaches the BVH build too
+                session = tracer.Session(scene, instanced=False, cancelled=cancelled)
+            scene = session.scene
+        except (export.ExportCancelled, tracer.RenderCancelled):  # Esc: nothing traced, nothing half-synced kept
             self._drop_final_session()
+            self._write_empty(settings, layer_name)
             if not self.is_preview:
-                LAST_STATS = {"cancelled": True, "cancelled_in": "export"}
+                LAST_STATS = {"cancelled": True, "cancelled_in": stage}
                 type(self).last_stats = LAST_STATS
             return
         except Exception as exc:  # a scene we cannot export: say why, leave an empty result
@@ -180,18 +187,19 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
         tracer.compile_kernels()
         self.update_stats("", f"Whitted: tracing {len(scene.triangles):,} triangles, {len(scene.lights)} lights")
         try:
-            if persistent:
-                image = self._final_session.render(settings, on_tile=on_tile, cancelled=cancelled)
-            else:
-                image = tracer.render(scene, settings, on_tile=on_tile, cancelled=cancelled)
+            image = session.render(settings, on_tile=on_tile, cancelled=cancelled)
         except tracer.RenderCancelled as stopped:
             image = stopped.image
             image.stats["cancelled"] = True
         except Exception as exc:
             self.report({"ERROR"}, f"Whitted: render failed: {exc}")
             return
+        finally:
+            if not persistent:
+                session.close()
         if not self.is_preview:
             image.stats["export_seconds"] = export_s
+            image.stats["bvh_seconds"] = session.stats["build_seconds"]
             image.stats["persistent"] = persistent
             if sync_stats is not None:
                 image.stats["sync"] = sync_stats
@@ -199,6 +207,13 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
             type(self).last_stats = LAST_STATS
             rays = image.stats["rays"]
             self.update_stats("", f"Whitted: {rays['total']:,} rays in {image.stats['seconds']:.2f} s")
+
+    def _write_empty(self, settings, layer_name):
+        """A black result for a render stopped before its first tile (Blender 5.0 crashes writing a result no
+        tile was ever written into)."""
+        x0, y0, x1, y1 = settings.region or (0, 0, settings.width, settings.height)
+        result = self.begin_result(0, 0, x1 - x0, y1 - y0, layer=layer_name)
+        self.end_result(result)
 
     def _drop_final_session(self):
         if self._final_session is not None:

@@ -305,15 +305,16 @@ def same(a, b) -> bool:
 
 
 def apply_edits(session: "tracer.Session | None", edits: list[Edit], *, quality: str = "medium",
-                instanced: bool = False) -> "tracer.Session":
+                instanced: bool = False, cancelled=None) -> "tracer.Session":
     """Apply ``edits`` (from :meth:`SceneSync.update`) to ``session``; returns the session to render (a new one
     after a rebuild, of Embree build ``quality`` and layout ``instanced``: see :class:`tracer.Session`; the old
-    one is closed). Call it where no render of ``session`` is in flight."""
+    one is closed; ``cancelled`` is polled while it is built, True raises :class:`tracer.RenderCancelled`). Call
+    it where no render of ``session`` is in flight."""
     for e in edits:
         if e.kind == "rebuild":
             if session is not None:
                 session.close()
-            session = tracer.Session(e.args[0], quality=quality, instanced=instanced)
+            session = tracer.Session(e.args[0], quality=quality, instanced=instanced, cancelled=cancelled)
             continue
         if session is None:
             raise RuntimeError("apply_edits: no session to edit (the first edit must be a rebuild)")

@@ -285,3 +285,33 @@ def test_esc_during_export_stops_it(whitted, monkeypatch):
         assert engine.LAST_STATS == {"cancelled": True, "cancelled_in": "export"}
         assert len(polls) == 3  # stopped at the third poll, 32 instances in: not after the 200
     bpy.context.scene.render.use_persistent_data = False
+
+
+def test_esc_during_the_embree_build_stops_it(whitted, monkeypatch, tmp_path):
+    """Esc once the scene is exported, while the session's Embree scene is built (the build polls between objects
+    and inside Embree's builds): nothing is traced, and Blender still writes the (black) image."""
+    bs.reset(size=(32, 24))
+    bs.add_uv_sphere((0, 0, 1), 1.0, name="A")
+    bs.add_cube((2.5, 0, 1), 1.0, name="B")
+    bs.add_camera((0, -8, 3), (0, 0, 0.5))
+    scene = bpy.context.scene
+    scene.render.engine = "WHITTED"
+    scene.render.image_settings.file_format = "PNG"
+    building = [False]
+    real = tracer.Session.__init__
+
+    def init(self, *a, **k):
+        building[0] = True
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(tracer.Session, "__init__", init)
+    monkeypatch.setattr(engine, "break_hook", lambda: building[0])
+    for persistent in (False, True):
+        building[0] = False
+        scene.render.use_persistent_data = persistent
+        scene.render.filepath = str(tmp_path / f"esc{int(persistent)}.png")
+        engine.LAST_STATS = None
+        bpy.ops.render.render(write_still=True)
+        assert engine.LAST_STATS == {"cancelled": True, "cancelled_in": "build"}
+        assert (tmp_path / f"esc{int(persistent)}.png").exists()
+    scene.render.use_persistent_data = False
