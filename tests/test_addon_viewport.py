@@ -200,3 +200,39 @@ def test_export_cache_reuses_unchanged_meshes():
     assert any(k[0] == "B" for k in cache) and not any(k[0] == "A" for k in cache)
     export.scene_from_depsgraph(dg, geometry_cache=cache)
     assert any(k[0] == "A" for k in cache)
+
+
+def test_the_redraw_callback_holds_the_engine_weakly_and_outlives_it():
+    """The worker's on_frame: tag_redraw on the engine while it lives; it does not keep the engine alive (so its
+    __del__ can stop the worker), and an engine Blender already freed (ReferenceError) is not an error."""
+    import gc
+
+    calls = []
+
+    class Engine:
+        def tag_redraw(self):
+            calls.append(1)
+
+    class Freed:
+        def tag_redraw(self):
+            raise ReferenceError("StructRNA of type WhittedRenderEngine has been removed")
+
+    e = Engine()
+    tag = engine._redraw_callback(e)
+    tag()
+    assert calls == [1]
+    del e
+    gc.collect()
+    tag()  # the engine is gone: nothing to redraw, nothing raised
+    assert calls == [1]
+    engine._redraw_callback(Freed())()
+
+
+def test_viewport_settings_follow_the_scene_without_region_or_passes():
+    bs.reset(size=(64, 48))
+    scene = bpy.context.scene
+    scene.render.use_border = True
+    scene.view_layers[0].use_pass_z = True
+    st = engine.viewport_settings(scene)
+    assert st.region is None and st.aovs == () and st.light_samples == 4
+    assert st.max_depth == export.settings_from_scene(scene).max_depth
