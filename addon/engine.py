@@ -244,6 +244,9 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
             if self._view is None:
                 self._view = viewport.ViewportRender(on_frame=_redraw_callback(self))
                 self._sync = sync.SceneSync(quality=viewport.QUALITY, track_camera=False)
+            if self._view.lost:  # the worker could not apply earlier edits: start again from a full export
+                self._view.lost = False
+                self._sync.reset()
             edits = self._sync.update(depsgraph, width=region.width, height=region.height, camera=camera)
             self._view.set_settings(viewport_settings(depsgraph.scene))
             self._view.edit(edits)

@@ -77,6 +77,9 @@ class ViewportRender:
         self._frame: Frame | None = None
         self._stop = False
         self.session: "tracer.Session | None" = None
+        #: Set when edits could not be applied (the session was dropped): the caller's sync must export everything
+        #: again (engine.view_update resets it).
+        self.lost = False
         self.passes_done = 0
         #: (generation, level, samples, changed, done) of the recent passes, for benchmarks and tests.
         self.history: collections.deque = collections.deque(maxlen=512)
@@ -194,10 +197,13 @@ class ViewportRender:
             if edits:
                 try:
                     self.session = apply_edits(self.session, edits, quality=self.quality,
-                                               instanced=self.instanced)
+                                               instanced=self.instanced, cancelled=lambda: self._stop)
                     self.edits_applied.extend(e.kind for e in edits)
-                except Exception as exc:  # keep the message; a later rebuild may succeed
+                except tracer.RenderCancelled:  # stopped while building: the viewport is closing
+                    continue
+                except Exception as exc:  # keep the message; the sync must start again from a full export
                     self.session = None
+                    self.lost = True
                     self._fail(exc, gen)
                     continue
             session = self.session

@@ -236,3 +236,23 @@ def test_viewport_settings_follow_the_scene_without_region_or_passes():
     st = engine.viewport_settings(scene)
     assert st.region is None and st.aovs == () and st.light_samples == 4
     assert st.max_depth == export.settings_from_scene(scene).max_depth
+
+
+def test_an_edit_the_session_refuses_asks_for_a_full_export(scene):
+    from addon.sync import Edit
+
+    vr = viewport.ViewportRender(settings=tracer.RenderSettings(light_samples=4))
+    try:
+        vr.set_scene(scene)
+        vr.set_view(_camera(), SIZE)
+        assert vr.wait_until_converged(120)
+        vr.edit([Edit("transform", (999, np.eye(4)))])  # no such object: the session raises KeyError
+        for _ in range(200):
+            if vr.lost:
+                break
+            threading.Event().wait(0.01)
+        assert vr.lost and vr.session is None and vr.errors
+        vr.set_scene(scene)  # what view_update sends after SceneSync.reset(): a rebuild
+        assert vr.wait_until_converged(120) and vr.session is not None
+    finally:
+        vr.stop()
