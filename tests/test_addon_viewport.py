@@ -24,6 +24,9 @@ import tracer  # noqa: E402
 from tracer_scenes import lit_sphere_on_floor  # noqa: E402
 
 SIZE = (48, 32)
+#: A moved object is an Embree instance in the session, triangles moved in world space in a fresh render: float32
+#: rounding may differ by this much (tests/test_session.py measures it).
+PIXEL_TOLERANCE = 1e-3
 
 
 @pytest.fixture()
@@ -52,19 +55,36 @@ def test_progressive_passes_converge_to_the_final_render(scene):
         final = tracer.render(scene, tracer.RenderSettings(width=SIZE[0], height=SIZE[1], light_samples=4,
                                                            samples=viewport.AA_PASSES[-1]))
         np.testing.assert_array_equal(last.rgba, final.rgba)
+        # what view_draw uploads: the same pixels, bottom row first (the GPU texture's origin)
+        np.testing.assert_array_equal(last.flat.reshape(last.rgba.shape), last.rgba[::-1])
     finally:
         vr.stop()
 
 
+class _Spy:
+    """Records which thread calls the tracer (renders, session builds and edits)."""
+
+    def __init__(self, monkeypatch):
+        self.calls = []
+        targets = [(tracer, "render"), (tracer.Session, "render"), (tracer.Session, "__init__")]
+        targets += [(tracer.Session, name) for name in ("update_camera", "update_materials", "update_lights",
+                                                        "update_world", "set_transform", "update_mesh",
+                                                        "add_object", "remove_object")]
+        for owner, name in targets:
+            real = getattr(owner, name)
+
+            def spy(*a, _real=real, _name=name, **k):
+                self.calls.append((_name, threading.current_thread().name))
+                return _real(*a, **k)
+
+            monkeypatch.setattr(owner, name, spy)
+
+    def threads(self):
+        return {t for _, t in self.calls}
+
+
 def test_a_view_change_restarts_from_the_coarsest_level_and_traces_off_the_ui_thread(scene, monkeypatch):
-    threads = []
-    real = tracer.render
-
-    def spy(*a, **k):
-        threads.append(threading.current_thread().name)
-        return real(*a, **k)
-
-    monkeypatch.setattr(tracer, "render", spy)
+    spy = _Spy(monkeypatch)
     frames = []
     vr = viewport.ViewportRender(settings=tracer.RenderSettings(light_samples=4))
     vr.on_frame = lambda: frames.append(vr.latest())
@@ -73,14 +93,61 @@ def test_a_view_change_restarts_from_the_coarsest_level_and_traces_off_the_ui_th
         vr.set_view(_camera(), SIZE)
         assert vr.wait_until_converged(600)
         assert not vr.set_view(_camera(), SIZE)  # the same view: nothing restarts
-        n = len(frames)
+        n, built = len(frames), [c for c in spy.calls if c[0] == "__init__"]
         assert vr.set_view(_camera(1.0), SIZE)
         assert vr.wait_until_converged(600)
         moved = frames[n:]
         assert moved[0].level == viewport.LEVELS[0] and moved[-1].level == 1
         assert all(f.key != frames[n - 1].key for f in moved)
-        assert set(threads) == {"whitted-viewport"}  # set_view / latest (what view_draw calls) never trace
+        # a camera move touches nothing but the camera: no new session, no edit but update_camera
+        assert [c for c in spy.calls if c[0] == "__init__"] == built
+        assert {c[0] for c in spy.calls} <= {"render", "__init__", "update_camera"}
+        # set_view / latest / edit (all view_draw and view_update call) never trace or edit the session
+        for _ in range(50):
+            vr.set_view(_camera(2.0), SIZE)
+            vr.latest()
+        assert spy.threads() == {"whitted-viewport"}
         assert not vr.errors
+    finally:
+        vr.stop()
+
+
+def test_edits_are_applied_by_the_worker_between_passes_and_converge_to_the_edited_scene(scene, monkeypatch):
+    """A material edit and an object move (what view_update hands over) restart the refinement; the last pass
+    equals a fresh render of the edited scene."""
+    from addon.sync import Edit
+
+    spy = _Spy(monkeypatch)
+    frames = []
+    vr = viewport.ViewportRender(settings=tracer.RenderSettings(light_samples=4))
+    vr.on_frame = lambda: frames.append(vr.latest())
+    try:
+        vr.set_scene(scene)
+        vr.set_view(_camera(), SIZE)
+        assert vr.wait_until_converged(600)
+        before = vr.latest()
+        red = tracer.SceneBuilder()
+        red.add_material("grey", diffuse=(0.8, 0.1, 0.1))
+        ball = scene.object_names.index("ball")
+        moved = np.eye(4)
+        moved[:3, 3] = (0.7, 0.0, 0.2)
+        n = len(frames)
+        vr.edit([Edit("materials", (tracer.Materials.from_list(red.materials), [])),
+                 Edit("transform", (ball, moved))])
+        assert vr.wait_until_converged(600)
+        after = frames[n:]
+        assert after[0].level == viewport.LEVELS[0] and after[0].generation > before.generation
+        assert vr.edits_applied == ["rebuild", "materials", "transform"]
+        assert {t for name, t in spy.calls if name in ("update_materials", "set_transform")} == {"whitted-viewport"}
+        edited = tracer.Session(scene)
+        edited.update_materials(tracer.Materials.from_list(red.materials), [])
+        edited.set_transform(ball, moved)
+        edited.update_camera(_camera())
+        want = tracer.render(edited.scene, tracer.RenderSettings(width=SIZE[0], height=SIZE[1], light_samples=4,
+                                                                 samples=viewport.AA_PASSES[-1]))
+        got = vr.latest().rgba
+        assert np.abs(got - want.rgba).max() < PIXEL_TOLERANCE
+        assert np.abs(got - before.rgba).max() > 0.1  # (the edit is visible)
     finally:
         vr.stop()
 
@@ -246,3 +313,57 @@ def test_view_draw_puts_the_view_on_screen_upright_and_fails_soft_without_a_gpu(
     finally:
         if fake._view is not None:
             fake._view.stop()
+def test_the_redraw_callback_holds_the_engine_weakly_and_outlives_it():
+    """The worker's on_frame: tag_redraw on the engine while it lives; it does not keep the engine alive (so its
+    __del__ can stop the worker), and an engine Blender already freed (ReferenceError) is not an error."""
+    import gc
+
+    calls = []
+
+    class Engine:
+        def tag_redraw(self):
+            calls.append(1)
+
+    class Freed:
+        def tag_redraw(self):
+            raise ReferenceError("StructRNA of type WhittedRenderEngine has been removed")
+
+    e = Engine()
+    tag = engine._redraw_callback(e)
+    tag()
+    assert calls == [1]
+    del e
+    gc.collect()
+    tag()  # the engine is gone: nothing to redraw, nothing raised
+    assert calls == [1]
+    engine._redraw_callback(Freed())()
+
+
+def test_viewport_settings_follow_the_scene_without_region_or_passes():
+    bs.reset(size=(64, 48))
+    scene = bpy.context.scene
+    scene.render.use_border = True
+    scene.view_layers[0].use_pass_z = True
+    st = engine.viewport_settings(scene)
+    assert st.region is None and st.aovs == () and st.light_samples == 4
+    assert st.max_depth == export.settings_from_scene(scene).max_depth
+
+
+def test_an_edit_the_session_refuses_asks_for_a_full_export(scene):
+    from addon.sync import Edit
+
+    vr = viewport.ViewportRender(settings=tracer.RenderSettings(light_samples=4))
+    try:
+        vr.set_scene(scene)
+        vr.set_view(_camera(), SIZE)
+        assert vr.wait_until_converged(600)
+        vr.edit([Edit("transform", (999, np.eye(4)))])  # no such object: the session raises KeyError
+        for _ in range(200):
+            if vr.lost:
+                break
+            threading.Event().wait(0.01)
+        assert vr.lost and vr.session is None and vr.errors
+        vr.set_scene(scene)  # what view_update sends after SceneSync.reset(): a rebuild
+        assert vr.wait_until_converged(600) and vr.session is not None
+    finally:
+        vr.stop()
