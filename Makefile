@@ -23,7 +23,7 @@ render: $(VENV)/.core
 test: $(VENV)/.test
 	$(PY) -m pytest -q
 
-addon: $(VENV)/.core
+addon: $(VENV)/.test   # Blender's extension builder comes with the bpy wheel (test extra)
 	$(PY) -m addon.build dist
 
 bench: $(VENV)/.test

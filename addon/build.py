@@ -1,8 +1,14 @@
-"""Build the Blender extension zip: ``python -m addon.build dist`` writes ``dist/whitted-<version>.zip``.
+"""Build the Blender extension, one zip per platform, with Blender's own extension builder:
+``python -m addon.build dist`` writes ``dist/whitted-<version>-linux_x64.zip``, ``-windows_x64.zip`` and
+``-macos_arm64.zip``.
 
-The zip holds the manifest, the add-on modules, a copy of ``tracer/`` (copied in at build time; the repository
-keeps one tracer) and the wheels Blender's Python lacks, for each platform: ``embreex`` (Embree), ``numba`` and
-``llvmlite`` (the tracer's JIT kernels). Blender 5.0 ships numpy (1.26.x, as bpy 5.0.1 requires ``numpy>=1.26,<2``)
+The source is staged in a temporary directory (the manifest with the wheel list filled in, the add-on modules, a
+copy of ``tracer/`` — the repository keeps one tracer — and ``wheels/``) and handed to
+``blender_ext.py build --split-platforms``, the builder Blender ships (``bpy/<version>/scripts/addons_core/bl_pkg/
+cli/blender_ext.py``, inside the bpy wheel of the test extra; ``BLENDER_EXT_PY`` overrides). It validates the
+manifest as Blender's extension platform does and writes, per platform, a zip with that platform's wheels and a
+``[build.generated]`` table naming them. The wheels are those Blender's Python lacks: ``embreex`` (its Embree 4
+library, which tracer/embree.py loads), ``numba`` and ``llvmlite`` (the tracer's JIT kernels). Blender 5.0 ships numpy (1.26.x, as bpy 5.0.1 requires ``numpy>=1.26,<2``)
 and OpenImageIO; its Python is 3.11. The versions are pinned in ``WHEELS``; the numba pin must accept Blender's
 numpy and the llvmlite pin must be the one that numba wants. Wheels are downloaded once with pip into
 ``.cache/wheels`` and reused offline afterwards:
@@ -17,12 +23,14 @@ from __future__ import annotations
 
 import argparse
 import glob
+import importlib.util
 import os
 import re
+import shutil
 import subprocess
 import sys
+import tempfile
 import tomllib
-import zipfile
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 ADDON = os.path.join(ROOT, "addon")
@@ -44,9 +52,15 @@ PLATFORMS = {
     "linux-x64": (("manylinux_2_28_x86_64", "manylinux_2_27_x86_64", "manylinux_2_17_x86_64",
                    "manylinux2014_x86_64"), "*manylinux*x86_64.whl"),
     "windows-x64": (("win_amd64",), "*win_amd64.whl"),
+    # Apple silicon: embreex publishes macosx_13_0_arm64, numba and llvmlite macosx_12_0_arm64 (pip picks the
+    # newest tag it is given that a wheel has).
+    "macos-arm64": (("macosx_14_0_arm64", "macosx_13_0_arm64", "macosx_12_0_arm64", "macosx_11_0_arm64"),
+                    "*macosx_*_arm64.whl"),
 }
 #: Add-on files that stay out of the zip.
 EXCLUDE = {"build.py"}
+#: The extension builder inside the bpy wheel, relative to the bpy package.
+BLENDER_EXT = os.path.join("*", "scripts", "addons_core", "bl_pkg", "cli", "blender_ext.py")
 
 
 class BuildError(RuntimeError):
@@ -104,8 +118,22 @@ def manifest_text(wheels: list[str], platforms: list[str]) -> str:
                       text)
     if n != 1:
         raise BuildError("blender_manifest.toml: no `platforms = [...]` line to fill in")
+    macos = macos_minimum(wheels)
+    line = (f"# macOS: {macos} or newer (the oldest macOS every bundled macos-arm64 wheel supports)\n"
+            if macos else "# macOS: not bundled\n")
+    text, n = re.subn(r"(?m)^# macOS: .*\n", line, text)
+    if n != 1:
+        raise BuildError("blender_manifest.toml: no `# macOS: ...` line to fill in")
     tomllib.loads(text)  # still valid TOML
     return text
+
+
+def macos_minimum(wheels) -> str | None:
+    """The oldest macOS all the given macOS wheels run on: the highest ``macosx_X_Y`` of their platform tags
+    (e.g. embreex 4.4.0.post1 is macosx_13_0_arm64 -> "13.0"), or None without macOS wheels."""
+    found = [tuple(int(x) for x in m.groups())
+             for w in wheels for m in [re.search(r"macosx_(\d+)_(\d+)_", os.path.basename(w))] if m]
+    return "{}.{}".format(*max(found)) if found else None
 
 
 def _package_files(top: str):
@@ -117,46 +145,90 @@ def _package_files(top: str):
             yield os.path.join(dirpath, name)
 
 
-def build(out_dir: str = "dist", platforms=tuple(PLATFORMS), offline: bool = False, cache: str = CACHE) -> str:
-    """Write the extension zip into ``out_dir`` (removing older whitted zips there); returns its path."""
+def blender_ext_script() -> str:
+    """Path of Blender's extension builder: ``BLENDER_EXT_PY``, else the one in the installed bpy wheel."""
+    path = os.environ.get("BLENDER_EXT_PY")
+    if path:
+        if not os.path.isfile(path):
+            raise BuildError(f"BLENDER_EXT_PY={path} is not a file")
+        return path
+    spec = importlib.util.find_spec("bpy")  # finds the package without importing (starting) Blender
+    if spec is None or not spec.submodule_search_locations:
+        raise BuildError("Blender's extension builder (blender_ext.py) comes with the bpy wheel: "
+                         "pip install -e '.[test]' (or set BLENDER_EXT_PY to a blender_ext.py)")
+    for top in spec.submodule_search_locations:
+        found = sorted(glob.glob(os.path.join(top, BLENDER_EXT)))
+        if found:
+            return found[-1]
+    raise BuildError(f"no {BLENDER_EXT} inside the bpy package at {list(spec.submodule_search_locations)}")
+
+
+def stage(directory: str, wheels: list[str], platforms: list[str]) -> None:
+    """Lay out the extension's source in ``directory`` as blender_ext.py builds it: the manifest (wheel list and
+    platforms filled in), the add-on modules, ``tracer/``, ``wheels/``."""
+    with open(os.path.join(directory, "blender_manifest.toml"), "w", encoding="utf-8") as f:
+        f.write(manifest_text(wheels, platforms))
+    for src in _package_files(ADDON):
+        rel = os.path.relpath(src, ADDON)
+        if rel in EXCLUDE or rel == "blender_manifest.toml":
+            continue
+        _copy(src, os.path.join(directory, rel))
+    for src in _package_files(TRACER):
+        if src.endswith(".py"):
+            _copy(src, os.path.join(directory, "tracer", os.path.relpath(src, TRACER)))
+    for w in wheels:
+        _copy(w, os.path.join(directory, "wheels", os.path.basename(w)))
+
+
+def _copy(src, dst):
+    os.makedirs(os.path.dirname(dst), exist_ok=True)
+    shutil.copyfile(src, dst)
+
+
+def build(out_dir: str = "dist", platforms=tuple(PLATFORMS), offline: bool = False, cache: str = CACHE) -> dict:
+    """Write one extension zip per platform into ``out_dir`` (removing older whitted zips there) with Blender's
+    builder; returns {platform: zip path}."""
     platforms = list(platforms)
     wheels = fetch_wheels(platforms, cache=cache, offline=offline)
+    script = blender_ext_script()
     with open(os.path.join(ADDON, "blender_manifest.toml"), "rb") as f:
         manifest = tomllib.load(f)
-    os.makedirs(out_dir, exist_ok=True)
-    for old in glob.glob(os.path.join(out_dir, f"{manifest['id']}-*.zip")):
-        os.unlink(old)
-    path = os.path.join(out_dir, f"{manifest['id']}-{manifest['version']}.zip")
-    tmp = path + ".part"
-    with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED) as z:
-        z.writestr("blender_manifest.toml", manifest_text(wheels, platforms))
-        for f in _package_files(ADDON):
-            rel = os.path.relpath(f, ADDON)
-            if rel in EXCLUDE or rel == "blender_manifest.toml":
-                continue
-            z.write(f, rel)
-        for f in _package_files(TRACER):
-            if f.endswith(".py"):
-                z.write(f, os.path.join("tracer", os.path.relpath(f, TRACER)))
-        for w in wheels:  # wheels are zips already: store them
-            z.write(w, os.path.join("wheels", os.path.basename(w)), compress_type=zipfile.ZIP_STORED)
-    os.replace(tmp, path)
-    return path
+    with tempfile.TemporaryDirectory(prefix="whitted-ext-") as tmp:
+        src, out = os.path.join(tmp, "source"), os.path.join(tmp, "out")
+        os.makedirs(src)
+        os.makedirs(out)
+        stage(src, wheels, platforms)
+        cmd = [sys.executable, script, "build", "--source-dir", src, "--output-dir", out, "--split-platforms"]
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        made = {p: os.path.join(out, f"{manifest['id']}-{manifest['version']}-{p.replace('-', '_')}.zip")
+                for p in platforms}
+        if proc.returncode != 0 or not all(os.path.isfile(z) for z in made.values()):
+            raise BuildError(f"Blender's extension builder failed:\n  command: {' '.join(cmd)}\n"
+                             f"  it said: {(proc.stdout + proc.stderr).strip()[-1500:]}")
+        os.makedirs(out_dir, exist_ok=True)
+        for old in glob.glob(os.path.join(out_dir, f"{manifest['id']}-*.zip")):
+            os.unlink(old)
+        result = {}
+        for p, z in made.items():
+            result[p] = os.path.join(out_dir, os.path.basename(z))
+            shutil.move(z, result[p])
+    return result
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description="Build the Whitted Blender extension zip")
+    ap = argparse.ArgumentParser(description="Build the Whitted Blender extension: one zip per platform")
     ap.add_argument("out_dir", nargs="?", default="dist")
     ap.add_argument("--platform", action="append", choices=sorted(PLATFORMS),
                     help="Blender platform(s) to bundle the wheels for (default: all)")
     ap.add_argument("--offline", action="store_true", help="use cached wheels only, never run pip")
     args = ap.parse_args(argv)
     try:
-        path = build(args.out_dir, args.platform or tuple(PLATFORMS), offline=args.offline)
+        paths = build(args.out_dir, args.platform or tuple(PLATFORMS), offline=args.offline)
     except BuildError as exc:
         print(f"addon.build: {exc}", file=sys.stderr)
         return 1
-    print(f"{path} ({os.path.getsize(path) / 1e6:.1f} MB)")
+    for platform, path in paths.items():
+        print(f"{path} ({os.path.getsize(path) / 1e6:.1f} MB, {platform})")
     return 0
 
 

@@ -1,6 +1,7 @@
 """The Whitted render engine: F12 exports the evaluated depsgraph and traces it, tile by tile, into Blender's
-render result; the viewport's Rendered shading draws a low-resolution progressive image where a GPU context
-exists and fails soft where it does not.
+render result (with Persistent Data on, it keeps the session and syncs only what changed, addon/sync.py); the
+viewport's Rendered shading keeps a session on a worker thread and draws its newest progressive pass
+(addon/viewport.py), where a GPU context exists, and fails soft where it does not.
 
 The last final render's tracer statistics (ray counts per type, timings) are kept in :data:`LAST_STATS` and on
 ``WhittedRenderEngine.last_stats``, for tests and for the curious.
@@ -10,11 +11,12 @@ from __future__ import annotations
 
 import threading
 import time
+import weakref
 
 import bpy
 import numpy as np
 
-from . import export, viewport
+from . import export, sync, viewport
 
 tracer = export.tracer
 
@@ -52,7 +54,10 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
-        self._view = None  # viewport state: exported scene, cached image, resolution level
+        self._view = None  # the viewport's worker (addon/viewport.py) and its scene sync
+        self._sync = None
+        self._final_session = None  # F12 with Persistent Data: the session kept between renders, and its sync
+        self._final_sync = None
 
     # ---------------------------------------------------------------------------------------------- passes
     def update_render_passes(self, scene=None, renderlayer=None):
@@ -73,15 +78,60 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
         global LAST_STATS, LAST_WARNINGS
         bpy_scene = depsgraph.scene
         layer_name = depsgraph.view_layer.name
+        stop = [False]
+        main_thread = threading.current_thread()
+
+        def cancelled():
+            # Blender's API is only called from the thread that runs render(); the tracer's worker threads
+            # read the flag (the tracer polls on the calling thread after every tile as well).
+            if not stop[0] and threading.current_thread() is main_thread:
+                stop[0] = bool(self.test_break() or (break_hook is not None and break_hook()))
+            return stop[0]
+
+        # Persistent Data (Render Properties > Performance > Final Render, as Cycles): Blender keeps this engine
+        # between F12s, and the session with it; depsgraph.updates says what changed since the last one.
+        persistent = bool(bpy_scene.render.use_persistent_data) and not self.is_preview
+        if not persistent:
+            self._drop_final_session()
+        sync_stats = None
+        stage = "export"
         try:
             settings = export.settings_from_scene(bpy_scene, view_layer=depsgraph.view_layer)
             if self.is_preview:
                 settings = settings.with_(samples=min(settings.samples, 2), light_samples=4, sky_samples=0,
                                           max_depth=min(settings.max_depth, 4), region=None, aovs=())
             t0 = time.perf_counter()
-            self.update_stats("", "Whitted: exporting scene")
-            scene, warnings = export.scene_from_depsgraph(depsgraph, width=settings.width, height=settings.height)
+            self.update_stats("", "Whitted: exporting scene" if self._final_sync is None or not persistent
+                              else "Whitted: syncing changes (Persistent Data)")
+            if persistent:
+                if self._final_sync is None:
+                    self._final_sync = sync.SceneSync(quality="medium")
+                edits = self._final_sync.update(depsgraph, width=settings.width, height=settings.height,
+                                                cancelled=cancelled)
+                if cancelled():
+                    raise export.ExportCancelled("export cancelled")
+                stage = "build"
+                self._final_session = sync.apply_edits(self._final_session, edits, quality="medium",
+                                                       cancelled=cancelled)
+                session = self._final_session
+                warnings, pass_indices = self._final_sync.warnings, self._final_sync.pass_indices
+                sync_stats = dict(self._final_sync.stats)
+            else:
+                scene, warnings = export.scene_from_depsgraph(depsgraph, width=settings.width,
+                                                              height=settings.height, cancelled=cancelled)
+                pass_indices = scene.object_pass_indices
+                stage = "build"  # what tracer.render(scene) builds, made here so Esc reaches the BVH build too
+                session = tracer.Session(scene, instanced=False, cancelled=cancelled)
+            scene = session.scene
+        except (export.ExportCancelled, tracer.RenderCancelled):  # Esc: nothing traced, nothing half-synced kept
+            self._drop_final_session()
+            self._write_empty(settings, layer_name)
+            if not self.is_preview:
+                LAST_STATS = {"cancelled": True, "cancelled_in": stage}
+                type(self).last_stats = LAST_STATS
+            return
         except Exception as exc:  # a scene we cannot export: say why, leave an empty result
+            self._drop_final_session()
             self.report({"ERROR"}, f"Whitted: {exc}")
             if self.is_preview:
                 self._fill_preview(settings_or_size=self._size_of(bpy_scene))
@@ -94,8 +144,8 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
         x0, y0, x1, y1 = settings.region or (0, 0, settings.width, settings.height)
         tiles_total = len(tracer.tiles_of(settings))
         done = [0]
-        pass_indices = (scene.object_pass_indices if scene.object_pass_indices is not None
-                        else np.arange(len(scene.object_names), dtype=np.int32))
+        if pass_indices is None:
+            pass_indices = np.arange(len(scene.object_names), dtype=np.int32)
 
         def write(image, tile):
             tx0, ty0, tx1, ty1 = tile
@@ -131,34 +181,45 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
             self.update_progress(min(1.0, done[0] / max(tiles_total, 1)))
             self.update_stats("", f"Whitted: tile {done[0]}/{tiles_total}")
 
-        stop = [False]
-        main_thread = threading.current_thread()
-
-        def cancelled():
-            # Blender's API is only called from the thread that runs render(); the tracer's worker threads
-            # read the flag (the tracer polls on the calling thread after every tile as well).
-            if not stop[0] and threading.current_thread() is main_thread:
-                stop[0] = bool(self.test_break() or (break_hook is not None and break_hook()))
-            return stop[0]
-
-        # The first render on a machine compiles the tracer's kernels (numba, cached on disk afterwards).
+        # The first render on a machine compiles the tracer's kernels (numba, cached on disk afterwards); the
+        # add-on started that on a thread when it was enabled, so this mostly waits for it or returns at once.
         self.update_stats("", "Whitted: preparing kernels (the first render on this machine compiles them, ~10 s)")
         tracer.compile_kernels()
         self.update_stats("", f"Whitted: tracing {len(scene.triangles):,} triangles, {len(scene.lights)} lights")
         try:
-            image = tracer.render(scene, settings, on_tile=on_tile, cancelled=cancelled)
-        except tracer.RenderCancelled as stop:
-            image = stop.image
+            image = session.render(settings, on_tile=on_tile, cancelled=cancelled)
+        except tracer.RenderCancelled as stopped:
+            image = stopped.image
             image.stats["cancelled"] = True
         except Exception as exc:
             self.report({"ERROR"}, f"Whitted: render failed: {exc}")
             return
+        finally:
+            if not persistent:
+                session.close()
         if not self.is_preview:
             image.stats["export_seconds"] = export_s
+            image.stats["bvh_seconds"] = session.stats["build_seconds"]
+            image.stats["persistent"] = persistent
+            if sync_stats is not None:
+                image.stats["sync"] = sync_stats
             LAST_STATS = dict(image.stats)
             type(self).last_stats = LAST_STATS
             rays = image.stats["rays"]
             self.update_stats("", f"Whitted: {rays['total']:,} rays in {image.stats['seconds']:.2f} s")
+
+    def _write_empty(self, settings, layer_name):
+        """A black result for a render stopped before its first tile (Blender 5.0 crashes writing a result no
+        tile was ever written into)."""
+        x0, y0, x1, y1 = settings.region or (0, 0, settings.width, settings.height)
+        result = self.begin_result(0, 0, x1 - x0, y1 - y0, layer=layer_name)
+        self.end_result(result)
+
+    def _drop_final_session(self):
+        if self._final_session is not None:
+            self._final_session.close()
+        self._final_session = None
+        self._final_sync = None
 
     @staticmethod
     def _size_of(bpy_scene):
@@ -174,35 +235,27 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
 
     # ---------------------------------------------------------------------------------------------- viewport
     def view_update(self, context, depsgraph):
-        """A depsgraph change (not a view change: those only reach view_draw): export again, on this (the main)
-        thread since bpy data is not thread-safe, reusing the mesh arrays of objects whose geometry did not
-        change; the worker thread traces (addon/viewport.py)."""
+        """A depsgraph change (view changes only reach view_draw): turn ``depsgraph.updates`` into session edits
+        on this (the main) thread, since bpy data is not thread-safe (addon/sync.py), and hand them to the worker
+        thread, which applies them between two passes and traces (addon/viewport.py). Never traces here."""
         try:
             region = context.region
-            first = self._view is None
-            if first:
-                self._view = viewport.ViewportRender(on_frame=self._redraw_from_thread)
-                self._mesh_cache = {}
-            else:
-                changed = [u for u in depsgraph.updates if u.is_updated_geometry]
-                export.forget_geometry(self._mesh_cache, [u.id for u in changed])
-            scene, _ = export.scene_from_depsgraph(depsgraph, width=region.width, height=region.height,
-                                                   camera=viewport_camera(context.region_data),
-                                                   geometry_cache=self._mesh_cache)
-            settings = export.settings_from_scene(depsgraph.scene).with_(light_samples=4)
-            self._view.set_scene(scene, settings)
+            camera = viewport_camera(context.region_data)
+            if self._view is None:
+                self._view = viewport.ViewportRender(on_frame=_redraw_callback(self))
+                self._sync = sync.SceneSync(quality=viewport.QUALITY, track_camera=False)
+            if self._view.lost:  # the worker could not apply earlier edits: start again from a full export
+                self._view.lost = False
+                self._sync.reset()
+            edits = self._sync.update(depsgraph, width=region.width, height=region.height, camera=camera)
+            self._view.set_settings(viewport_settings(depsgraph.scene))
+            self._view.edit(edits)
         except Exception as exc:  # never crash Blender from the viewport
             print(f"Whitted viewport: {exc}")
 
-    def _redraw_from_thread(self):
-        try:
-            self.tag_redraw()
-        except ReferenceError:  # the engine was freed (viewport closed) while a pass finished
-            pass
-
     def view_draw(self, context, depsgraph):
         """Draw the newest finished pass; tell the worker about the current view (it restarts if it moved).
-        Never traces."""
+        Never traces, never touches the session."""
         try:
             if self._view is None:
                 self.view_update(context, depsgraph)
@@ -222,9 +275,9 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
 
         if getattr(self, "_texture_of", None) is not frame:  # upload each finished pass once
             h, w = frame.rgba.shape[:2]
-            data = np.ascontiguousarray(frame.rgba[::-1], np.float32).reshape(-1)
-            self._texture = gpu.types.GPUTexture((w, h), format="RGBA16F", data=gpu.types.Buffer("FLOAT", data.size,
-                                                                                                   data))
+            data = frame.flat  # bottom row first, flat float32: prepared by the worker thread
+            self._texture = gpu.types.GPUTexture((w, h), format="RGBA32F",
+                                                 data=gpu.types.Buffer("FLOAT", data.size, data))
             self._texture_of = frame
         gpu.state.blend_set("ALPHA_PREMULT")
         self.bind_display_space_shader(depsgraph.scene)
@@ -236,6 +289,34 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
         v = getattr(self, "_view", None)
         if v is not None:
             v.stop()
+        s = getattr(self, "_final_session", None)
+        if s is not None:
+            s.close()
+
+
+def viewport_settings(bpy_scene) -> "tracer.RenderSettings":
+    """The viewport's render settings: the scene's, with 4 samples per extended light (the passes refine the
+    anti-aliasing themselves)."""
+    return export.settings_from_scene(bpy_scene).with_(light_samples=4, region=None, aovs=())
+
+
+def _redraw_callback(engine):
+    """``engine.tag_redraw`` for the worker thread, holding the engine weakly (so Blender can free it and its
+    ``__del__`` stop the worker). tag_redraw only sets a flag (RE_ENGINE_DO_DRAW) that Blender's main loop polls
+    to redraw the region, as Cycles' session sets it from its own thread; the call holds the GIL, so it cannot
+    race with Blender invalidating the engine (then it raises ReferenceError, and there is nothing to redraw)."""
+    ref = weakref.ref(engine)
+
+    def tag():
+        e = ref()
+        if e is None:
+            return
+        try:
+            e.tag_redraw()
+        except ReferenceError:
+            pass
+
+    return tag
 
 
 def _tile_z(camera, distance, tile, width, height):

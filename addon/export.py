@@ -25,6 +25,7 @@ particles are included):
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -220,36 +221,54 @@ def render_size(bpy_scene) -> tuple[int, int]:
     return max(1, int(r.resolution_x * pct)), max(1, int(r.resolution_y * pct))
 
 
-def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | None = None,
-                         camera: "tracer.Camera | None" = None,
-                         geometry_cache: dict | None = None) -> tuple["tracer.Scene", list[str]]:
-    """Build a :class:`tracer.Scene` from an evaluated depsgraph; returns it and a list of warnings.
+class ExportCancelled(Exception):
+    """Raised by :func:`scene_from_depsgraph` / :func:`export_objects` when their ``cancelled()`` returned True
+    (Esc during an F12's export)."""
 
-    width/height default to the scene's render size (resolution × percentage) and matter only for the camera's
-    sensor fit. ``camera`` overrides the scene camera (the viewport uses this). ``geometry_cache`` (a dict the
-    caller keeps) holds each object's triangle arrays between calls, keyed by object and mesh name; drop the
-    entries of changed objects with :func:`forget_geometry` (the viewport does, from ``depsgraph.updates``). The
-    returned scene carries
-    ``scene.object_pass_indices`` (int32 per tracer object id: Blender's ``Object.pass_index``).
-    """
-    bpy_scene = depsgraph.scene_eval if hasattr(depsgraph, "scene_eval") else depsgraph.scene
-    warnings: list[str] = []
-    rw, rh = render_size(bpy_scene)
-    width, height = width or rw, height or rh
-    b = tracer.SceneBuilder()
-    writer = MaterialWriter(b, warnings)
+
+class ExportedObject(NamedTuple):
+    """One visible geometry instance of the depsgraph, before it is placed in the world.
+
+    ``key`` names it across depsgraph evaluations (object, instancing parent, ``persistent_id``): the scene sync
+    (addon/sync.py) diffs exports by it. ``geometry`` is the :func:`mesh_arrays` dict, shared by every instance of
+    one mesh (and kept in the geometry cache), ``material`` its per-triangle material rows and ``uvs`` its corner
+    UVs (shared too where the instances share mesh and materials), ``matrix`` the 4×4 object-to-world matrix."""
+
+    key: tuple
+    name: str
+    geometry: dict
+    material: np.ndarray
+    uvs: np.ndarray | None
+    matrix: np.ndarray
+    pass_index: int
+    #: The matrix keeps handedness (det > 0); False: it mirrors.
+    right_handed: bool = True
+
+
+#: How many instances :func:`export_objects` handles between two polls of ``cancelled``.
+POLL_EVERY = 256
+
+
+def export_objects(depsgraph, writer: MaterialWriter, warnings: list, lights: list, *,
+                   geometry_cache: dict | None = None, cancelled=None):
+    """Yield an :class:`ExportedObject` per visible geometry instance of ``depsgraph.object_instances`` (and
+    append its lights to ``lights``). Triangle arrays are read once per evaluated mesh (``geometry_cache``: kept
+    between calls, see :func:`forget_geometry`); material rows and UVs once per mesh and material slots, so the
+    instances of one mesh share their arrays. ``cancelled()`` is polled every :data:`POLL_EVERY` instances and
+    before each mesh is read; True raises :class:`ExportCancelled`."""
     default_mat = writer.default_row
-    geometry: dict[int, dict | None] = {}
-    pass_indices: list[int] = []
-
-    for inst in depsgraph.object_instances:
+    geometry: dict = {}
+    inputs: dict = {}
+    for count, inst in enumerate(depsgraph.object_instances):
+        if cancelled is not None and count % POLL_EVERY == 0 and cancelled():
+            raise ExportCancelled("export cancelled")
         obj = inst.object
         if obj.type == "LIGHT":
             if not inst.show_self:
                 continue
             light = light_from_blender(_Placed(obj, inst.matrix_world), warnings)
             if light is not None:
-                b.add_light(light)
+                lights.append(light)
             continue
         if obj.type not in GEOMETRY_TYPES or not inst.show_self or obj.get(RAYS_PROPERTY):
             continue
@@ -260,40 +279,150 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
             if geometry_cache is not None and named in geometry_cache:
                 geometry[key] = geometry_cache[named]
             else:
+                if cancelled is not None and cancelled():
+                    raise ExportCancelled("export cancelled")
                 geometry[key] = _object_mesh_arrays(obj, depsgraph)
                 if geometry_cache is not None:
                     geometry_cache[named] = geometry[key]
         g = geometry[key]
         if g is None or not len(g["triangles"]):
             continue
-        world = np.array(inst.matrix_world, dtype=np.float64)
-        det = np.linalg.det(world[:3, :3])
-        if not np.isfinite(det) or abs(det) <= 1e-12 * np.abs(world[:3, :3]).max() ** 3:
+        mw = inst.matrix_world
+        world = np.array(mw, dtype=np.float64)
+        # mathutils' C calls: numpy's det and max cost ~10 µs per instance. Singular: |det| tiny against the
+        # product of the axis lengths (its bound, Hadamard's inequality).
+        m3 = mw.to_3x3()
+        det = m3.determinant()
+        sx, sy, sz = m3.to_scale()
+        if not math.isfinite(det) or abs(det) <= 1e-12 * sx * sy * sz:
             warnings.append(f"object {obj.name!r}: zero scale (nothing to render); skipped")
             continue
-        tris, normals = g["triangles"], g["normals"]  # add_mesh un-mirrors negative scales
-        slots = [writer.row(s.material) for s in obj.material_slots]
-        if slots:
-            table = np.asarray(slots, np.int32)
-            mats = table[np.clip(g["material_index"], 0, len(slots) - 1)]
+        slots = tuple(writer.row(s.material) for s in obj.material_slots)
+        if (key, slots) not in inputs:  # material rows and baked UVs: once per mesh and slot materials
+            if slots:
+                mats = np.asarray(slots, np.int32)[np.clip(g["material_index"], 0, len(slots) - 1)]
+            else:
+                mats = default_mat
+            inputs[key, slots] = writer.mesh_inputs(obj.name, mats, g)
+        mats, uvs = inputs[key, slots]
+        if inst.is_instance:
+            parent = inst.parent.original.name if inst.parent else ""
+            name = f"{obj.name}@{parent}#{inst.random_id & 0xFFFF:04x}"
+            ident = (obj.original.name, parent, tuple(inst.persistent_id))
         else:
-            mats = default_mat
-        mats, uvs = writer.mesh_inputs(obj.name, mats, g)
-        name = obj.name if not inst.is_instance else f"{obj.name}@{inst.parent.name if inst.parent else ''}" \
-                                                       f"#{inst.random_id & 0xFFFF:04x}"
-        b.add_mesh(g["vertices"], tris, material=mats, name=name, transform=world, normals=normals, uvs=uvs)
-        pass_indices.append(int(obj.pass_index))
+            name, ident = obj.name, (obj.original.name, "", ())
+        yield ExportedObject(ident, name, g, mats, uvs, world, int(obj.pass_index), det > 0)
+
+
+def add_objects(b: "tracer.SceneBuilder", objects: list) -> list[np.ndarray]:
+    """Add exported objects to a scene builder in their order, one object id each; returns, per object, the matrix
+    its vertices were placed with *beyond* the recorded transform (identity, or for instances placed in a batch,
+    ``matrix`` itself: see below).
+
+    Instances of one mesh with the same materials (Geometry-Nodes and collection instances, particles) are placed
+    in one vectorised batch: their vertices and normals transformed together (numpy, no loop per instance) and
+    added with ``SceneBuilder.add_mesh(instances=K)``, so the scene records identity for them, and the placement
+    returned here says so."""
+    placed = []
+    i = 0
+    while i < len(objects):
+        o = objects[i]
+        j = i + 1
+        while (j < len(objects) and objects[j].geometry is o.geometry and objects[j].material is o.material
+               and objects[j].uvs is o.uvs and objects[j].right_handed == o.right_handed):
+            j += 1
+        run = objects[i:j]
+        if len(run) < BATCH_MIN:
+            for r in run:
+                b.add_mesh(r.geometry["vertices"], r.geometry["triangles"], material=r.material, name=r.name,
+                           transform=r.matrix, normals=r.geometry["normals"], uvs=r.uvs)
+                placed.append(np.eye(4))
+        else:
+            first = _add_batch(b, run)
+            for k, r in enumerate(run):
+                b.object_names[first + k] = r.name
+                placed.append(r.matrix)
+        i = j
+    return placed
+
+
+#: Runs of at least this many instances of one mesh are placed in one vectorised batch.
+BATCH_MIN = 8
+#: Instances transformed per numpy batch (bounds the float64 temporaries).
+BATCH_CHUNK = 1024
+
+
+def _add_batch(b, run) -> int:
+    """Place K instances of one mesh (same materials, same handedness) in world space with batched matrix
+    products, the same arithmetic as :func:`tracer.builder.place_mesh` per instance; add them as K objects."""
+    g = run[0].geometry
+    v = np.asarray(g["vertices"], np.float64)
+    t = np.asarray(g["triangles"], np.int64)
+    nrm = None if g["normals"] is None else np.asarray(g["normals"], np.float64)
+    mats = np.stack([r.matrix for r in run])
+    verts, norms = [], []
+    for c in range(0, len(run), BATCH_CHUNK):
+        m = mats[c:c + BATCH_CHUNK]
+        verts.append((np.matmul(v[None], m[:, :3, :3].transpose(0, 2, 1)) + m[:, None, :3, 3]).astype(np.float32))
+        if nrm is not None:
+            nm = np.linalg.inv(m[:, :3, :3]).transpose(0, 2, 1)  # inverse transpose, per instance
+            norms.append(np.matmul(nrm.reshape(1, -1, 3), nm.transpose(0, 2, 1)).astype(np.float32))
+    k, nv, nt = len(run), len(v), len(t)
+    tris = (t[None] + (np.arange(k) * nv)[:, None, None]).reshape(-1, 3)
+    normals = None if nrm is None else np.concatenate(norms).reshape(k * nt, 3, 3)
+    uvs = None if run[0].uvs is None else np.broadcast_to(run[0].uvs, (k,) + run[0].uvs.shape).reshape(-1, 3, 2)
+    material = np.broadcast_to(np.asarray(run[0].material, np.int32), (nt,))
+    if not run[0].right_handed:  # mirrored instances: winding turned back, as place_mesh does
+        tris = tris[:, [0, 2, 1]]
+        normals = None if normals is None else normals[:, [0, 2, 1]]
+        uvs = None if uvs is None else uvs[:, [0, 2, 1]]
+    return b.add_mesh(np.concatenate(verts).reshape(-1, 3), tris, material=np.tile(material, k), name=run[0].name,
+                      normals=normals, uvs=uvs, instances=k)
+
+
+def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | None = None,
+                         camera: "tracer.Camera | None" = None, geometry_cache: dict | None = None,
+                         cancelled=None, objects: list | None = None) -> tuple["tracer.Scene", list[str]]:
+    """Build a :class:`tracer.Scene` from an evaluated depsgraph; returns it and a list of warnings.
+
+    width/height default to the scene's render size (resolution × percentage) and matter only for the camera's
+    sensor fit. ``camera`` overrides the scene camera (the viewport uses this). ``geometry_cache`` (a dict the
+    caller keeps) holds each object's triangle arrays between calls, keyed by object and mesh name; drop the
+    entries of changed objects with :func:`forget_geometry` (the viewport does, from ``depsgraph.updates``).
+    ``cancelled()`` (e.g. the render engine's ``test_break``) is polled during the export: True raises
+    :class:`ExportCancelled`. ``objects``, a list, receives the :class:`ExportedObject` of each tracer object id
+    in order (addon/sync.py keeps them). The returned scene carries ``scene.object_pass_indices`` (int32 per
+    tracer object id: Blender's ``Object.pass_index``).
+    """
+    bpy_scene = depsgraph.scene_eval if hasattr(depsgraph, "scene_eval") else depsgraph.scene
+    warnings: list[str] = []
+    rw, rh = render_size(bpy_scene)
+    width, height = width or rw, height or rh
+    b = tracer.SceneBuilder()
+    writer = MaterialWriter(b, warnings)
+    exported = list(export_objects(depsgraph, writer, warnings, b.lights, geometry_cache=geometry_cache,
+                                   cancelled=cancelled))
+    add_objects(b, exported)
+    if objects is not None:
+        objects.extend(exported)
+    if cancelled is not None and cancelled():
+        raise ExportCancelled("export cancelled")
 
     if camera is None:
-        cam_obj = bpy_scene.camera
-        if cam_obj is None:
-            raise ValueError("the scene has no active camera: add one and set it as the scene camera")
-        camera = camera_from_blender(cam_obj, width, height,
-                                     bpy_scene.render.pixel_aspect_x / bpy_scene.render.pixel_aspect_y)
+        camera = scene_camera(bpy_scene, width, height)
     b.camera = camera
     b.background, b.ambient, b.environment = world_from_blender(bpy_scene.world, warnings, writer.images)
-    b.object_pass_indices = np.asarray(pass_indices, np.int32)
+    b.object_pass_indices = np.asarray([o.pass_index for o in exported], np.int32)
     return b.build(), warnings
+
+
+def scene_camera(bpy_scene, width: int, height: int) -> "tracer.Camera":
+    """The scene camera as a tracer camera for a width × height image (a clear error when there is none)."""
+    cam_obj = bpy_scene.camera
+    if cam_obj is None:
+        raise ValueError("the scene has no active camera: add one and set it as the scene camera")
+    return camera_from_blender(cam_obj, width, height,
+                               bpy_scene.render.pixel_aspect_x / bpy_scene.render.pixel_aspect_y)
 
 
 def _geometry_key(obj) -> tuple:

@@ -69,14 +69,58 @@ class WHITTED_PT_render(bpy.types.Panel):
         col.prop(layer, "use_pass_normal", text="Normal")
         col.prop(layer, "use_pass_object_index", text="Object Index")
         col.prop(props, "ray_type_passes")
-        layout.prop(props, "threads")
 
 
+class WHITTED_PT_performance(bpy.types.Panel):
+    """Render Properties → Performance, laid out as Cycles' (Threads; Final Render → Persistent Data)."""
+
+    bl_label = "Performance"
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "render"
+    bl_options = {"DEFAULT_CLOSED"}
+    COMPAT_ENGINES = {ENGINE}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        layout.prop(context.scene.whitted, "threads")
+
+
+class WHITTED_PT_performance_final_render(bpy.types.Panel):
+    """Persistent Data (``RenderSettings.use_persistent_data``, Blender's own setting, as Cycles shows it): keep
+    the prepared scene between F12 renders and sync only what changed (addon/sync.py)."""
+
+    bl_label = "Final Render"
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "render"
+    bl_parent_id = "WHITTED_PT_performance"
+    COMPAT_ENGINES = {ENGINE}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        layout.column().prop(context.scene.render, "use_persistent_data", text="Persistent Data")
+
+
+PANELS = (WHITTED_PT_render, WHITTED_PT_performance, WHITTED_PT_performance_final_render)
 _added: list = []
 
 
 def register():
-    bpy.utils.register_class(WHITTED_PT_render)
+    for cls in PANELS:
+        bpy.utils.register_class(cls)
     for cls in compat_panels():
         if ENGINE not in cls.COMPAT_ENGINES:
             cls.COMPAT_ENGINES.add(ENGINE)
@@ -87,4 +131,5 @@ def unregister():
     for cls in _added:
         cls.COMPAT_ENGINES.discard(ENGINE)
     _added.clear()
-    bpy.utils.unregister_class(WHITTED_PT_render)
+    for cls in reversed(PANELS):
+        bpy.utils.unregister_class(cls)

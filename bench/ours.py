@@ -1,15 +1,20 @@
-"""Our tracer and raw embreex, measured in a child process (``python -m bench.ours ...`` prints one JSON object).
+"""Our tracer and raw Embree, measured in a child process (``python -m bench.ours ...`` prints one JSON object).
 
 Timed runs call :func:`tracer.render` without recording. A separate run with ``extra={"record_rays": True}`` captures
 the ray batches exactly as the integrator traced them, and :func:`replay` sends the same batches through a bare
-embreex scene on the same number of threads (batches handed to a thread pool, as our tiles are).
+Embree scene on the same number of threads (batches handed to a thread pool, as our tiles are): raw Embree through
+our binding (:mod:`tracer.embree`: one triangle geometry over all triangles, ``rtcIntersect1`` / ``rtcOccluded1``
+in a compiled loop), i.e. the limit any integrator on this library could reach on these rays.
 
 Two comparisons are like for like:
 
 - end to end: our rays / our wall time (which includes building our Embree scene, ``image.stats["bvh_seconds"]``)
-  vs rays / (raw ``build_seconds`` + raw replay ``seconds``), where the raw build sets up a bare Embree scene the
-  way our Accelerator does (vertex and index arrays, ``TriangleMesh``, one query to force the lazy BVH build);
+  vs rays / (raw ``build_seconds`` + raw replay ``seconds``), where the raw build sets up the bare Embree scene
+  (padded vertex and index arrays, one shared-buffer triangle geometry, the BVH commit);
 - tracing only: our rays / ``trace_seconds`` (wall − ``bvh_seconds``, per run) vs rays / raw replay ``seconds``.
+
+For the set-up time before this binding, :func:`build_embreex` times embreex's own API on the same arrays
+(``TriangleMesh``, which copies the geometry element by element, and the lazy BVH build its first query triggers).
 
 Our time split (thread-seconds, summed over worker threads, from the timed runs):
 
@@ -30,14 +35,14 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
-from embreex import rtcore_scene
-from embreex.mesh_construction import TriangleMesh
-
 import tracer
-from tracer import RenderSettings
+from tracer import RenderSettings, embree
 from tracer.integrator import Integrator
 
 from . import scenes
+
+ZERO_START = np.zeros(1, np.int64)  # one geometry: row = primID
+NO_ROWS = np.zeros(0, np.int32)
 
 
 class TraceTimer:
@@ -67,27 +72,45 @@ class TraceTimer:
 
 
 def build_embree(scene) -> tuple:
-    """A bare embreex scene over ``scene``'s triangles, set up the way ``tracer.accel.Accelerator`` does it.
+    """A bare Embree scene over ``scene``'s triangles through our binding: one triangle geometry on shared buffers.
 
-    Returns (EmbreeScene, the arrays it was built from, {"triangles", "mesh", "commit": seconds}): the float32
-    vertex and int32 index arrays of the indexed mesh, ``TriangleMesh`` on them (embreex copies them into Embree
-    buffers), and one occlusion query, which makes embreex commit the scene, i.e. build the BVH (it does so lazily).
-    Our render reports the same three steps as ``image.stats["bvh_seconds"]``.
+    Returns (EmbreeScene, what it keeps alive, {"triangles", "mesh", "commit": seconds}): the padded float32 vertex
+    and int32 index buffers Embree reads in place, the geometry on them, and the BVH build (``rtcCommitScene``).
     """
     t0 = time.perf_counter()
-    emb = rtcore_scene.EmbreeScene()
-    verts = np.ascontiguousarray(scene.vertices, dtype=np.float32)
-    tris = np.ascontiguousarray(scene.triangles, dtype=np.int32)
+    verts = embree.padded(scene.vertices, np.float32)
+    tris = embree.padded(scene.triangles, np.int32)
     t1 = time.perf_counter()
-    mesh = TriangleMesh(emb, verts, tris)
+    top = embree.EmbreeScene("medium", embree.SCENE_FLAG_ROBUST)
+    geom = embree.TriangleGeometry(verts, tris, "medium")
+    top.attach(geom, 0)
     t2 = time.perf_counter()
-    emb.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32), query="OCCLUDED")
+    top.commit()
     t3 = time.perf_counter()
-    return emb, (verts, tris, mesh), {"triangles": t1 - t0, "mesh": t2 - t1, "commit": t3 - t2}
+    return top, (verts, tris, geom), {"triangles": t1 - t0, "mesh": t2 - t1, "commit": t3 - t2}
+
+
+def build_embreex(scene) -> dict | None:
+    """Seconds embreex's own API takes to set up the same scene (the tracer's Embree set-up before our binding):
+    ``TriangleMesh`` on the indexed arrays and the BVH build its first query triggers. None without embreex."""
+    try:
+        from embreex import rtcore_scene
+        from embreex.mesh_construction import TriangleMesh
+    except ImportError:
+        return None
+    t0 = time.perf_counter()
+    emb = rtcore_scene.EmbreeScene()
+    mesh = TriangleMesh(emb, np.ascontiguousarray(scene.vertices, np.float32),
+                        np.ascontiguousarray(scene.triangles, np.int32))
+    t1 = time.perf_counter()
+    emb.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32), query="OCCLUDED")
+    t2 = time.perf_counter()
+    del mesh, emb
+    return {"mesh": t1 - t0, "commit": t2 - t1, "seconds": t2 - t0}
 
 
 def replay(scene, batches, threads: int, runs: int = 3) -> dict:
-    """Trace ``batches`` [(query, origins, directions, t_max)] with raw embreex, ``runs`` times.
+    """Trace ``batches`` [(query, origins, directions, t_max)] with raw Embree through our binding, ``runs`` times.
 
     Each run first sets up a fresh bare Embree scene (:func:`build_embree`, timed on its own: ``build_seconds``),
     then replays the batches through it (``seconds``); both are medians over the runs. ``rays_per_second`` is the
@@ -99,7 +122,7 @@ def replay(scene, batches, threads: int, runs: int = 3) -> dict:
         out = []
         for q, o, d, t in batches:
             if q == "OCCLUDED":
-                out.append((q, o, d, np.ascontiguousarray(t, np.float32).copy()))
+                out.append((q, o, d, np.ascontiguousarray(np.minimum(t, 3.0e38), np.float32).copy()))
             else:
                 out.append((q, o, d, None if t is None else np.ascontiguousarray(t, np.float32).copy()))
         return out
@@ -112,14 +135,15 @@ def replay(scene, batches, threads: int, runs: int = 3) -> dict:
             build_times.append(sum(split.values()))
             build_splits.append(split)
 
-            def one(b, emb=emb):
+            def one(b, handle=emb.handle):
                 q, o, d, t = b
+                n = len(o)
                 if q == "OCCLUDED":
-                    emb.run(o, d, dists=t, query="OCCLUDED")
-                elif t is None:
-                    emb.run(o, d, output=1)
+                    embree.occluded_rays(handle, o, d, np.float32(0), t, np.empty(n, np.bool_))
                 else:
-                    emb.run(o, d, output=1, dists=t)
+                    embree.intersect_rays(handle, o, d, np.float32(0), np.zeros(0, np.float32) if t is None else t,
+                                          ZERO_START, NO_ROWS, np.empty(n, np.float32), np.empty(n, np.int32),
+                                          np.empty(n, np.float32), np.empty(n, np.float32))
 
             work = prepared()
             t0 = time.perf_counter()
@@ -127,13 +151,15 @@ def replay(scene, batches, threads: int, runs: int = 3) -> dict:
             times.append(time.perf_counter() - t0)
             del work, one
     del emb, keep
+    before = [b for b in (build_embreex(scene) for _ in range(runs)) if b is not None]
     med = statistics.median(times)
     build = statistics.median(build_times)
     return {"seconds": med, "times": times, "rays": n_rays, "batches": len(batches),
             "rays_per_second": n_rays / med if med > 0 else 0.0,
             "build_seconds": build, "build_times": build_times,
             "build_split": {k: statistics.median(s[k] for s in build_splits) for k in build_splits[0]},
-            "end_to_end_rays_per_second": n_rays / (build + med) if build + med > 0 else 0.0}
+            "end_to_end_rays_per_second": n_rays / (build + med) if build + med > 0 else 0.0,
+            "embreex_build_seconds": statistics.median(b["seconds"] for b in before) if before else None}
 
 
 def measure(name: str, width: int, height: int, threads: int, runs: int, samples: int = 1, max_depth: int = 8,
@@ -178,7 +204,7 @@ def measure(name: str, width: int, height: int, threads: int, runs: int, samples
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description="time our tracer (and raw embreex on its rays) on one bench scene")
+    ap = argparse.ArgumentParser(description="time our tracer (and raw Embree on its rays) on one bench scene")
     ap.add_argument("--scene", required=True, choices=scenes.ALL_SCENES)
     ap.add_argument("--width", type=int, default=1920)
     ap.add_argument("--height", type=int, default=1080)
@@ -186,7 +212,7 @@ def main(argv=None):
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--samples", type=int, default=1)
     ap.add_argument("--max-depth", type=int, default=8)
-    ap.add_argument("--no-record", action="store_true", help="skip the recorded run and the embreex replay")
+    ap.add_argument("--no-record", action="store_true", help="skip the recorded run and the raw Embree replay")
     ap.add_argument("--image", help="save the last timed render here")
     a = ap.parse_args(argv)
     res = measure(a.scene, a.width, a.height, a.threads, a.runs, a.samples, a.max_depth, not a.no_record, a.image)

@@ -1,10 +1,14 @@
-"""The extension zip: `python -m addon.build` output carries the embreex, numba and llvmlite wheels for every
-platform (pinned to versions that fit Blender 5.0's numpy), installs through Blender's own extension machinery into
-a temporary user directory (BLENDER_USER_RESOURCES), registers, renders with its bundled tracer and wheels, and
-unregisters cleanly. Blender reads BLENDER_USER_RESOURCES at start-up, so this runs in a fresh process.
+"""The extension zips: `python -m addon.build` runs Blender's own builder (blender_ext.py build --split-platforms)
+and writes one zip per platform (Linux x64, Windows x64, macOS arm64), each with that platform's embreex, numba
+and llvmlite wheels (pinned to versions that fit Blender 5.0's numpy) and a manifest saying so; the Linux zip
+installs through Blender's own extension machinery into a temporary user directory (BLENDER_USER_RESOURCES),
+registers, renders with its bundled tracer and wheels, and unregisters cleanly. Blender reads
+BLENDER_USER_RESOURCES at start-up, so this runs in a fresh process.
 
-The zip is built once per module from the wheel cache (.cache/wheels, filled by pip on the first run); the wheel
-fetching itself is tested against a temporary cache with pip replaced, so those tests need no network."""
+The Linux zip is built once per module from the wheel cache (.cache/wheels, filled by pip on the first run). What
+the builder puts in every platform's zip (the macOS one included) is checked on a build from a temporary cache of
+stand-in wheels under the real file names, and the wheel fetching against a temporary cache with pip replaced, so
+those tests need no network."""
 
 from __future__ import annotations
 
@@ -52,7 +56,7 @@ out["dist_infos"] = sorted(n for n in os.listdir(site) if n.endswith(".dist-info
 # llvmlite in a bare interpreter that sees only them and Blender's numpy (the one bpy brought).
 probe = subprocess.run(
     [sys.executable, "-S", "-c", PROBE, site, os.path.dirname(os.path.dirname(numpy.__file__))],
-    capture_output=True, text=True, timeout=120)
+    capture_output=True, text=True, timeout=600)
 out["probe"] = probe.stdout.strip().splitlines()[-1:] + [probe.stderr[-1500:]]
 print("INSTALLED " + json.dumps(out), flush=True)
 scene = bpy.context.scene
@@ -79,51 +83,120 @@ print(json.dumps({"numba": [numba.__version__, numba.__file__], "llvmlite": [llv
 
 @pytest.fixture(scope="module")
 def zip_path(tmp_path_factory):
-    return build.build(str(tmp_path_factory.mktemp("dist")))
+    return build.build(str(tmp_path_factory.mktemp("dist")), platforms=("linux-x64",))["linux-x64"]
 
 
-def test_zip_contents(zip_path):
-    with zipfile.ZipFile(zip_path) as z:
+#: The wheels pip downloads for the pins (addon/build.py: WHEELS), by Blender platform: their real file names.
+WHEEL_FILES = {
+    "linux-x64": ["embreex-4.4.0.post1-cp311-cp311-manylinux_2_27_x86_64.manylinux_2_28_x86_64.whl",
+                  "numba-0.68.1-cp311-cp311-manylinux_2_27_x86_64.manylinux_2_28_x86_64.whl",
+                  "llvmlite-0.50.0-cp311-cp311-manylinux_2_27_x86_64.manylinux_2_28_x86_64.whl"],
+    "windows-x64": ["embreex-4.4.0.post1-cp311-cp311-win_amd64.whl", "numba-0.68.1-cp311-cp311-win_amd64.whl",
+                    "llvmlite-0.50.0-cp311-cp311-win_amd64.whl"],
+    "macos-arm64": ["embreex-4.4.0.post1-cp311-cp311-macosx_13_0_arm64.whl",
+                    "numba-0.68.1-cp311-cp311-macosx_12_0_arm64.whl",
+                    "llvmlite-0.50.0-cp311-cp311-macosx_12_0_arm64.whl"],
+}
+
+
+def _effective_manifest(z):
+    """The manifest Blender reads from a split zip: ``[build.generated]`` replaces platforms and wheels."""
+    manifest = tomllib.loads(z.read("blender_manifest.toml").decode())
+    generated = manifest.get("build", {}).get("generated", {})
+    return dict(manifest, **{k: generated[k] for k in ("platforms", "wheels") if k in generated}), manifest
+
+
+def check_zip(path, platform):
+    """One platform's zip, as Blender's builder wrote it: the add-on and the tracer, exactly the manifest's wheels
+    for that platform (one cp311 wheel per package at its pin), the manifest's fields."""
+    with zipfile.ZipFile(path) as z:
         names = set(z.namelist())
-        manifest = tomllib.loads(z.read("blender_manifest.toml").decode())
-    assert {"__init__.py", "engine.py", "export.py", "properties.py", "ui.py", "tracer/__init__.py",
-            "tracer/integrator.py"} <= names
+        manifest, source = _effective_manifest(z)
+        text = z.read("blender_manifest.toml").decode()
+        tracer_render = z.read("tracer/render.py")
+    assert {"__init__.py", "engine.py", "export.py", "properties.py", "ui.py", "sync.py", "viewport.py",
+            "tracer/__init__.py", "tracer/integrator.py", "tracer/session.py"} <= names
     assert "build.py" not in names and not any("__pycache__" in n for n in names)
     assert manifest["id"] == "whitted" and manifest["type"] == "add-on"
     assert manifest["schema_version"] == "1.0.0" and manifest["blender_version_min"] == "4.2.0"
+    assert manifest["platforms"] == [platform]
     # the manifest lists exactly the wheels the zip carries, each once
     carried = sorted(n for n in names if n.startswith("wheels/"))
     listed = [w.removeprefix("./") for w in manifest["wheels"]]
     assert sorted(listed) == carried and len(set(listed)) == len(listed)
-    assert all(n.endswith(".whl") and "/" not in n.removeprefix("wheels/") for n in carried)
-    # one cp311 wheel of each package, at its pinned version, per platform
     pins = dict(build.WHEELS)
-    platforms = manifest["platforms"]  # at least Linux and Windows; every listed platform gets every wheel
-    assert set(pins) == PACKAGES and {"linux-x64", "windows-x64"} <= set(platforms) <= set(PLATFORM_TAG)
-    for platform in platforms:
-        is_tag = PLATFORM_TAG[platform]
-        got = {}
-        for name in carried:
-            package, version, python_tag, abi_tag, platform_tag = name.removeprefix("wheels/")[:-4].split("-")
-            if is_tag(platform_tag):
-                assert (python_tag, abi_tag) == ("cp311", "cp311"), name
-                assert package not in got, f"two {package} wheels for {platform}"
-                got[package] = version
-        assert got == pins, platform
-    assert len(carried) == len(PACKAGES) * len(platforms)
-    # the committed manifest names the wheels the build bundles
+    got = {}
+    for name in carried:
+        package, version, python_tag, abi_tag, platform_tag = name.removeprefix("wheels/")[:-4].split("-")
+        assert PLATFORM_TAG[platform](platform_tag) and (python_tag, abi_tag) == ("cp311", "cp311"), name
+        assert package not in got, f"two {package} wheels for {platform}"
+        got[package] = version
+    assert got == pins and set(pins) == PACKAGES, platform
+    # the source manifest (before the generated table) lists the wheels of every platform built, as the committed
+    # manifest does for all of them
     with open(os.path.join(ROOT, "addon", "blender_manifest.toml"), "rb") as f:
-        assert tomllib.load(f)["wheels"] == manifest["wheels"]
+        committed = tomllib.load(f)["wheels"]
+    assert set(manifest["wheels"]) <= set(source["wheels"]) <= set(committed)
     # one tracer in the repository: the zip's copy is made at build time, byte for byte
-    with zipfile.ZipFile(zip_path) as z:
-        assert z.read("tracer/render.py") == open(os.path.join(ROOT, "tracer", "render.py"), "rb").read()
+    assert tracer_render == open(os.path.join(ROOT, "tracer", "render.py"), "rb").read()
+    return manifest, text, carried
+
+
+def test_linux_zip_contents(zip_path):
+    check_zip(zip_path, "linux-x64")
+
+
+def test_blenders_builder_makes_one_zip_per_platform_with_its_wheels(tmp_path, monkeypatch):
+    """What the builder includes for each platform, the macOS one above all (no network: stand-in wheels under the
+    real file names): its manifest names macos-arm64 and exactly the three macOS arm64 wheels, and says the
+    minimum macOS they need (13.0: embreex publishes only macosx_13_0_arm64)."""
+    cache = tmp_path / "wheels"
+    cache.mkdir()
+    for files in WHEEL_FILES.values():
+        for name in files:
+            with zipfile.ZipFile(cache / name, "w") as whl:
+                whl.writestr("stand-in.txt", name)
+    calls = []
+    monkeypatch.setattr(build.subprocess, "run", _no_pip(calls, build.subprocess.run))
+    zips = build.build(str(tmp_path / "dist"), offline=True, cache=str(cache))
+    assert set(zips) == set(WHEEL_FILES) and not [c for c in calls if "pip" in c]
+    assert sorted(os.listdir(tmp_path / "dist")) == [f"whitted-0.1.0-{p.replace('-', '_')}.zip" for p in
+                                                     sorted(WHEEL_FILES)]
+    for platform, path in zips.items():
+        manifest, text, carried = check_zip(path, platform)
+        assert carried == sorted(f"wheels/{n}" for n in WHEEL_FILES[platform])
+    with zipfile.ZipFile(zips["linux-x64"]) as z, open(os.path.join(ROOT, "addon", "blender_manifest.toml"),
+                                                         "rb") as f:
+        assert _effective_manifest(z)[1]["wheels"] == tomllib.load(f)["wheels"]  # the committed list is current
+    _, text, carried = check_zip(zips["macos-arm64"], "macos-arm64")
+    assert build.macos_minimum(carried) == "13.0"
+    assert "# macOS: 13.0 or newer" in text
+    with open(os.path.join(ROOT, "addon", "blender_manifest.toml"), encoding="utf-8") as f:
+        assert "# macOS: 13.0 or newer" in f.read()  # (the committed manifest and README say the same)
+
+
+def _no_pip(calls, real):
+    def run(cmd, *a, **k):
+        calls.append(" ".join(cmd))
+        if "pip" in cmd:
+            raise AssertionError("offline build ran pip")
+        return real(cmd, *a, **k)
+    return run
+
+
+def test_builder_errors_are_clear(tmp_path, monkeypatch):
+    monkeypatch.setenv("BLENDER_EXT_PY", str(tmp_path / "missing.py"))
+    with pytest.raises(build.BuildError, match="BLENDER_EXT_PY=.*missing.py is not a file"):
+        build.blender_ext_script()
+    monkeypatch.delenv("BLENDER_EXT_PY")
+    assert build.blender_ext_script().endswith(os.path.join("bl_pkg", "cli", "blender_ext.py"))
 
 
 def test_extension_installs_registers_renders_and_unregisters(zip_path, tmp_path):
     env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "blender_user"))
     png = str(tmp_path / "f12.png")
     proc = subprocess.run([sys.executable, "-c", SCRIPT, zip_path, png, PROBE], env=env, capture_output=True, text=True,
-                          timeout=300, cwd=str(tmp_path))
+                          timeout=1200, cwd=str(tmp_path))  # a hang guard: kernels compile cold in Blender
     installed = [l for l in proc.stdout.splitlines() if l.startswith("INSTALLED ")]
     assert installed, proc.stdout[-2000:] + proc.stderr[-2000:]
     out = json.loads(installed[-1][len("INSTALLED "):])
@@ -165,7 +238,7 @@ def test_pinned_numba_fits_blender_numpy_and_bundled_llvmlite(zip_path):
     bpy_numpy = [Requirement(r) for r in importlib.metadata.requires("bpy") if Requirement(r).name == "numpy"]
     assert bpy_numpy and all(r.specifier.contains(numpy_version) for r in bpy_numpy)
     llvmlite_version = dict(build.WHEELS)["llvmlite"]
-    for platform_tag in ("manylinux", "win_amd64"):
+    for platform_tag in ("manylinux",):
         requires = [Requirement(line.split(":", 1)[1].strip())
                     for line in _wheel_metadata(zip_path, "numba", platform_tag).splitlines()
                     if line.startswith("Requires-Dist:")]
@@ -228,8 +301,8 @@ def test_fetch_errors_say_what_is_missing(tmp_path, monkeypatch):
     # offline with an empty cache: no pip, and the message names package, version, platform and cache
     with pytest.raises(build.BuildError, match=r"no numba 0\.68\.1 wheel for windows-x64 in .* --offline"):
         build.fetch_wheel("numba", "0.68.1", "windows-x64", cache=str(tmp_path), offline=True)
-    with pytest.raises(build.BuildError, match="unknown platform 'macos-arm64'"):
-        build.fetch_wheel("numba", "0.68.1", "macos-arm64", cache=str(tmp_path))
+    with pytest.raises(build.BuildError, match="unknown platform 'macos-x64'"):
+        build.fetch_wheel("numba", "0.68.1", "macos-x64", cache=str(tmp_path))
     assert not calls
     # pip fails: the message carries the command, pip's words and the by-hand way out
     monkeypatch.setattr(build.subprocess, "run", _fake_pip(calls, fail=True))

@@ -168,7 +168,8 @@ def test_cancelled_render_stops_and_blender_stays_usable(bpy_module, whitted):
     finally:
         engine.break_hook = None
     assert stats.get("cancelled") is True
-    assert stats["rays"]["eye"] < 256 * 192  # stopped before every tile was traced
+    # stopped before every tile was traced (Esc is polled during export and the Embree build too: there no tile)
+    assert stats.get("rays", {"eye": 0})["eye"] < 256 * 192
     _, again = render_whitted(scene)  # Blender still renders afterwards
     assert not again.get("cancelled") and again["rays"]["eye"] == 256 * 192
 

@@ -59,6 +59,18 @@ def test_bilinear_lookup_of_the_texture_file_convention():
     np.testing.assert_allclose(mid, (tex[0, 0] + tex[0, 1]) / 2, atol=1e-6)
 
 
+def test_lookup_repeats_outside_the_unit_square():
+    """Repeat wrapping (the lookup's documented mode, UsdUVTexture's and Blender's default): (s + i, t + j) gives the
+    texel at (s, t) for any integers, and across the seam at s = 0 the lookup blends the first and last columns."""
+    tex = _texture()
+    rng = np.random.default_rng(5)
+    st = rng.uniform(0, 1, (200, 2))
+    shift = rng.integers(-3, 4, (200, 2))
+    np.testing.assert_allclose(sample_bilinear(tex, st + shift), sample_bilinear(tex, st), atol=1e-5)
+    seam = sample_bilinear(tex, np.array([[0.0, 1 - 0.5 / N]]))[0]  # on the left edge, top row
+    np.testing.assert_allclose(seam, (tex[0, 0] + tex[0, -1]) / 2, atol=1e-6)
+
+
 # ------------------------------------------------------------------------------------------ glass weights
 BG = np.array([0.2, 0.5, 0.9], np.float32)
 
@@ -94,6 +106,16 @@ def test_fresnel_weights_give_the_slab_transmittance():
     f = ((n - 1) / (n + 1)) ** 2
     img = render(_pane_scene(n), RenderSettings(width=4, height=4, max_depth=12, min_weight=0.0)).rgb
     np.testing.assert_allclose(img, np.broadcast_to(BG * (1 - f) / (1 + f), img.shape), rtol=1e-4)
+
+
+def test_transmission_tint_filters_each_crossing():
+    """The tint multiplies the transmitted RayColor at each crossing (as Cycles' glass colour does): with the notes'
+    weights a tinted pane passes the background × tint², channel by channel."""
+    tint = np.array([0.9, 0.5, 0.25], np.float32)
+    scene = _pane_scene()
+    scene.materials.transmission_tint[0] = tint
+    img = render(scene, RenderSettings(width=4, height=4, fresnel=False)).rgb
+    np.testing.assert_allclose(img, np.broadcast_to(BG * tint**2, img.shape), rtol=1e-5)
 
 
 # ------------------------------------------------------------------------------------------------------ ε
@@ -148,6 +170,24 @@ def test_a_vanishing_epsilon_shows_acne_and_a_huge_one_leaks_light():
     assert clean[30, col] < 1e-6 < leaky[30, col]
 
 
+def test_shadow_rays_stop_at_the_light():
+    """A point light between the floor and a ceiling: the ceiling above the light casts no shadow on the floor
+    (a shadow ray is the segment from the point to the light, the notes' t < distance to the light), so the floor
+    is the closed form of the unshadowed point light everywhere."""
+    b = SceneBuilder()
+    grey = b.add_material("grey", diffuse=(0.5, 0.5, 0.5))
+    quad(b, (0, 0, 0), 20.0, grey, "floor")
+    quad(b, (0, 0, 4.5), 20.0, grey, "ceiling")  # just above the light
+    b.add_light(PointLight(position=(3, 0, 4), intensity=(40.0,) * 3))
+    b.camera = Camera.look_at((0, 0, 3), (0, 0, 0), up=(0, 1, 0), projection="orthographic",
+                              horizontal_aperture=6.0, vertical_aperture=6.0)
+    img = render(b.build(), RenderSettings(width=30, height=30, samples=1)).rgb[..., 0]
+    xs = (np.arange(30) + 0.5) / 30 * 6 - 3
+    ys = 3 - (np.arange(30) + 0.5) / 30 * 6
+    expected = np.array([[_floor_radiance(x, y) for x in xs] for y in ys])
+    np.testing.assert_allclose(img, expected, rtol=2e-3)
+
+
 # ------------------------------------------------------------------------------------------- Blinn-Phong
 @pytest.mark.parametrize("tilt_deg", [0.0, 8.0])
 def test_blinn_phong_highlight_has_the_normalised_lobe(tilt_deg):
@@ -167,3 +207,44 @@ def test_blinn_phong_highlight_has_the_normalised_lobe(tilt_deg):
     img = render(b.build(), RenderSettings(width=4, height=4, shading="classic")).rgb  # the notes' model
     expected = rs * irr * (e + 8) / (8 * np.pi) * np.cos(a / 2) ** e * np.cos(a)
     np.testing.assert_allclose(img, expected, rtol=1e-4)
+
+
+# ------------------------------------------------------------------------------------------------------ sRGB
+def _ocio(pixels, src, dst):
+    """OpenColorIO's conversion (OIIO's built-in config: the sRGB standard's piecewise curve), an independent
+    reference for ours."""
+    import OpenImageIO as oiio
+
+    pixels = np.ascontiguousarray(pixels, np.float32)
+    h, w, c = pixels.shape
+    buf = oiio.ImageBuf(oiio.ImageSpec(w, h, c, oiio.FLOAT))
+    buf.set_pixels(oiio.ROI(0, w, 0, h, 0, 1, 0, c), pixels)
+    out = oiio.ImageBufAlgo.colorconvert(buf, src, dst)
+    assert not out.has_error, out.geterror()
+    return np.asarray(out.get_pixels(oiio.FLOAT)).reshape(h, w, c)
+
+
+LINEAR, SRGB = "Linear Rec.709 (sRGB)", "sRGB Encoded Rec.709 (sRGB)"
+
+
+def test_png_is_srgb_encoded_as_opencolorio_does_it(tmp_path):
+    """A PNG written by the tracer holds OCIO's sRGB encoding of the linear pixels, to the 8-bit step (the curve's
+    linear toe, the 2.4 exponent and the clip above 1 all show on this ramp)."""
+    from tracer import read_image, write_image
+
+    ramp = np.concatenate([np.linspace(0, 0.01, 32), np.geomspace(0.01, 1.0, 96), [1.5, 4.0]]).astype(np.float32)
+    rgb = np.stack([ramp, ramp[::-1], np.full_like(ramp, 0.18)], -1)[None]
+    path = str(tmp_path / "ramp.png")
+    write_image(path, rgb)
+    got = np.round(read_image(path) * 255)
+    expected = np.round(np.clip(_ocio(rgb, LINEAR, SRGB), 0, 1) * 255)
+    assert np.abs(got - expected).max() <= 1
+    assert got[0, -1, 0] == 255 and got[0, 0, 0] == 0 and got[0, 0, 2] == 118  # 0.18 linear is sRGB 118/255
+
+
+def test_srgb_textures_decode_as_opencolorio_does_it():
+    """Each 8-bit sRGB code decodes to OCIO's linear value (OCIO's own evaluation differs by < 0.03 %)."""
+    from tracer.texture import srgb_to_linear
+
+    codes = (np.arange(256, dtype=np.float32) / 255)[None, :, None].repeat(3, axis=2)
+    np.testing.assert_allclose(srgb_to_linear(codes), _ocio(codes, SRGB, LINEAR), rtol=1e-3, atol=1e-7)

@@ -1,6 +1,6 @@
 """Mutation check: does the test suite notice when the notes' equations are wrong?
 
-    python tools/mutation_check.py [--list] [--only NAME ...] [--jobs 1]
+    python tools/mutation_check.py [--list] [--check] [--only WORD ...]
 
 Each mutation below is one deliberate bug in tracer/optics.py, tracer/shading.py, the texture lookup or the glass
 weights. For each, the repository is copied to a scratch directory, the bug applied there, and the tests that
@@ -22,7 +22,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 #: The tests that guard the mutated code (fast: no Cycles references, no Blender).
 TESTS = ["tests/test_optics.py", "tests/test_closed_forms.py", "tests/test_render.py", "tests/test_explain.py",
-         "tests/test_usd_lights.py"]
+         "tests/test_usd_lights.py", "tests/test_environment.py", "tests/test_emitters.py"]
 
 #: (name, file, original text, mutated text). Each original must occur in the file exactly once.
 MUTATIONS = [
@@ -57,6 +57,40 @@ MUTATIONS = [
      "fr = 1.0 if tir else 0.0", "fr = 1.0 if tir else 0.5"),
     ("transmission ray leaves on the incident side (ε sign)", "tracer/integrator.py",
      "vec.madd(p, ng, -eps), vec.normalize(t_dir)", "vec.madd(p, ng, eps), vec.normalize(t_dir)"),
+    # Added with the second round (see docs/testing.md): more of the seed's equations and their neighbours.
+    ("fresnel: η_i and η_r swapped", "tracer/optics.py",
+     "ratio = eta_i / eta_r\n    sin2_r", "ratio = eta_r / eta_i\n    sin2_r"),
+    ("refract: tangential part not scaled by η_i/η_r", "tracer/optics.py",
+     "vec.scale(vec.madd(d, n, -d_n), ratio)", "vec.madd(d, n, -d_n)"),
+    ("blinn-phong: max(0, n·l) weight dropped", "tracer/shading.py",
+     "lobe * max(n_dot_l, 0.0))", "lobe)"),
+    ("blinn-phong: half vector not normalised", "tracer/shading.py",
+     "return vec.normalize(vec.add(l, v))", "return vec.add(l, v)"),
+    ("blinn-phong: half vector from the ray direction, not towards the eye", "tracer/integrator.py",
+     "shading.half_vector(l, vec.scale(di, -1.0))", "shading.half_vector(l, di)"),
+    ("texture: half-texel offset dropped", "tracer/texture.py",
+     "x = s * w - 0.5\n    y = (1.0 - t) * h - 0.5", "x = s * w\n    y = (1.0 - t) * h"),
+    ("texture: clamp instead of repeat wrapping", "tracer/texture.py",
+     "x0 = int(xf) % w\n    y0 = int(yf) % h", "x0 = min(max(int(xf), 0), w - 1)\n    y0 = min(max(int(yf), 0), h - 1)"),
+    ("sRGB encoding with exponent 1/2.2 instead of 1/2.4", "tracer/texture.py",
+     "np.power(c, 1 / 2.4)", "np.power(c, 1 / 2.2)"),
+    ("environment mirrored left-right (u = 0.5 + atan2/2π)", "tracer/environment.py",
+     "u = 0.5 - math.atan2(e[1], e[0])", "u = 0.5 + math.atan2(e[1], e[0])"),
+    ("environment upside down", "tracer/environment.py",
+     "t = 0.5 + math.asin(", "t = 0.5 - math.asin("),
+    ("reflection ray starts below the surface (ε sign)", "tracer/integrator.py",
+     "vec.madd(p, ng, eps), vec.normalize(r_dir)", "vec.madd(p, ng, -eps), vec.normalize(r_dir)"),
+    ("shadow ray runs past the light", "tracer/integrator.py",
+     "l, dist - 2.0 * eps, s, c)", "l, np.inf, s, c)"),
+    ("mirror: local colour not weighted by (1 − k_m)", "tracer/integrator.py",
+     "opaque = (1.0 - k_m) * (1.0 - w_t)", "opaque = 1.0 - w_t"),
+    ("mirror: tint ignored", "tracer/integrator.py",
+     "mirror = vec.scale(vec.row(mats.mirror_tint, mat), k_m)", "mirror = (k_m, k_m, k_m)"),
+    ("glass: transmission tint ignored", "tracer/integrator.py",
+     "vec.scale(vec.mul(w, vec.row(mats.transmission_tint, mat)), glass * (1.0 - fr))",
+     "vec.scale(w, glass * (1.0 - fr))"),
+    ("area light: the emitter's cosine dropped", "tracer/lights.py",
+     "cos_l * table[j, _AREA] / d2 / kk", "table[j, _AREA] / d2 / kk"),
 ]
 
 
@@ -95,6 +129,8 @@ def run_one(name, path, old, new, python, tests, verbose=False):
 def main(argv=None):
     ap = argparse.ArgumentParser(prog="tools/mutation_check.py")
     ap.add_argument("--list", action="store_true", help="list the mutations and exit")
+    ap.add_argument("--check", action="store_true",
+                    help="only check that each mutation's original text still occurs exactly once (after a refactor)")
     ap.add_argument("--only", nargs="+", help="run only mutations whose name contains one of these words")
     ap.add_argument("--verbose", action="store_true")
     a = ap.parse_args(argv)
@@ -103,6 +139,13 @@ def main(argv=None):
         for m in muts:
             print(f"{m[1]}: {m[0]}")
         return 0
+    if a.check:
+        stale = [(m[0], m[1], open(os.path.join(ROOT, m[1])).read().count(m[2])) for m in muts]
+        stale = [x for x in stale if x[2] != 1]
+        for name, path, count in stale:
+            print(f"stale: {name}: the original text occurs {count} times in {path}")
+        print(f"{len(muts) - len(stale)}/{len(muts)} mutations apply")
+        return 1 if stale else 0
     results = []
     for m in muts:
         res = run_one(*m, python=sys.executable, tests=TESTS, verbose=a.verbose)
@@ -111,7 +154,9 @@ def main(argv=None):
     killed = sum(r[1] == "killed" for r in results)
     valid = sum(r[1] in ("killed", "SURVIVED") for r in results)
     print(f"kill rate: {killed}/{valid} = {killed / max(valid, 1):.0%}")
-    return 0 if killed == valid else 1
+    if valid < len(results):
+        print(f"{len(results) - valid} mutation(s) did not apply or errored: update MUTATIONS to the code")
+    return 0 if killed == valid == len(results) else 1
 
 
 if __name__ == "__main__":

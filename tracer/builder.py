@@ -12,6 +12,8 @@ the flat arrays and keeps material and object tables. It is also the quickest wa
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from .camera import Camera
@@ -40,6 +42,7 @@ class SceneBuilder:
         self.background = np.zeros(3, np.float32)
         self.ambient = np.zeros(3, np.float32)
         self.object_pass_indices = None  # optional per-object user pass indices (see Scene)
+        self._transforms: dict[int, np.ndarray] = {}  # object id -> the object-to-world matrix it was placed with
 
     # ---------------------------------------------------------------- tables
     def add_material(self, name: str | None = None, **fields) -> int:
@@ -83,22 +86,9 @@ class SceneBuilder:
         colors     optional vertex colours: (V, 3|4) per vertex or (T, 3, 3|4) per corner (alpha dropped);
                    meshes without them read white
         """
-        v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
-        t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
         label = name or f"object{len(self.object_names)}"
-        if t.size and (t.min() < 0 or t.max() >= len(v)):
-            raise ValueError(f"mesh {label!r}: triangle index out of range for {len(v)} vertices")
-        mirrored = False
-        if transform is not None:
-            m = np.asarray(transform, dtype=np.float64)
-            if m.shape != (4, 4) or not np.all(np.isfinite(m)):
-                raise ValueError(f"mesh {label!r}: transform must be a finite 4x4 matrix")
-            det = np.linalg.det(m[:3, :3])
-            if abs(det) <= 1e-12 * max(np.abs(m[:3, :3]).max(), 1e-300) ** 3:
-                raise ValueError(f"mesh {label!r}: transform is singular (zero scale); skip the object instead")
-            v = v @ m[:3, :3].T + m[:3, 3]
-            mirrored = det < 0
-        n_tri = len(t)
+        mesh = place_mesh(vertices, triangles, material, transform=transform, normals=normals, uvs=uvs, label=label)
+        n_tri = len(mesh.triangles)
         instances = int(instances)
         if instances < 1 or n_tri % instances or (instances > 1 and object_id is not None):
             raise ValueError(f"mesh {label!r}: {n_tri} triangles cannot be {instances} instances of one mesh")
@@ -108,48 +98,19 @@ class SceneBuilder:
         elif object_id is None:
             object_id = len(self.object_names)
             self.object_names.append(label)
-        mat = np.asarray(material, dtype=np.int32)
-        mat = np.full(n_tri, int(mat), np.int32) if mat.ndim == 0 else mat.reshape(-1)
-        if mat.shape != (n_tri,):
-            raise ValueError(f"mesh {label!r}: material must be one index or {n_tri} per-triangle indices")
-
-        corner_normals = None
-        if normals is not None:
-            nr = np.asarray(normals, dtype=np.float64)
-            if nr.shape == (len(v), 3):
-                nr = nr[t]
-            if nr.shape != (n_tri, 3, 3):
-                raise ValueError(f"mesh {label!r}: normals must be per vertex ({len(v)}, 3) "
-                                 f"or per corner ({n_tri}, 3, 3), got {nr.shape}")
-            if transform is not None:
-                nm = np.linalg.inv(np.asarray(transform, dtype=np.float64)[:3, :3]).T
-                nr = nr @ nm.T
-            corner_normals = nr.astype(np.float32)
-        corner_uvs = None
-        if uvs is not None:
-            uv = np.asarray(uvs, dtype=np.float64)
-            if uv.shape == (len(v), 2):
-                uv = uv[t]
-            if uv.shape != (n_tri, 3, 2):
-                raise ValueError(f"mesh {label!r}: uvs must be per vertex ({len(v)}, 2) "
-                                 f"or per corner ({n_tri}, 3, 2), got {uv.shape}")
-            corner_uvs = uv.astype(np.float32)
-
-        if mirrored:
-            # A mirroring transform turns the winding around: swap two corners so front faces stay outside
-            # (the integrator tells entering from leaving glass by the winding).
-            t = t[:, [0, 2, 1]]
-            corner_normals = None if corner_normals is None else corner_normals[:, [0, 2, 1]]
-            corner_uvs = None if corner_uvs is None else corner_uvs[:, [0, 2, 1]]
-        self._vertices.append(v.astype(np.float32))
-        self._triangles.append((t + self._n_vertices).astype(np.int32))
-        self._n_vertices += len(v)
-        self._material_ids.append(mat)
+        for i in range(object_id, object_id + instances):
+            self._transforms[i] = mesh.transform
+        self._vertices.append(mesh.vertices)
+        self._triangles.append((mesh.triangles + self._n_vertices).astype(np.int32))
+        self._n_vertices += len(mesh.vertices)
+        self._material_ids.append(mesh.material_ids)
         self._object_ids.append(np.repeat(np.arange(object_id, object_id + instances, dtype=np.int32),
                                           n_tri // instances))
-        self._normals.append(corner_normals)
-        self._uvs.append(corner_uvs)
-        self._extra.append(_corner_extras(label, uv_sets, colors, corner_uvs, len(v), t, mirrored))
+        self._normals.append(mesh.normals)
+        self._uvs.append(mesh.uvs)
+        mirrored = bool(np.linalg.det(mesh.transform[:3, :3]) < 0)
+        self._extra.append(_corner_extras(label, uv_sets, colors, mesh.uvs, len(mesh.vertices), mesh.triangles,
+                                          mirrored))
         return object_id
 
     @property
@@ -196,7 +157,92 @@ class SceneBuilder:
             environment=self.environment,
             object_names=list(self.object_names),
             object_pass_indices=self.object_pass_indices,
+            object_transforms=self._object_transforms(),
         )
+
+    def _object_transforms(self):
+        """(O, 4, 4) matrices the objects were placed with (identity where none), or None if all are identity."""
+        if not any(not np.array_equal(m, np.eye(4)) for m in self._transforms.values()):
+            return None
+        out = np.tile(np.eye(4), (len(self.object_names), 1, 1))
+        for i, m in self._transforms.items():
+            if i < len(out):
+                out[i] = m
+        return out
+
+
+class PlacedMesh(NamedTuple):
+    """One mesh placed in the world by :func:`place_mesh`: float32 world vertices, int32 triangles indexing them,
+    per-triangle material ids, optional per-corner normals / uvs, and the matrix it was placed with."""
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+    material_ids: np.ndarray
+    normals: np.ndarray | None
+    uvs: np.ndarray | None
+    transform: np.ndarray
+
+
+def place_mesh(vertices, triangles, material=0, *, transform=None, normals=None, uvs=None, label="mesh",
+               n_materials: int | None = None) -> PlacedMesh:
+    """An object-space mesh in world space (arguments as :meth:`SceneBuilder.add_mesh`): vertices by the 4×4
+    ``transform``, normals by its inverse transpose, winding turned back under a mirroring transform. Raises
+    ``ValueError`` naming ``label`` for bad input (``n_materials``: also check the material indices)."""
+    v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+    t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    if t.size and (t.min() < 0 or t.max() >= len(v)):
+        raise ValueError(f"mesh {label!r}: triangle index out of range for {len(v)} vertices")
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"mesh {label!r}: vertices must be finite")
+    mirrored = False
+    m = np.eye(4)
+    if transform is not None:
+        m = np.asarray(transform, dtype=np.float64)
+        if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+            raise ValueError(f"mesh {label!r}: transform must be a finite 4x4 matrix")
+        det = np.linalg.det(m[:3, :3])
+        if abs(det) <= 1e-12 * max(np.abs(m[:3, :3]).max(), 1e-300) ** 3:
+            raise ValueError(f"mesh {label!r}: transform is singular (zero scale); skip the object instead")
+        v = v @ m[:3, :3].T + m[:3, 3]
+        mirrored = det < 0
+    n_tri = len(t)
+    mat = np.asarray(material, dtype=np.int32)
+    mat = np.full(n_tri, int(mat), np.int32) if mat.ndim == 0 else mat.reshape(-1).astype(np.int32)
+    if mat.shape != (n_tri,):
+        raise ValueError(f"mesh {label!r}: material must be one index or {n_tri} per-triangle indices")
+    if n_materials is not None and n_tri and (mat.min() < 0 or mat.max() >= n_materials):
+        raise ValueError(f"mesh {label!r}: material index outside the {n_materials} materials")
+
+    corner_normals = None
+    if normals is not None:
+        nr = np.asarray(normals, dtype=np.float64)
+        if nr.shape == (len(v), 3):
+            nr = nr[t]
+        if nr.shape != (n_tri, 3, 3):
+            raise ValueError(f"mesh {label!r}: normals must be per vertex ({len(v)}, 3) "
+                             f"or per corner ({n_tri}, 3, 3), got {nr.shape}")
+        if transform is not None:
+            nm = np.linalg.inv(m[:3, :3]).T
+            nr = nr @ nm.T
+        corner_normals = nr.astype(np.float32)
+    corner_uvs = None
+    if uvs is not None:
+        uv = np.asarray(uvs, dtype=np.float64)
+        if uv.shape == (len(v), 2):
+            uv = uv[t]
+        if uv.shape != (n_tri, 3, 2):
+            raise ValueError(f"mesh {label!r}: uvs must be per vertex ({len(v)}, 2) "
+                             f"or per corner ({n_tri}, 3, 2), got {uv.shape}")
+        corner_uvs = uv.astype(np.float32)
+
+    if mirrored:
+        # A mirroring transform turns the winding around: swap two corners so front faces stay outside
+        # (the integrator tells entering from leaving glass by the winding).
+        t = t[:, [0, 2, 1]]
+        corner_normals = None if corner_normals is None else corner_normals[:, [0, 2, 1]]
+        corner_uvs = None if corner_uvs is None else corner_uvs[:, [0, 2, 1]]
+    return PlacedMesh(np.ascontiguousarray(v, np.float32), np.ascontiguousarray(t, np.int32), mat,
+                      corner_normals, corner_uvs, m)
 
 
 def _corner_extras(label, uv_sets, colors, corner_uvs, n_vertices, t, mirrored) -> dict:

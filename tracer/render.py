@@ -15,7 +15,7 @@ import numpy as np
 from .accel import Accelerator
 from .camera import eye_ray
 from .film import Image, box_filter, majority
-from .integrator import PATH_TYPES, Integrator, RayCounts
+from .integrator import PATH_TYPES, RayCounts
 from .jit import kernel
 from .sampling import uniform2_1
 from .scene import Scene
@@ -23,7 +23,8 @@ from .settings import RAY_TYPE_AOVS, RenderSettings
 
 
 class RenderCancelled(Exception):
-    """Raised by :func:`render` when its ``cancelled`` callback returned True; carries the partial image."""
+    """Raised by :func:`render` when its ``cancelled`` callback returned True; carries the partial image (None if
+    it came before any pixel, while the Embree scene was being built)."""
 
     def __init__(self, image: Image):
         super().__init__("render cancelled")
@@ -147,42 +148,84 @@ def uses_ray_types(settings: RenderSettings) -> bool:
 
 
 def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None, cancelled=None,
-           accel: Accelerator | None = None) -> Image:
-    """Render ``scene`` and return an :class:`~tracer.film.Image`.
+           accel=None) -> Image:
+    """Render ``scene`` and return an :class:`~tracer.film.Image`: a :class:`tracer.Session` made for one render.
 
     on_tile(image, (x0, y0, x1, y1)) is called after each tile is written (in the calling thread), for progressive
     display; cancelled() is polled between tiles and depths, and a True ends the render with :class:`RenderCancelled`.
-    ``accel``: an :class:`Accelerator` already built over this scene's triangles (e.g. the viewport's, kept across
-    its refinement passes and camera moves); by default one is built.
+    ``accel``: an :class:`~tracer.accel.Accelerator` already built over this scene (kept for callers that hold
+    one; a :class:`tracer.Session` is the way to keep a prepared scene across renders).
     """
+    from .session import Session
+
     if not isinstance(scene, Scene):
         raise TypeError(f"render() expects a tracer.Scene, got {type(scene).__name__}")
     settings = (settings or RenderSettings()).validate()
-    cancelled = cancelled or (lambda: False)
     start = time.perf_counter()
-    if accel is None or settings.extra.get("record_rays"):
-        accel = Accelerator(scene, record=bool(settings.extra.get("record_rays")))
-    build_time = time.perf_counter() - start
-    integ = Integrator(scene, settings, accel)
+    record = bool(settings.extra.get("record_rays"))
+    if record:
+        accel = Accelerator(scene, record=True)
+    # ``cancelled`` is polled between tiles and depths only, as it always was: a front end that wants Esc to stop
+    # the Embree build too makes a tracer.Session(scene, cancelled=...) itself (and then has no tile to show).
+    session = Session(scene, accel=accel, instanced=False)
+    try:
+        return render_session(session, settings, on_tile=on_tile, cancelled=cancelled, started=start)
+    finally:
+        if accel is None:
+            session.close()
+
+
+def trace_tile(session, settings: RenderSettings, tile, cancelled=None):
+    """Trace one tile's eye samples through the session's integrator: the per-sample :class:`TileResult`."""
+    scene = session.scene
+    integ = session.integrator(settings)
+    x0, y0, x1, y1 = tile
+    o, d, keys = eye_rays(scene, settings, x0, y0, x1, y1)
+    res = integ.trace(o, d, keys, cancelled or (lambda: False), ray_types=uses_ray_types(settings))
+    cam = scene.camera
+    if cam.near > 0:  # depth is measured from the eye (the film plane for orthographic cameras)
+        res.depth += (np.linalg.norm(o - cam.position.astype(np.float32), axis=1)
+                      if cam.projection == "perspective" else np.float32(cam.near))
+    return res
+
+
+def render_tile(session, settings: RenderSettings, tile) -> Image:
+    """The pixels of one tile (x0, y0, x1, y1) of ``session``'s image under ``settings``: an
+    :class:`~tracer.film.Image` of the tile's size (its AOVs too), identical to that rectangle of a whole
+    :meth:`tracer.Session.render`. Thread-safe: call it from several threads for different tiles."""
+    settings = settings.validate()
+    x0, y0, x1, y1 = (int(c) for c in tile)
+    if not (0 <= x0 < x1 <= settings.width and 0 <= y0 < y1 <= settings.height):
+        raise ValueError(f"tile {tile} must lie inside {settings.width}x{settings.height} and be non-empty")
+    res = trace_tile(session, settings, (x0, y0, x1, y1))
+    th, tw = y1 - y0, x1 - x0
+    img = Image(rgba=np.zeros((th, tw, 4), np.float32), aovs=empty_aovs(settings, th, tw))
+    write_tile(img, res, (0, 0, tw, th), settings.samples**2)
+    img.stats = {"rays": res.counts.as_dict()}
+    return img
+
+
+def render_session(session, settings: RenderSettings | None = None, *, on_tile=None, cancelled=None,
+                   started: float | None = None) -> Image:
+    """:meth:`tracer.Session.render`: every tile of ``settings`` on a thread pool, written into one image."""
+    settings = (settings or RenderSettings()).validate()
+    cancelled = cancelled or (lambda: False)
+    start = started if started is not None else time.perf_counter()
+    scene = session.scene
+    accel = session.accel
+    build_time = session.stats["build_seconds"] if started is not None else 0.0
+    integ = session.integrator(settings)
     w, h = settings.width, settings.height
     spp = settings.samples**2
     image = Image(rgba=np.zeros((h, w, 4), np.float32))
     image.aovs = empty_aovs(settings, h, w)
-    ray_types = uses_ray_types(settings)
     counts = RayCounts()
+    isect_before = accel.seconds
 
     def work(tile):
         if cancelled():
             return None
-        x0, y0, x1, y1 = tile
-        o, d, keys = eye_rays(scene, settings, x0, y0, x1, y1)
-        res = integ.trace(o, d, keys, cancelled, ray_types=ray_types)
-        if scene.camera.near > 0:  # depth is measured from the eye (the film plane for orthographic cameras)
-            cam = scene.camera
-            start = (np.linalg.norm(o - cam.position.astype(np.float32), axis=1) if cam.projection == "perspective"
-                     else np.float32(cam.near))
-            res.depth += start
-        return res
+        return trace_tile(session, settings, tile, cancelled)
 
     tiles = tiles_of(settings)
     threads = settings.threads or os.cpu_count() or 1
@@ -213,8 +256,8 @@ def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None
     elapsed = time.perf_counter() - start
     image.stats = {"rays": counts.as_dict(), "seconds": elapsed, "bvh_seconds": build_time, "threads": threads,
                    "rays_per_second": counts.total / elapsed if elapsed > 0 else 0.0, "epsilon": float(integ.eps),
-                   "triangles": len(scene.triangles), "intersect_seconds": accel.seconds}
-    if accel.record:
+                   "triangles": len(scene.triangles), "intersect_seconds": accel.seconds - isect_before}
+    if getattr(accel, "record", False):
         image.stats["ray_batches"] = accel.batches
     if was_cancelled:
         raise RenderCancelled(image)

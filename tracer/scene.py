@@ -20,6 +20,27 @@ from .texture import as_texture
 #: Triangles whose area is at most this fraction of the squared bounding-box diagonal are degenerate and skipped.
 DEGENERATE_AREA = 1e-14
 
+#: The Scene fields that hold one row per triangle (row i belongs to ``triangles[i]``; list-valued ones are lists
+#: of such arrays), with the value a row without such data gets. tracer.Session's mesh edits keep every one of
+#: these in step with the triangles; a new per-triangle field belongs here.
+PER_TRIANGLE = {"material_ids": 0, "object_ids": 0, "normals": 0.0, "uvs": np.nan, "uv_sets": np.nan, "colors": 1.0}
+
+
+def unit_normals(normals: np.ndarray) -> np.ndarray:
+    """Per-corner shading normals scaled to unit length; unusable ones (zero, NaN) become zeros, which the
+    renderer replaces by the face normal."""
+    nr = np.asarray(normals, dtype=np.float32)
+    ln = np.linalg.norm(nr, axis=-1, keepdims=True)
+    ok = np.isfinite(ln) & (ln > 0)
+    return np.ascontiguousarray(np.where(ok, nr / np.where(ok, ln, 1), 0), dtype=np.float32)
+
+
+def non_degenerate(vertices: np.ndarray, triangles: np.ndarray, diagonal: float) -> np.ndarray:
+    """Mask of the triangles whose area is more than DEGENERATE_AREA × diagonal² (the others are skipped)."""
+    tri = vertices[triangles].astype(np.float64)
+    area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    return area2 > DEGENERATE_AREA * max(diagonal**2, 1e-30)
+
 
 @dataclass
 class Scene:
@@ -63,6 +84,10 @@ class Scene:
     #: Optional lat-long world (tracer.Environment): seen by rays that leave the scene instead of ``background``,
     #: and a light (sky samples, or the ambient term with L_a = its mean radiance when ``ambient`` is zero).
     environment: Environment | None = None
+    #: Optional (O, 4, 4) float64 per object id: the object-to-world matrix its vertices were placed with
+    #: (SceneBuilder.add_mesh's transform; None = identity for all). The vertices are already in world space;
+    #: tracer.Session.set_transform moves an object from this matrix to a new one.
+    object_transforms: np.ndarray | None = None
 
     def __post_init__(self):
         self.validate()
@@ -110,10 +135,7 @@ class Scene:
             nr = np.asarray(self.normals, dtype=np.float32)
             if nr.shape != (n, 3, 3):
                 raise ValueError(f"scene.normals must have shape ({n}, 3, 3) (per-corner), got {nr.shape}")
-            ln = np.linalg.norm(nr, axis=-1, keepdims=True)
-            ok = np.isfinite(ln) & (ln > 0)
-            # Unusable normals fall back to the face normal at render time; mark them with zeros.
-            self.normals = np.ascontiguousarray(np.where(ok, nr / np.where(ok, ln, 1), 0), dtype=np.float32)
+            self.normals = unit_normals(nr)
         self._validate_uv_sets(n)
         if self.colors is not None:
             col = np.asarray(self.colors, dtype=np.float32)
@@ -148,6 +170,12 @@ class Scene:
                 raise ValueError(f"scene.object_pass_indices has {len(pi)} entries but object id "
                                  f"{int(self.object_ids.max())} is used")
             self.object_pass_indices = np.ascontiguousarray(pi, dtype=np.int32)
+
+        if self.object_transforms is not None:
+            ot = np.asarray(self.object_transforms, dtype=np.float64)
+            if ot.ndim != 3 or ot.shape[1:] != (4, 4) or not np.all(np.isfinite(ot)):
+                raise ValueError(f"scene.object_transforms must be finite (O, 4, 4) matrices, got shape {ot.shape}")
+            self.object_transforms = ot
 
         self._drop_degenerate()
 
@@ -187,9 +215,7 @@ class Scene:
     def _drop_degenerate(self):
         if not len(self.triangles):
             return
-        tri = self.vertices[self.triangles].astype(np.float64)
-        area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-        keep = area2 > DEGENERATE_AREA * max(self.diagonal**2, 1e-30)
+        keep = non_degenerate(self.vertices, self.triangles, self.diagonal)
         dropped = int((~keep).sum())
         if dropped:
             warnings.warn(f"scene: skipped {dropped} degenerate (zero-area) triangle(s)", stacklevel=3)

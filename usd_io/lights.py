@@ -18,8 +18,8 @@ light of power P as a SphereLight with I = P/π, normalize = 1; Cycles' radiant 
     CylinderLight  a point light of the same power Φ = π·I·2πrl (normalize: π·I) at its centre, with a warning
     RectLight    radiance Le = I/A with normalize = 1 (A = width·height), else Le = I (Blender: I = P/π)
     DiskLight    the same with A = π·radius²
-    DomeLight    the world: Scene.background = I (× the texture's average colour if it has one) and
-                 Scene.ambient = I · inputs:diffuse (the diffuse multiplier scales only the lighting)
+    DomeLight    the world: a lat-long texture becomes Scene.environment (usd_io/dome.py: orientation, format);
+                 without one, Scene.background = I and Scene.ambient = I · inputs:diffuse
 
 Which reading: a stage whose root layer says it was written by Blender (``doc = "Blender v…"``, what
 Blender's exporter writes) takes Blender's sun; every other stage the spec's. For every other light type the two
@@ -42,9 +42,10 @@ import numpy as np
 from pxr import UsdLux
 
 from tracer import AreaLight, DistantLight, PointLight, SpotLight
-from tracer.texture import load_texture
 
-LIGHT_TYPES = ("SphereLight", "DistantLight", "RectLight", "DiskLight", "DomeLight", "CylinderLight")
+from .dome import dome_texture
+
+LIGHT_TYPES = ("SphereLight", "DistantLight", "RectLight", "DiskLight", "DomeLight", "DomeLight_1", "CylinderLight")
 _WHITE_6500 = np.asarray(UsdLux.BlackbodyTemperatureAsRgb(6500.0), dtype=np.float64)
 
 
@@ -170,21 +171,16 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False):
         radiance = rgb / area if _normalized(prim, time) else rgb
         return "area", AreaLight(position=pos, u_axis=world[:3, 0], v_axis=world[:3, 1], normal=down,
                                  size=size, radiance=radiance, shape=shape, name=name), None
-    if t == "DomeLight":
-        lux = UsdLux.DomeLight(prim)
-        colour = rgb
-        tex_attr = lux.GetTextureFileAttr()
-        asset = tex_attr.Get(time) if tex_attr.HasAuthoredValue() else None
-        if asset is not None and asset.path:
-            if asset.resolvedPath:
-                try:
-                    colour = rgb * load_texture(asset.resolvedPath, "auto").reshape(-1, 3).mean(axis=0)
-                except ValueError as exc:
-                    warn(f"{name}: {exc}; using the dome's colour")
-            else:
-                warn(f"{name}: dome texture {asset.path!r} not found; using the dome's colour")
+    if t in ("DomeLight", "DomeLight_1"):
         diffuse = float(_get(UsdLux.LightAPI(prim).GetDiffuseAttr(), time, 1.0))
-        return "dome", None, dict(background=colour, ambient=colour * diffuse)
+        image, rotation, average = dome_texture(prim, world, time, rgb, warn)  # usd_io/dome.py
+        colour = rgb if average is None else average
+        env = None
+        if image is not None:
+            env = dict(image=image, rotation=rotation)
+            if diffuse != 1.0:
+                warn(f"{name}: inputs:diffuse = {diffuse} is not supported with a dome texture (1 used)")
+        return "dome", None, dict(background=colour, ambient=colour * diffuse, environment=env)
     warn(f"{name}: light type {t} is not supported (skipped)")
     return "unsupported", None, None
 

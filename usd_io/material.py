@@ -1,71 +1,91 @@
-"""``UsdShade`` materials -> rows of the tracer's material table.
+"""``UsdShade`` materials -> rows of the tracer's material table (+ textures, UV sets and vertex colours).
 
 Binding resolution is USD's: ``UsdShade.MaterialBindingAPI.ComputeBoundMaterial`` (direct and collection-based
 bindings, binding strength, inheritance down the namespace) with purpose ``full`` (falling back to all-purpose),
 then ``preview``; ``GeomSubset`` face sets of family ``materialBind`` override the prim's material on their faces.
-Unbound geometry uses ``primvars:displayColor`` (constant or uniform; other interpolations are averaged).
+Unbound geometry shows ``primvars:displayColor`` (any interpolation, as a vertex colour; 0.5 grey without one).
 
-UsdPreviewSurface mapping (one formula each; see docs/usd.md):
+UsdPreviewSurface -> the tracer's Principled model (docs/materials-api.md), input by input; every input may be a
+constant, a ``UsdUVTexture`` output (r, g, b, a or rgb; scale, bias, wrap, colour space, UsdTransform2d, UV set:
+see :mod:`usd_io.shade_network`) or, for diffuseColor, a colour primvar reader (vertex colour):
 
-    diffuse       = diffuseColor (× the UsdUVTexture on it, scaled by its ``scale``; ``bias`` is ignored)
-    specular R_s  = specularColor if useSpecularWorkflow else F0 = ((ior − 1)/(ior + 1))²
-    exponent      = tracer.roughness_to_exponent(roughness)      (e = 2/r⁴ − 2, Walter et al. 2007)
-    k_m           = metallic (metallic workflow only), mirror_tint = diffuseColor (a metal tints what it reflects)
-    transmission  = 1 − opacity (refraction with ``ior``); with opacityThreshold > 0 it is a cut-out instead:
-                    opacity < threshold -> fully transmissive with ior 1 (rays pass straight through)
-    emission      = emissiveColor
+    diffuseColor        base_color (texture or vertex colour replaces the constant, as a connection does in USD)
+    metallic            metallic                         (metallic workflow; ignored in the specular workflow)
+    roughness           roughness
+    useSpecularWorkflow + specularColor: F0 = specularColor (its mean; one warning if it is coloured), written as the
+                        Principled specular level 0.5·F0 / F0(ior), or as an ior giving F0 when that level passes 1
+    ior                 ior (F0 = ((ior − 1)/(ior + 1))², the Principled default specular level 0.5)
+    opacity             opacityThreshold > 0: a cut-out (alpha_threshold; opacity < threshold is not there at all).
+                        threshold 0 and a texture: alpha blending (the texture's alpha or channel as coverage).
+                        threshold 0 and a constant < 1: transmission = 1 − opacity, refracting with ior (the spec's
+                        "transparent but still specular"; how Blender's glass survives its USD export)
+    emissiveColor       emission (constant or texture; emissive triangles light the scene)
+    normal              normal map, tangent space, +Y up (OpenGL, the spec's and glTF's), value = texel·scale + bias;
+                        8-bit maps carry scale (2, 2, 2, 1), bias (−1, −1, −1, 0); DirectX-style maps author a
+                        negative green scale (McUsd) and come out right through the same formula
+    clearcoat           not supported: one warning when > 0 or connected
+    occlusion           ignored (a ray tracer shadows for itself): one note when authored
+    displacement        not supported: one warning when connected or ≠ 0
 
 A MaterialX OpenPBR (``ND_open_pbr_surface_surfaceshader``) or Standard Surface shader on
 ``outputs:mtlx:surface`` supplies ``transmission_weight``/``transmission`` (-> transmission),
 ``specular_ior``/``specular_IOR`` (-> ior) and ``transmission_color`` (-> transmission_tint): the only way a
 Blender glass survives its USD export. Without a UsdPreviewSurface, base colour, metalness and specular roughness
 come from it as well.
+
+Everything dropped or approximated prints one warning naming the material and the input or node.
 """
 
 from __future__ import annotations
 
-import numpy as np
-from pxr import Sdf, UsdGeom, UsdShade
+from dataclasses import dataclass, field
 
-from tracer.texture import load_texture
+import numpy as np
+from pxr import UsdGeom, UsdShade
+
+from . import shade_network as net
+from .material_primvars import mesh_primvars
+from .texture_files import TextureCache, resolve_wrap
+from .tracer_model import ModelWriter, TextureSpec
 
 FALLBACK_DIFFUSE = (0.18, 0.18, 0.18)  # UsdPreviewSurface's diffuseColor fallback
 DEFAULT_DISPLAY = (0.5, 0.5, 0.5)  # Hydra's colour for geometry with neither material nor displayColor
+DEFAULT_UV = "<default>"  # the name of UV set 0: each mesh's st, or its only UV primvar (material_primvars)
+
+#: UsdPreviewSurface inputs and their spec fallbacks.
+PREVIEW_DEFAULTS = dict(diffuseColor=FALLBACK_DIFFUSE, emissiveColor=(0.0, 0.0, 0.0), useSpecularWorkflow=0,
+                        specularColor=(0.0, 0.0, 0.0), metallic=0.0, roughness=0.5, clearcoat=0.0,
+                        clearcoatRoughness=0.01, opacity=1.0, opacityThreshold=0.0, ior=1.5,
+                        normal=(0.0, 0.0, 1.0), displacement=0.0, occlusion=1.0)
 
 
-def _f0(ior: float) -> float:
+def f0_from_ior(ior: float) -> float:
+    """UsdPreviewSurface's F0 of a dielectric, ((1 − ior)/(1 + ior))²."""
     return float(((ior - 1.0) / (ior + 1.0)) ** 2)
 
 
-def _value(shader: UsdShade.Shader, name: str, default=None):
-    """An input's value, following connections to interface inputs; (shader, output) if driven by a node."""
-    inp = shader.GetInput(name)
-    if not inp:
-        return default
-    attrs = inp.GetValueProducingAttributes()
-    if not attrs:
-        return default
-    a = attrs[0]
-    if UsdShade.Output.IsOutput(a):
-        return UsdShade.Shader(a.GetPrim())
-    v = a.Get()
-    return default if v is None else v
+def ior_from_f0(f0: float) -> float:
+    """The inverse of :func:`f0_from_ior`."""
+    r = float(np.sqrt(np.clip(f0, 0.0, 0.999)))
+    return (1.0 + r) / (1.0 - r)
 
 
-def _num(shader, name, default):
-    v = _value(shader, name, default)
-    if isinstance(v, UsdShade.Shader):  # driven by a node we do not evaluate: take the node's own fallback
-        v = _value(v, "fallback", _value(v, "value", default))
-    try:
-        return float(v) if np.ndim(v) == 0 else tuple(float(x) for x in v)
-    except (TypeError, ValueError):
-        return default
+@dataclass
+class MeshNeeds:
+    """What a mesh must supply for its materials: UV sets by name (DEFAULT_UV = its default set) and a colour
+    primvar (name, fallback) read as vertex colour."""
 
+    uv_sets: set = field(default_factory=set)
+    color: tuple | None = None
 
-def _rgb(shader, name, default):
-    v = _num(shader, name, default)
-    v = np.asarray(v, dtype=np.float64).reshape(-1)
-    return tuple(np.resize(v, 3)) if v.size else tuple(default)
+    def merge(self, other: "MeshNeeds", warn, label: str) -> None:
+        self.uv_sets |= other.uv_sets
+        if other.color is not None:
+            if self.color is not None and self.color[0] != other.color[0]:
+                warn(f"{label}: materials read two colour primvars ({self.color[0]!r}, {other.color[0]!r}); "
+                     f"only {self.color[0]!r} is used (one vertex colour per mesh)")
+            else:
+                self.color = other.color
 
 
 class MaterialTable:
@@ -75,9 +95,13 @@ class MaterialTable:
         self.b = builder
         self.time = time
         self.warn = warn
-        self.by_path: dict[str, tuple[int, str]] = {}  # material path -> (row, uv primvar name)
+        self.by_path: dict[str, tuple[int, MeshNeeds]] = {}  # material path -> (row, needs)
         self.summary: dict[str, dict] = {}  # material name -> tracer fields (for `whitted info`)
-        self._textures: dict[str, int] = {}
+        self.files = TextureCache()
+        self._textures: dict = {}  # lookup key -> TextureSpec
+        self.uv_set_names: list[str] = [DEFAULT_UV]  # index in Scene.uv_sets
+        self.writer = ModelWriter(builder, warn)
+        self._primvar_cache: dict = {}
 
     # ------------------------------------------------------------------ binding
     @staticmethod
@@ -90,11 +114,12 @@ class MaterialTable:
         return None
 
     def for_prim(self, prim, n_faces: int, faces: np.ndarray):
-        """(per-triangle material rows or one row, uv primvar name) for a gprim whose triangles come from
-        ``faces``. GeomSubset bindings win on their faces; the prim's own binding (or displayColor) covers the
-        rest and is not created at all when the subsets cover every face."""
+        """(per-triangle material rows or one row, MeshNeeds) for a gprim whose triangles come from ``faces``.
+        GeomSubset bindings win on their faces; the prim's own binding (or displayColor) covers the rest and is
+        not created at all when the subsets cover every face."""
         per_face = np.full(n_faces, -1, np.int64)
-        uv = "st"
+        needs = MeshNeeds()
+        label = str(prim.GetPath())
         subsets = UsdShade.MaterialBindingAPI(prim).GetMaterialBindSubsets() if prim.IsA(UsdGeom.Mesh) else []
         for subset in subsets:
             if subset.GetElementTypeAttr().Get() != UsdGeom.Tokens.face:
@@ -102,146 +127,287 @@ class MaterialTable:
             smat = self.bound_material(subset.GetPrim())
             if smat is None:
                 continue
-            srow, suv = self.material(smat)
+            srow, sneeds = self.material(smat)
             idx = np.asarray(subset.GetIndicesAttr().Get(self.time) or [], dtype=np.int64)
             per_face[idx[(idx >= 0) & (idx < n_faces)]] = srow
-            uv = suv if suv != "st" else uv
+            needs.merge(sneeds, self.warn, label)
         if subsets and np.all(per_face >= 0):
-            return per_face[faces], uv
+            return per_face[faces], needs
         mat = self.bound_material(prim)
         if mat is not None:
-            row, puv = self.material(mat)
-            uv = puv if puv != "st" else uv
+            row, pneeds = self.material(mat)
         else:
-            row = self.display_color(prim, faces, n_faces)
+            row, pneeds = self.display_color(prim)
+        needs.merge(pneeds, self.warn, label)
         if not np.any(per_face >= 0):
-            return row, uv
+            return row, needs
         tri_rows = per_face[faces]
-        return np.where(tri_rows >= 0, tri_rows, row), uv
+        return np.where(tri_rows >= 0, tri_rows, row), needs
+
+    def mesh_inputs(self, prim, data, rows, needs: MeshNeeds):
+        """(per-triangle material rows, add_mesh keywords: UV sets and vertex colours) for one mesh."""
+        key = None
+        if prim.IsInstanceProxy():  # instances share their prototype's primvars: expand them once
+            key = (str(prim.GetPrimInPrototype().GetPath()), id(data), frozenset(needs.uv_sets), needs.color)
+        if key is not None and key in self._primvar_cache:
+            uv_sets, colors = self._primvar_cache[key]
+        else:
+            uv_sets, colors = mesh_primvars(prim, data, needs, self.uv_set_names, self.time, self.warn)
+            if key is not None:
+                self._primvar_cache[key] = (uv_sets, colors)
+        return self.writer.mesh_kwargs(str(prim.GetPath()), rows, len(data.triangles), uv_sets, colors)
+
+    def uv_set_index(self, name: str | None) -> int:
+        """Index in Scene.uv_sets of a texture's UV primvar (None and "st" read the mesh's default set 0)."""
+        key = DEFAULT_UV if name in (None, "", "st") else name
+        if key not in self.uv_set_names:
+            self.uv_set_names.append(key)
+        return self.uv_set_names.index(key)
 
     # ------------------------------------------------------------------ displayColor
-    def display_color(self, prim, faces, n_faces):
+    def display_color(self, prim):
+        """Unbound geometry: displayColor as a vertex colour (any interpolation), on a plain diffuse surface."""
         pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayColor")
-        vals = pv.ComputeFlattened(self.time) if pv and pv.HasValue() else None
-        if vals is None or len(vals) == 0:
-            return self._row_for_colour(DEFAULT_DISPLAY)
-        c = np.asarray(vals, dtype=np.float64).reshape(-1, 3)
-        interp = pv.GetInterpolation()
-        if interp == UsdGeom.Tokens.uniform and len(c) == n_faces:
-            uniq, inv = np.unique(np.round(c, 4), axis=0, return_inverse=True)
-            if len(uniq) <= 1024:
-                rows = np.array([self._row_for_colour(u) for u in uniq])
-                return rows[inv.reshape(-1)][faces]
-        if interp != UsdGeom.Tokens.constant and len(c) > 1:
-            self.warn(f"{prim.GetPath()}: displayColor with {interp} interpolation is averaged "
-                      "(the tracer has no vertex colours)")
-        return self._row_for_colour(c.mean(axis=0) if interp != UsdGeom.Tokens.constant else c[0])
+        if not (pv and pv.HasValue()):
+            return self._plain("displayColor(none)", DEFAULT_DISPLAY), MeshNeeds()
+        op = UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayOpacity")
+        if op and op.HasValue():
+            vals = np.asarray(op.ComputeFlattened(self.time) or [1.0], np.float64)
+            if np.any(vals < 1):
+                self.warn(f"{prim.GetPath()}: displayOpacity is not supported (rendered opaque)")
+        row = self._plain("displayColor", (1.0, 1.0, 1.0), vertex_color=True)
+        return row, MeshNeeds(color=("displayColor", DEFAULT_DISPLAY))
 
-    def _row_for_colour(self, rgb):
-        rgb = tuple(round(float(x), 4) for x in rgb)
-        name = f"displayColor{rgb}"
-        fields = dict(diffuse=rgb)
+    def _plain(self, name, rgb, **extra):
+        fields = self.model(base_color=tuple(float(x) for x in rgb), specular=0.0, **extra)
         self.summary.setdefault(name, fields)
-        return self.b.add_material(name, **fields)
+        return self.writer.add_material(name, fields)
 
     # ------------------------------------------------------------------ UsdShade.Material
     def material(self, mat: UsdShade.Material):
         key = str(mat.GetPath())
         if key in self.by_path:
             return self.by_path[key]
-        fields, uv = self.convert(mat)
-        row = self.b.add_material(key, **fields)
-        self.summary[key] = {k: (tuple(round(float(x), 4) for x in v) if np.ndim(v) else
+        fields, needs = self.convert(mat)
+        row = self.writer.add_material(key, fields)
+        self.summary[key] = {k: (v.label if isinstance(v, TextureSpec) else
+                                 tuple(round(float(x), 4) for x in np.ravel(v)) if np.ndim(v) else
                                  (round(float(v), 4) if isinstance(v, float) else v)) for k, v in fields.items()}
-        self.by_path[key] = (row, uv)
-        return row, uv
+        self.by_path[key] = (row, needs)
+        return row, needs
 
     def convert(self, mat: UsdShade.Material):
-        """Tracer material fields and the uv primvar name for one material."""
+        """Tracer material fields and the MeshNeeds for one material."""
         preview, _, _ = mat.ComputeSurfaceSource()
         mtlx, _, _ = mat.ComputeSurfaceSource("mtlx")
         if mtlx and mtlx.GetPath() == (preview.GetPath() if preview else None):
             mtlx = None  # no mtlx-specific output: ComputeSurfaceSource fell back to the universal one
-        fields, uv = {}, "st"
-        if preview and _shader_id(preview) == "UsdPreviewSurface":
-            fields, uv = self.preview_surface(preview)
+        fields, needs = {}, MeshNeeds()
+        label = str(mat.GetPath())
+        if preview and net.shader_id(preview) == "UsdPreviewSurface":
+            fields, needs = self.preview_surface(preview, label)
         elif preview and not mtlx:
-            self.warn(f"{mat.GetPath()}: surface shader {_shader_id(preview)!r} is not supported; using grey")
-            fields = dict(diffuse=FALLBACK_DIFFUSE)
+            self.warn(f"{label}: surface shader {net.shader_id(preview)!r} is not supported; using grey")
+            fields = self.model(base_color=FALLBACK_DIFFUSE)
         if mtlx:
-            fields = self.materialx(mtlx, fields, str(mat.GetPath()))
+            fields = self.materialx(mtlx, fields, label)
         if not fields:
-            fields = dict(diffuse=FALLBACK_DIFFUSE)
-        return fields, uv
+            fields = self.model(base_color=FALLBACK_DIFFUSE)
+        return fields, needs
 
-    def preview_surface(self, s: UsdShade.Shader):
-        t = dict(diffuse=FALLBACK_DIFFUSE)
-        uv = "st"
-        dc = _value(s, "diffuseColor", FALLBACK_DIFFUSE)
-        if isinstance(dc, UsdShade.Shader):
-            tex, scale, uv = self.uv_texture(dc)
-            if tex is not None:
-                t["diffuse_texture"] = tex
-                t["diffuse"] = scale
+    # ------------------------------------------------------------------ UsdPreviewSurface
+    def preview_surface(self, s: UsdShade.Shader, label: str):
+        """(tracer fields, MeshNeeds) of one UsdPreviewSurface."""
+        t = self.model()
+        needs = MeshNeeds()
+        src = {name: net.source(s, name, default, self.time) for name, default in PREVIEW_DEFAULTS.items()}
+
+        # diffuseColor -> base colour
+        d = src["diffuseColor"]
+        if isinstance(d, net.PrimvarLookup):
+            fb = net.floats(d.fallback, 3, (0.0, 0.0, 0.0)) if d.fallback is not None else (0.0, 0.0, 0.0)
+            needs.color = (d.name, fb)
+            t.update(base_color=(1.0, 1.0, 1.0), vertex_color=True)
+        else:
+            self._colour_input(t, "base_color", d, FALLBACK_DIFFUSE, label, "diffuseColor", needs)
+
+        spec_wf = int(self._const(src["useSpecularWorkflow"], 0, label, "useSpecularWorkflow") or 0)
+        ior = float(self._const(src["ior"], 1.5, label, "ior"))
+        if not (np.isfinite(ior) and ior > 0):
+            ior = 1.5
+        t["ior"] = ior
+        self._scalar_input(t, "roughness", src["roughness"], 0.5, label, "roughness", needs)
+        if spec_wf:
+            if not _is_default(src["metallic"], 0.0):
+                self.warn(f"{label}: metallic is ignored with useSpecularWorkflow = 1 (as the spec says)")
+            sc = src["specularColor"]
+            if not isinstance(sc, net.Const):
+                self.warn(f"{label}: specularColor driven by {self._what(sc)} is not supported "
+                          "(its fallback is used)")
+            rgb = np.asarray(net.floats(self._fallback_of(sc, (0.0, 0.0, 0.0)), 3, (0.0, 0.0, 0.0)))
+            if np.ptp(rgb) > 1e-3:
+                self.warn(f"{label}: coloured specularColor {tuple(np.round(rgb, 3))} is used as its mean "
+                          "(the Principled model has a grey dielectric F0)")
+            f0 = float(np.clip(rgb.mean(), 0.0, 1.0))
+            level = 0.5 * f0 / max(f0_from_ior(ior), 1e-9)
+            if level <= 1.0:
+                t["specular"] = level
             else:
-                t["diffuse"] = _rgb(dc, "fallback", FALLBACK_DIFFUSE)
+                t["specular"] = 0.5
+                t["ior"] = ior_from_f0(f0)
+            t["metallic"] = 0.0
         else:
-            t["diffuse"] = _rgb(s, "diffuseColor", FALLBACK_DIFFUSE)
-        metallic = float(np.clip(_num(s, "metallic", 0.0), 0, 1))
-        rough = float(np.clip(_num(s, "roughness", 0.5), 0, 1))
-        ior = float(_num(s, "ior", 1.5))
-        ior = ior if ior > 0 else 1.5
-        opacity = float(np.clip(_num(s, "opacity", 1.0), 0, 1))
-        threshold = float(_num(s, "opacityThreshold", 0.0))
-        if int(_num(s, "useSpecularWorkflow", 0)):
-            t["specular"] = _rgb(s, "specularColor", (0.0, 0.0, 0.0))
+            t["specular"] = 0.5
+            self._scalar_input(t, "metallic", src["metallic"], 0.0, label, "metallic", needs)
+
+        # opacity
+        threshold = float(self._const(src["opacityThreshold"], 0.0, label, "opacityThreshold"))
+        op = src["opacity"]
+        if isinstance(op, net.Const):
+            opacity = float(np.clip(net.floats(op.value, 1, (1.0,))[0], 0.0, 1.0))
+            if threshold > 0:
+                t["alpha"] = 0.0 if opacity < threshold else 1.0
+            elif opacity < 1:
+                t["transmission"] = 1.0 - opacity
         else:
-            t["specular"] = (_f0(ior),) * 3
-        t["roughness"] = rough
-        if metallic > 0 and not int(_num(s, "useSpecularWorkflow", 0)):  # metallic is ignored in that workflow
-            t["k_m"] = metallic
-            t["mirror_tint"] = t["diffuse"] if "diffuse_texture" not in t else (1.0, 1.0, 1.0)
-        if threshold > 0:
-            if opacity < threshold:
-                t.update(transmission=1.0, ior=1.0)
-        elif opacity < 1:
-            t["transmission"] = 1.0 - opacity
-        t.setdefault("ior", ior)
-        em = _rgb(s, "emissiveColor", (0.0, 0.0, 0.0))
-        if any(em):
-            t["emission"] = em
-        return t, uv
+            self._scalar_input(t, "alpha", op, 1.0, label, "opacity", needs)
+            t["alpha_threshold"] = max(threshold, 0.0)
 
-    def uv_texture(self, tex: UsdShade.Shader):
-        """(texture index or None, scale rgb, uv primvar name) of a UsdUVTexture node."""
-        if _shader_id(tex) != "UsdUVTexture":
-            self.warn(f"{tex.GetPath()}: diffuseColor driven by {_shader_id(tex)!r}, not UsdUVTexture; "
-                      "using its fallback")
-            return None, None, "st"
-        asset = _value(tex, "file")
-        path = asset.resolvedPath if isinstance(asset, Sdf.AssetPath) else ""
-        scale = _rgb(tex, "scale", (1.0, 1.0, 1.0, 1.0))
-        uv = "st"
-        st = _value(tex, "st")
-        if isinstance(st, UsdShade.Shader):
-            name = _value(st, "varname", "st")
-            uv = str(name) if name else "st"
-        if not path:
-            shown = asset.path if isinstance(asset, Sdf.AssetPath) else asset
-            self.warn(f"{tex.GetPath()}: texture {shown!r} not found; using the fallback colour")
-            return None, None, uv
-        if path not in self._textures:
-            cs = str(_value(tex, "sourceColorSpace", "auto"))
-            cs = {"sRGB": "srgb", "raw": "raw"}.get(cs, "auto")
-            try:
-                self._textures[path] = self.b.add_texture(load_texture(path, cs))
-            except ValueError as exc:
-                self.warn(f"{tex.GetPath()}: {exc}; using the fallback colour")
-                return None, None, uv
-        return self._textures[path], scale, uv
+        self._colour_input(t, "emission", src["emissiveColor"], (0.0, 0.0, 0.0), label, "emissiveColor", needs)
 
+        # normal map
+        n = src["normal"]
+        if isinstance(n, net.TextureLookup):
+            idx, _const = self._texture(n, label, "normal", needs)
+            if idx is not None:
+                t["normal_texture"] = idx
+        elif isinstance(n, net.Const):
+            if not np.allclose(net.floats(n.value, 3, (0.0, 0.0, 1.0)), (0.0, 0.0, 1.0)):
+                self.warn(f"{label}: a constant normal {tuple(n.value)} is not supported (ignored)")
+        else:
+            self.warn(f"{label}: normal driven by {self._what(n)} is not supported (ignored)")
+
+        # what the model leaves out
+        if not _is_default(src["clearcoat"], 0.0):
+            self.warn(f"{label}: clearcoat is not supported (dropped)")
+        if not _is_default(src["occlusion"], 1.0):
+            self.warn(f"{label}: occlusion is ignored (a ray tracer computes its own shadowing)")
+        if not _is_default(src["displacement"], 0.0):
+            self.warn(f"{label}: displacement is not supported (dropped)")
+        return t, needs
+
+    # ------------------------------------------------------------------ inputs
+    def _what(self, src) -> str:
+        if isinstance(src, net.PrimvarLookup):
+            return f"{src.reader} {src.node!r} (primvar {src.name!r})"
+        if isinstance(src, net.Unsupported):
+            return f"{src.shader_id!r} node {src.node!r}"
+        if isinstance(src, net.TextureLookup):
+            return f"UsdUVTexture {src.node!r}"
+        return "a value"
+
+    @staticmethod
+    def _fallback_of(src, default):
+        if isinstance(src, net.Const):
+            return src.value
+        if isinstance(src, net.TextureLookup):
+            return src.fallback
+        v = getattr(src, "fallback", None)
+        return default if v is None else v
+
+    def _const(self, src, default, label, name):
+        """A constant-only input (a connection to a node is not supported: one warning, the node's fallback)."""
+        if isinstance(src, net.Const):
+            return net.floats(src.value, 1, (default,))[0]
+        self.warn(f"{label}: {name} driven by {self._what(src)} is not supported (constant {default} used)")
+        return default
+
+    def _scalar_input(self, t, key, src, default, label, name, needs):
+        if isinstance(src, net.Const):
+            t[key] = float(net.floats(src.value, 1, (default,))[0])
+            return
+        if isinstance(src, net.TextureLookup):
+            idx, const = self._texture(src, label, name, needs)
+            if idx is not None:
+                t[key] = 1.0
+                t[f"{key}_texture"] = idx
+                t[f"{key}_channel"] = src.channel if src.channel >= 0 else 0
+                return
+            t[key] = float(const[src.channel if src.channel >= 0 else 0])
+            return
+        fb = self._fallback_of(src, default)
+        self.warn(f"{label}: {name} driven by {self._what(src)} is not supported (fallback {fb} used)")
+        t[key] = float(net.floats(fb, 1, (default,))[0])
+
+    def _colour_input(self, t, key, src, default, label, name, needs):
+        if isinstance(src, net.Const):
+            t[key] = net.floats(src.value, 3, default)
+            return
+        if isinstance(src, net.TextureLookup):
+            idx, const = self._texture(src, label, name, needs)
+            if idx is not None:
+                t[key] = (1.0, 1.0, 1.0)
+                t[f"{key}_texture"] = idx
+                t[f"{key}_channel"] = src.channel  # -1 = rgb; a single channel is read as grey
+                return
+            c = const[src.channel] if src.channel >= 0 else None
+            t[key] = (c, c, c) if c is not None else tuple(const[:3])
+            return
+        fb = self._fallback_of(src, default)
+        self.warn(f"{label}: {name} driven by {self._what(src)} is not supported (fallback {fb} used)")
+        t[key] = net.floats(fb, 3, default)
+
+    def _texture(self, lk: net.TextureLookup, label: str, name: str, needs: MeshNeeds):
+        """(texture index, None) for a readable UsdUVTexture; (None, its fallback as 4 floats) otherwise, with one
+        warning. Textures are shared between inputs that read one node the same way."""
+        for note in lk.notes:
+            self.warn(f"{lk.node}: {note}")
+        for what, default in (("scale", net.UV_TEXTURE_DEFAULTS["scale"]), ("bias", net.UV_TEXTURE_DEFAULTS["bias"]),
+                              ("fallback", net.UV_TEXTURE_DEFAULTS["fallback"])):
+            if not np.all(np.isfinite(getattr(lk, what))):
+                self.warn(f"{lk.node}: {what} {getattr(lk, what)} is not finite (the spec's {default} used)")
+                setattr(lk, what, tuple(default))
+        if not np.all(np.isfinite(lk.transform)):
+            self.warn(f"{lk.node}: its UsdTransform2d is not finite (ignored)")
+            lk.transform = np.eye(3)
+        asset = lk.asset
+        if asset is None or not asset.path:
+            self.warn(f"{label}: {name} texture {lk.node!r} has no file; its fallback {lk.fallback} is used")
+            return None, lk.fallback
+        if "<UDIM>" in asset.path:
+            self.warn(f"{label}: UDIM texture {asset.path!r} is not supported; {name} uses the fallback "
+                      f"{lk.fallback}")
+            return None, lk.fallback
+        if not asset.resolvedPath:
+            self.warn(f"{label}: texture {asset.path!r} not found; {name} uses the fallback {lk.fallback}")
+            return None, lk.fallback
+        cs = lk.colorspace if lk.colorspace in ("sRGB", "raw") else "auto"
+        if lk.colorspace not in ("sRGB", "raw", "auto"):
+            self.warn(f"{lk.node}: unknown sourceColorSpace {lk.colorspace!r} (auto used)")
+        try:
+            f = self.files.get(asset.resolvedPath, cs, asset.path)
+        except ValueError as exc:
+            self.warn(f"{label}: {exc}; {name} uses the fallback {lk.fallback}")
+            return None, lk.fallback
+        wrap_s = resolve_wrap(lk.wrap_s, f.wrap_meta[0], lk.node, self.warn)
+        wrap_t = resolve_wrap(lk.wrap_t, f.wrap_meta[1], lk.node, self.warn)
+        uv_set = self.uv_set_index(lk.uv)
+        needs.uv_sets.add(self.uv_set_names[uv_set])
+        key = (id(f.pixels), wrap_s, wrap_t, uv_set, lk.transform.round(9).tobytes(), lk.scale, lk.bias, lk.fallback)
+        if key not in self._textures:
+            self._textures[key] = TextureSpec(f.pixels, wrap_s, wrap_t, uv_set, lk.transform, lk.scale, lk.bias,
+                                              lk.fallback, label=f"{asset.path} ({lk.node})")
+        return self._textures[key], None
+
+    # ------------------------------------------------------------------ the tracer's model
+    @staticmethod
+    def model(**fields) -> dict:
+        """A tracer material row (fields of docs/materials-api.md)."""
+        return dict(fields)
+
+    # ------------------------------------------------------------------ MaterialX
     def materialx(self, s: UsdShade.Shader, fields: dict, label: str) -> dict:
-        sid = _shader_id(s)
+        sid = net.shader_id(s)
         if "open_pbr_surface" in sid:
             names = dict(base="base_color", metal="base_metalness", rough="specular_roughness",
                          trans="transmission_weight", ior="specular_ior", tint="transmission_color")
@@ -253,24 +419,28 @@ class MaterialTable:
                 self.warn(f"{label}: MaterialX shader {sid!r} is not supported")
             return fields
         out = dict(fields)
+
+        def num(name, default):
+            v = net.value(s, name, default, self.time)
+            return net.floats(v, 1, (default,))[0] if v is not None else None
+
         if not fields:  # no UsdPreviewSurface: take the basics from MaterialX
-            base = _rgb(s, names["base"], (0.8, 0.8, 0.8))
-            ior = float(_num(s, names["ior"], 1.5))
-            out.update(diffuse=base, roughness=float(_num(s, names["rough"], 0.3)), specular=(_f0(ior),) * 3)
-            metal = float(_num(s, names["metal"], 0.0))
-            if metal > 0:
-                out.update(k_m=min(metal, 1.0), mirror_tint=base)
-        trans = _num(s, names["trans"], None)
+            base = net.floats(net.value(s, names["base"], (0.8, 0.8, 0.8), self.time), 3, (0.8, 0.8, 0.8))
+            out.update(self.model(base_color=base, roughness=float(num(names["rough"], 0.3)), specular=0.5,
+                                  metallic=float(np.clip(num(names["metal"], 0.0), 0, 1))))
+        trans = num(names["trans"], None) if net.value(s, names["trans"], None, self.time) is not None else None
         if trans is not None and float(trans) > 0:
             out["transmission"] = float(np.clip(trans, 0, 1))
-            out["transmission_tint"] = _rgb(s, names["tint"], (1.0, 1.0, 1.0))
-        ior = _num(s, names["ior"], None)
-        if ior is not None and float(ior) > 0:
-            out["ior"] = float(ior)
+            out["transmission_tint"] = net.floats(net.value(s, names["tint"], (1.0, 1.0, 1.0), self.time), 3,
+                                                  (1.0, 1.0, 1.0))
+        ior = net.value(s, names["ior"], None, self.time)
+        if ior is not None and float(net.floats(ior, 1, (1.5,))[0]) > 0:
+            out["ior"] = float(net.floats(ior, 1, (1.5,))[0])
         return out
 
 
-def _shader_id(s: UsdShade.Shader) -> str:
-    sid = s.GetShaderId() if s else None
-    return str(sid) if sid else ""
-
+def _is_default(src, default) -> bool:
+    """Whether an input is left at its default (unconnected, and equal to ``default``)."""
+    if not isinstance(src, net.Const):
+        return False
+    return bool(np.allclose(net.floats(src.value, 1, (default,))[0], default))

@@ -11,8 +11,9 @@ per-corner values through the triangulation's corner table:
 
 Indexed primvars are flattened first (``Primvar.ComputeFlattened``). ``orientation = leftHanded`` reverses the
 winding so the tracer's counter-clockwise front faces match USD's; so does a mirroring (negative determinant)
-transform. Subdivision surfaces render as their control cage, with smooth (area-weighted) vertex normals when
-the mesh has none, since such a cage stands for a smooth surface.
+transform. Subdivision surfaces (``subdivisionScheme`` catmullClark, the USD default, loop or bilinear) are
+refined by ``tracer.subdivision`` to the ``--complexity`` level (:data:`COMPLEXITY`); at level 0 (low) they render
+as their control cage with its authored normals, or smooth (area-weighted) ones, as usdview does.
 """
 
 from __future__ import annotations
@@ -112,6 +113,9 @@ class MeshData:
     normals: np.ndarray | None = None  # (T, 3, 3) or (V, 3)
     uvs: np.ndarray | None = None  # (T, 3, 2)
     warnings: list = field(default_factory=list)
+    corners: np.ndarray | None = None  # (T, 3) face-vertex positions, to expand further primvars (materials)
+    n_face_vertices: int = 0
+    primvars: dict | None = None  # refined subdivision surfaces: {name: (T, 3, k) per corner} (no corners then)
 
 
 def _primvar(prim, name):
@@ -135,12 +139,16 @@ def read_uvs(prim, tri: Triangulation, n_points, n_fv, time, name="st"):
 #: for complexity 1.0, 1.1, 1.2, 1.3).
 COMPLEXITY = {"low": 0, "medium": 1, "high": 2, "veryhigh": 3}
 DEFAULT_COMPLEXITY = "medium"
+#: Schemes refined at complexity medium and above (the rest, "none" and unknown tokens, stay polygons).
+SUBDIVIDED = (UsdGeom.Tokens.catmullClark, UsdGeom.Tokens.loop, UsdGeom.Tokens.bilinear)
 
 
-def read_mesh(prim, time, uv_name="st", subdivision_level: int = COMPLEXITY[DEFAULT_COMPLEXITY]) -> MeshData | None:
+def read_mesh(prim, time, uv_name="st", subdivision_level: int = COMPLEXITY[DEFAULT_COMPLEXITY],
+              points=None) -> MeshData | None:
+    """The mesh at ``time``; ``points`` replaces the authored points (a skinned cage posed before refinement)."""
     mesh = UsdGeom.Mesh(prim)
     label = str(prim.GetPath())
-    points = mesh.GetPointsAttr().Get(time)
+    points = mesh.GetPointsAttr().Get(time) if points is None else points
     counts = mesh.GetFaceVertexCountsAttr().Get(time)
     indices = mesh.GetFaceVertexIndicesAttr().Get(time)
     if points is None or counts is None or indices is None:
@@ -156,12 +164,13 @@ def read_mesh(prim, time, uv_name="st", subdivision_level: int = COMPLEXITY[DEFA
     left = mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded
     holes = mesh.GetHoleIndicesAttr().Get(time) or ()
     scheme = mesh.GetSubdivisionSchemeAttr().Get(time) or UsdGeom.Tokens.catmullClark
-    if scheme in (UsdGeom.Tokens.catmullClark, UsdGeom.Tokens.loop) and subdivision_level > 0:
+    if scheme in SUBDIVIDED and subdivision_level > 0:
         return _subdivided(prim, mesh, points, counts, indices, holes, left, scheme, subdivision_level, time,
                            uv_name, label)
     tri = triangulate(counts, indices, len(points), holes, left, label)
-    data = MeshData(points, tri.triangles, tri.faces, tri.n_faces, warnings=list(tri.warnings))
     n_fv = len(indices)
+    data = MeshData(points, tri.triangles, tri.faces, tri.n_faces, warnings=list(tri.warnings),
+                    corners=tri.corners, n_face_vertices=n_fv)
 
     # Normals: primvars:normals wins over the normals attribute (UsdGeom rule).
     pv = _primvar(prim, "normals")
@@ -193,70 +202,176 @@ def read_mesh(prim, time, uv_name="st", subdivision_level: int = COMPLEXITY[DEFA
     return data
 
 
-def _face_varying(prim, name, counts, indices, n_points, time):
-    """A primvar as one value per face-vertex (None if absent or of the wrong size)."""
+def _subdivision_primvar(prim, name, n_points, n_faces, n_fv, time, label, warnings):
+    """(interpolation, values (N, k), indices or None) of a primvar for refinement, or None when absent (a warning
+    when its size does not fit its interpolation)."""
     pv = _primvar(prim, name)
     if pv is None:
         return None
-    vals = pv.ComputeFlattened(time)
-    if vals is None or len(vals) == 0:
+    vals = pv.Get(time)
+    if vals is None or not hasattr(vals, "__len__") or len(vals) == 0:
         return None
-    v = np.asarray(vals, np.float64).reshape(len(vals), -1)
+    v = np.asarray(vals, np.float64)
+    v = v.reshape(len(v), -1)
+    ind = pv.GetIndices(time) if pv.IsIndexed() else None
+    ind = None if ind is None or len(ind) == 0 else np.asarray(ind, np.int64)
     interp = pv.GetInterpolation()
-    n_fv = len(indices)
-    if interp == UsdGeom.Tokens.faceVarying and len(v) == n_fv:
-        return v
-    if interp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying) and len(v) == n_points:
-        return v[indices]
-    if interp == UsdGeom.Tokens.uniform and len(v) == len(counts):
-        return np.repeat(v, counts, axis=0)
-    if interp == UsdGeom.Tokens.constant:
-        return np.repeat(v[:1], n_fv, axis=0)
-    return None
+    n = len(v) if ind is None else len(ind)
+    if ind is not None and (ind.min() < 0 or ind.max() >= len(v)):
+        warnings.append(f"{label} primvars:{name}: indices outside its {len(v)} values (ignored)")
+        return None
+    want = {UsdGeom.Tokens.faceVarying: n_fv, UsdGeom.Tokens.vertex: n_points, UsdGeom.Tokens.varying: n_points,
+            UsdGeom.Tokens.uniform: n_faces, UsdGeom.Tokens.constant: n}.get(interp)
+    if want is None or n != want:
+        warnings.append(f"{label} primvars:{name}: {interp} primvar has {n} values for {want} (ignored)")
+        return None
+    return interp, v, ind
 
 
 def _subdivided(prim, mesh, points, counts, indices, holes, left, scheme, level, time, uv_name, label):
-    """A subdivision surface refined ``level`` times (tracer.subdivision.catmull_clark), with its UVs carried
-    through and smooth normals of the refined surface. Authored normals are ignored, as the USD spec says for
-    subdivision surfaces."""
-    from tracer.subdivision import catmull_clark, limit_normals
+    """A subdivision surface refined ``level`` times by :func:`tracer.subdivision.refine` with the mesh's own
+    subdivision attributes (interpolateBoundary, faceVaryingLinearInterpolation, triangleSubdivisionRule, creases,
+    corners, holes); the UV primvar carried through by its interpolation (faceVarying by face-varying rules with
+    its indices, vertex like the points, varying linearly); per-corner limit-surface normals. Authored normals are
+    ignored, as the USD spec says of subdivision surfaces (one warning per stage)."""
+    from tracer.subdivision import refine
 
     warnings = []
-    counts = np.asarray(counts, np.int64)
-    indices = np.asarray(indices, np.int64)
+    counts = np.asarray(counts, np.int64).reshape(-1)
+    indices = np.asarray(indices, np.int64).reshape(-1)
     if counts.sum() != len(indices) or (len(indices) and (indices.min() < 0 or indices.max() >= len(points))):
         triangulate(counts, indices, len(points), holes, left, label)  # raises the cage's own error
+    n_faces_in, n_fv_in = len(counts), len(indices)
     keep = counts >= 3
+    face_ids = np.flatnonzero(keep)
+    fv_keep = np.repeat(keep, counts)
     if (~keep).any():
         warnings.append(f"{label}: skipped {int((~keep).sum())} face(s) with fewer than 3 vertices")
-        fv_keep = np.repeat(keep, counts)
         indices, counts = indices[fv_keep], counts[keep]
-    if scheme == UsdGeom.Tokens.loop:
-        warnings.append(f"{label}: loop subdivision refined with Catmull-Clark rules")
-    authored = [n for n, a in (("creases", mesh.GetCreaseIndicesAttr()), ("corners", mesh.GetCornerIndicesAttr()))
-                if a.HasAuthoredValue() and len(a.Get(time) or ())]
-    if authored:
-        warnings.append(f"{label}: subdivision {' and '.join(authored)} are not supported (smooth everywhere)")
-    boundary = mesh.GetInterpolateBoundaryAttr().Get(time)
-    if boundary not in (None, UsdGeom.Tokens.edgeAndCorner):
-        warnings.append(f"{label}: interpolateBoundary {boundary} refined as edgeAndCorner")
-    st = _face_varying(prim, uv_name, counts, indices, len(points), time)
-    r = catmull_clark(points, counts, indices, level, fvar=None if st is None else st[:, :2])
-    quads, face = r.indices, np.flatnonzero(keep)[r.face]
+    if not len(counts):
+        return None
+
+    def attr(get, default=None):
+        a = get()
+        v = a.Get(time) if a and a.HasAuthoredValue() else None
+        return default if v is None else v
+
+    boundary = attr(mesh.GetInterpolateBoundaryAttr, UsdGeom.Tokens.edgeAndCorner)
+    fvli = attr(mesh.GetFaceVaryingLinearInterpolationAttr, UsdGeom.Tokens.cornersPlus1)
+    tri_rule = attr(mesh.GetTriangleSubdivisionRuleAttr, UsdGeom.Tokens.catmullClark)
+    options = {}
+    for name, value, allowed in (("boundary", boundary, ("edgeAndCorner", "edgeOnly", "none")),
+                                 ("face_varying_interpolation", fvli,
+                                  ("cornersPlus1", "cornersOnly", "cornersPlus2", "boundaries", "all", "none")),
+                                 ("triangle_rule", tri_rule, ("catmullClark", "smooth"))):
+        if value in allowed:
+            options[name] = str(value)
+        else:
+            warnings.append(f"{label}: unknown {name.replace('_', ' ')} {value!r} (USD's default used)")
+    creases = None
+    c_idx = attr(mesh.GetCreaseIndicesAttr)
+    if c_idx is not None and len(c_idx):
+        creases = (np.asarray(c_idx), np.asarray(attr(mesh.GetCreaseLengthsAttr, [])),
+                   np.asarray(attr(mesh.GetCreaseSharpnessesAttr, [])))
+    corners = None
+    k_idx = attr(mesh.GetCornerIndicesAttr)
+    if k_idx is not None and len(k_idx):
+        corners = (np.asarray(k_idx), np.asarray(attr(mesh.GetCornerSharpnessesAttr, [])))
     hole_set = np.asarray(holes, np.int64).reshape(-1)
-    if hole_set.size:
-        alive = ~np.isin(face, hole_set)
-        quads, face = quads[alive], face[alive]
-        warnings.append(f"{label}: {len(hole_set)} hole face(s) ignored (not cut; holes render as missing faces)")
-        uv_q = None if r.fvar is None else r.fvar[alive]
+    remap = np.full(n_faces_in, -1, np.int64)
+    remap[face_ids] = np.arange(len(face_ids))
+    hole_set = remap[hole_set[(hole_set >= 0) & (hole_set < n_faces_in)]]
+    hole_set = hole_set[hole_set >= 0]
+
+    # every texture-coordinate and colour primvar rides along, each by its own interpolation
+    names = _refined_primvar_names(prim, uv_name)
+    fvar_names, vertex_cols, varying_cols, per_face, constant = [], [], [], {}, {}
+    face_varying, vertex_parts, varying_parts = [], [], []
+    for name in names:
+        got = _subdivision_primvar(prim, name, len(points), n_faces_in, n_fv_in, time, label, warnings)
+        if got is None:
+            continue
+        interp, vals, ind = got
+        flat = vals if ind is None else vals[ind]
+        if interp == UsdGeom.Tokens.faceVarying:
+            fvar_names.append(name)
+            face_varying.append((vals, ind[fv_keep]) if ind is not None else vals[fv_keep])
+        elif interp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying):
+            parts, cols = (vertex_parts, vertex_cols) if interp == UsdGeom.Tokens.vertex else (varying_parts,
+                                                                                                varying_cols)
+            start = sum(p.shape[1] for p in parts)
+            cols.append((name, slice(start, start + flat.shape[1])))
+            parts.append(flat)
+        elif interp == UsdGeom.Tokens.uniform:
+            per_face[name] = flat[face_ids]
+        else:
+            constant[name] = flat[0]
+
+    r = refine(points, counts, indices, level, str(scheme), creases=creases, corners=corners, holes=hole_set,
+               face_varying=face_varying, vertex_data=np.concatenate(vertex_parts, axis=1) if vertex_parts else None,
+               varying_data=np.concatenate(varying_parts, axis=1) if varying_parts else None, **options)
+    warnings += [f"{label}: {w}" for w in r.warnings]
+    q = r.faces
+    n = q.shape[1]
+    if n == 4:  # each quad along its shorter diagonal
+        p = r.points
+        d02 = np.square(p[q[:, 2]] - p[q[:, 0]]).sum(axis=1)
+        d13 = np.square(p[q[:, 3]] - p[q[:, 1]]).sum(axis=1)
+        local = np.where((d13 < d02)[:, None, None], [[0, 1, 3], [1, 2, 3]], [[0, 1, 2], [0, 2, 3]])
+        corner = (np.arange(len(q))[:, None, None] * 4 + local).reshape(-1, 3)  # into the quads' flat corners
     else:
-        uv_q = r.fvar
-    order = [[0, 2, 1], [0, 3, 2]] if left else [[0, 1, 2], [0, 2, 3]]
-    triangles = np.concatenate([quads[:, order[0]], quads[:, order[1]]], axis=0)
-    faces = np.concatenate([face, face])
-    uvs = None if uv_q is None else np.concatenate([uv_q[:, order[0]], uv_q[:, order[1]]], axis=0)
-    normals = limit_normals(r.points, quads)
+        corner = np.arange(q.size).reshape(-1, 3)
+    if left:
+        corner = corner[:, [0, 2, 1]]
+    triangles = q.reshape(-1)[corner]
+    normals = r.normals.reshape(-1, 3)[corner]
     if left:
         normals = -normals
-    return MeshData(r.points, triangles, faces, len(np.asarray(counts)) + int((~keep).sum()), normals=normals,
-                    uvs=uvs, warnings=warnings)
+    face_of = r.face[corner[:, 0] // n]
+    primvars = {}
+    for name, values in zip(fvar_names, r.face_varying):
+        primvars[name] = values.reshape(-1, values.shape[-1])[corner]
+    for cols, data in ((vertex_cols, r.vertex_data), (varying_cols, r.varying_data)):
+        for name, sl in cols:
+            primvars[name] = data[:, sl][triangles]
+    for name, values in per_face.items():
+        primvars[name] = np.repeat(values[face_of][:, None, :], 3, axis=1)
+    for name, value in constant.items():
+        primvars[name] = np.broadcast_to(value, triangles.shape + value.shape).copy()
+    primvars = {k: v.astype(np.float32) for k, v in primvars.items()}
+    uvs = primvars.get(uv_name)
+    if uvs is not None and uvs.shape[-1] < 2:
+        warnings.append(f"{label} primvars:{uv_name}: fewer than 2 components (ignored)")
+        uvs = None
+    uvs = None if uvs is None else uvs[..., :2]
+    if _has_authored_normals(prim, mesh):
+        warnings.append(AUTHORED_NORMALS_IGNORED)
+    return MeshData(r.points, triangles, face_ids[face_of], n_faces_in, normals=normals, uvs=uvs, warnings=warnings,
+                    primvars=primvars)
+
+
+#: Primvar value types refined with a subdivision surface for materials (texture coordinates and colours).
+_REFINED_TYPES = {"texCoord2f[]", "texCoord2d[]", "texCoord2h[]", "float2[]", "double2[]", "half2[]", "color3f[]",
+                  "color3d[]", "color3h[]", "color4f[]", "color4d[]", "color4h[]", "float3[]", "float4[]"}
+
+
+def _refined_primvar_names(prim, uv_name) -> list:
+    """The primvars a refined mesh carries per corner: its UV primvar, displayColor/displayOpacity, and every
+    texture-coordinate or colour-typed primvar (what materials read: usd_io/material_primvars.py)."""
+    names = [uv_name]
+    for pv in UsdGeom.PrimvarsAPI(prim).GetPrimvars():
+        n = str(pv.GetPrimvarName())
+        if n not in names and pv.HasValue() and (str(pv.GetTypeName()) in _REFINED_TYPES
+                                                 or n in ("displayColor", "displayOpacity")):
+            names.append(n)
+    return names
+
+
+#: One warning per stage (no prim path, so StageInfo.warn keeps one).
+AUTHORED_NORMALS_IGNORED = ("normals authored on subdivision surfaces are ignored, as the USD spec says "
+                            "(subdivisionScheme = \"none\" keeps them; --complexity low renders the cage with them)")
+
+
+def _has_authored_normals(prim, mesh) -> bool:
+    pv = _primvar(prim, "normals")
+    return pv is not None or mesh.GetNormalsAttr().HasAuthoredValue()

@@ -20,9 +20,11 @@ from . import camera as cam
 from .curves import read_curves, read_points
 from .gprims import DEFAULT_SEGMENTS, GPRIM_TYPES, read_gprim
 from .instancing import instance_matrices, replicate
+from .dome import environment
 from .lights import blender_authored, convert_light, default_lights
 from .material import MaterialTable
-from .mesh import COMPLEXITY, DEFAULT_COMPLEXITY, MeshData, read_mesh
+from .material_primvars import replicate_corners
+from .mesh import COMPLEXITY, DEFAULT_COMPLEXITY, SUBDIVIDED, MeshData, read_mesh
 from .skel import Skinning
 from .stage import (DEFAULT_PURPOSES, _first_reason, captured_stderr, UsdInputError, check_purposes, composition_warnings, open_stage,
                     renderable_prims, stage_messages, stage_time)
@@ -72,12 +74,8 @@ class _Reader:
         """Object-space geometry, or None (with a warning) where it is malformed."""
         try:
             if prim.IsA(UsdGeom.Mesh):
-                level = self.subdivision_level
-                if level and Skinning.is_skinned(prim):  # skinning poses the cage's points: keep the cage
-                    level = 0
-                    if (UsdGeom.Mesh(prim).GetSubdivisionSchemeAttr().Get(self.time) or "catmullClark") != "none":
-                        self.info.warn(f"{prim.GetPath()}: skinned subdivision surface rendered as its posed cage")
-                data = read_mesh(prim, self.time, uv_name, level)
+                skinned = Skinning.is_skinned(prim)  # skinned: the cage now, refined once posed (add_gprim)
+                data = read_mesh(prim, self.time, uv_name, 0 if skinned else self.subdivision_level)
             elif prim.IsA(UsdGeom.Points):
                 data = read_points(prim, self.time)
             elif prim.IsA(UsdGeom.BasisCurves):
@@ -102,19 +100,19 @@ class _Reader:
         return self._proto_cache[key]
 
     def shaded(self, prim, data: MeshData):
+        """(data, per-triangle material rows, add_mesh keywords for UV sets and vertex colours)"""
         try:
-            material, uv = self.mats.for_prim(prim, data.n_faces, data.faces)
+            material, needs = self.mats.for_prim(prim, data.n_faces, data.faces)
+            material, extra = self.mats.mesh_inputs(prim, data, material, needs)
         except (TypeError, ValueError, IndexError) as exc:  # a shading input of an unexpected type or shape
             self.info.warn(f"{prim.GetPath()}: its material could not be read ({type(exc).__name__}: {exc}); "
                            "rendered grey")
             if self._grey is None:
-                self._grey = self.b.add_material("whitted:unreadable", diffuse=(0.5, 0.5, 0.5))
-            material, uv = self._grey, "st"
-        if uv != "st" and prim.IsA(UsdGeom.Mesh):
-            data = self.geometry(prim, uv) or data
+                self._grey = self.mats.writer.add_material("whitted:unreadable", dict(base_color=(0.5, 0.5, 0.5)))
+            material, extra = self._grey, ({} if data.uvs is None else dict(uvs=data.uvs))
         for w in data.warnings:
             self.info.warn(w)
-        return data, material
+        return data, material, extra
 
     def add_gprim(self, prim):
         data = self.cached_geometry(prim)
@@ -125,14 +123,18 @@ class _Reader:
             posed = self.skinning.pose(prim, data, self.info.warn)
             if posed is not None:
                 data, m = posed
+            if self.subdivision_level and (UsdGeom.Mesh(prim).GetSubdivisionSchemeAttr().Get(self.time)
+                                           or UsdGeom.Tokens.catmullClark) in SUBDIVIDED:
+                # as Hydra does: skin the cage, then refine it
+                data = read_mesh(prim, self.time, "st", self.subdivision_level, points=data.points) or data
         if not _usable(m):
             self.info.warn(f"{prim.GetPath()}: transform is singular (zero scale) or not finite (skipped)")
             return
-        data, material = self.shaded(prim, data)
+        data, material, extra = self.shaded(prim, data)
         tris = data.triangles
         # add_mesh turns the winding of mirroring transforms back itself
         self.b.add_mesh(data.points, tris, material=material, name=str(prim.GetPath()), transform=m,
-                        normals=data.normals, uvs=data.uvs)
+                        normals=data.normals, **dict(dict(uvs=data.uvs), **extra))
         self._grow(transform_points(m, data.points))
         self.info.meshes.append((str(prim.GetPath()), int(len(tris))))
 
@@ -163,7 +165,7 @@ class _Reader:
                 data = self.geometry(piece)
                 if data is None or not len(data.triangles):
                     continue
-                data, material = self.shaded(piece, data)
+                data, material, extra = self.shaded(piece, data)
                 full = base @ rel[None]
                 usable = _usable(full)
                 if not usable.all():
@@ -173,9 +175,10 @@ class _Reader:
                 if not len(full):
                     continue
                 v, t, n, uv, mat = replicate(full, data, material)
+                extra = replicate_corners(full, extra)
                 # one object id per instance (AOV objectid, picking), ids consecutive in instance order
-                self.b.add_mesh(v, t, material=mat, name=f"{prim.GetPath()}[{piece.GetPath()}]", normals=n, uvs=uv,
-                                instances=len(full))
+                self.b.add_mesh(v, t, material=mat, name=f"{prim.GetPath()}[{piece.GetPath()}]", normals=n,
+                                instances=len(full), **dict(dict(uvs=uv), **extra))
                 self._grow(v)
                 total += len(t)
         if depth == 0:
@@ -197,6 +200,12 @@ class _Reader:
         if light is not None:
             self.b.add_light(light)
             self.info.lights.append((str(prim.GetPath()), kind, light))
+        elif world is not None and world.get("environment") is not None:  # a lat-long dome texture
+            if getattr(self.b, "environment", None) is not None:
+                self.info.warn(f"{prim.GetPath()}: a second textured DomeLight is not supported (skipped)")
+                return
+            self.b.environment = environment(world["environment"])
+            self.info.lights.append((str(prim.GetPath()), kind, world))
         elif world is not None:
             self.b.background = self.b.background + np.asarray(world["background"], np.float32)
             self.b.ambient = self.b.ambient + np.asarray(world["ambient"], np.float32)

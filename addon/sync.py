@@ -1,0 +1,344 @@
+"""Blender's depsgraph -> edits of a long-lived :class:`tracer.Session` (the add-on's side of issue #12).
+
+Cycles keeps one session per viewport (and, with Persistent Data, per final render) and syncs only what
+``depsgraph.updates`` says changed; :class:`SceneSync` does the same for the tracer. It runs on Blender's main
+thread (bpy data is not thread-safe) and turns an update into a list of :class:`Edit` s, plain data that
+:func:`apply_edits` later applies to the session on whichever thread renders (the viewport's worker applies them
+between two passes; an F12 applies them at once):
+
+=====================================  =====================================================================
+what changed                            edit (tracer.Session call)
+=====================================  =====================================================================
+the view only (orbit, zoom)             nothing here: the viewport hands the camera to its worker
+a material, a texture image            ``update_materials`` (repack; no BVH work)
+a light                                 ``update_lights``
+the world                               ``update_world``
+an object's transform                   ``set_transform`` (instance matrix + top-level commit; no mesh rebuild)
+an object's geometry (edit mode,        ``update_mesh`` of every instance of that mesh (only their BVHs)
+modifiers, geometry nodes)
+an object added / deleted / hidden     ``add_object`` / ``remove_object``
+the scene camera (F12)                  ``update_camera``
+anything it cannot map                  one ``rebuild``: a fresh export and a new Session
+=====================================  =====================================================================
+
+How: ``depsgraph.updates`` first drops the cached triangle arrays of objects whose geometry changed
+(:func:`addon.export.forget_geometry`); then the depsgraph's instances are walked again with that cache
+(:func:`addon.export.export_objects`: no mesh is read twice, material rows and UVs once per mesh) and compared
+with the last export, object by object, by a key that is stable across evaluations (object name, instancing
+parent, ``persistent_id``): the same triangle arrays with another matrix is a transform, other arrays a mesh
+edit, a new key an added object, a missing key a removed one. Materials, lights and world are compared by value,
+and only re-read when ``depsgraph.updates`` names a material, node tree, image, light or world.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from typing import NamedTuple
+
+import numpy as np
+
+from . import export
+from .export import tracer
+
+
+class Edit(NamedTuple):
+    """One session edit: ``kind`` in :data:`EDIT_KINDS`, ``args`` for it."""
+
+    kind: str
+    args: tuple
+
+
+#: Edit kinds, in the order :func:`apply_edits` must apply one update's edits.
+EDIT_KINDS = ("rebuild", "remove", "materials", "mesh", "add", "transform", "lights", "world", "camera")
+
+
+class _Entry(NamedTuple):
+    object_id: int
+    obj: "export.ExportedObject"
+    #: The session holds object ``object_id`` at ``matrix_world @ offset`` (identity for objects placed with their
+    #: matrix; the inverse of the export matrix for instances placed in a world-space batch, see add_objects).
+    offset: np.ndarray
+
+
+#: depsgraph.updates ID types after which materials are read again.
+MATERIAL_TYPES = {"Material", "ShaderNodeTree", "Image", "NodeTree", "Texture"}
+#: ... after which the world is read again.
+WORLD_TYPES = {"World", "Image"}
+
+
+class SceneSync:
+    """Keeps a session's scene equal to what :func:`addon.export.scene_from_depsgraph` would export now.
+
+    ``quality`` is the Embree build quality of the sessions :func:`apply_edits` builds ("low" for the viewport:
+    fastest to build and rebuild, "medium" for final renders). ``track_camera``: whether updates compare the scene
+    camera and emit ``camera`` edits (F12); the viewport hands its view camera to its worker itself."""
+
+    def __init__(self, *, quality: str = "medium", track_camera: bool = True):
+        self.quality = quality
+        self.track_camera = track_camera
+        self._diffable = True
+        self._depsgraph = None
+        self.geometry_cache: dict = {}
+        self.images: dict = {}  # image pixels read by the material writer, kept until an Image changes
+        self._entries: dict[tuple, _Entry] = {}
+        self._order: list[tuple] = []
+        self._materials = None
+        self._material_names: list[str] = []
+        self._textures: list = []
+        self._lights: list = []
+        self._world = None
+        self._camera = None
+        self._next_id = 0
+        self.pass_indices = np.zeros(0, np.int32)
+        self.warnings: list[str] = []
+        #: The last update's timings: {"export": s, "edits": {kind: count}}.
+        self.stats: dict = {}
+
+    @property
+    def synced(self) -> bool:
+        return self._materials is not None
+
+    def reset(self) -> None:
+        """Forget everything: the next :meth:`update` exports the whole scene again (a rebuild)."""
+        self.__init__(quality=self.quality, track_camera=self.track_camera)
+
+    # ---------------------------------------------------------------------------------------------- export
+    def full(self, depsgraph, *, width=None, height=None, camera=None, cancelled=None) -> list[Edit]:
+        """Export the whole scene: ``[Edit("rebuild", (scene,))]``."""
+        start = time.perf_counter()
+        self.reset()
+        objects: list = []
+        scene, warnings = export.scene_from_depsgraph(depsgraph, width=width, height=height, camera=camera,
+                                                      geometry_cache=self.geometry_cache, cancelled=cancelled,
+                                                      objects=objects)
+        placed = _placements(scene, objects)
+        for oid, (o, offset) in enumerate(zip(objects, placed)):
+            self._entries[o.key] = _Entry(oid, o, offset)
+        self._order = [o.key for o in objects]
+        self._diffable = len(self._entries) == len(objects)  # two instances under one key cannot be diffed
+        self._next_id = len(scene.object_names)
+        self._depsgraph = depsgraph.as_pointer()  # another depsgraph (file reloaded): export everything again
+        self._materials, self._textures = scene.materials, list(scene.textures)
+        self._material_names = list(scene.materials.names)
+        self._lights = list(scene.lights)
+        self._world = (scene.background, scene.ambient, scene.environment)
+        self._camera = scene.camera
+        self.pass_indices = np.asarray(scene.object_pass_indices, np.int32)
+        self.warnings = list(warnings)
+        self.stats = {"export": time.perf_counter() - start, "edits": {"rebuild": 1}}
+        return [Edit("rebuild", (scene,))]
+
+    def update(self, depsgraph, *, width=None, height=None, camera=None, cancelled=None) -> list[Edit]:
+        """The edits that bring the session from the last export to ``depsgraph`` as it is now (see the module
+        docstring). The first call (or after :meth:`reset`) is a :meth:`full` export. ``camera``: the camera to
+        render with (None: the scene camera at width × height)."""
+        if not self.synced or not self._diffable or depsgraph.as_pointer() != self._depsgraph:
+            return self.full(depsgraph, width=width, height=height, camera=camera, cancelled=cancelled)
+        start = time.perf_counter()
+        updates = list(depsgraph.updates)
+        kinds = {type(getattr(u.id, "original", u.id)).__name__ for u in updates}
+        changed = geometry_changes(updates)
+        if changed:
+            export.forget_geometry(self.geometry_cache, changed)
+        if "Image" in kinds:
+            self.images.clear()
+        bpy_scene = depsgraph.scene_eval if hasattr(depsgraph, "scene_eval") else depsgraph.scene
+        warnings: list[str] = []
+        b = tracer.SceneBuilder()
+        writer = export.MaterialWriter(b, warnings)
+        writer.images = self.images
+        self._keep_material_rows(writer, depsgraph)
+        lights: list = []
+        objects = list(export.export_objects(depsgraph, writer, warnings, lights,
+                                             geometry_cache=self.geometry_cache, cancelled=cancelled))
+        edits: list[Edit] = []
+
+        materials = tracer.Materials.from_list(b.materials)
+        if not same(materials, self._materials) or not same(b.textures, self._textures):
+            if len(materials) < len(self._materials):  # rows went away: the meshes' ids may not fit any more
+                return self.full(depsgraph, width=width, height=height, camera=camera, cancelled=cancelled)
+            edits.append(Edit("materials", (materials, list(b.textures))))
+            self._materials, self._textures = materials, list(b.textures)
+            self._material_names = list(materials.names)
+        if not same(lights, self._lights):
+            edits.append(Edit("lights", (lights,)))
+            self._lights = lights
+        if kinds & WORLD_TYPES or "Scene" in kinds:
+            world = export.world_from_blender(bpy_scene.world, warnings, writer.images)
+            if not same(world, self._world):
+                edits.append(Edit("world", world))
+                self._world = world
+        if self.track_camera:
+            if camera is None:
+                rw, rh = export.render_size(bpy_scene)
+                camera = export.scene_camera(bpy_scene, width or rw, height or rh)
+            if not same(camera, self._camera):
+                edits.append(Edit("camera", (camera,)))
+                self._camera = camera
+
+        seen = set()
+        for o in objects:
+            if o.key in seen:  # two instances under one key: give up diffing
+                return self.full(depsgraph, width=width, height=height, camera=camera, cancelled=cancelled)
+            seen.add(o.key)
+            old = self._entries.get(o.key)
+            if old is None:
+                oid = self._next_id
+                self._next_id += 1
+                edits.append(Edit("add", (oid, _mesh_kwargs(o, name=o.name))))
+                self._entries[o.key] = _Entry(oid, o, np.eye(4))
+                self._set_pass_index(oid, o.pass_index)
+                continue
+            same_mesh = (old.obj.geometry is o.geometry and _same_array(old.obj.material, o.material)
+                         and _same_array(old.obj.uvs, o.uvs))
+            if not same_mesh:
+                edits.append(Edit("mesh", (old.object_id, _mesh_kwargs(o))))
+                self._entries[o.key] = _Entry(old.object_id, o, np.eye(4))
+            elif not np.array_equal(old.obj.matrix, o.matrix):
+                edits.append(Edit("transform", (old.object_id, o.matrix @ old.offset)))
+                self._entries[o.key] = old._replace(obj=o)
+            if old.obj.pass_index != o.pass_index:
+                self._set_pass_index(old.object_id, o.pass_index)
+        for key in [k for k in self._entries if k not in seen]:
+            edits.append(Edit("remove", (self._entries.pop(key).object_id,)))
+        self._order = [o.key for o in objects]
+        self.warnings = warnings
+        edits.sort(key=lambda e: EDIT_KINDS.index(e.kind))
+        counts: dict = {}
+        for e in edits:
+            counts[e.kind] = counts.get(e.kind, 0) + 1
+        self.stats = {"export": time.perf_counter() - start, "edits": counts}
+        return edits
+
+    # ---------------------------------------------------------------------------------------------- internals
+    def _keep_material_rows(self, writer, depsgraph):
+        """Read the materials of the last export first, in their row order, so an unchanged material keeps its
+        row (and the meshes their material ids) while another one changes."""
+        import bpy
+
+        for name in self._material_names:
+            mat = bpy.data.materials.get(name)
+            if mat is not None:
+                writer.row(mat.evaluated_get(depsgraph))
+
+    def _set_pass_index(self, oid, value):
+        if len(self.pass_indices) <= oid:
+            self.pass_indices = np.concatenate([self.pass_indices, np.zeros(oid + 1 - len(self.pass_indices),
+                                                                            np.int32)])
+        self.pass_indices[oid] = value
+
+
+#: Data-block types whose geometry updates concern only the objects using them (dropped from the cache by name).
+GEOMETRY_DATA = {"Mesh", "Curve", "TextCurve", "SurfaceCurve", "MetaBall"}
+
+
+def geometry_changes(updates) -> list:
+    """The IDs of ``depsgraph.updates`` whose triangles may have changed: geometry objects and their data (lights,
+    cameras and empties report geometry updates too: they have no triangles). Anything else with a geometry
+    update (a geometry node group, ...) is passed on as well, and :func:`addon.export.forget_geometry` then drops
+    the whole cache."""
+    out = []
+    for u in updates:
+        if not u.is_updated_geometry:
+            continue
+        id_ = getattr(u.id, "original", u.id)
+        kind = type(id_).__name__
+        if kind == "Object":
+            if id_.type in export.GEOMETRY_TYPES:
+                out.append(id_)
+        elif kind in GEOMETRY_DATA or kind.endswith("NodeTree") and getattr(id_, "bl_idname", "") == \
+                "GeometryNodeTree":
+            out.append(id_)
+        elif kind not in ("Scene", "World", "Material", "Image", "Camera", "Collection") and \
+                not kind.endswith(("Light", "NodeTree")):
+            out.append(id_)
+    return out
+
+
+def _placements(scene, objects) -> list[np.ndarray]:
+    """Per exported object, the offset such that the session's matrix = matrix_world @ offset: identity where the
+    scene recorded the object's own matrix, the inverse of it where the object was placed in world space."""
+    out = []
+    rec = scene.object_transforms
+    for oid, o in enumerate(objects):
+        m = rec[oid] if rec is not None and oid < len(rec) else np.eye(4)
+        out.append(np.eye(4) if np.array_equal(m, o.matrix) else np.linalg.inv(o.matrix) @ m)
+    return out
+
+
+def _mesh_kwargs(o, name=None) -> dict:
+    g = o.geometry
+    kw = dict(vertices=g["vertices"], triangles=g["triangles"], material=o.material, normals=g["normals"],
+              uvs=o.uvs, transform=o.matrix)
+    if name is not None:
+        kw["name"] = name
+    return kw
+
+
+def _same_array(a, b) -> bool:
+    if a is b:
+        return True
+    if a is None or b is None:
+        return False
+    return np.array_equal(a, b)
+
+
+def same(a, b) -> bool:
+    """Deep equality of tracer data (dataclasses, arrays, lists, tuples, numbers): what decides whether an edit is
+    needed."""
+    if a is b:
+        return True
+    if type(a) is not type(b):
+        return False
+    if isinstance(a, np.ndarray):
+        return a.shape == b.shape and a.dtype == b.dtype and np.array_equal(a, b)
+    if isinstance(a, (list, tuple)):
+        return len(a) == len(b) and all(same(x, y) for x, y in zip(a, b))
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
+    if dataclasses.is_dataclass(a):
+        return all(same(getattr(a, f.name), getattr(b, f.name)) for f in dataclasses.fields(a))
+    if hasattr(a, "__dict__"):
+        return same(vars(a), vars(b))
+    return bool(a == b)
+
+
+def apply_edits(session: "tracer.Session | None", edits: list[Edit], *, quality: str = "medium",
+                instanced: bool = False, cancelled=None) -> "tracer.Session":
+    """Apply ``edits`` (from :meth:`SceneSync.update`) to ``session``; returns the session to render (a new one
+    after a rebuild, of Embree build ``quality`` and layout ``instanced``: see :class:`tracer.Session`; the old
+    one is closed; ``cancelled`` is polled while it is built, True raises :class:`tracer.RenderCancelled`). Call
+    it where no render of ``session`` is in flight."""
+    for e in edits:
+        if e.kind == "rebuild":
+            if session is not None:
+                session.close()
+            session = tracer.Session(e.args[0], quality=quality, instanced=instanced, cancelled=cancelled)
+            continue
+        if session is None:
+            raise RuntimeError("apply_edits: no session to edit (the first edit must be a rebuild)")
+        if e.kind == "camera":
+            session.update_camera(*e.args)
+        elif e.kind == "materials":
+            session.update_materials(*e.args)
+        elif e.kind == "lights":
+            session.update_lights(*e.args)
+        elif e.kind == "world":
+            background, ambient, environment = e.args
+            session.update_world(background=background, ambient=ambient, environment=environment)
+        elif e.kind == "transform":
+            session.set_transform(*e.args)
+        elif e.kind == "mesh":
+            oid, kw = e.args
+            session.update_mesh(oid, **kw)
+        elif e.kind == "add":
+            oid, kw = e.args
+            got = session.add_object(**kw)
+            if got != oid:
+                raise RuntimeError(f"apply_edits: the session gave object id {got}, the sync expected {oid}")
+        elif e.kind == "remove":
+            session.remove_object(*e.args)
+        else:
+            raise ValueError(f"unknown edit {e.kind!r}")
+    return session

@@ -1,0 +1,502 @@
+"""Our binding to Embree 4's C API: the shared library the ``embreex`` wheel vendors, loaded with ctypes, and called
+from numba kernels without the GIL.
+
+Why not embreex's own Python API: it copies geometry element by element into Embree buffers (1 M triangles:
+0.67 s before the BVH build even starts), and exposes neither instancing, geometry updates, build quality nor the
+ray's ``tnear``. Here the vertex and index arrays are numpy arrays Embree reads in place
+(``rtcSetSharedGeometryBuffer``), objects are instances of their own meshes (``RTC_GEOMETRY_TYPE_INSTANCE``), an
+object's move is a matrix update, and the ray queries are plain C calls made from compiled loops.
+
+What is used of the API, with the layouts of ``include/embree4/rtcore_*.h`` (Embree 4.x, built with the defaults
+``RTC_MAX_INSTANCE_LEVEL_COUNT = 1`` and ``RTC_GEOMETRY_INSTANCE_ARRAY`` on, as the embreex wheels are):
+
+- ``RTCRay`` (48 bytes, 16-aligned): org_x, org_y, org_z, tnear, dir_x, dir_y, dir_z, time, tfar (float32),
+  mask, id, flags (uint32);
+- ``RTCHit`` (48 bytes, 16-aligned): Ng_x, Ng_y, Ng_z, u, v (float32), primID, geomID, instID[1],
+  instPrimID[1] (uint32), padding; ``RTCRayHit`` = RTCRay + RTCHit = 96 bytes;
+- ``RTCRayHit8`` / ``RTCRay8`` (32-aligned): the same fields as arrays of 8 lanes (structure of arrays), 168 / 96
+  words; the kernels use these packets (:data:`PACKET`: measurably faster than one ray per call);
+- ``rtcIntersect8(valid, scene, rayhit8, args)`` / ``rtcOccluded8(valid, scene, ray8, args)`` with ``args =
+  NULL``: Embree's defaults (incoherent rays, all features, its own ``RTCRayQueryContext``), so neither
+  ``RTCIntersectArguments`` nor the context's layout is ours to keep in step with the library.
+
+The kernels (:func:`intersect_rays`, :func:`occluded_rays`) call ``rtcIntersect8`` / ``rtcOccluded8`` as numba
+external functions, through LLVM symbols of our own names (``whitted_embree_rtcIntersect8``, ...) that the loader
+binds to this library's function addresses — never through the plain ``rtc*`` names, which inside Blender resolve
+to Blender's own Embree — so they compile once and are cached on disk like every other kernel; the scene handle and struct pointers are passed as
+pointer-sized integers (the same registers as pointers on every 64-bit ABI Embree supports).
+
+Errors: Embree's error callback records each error; every call made through this module checks the record and
+raises :class:`EmbreeError` (code name and Embree's message). A library that cannot be found or loaded, or is not
+Embree 4, raises :class:`EmbreeUnavailable` with the places it looked.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import glob
+import os
+import sys
+import threading
+
+import numpy as np
+from numba import types
+
+from .jit import kernel
+
+#: Embree major version the layouts above are written for; minor versions up from this one are accepted.
+REQUIRED_VERSION = (4, 0)
+#: Environment variable naming the Embree library to use instead of the bundled one.
+LIBRARY_ENV = "WHITTED_EMBREE_LIBRARY"
+
+INVALID_ID = 0xFFFFFFFF  # RTC_INVALID_GEOMETRY_ID
+
+# enum values (rtcore_common.h, rtcore_device.h, rtcore_buffer.h, rtcore_geometry.h, rtcore_scene.h)
+DEVICE_PROPERTY_VERSION = 0
+DEVICE_PROPERTY_VERSION_MAJOR = 1
+DEVICE_PROPERTY_VERSION_MINOR = 2
+DEVICE_PROPERTY_VERSION_PATCH = 3
+FORMAT_UINT3 = 0x5003
+FORMAT_FLOAT3 = 0x9003
+FORMAT_FLOAT3X4_COLUMN_MAJOR = 0x9234
+BUFFER_TYPE_INDEX = 0
+BUFFER_TYPE_VERTEX = 1
+GEOMETRY_TYPE_TRIANGLE = 0
+GEOMETRY_TYPE_INSTANCE = 121
+BUILD_QUALITY = {"low": 0, "medium": 1, "high": 2, "refit": 3}
+SCENE_FLAG_NONE, SCENE_FLAG_DYNAMIC, SCENE_FLAG_COMPACT, SCENE_FLAG_ROBUST = 0, 1, 2, 4
+ERROR_NAMES = {0: "RTC_ERROR_NONE", 1: "RTC_ERROR_UNKNOWN", 2: "RTC_ERROR_INVALID_ARGUMENT",
+               3: "RTC_ERROR_INVALID_OPERATION", 4: "RTC_ERROR_OUT_OF_MEMORY", 5: "RTC_ERROR_UNSUPPORTED_CPU",
+               6: "RTC_ERROR_CANCELLED", 7: "RTC_ERROR_LEVEL_ZERO_RAYTRACING_SUPPORT_MISSING"}
+
+
+class EmbreeUnavailable(RuntimeError):
+    """The Embree 4 library could not be found or loaded (the message lists where it was looked for)."""
+
+
+class BuildCancelled(RuntimeError):
+    """A BVH build was stopped because its ``cancelled`` callback returned True."""
+
+
+class EmbreeError(RuntimeError):
+    """Embree reported an error through its error callback (``code`` is the RTCError value)."""
+
+    def __init__(self, code: int, message: str):
+        self.code = code
+        super().__init__(f"Embree {ERROR_NAMES.get(code, code)}: {message}")
+
+
+# ---------------------------------------------------------------------------------------------- finding the library
+def _patterns() -> list[str]:
+    """File-name patterns of Embree 4 on this platform (the wheels rename vendored libraries with a hash)."""
+    if sys.platform == "win32":
+        return ["embree4*.dll"]
+    if sys.platform == "darwin":
+        return ["libembree4*.dylib"]
+    return ["libembree4*.so*"]
+
+
+def _search_dirs() -> list[str]:
+    """Where the embreex wheel keeps its vendored Embree, for every site-packages on ``sys.path``.
+
+    auditwheel (Linux) and delvewheel (Windows) put vendored libraries in ``embreex.libs/`` beside the package,
+    delocate (macOS) in ``embreex/.dylibs/``; older Windows wheels put the DLLs in the package folder itself.
+    Found through ``sys.path`` rather than by importing embreex (its extension modules are not needed)."""
+    dirs = []
+    for base in sys.path:
+        base = base or os.getcwd()
+        for sub in ("embreex.libs", os.path.join("embreex", ".dylibs"), "embreex", "embreex4.libs",
+                    os.path.join("embreex4", ".dylibs")):
+            d = os.path.join(base, sub)
+            if os.path.isdir(d) and d not in dirs:
+                dirs.append(d)
+    return dirs
+
+
+def find_library() -> str:
+    """Path of the Embree 4 shared library: ``$WHITTED_EMBREE_LIBRARY`` if set, else the one vendored by the
+    embreex wheel. Raises :class:`EmbreeUnavailable` naming every place it looked."""
+    env = os.environ.get(LIBRARY_ENV)
+    if env:
+        if os.path.isfile(env):
+            return env
+        raise EmbreeUnavailable(f"{LIBRARY_ENV}={env!r} is not a file")
+    dirs = _search_dirs()
+    for d in dirs:
+        for pattern in _patterns():
+            found = sorted(glob.glob(os.path.join(d, pattern)))
+            if found:
+                return found[0]
+    looked = ", ".join(dirs) if dirs else "no embreex.libs / embreex/.dylibs folder on sys.path"
+    raise EmbreeUnavailable(
+        f"the Embree 4 library ({' or '.join(_patterns())}) was not found; install the embreex wheel "
+        f"(pip install embreex) or set {LIBRARY_ENV} to the library's path. Looked in: {looked}")
+
+
+# ---------------------------------------------------------------------------------------------- the library
+_ERROR_FUNC = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_int, ctypes.c_char_p)
+_PROGRESS_FUNC = ctypes.CFUNCTYPE(ctypes.c_bool, ctypes.c_void_p, ctypes.c_double)
+ERROR_CANCELLED = 6
+_P, _UI, _I, _S = ctypes.c_void_p, ctypes.c_uint, ctypes.c_int, ctypes.c_size_t
+_SIGNATURES = {  # name: (restype, argtypes)
+    "rtcNewDevice": (_P, [ctypes.c_char_p]),
+    "rtcReleaseDevice": (None, [_P]),
+    "rtcGetDeviceProperty": (ctypes.c_ssize_t, [_P, _I]),
+    "rtcGetDeviceError": (_I, [_P]),
+    "rtcSetDeviceErrorFunction": (None, [_P, _ERROR_FUNC, _P]),
+    "rtcNewScene": (_P, [_P]),
+    "rtcReleaseScene": (None, [_P]),
+    "rtcSetSceneFlags": (None, [_P, _I]),
+    "rtcSetSceneBuildQuality": (None, [_P, _I]),
+    "rtcCommitScene": (None, [_P]),
+    "rtcSetSceneProgressMonitorFunction": (None, [_P, _PROGRESS_FUNC, _P]),
+    "rtcAttachGeometryByID": (None, [_P, _P, _UI]),
+    "rtcAttachGeometry": (_UI, [_P, _P]),
+    "rtcDetachGeometry": (None, [_P, _UI]),
+    "rtcNewGeometry": (_P, [_P, _I]),
+    "rtcReleaseGeometry": (None, [_P]),
+    "rtcCommitGeometry": (None, [_P]),
+    "rtcSetGeometryBuildQuality": (None, [_P, _I]),
+    "rtcSetSharedGeometryBuffer": (None, [_P, _I, _UI, _I, _P, _S, _S, _S]),
+    "rtcUpdateGeometryBuffer": (None, [_P, _I, _UI]),
+    "rtcSetGeometryInstancedScene": (None, [_P, _P]),
+    "rtcSetGeometryTransform": (None, [_P, _UI, _I, _P]),
+    "rtcGetSceneBounds": (None, [_P, _P]),
+}
+
+
+#: Embree functions the kernels call, and the prefix of the LLVM symbols they are bound to.
+_KERNEL_FUNCTIONS = ("rtcIntersect8", "rtcOccluded8")
+_KERNEL_PREFIX = "whitted_embree_"
+
+
+class _Library:
+    """The loaded library, its one device, and the error record the callback fills."""
+
+    def __init__(self, path: str):
+        self.path = path
+        try:
+            if sys.platform == "win32":  # TBB sits beside embree4.dll: let the loader find it there
+                os.add_dll_directory(os.path.dirname(os.path.abspath(path)))
+            self.lib = ctypes.CDLL(path)
+        except OSError as exc:
+            raise EmbreeUnavailable(f"the Embree library {path} could not be loaded: {exc}") from exc
+        for name, (res, args) in _SIGNATURES.items():
+            try:
+                fn = getattr(self.lib, name)
+            except AttributeError as exc:
+                raise EmbreeUnavailable(f"{path} is not an Embree 4 library (no {name})") from exc
+            fn.restype, fn.argtypes = res, args
+        # Kernels call rtcIntersect8/rtcOccluded8 through LLVM symbols of our own names bound to this library's
+        # functions: not the plain rtc* names, which the process may already resolve to another Embree (Blender's
+        # bpy module links its own libembree4; calling its rtcIntersect8 on our scene would crash).
+        import llvmlite.binding as llvm
+
+        for name in _KERNEL_FUNCTIONS:
+            llvm.add_symbol(_KERNEL_PREFIX + name, ctypes.cast(getattr(self.lib, name), ctypes.c_void_p).value)
+        self._errors: list = []
+        self._errors_lock = threading.Lock()
+        self.device = self.lib.rtcNewDevice(None)
+        if not self.device:
+            raise EmbreeUnavailable(f"{path}: rtcNewDevice failed (error {self.lib.rtcGetDeviceError(None)}); "
+                                    "is this CPU supported by Embree (SSE2 at least)?")
+        self._callback = _ERROR_FUNC(self._on_error)  # kept: ctypes callbacks must outlive their registration
+        self.lib.rtcSetDeviceErrorFunction(self.device, self._callback, None)
+        prop = self.lib.rtcGetDeviceProperty
+        self.version = (prop(self.device, DEVICE_PROPERTY_VERSION_MAJOR), prop(self.device,
+                        DEVICE_PROPERTY_VERSION_MINOR), prop(self.device, DEVICE_PROPERTY_VERSION_PATCH))
+        if self.version[0] != REQUIRED_VERSION[0] or self.version[:2] < REQUIRED_VERSION:
+            found = ".".join(map(str, self.version))
+            raise EmbreeUnavailable(f"{path} is Embree {found}; the tracer's binding needs Embree "
+                                    f"{REQUIRED_VERSION[0]}.x (>= {REQUIRED_VERSION[0]}.{REQUIRED_VERSION[1]})")
+
+    def _on_error(self, _user, code, message):
+        # Called by Embree on the thread where the error happened; Python exceptions cannot cross the C frames
+        # in between, so the error is recorded here and raised by check() when the call returns.
+        with self._errors_lock:
+            self._errors.append((int(code), (message or b"").decode("utf-8", "replace")))
+
+    def check(self) -> None:
+        """Raise the first error Embree reported since the last check (and forget the others)."""
+        if self._errors:
+            with self._errors_lock:
+                errors, self._errors = self._errors, []
+            if errors:
+                raise EmbreeError(*errors[0])
+
+    def call(self, name: str, *args):
+        """``rtc<Name>(*args)``, then raise what Embree reported during it."""
+        result = getattr(self.lib, name)(*args)
+        self.check()
+        return result
+
+
+_LIBRARY: _Library | None = None
+_LIBRARY_LOCK = threading.Lock()
+
+
+def library() -> _Library:
+    """The Embree library and device, loaded on first use (raises :class:`EmbreeUnavailable`)."""
+    global _LIBRARY
+    if _LIBRARY is None:
+        with _LIBRARY_LOCK:
+            if _LIBRARY is None:
+                _LIBRARY = _Library(find_library())
+    return _LIBRARY
+
+
+def version() -> str:
+    """The loaded Embree's version, e.g. "4.4.0"."""
+    return ".".join(map(str, library().version))
+
+
+# ---------------------------------------------------------------------------------------------- buffers
+def padded(a: np.ndarray, dtype) -> np.ndarray:
+    """A C-contiguous, 16-byte aligned copy of 2-D ``a`` as ``dtype`` with 16 spare bytes after its last row:
+    Embree reads the last vertex / index triple with a 16-byte load. The rows returned are a view of the first
+    ``len(a)`` rows of that buffer."""
+    a = np.asarray(a)
+    n, k = a.shape
+    itemsize = np.dtype(dtype).itemsize
+    raw = np.empty(n * k * itemsize + 16 + 16, np.uint8)
+    off = (-raw.ctypes.data) % 16
+    out = raw[off:off + n * k * itemsize + 16].view(dtype)[:n * k].reshape(n, k)
+    out[...] = a
+    return out
+
+
+# ---------------------------------------------------------------------------------------------- scenes
+class EmbreeScene:
+    """An ``RTCScene``. ``flags``: RTC_SCENE_FLAG_*; ``quality``: "low" | "medium" | "high"."""
+
+    def __init__(self, quality: str = "medium", flags: int = SCENE_FLAG_NONE):
+        self._lib = library()
+        self.handle = self._lib.call("rtcNewScene", self._lib.device)
+        if not self.handle:
+            raise EmbreeError(4, "rtcNewScene returned NULL")
+        self._lib.call("rtcSetSceneFlags", self.handle, flags)
+        self._lib.call("rtcSetSceneBuildQuality", self.handle, BUILD_QUALITY[quality])
+        self.quality = quality
+        self._geometries: dict[int, "Geometry"] = {}
+
+    def attach(self, geometry: "Geometry", geom_id: int) -> None:
+        self._lib.call("rtcAttachGeometryByID", self.handle, geometry.handle, int(geom_id))
+        self._geometries[int(geom_id)] = geometry
+
+    def detach(self, geom_id: int) -> None:
+        if int(geom_id) in self._geometries:
+            self._lib.call("rtcDetachGeometry", self.handle, int(geom_id))
+            del self._geometries[int(geom_id)]
+
+    def commit(self, cancelled=None) -> None:
+        """Build (or update) the BVH: only geometries changed since the last commit are rebuilt.
+
+        ``cancelled``: a callable Embree polls while it builds (its progress monitor, on its build threads); True
+        stops the build and raises :class:`BuildCancelled` (the scene is then left uncommitted)."""
+        if cancelled is None:
+            self._lib.call("rtcCommitScene", self.handle)
+            return
+
+        def progress(_ptr, _fraction):
+            try:
+                return not cancelled()
+            except Exception:  # an exception cannot cross Embree's frames: treat it as "go on"
+                return True
+
+        monitor = _PROGRESS_FUNC(progress)
+        self._lib.lib.rtcSetSceneProgressMonitorFunction(self.handle, monitor, None)
+        try:
+            self._lib.call("rtcCommitScene", self.handle)
+        except EmbreeError as exc:
+            if exc.code == ERROR_CANCELLED:
+                raise BuildCancelled("Embree build cancelled") from None
+            raise
+        finally:
+            self._lib.lib.rtcSetSceneProgressMonitorFunction(self.handle, _PROGRESS_FUNC(0), None)
+
+    def bounds(self) -> np.ndarray:
+        b = np.zeros(8, np.float32)
+        self._lib.call("rtcGetSceneBounds", self.handle, b.ctypes.data)
+        return np.stack([b[:3], b[4:7]])
+
+    def release(self) -> None:
+        if self.handle:
+            self._lib.call("rtcReleaseScene", self.handle)
+            self.handle = None
+            self._geometries.clear()
+
+    def __del__(self):
+        try:
+            self.release()
+        except Exception:  # interpreter shutdown: the library may be gone
+            pass
+
+
+class Geometry:
+    """An ``RTCGeometry`` (released with this object; a scene it is attached to keeps its own reference)."""
+
+    def __init__(self, kind: int):
+        self._lib = library()
+        self.handle = self._lib.call("rtcNewGeometry", self._lib.device, kind)
+
+    def commit(self) -> None:
+        self._lib.call("rtcCommitGeometry", self.handle)
+
+    def release(self) -> None:
+        if self.handle:
+            self._lib.call("rtcReleaseGeometry", self.handle)
+            self.handle = None
+
+    def __del__(self):
+        try:
+            self.release()
+        except Exception:
+            pass
+
+
+class TriangleGeometry(Geometry):
+    """A triangle mesh over shared numpy buffers: float32 (V, 3) vertices and int32 (T, 3) indices, each a
+    :func:`padded` buffer or consecutive rows of one (Embree reads 16 bytes at the last element, so the buffer must
+    go on for 4 bytes after it). Embree reads them in place; this object keeps them alive."""
+
+    def __init__(self, vertices: np.ndarray, triangles: np.ndarray, quality: str = "medium"):
+        super().__init__(GEOMETRY_TYPE_TRIANGLE)
+        self._lib.call("rtcSetGeometryBuildQuality", self.handle, BUILD_QUALITY[quality])
+        self.set_buffers(vertices, triangles)
+        self.commit()
+
+    def set_buffers(self, vertices: np.ndarray, triangles: np.ndarray) -> None:
+        for a, what in ((vertices, "vertices"), (triangles, "triangles")):
+            if not a.flags.c_contiguous or a.ctypes.data % 4 or a.ndim != 2 or a.shape[1] != 3 or a.itemsize != 4:
+                raise ValueError(f"{what} must be a contiguous (N, 3) 4-byte buffer from tracer.embree.padded "
+                                 "(or rows of one)")
+        self.vertices, self.triangles = vertices, triangles
+        self._lib.call("rtcSetSharedGeometryBuffer", self.handle, BUFFER_TYPE_VERTEX, 0, FORMAT_FLOAT3,
+                       vertices.ctypes.data, 0, 12, len(vertices))
+        self._lib.call("rtcSetSharedGeometryBuffer", self.handle, BUFFER_TYPE_INDEX, 0, FORMAT_UINT3,
+                       triangles.ctypes.data, 0, 12, len(triangles))
+
+    def vertices_changed(self) -> None:
+        """The vertex buffer's contents were changed in place: refit/rebuild this mesh at the next commit."""
+        self._lib.call("rtcUpdateGeometryBuffer", self.handle, BUFFER_TYPE_VERTEX, 0)
+        self.commit()
+
+
+class InstanceGeometry(Geometry):
+    """An instance of an :class:`EmbreeScene` with a 4×4 object-to-world matrix."""
+
+    def __init__(self, scene: EmbreeScene, matrix=None):
+        super().__init__(GEOMETRY_TYPE_INSTANCE)
+        self.scene = scene  # kept alive with the instance
+        self._lib.call("rtcSetGeometryInstancedScene", self.handle, scene.handle)
+        self.set_transform(np.eye(4) if matrix is None else matrix)
+
+    def set_transform(self, matrix) -> None:
+        m = np.asarray(matrix, np.float64)
+        xfm = np.ascontiguousarray(m[:3, :4].T, np.float32)  # 3x4 column-major: four columns of 3
+        self._lib.call("rtcSetGeometryTransform", self.handle, 0, FORMAT_FLOAT3X4_COLUMN_MAJOR, xfm.ctypes.data)
+        self.commit()
+
+
+# ---------------------------------------------------------------------------------------------- ray queries
+#: Rays per Embree call: ``rtcIntersect8`` / ``rtcOccluded8`` on packets of 8 (RTCRayHit8 / RTCRay8). Measured on
+#: the recorded rays of the bench scenes (one thread, medians of 6): 10-20 % faster than ``rtcIntersect1`` /
+#: ``rtcOccluded1`` per ray on whitted, 5-10 % on heavy and instances; 16-wide was no faster than 8 (AVX-512 here).
+#: Embree runs 8-wide packets on any CPU (natively with AVX/AVX2, as two 4-wide halves on SSE and NEON).
+PACKET = 8
+# Word offsets (4-byte words, one row of PACKET lanes per field) in RTCRayHit8 = RTCRay8 + RTCHit8.
+_P_ORG_X, _P_ORG_Y, _P_ORG_Z, _P_TNEAR = 0, 8, 16, 24
+_P_DIR_X, _P_DIR_Y, _P_DIR_Z, _P_TIME = 32, 40, 48, 56
+_P_TFAR, _P_MASK, _P_ID, _P_FLAGS = 64, 72, 80, 88
+_P_U, _P_V, _P_PRIM, _P_GEOM, _P_INST = 120, 128, 136, 144, 152
+RAY8_WORDS = 96  # sizeof(RTCRay8) / 4
+RAYHIT8_WORDS = 168  # sizeof(RTCRayHit8) / 4 (RTCHit8: Ng xyz, u, v, primID, geomID, instID[1], instPrimID[1])
+
+# void rtcIntersect8(const int* valid, RTCScene, RTCRayHit8*, RTCIntersectArguments*); rtcOccluded8 alike.
+_rtcIntersect8 = types.ExternalFunction(_KERNEL_PREFIX + "rtcIntersect8",
+                                        types.void(types.intp, types.intp, types.intp, types.intp))
+_rtcOccluded8 = types.ExternalFunction(_KERNEL_PREFIX + "rtcOccluded8",
+                                       types.void(types.intp, types.intp, types.intp, types.intp))
+
+
+@kernel(inline=True)
+def _aligned(n, dtype):
+    """A work array of n 4-byte words starting 32-byte aligned (RTCRayHit8 and the valid mask need it)."""
+    raw = np.empty(n + 8, dtype)
+    off = ((32 - raw.ctypes.data % 32) % 32) // 4
+    return raw[off:off + n]
+
+
+@kernel(inline=True)
+def _load_packet(f, w, valid, o, d, start, count, tnear, t_max):
+    """Lanes 0..count-1 get rays start..start+count-1 (t_max empty: unbounded); the rest are switched off."""
+    bounded = t_max.shape[0] > 0
+    for k in range(PACKET):
+        if k < count:
+            i = start + k
+            valid[k] = -1
+            f[_P_ORG_X + k], f[_P_ORG_Y + k], f[_P_ORG_Z + k] = o[i, 0], o[i, 1], o[i, 2]
+            f[_P_DIR_X + k], f[_P_DIR_Y + k], f[_P_DIR_Z + k] = d[i, 0], d[i, 1], d[i, 2]
+            f[_P_TFAR + k] = t_max[i] if bounded else np.inf
+            w[_P_ID + k] = i
+        else:
+            valid[k] = 0
+            f[_P_ORG_X + k], f[_P_ORG_Y + k], f[_P_ORG_Z + k] = 0.0, 0.0, 0.0
+            f[_P_DIR_X + k], f[_P_DIR_Y + k], f[_P_DIR_Z + k] = 0.0, 0.0, 1.0
+            f[_P_TFAR + k] = 0.0
+            w[_P_ID + k] = 0
+        f[_P_TNEAR + k] = tnear
+        f[_P_TIME + k] = 0.0
+        w[_P_MASK + k] = 0xFFFFFFFF
+        w[_P_FLAGS + k] = 0
+
+
+@kernel
+def intersect_rays(scene, o, d, tnear, t_max, slot_start, slot_rows, t_out, prim_out, u_out, v_out):
+    """Closest hits of rays (o, d) on [tnear, t_max[i]] (t_max empty: unbounded) against the top-level scene
+    ``scene`` (an RTCScene handle), in packets of :data:`PACKET`. Writes t (inf on a miss), the hit's row
+    (``slot_rows[slot_start[slot] + primID]``, or ``slot_start[slot] + primID`` when ``slot_rows`` is empty; -1 on
+    a miss; slot = the instance id, or the geometry id for geometries attached to ``scene`` directly) and the
+    barycentrics u, v."""
+    f = _aligned(RAYHIT8_WORDS, np.float32)
+    w = f.view(np.uint32)
+    valid = _aligned(PACKET, np.int32)
+    indirect = slot_rows.shape[0] > 0
+    n = o.shape[0]
+    for start in range(0, n, PACKET):
+        count = min(PACKET, n - start)
+        _load_packet(f, w, valid, o, d, start, count, tnear, t_max)
+        for k in range(PACKET):
+            w[_P_GEOM + k] = INVALID_ID
+            w[_P_INST + k] = INVALID_ID
+        _rtcIntersect8(valid.ctypes.data, scene, f.ctypes.data, 0)
+        for k in range(count):
+            i = start + k
+            if w[_P_GEOM + k] == INVALID_ID:
+                t_out[i] = np.inf
+                prim_out[i] = -1
+                u_out[i] = 0.0
+                v_out[i] = 0.0
+                continue
+            slot = w[_P_INST + k] if w[_P_INST + k] != INVALID_ID else w[_P_GEOM + k]
+            row = slot_start[slot] + np.int64(w[_P_PRIM + k])
+            prim_out[i] = slot_rows[row] if indirect else row
+            t_out[i] = f[_P_TFAR + k]
+            u_out[i] = f[_P_U + k]
+            v_out[i] = f[_P_V + k]
+
+
+@kernel
+def occluded_rays(scene, o, d, tnear, t_max, blocked):
+    """blocked[i] = something lies on ray i between tnear and t_max[i] (shadow rays), in packets of
+    :data:`PACKET`."""
+    f = _aligned(RAY8_WORDS, np.float32)
+    w = f.view(np.uint32)
+    valid = _aligned(PACKET, np.int32)
+    n = o.shape[0]
+    for start in range(0, n, PACKET):
+        count = min(PACKET, n - start)
+        _load_packet(f, w, valid, o, d, start, count, tnear, t_max)
+        _rtcOccluded8(valid.ctypes.data, scene, f.ctypes.data, 0)
+        for k in range(count):
+            blocked[start + k] = f[_P_TFAR + k] < 0.0  # Embree sets tfar to -inf where the ray is occluded

@@ -1,0 +1,196 @@
+"""Reading a UsdPreviewSurface input through its shading network: a constant, a texture lookup or a primvar.
+
+``source(shader, "roughness")`` follows the input's connections (through NodeGraph outputs and Material interface
+inputs, ``UsdShade.Input.GetValueProducingAttributes``) and returns one of
+
+    Const(value)                      an authored or fallback value (also: a node's input that is not connected)
+    TextureLookup(...)                a ``UsdUVTexture`` read through one of its outputs (r, g, b, a or rgb)
+    PrimvarLookup(name, fallback)     a ``UsdPrimvarReader_float/float2/float3/float4`` (e.g. displayColor)
+    Unsupported(node id, fallback)    any other node (the caller warns once and uses the fallback)
+
+The texture-coordinate chain of a ``UsdUVTexture`` (its ``st`` input) is folded into the lookup: the primvar name of
+the ``UsdPrimvarReader_float2`` at its end, and one 3×3 affine matrix on (s, t, 1) for the ``UsdTransform2d`` nodes
+on the way. UsdPreviewSurface spec, Transform2d: ``result = in · scale · rotate + translation`` (scale first, then
+the counter-clockwise rotation in degrees, then the translation), so the matrix is T · R · S. Chains of several
+Transform2d nodes compose (the one nearest the primvar reader applies first).
+
+A ``UsdUVTexture`` whose ``st`` is not connected reads the mesh's default texture coordinates (``uv = None``): see
+:func:`usd_io.mesh.default_uv_name` for the rule.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from pxr import Sdf, UsdShade
+
+#: UsdUVTexture output name -> channel (-1 = the rgb triple).
+CHANNELS = {"r": 0, "g": 1, "b": 2, "a": 3, "rgb": -1, "rgba": -1}
+#: UsdUVTexture input fallbacks of the spec.
+UV_TEXTURE_DEFAULTS = dict(scale=(1.0, 1.0, 1.0, 1.0), bias=(0.0, 0.0, 0.0, 0.0), fallback=(0.0, 0.0, 0.0, 1.0),
+                           wrapS="useMetadata", wrapT="useMetadata", sourceColorSpace="auto")
+PRIMVAR_READERS = ("UsdPrimvarReader_float", "UsdPrimvarReader_float2", "UsdPrimvarReader_float3",
+                   "UsdPrimvarReader_float4", "UsdPrimvarReader_normal", "UsdPrimvarReader_point",
+                   "UsdPrimvarReader_vector")
+
+
+@dataclass
+class Const:
+    value: object
+
+
+@dataclass
+class TextureLookup:
+    node: str  # the UsdUVTexture prim's path (for messages)
+    asset: Sdf.AssetPath | None
+    channel: int  # 0..3, or -1 for rgb
+    uv: str | None  # primvar name of the st chain; None = the mesh's default texture coordinates
+    transform: np.ndarray  # (3, 3) affine on (s, t, 1)
+    scale: tuple
+    bias: tuple
+    fallback: tuple
+    wrap_s: str
+    wrap_t: str
+    colorspace: str  # sourceColorSpace token: "auto", "sRGB" or "raw"
+    notes: list = field(default_factory=list)  # things on the st chain that were not understood
+
+
+@dataclass
+class PrimvarLookup:
+    node: str
+    name: str
+    fallback: object
+    reader: str  # the shader id
+
+
+@dataclass
+class Unsupported:
+    node: str
+    shader_id: str
+    fallback: object
+
+
+def shader_id(s) -> str:
+    sid = s.GetShaderId() if s else None
+    return str(sid) if sid else ""
+
+
+def _producer(shader: UsdShade.Shader, name: str):
+    """(attribute, is_output) that gives the value of input ``name``, or (None, False)."""
+    inp = shader.GetInput(name)
+    if not inp:
+        return None, False
+    attrs = inp.GetValueProducingAttributes()
+    if not attrs:
+        return None, False
+    a = attrs[0]
+    return a, UsdShade.Output.IsOutput(a)
+
+
+def value(shader: UsdShade.Shader, name: str, default=None, time=None):
+    """An input's own value (following interface connections); ``default`` when unauthored or node-driven."""
+    a, is_out = _producer(shader, name)
+    if a is None or is_out:
+        return default
+    v = a.Get() if time is None else a.Get(time)
+    return default if v is None else v
+
+
+def floats(v, n: int, default) -> tuple:
+    """``v`` as a tuple of ``n`` floats (scalars broadcast, longer values cut, shorter padded from ``default``)."""
+    try:
+        a = np.asarray(v, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        return tuple(float(x) for x in default)
+    if a.size == 0:
+        return tuple(float(x) for x in default)
+    if a.size == 1:
+        a = np.repeat(a, n)
+    if a.size >= n:
+        return tuple(float(x) for x in a[:n])
+    return tuple(float(x) for x in a) + tuple(float(x) for x in list(default)[a.size:n])
+
+
+def source(shader: UsdShade.Shader, name: str, fallback, time=None):
+    """What drives input ``name`` of ``shader``: Const, TextureLookup, PrimvarLookup or Unsupported."""
+    a, is_out = _producer(shader, name)
+    if a is None:
+        return Const(fallback)
+    if not is_out:
+        v = a.Get() if time is None else a.Get(time)
+        return Const(fallback if v is None else v)
+    node = UsdShade.Shader(a.GetPrim())
+    out_name = UsdShade.Output(a).GetBaseName()
+    sid = shader_id(node)
+    if sid == "UsdUVTexture":
+        return texture_lookup(node, out_name, time)
+    if sid in PRIMVAR_READERS:
+        return PrimvarLookup(str(node.GetPath()), _varname(node, time), value(node, "fallback", None, time), sid)
+    return Unsupported(str(node.GetPath()), sid or a.GetPrim().GetTypeName(), value(node, "fallback", fallback, time))
+
+
+def _varname(node, time) -> str:
+    v = value(node, "varname", "", time)  # string since spec 2.3; token in older files (McUsd)
+    return str(v) if v else ""
+
+
+def texture_lookup(node: UsdShade.Shader, output: str, time=None) -> TextureLookup:
+    d = UV_TEXTURE_DEFAULTS
+    asset = value(node, "file", None, time)
+    channel = CHANNELS.get(output, -1)
+    notes = []
+    if output not in CHANNELS:
+        notes.append(f"output {output!r} is not one of r, g, b, a, rgb (rgb used)")
+    uv, m = _st_chain(node, notes, time)
+    return TextureLookup(
+        node=str(node.GetPath()), asset=asset if isinstance(asset, Sdf.AssetPath) else None, channel=channel,
+        uv=uv, transform=m,
+        scale=floats(value(node, "scale", d["scale"], time), 4, d["scale"]),
+        bias=floats(value(node, "bias", d["bias"], time), 4, d["bias"]),
+        fallback=floats(value(node, "fallback", d["fallback"], time), 4, d["fallback"]),
+        wrap_s=str(value(node, "wrapS", d["wrapS"], time)), wrap_t=str(value(node, "wrapT", d["wrapT"], time)),
+        colorspace=str(value(node, "sourceColorSpace", d["sourceColorSpace"], time)), notes=notes)
+
+
+def transform2d_matrix(scale=(1.0, 1.0), rotation=0.0, translation=(0.0, 0.0)) -> np.ndarray:
+    """The (3, 3) matrix of a UsdTransform2d on (s, t, 1): T · R · S (scale, then rotate CCW in degrees, then
+    translate), the spec's ``in · scale · rotate + translation``."""
+    if not math.isfinite(rotation):
+        return np.full((3, 3), np.nan)  # the caller warns and ignores a non-finite transform
+    c, s = math.cos(math.radians(rotation)), math.sin(math.radians(rotation))
+    S = np.diag([scale[0], scale[1], 1.0])
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    T = np.array([[1.0, 0.0, translation[0]], [0.0, 1.0, translation[1]], [0.0, 0.0, 1.0]])
+    return T @ R @ S
+
+
+def _st_chain(tex: UsdShade.Shader, notes: list, time):
+    """(uv primvar name or None, (3, 3) matrix) of a UsdUVTexture's st input."""
+    m = np.eye(3)
+    node, inp = tex, "st"
+    for _ in range(16):  # a chain, not a loop
+        a, is_out = _producer(node, inp)
+        if a is None:
+            return None, m
+        if not is_out:
+            notes.append(f"st is a constant {a.Get()} (the mesh's texture coordinates are used)")
+            return None, m
+        up = UsdShade.Shader(a.GetPrim())
+        sid = shader_id(up)
+        if sid == "UsdTransform2d":
+            step = transform2d_matrix(floats(value(up, "scale", (1.0, 1.0), time), 2, (1.0, 1.0)),
+                                      float(value(up, "rotation", 0.0, time) or 0.0),
+                                      floats(value(up, "translation", (0.0, 0.0), time), 2, (0.0, 0.0)))
+            m = m @ step  # the node nearer the texture applies last
+            node, inp = up, "in"
+            continue
+        if sid in PRIMVAR_READERS:
+            name = _varname(up, time)
+            return (name or None), m
+        notes.append(f"st driven by {sid or up.GetPrim().GetTypeName()!r}, not a primvar reader or UsdTransform2d "
+                     "(the mesh's texture coordinates are used)")
+        return None, m
+    notes.append("st chain too long (the mesh's texture coordinates are used)")
+    return None, m
