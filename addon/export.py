@@ -34,7 +34,7 @@ try:  # inside the installed extension the tracer is bundled next to this module
 except ImportError:  # the repository's ``addon`` package uses the top-level tracer
     import tracer
 
-from .model import MaterialWriter
+from .model import Corners, MaterialWriter
 from .nodes import image_rgba
 from .world import world_from_blender
 
@@ -231,14 +231,15 @@ class ExportedObject(NamedTuple):
 
     ``key`` names it across depsgraph evaluations (object, instancing parent, ``persistent_id``): the scene sync
     (addon/sync.py) diffs exports by it. ``geometry`` is the :func:`mesh_arrays` dict, shared by every instance of
-    one mesh (and kept in the geometry cache), ``material`` its per-triangle material rows and ``uvs`` its corner
-    UVs (shared too where the instances share mesh and materials), ``matrix`` the 4×4 object-to-world matrix."""
+    one mesh (and kept in the geometry cache), ``material`` its per-triangle material rows and ``corners`` its UV
+    sets and vertex colours (:class:`addon.model.Corners`, shared too where the instances share mesh and
+    materials), ``matrix`` the 4×4 object-to-world matrix."""
 
     key: tuple
     name: str
     geometry: dict
     material: np.ndarray
-    uvs: np.ndarray | None
+    corners: Corners
     matrix: np.ndarray
     pass_index: int
     #: The matrix keeps handedness (det > 0); False: it mirrors.
@@ -304,14 +305,14 @@ def export_objects(depsgraph, writer: MaterialWriter, warnings: list, lights: li
             else:
                 mats = default_mat
             inputs[key, slots] = writer.mesh_inputs(obj.name, mats, g)
-        mats, uvs = inputs[key, slots]
+        mats, corners = inputs[key, slots]
         if inst.is_instance:
             parent = inst.parent.original.name if inst.parent else ""
             name = f"{obj.name}@{parent}#{inst.random_id & 0xFFFF:04x}"
             ident = (obj.original.name, parent, tuple(inst.persistent_id))
         else:
             name, ident = obj.name, (obj.original.name, "", ())
-        yield ExportedObject(ident, name, g, mats, uvs, world, int(obj.pass_index), det > 0)
+        yield ExportedObject(ident, name, g, mats, corners, world, int(obj.pass_index), det > 0)
 
 
 def add_objects(b: "tracer.SceneBuilder", objects: list) -> list[np.ndarray]:
@@ -329,13 +330,13 @@ def add_objects(b: "tracer.SceneBuilder", objects: list) -> list[np.ndarray]:
         o = objects[i]
         j = i + 1
         while (j < len(objects) and objects[j].geometry is o.geometry and objects[j].material is o.material
-               and objects[j].uvs is o.uvs and objects[j].right_handed == o.right_handed):
+               and objects[j].corners is o.corners and objects[j].right_handed == o.right_handed):
             j += 1
         run = objects[i:j]
         if len(run) < BATCH_MIN:
             for r in run:
                 b.add_mesh(r.geometry["vertices"], r.geometry["triangles"], material=r.material, name=r.name,
-                           transform=r.matrix, normals=r.geometry["normals"], uvs=r.uvs)
+                           transform=r.matrix, normals=r.geometry["normals"], **r.corners.kwargs())
                 placed.append(np.eye(4))
         else:
             first = _add_batch(b, run)
@@ -370,14 +371,12 @@ def _add_batch(b, run) -> int:
     k, nv, nt = len(run), len(v), len(t)
     tris = (t[None] + (np.arange(k) * nv)[:, None, None]).reshape(-1, 3)
     normals = None if nrm is None else np.concatenate(norms).reshape(k * nt, 3, 3)
-    uvs = None if run[0].uvs is None else np.broadcast_to(run[0].uvs, (k,) + run[0].uvs.shape).reshape(-1, 3, 2)
     material = np.broadcast_to(np.asarray(run[0].material, np.int32), (nt,))
     if not run[0].right_handed:  # mirrored instances: winding turned back, as place_mesh does
         tris = tris[:, [0, 2, 1]]
         normals = None if normals is None else normals[:, [0, 2, 1]]
-        uvs = None if uvs is None else uvs[:, [0, 2, 1]]
     return b.add_mesh(np.concatenate(verts).reshape(-1, 3), tris, material=np.tile(material, k), name=run[0].name,
-                      normals=normals, uvs=uvs, instances=k)
+                      normals=normals, instances=k, **run[0].corners.repeated(k, not run[0].right_handed).kwargs())
 
 
 def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | None = None,

@@ -122,11 +122,9 @@ def test_world_materials_and_fallback_warning(bpy_module):
     m = scene.materials
     i = m.names.index("P")
     np.testing.assert_allclose(m.diffuse[i], (0.5, 0.25, 0.1), rtol=1e-6)
-    assert m.k_m[i] == pytest.approx(0.3)
-    np.testing.assert_allclose(m.mirror_tint[i], (0.5, 0.25, 0.1), rtol=1e-6)
-    assert m.exponent[i] == pytest.approx(float(export.tracer.roughness_to_exponent(0.2)), rel=1e-5)
-    f0 = ((1.45 - 1) / (1.45 + 1)) ** 2 * 2 * 0.8
-    np.testing.assert_allclose(m.specular_color[i], f0, rtol=1e-5)
+    # the Principled inputs as they are (the tracer's Principled model; no mirror weight of the notes)
+    assert m.metallic[i] == pytest.approx(0.3) and m.k_m[i] == 0.0
+    assert m.roughness[i] == pytest.approx(0.2) and m.specular[i] == pytest.approx(0.8)
     assert m.ior[i] == pytest.approx(1.45) and m.transmission[i] == pytest.approx(0.6)
     np.testing.assert_allclose(m.transmission_tint[i], (0.5, 0.25, 0.1), rtol=1e-6)
     np.testing.assert_allclose(m.emission[i], (3.0, 1.5, 0.0), rtol=1e-6)

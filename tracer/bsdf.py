@@ -43,8 +43,8 @@ INV_PI = 1.0 / math.pi
 SINGULAR_ALPHA2 = 2e-10
 #: The roughness split (README, "Conventions"): below ROUGH_MIRROR the lobe goes to the mirror ray, above
 #: ROUGH_LOCAL to the light samples, smoothstep in between (see :func:`mirror_share`).
-ROUGH_MIRROR = 0.1
-ROUGH_LOCAL = 0.3
+ROUGH_MIRROR = 0.3
+ROUGH_LOCAL = 0.5
 
 
 class Closure(NamedTuple):

@@ -23,7 +23,9 @@ DEGENERATE_AREA = 1e-14
 #: The Scene fields that hold one row per triangle (row i belongs to ``triangles[i]``; list-valued ones are lists
 #: of such arrays), with the value a row without such data gets. tracer.Session's mesh edits keep every one of
 #: these in step with the triangles; a new per-triangle field belongs here.
-PER_TRIANGLE = {"material_ids": 0, "object_ids": 0, "normals": 0.0, "uvs": np.nan, "uv_sets": np.nan, "colors": 1.0}
+#: Per-triangle fields and the value rows without data get (UV sets: NaN = no coordinates). ``uvs`` is not listed:
+#: it is ``uv_sets[0]``.
+PER_TRIANGLE = {"material_ids": 0, "object_ids": 0, "normals": 0.0, "uv_sets": np.nan, "colors": 1.0}
 
 
 def unit_normals(normals: np.ndarray) -> np.ndarray:
