@@ -50,7 +50,14 @@ def image_bar(name: str) -> dict:
 #: 9.4 dB / 0.33 (test_usd_material_comparison_can_fail).
 USD_MATERIAL_PSNR_MIN = PSNR_MIN
 USD_MATERIAL_MAE_MAX = 0.007
-USD_MATERIAL_INHERENT: dict = {}
+USD_MATERIAL_INHERENT: dict = {
+    # A DirectX-style normal map (green flipped back by scale/bias) on a sun-lit quad: 43.6 dB, MAE 0.0126 — ours
+    # 0.5 % brighter (sRGB) everywhere, a little more towards the top right, i.e. a view-dependent term; the
+    # closed form (tests/test_usd_materials.py::test_normal_map_matches_closed_form) holds ours to 0.8·n·l. Cycles'
+    # Normal Map node bends normals whose mirror direction would go below the surface, and its lobe sees the
+    # perturbed normal through Blender's import; which of the two is the cause is not isolated yet.
+    "usd_normal_map_dx": dict(psnr=USD_MATERIAL_PSNR_MIN, mae=0.015),
+}
 
 
 def usd_material_bar(name: str) -> dict:
