@@ -467,7 +467,8 @@ def settings_from_scene(bpy_scene, view_layer=None) -> "tracer.RenderSettings":
         kw = dict(samples=props.samples, max_depth=props.max_depth, epsilon=props.epsilon or None,
                   fresnel=props.fresnel, shadows=props.shadows, threads=props.threads or None,
                   light_samples=props.light_samples, sky_samples=props.sky_samples,
-                  terminal_rays=props.terminal_rays)
+                  terminal_rays=props.terminal_rays, shading=props.shading,
+                  max_transparent=props.max_transparent)
     region = border_region(bpy_scene) if r.use_border else None
     aovs = []
     layer = view_layer if view_layer is not None else (bpy_scene.view_layers[0] if bpy_scene.view_layers else None)

@@ -213,6 +213,7 @@ def test_settings_from_scene(bpy_module):
         scene = bs.reset((200, 100), percentage=50)
         scene.whitted.samples, scene.whitted.max_depth, scene.whitted.epsilon = 3, 4, 0.001
         scene.whitted.fresnel, scene.whitted.shadows, scene.whitted.threads = False, False, 2
+        scene.whitted.shading, scene.whitted.max_transparent = "classic", 3
         scene.render.film_transparent = True
         scene.render.use_border = True
         scene.render.border_min_x, scene.render.border_max_x = 0.25, 0.5
@@ -221,6 +222,7 @@ def test_settings_from_scene(bpy_module):
         s = export.settings_from_scene(scene)
         assert (s.width, s.height, s.samples, s.max_depth) == (100, 50, 3, 4) and s.epsilon == pytest.approx(0.001)
         assert (s.fresnel, s.shadows, s.threads, s.transparent) == (False, False, 2, True)
+        assert (s.shading, s.max_transparent) == ("classic", 3)
         assert s.region == (25, 25, 50, 50)  # bottom half of the image, second quarter from the left
         assert s.aovs == ("depth",)
     finally:
