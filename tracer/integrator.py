@@ -805,8 +805,12 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
                                          float(surf.cover[i]), vec.row(mats.specular_color, mat),
                                          float(mats.exponent[mat]), vec.row(surf.n, i), di, spawn)
                 mirror = vec.madd(mirror, bsdf.specular_albedo(cl), (1.0 - k_m) * g)
-        else:
+        else:  # classic: a smooth metal (Principled input) mirrors its base colour, as the notes' k_m·tint
             glass = (1.0 - k_m) * w_t
+            m = float(surf.metallic[i])
+            if m > 0.0:
+                g = bsdf.mirror_share(float(surf.roughness[i]))
+                mirror = vec.madd(mirror, vec.row(surf.base, i), (1.0 - k_m) * m * g)
         mirror = vec.scale(mirror, a)
         glass *= a
         if glass <= 0.0 and vec.max3(mirror) <= 0.0:
