@@ -25,7 +25,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 #: The child: build a bench scene, optionally texture it, render it warm ``runs`` times; print the wall times.
 CHILD = r"""
-import json, sys, time
+import json, os, sys, time
 import numpy as np
 import tracer
 from bench import scenes
@@ -36,7 +36,7 @@ if variant != "before":
     kw["shading"] = "classic" if variant == "classic" else "principled"
 if variant == "textured":
     rng = np.random.default_rng(0)
-    n = 1024
+    n = int(os.environ.get('WHITTED_BENCH_TEXTURE', 1024))
     y, x = np.mgrid[0:n, 0:n] / n
     base = np.stack([0.5 + 0.4 * np.sin(12 * x), 0.5 + 0.4 * np.cos(9 * y), 0.5 + 0.3 * np.sin(7 * (x + y))], -1)
     rough = (0.2 + 0.6 * rng.random((n, n, 1)))

@@ -174,7 +174,7 @@ def _multiscatter(fss, e, e_avg):
 
 
 # ---------------------------------------------------------------------------------------------- set-up
-@kernel
+@kernel(inline=True)
 def principled(base, metallic, roughness, specular, tint, ior, transmission, mu):
     """The Principled :class:`Closure` of a shading point (module docstring); μ = n·wi."""
     r = min(max(roughness, 0.0), 1.0)
@@ -245,7 +245,7 @@ def _lambda(alpha2, cos):
     return 0.5 * (math.sqrt(1.0 + alpha2 * max(1.0 / c2 - 1.0, 0.0)) - 1.0)
 
 
-@kernel
+@kernel(inline=True)
 def evaluate(cl, n, wi, l, n_l, spec_scale):
     """BRDF × cos θ_l of closure ``cl`` for the unit light direction l (n·l = ``n_l`` > 0) seen from wi; the
     specular lobes are multiplied by ``spec_scale`` (the light-sample share of the roughness split)."""
@@ -300,7 +300,7 @@ def is_black(cl):
     return vec.max3(cl.diffuse) <= 0.0 and cl.metal <= 0.0 and cl.spec <= 0.0 and vec.max3(cl.spec_color) <= 0.0
 
 
-@kernel
+@kernel(inline=True)
 def perturb_normal(t_value, tangent, sign, strength, n, ng, front):
     """A tangent-space normal-map value (x, y, z) applied to the shading normal n (on the incident side of the
     geometric normal ng; ``front``: the ray hit the front face). OpenGL convention: x along the UV tangent (increasing

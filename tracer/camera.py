@@ -13,6 +13,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from typing import NamedTuple
+
 import numpy as np
 
 from . import vec
@@ -70,14 +72,15 @@ class Camera:
         y = (np.asarray(v) - 0.5) * self.vertical_aperture + self.vertical_aperture_offset
         return x, y
 
-    def packed(self) -> np.ndarray:
-        """The camera as the float64 row :func:`eye_ray` reads: camera-to-world rotation (9, row-major), eye (3),
-        focal length, apertures, aperture offsets, near, and 1 for perspective / 0 for orthographic."""
+    def packed(self) -> "CameraTable":
+        """The camera as :func:`eye_ray` reads it (a :class:`CameraTable` of plain floats)."""
         m = self.camera_to_world
-        return np.concatenate([m[:3, :3].reshape(-1), m[:3, 3],
-                               [self.focal_length, self.horizontal_aperture, self.vertical_aperture,
-                                self.horizontal_aperture_offset, self.vertical_aperture_offset, self.near,
-                                1.0 if self.projection == PERSPECTIVE else 0.0]]).astype(np.float64)
+        return CameraTable(rotation=np.ascontiguousarray(m[:3, :3], np.float64),
+                           eye=(float(m[0, 3]), float(m[1, 3]), float(m[2, 3])),
+                           focal_length=float(self.focal_length), aperture=(self.horizontal_aperture,
+                                                                            self.vertical_aperture),
+                           offset=(self.horizontal_aperture_offset, self.vertical_aperture_offset),
+                           near=float(self.near), perspective=self.projection == PERSPECTIVE)
 
     def generate_rays(self, u: np.ndarray, v: np.ndarray):
         """World-space eye rays (origins (N, 3), unit directions (N, 3), float32) through film positions u, v
@@ -123,7 +126,17 @@ class Camera:
         return cls(camera_to_world=m, **kwargs)
 
 
-_ROT, _EYE, _FOCAL, _H_AP, _V_AP, _H_OFF, _V_OFF, _NEAR, _PERSPECTIVE = 0, 9, 12, 13, 14, 15, 16, 17, 18
+class CameraTable(NamedTuple):
+    """A camera as the kernels read it: camera-to-world rotation (3, 3) and eye, focal length, apertures (h, v),
+    aperture offsets (h, v), near plane, and whether it is a perspective camera."""
+
+    rotation: np.ndarray
+    eye: tuple
+    focal_length: float
+    aperture: tuple
+    offset: tuple
+    near: float
+    perspective: bool
 
 
 @kernel(inline=True)
@@ -135,21 +148,20 @@ def eye_ray(cam, u, v):
     Orthographic (the seed's question): every ray has the view direction −Z and starts at the film point itself.
     Rays start at the near clipping plane (camera-space z = −near).
     """
-    x = (u - 0.5) * cam[_H_AP] + cam[_H_OFF]
-    y = (v - 0.5) * cam[_V_AP] + cam[_V_OFF]
-    near = cam[_NEAR]
-    eye = (cam[_EYE], cam[_EYE + 1], cam[_EYE + 2])
-    if cam[_PERSPECTIVE] > 0.0:
-        c = (x / cam[_FOCAL], y / cam[_FOCAL], -1.0)  # through the film point; z = −1 so that ·near lands on the plane
-        w = (cam[0] * c[0] + cam[1] * c[1] + cam[2] * c[2],
-             cam[3] * c[0] + cam[4] * c[1] + cam[5] * c[2],
-             cam[6] * c[0] + cam[7] * c[1] + cam[8] * c[2])
-        return vec.madd(eye, w, near), vec.normalize(w)
-    c = (x, y, -near)
-    o = (eye[0] + cam[0] * c[0] + cam[1] * c[1] + cam[2] * c[2],
-         eye[1] + cam[3] * c[0] + cam[4] * c[1] + cam[5] * c[2],
-         eye[2] + cam[6] * c[0] + cam[7] * c[1] + cam[8] * c[2])
-    return o, vec.normalize((-cam[2], -cam[5], -cam[8]))
+    x = (u - 0.5) * cam.aperture[0] + cam.offset[0]
+    y = (v - 0.5) * cam.aperture[1] + cam.offset[1]
+    r = cam.rotation
+    if cam.perspective:
+        c = (x / cam.focal_length, y / cam.focal_length, -1.0)  # the film point; z = −1 so ·near lands on the plane
+        w = (r[0, 0] * c[0] + r[0, 1] * c[1] + r[0, 2] * c[2],
+             r[1, 0] * c[0] + r[1, 1] * c[1] + r[1, 2] * c[2],
+             r[2, 0] * c[0] + r[2, 1] * c[1] + r[2, 2] * c[2])
+        return vec.madd(cam.eye, w, cam.near), vec.normalize(w)
+    c = (x, y, -cam.near)
+    o = (cam.eye[0] + r[0, 0] * c[0] + r[0, 1] * c[1] + r[0, 2] * c[2],
+         cam.eye[1] + r[1, 0] * c[0] + r[1, 1] * c[1] + r[1, 2] * c[2],
+         cam.eye[2] + r[2, 0] * c[0] + r[2, 1] * c[1] + r[2, 2] * c[2])
+    return o, vec.normalize((-r[0, 2], -r[1, 2], -r[2, 2]))
 
 
 @kernel

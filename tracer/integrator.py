@@ -41,8 +41,8 @@ from .lights import MESH, emitting_triangles, pack_lights, sample_light
 from .sampling import multijitter, stratum, uniform2_1
 from .scene import Scene
 from .settings import RenderSettings
-from .surface import geometry_of, hit_color, hit_frame, hit_uv_set, uv_tangent
-from .texture import lookup, pack_textures
+from .surface import color_at, frame_at, geometry_of, hit_frame, hit_uv_set, tangent_at, uv_at
+from .texture import lookup, lookup_at, pack_textures, uv_set_of
 
 RAY_TYPES = ("eye", "shadow", "reflection", "transmission", "sky")
 
@@ -130,13 +130,15 @@ class MaterialArrays(NamedTuple):
     emission_channel: np.ndarray
     normal_channel: np.ndarray
     textured: np.ndarray  # (N,) bool: some parameter reads a texture
+    slots: np.ndarray  # (N, 7) int32: the texture of each parameter of TEXTURE_PARAMS (-1 = none)
+    channels: np.ndarray  # (N, 7) int32: and its channel
 
     @classmethod
     def of(cls, m) -> "MaterialArrays":
         f32, i32 = (lambda a: np.ascontiguousarray(a, np.float32)), (lambda a: np.ascontiguousarray(a, np.int32))
-        tex, _ch = m.texture_slots()
-        cols = {"textured": np.ascontiguousarray((tex >= 0).any(axis=1))}
-        for name in cls._fields[:-1]:
+        tex, ch = m.texture_slots()
+        cols = {"textured": np.ascontiguousarray((tex >= 0).any(axis=1)), "slots": tex, "channels": ch}
+        for name in cls._fields[:-3]:
             if name == "base_color_texture":
                 a = m.diffuse_texture
             else:
@@ -196,13 +198,14 @@ class SurfaceQueue(NamedTuple):
     specular: np.ndarray  # (N,) float32 Specular IOR Level
     cover: np.ndarray  # (N,) float32 alpha in [0, 1]
     emission: np.ndarray  # (N, 3) float32
+    textured: np.ndarray  # (N,) int32: the rays whose material reads a texture (the first _surfaces returns)
 
     @classmethod
     def empty(cls, n: int) -> "SurfaceQueue":
         f3 = lambda: np.empty((n, 3), np.float32)  # noqa: E731
         f1 = lambda: np.empty(n, np.float32)  # noqa: E731
         return cls(np.empty(n, np.bool_), np.empty((n, 3), np.float64), f3(), f3(), np.empty(n, np.bool_),
-                   np.empty(n, np.int32), f3(), f1(), f1(), f1(), f1(), f3())
+                   np.empty(n, np.int32), f3(), f1(), f1(), f1(), f1(), f3(), np.empty(n, np.int32))
 
 
 class ShadowQueue(NamedTuple):
@@ -329,7 +332,13 @@ class Integrator:
         n = len(o)
         t, prim, u, v = hits
         surf = SurfaceQueue.empty(n)
-        _surfaces(o, d, t, prim, u, v, self.geometry, self.materials, self.textures, surf)
+        n_textured = _surfaces(o, d, t, prim, u, v, self.geometry, self.materials, surf)
+        if n_textured:
+            g, m, x = self.geometry, self.materials, self.textures
+            _textured_surfaces(surf.textured[:n_textured], prim, u, v, surf.mat, surf.front, surf.ng, surf.n,
+                               surf.base, surf.roughness, surf.metallic, surf.specular, surf.cover, surf.emission,
+                               m.alpha, m.alpha_threshold, m.slots, m.channels, m.normal_strength, g.uv_sets,
+                               g.vertices, g.triangles, g.face_normals, x.data, x.params)
         if depth == 0:
             _first_hits(surf, t, prim, t0, sample, self.geometry, out)
         _emitted(d, surf, sample, weight, depth, self.options, self.env, out)
@@ -461,23 +470,11 @@ def _scalar_param(value, ti, ch, tex, geom, tri, u, v):
     """A scalar material parameter: the constant × its texture lookup (channel ``ch``; -1 = luminance)."""
     if ti < 0:
         return value
-    s, t, ok = hit_uv_set(geom, tex.uv_set[ti], tri, u, v)
+    s, t, ok = hit_uv_set(geom, uv_set_of(tex.params, ti), tri, u, v)
     c = lookup(tex, ti, s, t, ok)
     if ch < 0:
         return value * (0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2])
     return value * c[ch]
-
-
-@kernel(inline=True)
-def _color_param(value, ti, ch, tex, geom, tri, u, v):
-    """A colour material parameter: the constant × its texture lookup (rgb, or one channel as grey)."""
-    if ti < 0:
-        return value
-    s, t, ok = hit_uv_set(geom, tex.uv_set[ti], tri, u, v)
-    c = lookup(tex, ti, s, t, ok)
-    if ch < 0:
-        return vec.mul(value, (c[0], c[1], c[2]))
-    return vec.scale(value, c[ch])
 
 
 @kernel(inline=True)
@@ -499,20 +496,6 @@ def coverage(geom, mats, tex, tri, u, v):
     if ti >= 0:
         a = _scalar_param(a, ti, mats.alpha_channel[mat], tex, geom, tri, u, v)
     return _cut(a, float(mats.alpha_threshold[mat]))
-
-
-@kernel(inline=True)
-def _normal_mapped(geom, mats, tex, mat, tri, u, v, n, ng, front):
-    """The shading normal after the material's tangent-space normal map (OpenGL convention, tangents from the
-    UVs of the map's UV set), on the incident side; n unchanged without a map or usable tangents."""
-    ti = mats.normal_texture[mat]
-    k = tex.uv_set[ti]
-    s, t, ok = hit_uv_set(geom, k, tri, u, v)
-    if not ok:
-        return n
-    c = lookup(tex, ti, s, t, True)
-    tg, sign = uv_tangent(geom, k, tri, vec.row(geom.face_normals, tri))
-    return bsdf.perturb_normal((c[0], c[1], c[2]), tg, sign, float(mats.normal_strength[mat]), n, ng, front)
 
 
 @kernel(inline=True)
@@ -542,75 +525,131 @@ def _put_spawn(rec, j, n, eta_i, eta_r, tir):
     rec.tir[j] = tir
 
 
-@kernel
+@kernel(inline=True)
 def _local_model(principled, base, m, rough, spec, tint, ior, w_t, k_m, cover, spec_color, exponent, n, d, spawn):
     """The local model at a hit seen along d: (closure, the weight its light is added with, the mirror share g of
     the specular lobes). Principled: weight (1 − k_m)·alpha, the closure holds the metal, dielectric and diffuse
     weights; classic: weight (1 − k_m)(1 − w_t)·alpha, R_d = base·(1 − m), R_s = specular_color·(1 − m) + base·m.
     (Plain values only: a call with the scene's NamedTuples of arrays costs reference counting on each array.)"""
+    zero = (0.0, 0.0, 0.0)
     if principled:
+        wl = (1.0 - k_m) * cover
+        if wl <= 0.0 or (m <= 0.0 and w_t >= 1.0):  # a pure mirror or clear glass: no local light (no lookups)
+            return bsdf.classic(zero, zero, 1.0), 0.0, 0.0
         cl = bsdf.principled(base, m, rough, spec, tint, ior, w_t, -vec.dot(n, d))
         g = bsdf.mirror_share(rough) if spawn else 0.0
-        return cl, (1.0 - k_m) * cover, g
+        return cl, wl, g
+    wl = (1.0 - k_m) * (1.0 - w_t) * cover
+    if wl <= 0.0:
+        return bsdf.classic(zero, zero, 1.0), 0.0, 0.0
     rs = vec.madd(vec.scale(spec_color, 1.0 - m), base, m)
     cl = bsdf.classic(vec.scale(base, 1.0 - m), rs, exponent)
-    return cl, (1.0 - k_m) * (1.0 - w_t) * cover, 0.0
+    return cl, wl, 0.0
 
 
 # ---------------------------------------------------------------------------------------------- stages
+@kernel(inline=True)
+def _channel(c, ch):
+    """Channel ``ch`` of an RGBA tuple; -1: its Rec.709 luminance (Blender's colour-to-float conversion)."""
+    if ch == 0:
+        return c[0]
+    if ch == 1:
+        return c[1]
+    if ch == 2:
+        return c[2]
+    if ch == 3:
+        return c[3]
+    return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+
+
 @kernel
-def _surfaces(o, d, t, prim, u, v, geom, mats, tex, surf):
-    """Surfaces stage: per ray, the hit point, its frames and the material's parameters after textures, vertex
-    colours and the normal map."""
+def _surfaces(o, d, t, prim, u, v, geom, mats, surf):
+    """Surfaces stage: per ray, the hit point, its frames and the material's constant parameters (× vertex
+    colours); the rays whose material reads a texture are listed for :func:`_textured_surfaces`. Returns how many.
+    (The NamedTuples' fields are read into locals before the loop: a field read inside it can cost numba's
+    reference counting per ray.)"""
+    material_ids = geom.material_ids
+    face_normals, normals, corner_ok, has_normals = geom.face_normals, geom.normals, geom.corner_ok, geom.has_normals
+    colors, has_colors = geom.colors, geom.has_colors
+    diffuse, roughness, metallic, specular = mats.diffuse, mats.roughness, mats.metallic, mats.specular
+    alphas, emission, threshold, textured = mats.alpha, mats.emission, mats.alpha_threshold, mats.textured
+    vertex_color = mats.vertex_color
+    s_hit, s_p, s_ng, s_n, s_front, s_mat = surf.hit, surf.p, surf.ng, surf.n, surf.front, surf.mat
+    s_base, s_rough, s_metal, s_spec, s_cover, s_e = (surf.base, surf.roughness, surf.metallic, surf.specular,
+                                                       surf.cover, surf.emission)
+    s_textured = surf.textured
+    n_textured = 0
     for i in range(o.shape[0]):
         tri = prim[i]
-        surf.hit[i] = tri >= 0
+        s_hit[i] = tri >= 0
         if tri < 0:
             continue
         di = vec.row(d, i)
         ui, vi = float(u[i]), float(v[i])
         p = vec.madd(vec.row(o, i), di, float(t[i]))
-        ng, n, front = hit_frame(geom, tri, di, ui, vi)
-        mat = geom.material_ids[tri]
-        base = vec.row(mats.diffuse, mat)
-        rough = float(mats.roughness[mat])
-        metal = float(mats.metallic[mat])
-        spec = float(mats.specular[mat])
-        alpha = float(mats.alpha[mat])
-        e = vec.row(mats.emission, mat)
-        if mats.textured[mat]:  # lookups only where a parameter reads a texture (see coverage)
-            if mats.base_color_texture[mat] >= 0:
-                base = _color_param(base, mats.base_color_texture[mat], mats.base_color_channel[mat], tex, geom,
-                                    tri, ui, vi)
-            if mats.roughness_texture[mat] >= 0:
-                rough = _scalar_param(rough, mats.roughness_texture[mat], mats.roughness_channel[mat], tex, geom,
-                                      tri, ui, vi)
-            if mats.metallic_texture[mat] >= 0:
-                metal = _scalar_param(metal, mats.metallic_texture[mat], mats.metallic_channel[mat], tex, geom,
-                                      tri, ui, vi)
-            if mats.specular_texture[mat] >= 0:
-                spec = _scalar_param(spec, mats.specular_texture[mat], mats.specular_channel[mat], tex, geom,
-                                     tri, ui, vi)
-            if mats.alpha_texture[mat] >= 0:
-                alpha = _scalar_param(alpha, mats.alpha_texture[mat], mats.alpha_channel[mat], tex, geom, tri, ui,
-                                      vi)
-            if mats.emission_texture[mat] >= 0:
-                e = _color_param(e, mats.emission_texture[mat], mats.emission_channel[mat], tex, geom, tri, ui, vi)
-            if mats.normal_texture[mat] >= 0:
-                n = _normal_mapped(geom, mats, tex, mat, tri, ui, vi, n, ng, front)
-        if mats.vertex_color[mat]:
-            base = vec.mul(base, hit_color(geom, tri, ui, vi))
-        surf.p[i, 0], surf.p[i, 1], surf.p[i, 2] = p
-        surf.ng[i, 0], surf.ng[i, 1], surf.ng[i, 2] = ng
-        surf.n[i, 0], surf.n[i, 1], surf.n[i, 2] = n
-        surf.front[i] = front
-        surf.mat[i] = mat
-        surf.base[i, 0], surf.base[i, 1], surf.base[i, 2] = base
-        surf.roughness[i] = min(max(rough, 0.0), 1.0)
-        surf.metallic[i] = min(max(metal, 0.0), 1.0)
-        surf.specular[i] = max(spec, 0.0)
-        surf.cover[i] = _cut(alpha, float(mats.alpha_threshold[mat]))
-        surf.emission[i, 0], surf.emission[i, 1], surf.emission[i, 2] = e
+        ng, n, front = frame_at(face_normals, normals, corner_ok, has_normals, tri, di, ui, vi)
+        mat = material_ids[tri]
+        base = vec.row(diffuse, mat)
+        if vertex_color[mat]:
+            base = vec.mul(base, color_at(colors, has_colors, tri, ui, vi))
+        if textured[mat]:
+            s_textured[n_textured] = i
+            n_textured += 1
+        s_p[i, 0], s_p[i, 1], s_p[i, 2] = p
+        s_ng[i, 0], s_ng[i, 1], s_ng[i, 2] = ng
+        s_n[i, 0], s_n[i, 1], s_n[i, 2] = n
+        s_front[i] = front
+        s_mat[i] = mat
+        s_base[i, 0], s_base[i, 1], s_base[i, 2] = base
+        s_rough[i] = min(max(float(roughness[mat]), 0.0), 1.0)
+        s_metal[i] = min(max(float(metallic[mat]), 0.0), 1.0)
+        s_spec[i] = max(float(specular[mat]), 0.0)
+        s_cover[i] = _cut(float(alphas[mat]), float(threshold[mat]))
+        s_e[i, 0], s_e[i, 1], s_e[i, 2] = emission[mat, 0], emission[mat, 1], emission[mat, 2]
+    return n_textured
+
+
+@kernel
+def _textured_surfaces(rays, prim, u, v, mat_of, front, ng, n, base, rough, metal, spec, cover, e, alphas, threshold,
+                       slots, channels, strength, uv_sets, vertices, triangles, face_normals, tdata, tparams):
+    """Textures stage: for the listed rays, each textured parameter × its texture (in the order of
+    TEXTURE_PARAMS: base colour, roughness, metallic, specular, alpha, emission, normal map), in place. Every
+    array is a parameter of its own, so no reference counting runs per lookup."""
+    for q in range(rays.shape[0]):
+        i = rays[q]
+        tri, mat = prim[i], mat_of[i]
+        ui, vi = float(u[i]), float(v[i])
+        alpha = float(alphas[mat])
+        for j in range(7):
+            ti = slots[mat, j]
+            if ti < 0:
+                continue
+            k = uv_set_of(tparams, ti)
+            s, t, ok = uv_at(uv_sets, k, tri, ui, vi)
+            if j == 6:  # the normal map: tangent space from this UV set, OpenGL convention
+                if ok:
+                    c = lookup_at(tdata, tparams, ti, s, t, True)
+                    tg, sign = tangent_at(uv_sets, vertices, triangles, k, tri, vec.row(face_normals, tri))
+                    nn = bsdf.perturb_normal((c[0], c[1], c[2]), tg, sign, float(strength[mat]), vec.row(n, i),
+                                             vec.row(ng, i), front[i])
+                    n[i, 0], n[i, 1], n[i, 2] = nn
+                continue
+            c = lookup_at(tdata, tparams, ti, s, t, ok)
+            ch = channels[mat, j]
+            x = _channel(c, ch)
+            if j == 0 or j == 5:  # colours: rgb, or one channel as grey
+                target = base if j == 0 else e
+                for m in range(3):
+                    target[i, m] *= c[m] if ch < 0 else x
+            elif j == 1:
+                rough[i] = min(max(rough[i] * x, 0.0), 1.0)
+            elif j == 2:
+                metal[i] = min(max(metal[i] * x, 0.0), 1.0)
+            elif j == 3:
+                spec[i] = max(spec[i] * x, 0.0)
+            else:
+                alpha *= x
+        cover[i] = _cut(alpha, float(threshold[mat]))
 
 
 @kernel

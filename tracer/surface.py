@@ -70,20 +70,26 @@ def _face_frames(vertices, triangles, normals, face_normals, corner_ok):
 
 @kernel(inline=True)
 def hit_frame(geom, tri, d, u, v):
+    """:func:`frame_at` of the scene's :class:`Geometry`."""
+    return frame_at(geom.face_normals, geom.normals, geom.corner_ok, geom.has_normals, tri, d, u, v)
+
+
+@kernel(inline=True)
+def frame_at(face_normals, normals, corner_ok, has_normals, tri, d, u, v):
     """(ng, n, front) at barycentrics (u, v) of triangle ``tri`` hit by direction d.
 
     ng is the unit geometric normal turned to the incident side, n the interpolated shading normal on the same side
     (p = (1 − u − v)·p0 + u·p1 + v·p2); front is True where the ray hit the front face (entering a closed object).
     Unusable corner normals, or interpolated ones facing away from the geometric side, fall back to ng.
     """
-    ng = vec.row(geom.face_normals, tri)
+    ng = vec.row(face_normals, tri)
     front = vec.dot(d, ng) < 0.0
     if not front:
         ng = vec.scale(ng, -1.0)
     n = ng
-    if geom.has_normals and geom.corner_ok[tri]:
+    if has_normals and corner_ok[tri]:
         w = 1.0 - u - v
-        c = geom.normals
+        c = normals
         m = (w * c[tri, 0, 0] + u * c[tri, 1, 0] + v * c[tri, 2, 0],
              w * c[tri, 0, 1] + u * c[tri, 1, 1] + v * c[tri, 2, 1],
              w * c[tri, 0, 2] + u * c[tri, 1, 2] + v * c[tri, 2, 2])
@@ -105,25 +111,36 @@ def hit_uv(geom, tri, u, v):
 
 
 @kernel(inline=True)
-def hit_uv_set(geom, k, tri, u, v):
+def uv_at(uv_sets, k, tri, u, v):
     """Texture coordinates (s, t) of UV set k at barycentrics (u, v) of triangle ``tri``, and whether the triangle
     has coordinates in that set (False: no such set, or NaN corners)."""
-    if k >= geom.uv_sets.shape[0]:
+    if k >= uv_sets.shape[0]:
         return 0.0, 0.0, False
     w = 1.0 - u - v
-    c = geom.uv_sets[k]
-    s = w * c[tri, 0, 0] + u * c[tri, 1, 0] + v * c[tri, 2, 0]
-    t = w * c[tri, 0, 1] + u * c[tri, 1, 1] + v * c[tri, 2, 1]
+    s = w * uv_sets[k, tri, 0, 0] + u * uv_sets[k, tri, 1, 0] + v * uv_sets[k, tri, 2, 0]
+    t = w * uv_sets[k, tri, 0, 1] + u * uv_sets[k, tri, 1, 1] + v * uv_sets[k, tri, 2, 1]
     return s, t, (s == s and t == t)
+
+
+@kernel(inline=True)
+def hit_uv_set(geom, k, tri, u, v):
+    """:func:`uv_at` of the scene's :class:`Geometry`."""
+    return uv_at(geom.uv_sets, k, tri, u, v)
 
 
 @kernel(inline=True)
 def hit_color(geom, tri, u, v):
     """Interpolated vertex colour at barycentrics (u, v) of triangle ``tri`` (white without vertex colours)."""
-    if not geom.has_colors:
+    return color_at(geom.colors, geom.has_colors, tri, u, v)
+
+
+@kernel(inline=True)
+def color_at(colors, has_colors, tri, u, v):
+    """:func:`hit_color` on the colour array itself."""
+    if not has_colors:
         return 1.0, 1.0, 1.0
     w = 1.0 - u - v
-    c = geom.colors
+    c = colors
     return (w * c[tri, 0, 0] + u * c[tri, 1, 0] + v * c[tri, 2, 0],
             w * c[tri, 0, 1] + u * c[tri, 1, 1] + v * c[tri, 2, 1],
             w * c[tri, 0, 2] + u * c[tri, 1, 2] + v * c[tri, 2, 2])
@@ -131,17 +148,22 @@ def hit_color(geom, tri, u, v):
 
 @kernel(inline=True)
 def uv_tangent(geom, k, tri, ng):
+    """:func:`tangent_at` of the scene's :class:`Geometry`."""
+    return tangent_at(geom.uv_sets, geom.vertices, geom.triangles, k, tri, ng)
+
+
+@kernel(inline=True)
+def tangent_at(uv_sets, vertices, triangles, k, tri, ng):
     """Unit tangent T (direction of increasing s) and bitangent sign of UV set k on triangle ``tri``, from its
     corner positions and coordinates (dp/ds of the triangle's affine UV map); (0, 0, 0) where the UVs are
     degenerate or missing. The sign is +1 where (T, dp/dt) is right-handed about the front-face normal ``ng``."""
-    if k >= geom.uv_sets.shape[0]:
+    if k >= uv_sets.shape[0]:
         return (0.0, 0.0, 0.0), 1.0
-    c = geom.uv_sets[k]
-    p0 = vec.row(geom.vertices, geom.triangles[tri, 0])
-    e1 = vec.sub(vec.row(geom.vertices, geom.triangles[tri, 1]), p0)
-    e2 = vec.sub(vec.row(geom.vertices, geom.triangles[tri, 2]), p0)
-    du1, dv1 = c[tri, 1, 0] - c[tri, 0, 0], c[tri, 1, 1] - c[tri, 0, 1]
-    du2, dv2 = c[tri, 2, 0] - c[tri, 0, 0], c[tri, 2, 1] - c[tri, 0, 1]
+    p0 = vec.row(vertices, triangles[tri, 0])
+    e1 = vec.sub(vec.row(vertices, triangles[tri, 1]), p0)
+    e2 = vec.sub(vec.row(vertices, triangles[tri, 2]), p0)
+    du1, dv1 = uv_sets[k, tri, 1, 0] - uv_sets[k, tri, 0, 0], uv_sets[k, tri, 1, 1] - uv_sets[k, tri, 0, 1]
+    du2, dv2 = uv_sets[k, tri, 2, 0] - uv_sets[k, tri, 0, 0], uv_sets[k, tri, 2, 1] - uv_sets[k, tri, 0, 1]
     det = du1 * dv2 - du2 * dv1
     if not (abs(det) > 1e-20):
         return (0.0, 0.0, 0.0), 1.0

@@ -157,43 +157,53 @@ def load_texture(path: str, colorspace: str = "auto", channels: int = 3) -> np.n
 
 # ---------------------------------------------------------------------------------------------- kernels' form
 class TextureTables(NamedTuple):
-    """The scene's textures as the kernels read them: every image's RGBA texels in one array, and per texture its
-    (first texel, height, width), wrap codes, UV set, UV transform rows and scale / bias / fallback."""
+    """The scene's textures as the kernels read them: every image's RGBA texels in one array, and one row of
+    parameters per texture (columns :data:`PARAM_COLUMNS`). Two arrays, not one per field: a kernel that hands
+    many arrays to a helper pays numba's reference counting for each, per call (about 5 ns per array)."""
 
     data: np.ndarray  # (P, 4) float32
-    info: np.ndarray  # (n, 3) int64 first, h, w
-    wrap: np.ndarray  # (n, 2) int64 codes for s and t
-    uv_set: np.ndarray  # (n,) int64
-    xform: np.ndarray  # (n, 2, 3) float64 the first two rows of the (3, 3) transform
-    identity: np.ndarray  # (n,) bool: transform is the identity
-    scale: np.ndarray  # (n, 4) float32
-    bias: np.ndarray  # (n, 4) float32
-    fallback: np.ndarray  # (n, 4) float32
+    params: np.ndarray  # (n, len(PARAM_COLUMNS)) float64
+
+
+#: The columns of ``TextureTables.params``: first texel row, height, width, wrap codes (s, t), UV set, whether the
+#: UV transform is the identity, its first two rows (6), scale (4), bias (4), fallback (4).
+PARAM_COLUMNS = ("first", "height", "width", "wrap_s", "wrap_t", "uv_set", "identity",
+                 "m00", "m01", "m02", "m10", "m11", "m12") + tuple(f"{k}{c}" for k in ("scale", "bias", "fallback")
+                                                              for c in "rgba")
+_FIRST, _H, _W, _WRAP_S, _WRAP_T, _UV_SET, _IDENTITY, _XFORM = 0, 1, 2, 3, 4, 5, 6, 7
+_SCALE, _BIAS, _FALLBACK = 13, 17, 21
 
 
 def pack_textures(textures: list) -> TextureTables:
     """A :class:`TextureTables` of :class:`Texture` objects (or bare arrays)."""
     tex = [as_texture(t) for t in textures]
-    n = len(tex)
-    info = np.zeros((n, 3), np.int64)
+    params = np.zeros((len(tex), len(PARAM_COLUMNS)), np.float64)
     offset = 0
     for i, t in enumerate(tex):
-        info[i] = (offset, t.image.shape[0], t.image.shape[1])
-        offset += t.image.shape[0] * t.image.shape[1]
-    data = (np.concatenate([t.rgba().reshape(-1, 4) for t in tex]) if n else np.zeros((0, 4), np.float32))
-    wrap = np.array([[WRAP_MODES.index(t.wrap_s), WRAP_MODES.index(t.wrap_t)] for t in tex], np.int64).reshape(n, 2)
-    xform = np.array([t.transform[:2] for t in tex], np.float64).reshape(n, 2, 3)
-    identity = np.array([np.array_equal(t.transform, np.eye(3)) for t in tex], np.bool_).reshape(n)
-    f32 = lambda name: np.array([getattr(t, name) for t in tex], np.float32).reshape(n, 4)  # noqa: E731
-    return TextureTables(np.ascontiguousarray(data, np.float32), info, wrap,
-                         np.array([t.uv_set for t in tex], np.int64).reshape(n), xform, identity,
-                         f32("scale"), f32("bias"), f32("fallback"))
+        h, w = t.image.shape[:2]
+        params[i, _FIRST:_UV_SET + 1] = (offset, h, w, WRAP_MODES.index(t.wrap_s), WRAP_MODES.index(t.wrap_t),
+                                         t.uv_set)
+        params[i, _IDENTITY] = np.array_equal(t.transform, np.eye(3))
+        params[i, _XFORM:_XFORM + 6] = np.asarray(t.transform, np.float64)[:2].reshape(-1)
+        params[i, _SCALE:_SCALE + 4], params[i, _BIAS:_BIAS + 4] = t.scale, t.bias
+        params[i, _FALLBACK:_FALLBACK + 4] = t.fallback
+        offset += h * w
+    data = (np.concatenate([t.rgba().reshape(-1, 4) for t in tex]) if tex else np.zeros((0, 4), np.float32))
+    return TextureTables(np.ascontiguousarray(data, np.float32), params)
+
+
+@kernel(inline=True)
+def uv_set_of(params, index):
+    """The UV set texture ``index`` reads."""
+    return int(params[index, _UV_SET])
 
 
 @kernel(inline=True)
 def _wrap(i, n, mode):
     """Texel index i on an axis of n texels under a wrap mode; -1 = outside (black)."""
     if mode == _REPEAT:
+        if 0 <= i < n:
+            return i
         return i % n
     if mode == _CLAMP:
         return min(max(i, 0), n - 1)
@@ -204,65 +214,63 @@ def _wrap(i, n, mode):
 
 
 @kernel(inline=True)
-def _texel(data, first, w, x, y, c):
-    if x < 0 or y < 0:
-        return 0.0
-    return data[first + y * w + x, c]
-
-
-@kernel
 def bilinear4(data, first, h, w, s, t, wrap_s, wrap_t):
     """Bilinear lookup at (s, t) (s right, t up; row 0 = top) of the h×w texture whose texels start at row
-    ``first`` of ``data``, with the given wrap codes: an (r, g, b, a) tuple. (Not inlined: one array argument, so
-    the call is cheap and the kernels that use it compile quickly.)"""
+    ``first`` of ``data``, with the given wrap codes: an (r, g, b, a) tuple. Texels outside a "black" texture
+    weigh 0. (Inlined: after a call numba cannot prune the reference counting of the NamedTuple fields a caller
+    reads next, about 100 ns of atomic operations per lookup.)"""
     x = s * w - 0.5
     y = (1.0 - t) * h - 0.5
     xf = math.floor(x)
     yf = math.floor(y)
     fx = x - xf
     fy = y - yf
-    x0 = _wrap(int(xf), w, wrap_s)
-    x1 = _wrap(int(xf) + 1, w, wrap_s)
-    y0 = _wrap(int(yf), h, wrap_t)
-    y1 = _wrap(int(yf) + 1, h, wrap_t)
-    w00 = (1.0 - fx) * (1.0 - fy)
-    w01 = fx * (1.0 - fy)
-    w10 = (1.0 - fx) * fy
-    w11 = fx * fy
-    return (w00 * _texel(data, first, w, x0, y0, 0) + w01 * _texel(data, first, w, x1, y0, 0)
-            + w10 * _texel(data, first, w, x0, y1, 0) + w11 * _texel(data, first, w, x1, y1, 0),
-            w00 * _texel(data, first, w, x0, y0, 1) + w01 * _texel(data, first, w, x1, y0, 1)
-            + w10 * _texel(data, first, w, x0, y1, 1) + w11 * _texel(data, first, w, x1, y1, 1),
-            w00 * _texel(data, first, w, x0, y0, 2) + w01 * _texel(data, first, w, x1, y0, 2)
-            + w10 * _texel(data, first, w, x0, y1, 2) + w11 * _texel(data, first, w, x1, y1, 2),
-            w00 * _texel(data, first, w, x0, y0, 3) + w01 * _texel(data, first, w, x1, y0, 3)
-            + w10 * _texel(data, first, w, x0, y1, 3) + w11 * _texel(data, first, w, x1, y1, 3))
+    ix, iy = int(xf), int(yf)
+    x0 = _wrap(ix, w, wrap_s)
+    x1 = _wrap(ix + 1, w, wrap_s)
+    y0 = _wrap(iy, h, wrap_t)
+    y1 = _wrap(iy + 1, h, wrap_t)
+    wx0, wx1, wy0, wy1 = 1.0 - fx, fx, 1.0 - fy, fy
+    if x0 < 0:
+        x0, wx0 = 0, 0.0
+    if x1 < 0:
+        x1, wx1 = 0, 0.0
+    if y0 < 0:
+        y0, wy0 = 0, 0.0
+    if y1 < 0:
+        y1, wy1 = 0, 0.0
+    r0 = first + y0 * w
+    r1 = first + y1 * w
+    a00, a01, a10, a11 = r0 + x0, r0 + x1, r1 + x0, r1 + x1
+    w00, w01, w10, w11 = wx0 * wy0, wx1 * wy0, wx0 * wy1, wx1 * wy1
+    return (w00 * data[a00, 0] + w01 * data[a01, 0] + w10 * data[a10, 0] + w11 * data[a11, 0],
+            w00 * data[a00, 1] + w01 * data[a01, 1] + w10 * data[a10, 1] + w11 * data[a11, 1],
+            w00 * data[a00, 2] + w01 * data[a01, 2] + w10 * data[a10, 2] + w11 * data[a11, 2],
+            w00 * data[a00, 3] + w01 * data[a01, 3] + w10 * data[a10, 3] + w11 * data[a11, 3])
 
 
 @kernel(inline=True)
-def bilinear(data, info, index, s, t):
-    """RGB of a repeat-wrapped bilinear lookup (the seed's texture read): an (r, g, b) tuple."""
-    c = bilinear4(data, info[index, 0], info[index, 1], info[index, 2], s, t, _REPEAT, _REPEAT)
-    return c[0], c[1], c[2]
+def lookup_at(data, params, index, s, t, has_uv):
+    """The value texture ``index`` gives at texture coordinates (s, t) of its UV set: the transform applied,
+    wrapped, filtered, × scale + bias; ``fallback`` where the surface has no coordinates (``has_uv`` False). An
+    (r, g, b, a) tuple. (The two arrays of a :class:`TextureTables`.)"""
+    p = params
+    if not has_uv:
+        return p[index, _FALLBACK], p[index, _FALLBACK + 1], p[index, _FALLBACK + 2], p[index, _FALLBACK + 3]
+    if p[index, _IDENTITY] == 0.0:
+        m = _XFORM
+        s, t = (p[index, m] * s + p[index, m + 1] * t + p[index, m + 2],
+                p[index, m + 3] * s + p[index, m + 4] * t + p[index, m + 5])
+    c = bilinear4(data, int(p[index, _FIRST]), int(p[index, _H]), int(p[index, _W]), s, t, int(p[index, _WRAP_S]),
+                  int(p[index, _WRAP_T]))
+    return (c[0] * p[index, _SCALE] + p[index, _BIAS], c[1] * p[index, _SCALE + 1] + p[index, _BIAS + 1],
+            c[2] * p[index, _SCALE + 2] + p[index, _BIAS + 2], c[3] * p[index, _SCALE + 3] + p[index, _BIAS + 3])
 
 
 @kernel(inline=True)
 def lookup(tex, index, s, t, has_uv):
-    """The value texture ``index`` of a :class:`TextureTables` gives at texture coordinates (s, t) of its UV set:
-    the transform applied, wrapped, filtered, × scale + bias; ``fallback`` where the surface has no coordinates
-    (``has_uv`` False). An (r, g, b, a) tuple."""
-    if not has_uv:
-        f = tex.fallback
-        return float(f[index, 0]), float(f[index, 1]), float(f[index, 2]), float(f[index, 3])
-    if not tex.identity[index]:
-        m = tex.xform
-        s, t = (m[index, 0, 0] * s + m[index, 0, 1] * t + m[index, 0, 2],
-                m[index, 1, 0] * s + m[index, 1, 1] * t + m[index, 1, 2])
-    c = bilinear4(tex.data, tex.info[index, 0], tex.info[index, 1], tex.info[index, 2], s, t, tex.wrap[index, 0],
-                  tex.wrap[index, 1])
-    sc, b = tex.scale, tex.bias
-    return (c[0] * sc[index, 0] + b[index, 0], c[1] * sc[index, 1] + b[index, 1],
-            c[2] * sc[index, 2] + b[index, 2], c[3] * sc[index, 3] + b[index, 3])
+    """:func:`lookup_at` of a :class:`TextureTables`."""
+    return lookup_at(tex.data, tex.params, index, s, t, has_uv)
 
 
 @kernel
