@@ -270,3 +270,23 @@ def test_classic_model_mirrors_a_smooth_principled_metal():
     np.testing.assert_allclose(smooth, np.broadcast_to((0.9 * 0.2, 0.5 * 0.4, 0.2 * 0.6), smooth.shape), atol=1e-5)
     rough = tracer.render(scene(0.6), st).rgb
     np.testing.assert_allclose(rough, 0.0, atol=1e-6)
+
+
+@pytest.mark.parametrize("shading", ["classic", "principled"])
+def test_partial_mirror_mixes_local_and_reflected_by_k_m(shading):
+    """The notes' c = (1 − k_m)·c_local + k_m·tint·RayColor(reflected) in both local models: a Lambert plane
+    (no specular) facing the camera under a sun along the view axis, reflecting the background. c_local =
+    base·E/π, RayColor = background."""
+    import tracer
+
+    base, e, k_m, bg = np.array([0.6, 0.3, 0.2]), 2.0, 0.4, np.array([0.2, 0.4, 0.6])
+    b = tracer.SceneBuilder()
+    m = b.add_material("half", base_color=tuple(base), specular=0.0, k_m=k_m)
+    b.add_mesh([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], [(0, 1, 2), (0, 2, 3)], material=m)
+    b.add_light(tracer.DistantLight(direction=(0, 0, -1), irradiance=(e, e, e)))
+    b.camera = tracer.Camera.look_at((0, 0, 3), (0, 0, 0), up=(0, 1, 0), focal_length=100.0,
+                                     horizontal_aperture=24.0, vertical_aperture=24.0)
+    b.background = tuple(bg)
+    img = tracer.render(b.build(), tracer.RenderSettings(width=8, height=8, samples=1, shading=shading, max_depth=1))
+    want = (1 - k_m) * base * e / np.pi + k_m * bg
+    np.testing.assert_allclose(img.rgb, np.broadcast_to(want, img.rgb.shape), rtol=1e-4)
