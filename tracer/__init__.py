@@ -3,27 +3,66 @@
     from tracer import Camera, PointLight, RenderSettings, SceneBuilder, render
     image = render(scene, RenderSettings(width=640, height=480, samples=2))
     image.save("out.png")
+
+Names are imported on first use (PEP 562): ``import tracer`` alone costs nothing, so the command line's
+``--version``, ``--help`` and argument errors answer at once; numba, Embree and OpenImageIO load when the first
+name that needs them is used.
 """
 
-from .builder import SceneBuilder
-from .camera import ORTHOGRAPHIC, PERSPECTIVE, Camera, fit_apertures
-from .environment import Environment
-from .explain import explain_pixel
-from .film import Image, read_image, write_image
-from .integrator import RAY_TYPES
-from .lights import AreaLight, DistantLight, PointLight, SpotLight
-from .materials import DEFAULT_MATERIAL, Materials, roughness_to_exponent
-from .render import RenderCancelled, render, render_tile, tiles_of
-from .scene import Scene
-from .session import Session
-from .settings import AOV_NAMES, SHADING_MODELS, RenderSettings
-from .texture import Texture
-from .warmup import compile_kernels
+from __future__ import annotations
 
-__all__ = [
-    "AOV_NAMES", "AreaLight", "Camera", "DEFAULT_MATERIAL", "DistantLight", "Environment", "Image", "Materials", "ORTHOGRAPHIC",
-    "PERSPECTIVE", "PointLight", "RAY_TYPES", "RenderCancelled", "RenderSettings", "Scene", "SceneBuilder", "Session",
-    "SHADING_MODELS", "SpotLight", "Texture", "compile_kernels", "explain_pixel", "fit_apertures", "read_image", "render",
-    "render_tile", "roughness_to_exponent", "tiles_of",
-    "write_image",
-]
+import importlib
+import sys
+import types
+
+#: Public name -> the module that defines it.
+_EXPORTS = {
+    "SceneBuilder": "builder",
+    "ORTHOGRAPHIC": "camera", "PERSPECTIVE": "camera", "Camera": "camera", "fit_apertures": "camera",
+    "Environment": "environment",
+    "explain_pixel": "explain",
+    "Image": "film", "read_image": "film", "write_image": "film",
+    "RAY_TYPES": "integrator",
+    "AreaLight": "lights", "DistantLight": "lights", "PointLight": "lights", "SpotLight": "lights",
+    "DEFAULT_MATERIAL": "materials", "Materials": "materials", "roughness_to_exponent": "materials",
+    "RenderCancelled": "render", "render": "render", "render_tile": "render", "tiles_of": "render",
+    "Scene": "scene",
+    "Session": "session",
+    "AOV_NAMES": "settings", "SHADING_MODELS": "settings", "RenderSettings": "settings",
+    "Texture": "texture",
+    "compile_kernels": "warmup",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str):
+    module = _EXPORTS.get(name)
+    if module is not None:
+        value = getattr(importlib.import_module(f".{module}", __name__), name)
+    else:  # a submodule used as an attribute (tracer.explain.TYPE_COLORS)
+        try:
+            value = importlib.import_module(f".{name}", __name__)
+        except ModuleNotFoundError:
+            raise AttributeError(f"module 'tracer' has no attribute {name!r}") from None
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_EXPORTS))
+
+
+class _Package(types.ModuleType):
+    """``tracer.render`` is both a submodule and the package's main function. Importing the submodule makes Python
+    bind it on the package; the function is bound instead (as the eager ``from .render import render`` did), so
+    ``tracer.render(scene, settings)`` works whatever was imported first. ``from tracer.render import ...`` and
+    ``importlib.import_module("tracer.render")`` still give the module."""
+
+    def __setattr__(self, name, value):
+        if name == "render" and isinstance(value, types.ModuleType):
+            value = value.render
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package

@@ -65,6 +65,24 @@ def _prune(base: str, keep: str, versions: int = 3) -> None:
 
 
 _CACHE_DIR = _cache_dir()
+#: Written into the kernel cache folder once :func:`tracer.compile_kernels` has compiled every kernel there.
+_WARM_MARKER = ".all-kernels-compiled"
+
+
+def kernels_cached() -> bool:
+    """True where an earlier process compiled every kernel of these sources into the cache (loading them is then
+    quick, and a warm-up render would only cost time). False with ``NUMBA_CACHE_DIR``, which numba manages."""
+    return _CACHE_DIR is not None and os.path.exists(os.path.join(_CACHE_DIR, _WARM_MARKER))
+
+
+def mark_kernels_cached() -> None:
+    """Record that every kernel is in the cache (called by :func:`tracer.compile_kernels`)."""
+    if _CACHE_DIR is not None:
+        try:
+            with open(os.path.join(_CACHE_DIR, _WARM_MARKER), "w") as f:
+                f.write("numba cache complete\n")
+        except OSError:
+            pass
 
 
 def kernel(fn=None, *, inline: bool = False):

@@ -42,3 +42,6 @@ def compile_kernels() -> None:
     b.ambient = np.array([0.1, 0.1, 0.1], np.float32)
     render(b.build(), RenderSettings(width=8, height=8, samples=2, light_samples=1, sky_samples=1, threads=1,
                                      aovs=("depth",), transparent=True))
+    from .jit import mark_kernels_cached
+
+    mark_kernels_cached()

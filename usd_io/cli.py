@@ -128,7 +128,7 @@ def _add_render_flags(r) -> None:
     """Every ``whitted render`` flag, in one place (other branches add theirs here: one ``add_argument`` each)."""
     from tracer.settings import DEFAULT_AA, SHADING_MODELS
 
-    from .mesh import COMPLEXITY, DEFAULT_COMPLEXITY
+    from .complexity import COMPLEXITY, DEFAULT_COMPLEXITY
 
     r.add_argument("scenes", nargs="+", metavar="SCENE", help="USD file(s) (.usd, .usda, .usdc, .usdz)")
     r.add_argument("-o", "--output", required=True,
@@ -303,7 +303,10 @@ def render_file(scene_path: str, output: str, frames, aovs, args) -> int:
                                   threads=args.threads, aovs=aovs, progress=not args.quiet,
                                   transparent=args.transparent, shading=args.shading)
         if not _kernels_ready:  # after the input has been checked: bad input stays one line
-            _compile_kernels(quiet=args.quiet)
+            from tracer.jit import kernels_cached
+
+            if not kernels_cached():  # a warm cache loads each kernel as the render first uses it
+                _compile_kernels(quiet=args.quiet)
             _kernels_ready = True
         image = render(scene, settings)
         if args.exposure:
@@ -439,7 +442,7 @@ _COMMANDS = {"render": cmd_render, "info": cmd_info, "explain": cmd_explain}
 
 
 def main(argv=None) -> int:
-    from .stage import UsdInputError
+    from .errors import UsdInputError
 
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser()

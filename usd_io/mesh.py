@@ -135,10 +135,7 @@ def read_uvs(prim, tri: Triangulation, n_points, n_fv, time, name="st"):
     return uv, why
 
 
-#: usdrecord/usdview's --complexity names -> uniform refinement levels of subdivision surfaces (Hydra's refineLevel
-#: for complexity 1.0, 1.1, 1.2, 1.3).
-COMPLEXITY = {"low": 0, "medium": 1, "high": 2, "veryhigh": 3}
-DEFAULT_COMPLEXITY = "medium"
+from .complexity import COMPLEXITY, DEFAULT_COMPLEXITY  # noqa: E402  (re-exported: usd_io.mesh.COMPLEXITY)
 #: Schemes refined at complexity medium and above (the rest, "none" and unknown tokens, stay polygons).
 SUBDIVIDED = (UsdGeom.Tokens.catmullClark, UsdGeom.Tokens.loop, UsdGeom.Tokens.bilinear)
 

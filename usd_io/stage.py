@@ -15,13 +15,11 @@ import tempfile
 
 from pxr import Sdf, Usd, UsdGeom
 
+from .errors import UsdInputError  # noqa: F401  (raised here; usd_io.stage.UsdInputError stays importable)
+
 #: The purposes a render includes by default (usdrecord's default is the same pair).
 DEFAULT_PURPOSES = ("default", "render")
 KNOWN_PURPOSES = ("default", "render", "proxy", "guide")
-
-
-class UsdInputError(ValueError):
-    """Bad input that the user can fix (missing file, not USD, unknown camera...). ``str()`` is one line."""
 
 
 @contextlib.contextmanager
