@@ -273,3 +273,56 @@ def test_points_render_as_spheres_and_curves_as_tubes():
     assert np.all(on_first | on_second) and on_first.sum() >= 8 and on_second.sum() >= 8
     img = render(scene, RenderSettings(width=16, height=16, samples=1))
     assert img.rgb.max() > 0.05
+
+
+def subdivided_cube_stage(up="Y", sun=False):
+    """A Catmull-Clark cube (USD's default subdivisionScheme: nothing authored), grey, seen by an orthographic
+    camera straight down the up axis; optionally a DistantLight shining straight down with the schema's defaults
+    (intensity 50 000 over the 0.53° disk: the spec's radiance reading). The Z-up copy is the Y-up one turned +90°
+    about X, camera and light included."""
+    s = Usd.Stage.CreateInMemory()
+    UsdGeom.SetStageUpAxis(s, up)
+    root = UsdGeom.Xform.Define(s, "/World")
+    if up == "Z":
+        root.AddRotateXOp().Set(90.0)
+    mesh = UsdGeom.Mesh.Define(s, "/World/Cube")
+    mesh.CreatePointsAttr([(-1, -1, -1), (1, -1, -1), (1, 1, -1), (-1, 1, -1),
+                           (-1, -1, 1), (1, -1, 1), (1, 1, 1), (-1, 1, 1)])
+    mesh.CreateFaceVertexCountsAttr([4] * 6)
+    mesh.CreateFaceVertexIndicesAttr([0, 3, 2, 1, 4, 5, 6, 7, 0, 1, 5, 4, 1, 2, 6, 5, 2, 3, 7, 6, 3, 0, 4, 7])
+    mesh.CreateDisplayColorAttr([(GREY, GREY, GREY)])
+    cam = UsdGeom.Camera.Define(s, "/World/Top")
+    cam.CreateProjectionAttr(UsdGeom.Tokens.orthographic)
+    cam.CreateHorizontalApertureAttr(30.0)  # tenths of a scene unit: 3 × 3 units
+    cam.CreateVerticalApertureAttr(30.0)
+    cam.AddTranslateOp().Set(Gf.Vec3d(0, 5, 0))
+    cam.AddRotateXOp().Set(-90.0)  # the camera's −Z looks down −Y
+    if sun:
+        light = UsdLux.DistantLight.Define(s, "/World/Sun")
+        light.AddRotateXOp().Set(-90.0)  # the light travels along its −Z: straight down
+    return s
+
+
+def test_y_up_unlit_subdivided_and_spec_lit_stages_render_as_authored():
+    """Issue 11's 'done' stage, written here: a Y-up stage without lights holding a Catmull-Clark cube. It is lit
+    by the default light (closed form at the top centre, whose limit normal is +Y by symmetry: albedo·(E_head/π +
+    L_dome)), refined (its silhouette from above is the smaller limit surface, not the 2 × 2 cage), matches its
+    Z-up copy, and with the schema-default DistantLight it is lit as the spec reads it: E = 50 000 · Ω(0.53°),
+    Ω = 2π(1 − cos(0.265°)) ≈ 6.7·10⁻⁵ sr, so 3.36 W/m² — not the 50 000 W/m² of reading intensity as irradiance."""
+    n = 61
+    st = RenderSettings(width=n, height=n, samples=1)
+    images = {}
+    for up in ("Y", "Z"):
+        scene, info = load_stage(subdivided_cube_stage(up), camera="/World/Top", width=n, height=n)
+        assert info.default_lighting
+        images[up] = render(scene, st).rgb
+    centre = images["Y"][n // 2, n // 2]
+    np.testing.assert_allclose(centre, [GREY * (DEFAULT_HEADLIGHT_IRRADIANCE / np.pi + DEFAULT_DOME)] * 3, rtol=5e-3)
+    assert np.abs(images["Y"] - images["Z"]).max() < 2e-3
+    cage, _ = load_stage(subdivided_cube_stage(), camera="/World/Top", width=n, height=n, complexity="low")
+    covered = lambda img: int((np.abs(img - img[0, 0]).max(axis=2) > 1e-4).sum())  # noqa: E731  (corner: the dome)
+    assert covered(images["Y"]) < 0.85 * covered(render(cage, st).rgb)  # the limit surface lies inside the cage
+    lit, info = load_stage(subdivided_cube_stage(sun=True), camera="/World/Top", width=n, height=n)
+    assert not info.default_lighting
+    e = 50000.0 * 2 * np.pi * (1 - np.cos(np.radians(0.53) / 2))
+    np.testing.assert_allclose(render(lit, st).rgb[n // 2, n // 2], [GREY * e / np.pi] * 3, rtol=1e-2)
