@@ -8,7 +8,7 @@ Each variant renders in a fresh child process (kernels warmed by one untimed ren
 pixel centres; the median wall time of ``--runs`` renders is printed with its ratio to the classic model of the
 same tree. ``--before REV`` also measures the git revision REV (checked out into a temporary worktree), where the
 classic model was the only one. The textured variant gives every material a 1024² base-colour, roughness and
-normal-map texture on planar UVs (x, y of the world position), so every hit does three extra bilinear lookups and
+normal-map texture on planar UVs (the world position projected along each triangle's dominant axis), so every hit does three extra bilinear lookups and
 a tangent frame; the roughness texels are 1 and the normal map flat, so it traces exactly the rays of the
 untextured scene and the difference is the cost of texturing alone.
 """
@@ -48,8 +48,10 @@ if variant == "textured":
                                              tracer.Texture(rough.astype(np.float32)),
                                              tracer.Texture(nrm.astype(np.float32), scale=(2, 2, 2, 1),
                                                             bias=(-1, -1, -1, 0))]
-    p = scene.vertices[scene.triangles]
-    scene.uvs = np.ascontiguousarray(p[..., :2] * 0.25, np.float32)
+    p = scene.vertices[scene.triangles].astype(np.float64)
+    fn = np.abs(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
+    keep = np.array([[1, 2], [0, 2], [0, 1]])[fn.argmax(axis=1)]  # project along each triangle's dominant axis
+    scene.uvs = np.ascontiguousarray(np.take_along_axis(p, keep[:, None, :], axis=2) * 0.25, np.float32)
     scene.uv_sets = [scene.uvs]
     m = scene.materials
     m.base_color_texture[:] = first

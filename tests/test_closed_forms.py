@@ -290,3 +290,26 @@ def test_partial_mirror_mixes_local_and_reflected_by_k_m(shading):
     img = tracer.render(b.build(), tracer.RenderSettings(width=8, height=8, samples=1, shading=shading, max_depth=1))
     want = (1 - k_m) * base * e / np.pi + k_m * bg
     np.testing.assert_allclose(img.rgb, np.broadcast_to(want, img.rgb.shape), rtol=1e-4)
+
+
+def test_a_minified_texture_is_filtered_to_its_mean_not_aliased():
+    """Mip-mapping: a 512² texture of one-texel black/white checks on a 2 × 2 quad, seen by a 64 × 64 orthographic
+    view of it (each pixel covers 8 × 8 texels, one eye sample per pixel), renders at its mean 0.5 everywhere
+    (level 3 of the chain is exactly grey). Read from the full image, the samples — a quarter texel off the texel
+    centres — would give 0.25s and 0.75s."""
+    import tracer
+
+    n, size = 512, 64
+    checks = ((np.add.outer(np.arange(n), np.arange(n)) % 2).astype(np.float32))[..., None].repeat(3, axis=2)
+    b = tracer.SceneBuilder()
+    tex = b.add_texture(checks)
+    m = b.add_material("checks", base_color=(1, 1, 1), base_color_texture=tex, specular=0.0)
+    b.add_mesh([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], [(0, 1, 2), (0, 2, 3)], material=m,
+               uvs=[(0, 0), (1, 0), (1, 1), (0, 1)])
+    quarter = 0.25 * 2.0 / n  # a quarter texel in world units
+    b.camera = tracer.Camera.look_at((quarter, quarter, 3), (quarter, quarter, 0), up=(0, 1, 0),
+                                     projection="orthographic", horizontal_aperture=2.0 - 4 * quarter,
+                                     vertical_aperture=2.0 - 4 * quarter)
+    b.ambient = (1.0, 1.0, 1.0)  # unlit: each pixel shows its texel (R_a·L_a, a = the texture)
+    img = tracer.render(b.build(), tracer.RenderSettings(width=size, height=size, samples=1)).rgb
+    np.testing.assert_allclose(img, 0.5, atol=0.02)

@@ -82,6 +82,16 @@ class Camera:
                            offset=(self.horizontal_aperture_offset, self.vertical_aperture_offset),
                            near=float(self.near), perspective=self.projection == PERSPECTIVE)
 
+    def sample_footprint(self, width: int, samples: int = 1) -> tuple:
+        """(eye, spread, flat): the width in world units that one of ``samples``×``samples`` eye samples of a pixel
+        covers at a point p is ``flat + spread·|p − eye|`` (perspective: the film's width per unit of distance
+        over the samples across the image; orthographic: a constant). Texture lookups pick their mip level by it."""
+        across = max(1, int(width)) * max(1, int(samples))
+        eye = tuple(float(x) for x in self.camera_to_world[:3, 3])
+        if self.projection == PERSPECTIVE:
+            return eye, self.horizontal_aperture / self.focal_length / across, 0.0
+        return eye, 0.0, self.horizontal_aperture / across
+
     def generate_rays(self, u: np.ndarray, v: np.ndarray):
         """World-space eye rays (origins (N, 3), unit directions (N, 3), float32) through film positions u, v
         (array form of :func:`eye_ray`)."""

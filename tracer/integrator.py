@@ -28,6 +28,7 @@ Every spawned ray leaves its surface through :func:`spawn_ray`, the one place ε
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -41,8 +42,8 @@ from .lights import MESH, emitting_triangles, pack_lights, sample_light
 from .sampling import multijitter, stratum, uniform2_1
 from .scene import Scene
 from .settings import RenderSettings
-from .surface import color_at, frame_at, geometry_of, hit_frame, hit_uv_set, tangent_at, uv_at
-from .texture import lookup, lookup_at, pack_textures, uv_set_of
+from .surface import areas_at, color_at, frame_at, geometry_of, hit_frame, hit_uv_set, tangent_at, uv_at
+from .texture import lookup, lookup_at, pack_textures, texel_density, uv_set_of
 
 RAY_TYPES = ("eye", "shadow", "reflection", "transmission", "sky")
 
@@ -335,10 +336,14 @@ class Integrator:
         n_textured = _surfaces(o, d, t, prim, u, v, self.geometry, self.materials, surf)
         if n_textured:
             g, m, x = self.geometry, self.materials, self.textures
+            # one eye sample's footprint, for the mip level of lookups: read now, as a session's camera and
+            # settings change between renders without a new Integrator
+            eye, spread, flat = self.scene.camera.sample_footprint(self.settings.width, self.settings.samples)
             _textured_surfaces(surf.textured[:n_textured], prim, u, v, surf.mat, surf.front, surf.ng, surf.n,
                                surf.base, surf.roughness, surf.metallic, surf.specular, surf.cover, surf.emission,
                                m.alpha, m.alpha_threshold, m.slots, m.channels, m.normal_strength, g.uv_sets,
-                               g.vertices, g.triangles, g.face_normals, x.data, x.params)
+                               g.vertices, g.triangles, g.face_normals, x.data, x.params, surf.p, eye, spread,
+                               flat)
         if depth == 0:
             _first_hits(surf, t, prim, t0, sample, self.geometry, out)
         _emitted(d, surf, sample, weight, depth, self.options, self.env, out)
@@ -611,30 +616,39 @@ def _surfaces(o, d, t, prim, u, v, geom, mats, surf):
 
 @kernel
 def _textured_surfaces(rays, prim, u, v, mat_of, front, ng, n, base, rough, metal, spec, cover, e, alphas, threshold,
-                       slots, channels, strength, uv_sets, vertices, triangles, face_normals, tdata, tparams):
+                       slots, channels, strength, uv_sets, vertices, triangles, face_normals, tdata, tparams, p_hit,
+                       eye, spread, flat):
     """Textures stage: for the listed rays, each textured parameter × its texture (in the order of
     TEXTURE_PARAMS: base colour, roughness, metallic, specular, alpha, emission, normal map), in place. Every
-    array is a parameter of its own, so no reference counting runs per lookup."""
+    array is a parameter of its own, so no reference counting runs per lookup.
+
+    Mip level: a ray's footprint at its hit is ``flat + spread·|p − eye|`` world units (one eye sample's share of a
+    pixel, spreading with the distance from the eye; mirrors and glass are not followed, so reflections are read
+    sharper than a ray cone would), times the texture's texels per world unit on the triangle."""
     for q in range(rays.shape[0]):
         i = rays[q]
         tri, mat = prim[i], mat_of[i]
         ui, vi = float(u[i]), float(v[i])
         alpha = float(alphas[mat])
+        footprint = flat + spread * vec.length(vec.sub(vec.row(p_hit, i), eye))
         for j in range(7):
             ti = slots[mat, j]
             if ti < 0:
                 continue
             k = uv_set_of(tparams, ti)
             s, t, ok = uv_at(uv_sets, k, tri, ui, vi)
+            uv_area, world_area = areas_at(uv_sets, vertices, triangles, k, tri)
+            texels = footprint * texel_density(tparams, ti, uv_area, world_area)
+            lod = math.log2(texels) if texels > 1.0 else 0.0
             if j == 6:  # the normal map: tangent space from this UV set, OpenGL convention
                 if ok:
-                    c = lookup_at(tdata, tparams, ti, s, t, True)
+                    c = lookup_at(tdata, tparams, ti, s, t, True, lod)
                     tg, sign = tangent_at(uv_sets, vertices, triangles, k, tri, vec.row(face_normals, tri))
                     nn = bsdf.perturb_normal((c[0], c[1], c[2]), tg, sign, float(strength[mat]), vec.row(n, i),
                                              vec.row(ng, i), front[i])
                     n[i, 0], n[i, 1], n[i, 2] = nn
                 continue
-            c = lookup_at(tdata, tparams, ti, s, t, ok)
+            c = lookup_at(tdata, tparams, ti, s, t, ok, lod)
             ch = channels[mat, j]
             x = _channel(c, ch)
             if j == 0 or j == 5:  # colours: rgb, or one channel as grey

@@ -172,3 +172,18 @@ def tangent_at(uv_sets, vertices, triangles, k, tri, ng):
     b = vec.scale(vec.sub(vec.scale(e2, du1), vec.scale(e1, du2)), inv)
     sign = 1.0 if vec.dot(vec.cross(ng, t), b) >= 0.0 else -1.0
     return vec.normalize(t), sign
+
+
+@kernel(inline=True)
+def areas_at(uv_sets, vertices, triangles, k, tri):
+    """(area in UV set k, area in world units) of triangle ``tri`` — their ratio is the texture's scale on it."""
+    p0 = vec.row(vertices, triangles[tri, 0])
+    e1 = vec.sub(vec.row(vertices, triangles[tri, 1]), p0)
+    e2 = vec.sub(vec.row(vertices, triangles[tri, 2]), p0)
+    world = 0.5 * vec.length(vec.cross(e1, e2))
+    if k >= uv_sets.shape[0]:
+        return 0.0, world
+    du1, dv1 = uv_sets[k, tri, 1, 0] - uv_sets[k, tri, 0, 0], uv_sets[k, tri, 1, 1] - uv_sets[k, tri, 0, 1]
+    du2, dv2 = uv_sets[k, tri, 2, 0] - uv_sets[k, tri, 0, 0], uv_sets[k, tri, 2, 1] - uv_sets[k, tri, 0, 1]
+    uv = 0.5 * abs(du1 * dv2 - du2 * dv1)
+    return (uv if uv == uv else 0.0), world

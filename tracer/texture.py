@@ -60,8 +60,10 @@ class Texture:
             img = img[..., None]
         if img.ndim != 3 or not (1 <= img.shape[2] <= 4) or img.shape[0] < 1 or img.shape[1] < 1:
             raise ValueError(f"{label}: image must have shape (H, W, C) with C in 1..4, got {np.shape(self.image)}")
-        self.image = np.ascontiguousarray(np.nan_to_num(img.astype(np.float32, copy=False), nan=0.0, posinf=0.0,
-                                                        neginf=0.0))
+        img = np.ascontiguousarray(img, dtype=np.float32)
+        if not np.isfinite(img).all():
+            img = np.nan_to_num(img, nan=0.0, posinf=0.0, neginf=0.0)
+        self.image = img  # the same array when it needs no change: the mip chain cached for it stays valid
         for axis in ("wrap_s", "wrap_t"):
             if getattr(self, axis) not in WRAP_MODES:
                 raise ValueError(f"{label}: {axis} must be one of {', '.join(WRAP_MODES)}, got {getattr(self, axis)!r}")
@@ -91,6 +93,14 @@ class Texture:
 
     def __getitem__(self, index):
         return self.image[index]
+
+    def mip_chain(self) -> list:
+        """:func:`mip_chain` of :meth:`rgba`, computed once per image (kept while ``image`` is the same array)."""
+        cached = self.__dict__.get("_mips")
+        if cached is None or cached[0] is not self.image:
+            cached = (self.image, mip_chain(self.rgba()))
+            self.__dict__["_mips"] = cached
+        return cached[1]
 
     def rgba(self) -> np.ndarray:
         """(H, W, 4) float32: the image's channels expanded as UsdUVTexture defines them (module docstring)."""
@@ -166,29 +176,48 @@ class TextureTables(NamedTuple):
 
 
 #: The columns of ``TextureTables.params``: first texel row, height, width, wrap codes (s, t), UV set, whether the
-#: UV transform is the identity, its first two rows (6), scale (4), bias (4), fallback (4).
+#: UV transform is the identity, its first two rows (6), scale (4), bias (4), fallback (4), and the number of mip
+#: levels stored after the image (level k is ⌈h/2^k⌉ × ⌈w/2^k⌉ texels, the 2 × 2 box average of level k − 1).
 PARAM_COLUMNS = ("first", "height", "width", "wrap_s", "wrap_t", "uv_set", "identity",
                  "m00", "m01", "m02", "m10", "m11", "m12") + tuple(f"{k}{c}" for k in ("scale", "bias", "fallback")
-                                                              for c in "rgba")
+                                                              for c in "rgba") + ("levels",)
 _FIRST, _H, _W, _WRAP_S, _WRAP_T, _UV_SET, _IDENTITY, _XFORM = 0, 1, 2, 3, 4, 5, 6, 7
-_SCALE, _BIAS, _FALLBACK = 13, 17, 21
+_SCALE, _BIAS, _FALLBACK, _LEVELS = 13, 17, 21, 25
+
+
+def mip_chain(rgba: np.ndarray) -> list:
+    """The image and its mip levels down to 1 × 1: each level the 2 × 2 box average of the one before (an odd row
+    or column is repeated first), so a lookup whose footprint covers 2^k texels reads one filtered texel."""
+    levels = [np.asarray(rgba, np.float32)]
+    while levels[-1].shape[0] > 1 or levels[-1].shape[1] > 1:
+        a = levels[-1]
+        if a.shape[0] % 2:
+            a = np.concatenate([a, a[-1:]], axis=0)
+        if a.shape[1] % 2:
+            a = np.concatenate([a, a[:, -1:]], axis=1)
+        levels.append(0.25 * (a[0::2, 0::2] + a[1::2, 0::2] + a[0::2, 1::2] + a[1::2, 1::2]))
+    return levels
 
 
 def pack_textures(textures: list) -> TextureTables:
-    """A :class:`TextureTables` of :class:`Texture` objects (or bare arrays)."""
+    """A :class:`TextureTables` of :class:`Texture` objects (or bare arrays), each with its mip chain."""
     tex = [as_texture(t) for t in textures]
     params = np.zeros((len(tex), len(PARAM_COLUMNS)), np.float64)
     offset = 0
+    rows = []
     for i, t in enumerate(tex):
         h, w = t.image.shape[:2]
+        chain = t.mip_chain()
         params[i, _FIRST:_UV_SET + 1] = (offset, h, w, WRAP_MODES.index(t.wrap_s), WRAP_MODES.index(t.wrap_t),
                                          t.uv_set)
         params[i, _IDENTITY] = np.array_equal(t.transform, np.eye(3))
         params[i, _XFORM:_XFORM + 6] = np.asarray(t.transform, np.float64)[:2].reshape(-1)
         params[i, _SCALE:_SCALE + 4], params[i, _BIAS:_BIAS + 4] = t.scale, t.bias
         params[i, _FALLBACK:_FALLBACK + 4] = t.fallback
-        offset += h * w
-    data = (np.concatenate([t.rgba().reshape(-1, 4) for t in tex]) if tex else np.zeros((0, 4), np.float32))
+        params[i, _LEVELS] = len(chain)
+        rows.extend(level.reshape(-1, 4) for level in chain)
+        offset += sum(level.shape[0] * level.shape[1] for level in chain)
+    data = np.concatenate(rows) if rows else np.zeros((0, 4), np.float32)
     return TextureTables(np.ascontiguousarray(data, np.float32), params)
 
 
@@ -250,10 +279,24 @@ def bilinear4(data, first, h, w, s, t, wrap_s, wrap_t):
 
 
 @kernel(inline=True)
-def lookup_at(data, params, index, s, t, has_uv):
+def _level(data, params, index, level, s, t):
+    """Bilinear lookup in mip level ``level`` of texture ``index``."""
+    p = params
+    first, h, w = int(p[index, _FIRST]), int(p[index, _H]), int(p[index, _W])
+    for _ in range(level):
+        first += h * w
+        h, w = (h + 1) // 2, (w + 1) // 2
+    return bilinear4(data, first, h, w, s, t, int(p[index, _WRAP_S]), int(p[index, _WRAP_T]))
+
+
+@kernel(inline=True)
+def lookup_at(data, params, index, s, t, has_uv, lod=0.0):
     """The value texture ``index`` gives at texture coordinates (s, t) of its UV set: the transform applied,
     wrapped, filtered, × scale + bias; ``fallback`` where the surface has no coordinates (``has_uv`` False). An
-    (r, g, b, a) tuple. (The two arrays of a :class:`TextureTables`.)"""
+    (r, g, b, a) tuple. (The two arrays of a :class:`TextureTables`.) ``lod`` = log2 of the lookup's footprint in
+    texels of the full image: below ½ the image itself is read (bilinear), above it the nearest mip level, so a
+    minified texture is averaged instead of aliased. (One level, not a trilinear blend of two: the blend doubled
+    the lookups' cost for a difference the anti-aliasing samples average away.)"""
     p = params
     if not has_uv:
         return p[index, _FALLBACK], p[index, _FALLBACK + 1], p[index, _FALLBACK + 2], p[index, _FALLBACK + 3]
@@ -261,10 +304,19 @@ def lookup_at(data, params, index, s, t, has_uv):
         m = _XFORM
         s, t = (p[index, m] * s + p[index, m + 1] * t + p[index, m + 2],
                 p[index, m + 3] * s + p[index, m + 4] * t + p[index, m + 5])
-    c = bilinear4(data, int(p[index, _FIRST]), int(p[index, _H]), int(p[index, _W]), s, t, int(p[index, _WRAP_S]),
-                  int(p[index, _WRAP_T]))
+    level = min(int(lod + 0.5), int(p[index, _LEVELS]) - 1) if lod > 0.5 else 0
+    c = _level(data, params, index, level, s, t)
     return (c[0] * p[index, _SCALE] + p[index, _BIAS], c[1] * p[index, _SCALE + 1] + p[index, _BIAS + 1],
             c[2] * p[index, _SCALE + 2] + p[index, _BIAS + 2], c[3] * p[index, _SCALE + 3] + p[index, _BIAS + 3])
+
+
+@kernel(inline=True)
+def texel_density(params, index, uv_area, world_area):
+    """Texels of texture ``index``'s full image per unit of world length on a triangle whose UV area and world
+    area are given (isotropic: √(texel area / world area))."""
+    if world_area <= 0.0:
+        return 0.0
+    return math.sqrt(abs(uv_area) * params[index, _H] * params[index, _W] / world_area)
 
 
 @kernel(inline=True)
