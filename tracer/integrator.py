@@ -27,11 +27,12 @@ from . import optics, shading, vec
 from .accel import Accelerator
 from .jit import kernel
 from .environment import env_radiance, env_sample, pack_environment
-from .lights import emitting_triangles, pack_lights, sample_light
+from .instances import material_id, object_id, pack_instances, world_emitters, world_frame
+from .lights import pack_lights, sample_light
 from .sampling import multijitter, stratum, uniform2_1
 from .scene import Scene
 from .settings import RenderSettings
-from .surface import geometry_of, hit_frame, hit_uv
+from .surface import geometry_of, hit_uv
 from .texture import bilinear, pack_textures
 
 RAY_TYPES = ("eye", "shadow", "reflection", "transmission", "sky")
@@ -194,7 +195,8 @@ class Integrator:
             transmission_tint=f32(m.transmission_tint), ior=f32(m.ior), emission=f32(m.emission),
             diffuse_texture=i32(m.diffuse_texture if scene.uvs is not None else np.full(len(m), -1)))
         self.textures = pack_textures(scene.textures)
-        emitters = emitting_triangles(scene.vertices, scene.triangles, scene.material_ids, m.emission)
+        self.instances = pack_instances(scene)
+        emitters = world_emitters(scene, m.emission)  # instanced prototypes' emitters placed per instance
         self.lights = pack_lights(scene.lights, settings.light_samples, emitters)
         self.light_samples = int(np.sum(self.lights.side ** 2))  # shadow rays per shading point, at most
         self.env = pack_environment(scene.environment)
@@ -221,8 +223,8 @@ class Integrator:
         sample), the deferred shadow rays and their occlusion, and the queue of next rays (reflections, then
         transmissions; empty past the last depth)."""
         n = len(rays.o)
-        hits = self.accel.intersect(rays.o, rays.d, rays.t_max)
-        t, prim, u, v = hits
+        hits = self.accel.closest_hits(rays.o, rays.d, rays.t_max)
+        t, prim, u, v, inst = hits
         # Deferred shadow rays (origin, direction, length, sample, colour) and the next depth's rays
         # (reflections from slot 0, transmissions from slot n).
         cap = n * (self.light_samples + self.sky_side**2)
@@ -234,7 +236,8 @@ class Integrator:
         nw, ns = np.empty((cap2, 3), np.float32), np.empty(cap2, np.int32)
         rec = SpawnRecord.empty(cap, cap2)
         n_shadow, n_refl, n_tran = _shade_hits(
-            rays.o, rays.d, t, prim, u, v, rays.sample, rays.weight, keys, depth, spawn, self.geometry,
+            rays.o, rays.d, t, prim, inst, self.instances, u, v, rays.sample, rays.weight, keys, depth, spawn,
+            self.geometry,
             self.materials, self.textures[0], self.textures[1], self.lights, self.env,
             self.sky_side, self.options, out, so, sd, sl, ss, sc, no, nd, nw, ns, counts, rec)
         shadow = ShadowQueue(o=so[:n_shadow], d=sd[:n_shadow], t_max=sl[:n_shadow], sample=ss[:n_shadow],
@@ -292,7 +295,7 @@ class Integrator:
 
 
 @kernel
-def _shade_hits(o, d, t, prim, u, v, sample, weight, keys, depth, spawn, geom, mats, tex_data, tex_info,
+def _shade_hits(o, d, t, prim, inst, itab, u, v, sample, weight, keys, depth, spawn, geom, mats, tex_data, tex_info,
                 lights, env, sky_side, opt, out, so, sd, sl, ss, sc, no, nd, nw, ns, counts,
                 rec):
     """Shade one depth's rays of a tile and write the rays they cause; returns (shadow, reflection, transmission)
@@ -325,8 +328,8 @@ def _shade_hits(o, d, t, prim, u, v, sample, weight, keys, depth, spawn, geom, m
             continue
         di = vec.row(d, i)
         p = vec.madd(vec.row(o, i), di, float(t[i]))
-        ng, n, front = hit_frame(geom, tri, di, float(u[i]), float(v[i]))
-        mat = geom.material_ids[tri]
+        ng, n, front = world_frame(geom, itab, inst[i], tri, di, float(u[i]), float(v[i]))
+        mat = material_id(itab, inst[i], geom.material_ids[tri])
         diffuse = vec.row(mats.diffuse, mat)
         ti = mats.diffuse_texture[mat]
         if ti >= 0:
@@ -340,7 +343,7 @@ def _shade_hits(o, d, t, prim, u, v, sample, weight, keys, depth, spawn, geom, m
             out.depth[s] = t[i]
             out.normal[s, 0], out.normal[s, 1], out.normal[s, 2] = n
             out.albedo[s, 0], out.albedo[s, 1], out.albedo[s, 2] = diffuse
-            out.object_id[s] = geom.object_ids[tri]
+            out.object_id[s] = object_id(itab, inst[i], geom.object_ids[tri])
 
         # Local colour: emission + (1 − k_m)(1 − w_t)·(ambient + Σ lights), only where it carries weight.
         # Terminal rays (past max_depth, Cycles' last bounce) collect emission and background only.
