@@ -216,7 +216,8 @@ class Accelerator:
                 proto.mesh.attach(geometry, 0)
             proto.mesh.commit()
             proto.geometry = geometry
-            self._array.commit()
+            if self._array is not None:
+                self._array.commit()
             return
         if object_id in self._objects:
             self._top.detach(_geom_id(object_id))
