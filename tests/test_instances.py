@@ -233,3 +233,109 @@ def test_bad_instances_raise_clear_errors():
 def test_a_scene_without_instances_is_unchanged():
     scene = _build(False)
     assert scene.instances is None and not scene.prototype_rows().any()
+
+
+# ---------------------------------------------------------------------------------------------------- USD
+def _usd_stages():
+    """A PointInstancer of a sphere and a cube (scaled non-uniformly, one mirrored, rotated, one masked by
+    invisibleIds), a native instanceable reference, and the same placements written as plain prims with the
+    instancer's own matrices (from pxr's ComputeInstanceTransformsAtTime: the independent reference)."""
+    from pxr import Gf, Usd, UsdGeom
+
+    def base():
+        s = Usd.Stage.CreateInMemory()
+        UsdGeom.SetStageUpAxis(s, UsdGeom.Tokens.z)
+        cam = UsdGeom.Camera.Define(s, "/Cam")
+        cam.AddTranslateOp().Set(Gf.Vec3d(0, -9, 5))
+        cam.AddRotateXOp().Set(60.0)
+        cam.CreateFocalLengthAttr(14.0)
+        floor = UsdGeom.Mesh.Define(s, "/Floor")
+        floor.CreatePointsAttr([(-9, -9, 0), (9, -9, 0), (9, 9, 0), (-9, 9, 0)])
+        floor.CreateFaceVertexCountsAttr([4])
+        floor.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
+        light = s.DefinePrim("/Sun", "SphereLight")
+        UsdGeom.Xformable(light).AddTranslateOp().Set(Gf.Vec3d(2, -4, 7))
+        light.CreateAttribute("inputs:intensity", Sdf_float()).Set(400.0)
+        return s
+
+    def protos(s, root):
+        ball = UsdGeom.Sphere.Define(s, f"{root}/Ball")
+        ball.CreateRadiusAttr(0.5)
+        box = UsdGeom.Cube.Define(s, f"{root}/Box")
+        box.CreateSizeAttr(0.7)
+        box.AddTranslateOp().Set(Gf.Vec3d(0, 0, 0.2))  # a prototype's own xform is kept
+        return ball, box
+
+    inst = base()
+    pi = UsdGeom.PointInstancer.Define(inst, "/Inst")
+    ball, box = protos(inst, "/Inst/Protos")
+    pi.CreatePrototypesRel().SetTargets([ball.GetPath(), box.GetPath()])
+    pi.CreateProtoIndicesAttr([0, 1, 0, 1, 0, 1])
+    pi.CreatePositionsAttr([Gf.Vec3f(x, y, 0.7) for x, y in ((-3, 0), (-1.5, 1), (0, 0), (1.5, 1), (3, 0), (0, 3))])
+    pi.CreateScalesAttr([Gf.Vec3f(1), Gf.Vec3f(1.5, 0.6, 1), Gf.Vec3f(-1, 1, 1), Gf.Vec3f(1, 1, 2),
+                         Gf.Vec3f(1.8, 1, 0.5), Gf.Vec3f(1)])
+    pi.CreateOrientationsAttr([Gf.Quath(1, 0, 0, 0), Gf.Quath(0.92, 0, 0.38, 0), Gf.Quath(0.8, 0.6, 0, 0),
+                               Gf.Quath(1, 0, 0, 0), Gf.Quath(0.7, 0, 0, 0.7), Gf.Quath(1, 0, 0, 0)])
+    pi.CreateInvisibleIdsAttr([5])
+    UsdGeom.Xformable(pi).AddTranslateOp().Set(Gf.Vec3d(0, 0, 0.1))
+    native = UsdGeom.Xform.Define(inst, "/Lib")
+    UsdGeom.Cube.Define(inst, "/Lib/Cube").CreateSizeAttr(0.5)
+    native.GetPrim().SetSpecifier(Sdf_over())
+    for i, x in enumerate((-2.0, 2.0)):
+        p = inst.DefinePrim(f"/N{i}", "Xform")
+        p.GetReferences().AddInternalReference("/Lib")
+        p.SetInstanceable(True)
+        UsdGeom.Xformable(p).AddTranslateOp().Set(Gf.Vec3d(x, -2, 0.25))
+        UsdGeom.Xformable(p).AddScaleOp().Set(Gf.Vec3f(1, 2, 1) if i else Gf.Vec3f(-1, 1, 1))
+
+    flat = base()
+    now = Usd.TimeCode.Default()
+    mats = np.asarray(pi.ComputeInstanceTransformsAtTime(now, now, UsdGeom.PointInstancer.ExcludeProtoXform),
+                      np.float64).reshape(-1, 4, 4)  # the copies keep their own xform below
+    world = mats @ np.asarray(UsdGeom.Xformable(pi).ComputeLocalToWorldTransform(Usd.TimeCode.Default()))
+    for k, m in enumerate(world[:5]):
+        x = UsdGeom.Xform.Define(flat, f"/Copy{k}")
+        x.AddTransformOp().Set(Gf.Matrix4d(*m.ravel().tolist()))
+        ball, box = protos(flat, f"/Copy{k}")
+        flat.RemovePrim((ball if k % 2 else box).GetPath())
+    for i, x in enumerate((-2.0, 2.0)):
+        p = UsdGeom.Xform.Define(flat, f"/N{i}")
+        p.AddTranslateOp().Set(Gf.Vec3d(x, -2, 0.25))
+        p.AddScaleOp().Set(Gf.Vec3f(1, 2, 1) if i else Gf.Vec3f(-1, 1, 1))
+        UsdGeom.Cube.Define(flat, f"/N{i}/Cube").CreateSizeAttr(0.5)
+    return inst, flat
+
+
+def Sdf_float():
+    from pxr import Sdf
+
+    return Sdf.ValueTypeNames.Float
+
+
+def Sdf_over():
+    from pxr import Sdf
+
+    return Sdf.SpecifierOver
+
+
+def test_a_usd_point_instancer_renders_as_its_flattened_copies():
+    pytest.importorskip("pxr")
+    from usd_io import load_stage
+
+    inst_stage, flat_stage = _usd_stages()
+    inst, _ = load_stage(inst_stage, width=96, height=64)
+    flat, _ = load_stage(flat_stage, width=96, height=64)
+    assert inst.instances is not None and len(inst.instances) == 5 + 2  # 5 visible + 2 native instances
+    assert len(inst.triangles) < len(flat.triangles)
+    st = RenderSettings(width=96, height=64, samples=1, max_depth=2, aovs=("normal", "objectid"))
+    a, b = render(inst, st), render(flat, st)
+    for name, x, y in (("colour", a.rgba[..., :3], b.rgba[..., :3]), ("normal", a.aovs["normal"], b.aovs["normal"])):
+        diff = np.abs(x - y)
+        assert diff.mean() < MAX_MEAN_ABS, f"{name}: mean |Δ| {diff.mean():.4g}"
+        assert (diff.max(axis=-1) > PIXEL_TOL).mean() < MAX_DIFFERENT
+    # object ids differ in numbering between the stages; each drawn instance is one object of its own
+    ids_a = np.unique(a.aovs["objectid"])
+    ids_b = np.unique(b.aovs["objectid"])
+    assert len(ids_a) == len(ids_b)
+    names = {inst.object_name(int(i)) for i in ids_a if i >= 0}
+    assert any(n.startswith("/Inst[/Inst/Protos/Ball]") for n in names) and "/N1/Cube" in names
