@@ -195,6 +195,12 @@ def test_geometry_nodes_instances_batched_equal_one_by_one_and_move_as_transform
         kinds = d.step(lambda: setattr(host, "rotation_euler", (0.0, 0.0, 0.3)))  # again, from the moved place
         assert kinds == ["transform"] * 30
         assert _close(d.session.render(SETTINGS).rgba, _fresh())
+        # the instanced mesh itself edited in the node tree: one edit of the shared mesh, not 30 copies
+        ico = next(n for n in host.modifiers["Scatter"].node_group.nodes if n.bl_idname == "GeometryNodeMeshIcoSphere")
+        kinds = d.step(lambda: setattr(ico.inputs["Radius"], "default_value", 0.2))
+        assert kinds == ["mesh"], kinds
+        assert len(d.session.scene.instances) == 30
+        assert _close(d.session.render(SETTINGS).rgba, _fresh())
     finally:
         d.close()
 
