@@ -339,3 +339,46 @@ def test_a_usd_point_instancer_renders_as_its_flattened_copies():
     assert len(ids_a) == len(ids_b)
     names = {inst.object_name(int(i)) for i in ids_a if i >= 0}
     assert any(n.startswith("/Inst[/Inst/Protos/Ball]") for n in names) and "/N1/Cube" in names
+
+
+def _override_scene(instanced: bool):
+    b = SceneBuilder()
+    red = b.add_material("red", diffuse=(0.8, 0.2, 0.1))
+    blue = b.add_material("blue", diffuse=(0.1, 0.2, 0.8), k_m=0.3)
+    glow = b.add_material("glow", diffuse=(0, 0, 0), emission=(4.0, 4.0, 2.0))
+    b.add_mesh([[-12, -12, 0], [12, -12, 0], [12, 12, 0], [-12, 12, 0]], [[0, 1, 2], [0, 2, 3]], material=red,
+               name="floor")
+    ball = trimesh.creation.icosphere(2, 0.5)
+    mats = MATRICES[:3]
+    override = [-1, blue, glow]
+    if instanced:
+        b.object_names.extend(["a", "b", "c"])
+        proto = b.add_mesh(ball.vertices, ball.faces, material=red, normals=ball.vertices)
+        b.add_instances(proto, np.stack(mats), object_ids=[1, 2, 3], materials=override)
+    else:
+        for m, mat, name in zip(mats, [red, blue, glow], "abc"):
+            b.add_mesh(ball.vertices, ball.faces, material=mat, normals=ball.vertices, transform=m, name=name)
+    b.add_light(PointLight(position=(2, -4, 6), intensity=(200.0,) * 3))
+    b.camera = Camera.look_at((0, -8, 4.5), (0, 0, 1.0), up=(0, 0, 1), focal_length=35)
+    return b.build()
+
+
+def test_per_instance_material_overrides_shade_and_emit_as_their_own_materials():
+    st = RenderSettings(width=96, height=64, samples=1, light_samples=16, max_depth=2, aovs=("normal", "objectid"))
+    inst, flat = _override_scene(True), _override_scene(False)
+    assert inst.instances.materials.tolist() == [-1, 1, 2]
+    a, b = render(inst, st), render(flat, st)
+    assert_same_picture(a, b)
+    # the glowing instance lights the floor: without the override's emission the floor near it is darker
+    plain = _override_scene(True)
+    plain.instances.materials = None
+    assert np.abs(render(plain, st).rgba - a.rgba).mean() > 0.01
+
+
+def test_explain_names_the_instance_that_was_hit(pair):
+    inst, _flat = pair
+    st = RenderSettings(width=96, height=64, samples=1, max_depth=2, aovs=("objectid",))
+    ids = render(inst, st).aovs["objectid"]
+    y, x = np.argwhere(ids == 2)[0]  # a pixel of the ball's second instance
+    hit = tracer.explain_pixel(inst, st, int(x), int(y)).samples[0][0].hit
+    assert hit.object_id == 2 and hit.object == inst.object_names[2] == "piece2"

@@ -135,6 +135,10 @@ class Session:
             if len(s.material_ids) and int(s.material_ids.max()) >= len(probe.materials):
                 raise ValueError(f"update_materials: the scene uses material {int(s.material_ids.max())} but the "
                                  f"new table has {len(probe.materials)} rows")
+            if s.instances is not None and int(s.instances.material_overrides().max()) >= len(probe.materials):
+                raise ValueError(f"update_materials: an instance uses material "
+                                 f"{int(s.instances.material_overrides().max())} but the new table has "
+                                 f"{len(probe.materials)} rows")
             s.materials, s.textures = probe.materials, probe.textures
             self._repack()
 
