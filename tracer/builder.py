@@ -42,6 +42,7 @@ class SceneBuilder:
         self.object_pass_indices = None  # optional per-object user pass indices (see Scene)
         self._transforms: dict[int, np.ndarray] = {}  # object id -> the object-to-world matrix it was placed with
         self._instances: list[tuple] = []  # (prototypes, transforms, object ids, material overrides) per call
+        self._mesh_ids: set[int] = set()  # object ids that have triangles (what add_instances may place)
 
     # ---------------------------------------------------------------- tables
     def add_material(self, name: str | None = None, **fields) -> int:
@@ -93,6 +94,8 @@ class SceneBuilder:
             self.object_names.append(label)
         for i in range(object_id, object_id + instances):
             self._transforms[i] = mesh.transform
+        if n_tri:
+            self._mesh_ids.update(range(object_id, object_id + instances))
         self._vertices.append(mesh.vertices)
         self._triangles.append((mesh.triangles + self._n_vertices).astype(np.int32))
         self._n_vertices += len(mesh.vertices)
@@ -118,7 +121,7 @@ class SceneBuilder:
         ``ValueError`` naming the prototype."""
         prototype = int(prototype)
         label = self.object_names[prototype] if 0 <= prototype < len(self.object_names) else f"object{prototype}"
-        if not any(np.any(ids == prototype) for ids in self._object_ids):
+        if prototype not in self._mesh_ids:
             raise ValueError(f"add_instances: object {prototype} ({label!r}) has no mesh to instance")
         m = np.asarray(transforms, dtype=np.float64)
         if m.shape == (4, 4):

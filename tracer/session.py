@@ -100,7 +100,8 @@ class Session:
     # ---------------------------------------------------------------------------------------------- queries
     @property
     def scene(self) -> Scene:
-        """The scene as edited so far (world-space, flattened): what a fresh :func:`tracer.render` would need."""
+        """The scene as edited so far (world-space triangles, prototypes and instances): what a fresh
+        :func:`tracer.render` would need."""
         return self._scene
 
     @property
