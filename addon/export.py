@@ -35,7 +35,7 @@ try:  # inside the installed extension the tracer is bundled next to this module
 except ImportError:  # the repository's ``addon`` package uses the top-level tracer
     import tracer
 
-from .model import MaterialWriter
+from .model import Corners, MaterialWriter
 from .nodes import image_rgba
 from .world import world_from_blender
 
@@ -232,14 +232,15 @@ class ExportedObject(NamedTuple):
 
     ``key`` names it across depsgraph evaluations (object, instancing parent, ``persistent_id``): the scene sync
     (addon/sync.py) diffs exports by it. ``geometry`` is the :func:`mesh_arrays` dict, shared by every instance of
-    one mesh (and kept in the geometry cache), ``material`` its per-triangle material rows and ``uvs`` its corner
-    UVs (shared too where the instances share mesh and materials), ``matrix`` the 4×4 object-to-world matrix."""
+    one mesh (and kept in the geometry cache), ``material`` its per-triangle material rows and ``corners`` its UV
+    sets and vertex colours (:class:`addon.model.Corners`, shared too where the instances share mesh and
+    materials), ``matrix`` the 4×4 object-to-world matrix."""
 
     key: tuple
     name: str
     geometry: dict
     material: np.ndarray
-    uvs: np.ndarray | None
+    corners: Corners
     matrix: np.ndarray
     pass_index: int
     #: The matrix keeps handedness (det > 0); False: it mirrors.
@@ -305,14 +306,14 @@ def export_objects(depsgraph, writer: MaterialWriter, warnings: list, lights: li
             else:
                 mats = default_mat
             inputs[key, slots] = writer.mesh_inputs(obj.name, mats, g)
-        mats, uvs = inputs[key, slots]
+        mats, corners = inputs[key, slots]
         if inst.is_instance:
             parent = inst.parent.original.name if inst.parent else ""
             name = f"{obj.name}@{parent}#{inst.random_id & 0xFFFF:04x}"
             ident = (obj.original.name, parent, tuple(inst.persistent_id))
         else:
             name, ident = obj.name, (obj.original.name, "", ())
-        yield ExportedObject(ident, name, g, mats, uvs, world, int(obj.pass_index), det > 0)
+        yield ExportedObject(ident, name, g, mats, corners, world, int(obj.pass_index), det > 0)
 
 
 def add_objects(b: "tracer.SceneBuilder", objects: list) -> list[np.ndarray]:
@@ -321,14 +322,14 @@ def add_objects(b: "tracer.SceneBuilder", objects: list) -> list[np.ndarray]:
     in ``scene.object_transforms``, so a move is ``Session.set_transform(id, matrix_world)``).
 
     Instances of one mesh with the same materials (Geometry-Nodes and collection instances, particles) are not
-    copied: when at least :data:`BATCH_MIN` objects share the mesh arrays, material rows and UVs, the mesh is
-    added once in object space as a prototype (its object id after all exported objects, so the exported
-    objects keep ids 0..N−1 in order) and each object becomes an instance of it
+    copied: when at least :data:`BATCH_MIN` objects share the mesh arrays, material rows and corner data (UV sets,
+    colours), the mesh is added once in object space as a prototype (its object id after all exported objects, so
+    the exported objects keep ids 0..N−1 in order) and each object becomes an instance of it
     (``SceneBuilder.add_instances``: their matrices stacked into one (K, 4, 4) array, no per-instance mesh work;
     mirrored and non-uniformly scaled ones included — the tracer shades instances with the inverse transpose)."""
     groups: dict[tuple, list[int]] = {}
     for i, o in enumerate(objects):
-        groups.setdefault((id(o.geometry), id(o.material), id(o.uvs)), []).append(i)
+        groups.setdefault((id(o.geometry), id(o.material), id(o.corners)), []).append(i)
     instanced = {i for members in groups.values() if len(members) >= BATCH_MIN for i in members}
     first = len(b.object_names)
     for i, o in enumerate(objects):
@@ -336,13 +337,13 @@ def add_objects(b: "tracer.SceneBuilder", objects: list) -> list[np.ndarray]:
             b.object_names.append(o.name)
         else:
             b.add_mesh(o.geometry["vertices"], o.geometry["triangles"], material=o.material, name=o.name,
-                       transform=o.matrix, normals=o.geometry["normals"], uvs=o.uvs)
+                       transform=o.matrix, normals=o.geometry["normals"], **o.corners.kwargs())
     for members in groups.values():
         if len(members) < BATCH_MIN:
             continue
         o = objects[members[0]]
         proto = b.add_mesh(o.geometry["vertices"], o.geometry["triangles"], material=o.material,
-                           name=f"{o.name} (instanced mesh)", normals=o.geometry["normals"], uvs=o.uvs)
+                           name=f"{o.name} (instanced mesh)", normals=o.geometry["normals"], **o.corners.kwargs())
         b.add_instances(proto, np.stack([objects[i].matrix for i in members]),
                         object_ids=first + np.asarray(members, np.int32))
     return [np.eye(4) for _ in objects]
@@ -442,7 +443,8 @@ def settings_from_scene(bpy_scene, view_layer=None) -> "tracer.RenderSettings":
         kw = dict(samples=props.samples, max_depth=props.max_depth, epsilon=props.epsilon or None,
                   fresnel=props.fresnel, shadows=props.shadows, threads=props.threads or None,
                   light_samples=props.light_samples, sky_samples=props.sky_samples,
-                  terminal_rays=props.terminal_rays)
+                  terminal_rays=props.terminal_rays, shading=props.shading,
+                  max_transparent=props.max_transparent)
     region = border_region(bpy_scene) if r.use_border else None
     aovs = []
     layer = view_layer if view_layer is not None else (bpy_scene.view_layers[0] if bpy_scene.view_layers else None)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import bpy
-from bpy.props import BoolProperty, FloatProperty, IntProperty, PointerProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
 
 
 class WhittedSceneSettings(bpy.types.PropertyGroup):
@@ -13,6 +13,13 @@ class WhittedSceneSettings(bpy.types.PropertyGroup):
     max_depth: IntProperty(
         name="Max Depth", description="Maximum recursion depth of reflection and transmission rays",
         default=8, min=0, max=64)
+    shading: EnumProperty(
+        name="Shading", description="Local model each light sample is weighted by",
+        items=[("principled", "Principled", "Cycles' Principled BSDF: diffuse + GGX specular (matches Cycles)"),
+               ("classic", "Classic", "The notes' Lambert + Blinn-Phong")], default="principled")
+    max_transparent: IntProperty(
+        name="Transparent Max Bounces", description="Alpha < 1 and cut-out surfaces a ray may pass through (not "
+        "counted in Max Depth), as Cycles' Transparent bounces", default=8, min=0, max=1024)
     epsilon: FloatProperty(
         name="Epsilon", description="Offset of spawned rays; 0 = automatic (5e-5 of the scene size)",
         default=0.0, min=0.0, soft_max=0.01, precision=6, subtype="DISTANCE")

@@ -200,7 +200,7 @@ class SceneSync:
                 self._set_pass_index(oid, o.pass_index)
                 continue
             same_mesh = (old.obj.geometry is o.geometry and _same_array(old.obj.material, o.material)
-                         and _same_array(old.obj.uvs, o.uvs))
+                         and _same_corners(old.obj.corners, o.corners))
             if not same_mesh:
                 reshaped.append((old, o))
                 self._entries[o.key] = _Entry(old.object_id, o, np.eye(4))
@@ -239,7 +239,7 @@ class SceneSync:
         for proto, pairs in by_proto.items():
             o0 = pairs[0][1]
             whole = {old.object_id for old, _ in pairs} == self._members[proto]
-            shared = all(o.geometry is o0.geometry and o.material is o0.material and o.uvs is o0.uvs
+            shared = all(o.geometry is o0.geometry and o.material is o0.material and o.corners is o0.corners
                          for _, o in pairs)
             if not (whole and shared):
                 continue
@@ -319,10 +319,18 @@ def _placements(scene, objects) -> list[np.ndarray]:
 def _mesh_kwargs(o, name=None) -> dict:
     g = o.geometry
     kw = dict(vertices=g["vertices"], triangles=g["triangles"], material=o.material, normals=g["normals"],
-              uvs=o.uvs, transform=o.matrix)
+              transform=o.matrix, **o.corners.kwargs())
     if name is not None:
         kw["name"] = name
     return kw
+
+
+def _same_corners(a, b) -> bool:
+    """Two meshes' UV sets and vertex colours are equal (the same arrays, or equal ones)."""
+    if a is b:
+        return True
+    return (a.uv_sets.keys() == b.uv_sets.keys() and all(_same_array(a.uv_sets[k], b.uv_sets[k]) for k in a.uv_sets)
+            and _same_array(a.colors, b.colors))
 
 
 def _same_array(a, b) -> bool:

@@ -58,6 +58,8 @@ class WHITTED_PT_render(bpy.types.Panel):
         col.prop(props, "terminal_rays")
         col = layout.column(heading="Rays")
         col.prop(props, "max_depth")
+        col.prop(props, "max_transparent")
+        col.prop(props, "shading")
         col.prop(props, "epsilon")
         col.prop(props, "fresnel")
         col.prop(props, "shadows")

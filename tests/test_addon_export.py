@@ -122,11 +122,9 @@ def test_world_materials_and_fallback_warning(bpy_module):
     m = scene.materials
     i = m.names.index("P")
     np.testing.assert_allclose(m.diffuse[i], (0.5, 0.25, 0.1), rtol=1e-6)
-    assert m.k_m[i] == pytest.approx(0.3)
-    np.testing.assert_allclose(m.mirror_tint[i], (0.5, 0.25, 0.1), rtol=1e-6)
-    assert m.exponent[i] == pytest.approx(float(export.tracer.roughness_to_exponent(0.2)), rel=1e-5)
-    f0 = ((1.45 - 1) / (1.45 + 1)) ** 2 * 2 * 0.8
-    np.testing.assert_allclose(m.specular[i], f0, rtol=1e-5)
+    # the Principled inputs as they are (the tracer's Principled model; no mirror weight of the notes)
+    assert m.metallic[i] == pytest.approx(0.3) and m.k_m[i] == 0.0
+    assert m.roughness[i] == pytest.approx(0.2) and m.specular[i] == pytest.approx(0.8)
     assert m.ior[i] == pytest.approx(1.45) and m.transmission[i] == pytest.approx(0.6)
     np.testing.assert_allclose(m.transmission_tint[i], (0.5, 0.25, 0.1), rtol=1e-6)
     np.testing.assert_allclose(m.emission[i], (3.0, 1.5, 0.0), rtol=1e-6)
@@ -215,6 +213,7 @@ def test_settings_from_scene(bpy_module):
         scene = bs.reset((200, 100), percentage=50)
         scene.whitted.samples, scene.whitted.max_depth, scene.whitted.epsilon = 3, 4, 0.001
         scene.whitted.fresnel, scene.whitted.shadows, scene.whitted.threads = False, False, 2
+        scene.whitted.shading, scene.whitted.max_transparent = "classic", 3
         scene.render.film_transparent = True
         scene.render.use_border = True
         scene.render.border_min_x, scene.render.border_max_x = 0.25, 0.5
@@ -223,6 +222,7 @@ def test_settings_from_scene(bpy_module):
         s = export.settings_from_scene(scene)
         assert (s.width, s.height, s.samples, s.max_depth) == (100, 50, 3, 4) and s.epsilon == pytest.approx(0.001)
         assert (s.fresnel, s.shadows, s.threads, s.transparent) == (False, False, 2, True)
+        assert (s.shading, s.max_transparent) == ("classic", 3)
         assert s.region == (25, 25, 50, 50)  # bottom half of the image, second quarter from the left
         assert s.aovs == ("depth",)
     finally:

@@ -152,8 +152,8 @@ def test_image_colour_spaces(bpy_module):
 
 @pytest.mark.parametrize("domain", ["POINT", "CORNER"])
 def test_color_attributes_reach_each_triangle(bpy_module, domain):
-    """Point- and corner-domain Color Attributes: each triangle's colour is the mean of its corners' colours (flat
-    per triangle on today's tracer), times the base colour."""
+    """Point- and corner-domain Color Attributes reach the scene per corner (``Scene.colors``), each triangle's
+    corners holding exactly the colours Blender stores at its vertices / loops; the material multiplies them in."""
     import bmesh
 
     bs.reset()
@@ -172,9 +172,8 @@ def test_color_attributes_reach_each_triangle(bpy_module, domain):
     mesh.calc_loop_triangles()
     for k, tri in enumerate(mesh.loop_triangles):
         idx = tri.vertices if domain == "POINT" else tri.loops
-        want = rgba[list(idx), :3].mean(0)
-        row = scene.materials.diffuse[scene.material_ids[k]]
-        np.testing.assert_allclose(row, np.round(want, 3), atol=1e-6)
+        np.testing.assert_allclose(scene.colors[k], rgba[list(idx), :3], atol=1e-6)
+        assert scene.materials.vertex_color[scene.material_ids[k]]
     assert obj is not None
 
 

@@ -176,3 +176,41 @@ def test_a_stage_without_lights_is_lit_by_default_with_one_note(tmp_path):
     r = whitted("render", path, "-o", dark, "--width", 32, "--quiet", "--disableCameraLight")
     assert r.returncode == 0 and "note" not in r.stderr
     assert read_image(dark)[..., :3].max() == 0
+
+
+def test_shading_flag_chooses_the_local_model(tmp_path):
+    """--shading classic renders the notes' Blinn-Phong, the default the Principled GGX lobe: a rough gold sphere
+    under a sun differs between the two (the highlight's shape and the metal's Fresnel), and each run is the same
+    as RenderSettings(shading=...) through the API."""
+    from pxr import Sdf, UsdShade
+
+    from tracer import RenderSettings, render
+    from usd_io import load_stage
+
+    path = tmp_path / "gold.usda"
+    s = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(s, "Z")
+    cam = UsdGeom.Camera.Define(s, "/Cam")
+    cam.CreateFocalLengthAttr(20.0)
+    cam.AddTranslateOp().Set(Gf.Vec3d(0, 0, 6))
+    ball = UsdGeom.Sphere.Define(s, "/Ball")
+    mat = UsdShade.Material.Define(s, "/Gold")
+    ps = UsdShade.Shader.Define(s, "/Gold/PS")
+    ps.CreateIdAttr("UsdPreviewSurface")
+    ps.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(1.0, 0.77, 0.34))
+    ps.CreateInput("metallic", Sdf.ValueTypeNames.Float).Set(1.0)
+    ps.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(0.4)
+    mat.CreateSurfaceOutput().ConnectToSource(ps.ConnectableAPI(), "surface")
+    UsdShade.MaterialBindingAPI.Apply(ball.GetPrim()).Bind(mat)
+    UsdLux.DistantLight.Define(s, "/Sun")  # the spec default: 50 000 over 0.53°, about 3.4 W/m²
+    s.GetRootLayer().Save()
+    images = {}
+    for model in ("classic", "principled"):
+        out = tmp_path / f"{model}.exr"
+        res = whitted("render", path, "-o", out, "--width", 32, "--aa", 1, "--shading", model, "--quiet")
+        assert res.returncode == 0, res.stderr
+        images[model] = read_image(str(out))[..., :3]
+        scene, info = load_stage(str(path), width=32)
+        api = render(scene, RenderSettings(width=info.width, height=info.height, samples=1, shading=model)).rgb
+        np.testing.assert_allclose(images[model], api, rtol=1e-3, atol=1e-6)  # the beauty EXR is half-float
+    assert np.abs(images["classic"] - images["principled"]).max() > 0.05

@@ -204,7 +204,7 @@ def test_blinn_phong_highlight_has_the_normalised_lobe(tilt_deg):
     b.add_light(DistantLight(direction=(np.sin(a), 0, -np.cos(a)), irradiance=(irr,) * 3))
     b.camera = Camera.look_at((0, 0, 5), (0, 0, 0), up=(0, 1, 0), projection="orthographic",
                               horizontal_aperture=1.0, vertical_aperture=1.0)
-    img = render(b.build(), RenderSettings(width=4, height=4)).rgb
+    img = render(b.build(), RenderSettings(width=4, height=4, shading="classic")).rgb  # the notes' model
     expected = rs * irr * (e + 8) / (8 * np.pi) * np.cos(a / 2) ** e * np.cos(a)
     np.testing.assert_allclose(img, expected, rtol=1e-4)
 
@@ -248,3 +248,25 @@ def test_srgb_textures_decode_as_opencolorio_does_it():
 
     codes = (np.arange(256, dtype=np.float32) / 255)[None, :, None].repeat(3, axis=2)
     np.testing.assert_allclose(srgb_to_linear(codes), _ocio(codes, SRGB, LINEAR), rtol=1e-3, atol=1e-7)
+
+
+def test_classic_model_mirrors_a_smooth_principled_metal():
+    """shading="classic" on a Principled row: a smooth metal (metallic 1, roughness 0) is the notes' mirror with
+    k_m·tint = base colour — the floor seen in it is the floor × base, channel by channel; a rough one (0.6) has no
+    mirror ray at all (g = 0)."""
+    import tracer
+
+    def scene(rough):
+        b = tracer.SceneBuilder()
+        metal = b.add_material("metal", base_color=(0.9, 0.5, 0.2), metallic=1.0, roughness=rough)
+        b.add_mesh([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], [(0, 1, 2), (0, 2, 3)], material=metal)
+        b.camera = tracer.Camera.look_at((0, 0, 3), (0, 0, 0), up=(0, 1, 0), focal_length=100.0,
+                                         horizontal_aperture=24.0, vertical_aperture=24.0)
+        b.background = (0.2, 0.4, 0.6)
+        return b.build()
+
+    st = tracer.RenderSettings(width=8, height=8, samples=1, shading="classic", max_depth=1)
+    smooth = tracer.render(scene(0.0), st).rgb
+    np.testing.assert_allclose(smooth, np.broadcast_to((0.9 * 0.2, 0.5 * 0.4, 0.2 * 0.6), smooth.shape), atol=1e-5)
+    rough = tracer.render(scene(0.6), st).rgb
+    np.testing.assert_allclose(rough, 0.0, atol=1e-6)

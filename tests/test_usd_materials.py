@@ -16,14 +16,8 @@ import usd_material_stages as S
 from tracer import RenderSettings, render
 from tracer.texture import srgb_to_linear
 from usd_io import load_stage
-from usd_io.tracer_model import HAS_ENVIRONMENT, PRINCIPLED
 
 N = 48
-#: Patterns the classic material table cannot carry (usd_io lowers them with one warning each); they run once the
-#: tracer has the Principled model of docs/materials-api.md (materials-core).
-needs_principled = pytest.mark.skipif(not PRINCIPLED, reason="needs the tracer's Principled material model "
-                                      "(tracer.Texture, Scene.uv_sets/colors, tracer.Environment)")
-needs_environment = pytest.mark.skipif(not HAS_ENVIRONMENT, reason="needs tracer.Environment")  # image size of the closed-form renders
 
 
 def render_stage(path, n=N, **settings):
@@ -101,9 +95,9 @@ def test_transform2d_is_scale_then_rotate_then_translate(tmp_path):
     assert (np.abs(wrong[ok] - expected[ok]).max(axis=-1) > 0.1).mean() > 0.3, "the wrong order must differ"
 
 
-@pytest.mark.parametrize("wrap", ["repeat", pytest.param("clamp", marks=needs_principled),
-                                  pytest.param("mirror", marks=needs_principled),
-                                  pytest.param("black", marks=needs_principled)])
+@pytest.mark.parametrize("wrap", ["repeat", "clamp",
+                                  "mirror",
+                                  "black"])
 def test_wrap_modes(tmp_path, wrap):
     """wrapS/wrapT with st in [−0.5, 1.5]² (spec: black, clamp, repeat, mirror)."""
     blocks = S.block_texture(str(tmp_path / "probe.png"))
@@ -135,7 +129,6 @@ def test_texture_inside_usdz(tmp_path):
     assert not [w for w in info.warnings if "texture" in w], info.warnings
 
 
-@needs_principled
 def test_emissive_texture_is_seen_directly(tmp_path):
     """emissiveColor from a texture, diffuse black, no light: the pixels are the texels."""
     blocks = S.block_texture(str(tmp_path / "probe.png"))
@@ -198,7 +191,6 @@ def test_missing_texture_uses_fallback_and_warns_once(tmp_path):
     assert len([w for w in info.warnings if "nowhere.png" in w]) == 1, info.warnings
 
 
-@needs_principled
 def test_channel_outputs_drive_scalar_inputs(tmp_path):
     """An ARM texture (Teapot): occlusion from r, roughness from g, metallic from b — each scalar input reads its
     own channel (the material table names it), occlusion is ignored with one note."""
@@ -252,7 +244,6 @@ def _cutout_stage(d, threshold):
     return S.save(s), blocks
 
 
-@needs_principled
 @pytest.mark.parametrize("threshold", [0.5, 0.0])
 def test_cutout_and_blend_show_what_is_behind(tmp_path, threshold):
     """McUsd's plant cards: opacity from the texture's alpha. Where alpha is 0 the quad is not there (cut-out with
@@ -334,8 +325,8 @@ def _expected_grid(cols, interp, n=N):
 
 
 @pytest.mark.parametrize("bound", [False, True], ids=["unbound", "primvar_reader"])
-@pytest.mark.parametrize("interp", ["constant", "uniform", pytest.param("vertex", marks=needs_principled),
-                                    pytest.param("faceVarying", marks=needs_principled)])
+@pytest.mark.parametrize("interp", ["constant", "uniform", "vertex",
+                                    "faceVarying"])
 def test_display_color_any_interpolation(tmp_path, interp, bound):
     path, cols = _grid_stage(str(tmp_path), interp, bound)
     img, info, _ = render_stage(path)
@@ -380,7 +371,6 @@ def _normal_stage(d, name, n_tangent, light_dir, dx_style=False):
     return S.save(s), decoded / np.linalg.norm(decoded), l
 
 
-@needs_principled
 @pytest.mark.parametrize("dx_style", [False, True], ids=["opengl", "directx_flipped_green"])
 def test_normal_map_matches_closed_form(tmp_path, dx_style):
     """Radiance = albedo·E/π·max(0, n·l) with n the decoded tangent-space normal in the quad's frame (T = +X from
@@ -420,7 +410,6 @@ def _openexr_latlong_block(d):
     return int(min(v * 2, 1.999)), int(min(u * 4, 3.999)), (u, v)
 
 
-@needs_environment
 @pytest.mark.parametrize("kind,dome_rot", [("DomeLight", 0.0), ("DomeLight", 90.0), ("DomeLight_1", 0.0)])
 @pytest.mark.parametrize("view", [(0.3, 0.4, 0.87), (0.9, -0.3, 0.3), (-0.8, 0.45, -0.4), (0.2, -0.6, -0.77),
                                   (-0.5, -0.3, 0.8), (0.6, 0.5, -0.6)])
@@ -462,7 +451,6 @@ def test_dome_texture_orientation(tmp_path, kind, dome_rot, view):
     assert np.allclose(centre, cols[row, col], atol=0.02), (centre, cols[row, col], (u, vv), info.warnings)
 
 
-@needs_environment
 def test_dome_intensity_exposure_color_scale_the_texture(tmp_path):
     cols = _latlong(str(tmp_path / "sky.exr"))
     s = S.new_stage(str(tmp_path / "dome.usda"), up="Y")
@@ -480,32 +468,6 @@ def test_dome_intensity_exposure_color_scale_the_texture(tmp_path):
     img, _, _ = render_stage(S.save(s), n=4, max_depth=0)
     row, col, _ = _openexr_latlong_block(np.array([0.3, 0.2, 1.0]))
     assert np.allclose(img[1:3, 1:3].reshape(-1, 3).mean(axis=0), cols[row, col] * [0.5, 1, 1], atol=0.02)
-
-
-@pytest.mark.skipif(PRINCIPLED, reason="the classic table only: with the Principled model nothing here is dropped")
-def test_classic_tracer_lowers_with_one_warning_each(tmp_path):
-    """Until the tracer carries the Principled model, what the classic table cannot hold is named once per material
-    (never silent): a normal map, a texture on opacity, a texture on emission (its mean is used)."""
-    d = str(tmp_path)
-    S.block_texture(os.path.join(d, "blocks.png"), alpha_left=True)
-    S.write_png(os.path.join(d, "normal.png"), np.full((2, 2, 3), (128, 128, 255), np.uint8))
-    s = S.new_stage(os.path.join(d, "classic.usda"))
-    S.camera(s)
-    mat, ps = S.preview(s, opacityThreshold=(Sdf.ValueTypeNames.Float, 0.5))
-    tex = S.uv_texture(s, "/Looks/M", "Tex", "./blocks.png", st_reader="st")
-    nrm = S.uv_texture(s, "/Looks/M", "N", "./normal.png", st_reader="st", sourceColorSpace="raw",
-                       scale=Gf.Vec4f(2, 2, 2, 1), bias=Gf.Vec4f(-1, -1, -1, 0))
-    S.connect(ps, "emissiveColor", Sdf.ValueTypeNames.Color3f, tex, "rgb")
-    S.connect(ps, "opacity", Sdf.ValueTypeNames.Float, tex, "a")
-    S.connect(ps, "normal", Sdf.ValueTypeNames.Normal3f, nrm, "rgb")
-    for i in range(2):
-        S.bind(S.quad(s, path=f"/Q{i}", z=-i * 0.1), mat)
-    scene, info = load_stage(S.save(s), width=8, height=8)
-    for what in ("normal maps", "opacity", "on emission"):
-        assert len([w for w in info.warnings if what in w]) == 1, (what, info.warnings)
-    row = scene.material_ids[0]
-    blocks = S.block_texture(os.path.join(d, "probe.png"))
-    assert np.allclose(scene.materials.emission[row], blocks.reshape(-1, 3).mean(axis=0), atol=2e-3)
 
 
 # ---------------------------------------------------------------- the Principled description, as written
@@ -543,8 +505,6 @@ def principled_recorder(monkeypatch):
         def build(self):
             return self
 
-    monkeypatch.setattr(tm, "PRINCIPLED", True)
-    monkeypatch.setattr(usd_io.dome, "HAS_ENVIRONMENT", True)
     monkeypatch.setattr(tracer, "Texture", Texture, raising=False)
     monkeypatch.setattr(tracer, "Environment", Environment, raising=False)
     monkeypatch.setattr(usd_io.reader, "SceneBuilder", Recorder)

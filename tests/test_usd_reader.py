@@ -334,9 +334,10 @@ def test_preview_surface_mapping_and_opacity_refracts():
     m = scene.materials
     gi, mi = m.names.index("/Looks/Glass"), m.names.index("/Looks/Metal")
     assert m.transmission[gi] == 1.0 and m.ior[gi] == pytest.approx(1.33)
-    assert m.k_m[mi] == 1.0 and np.allclose(m.mirror_tint[mi], (0.9, 0.6, 0.2))
+    assert m.metallic[mi] == 1.0 and m.roughness[mi] == pytest.approx(0.5) and m.k_m[mi] == 0.0
+    assert np.allclose(m.diffuse[mi], (0.9, 0.6, 0.2))
     assert np.allclose(m.emission[mi], (0.1, 0.2, 0.3))
-    assert m.specular[gi][0] == pytest.approx(((1.33 - 1) / 2.33) ** 2, rel=1e-5)
+    assert m.specular_color[gi][0] == pytest.approx(((1.33 - 1) / 2.33) ** 2, rel=1e-5)
     img = render(scene, RenderSettings(width=24, height=16, samples=1, threads=1))
     assert img.stats["rays"]["transmission"] > 50  # the glass sphere refracts
 
@@ -372,8 +373,11 @@ def test_texture_and_display_color(tmp_path):
     scene, info = load_stage(s, width=16)
     assert len(scene.textures) == 1 and scene.uvs is not None
     np.testing.assert_allclose(scene.uvs[0], [[0, 0], [0.5, 0], [0.5, 1]])
-    np.testing.assert_allclose(scene.textures[0][0, 0], (1, 0, 0))
-    np.testing.assert_allclose(scene.materials.diffuse[scene.material_ids[-1]], (0.1, 0.7, 0.3), atol=1e-6)
+    np.testing.assert_allclose(scene.textures[0][0, 0][:3], (1, 0, 0))
+    # an unbound gprim's displayColor: per-corner vertex colour (Scene.colors) × a white base
+    last = scene.material_ids[-1]
+    assert scene.materials.vertex_color[last]
+    np.testing.assert_allclose(scene.materials.diffuse[last] * scene.colors[-1], [(0.1, 0.7, 0.3)] * 3, atol=1e-6)
 
 
 def test_materialx_openpbr_transmission_survives():

@@ -55,7 +55,8 @@ def test_compile_kernels_covers_the_kernels_a_render_uses():
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr[-2000:]
     before, after = json.loads(r.stdout.strip().splitlines()[-1])
-    for hot in ("integrator._shade_hits", "integrator._add_unoccluded", "render._tile_eye_rays"):
+    for hot in ("integrator._surfaces", "integrator._direct_light", "integrator._spawn_secondary",
+                "integrator._add_unoccluded", "render._tile_eye_rays"):
         assert before[hot] > 0, f"compile_kernels left {hot} uncompiled: {before}"
     grew = {k: (before[k], n) for k, n in after.items() if n != before.get(k, 0)}
     assert not grew, f"renders after compile_kernels compiled new kernel specialisations: {grew}"

@@ -16,12 +16,14 @@ from .materials import DEFAULT_MATERIAL, Materials, roughness_to_exponent
 from .render import RenderCancelled, render, render_tile, tiles_of
 from .scene import Instances, Scene
 from .session import Session
-from .settings import AOV_NAMES, RenderSettings
+from .settings import AOV_NAMES, SHADING_MODELS, RenderSettings
+from .texture import Texture
 from .warmup import compile_kernels
 
 __all__ = [
     "AOV_NAMES", "AreaLight", "Camera", "DEFAULT_MATERIAL", "DistantLight", "Environment", "Image", "Instances", "Materials", "ORTHOGRAPHIC",
     "PERSPECTIVE", "PointLight", "RAY_TYPES", "RenderCancelled", "RenderSettings", "Scene", "SceneBuilder", "Session",
-    "SpotLight", "compile_kernels", "explain_pixel", "fit_apertures", "read_image", "render", "render_tile", "roughness_to_exponent", "tiles_of",
+    "SHADING_MODELS", "SpotLight", "Texture", "compile_kernels", "explain_pixel", "fit_apertures", "read_image", "render",
+    "render_tile", "roughness_to_exponent", "tiles_of",
     "write_image",
 ]

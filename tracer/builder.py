@@ -19,6 +19,7 @@ import numpy as np
 from .camera import Camera
 from .materials import Materials
 from .scene import Instances, Scene
+from .texture import as_texture
 
 
 class SceneBuilder:
@@ -29,13 +30,14 @@ class SceneBuilder:
         self._object_ids: list[np.ndarray] = []
         self._normals: list[np.ndarray | None] = []
         self._uvs: list[np.ndarray | None] = []
+        self._extra: list[dict] = []  # per mesh: {"uv_sets": {index: (T, 3, 2)}, "colors": (T, 3, 3)}
         self._n_vertices = 0
         self.materials: list[dict] = []
         self._material_index: dict[str, int] = {}
         self.object_names: list[str] = []
         self.environment = None  # tracer.Environment or None
         self.lights: list = []
-        self.textures: list[np.ndarray] = []
+        self.textures: list = []  # tracer.Texture
         self.camera: Camera | None = None
         self.background = np.zeros(3, np.float32)
         self.ambient = np.zeros(3, np.float32)
@@ -56,8 +58,9 @@ class SceneBuilder:
             self._material_index[name] = index
         return index
 
-    def add_texture(self, image: np.ndarray) -> int:
-        self.textures.append(np.asarray(image, dtype=np.float32))
+    def add_texture(self, texture) -> int:
+        """Add a :class:`tracer.Texture` (or a bare (H, W, C) image, wrapped with the defaults); returns its index."""
+        self.textures.append(as_texture(texture, f"texture {len(self.textures)}"))
         return len(self.textures) - 1
 
     def add_light(self, light) -> None:
@@ -65,7 +68,8 @@ class SceneBuilder:
 
     # ---------------------------------------------------------------- geometry
     def add_mesh(self, vertices, triangles, material=0, name: str | None = None, transform=None,
-                 normals=None, uvs=None, object_id: int | None = None, instances: int = 1) -> int:
+                 normals=None, uvs=None, object_id: int | None = None, instances: int = 1,
+                 uv_sets=None, colors=None) -> int:
         """Add a triangle mesh; returns its object id.
 
         vertices   (V, 3) object-space points
@@ -79,6 +83,10 @@ class SceneBuilder:
         instances  K > 1: the triangles are K equal consecutive blocks (copies of one mesh, e.g. a point
                    instancer's instances); each block is an object of its own, ids first..first+K−1 named
                    ``name[i]``; returns the first id (``object_id`` must then be None)
+        uv_sets    optional {set index: (V, 2) per vertex or (T, 3, 2) per corner} (a list = indices 0, 1, ...);
+                   set 0 is ``uvs``. Sets a mesh does not give are NaN (no coordinates) for its triangles
+        colors     optional vertex colours: (V, 3|4) per vertex or (T, 3, 3|4) per corner (alpha dropped);
+                   meshes without them read white
         """
         label = name or f"object{len(self.object_names)}"
         mesh = place_mesh(vertices, triangles, material, transform=transform, normals=normals, uvs=uvs, label=label)
@@ -104,6 +112,9 @@ class SceneBuilder:
                                           n_tri // instances))
         self._normals.append(mesh.normals)
         self._uvs.append(mesh.uvs)
+        mirrored = bool(np.linalg.det(mesh.transform[:3, :3]) < 0)
+        self._extra.append(_corner_extras(label, uv_sets, colors, mesh.uvs, len(mesh.vertices), mesh.triangles,
+                                          mirrored))
         return object_id
 
     def add_instances(self, prototype: int, transforms, object_ids=None, names=None, materials=None) -> np.ndarray:
@@ -177,14 +188,19 @@ class SceneBuilder:
 
         # Meshes without normals get zero normals: the integrator uses the geometric normal for those.
         normals = corners(self._normals, (3, 3), 0.0)
-        uvs = corners(self._uvs, (3, 2), 0.0)
+        # Meshes without a UV set have no coordinates in it (NaN: textures read their fallback there).
+        n_sets = max([1 if u is not None else 0 for u in self._uvs]
+                     + [max(e["uv_sets"], default=-1) + 1 for e in self._extra], default=0)
+        uv_sets = [corners([e["uv_sets"].get(k) for e in self._extra], (3, 2), np.nan) for k in range(n_sets)]
+        colors = corners([e["colors"] for e in self._extra], (3, 3), 1.0)
         return Scene(
             vertices=cat(self._vertices, (3,), np.float32),
             triangles=cat(self._triangles, (3,), np.int32),
             material_ids=cat(self._material_ids, (), np.int32) if n else np.zeros(0, np.int32),
             object_ids=cat(self._object_ids, (), np.int32) if n else np.zeros(0, np.int32),
             normals=normals,
-            uvs=uvs,
+            uv_sets=uv_sets,
+            colors=colors,
             materials=Materials.from_list(self.materials),
             camera=self.camera,
             lights=list(self.lights),
@@ -295,3 +311,34 @@ def place_mesh(vertices, triangles, material=0, *, transform=None, normals=None,
         corner_uvs = None if corner_uvs is None else corner_uvs[:, [0, 2, 1]]
     return PlacedMesh(np.ascontiguousarray(v, np.float32), np.ascontiguousarray(t, np.int32), mat,
                       corner_normals, corner_uvs, m)
+
+
+def _corner_extras(label, uv_sets, colors, corner_uvs, n_vertices, t, mirrored) -> dict:
+    """A mesh's UV sets and vertex colours per corner (checked, winding-corrected like its normals and uvs: ``t``
+    is already in its final winding, per-corner input is not)."""
+    n_tri = len(t)
+
+    def per_corner(a, width, what):
+        a = np.asarray(a, dtype=np.float64)
+        if a.ndim == 2 and a.shape[0] == n_vertices and a.shape[1] in width:
+            return a[t][..., :width[0]].astype(np.float32)
+        if a.shape[:2] != (n_tri, 3) or a.ndim != 3 or a.shape[2] not in width:
+            raise ValueError(f"mesh {label!r}: {what} must be per vertex ({n_vertices}, {width[0]}) or per corner "
+                             f"({n_tri}, 3, {width[0]}), got {a.shape}")
+        a = a[..., :width[0]].astype(np.float32)
+        return a[:, [0, 2, 1]] if mirrored else a
+
+    sets = {}
+    if uv_sets is not None:
+        items = uv_sets.items() if isinstance(uv_sets, dict) else enumerate(uv_sets)
+        for k, uv in items:
+            if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 0:
+                raise ValueError(f"mesh {label!r}: UV set indices must be integers >= 0, got {k!r}")
+            if uv is not None:
+                sets[int(k)] = per_corner(uv, (2,), f"uv_sets[{k}]")
+    if corner_uvs is not None:
+        if 0 in sets and not np.allclose(sets[0], corner_uvs, equal_nan=True):
+            raise ValueError(f"mesh {label!r}: uvs and uv_sets[0] differ (uvs is UV set 0; give one of them)")
+        sets[0] = corner_uvs
+    col = per_corner(colors, (3, 4), "colors") if colors is not None else None
+    return {"uv_sets": sets, "colors": col}

@@ -127,11 +127,10 @@ def env_radiance(env, d):
     x1 = (x0 + 1) % w
     y0 = min(max(int(yf), 0), h - 1)
     y1 = min(max(int(yf) + 1, 0), h - 1)
-    out = [0.0, 0.0, 0.0]
-    for c in range(3):
-        out[c] = ((1 - fx) * (1 - fy) * env.data[y0, x0, c] + fx * (1 - fy) * env.data[y0, x1, c]
-                  + (1 - fx) * fy * env.data[y1, x0, c] + fx * fy * env.data[y1, x1, c])
-    return (out[0], out[1], out[2])
+    a, b, c, d = (1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy
+    e00, e01, e10, e11 = env.data[y0, x0], env.data[y0, x1], env.data[y1, x0], env.data[y1, x1]
+    return (a * e00[0] + b * e01[0] + c * e10[0] + d * e11[0], a * e00[1] + b * e01[1] + c * e10[1] + d * e11[1],
+            a * e00[2] + b * e01[2] + c * e10[2] + d * e11[2])
 
 
 @kernel(inline=True)

@@ -189,20 +189,24 @@ def world_emitters(scene, emission: np.ndarray | None = None):
 def flatten(scene, chunk: int = 1024):
     """``scene`` with every instance copied out into world-space triangles (the triangle soup of a scene built
     with ``SceneBuilder.add_mesh(transform=M)`` per instance): positions by M, per-corner normals by the inverse
-    transpose, corners 1 and 2 swapped under a mirroring M, each copy carrying its instance's object id and
-    material override; prototypes are dropped. A scene without instances is returned as it is. For tools and
-    tests that want the flat arrays (the renderer itself never flattens)."""
+    transpose, corners 1 and 2 swapped under a mirroring M (every per-corner field: normals, UV sets, colours),
+    each copy carrying its instance's object id and material override; prototypes are dropped. A scene without
+    instances is returned as it is. For tools and tests that want the flat arrays (the renderer never flattens)."""
     from .scene import PER_TRIANGLE, Scene
 
     inst = scene.instances
     if inst is None or not len(inst):
         return scene
-    proto = scene.prototype_rows()
-    world = np.flatnonzero(~proto)
+    world = np.flatnonzero(~scene.prototype_rows())
     verts = [np.asarray(scene.vertices, np.float32)]
     tris = [scene.triangles[world]]
-    fields = {f: [] if getattr(scene, f) is None else [getattr(scene, f)[world]] for f in PER_TRIANGLE
-              if not isinstance(getattr(scene, f), list)}
+
+    def arrays(f):  # a per-triangle field as a list of arrays (list-valued fields have several), or None
+        a = getattr(scene, f)
+        return None if a is None else (list(a) if isinstance(a, list) else [a])
+
+    fields = {f: arrays(f) for f in PER_TRIANGLE}
+    parts = {f: None if a is None else [[x[world]] for x in a] for f, a in fields.items()}
     n_v = len(scene.vertices)
     overrides = inst.material_overrides()
     for p in np.unique(inst.prototypes):
@@ -224,25 +228,25 @@ def flatten(scene, chunk: int = 1024):
             verts.append(placed.reshape(-1, 3).astype(np.float32))
             tris.append(t.reshape(-1, 3))
             n_v += k * len(pv)
-            for f, parts in fields.items():
-                a = getattr(scene, f)
-                if a is None:
-                    continue
-                rows = np.broadcast_to(a[prow], (k,) + a[prow].shape).copy()
-                if f == "object_ids":
-                    rows[:] = inst.object_ids[sel][:, None]
-                elif f == "material_ids":
-                    rows = np.where(overrides[sel][:, None] >= 0, overrides[sel][:, None], rows)
-                elif f == "normals":
-                    nm = np.linalg.inv(m[:, :3, :3]).transpose(0, 2, 1)
-                    rows = np.einsum("kij,ktcj->ktci", nm, rows.astype(np.float64)).astype(np.float32)
-                if rows.ndim >= 3 and rows.shape[2] == 3:  # per-corner data: corners turned with the winding
-                    rows[mirrored] = rows[mirrored][:, :, [0, 2, 1]]
-                parts.append(rows.reshape((-1,) + a.shape[1:]))
-    out = Scene(vertices=np.concatenate(verts), triangles=np.concatenate(tris).astype(np.int32),
-                materials=scene.materials, camera=scene.camera, lights=list(scene.lights),
-                textures=list(scene.textures), background=scene.background, ambient=scene.ambient,
-                object_names=list(scene.object_names), object_pass_indices=scene.object_pass_indices,
-                environment=scene.environment, object_transforms=scene.object_transforms,
-                **{f: (np.concatenate(parts) if parts else None) for f, parts in fields.items()})
-    return out
+            for f, arrs in fields.items():
+                for a, out in zip(arrs or [], parts[f] or []):
+                    rows = np.broadcast_to(a[prow], (k,) + a[prow].shape).copy()
+                    if f == "object_ids":
+                        rows[:] = inst.object_ids[sel][:, None]
+                    elif f == "material_ids":
+                        rows = np.where(overrides[sel][:, None] >= 0, overrides[sel][:, None], rows)
+                    elif f == "normals":
+                        nm = np.linalg.inv(m[:, :3, :3]).transpose(0, 2, 1)
+                        rows = np.einsum("kij,ktcj->ktci", nm, rows.astype(np.float64)).astype(np.float32)
+                    if rows.ndim >= 3 and rows.shape[2] == 3:  # per-corner data: corners turned with the winding
+                        rows[mirrored] = rows[mirrored][:, :, [0, 2, 1]]
+                    out.append(rows.reshape((-1,) + a.shape[1:]))
+    flat = {f: None if p is None else [np.concatenate(x) for x in p] for f, p in parts.items()}
+    flat = {f: (v if isinstance(getattr(scene, f), list) or v is None else v[0]) for f, v in flat.items()}
+    if "uv_sets" in flat:
+        flat["uv_sets"] = flat["uv_sets"] or []
+    return Scene(vertices=np.concatenate(verts), triangles=np.concatenate(tris).astype(np.int32),
+                 materials=scene.materials, camera=scene.camera, lights=list(scene.lights),
+                 textures=list(scene.textures), background=scene.background, ambient=scene.ambient,
+                 object_names=list(scene.object_names), object_pass_indices=scene.object_pass_indices,
+                 environment=scene.environment, object_transforms=scene.object_transforms, **flat)

@@ -1,19 +1,29 @@
 """The seed's Cast-Ray, as a wavefront over one tile.
 
-Recursion becomes iteration: all rays of a tile at one depth are intersected together (Embree), then one kernel
-shades every hit and writes the rays of the next step, so the recursive colour
+Recursion becomes iteration: all rays of a tile at one depth are intersected together (Embree), then named stages
+shade every hit and write the rays of the next step, so the recursive colour
 
     c = (1 − k_m)·c_local + k_m·RayColor(reflected)          (ray type 3, the notes' formula)
 
 becomes: add throughput·(1 − k_m)·c_local to the pixel, and spawn the reflected ray with throughput·k_m, where a
 ray's *throughput* is the product of the weights on its path. Glass (transmission weight w_t, ray type 4) splits the
 non-mirror remainder (1 − k_m) into a reflected part F and a transmitted part (1 − F) by the dielectric Fresnel factor
-F (or, in classic mode, F = 0, and 1 under TIR).
+F (or, in classic mode, F = 0, and 1 under TIR). The Principled model (``RenderSettings.shading``) adds its GGX
+lobes: evaluated for every light sample, and handed to the mirror ray by roughness (:func:`tracer.bsdf.mirror_share`).
 
-Shadow rays (ray type 2) are deferred: the kernel writes one per light sample that faces the point, together with
-the colour it would add; after one batched occlusion query, the unblocked ones are added. One step of a tile is
+One depth of a tile, each stage a kernel over named queues (NamedTuples of arrays):
 
-    Embree closest hits → _shade_hits (kernel) → Embree occlusion → _add_unoccluded (kernel) → next depth.
+    Embree closest hits
+      → surfaces        (SurfaceQueue: point, frames, the material's parameters after textures and normal map)
+      → first hits      (depth 0: the AOVs)
+      → emitted         (what the ray sees: the world where it leaves, emission where it hits)
+      → direct light    (ShadowQueue: one deferred shadow ray per light sample, with the colour it would add)
+      → sky             (ShadowQueue: environment / ambient-visibility rays)
+      → spawn secondary (RayQueue of the next depth: reflections, transmissions; and the same depth's rays that
+                         pass through alpha < 1, traced again at once)
+    → Embree occlusion (shadow rays that stop on alpha < 1 surfaces are continued through them) → add unoccluded.
+
+Every spawned ray leaves its surface through :func:`spawn_ray`, the one place ε is applied.
 """
 
 from __future__ import annotations
@@ -23,17 +33,18 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import optics, shading, vec
+from . import bsdf, optics, shading, vec
 from .accel import Accelerator
-from .jit import kernel
 from .environment import env_radiance, env_sample, pack_environment
-from .instances import material_id, object_id, pack_instances, world_emitters, world_frame
-from .lights import pack_lights, sample_light
+from .jit import kernel
+from .instances import handedness, material_id, object_id, pack_instances, to_world_normal, to_world_vector
+from .instances import world_emitters, world_frame
+from .lights import MESH, pack_lights, sample_light
 from .sampling import multijitter, stratum, uniform2_1
 from .scene import Scene
 from .settings import RenderSettings
-from .surface import geometry_of, hit_uv
-from .texture import bilinear, pack_textures
+from .surface import geometry_of, hit_color, hit_uv_set, uv_tangent
+from .texture import lookup, pack_textures
 
 RAY_TYPES = ("eye", "shadow", "reflection", "transmission", "sky")
 
@@ -87,10 +98,10 @@ class TileResult:
 
 
 class MaterialArrays(NamedTuple):
-    """:class:`tracer.Materials` as the kernels read it (float32 / int32 columns)."""
+    """:class:`tracer.Materials` as the kernels read it (float32 / int32 / bool columns, one row per material)."""
 
     diffuse: np.ndarray
-    specular: np.ndarray
+    specular_color: np.ndarray
     exponent: np.ndarray
     k_m: np.ndarray
     mirror_tint: np.ndarray
@@ -98,7 +109,47 @@ class MaterialArrays(NamedTuple):
     transmission_tint: np.ndarray
     ior: np.ndarray
     emission: np.ndarray
-    diffuse_texture: np.ndarray
+    roughness: np.ndarray
+    metallic: np.ndarray
+    specular: np.ndarray
+    specular_tint: np.ndarray
+    alpha: np.ndarray
+    alpha_threshold: np.ndarray
+    normal_strength: np.ndarray
+    vertex_color: np.ndarray
+    base_color_texture: np.ndarray
+    roughness_texture: np.ndarray
+    metallic_texture: np.ndarray
+    specular_texture: np.ndarray
+    alpha_texture: np.ndarray
+    emission_texture: np.ndarray
+    normal_texture: np.ndarray
+    base_color_channel: np.ndarray
+    roughness_channel: np.ndarray
+    metallic_channel: np.ndarray
+    specular_channel: np.ndarray
+    alpha_channel: np.ndarray
+    emission_channel: np.ndarray
+    normal_channel: np.ndarray
+    textured: np.ndarray  # (N,) bool: some parameter reads a texture
+
+    @classmethod
+    def of(cls, m) -> "MaterialArrays":
+        f32, i32 = (lambda a: np.ascontiguousarray(a, np.float32)), (lambda a: np.ascontiguousarray(a, np.int32))
+        tex, _ch = m.texture_slots()
+        cols = {"textured": np.ascontiguousarray((tex >= 0).any(axis=1))}
+        for name in cls._fields[:-1]:
+            if name == "base_color_texture":
+                a = m.diffuse_texture
+            else:
+                a = getattr(m, name)
+            if name.endswith("_texture") or name.endswith("_channel"):
+                cols[name] = i32(a)
+            elif name == "vertex_color":
+                cols[name] = np.ascontiguousarray(a, np.bool_)
+            else:
+                cols[name] = f32(a)
+        return cls(**cols)
 
 
 class Options(NamedTuple):
@@ -115,6 +166,8 @@ class Options(NamedTuple):
     needs_light_random: bool
     background: tuple
     ambient: tuple
+    principled: bool
+    sky_side: int
 
 
 class RayQueue(NamedTuple):
@@ -128,6 +181,32 @@ class RayQueue(NamedTuple):
     t_max: np.ndarray | None
 
 
+class SurfaceQueue(NamedTuple):
+    """What each ray of a depth found (the surfaces stage): whether it hit, the point, the geometric normal and
+    the shading normal (after the normal map) on the incident side, which face it hit, the material and its
+    parameters after texture lookups, and the coverage (alpha after the cut-out threshold)."""
+
+    hit: np.ndarray  # (N,) bool
+    p: np.ndarray  # (N, 3) float64
+    ng: np.ndarray  # (N, 3) float32
+    n: np.ndarray  # (N, 3) float32
+    front: np.ndarray  # (N,) bool
+    mat: np.ndarray  # (N,) int32
+    base: np.ndarray  # (N, 3) float32 base colour (× texture × vertex colour)
+    roughness: np.ndarray  # (N,) float32
+    metallic: np.ndarray  # (N,) float32
+    specular: np.ndarray  # (N,) float32 Specular IOR Level
+    cover: np.ndarray  # (N,) float32 alpha in [0, 1]
+    emission: np.ndarray  # (N, 3) float32
+
+    @classmethod
+    def empty(cls, n: int) -> "SurfaceQueue":
+        f3 = lambda: np.empty((n, 3), np.float32)  # noqa: E731
+        f1 = lambda: np.empty(n, np.float32)  # noqa: E731
+        return cls(np.empty(n, np.bool_), np.empty((n, 3), np.float64), f3(), f3(), np.empty(n, np.bool_),
+                   np.empty(n, np.int32), f3(), f1(), f1(), f1(), f1(), f3())
+
+
 class ShadowQueue(NamedTuple):
     """Deferred shadow (and sky) rays of one depth: each adds ``color`` to its sample if nothing blocks it."""
 
@@ -137,6 +216,11 @@ class ShadowQueue(NamedTuple):
     sample: np.ndarray
     color: np.ndarray
     light: np.ndarray  # light index, -1 for a sky-visibility ray
+
+    @classmethod
+    def empty(cls, n: int) -> "ShadowQueue":
+        return cls(np.empty((n, 3), np.float32), np.empty((n, 3), np.float32), np.empty(n, np.float32),
+                   np.empty(n, np.int32), np.empty((n, 3), np.float32), np.empty(n, np.int32))
 
 
 class SpawnRecord(NamedTuple):
@@ -152,6 +236,30 @@ class SpawnRecord(NamedTuple):
     def empty(cls, n_shadow: int, n_next: int) -> "SpawnRecord":
         return cls(np.empty(n_shadow, np.int32), np.empty((n_next, 3), np.float32), np.empty((n_next, 2), np.float32),
                    np.empty(n_next, np.bool_))
+
+
+class NextQueue(NamedTuple):
+    """Rays the spawn stage writes: the next depth's (reflections from slot 0, transmissions from slot n) and the
+    rays that pass straight through alpha < 1 surfaces (traced again at the same depth), with their spawn record."""
+
+    o: np.ndarray
+    d: np.ndarray
+    weight: np.ndarray
+    sample: np.ndarray
+    spawned: SpawnRecord
+    through_o: np.ndarray
+    through_d: np.ndarray
+    through_weight: np.ndarray
+    through_sample: np.ndarray
+    through_t0: np.ndarray  # distance along the eye ray travelled before the pass-through ray
+
+    @classmethod
+    def empty(cls, n: int, spawn: bool) -> "NextQueue":
+        m = 2 * n if spawn else 0
+        return cls(np.empty((m, 3), np.float32), np.empty((m, 3), np.float32), np.empty((m, 3), np.float32),
+                   np.empty(m, np.int32), SpawnRecord.empty(0, m), np.empty((n, 3), np.float32),
+                   np.empty((n, 3), np.float32), np.empty((n, 3), np.float32), np.empty(n, np.int32),
+                   np.empty(n, np.float32))
 
 
 class Step(NamedTuple):
@@ -188,68 +296,116 @@ class Integrator:
         self.eps = np.float32(eps)
         self.geometry = geometry_of(scene)
         m = scene.materials
-        f32, i32 = (lambda a: np.ascontiguousarray(a, np.float32)), (lambda a: np.ascontiguousarray(a, np.int32))
-        self.materials = MaterialArrays(
-            diffuse=f32(m.diffuse), specular=f32(m.specular), exponent=f32(m.exponent), k_m=f32(m.k_m),
-            mirror_tint=f32(m.mirror_tint), transmission=f32(m.transmission),
-            transmission_tint=f32(m.transmission_tint), ior=f32(m.ior), emission=f32(m.emission),
-            diffuse_texture=i32(m.diffuse_texture if scene.uvs is not None else np.full(len(m), -1)))
+        self.materials = MaterialArrays.of(m)
         self.textures = pack_textures(scene.textures)
         self.instances = pack_instances(scene)
-        emitters = world_emitters(scene, m.emission)  # instanced prototypes' emitters placed per instance
+        # instanced prototypes' emitting triangles placed per instance (tracer/instances.py)
+        emitters = world_emitters(scene, m.emission * m.alpha[:, None])
         self.lights = pack_lights(scene.lights, settings.light_samples, emitters)
         self.light_samples = int(np.sum(self.lights.side ** 2))  # shadow rays per shading point, at most
         self.env = pack_environment(scene.environment)
         ambient = scene.ambient
         if scene.environment is not None and not np.any(ambient > 0):
             ambient = scene.environment.average()
+        sky = settings.sky_samples
+        lit_by_sky = scene.environment is not None or np.any(scene.ambient > 0)
+        self.sky_side = max(1, int(round(np.sqrt(sky)))) if sky and lit_by_sky else 0
         self.options = Options(
             eps=float(self.eps), max_depth=int(settings.max_depth), shadows=bool(settings.shadows),
             fresnel=bool(settings.fresnel), sky_samples=int(settings.sky_samples),
             min_weight=float(settings.min_weight), transparent=bool(settings.transparent), seed=int(settings.seed),
             needs_light_random=bool(np.any(self.lights.side > 1)),
-            background=tuple(float(c) for c in scene.background), ambient=tuple(float(c) for c in ambient))
-        sky = settings.sky_samples
-        lit_by_sky = scene.environment is not None or np.any(scene.ambient > 0)
-        self.sky_side = max(1, int(round(np.sqrt(sky)))) if sky and lit_by_sky else 0
+            background=tuple(float(c) for c in scene.background), ambient=tuple(float(c) for c in ambient),
+            principled=settings.shading == "principled", sky_side=int(self.sky_side))
+        used = np.zeros(len(m), bool)
+        used[np.unique(scene.material_ids)] = True
+        used[self.instances.materials[self.instances.materials >= 0]] = True
+        #: Some used material lets light through (alpha < 1 or an alpha texture): shadow rays look through it.
+        self.see_through = bool(np.any(used & ((m.alpha < 1) | (self.materials.alpha_texture >= 0))))
 
     @property
     def last_depth(self) -> int:
         """The deepest step: max_depth, or one more (collecting only background and emission) with terminal rays."""
         return self.settings.max_depth + (1 if self.settings.terminal_rays else 0)
 
+    def _shade(self, depth: int, o, d, weight, sample, t0, hits, keys, out: "Tile", counts, spawn: bool):
+        """The stages for one batch of rays and their hits: returns (ShadowQueue, NextQueue, n_refl, n_tran,
+        n_through)."""
+        n = len(o)
+        t, prim, u, v, inst = hits
+        surf = SurfaceQueue.empty(n)
+        _surfaces(o, d, t, prim, inst, self.instances, u, v, self.geometry, self.materials, self.textures, surf)
+        if depth == 0:
+            _first_hits(surf, t, prim, inst, self.instances, t0, sample, self.geometry, out)
+        _emitted(d, surf, sample, weight, depth, self.options, self.env, out)
+        shadow = ShadowQueue.empty(n * (self.light_samples + self.sky_side ** 2))
+        n_shadow = _direct_light(surf, d, sample, weight, keys, depth, spawn, self.materials, self.lights,
+                                 self.options, out, shadow, 0, counts)
+        if self.sky_side:
+            n_shadow = _sky(surf, d, sample, weight, keys, depth, spawn, self.materials, self.env, self.options,
+                            out, shadow, n_shadow, counts)
+        nxt = NextQueue.empty(n, spawn)
+        n_refl, n_tran, n_through = _spawn_secondary(surf, d, t, t0, sample, weight, spawn, self.materials,
+                                                     self.options, nxt, counts)
+        shadow = ShadowQueue(*(a[:n_shadow] for a in shadow))
+        return shadow, nxt, n_refl, n_tran, n_through
+
     def step(self, depth: int, rays: "RayQueue", keys: np.ndarray, out: "Tile", counts: np.ndarray) -> "Step":
         """One depth of Cast-Ray for a queue of rays: closest hits, shading (adding into ``out`` at each ray's
         sample), the deferred shadow rays and their occlusion, and the queue of next rays (reflections, then
-        transmissions; empty past the last depth)."""
+        transmissions; empty past the last depth). Rays that pass through alpha < 1 surfaces are traced again
+        within the step (up to ``max_transparent`` surfaces deep)."""
         n = len(rays.o)
         hits = self.accel.closest_hits(rays.o, rays.d, rays.t_max)
-        t, prim, u, v, inst = hits
-        # Deferred shadow rays (origin, direction, length, sample, colour) and the next depth's rays
-        # (reflections from slot 0, transmissions from slot n).
-        cap = n * (self.light_samples + self.sky_side**2)
-        so, sd = np.empty((cap, 3), np.float32), np.empty((cap, 3), np.float32)
-        sl, ss, sc = np.empty(cap, np.float32), np.empty(cap, np.int32), np.empty((cap, 3), np.float32)
         spawn = depth < self.last_depth
-        cap2 = 2 * n if spawn else 0
-        no, nd = np.empty((cap2, 3), np.float32), np.empty((cap2, 3), np.float32)
-        nw, ns = np.empty((cap2, 3), np.float32), np.empty(cap2, np.int32)
-        rec = SpawnRecord.empty(cap, cap2)
-        n_shadow, n_refl, n_tran = _shade_hits(
-            rays.o, rays.d, t, prim, inst, self.instances, u, v, rays.sample, rays.weight, keys, depth, spawn,
-            self.geometry,
-            self.materials, self.textures[0], self.textures[1], self.lights, self.env,
-            self.sky_side, self.options, out, so, sd, sl, ss, sc, no, nd, nw, ns, counts, rec)
-        shadow = ShadowQueue(o=so[:n_shadow], d=sd[:n_shadow], t_max=sl[:n_shadow], sample=ss[:n_shadow],
-                             color=sc[:n_shadow], light=rec.light[:n_shadow])
+        shadows, refl, tran = [], [], []
+        o, d, w, smp, t0, h = rays.o, rays.d, rays.weight, rays.sample, np.zeros(n, np.float32), hits
+        for layer in range(self.settings.max_transparent + 1):
+            shadow, nxt, n_refl, n_tran, n_through = self._shade(depth, o, d, w, smp, t0, h, keys, out, counts,
+                                                                 spawn)
+            shadows.append(shadow)
+            m = len(o)
+            refl.append((nxt, slice(0, n_refl)))
+            tran.append((nxt, slice(m, m + n_tran)))
+            if not n_through or layer == self.settings.max_transparent:
+                break
+            o, d = nxt.through_o[:n_through], nxt.through_d[:n_through]
+            w, smp, t0 = nxt.through_weight[:n_through], nxt.through_sample[:n_through], nxt.through_t0[:n_through]
+            tm = None
+            if rays.t_max is not None:  # eye rays stop at the far plane: what is left of their length
+                tm = np.maximum(rays.t_max[0] - t0, 0).astype(np.float32)
+            h = self.accel.closest_hits(o, d, tm)
+        shadow = shadows[0] if len(shadows) == 1 else ShadowQueue(*(np.concatenate(c) for c in zip(*shadows)))
         blocked = np.zeros(0, bool)
-        if n_shadow:
+        if len(shadow.o):
             blocked = self.accel.occluded(shadow.o, shadow.d, shadow.t_max)
+            if self.see_through and blocked.any():
+                blocked = self._through_shadows(shadow, blocked)
             _add_unoccluded(out.color, shadow.sample, shadow.color, blocked)
-        keep = np.r_[0:n_refl, n:n + n_tran] if n_tran else slice(0, n_refl)
-        nxt = RayQueue(o=no[keep], d=nd[keep], weight=nw[keep], sample=ns[keep], t_max=None)
-        spawned = SpawnRecord(light=rec.light[:0], normal=rec.normal[keep], eta=rec.eta[keep], tir=rec.tir[keep])
-        return Step(hits=hits, shadow=shadow, blocked=blocked, next=nxt, spawned=spawned, n_reflected=n_refl)
+        parts = refl + tran
+        cat = lambda get: np.concatenate([get(q)[s] for q, s in parts])  # noqa: E731
+        nxt = RayQueue(o=cat(lambda q: q.o), d=cat(lambda q: q.d), weight=cat(lambda q: q.weight),
+                       sample=cat(lambda q: q.sample), t_max=None)
+        spawned = SpawnRecord(light=shadow.light[:0], normal=cat(lambda q: q.spawned.normal),
+                              eta=cat(lambda q: q.spawned.eta), tir=cat(lambda q: q.spawned.tir))
+        n_reflected = sum(s.stop - s.start for _, s in refl)
+        return Step(hits=hits, shadow=shadow, blocked=blocked, next=nxt, spawned=spawned, n_reflected=n_reflected)
+
+    def _through_shadows(self, shadow: "ShadowQueue", blocked: np.ndarray) -> np.ndarray:
+        """Blocked shadow rays whose blockers are alpha < 1 surfaces continue through them, their colour × (1 −
+        alpha) each time (Cycles' transparent shadows), up to ``max_transparent`` surfaces."""
+        idx = np.flatnonzero(blocked)
+        o, d = shadow.o[idx].copy(), shadow.d[idx]
+        t_max, color = shadow.t_max[idx].copy(), shadow.color  # colour scaled in place
+        pending = np.ones(len(idx), np.bool_)
+        for _ in range(self.settings.max_transparent + 1):
+            sel = np.flatnonzero(pending)
+            if not len(sel):
+                break
+            t, prim, u, v, inst = self.accel.closest_hits(o[sel], d[sel], t_max[sel])
+            _pass_shadow(sel, idx, t, prim, inst, self.instances, u, v, self.geometry, self.materials, self.textures,
+                         o, d, t_max, color, pending, blocked, self.options.eps)
+        return blocked
 
     def trace(self, origins: np.ndarray, directions: np.ndarray, keys: np.ndarray,
               cancelled=lambda: False, ray_types: bool = False) -> TileResult:
@@ -285,6 +441,7 @@ class Integrator:
                 rays = rays._replace(sample=(rays.sample + first).astype(np.int32))
 
         np.nan_to_num(out.color, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
+        np.clip(out.alpha, 0.0, 1.0, out=out.alpha)
         rc = RayCounts(eye=n_samples, shadow=int(counts[_N_SHADOW]), reflection=int(counts[_N_REFLECTION]),
                        transmission=int(counts[_N_TRANSMISSION]), sky=int(counts[_N_SKY]), tir=int(counts[_N_TIR]))
         by_type = out.color.reshape(n_samples, k, 3)
@@ -294,31 +451,199 @@ class Integrator:
                           deepest=deepest if k > 1 else None)
 
 
-@kernel
-def _shade_hits(o, d, t, prim, inst, itab, u, v, sample, weight, keys, depth, spawn, geom, mats, tex_data, tex_info,
-                lights, env, sky_side, opt, out, so, sd, sl, ss, sc, no, nd, nw, ns, counts,
-                rec):
-    """Shade one depth's rays of a tile and write the rays they cause; returns (shadow, reflection, transmission)
-    counts written into the buffers.
+# ---------------------------------------------------------------------------------------------- helpers
+@kernel(inline=True)
+def spawn_ray(p, ng, direction, eps):
+    """The origin of a ray leaving surface point p along ``direction``: p moved ε along the geometric normal ng, to
+    the side the ray leaves to (the seed's ε; the one place it is applied)."""
+    if vec.dot(ng, direction) >= 0.0:
+        return vec.madd(p, ng, eps)
+    return vec.madd(p, ng, -eps)
 
-    Per ray: a miss adds the background (or clears alpha of a transparent film); a hit adds its emission, the
-    ambient term and, through deferred shadow rays, Σ lights of Lambert + Blinn-Phong, all weighted by
-    (1 − k_m)(1 − w_t); then spawns the reflected ray (k_m·tint + glass·F) and the transmitted one (glass·(1 − F)).
-    """
-    n_rays = o.shape[0]
-    eps = opt.eps
-    n_shadow = 0
-    n_refl = 0
-    n_tran = 0
-    n_lights = lights.table.shape[0]
-    for i in range(n_rays):
+
+@kernel(inline=True)
+def _scalar_param(value, ti, ch, tex, geom, tri, u, v):
+    """A scalar material parameter: the constant × its texture lookup (channel ``ch``; -1 = luminance)."""
+    if ti < 0:
+        return value
+    s, t, ok = hit_uv_set(geom, tex.uv_set[ti], tri, u, v)
+    c = lookup(tex, ti, s, t, ok)
+    if ch < 0:
+        return value * (0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2])
+    return value * c[ch]
+
+
+@kernel(inline=True)
+def _color_param(value, ti, ch, tex, geom, tri, u, v):
+    """A colour material parameter: the constant × its texture lookup (rgb, or one channel as grey)."""
+    if ti < 0:
+        return value
+    s, t, ok = hit_uv_set(geom, tex.uv_set[ti], tri, u, v)
+    c = lookup(tex, ti, s, t, ok)
+    if ch < 0:
+        return vec.mul(value, (c[0], c[1], c[2]))
+    return vec.scale(value, c[ch])
+
+
+@kernel(inline=True)
+def _cut(a, threshold):
+    """Coverage from alpha: clamped to [0, 1]; a cut-out (threshold > 0) gives 0 below the threshold, else 1."""
+    if threshold > 0.0:
+        return 1.0 if a >= threshold else 0.0
+    return min(max(a, 0.0), 1.0)
+
+
+@kernel(inline=True)
+def coverage(geom, mats, tex, mat, tri, u, v):
+    """Alpha of triangle ``tri`` at barycentrics (u, v) under material ``mat``: the material's alpha × its texture,
+    cut by its threshold (:func:`_cut`). (Helpers that take the scene's NamedTuples are called only where a texture
+    exists: each call costs reference counting on every array they hold.)"""
+    a = float(mats.alpha[mat])
+    ti = mats.alpha_texture[mat]
+    if ti >= 0:
+        a = _scalar_param(a, ti, mats.alpha_channel[mat], tex, geom, tri, u, v)
+    return _cut(a, float(mats.alpha_threshold[mat]))
+
+
+@kernel(inline=True)
+def _normal_mapped(geom, itab, inst, mats, tex, mat, tri, u, v, n, ng, front):
+    """The shading normal after the material's tangent-space normal map (OpenGL convention, tangents from the
+    UVs of the map's UV set), on the incident side; n unchanged without a map or usable tangents. On an instance
+    the tangent is taken to world space by its matrix and the bitangent sign turns where it mirrors."""
+    ti = mats.normal_texture[mat]
+    k = tex.uv_set[ti]
+    s, t, ok = hit_uv_set(geom, k, tri, u, v)
+    if not ok:
+        return n
+    c = lookup(tex, ti, s, t, True)
+    tg, sign = uv_tangent(geom, k, tri, vec.row(geom.face_normals, tri))
+    tg, sign = to_world_vector(itab, inst, tg), sign * handedness(itab, inst)
+    return bsdf.perturb_normal((c[0], c[1], c[2]), tg, sign, float(mats.normal_strength[mat]), n, ng, front)
+
+
+@kernel(inline=True)
+def _put(q, j, origin, direction, length, s, c, light):
+    q.o[j, 0], q.o[j, 1], q.o[j, 2] = origin
+    q.d[j, 0], q.d[j, 1], q.d[j, 2] = direction
+    q.t_max[j] = length
+    q.sample[j] = s
+    q.color[j, 0], q.color[j, 1], q.color[j, 2] = c
+    q.light[j] = light
+
+
+@kernel(inline=True)
+def _put_ray(no, nd, nw, ns, j, origin, direction, w, s):
+    no[j, 0], no[j, 1], no[j, 2] = origin
+    nd[j, 0], nd[j, 1], nd[j, 2] = direction
+    nw[j, 0], nw[j, 1], nw[j, 2] = w
+    ns[j] = s
+
+
+@kernel(inline=True)
+def _put_spawn(rec, j, n, eta_i, eta_r, tir):
+    """What a spawned ray's direction was computed from (for ``tracer.explain``): the unit normal on the incident
+    side, the two refractive indices and whether total internal reflection turned a transmission into it."""
+    rec.normal[j, 0], rec.normal[j, 1], rec.normal[j, 2] = n
+    rec.eta[j, 0], rec.eta[j, 1] = eta_i, eta_r
+    rec.tir[j] = tir
+
+
+@kernel
+def _local_model(principled, base, m, rough, spec, tint, ior, w_t, k_m, cover, spec_color, exponent, n, d, spawn):
+    """The local model at a hit seen along d: (closure, the weight its light is added with, the mirror share g of
+    the specular lobes). Principled: weight (1 − k_m)·alpha, the closure holds the metal, dielectric and diffuse
+    weights; classic: weight (1 − k_m)(1 − w_t)·alpha, R_d = base·(1 − m), R_s = specular_color·(1 − m) + base·m.
+    (Plain values only: a call with the scene's NamedTuples of arrays costs reference counting on each array.)"""
+    if principled:
+        cl = bsdf.principled(base, m, rough, spec, tint, ior, w_t, -vec.dot(n, d))
+        g = bsdf.mirror_share(rough) if spawn else 0.0
+        return cl, (1.0 - k_m) * cover, g
+    rs = vec.madd(vec.scale(spec_color, 1.0 - m), base, m)
+    cl = bsdf.classic(vec.scale(base, 1.0 - m), rs, exponent)
+    return cl, (1.0 - k_m) * (1.0 - w_t) * cover, 0.0
+
+
+# ---------------------------------------------------------------------------------------------- stages
+@kernel
+def _surfaces(o, d, t, prim, inst, itab, u, v, geom, mats, tex, surf):
+    """Surfaces stage: per ray, the hit point, its frames and the material's parameters after textures, vertex
+    colours and the normal map."""
+    for i in range(o.shape[0]):
+        tri = prim[i]
+        surf.hit[i] = tri >= 0
+        if tri < 0:
+            continue
+        di = vec.row(d, i)
+        ui, vi = float(u[i]), float(v[i])
+        p = vec.madd(vec.row(o, i), di, float(t[i]))
+        ng, n, front = world_frame(geom, itab, inst[i], tri, di, ui, vi)
+        mat = material_id(itab, inst[i], geom.material_ids[tri])
+        base = vec.row(mats.diffuse, mat)
+        rough = float(mats.roughness[mat])
+        metal = float(mats.metallic[mat])
+        spec = float(mats.specular[mat])
+        alpha = float(mats.alpha[mat])
+        e = vec.row(mats.emission, mat)
+        if mats.textured[mat]:  # lookups only where a parameter reads a texture (see coverage)
+            if mats.base_color_texture[mat] >= 0:
+                base = _color_param(base, mats.base_color_texture[mat], mats.base_color_channel[mat], tex, geom,
+                                    tri, ui, vi)
+            if mats.roughness_texture[mat] >= 0:
+                rough = _scalar_param(rough, mats.roughness_texture[mat], mats.roughness_channel[mat], tex, geom,
+                                      tri, ui, vi)
+            if mats.metallic_texture[mat] >= 0:
+                metal = _scalar_param(metal, mats.metallic_texture[mat], mats.metallic_channel[mat], tex, geom,
+                                      tri, ui, vi)
+            if mats.specular_texture[mat] >= 0:
+                spec = _scalar_param(spec, mats.specular_texture[mat], mats.specular_channel[mat], tex, geom,
+                                     tri, ui, vi)
+            if mats.alpha_texture[mat] >= 0:
+                alpha = _scalar_param(alpha, mats.alpha_texture[mat], mats.alpha_channel[mat], tex, geom, tri, ui,
+                                      vi)
+            if mats.emission_texture[mat] >= 0:
+                e = _color_param(e, mats.emission_texture[mat], mats.emission_channel[mat], tex, geom, tri, ui, vi)
+            if mats.normal_texture[mat] >= 0:
+                n = _normal_mapped(geom, itab, inst[i], mats, tex, mat, tri, ui, vi, n, ng, front)
+        if mats.vertex_color[mat]:
+            base = vec.mul(base, hit_color(geom, tri, ui, vi))
+        surf.p[i, 0], surf.p[i, 1], surf.p[i, 2] = p
+        surf.ng[i, 0], surf.ng[i, 1], surf.ng[i, 2] = ng
+        surf.n[i, 0], surf.n[i, 1], surf.n[i, 2] = n
+        surf.front[i] = front
+        surf.mat[i] = mat
+        surf.base[i, 0], surf.base[i, 1], surf.base[i, 2] = base
+        surf.roughness[i] = min(max(rough, 0.0), 1.0)
+        surf.metallic[i] = min(max(metal, 0.0), 1.0)
+        surf.specular[i] = max(spec, 0.0)
+        surf.cover[i] = _cut(alpha, float(mats.alpha_threshold[mat]))
+        surf.emission[i, 0], surf.emission[i, 1], surf.emission[i, 2] = e
+
+
+@kernel
+def _first_hits(surf, t, prim, inst, itab, t0, sample, geom, out):
+    """First-hit stage (depth 0): depth, normal, albedo and object id of the first surface each eye sample sees
+    (surfaces cut away by alpha are looked through)."""
+    for i in range(surf.hit.shape[0]):
+        s = sample[i]
+        if not surf.hit[i] or surf.cover[i] <= 0.0 or out.object_id[s] >= 0:
+            continue
+        out.depth[s] = t[i] + t0[i]
+        out.normal[s, 0], out.normal[s, 1], out.normal[s, 2] = surf.n[i, 0], surf.n[i, 1], surf.n[i, 2]
+        out.albedo[s, 0], out.albedo[s, 1], out.albedo[s, 2] = surf.base[i, 0], surf.base[i, 1], surf.base[i, 2]
+        out.object_id[s] = object_id(itab, inst[i], geom.object_ids[prim[i]])
+
+
+@kernel
+def _emitted(d, surf, sample, weight, depth, opt, env, out):
+    """Emitted stage: what each ray sees itself — the environment (or background) where it leaves the scene (a
+    transparent film clears alpha instead, for rays from the eye), the surface's emission × alpha where it hits."""
+    for i in range(surf.hit.shape[0]):
         s = sample[i]
         w = vec.row(weight, i)
-        tri = prim[i]
-        if tri < 0:  # the ray leaves the scene
+        if not surf.hit[i]:
             if depth == 0 and opt.transparent:
-                out.alpha[s] = 0.0
-            elif env.present:  # the environment image along the ray
+                out.alpha[s] -= (w[0] + w[1] + w[2]) / 3.0
+            elif env.present:
                 sky = env_radiance(env, vec.row(d, i))
                 for c in range(3):
                     out.color[s, c] += w[c] * sky[c]
@@ -326,99 +651,177 @@ def _shade_hits(o, d, t, prim, inst, itab, u, v, sample, weight, keys, depth, sp
                 for c in range(3):
                     out.color[s, c] += w[c] * opt.background[c]
             continue
+        a = surf.cover[i]
+        for c in range(3):
+            out.color[s, c] += w[c] * a * surf.emission[i, c]
+
+
+@kernel
+def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt, out, shadow, n_shadow, counts):
+    """Direct-light stage: per hit, every light sample's colour (local model × irradiance), written with its shadow
+    ray (p, l, ε, dist) to the shadow queue; and the ambient term where the sky is not sampled. Returns the
+    shadow queue's new length. Past max_depth (terminal rays) nothing is lit."""
+    eps = opt.eps
+    n_lights = lights.kind.shape[0]
+    amb = (opt.ambient[0], opt.ambient[1], opt.ambient[2])
+    has_amb = amb[0] > 0.0 or amb[1] > 0.0 or amb[2] > 0.0
+    for i in range(surf.hit.shape[0]):
+        if not surf.hit[i] or depth > opt.max_depth:
+            continue
+        s = sample[i]
+        mat = surf.mat[i]
+        cl, wl, g = _local_model(opt.principled, vec.row(surf.base, i), float(surf.metallic[i]),
+                                 float(surf.roughness[i]), float(surf.specular[i]), vec.row(mats.specular_tint, mat),
+                                 float(mats.ior[mat]), float(mats.transmission[mat]), float(mats.k_m[mat]),
+                                 float(surf.cover[i]), vec.row(mats.specular_color, mat), float(mats.exponent[mat]),
+                                 vec.row(surf.n, i), vec.row(d, i), spawn)
+        if wl <= 0.0 or bsdf.is_black(cl):
+            continue
+        wo = vec.scale(vec.row(weight, i), wl)
+        p = (surf.p[i, 0], surf.p[i, 1], surf.p[i, 2])
+        ng, n = vec.row(surf.ng, i), vec.row(surf.n, i)
+        wi = vec.scale(vec.row(d, i), -1.0)
+        if has_amb and opt.sky_side == 0:  # the notes' ambient term R_a·L_a (and the lobes' albedo × L_a)
+            c = shading.ambient(cl.diffuse, amb)
+            if opt.principled:
+                c = vec.add(c, vec.scale(vec.mul(bsdf.specular_albedo(cl), amb), 1.0 - g))
+            for ch in range(3):
+                out.color[s, ch] += wo[ch] * c[ch]
+        r0, r1 = 0.0, 0.0
+        if opt.needs_light_random:
+            r0, r1 = uniform2_1(keys[s], _STREAM_LIGHT + depth, opt.seed)
+        for j in range(n_lights):
+            # a light the mirror ray can see (emissive triangles) gives the mirror share of the lobes to that ray
+            spec_scale = 1.0 - g if lights.kind[j] == MESH else 1.0
+            for k in range(lights.side[j] * lights.side[j]):
+                l, dist, e = sample_light(lights, j, k, p, r0, r1)
+                n_l = vec.dot(n, l)
+                if n_l <= 0.0 or vec.dot(ng, l) <= 0.0:
+                    continue
+                c = vec.mul(wo, vec.mul(bsdf.evaluate(cl, n, wi, l, n_l, spec_scale), e))
+                if opt.shadows:  # the shadow ray (p, l, ε, dist): counts only if nothing is in between
+                    _put(shadow, n_shadow, spawn_ray(p, ng, l, eps), l, dist - 2.0 * eps, s, c, j)
+                    n_shadow += 1
+                    counts[_N_SHADOW] += 1
+                else:
+                    for ch in range(3):
+                        out.color[s, ch] += c[ch]
+    return n_shadow
+
+
+@kernel
+def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shadow, n_shadow, counts):
+    """Sky stage: the environment as a light (directions importance-sampled by luminance, local model × radiance
+    / pdf), or the ambient term weighted by the visible sky (cosine-weighted hemisphere rays); deferred like shadow
+    rays. Returns the shadow queue's new length."""
+    eps = opt.eps
+    side = opt.sky_side
+    kk = side * side
+    amb = (opt.ambient[0], opt.ambient[1], opt.ambient[2])
+    for i in range(surf.hit.shape[0]):
+        if not surf.hit[i] or depth > opt.max_depth:
+            continue
+        s = sample[i]
+        mat = surf.mat[i]
+        cl, wl, g = _local_model(opt.principled, vec.row(surf.base, i), float(surf.metallic[i]),
+                                 float(surf.roughness[i]), float(surf.specular[i]), vec.row(mats.specular_tint, mat),
+                                 float(mats.ior[mat]), float(mats.transmission[mat]), float(mats.k_m[mat]),
+                                 float(surf.cover[i]), vec.row(mats.specular_color, mat), float(mats.exponent[mat]),
+                                 vec.row(surf.n, i), vec.row(d, i), spawn)
+        if wl <= 0.0 or bsdf.is_black(cl):
+            continue
+        wo = vec.scale(vec.row(weight, i), wl)
+        p = (surf.p[i, 0], surf.p[i, 1], surf.p[i, 2])
+        ng, n = vec.row(surf.ng, i), vec.row(surf.n, i)
+        wi = vec.scale(vec.row(d, i), -1.0)
+        r0, r1 = uniform2_1(keys[s], _STREAM_SKY + depth, opt.seed)
+        if env.present:  # the mirror ray sees the environment: its share of the lobes is left to it
+            for k in range(kk):
+                s0, s1 = multijitter(k, side, r0, r1)
+                dr, pdf = env_sample(env, s0, s1)
+                n_l = vec.dot(n, dr)
+                if n_l <= 0.0 or vec.dot(ng, dr) <= 0.0 or pdf <= 0.0:
+                    continue
+                f = bsdf.evaluate(cl, n, wi, dr, n_l, 1.0 - g)
+                c = vec.scale(vec.mul(wo, vec.mul(f, env_radiance(env, dr))), 1.0 / (pdf * kk))
+                _put(shadow, n_shadow, spawn_ray(p, ng, dr, eps), dr, np.inf, s, c, -1)
+                n_shadow += 1
+                counts[_N_SKY] += 1
+            continue
+        if not (amb[0] > 0.0 or amb[1] > 0.0 or amb[2] > 0.0):
+            continue
+        if opt.principled:  # the lobes' share of the uniform sky, unshadowed
+            c = vec.scale(vec.mul(bsdf.specular_albedo(cl), amb), 1.0 - g)
+            for ch in range(3):
+                out.color[s, ch] += wo[ch] * c[ch]
+        c = vec.scale(vec.mul(wo, shading.ambient(cl.diffuse, amb)), 1.0 / kk)
+        tu, tv = vec.orthonormal_basis(n)
+        for k in range(kk):
+            s0, s1 = stratum(k, side, r0, r1)
+            r = np.sqrt(s0)
+            phi = 2.0 * np.pi * s1
+            dr = vec.madd(vec.madd(vec.scale(n, np.sqrt(max(0.0, 1.0 - s0))), tu, r * np.cos(phi)), tv, r * np.sin(phi))
+            _put(shadow, n_shadow, spawn_ray(p, ng, dr, eps), dr, np.inf, s, c, -1)
+            n_shadow += 1
+        counts[_N_SKY] += kk
+    return n_shadow
+
+
+@kernel
+def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, counts):
+    """Spawn stage: per hit, the reflected ray (k_m·mirror_tint + the Principled lobes' mirror share + glass·F),
+    the transmitted ray (glass·(1 − F)) and, where alpha < 1, the ray that passes straight through (weight
+    1 − alpha, same depth). Returns (reflections, transmissions, pass-through rays) written."""
+    n_rays = surf.hit.shape[0]
+    eps = opt.eps
+    n_refl = 0
+    n_tran = 0
+    n_through = 0
+    rec = nxt.spawned
+    for i in range(n_rays):
+        if not surf.hit[i]:
+            continue
+        s = sample[i]
+        w = vec.row(weight, i)
         di = vec.row(d, i)
-        p = vec.madd(vec.row(o, i), di, float(t[i]))
-        ng, n, front = world_frame(geom, itab, inst[i], tri, di, float(u[i]), float(v[i]))
-        mat = material_id(itab, inst[i], geom.material_ids[tri])
-        diffuse = vec.row(mats.diffuse, mat)
-        ti = mats.diffuse_texture[mat]
-        if ti >= 0:
-            st = hit_uv(geom, tri, float(u[i]), float(v[i]))
-            diffuse = vec.mul(diffuse, bilinear(tex_data, tex_info, ti, st[0], st[1]))
+        p = (surf.p[i, 0], surf.p[i, 1], surf.p[i, 2])
+        ng, n = vec.row(surf.ng, i), vec.row(surf.n, i)
+        a = float(surf.cover[i])
+        if a < 1.0:  # alpha: 1 − a of the ray continues unchanged behind the surface
+            wt = vec.scale(w, 1.0 - a)
+            if vec.max3(wt) > opt.min_weight:
+                _put_ray(nxt.through_o, nxt.through_d, nxt.through_weight, nxt.through_sample, n_through,
+                         spawn_ray(p, ng, di, eps), di, wt, s)
+                nxt.through_t0[n_through] = t0[i] + t[i]
+                n_through += 1
+                counts[_N_TRANSMISSION] += 1
+        if not spawn or a <= 0.0:
+            continue
+        mat = surf.mat[i]
         k_m = float(mats.k_m[mat])
         w_t = float(mats.transmission[mat])
-        opaque = (1.0 - k_m) * (1.0 - w_t)
-
-        if depth == 0:
-            out.depth[s] = t[i]
-            out.normal[s, 0], out.normal[s, 1], out.normal[s, 2] = n
-            out.albedo[s, 0], out.albedo[s, 1], out.albedo[s, 2] = diffuse
-            out.object_id[s] = object_id(itab, inst[i], geom.object_ids[tri])
-
-        # Local colour: emission + (1 − k_m)(1 − w_t)·(ambient + Σ lights), only where it carries weight.
-        # Terminal rays (past max_depth, Cycles' last bounce) collect emission and background only.
-        local = vec.row(mats.emission, mat)
-        if opaque > 0.0 and depth <= opt.max_depth:
-            wo = vec.scale(w, opaque)
-            origin = vec.madd(p, ng, eps)  # shadow rays leave on the incident side, ε along ng
-            key = keys[s]
-            if env.present and sky_side > 0:  # the environment as a light: importance-sampled by luminance
-                kk = sky_side * sky_side
-                r0, r1 = uniform2_1(key, _STREAM_SKY + depth, opt.seed)
-                for k in range(kk):
-                    s0, s1 = multijitter(k, sky_side, r0, r1)
-                    dr, pdf = env_sample(env, s0, s1)
-                    n_l = vec.dot(n, dr)
-                    if n_l <= 0.0 or vec.dot(ng, dr) <= 0.0 or pdf <= 0.0:
-                        continue
-                    # R_d/π · L(ω)·cos θ / pdf(ω), averaged over the kk samples; counts if the sky is visible
-                    c = vec.scale(vec.mul(wo, vec.mul(diffuse, env_radiance(env, dr))), n_l / (np.pi * pdf * kk))
-                    _put(so, sd, sl, ss, sc, n_shadow, origin, dr, np.inf, s, c)
-                    rec.light[n_shadow] = -1
-                    n_shadow += 1
-                    counts[_N_SKY] += 1
-            elif opt.ambient[0] > 0.0 or opt.ambient[1] > 0.0 or opt.ambient[2] > 0.0:
-                amb = shading.ambient(diffuse, opt.ambient)
-                if sky_side == 0:
-                    local = vec.madd(local, amb, opaque)
-                else:  # weight by the visible sky: cosine-weighted hemisphere rays, deferred like shadow rays
-                    kk = sky_side * sky_side
-                    c = vec.scale(vec.mul(wo, amb), 1.0 / kk)
-                    r0, r1 = uniform2_1(key, _STREAM_SKY + depth, opt.seed)
-                    tu, tv = vec.orthonormal_basis(n)
-                    for k in range(kk):
-                        s0, s1 = stratum(k, sky_side, r0, r1)
-                        r = np.sqrt(s0)
-                        phi = 2.0 * np.pi * s1
-                        dr = vec.madd(vec.madd(vec.scale(n, np.sqrt(max(0.0, 1.0 - s0))), tu, r * np.cos(phi)),
-                                      tv, r * np.sin(phi))
-                        _put(so, sd, sl, ss, sc, n_shadow, origin, dr, np.inf, s, c)
-                        rec.light[n_shadow] = -1
-                        n_shadow += 1
-                    counts[_N_SKY] += kk
-            r0, r1 = 0.0, 0.0
-            if opt.needs_light_random:
-                r0, r1 = uniform2_1(key, _STREAM_LIGHT + depth, opt.seed)
-            specular = vec.row(mats.specular, mat)
-            has_spec = vec.max3(specular) > 0.0
-            exponent = float(mats.exponent[mat])
-            for j in range(n_lights):
-                for k in range(lights.side[j] * lights.side[j]):
-                    l, dist, e = sample_light(lights, j, k, p, r0, r1)
-                    n_l = vec.dot(n, l)
-                    if n_l <= 0.0 or vec.dot(ng, l) <= 0.0:
-                        continue
-                    c = shading.lambert(diffuse, e, n_l)
-                    if has_spec:
-                        h = shading.half_vector(l, vec.scale(di, -1.0))
-                        c = vec.add(c, shading.blinn_phong(specular, exponent, n, h, e, n_l))
-                    c = vec.mul(wo, c)
-                    if opt.shadows:  # the shadow ray (p, l, ε, dist): counts only if nothing is in between
-                        _put(so, sd, sl, ss, sc, n_shadow, origin, l, dist - 2.0 * eps, s, c)
-                        rec.light[n_shadow] = j
-                        n_shadow += 1
-                        counts[_N_SHADOW] += 1
-                    else:
-                        for ch in range(3):
-                            out.color[s, ch] += c[ch]
-        for ch in range(3):
-            out.color[s, ch] += w[ch] * local[ch]
-
-        if not spawn or opaque >= 1.0:
+        mirror = vec.scale(vec.row(mats.mirror_tint, mat), k_m)
+        if opt.principled:
+            glass = (1.0 - k_m) * (1.0 - float(surf.metallic[i])) * w_t
+            g = bsdf.mirror_share(float(surf.roughness[i]))
+            if g > 0.0 and (surf.metallic[i] > 0.0 or surf.specular[i] > 0.0):
+                cl, wl, g = _local_model(True, vec.row(surf.base, i), float(surf.metallic[i]),
+                                         float(surf.roughness[i]), float(surf.specular[i]),
+                                         vec.row(mats.specular_tint, mat), float(mats.ior[mat]), w_t, k_m,
+                                         float(surf.cover[i]), vec.row(mats.specular_color, mat),
+                                         float(mats.exponent[mat]), vec.row(surf.n, i), di, spawn)
+                mirror = vec.madd(mirror, bsdf.specular_albedo(cl), (1.0 - k_m) * g)
+        else:  # classic: a smooth metal (Principled input) mirrors its base colour, as the notes' k_m·tint
+            glass = (1.0 - k_m) * w_t
+            m = float(surf.metallic[i])
+            if m > 0.0:
+                g = bsdf.mirror_share(float(surf.roughness[i]))
+                mirror = vec.madd(mirror, vec.row(surf.base, i), (1.0 - k_m) * m * g)
+        mirror = vec.scale(mirror, a)
+        glass *= a
+        if glass <= 0.0 and vec.max3(mirror) <= 0.0:
             continue
         # Secondary rays where a mirror or glass part exists: reflection and transmission.
-        glass = (1.0 - k_m) * w_t
-        mirror = vec.scale(vec.row(mats.mirror_tint, mat), k_m)
         r_dir = optics.reflect_dir(di, n)
         r_n = n
         # Interpolated normals can tilt a reflection below the surface: use the geometric normal there.
@@ -429,7 +832,7 @@ def _shade_hits(o, d, t, prim, inst, itab, u, v, sample, weight, keys, depth, sp
         w_refl = vec.mul(w, mirror)
         if glass > 0.0:
             ior = float(mats.ior[mat])
-            eta_i, eta_r = (1.0, ior) if front else (ior, 1.0)
+            eta_i, eta_r = (1.0, ior) if surf.front[i] else (ior, 1.0)
             t_dir, tir = optics.refract_dir(di, n, eta_i, eta_r)
             t_n = n
             if opt.fresnel:
@@ -449,42 +852,46 @@ def _shade_hits(o, d, t, prim, inst, itab, u, v, sample, weight, keys, depth, sp
                         w_tran = (0.0, 0.0, 0.0)
             if vec.max3(w_tran) > opt.min_weight:
                 j = n_rays + n_tran
-                _put_ray(no, nd, nw, ns, j, vec.madd(p, ng, -eps), vec.normalize(t_dir), w_tran, s)
+                t_dir = vec.normalize(t_dir)
+                _put_ray(nxt.o, nxt.d, nxt.weight, nxt.sample, j, spawn_ray(p, ng, t_dir, eps), t_dir, w_tran, s)
                 _put_spawn(rec, j, t_n, eta_i, eta_r, False)
                 n_tran += 1
         if vec.max3(w_refl) > opt.min_weight:
-            _put_ray(no, nd, nw, ns, n_refl, vec.madd(p, ng, eps), vec.normalize(r_dir), w_refl, s)
+            r_dir = vec.normalize(r_dir)
+            _put_ray(nxt.o, nxt.d, nxt.weight, nxt.sample, n_refl, spawn_ray(p, ng, r_dir, eps), r_dir, w_refl, s)
             _put_spawn(rec, n_refl, r_n, eta_i, eta_r, tir)
             n_refl += 1
     counts[_N_REFLECTION] += n_refl
     counts[_N_TRANSMISSION] += n_tran
-    return n_shadow, n_refl, n_tran
+    return n_refl, n_tran, n_through
 
 
-@kernel(inline=True)
-def _put(so, sd, sl, ss, sc, j, origin, direction, length, s, c):
-    so[j, 0], so[j, 1], so[j, 2] = origin
-    sd[j, 0], sd[j, 1], sd[j, 2] = direction
-    sl[j] = length
-    ss[j] = s
-    sc[j, 0], sc[j, 1], sc[j, 2] = c
-
-
-@kernel(inline=True)
-def _put_ray(no, nd, nw, ns, j, origin, direction, w, s):
-    no[j, 0], no[j, 1], no[j, 2] = origin
-    nd[j, 0], nd[j, 1], nd[j, 2] = direction
-    nw[j, 0], nw[j, 1], nw[j, 2] = w
-    ns[j] = s
-
-
-@kernel(inline=True)
-def _put_spawn(rec, j, n, eta_i, eta_r, tir):
-    """What a spawned ray's direction was computed from (for ``tracer.explain``): the unit normal on the incident
-    side, the two refractive indices and whether total internal reflection turned a transmission into it."""
-    rec.normal[j, 0], rec.normal[j, 1], rec.normal[j, 2] = n
-    rec.eta[j, 0], rec.eta[j, 1] = eta_i, eta_r
-    rec.tir[j] = tir
+@kernel
+def _pass_shadow(sel, idx, t, prim, inst, itab, u, v, geom, mats, tex, o, d, t_max, color, pending, blocked, eps):
+    """One round of transparent shadows: each pending shadow ray's first blocker either stops it (alpha 1) or lets
+    1 − alpha of its colour through, the ray continuing behind it; a ray that reaches its light is unblocked."""
+    for q in range(sel.shape[0]):
+        j = sel[q]
+        r = idx[j]
+        tri = prim[q]
+        if tri < 0:  # nothing (left) in the way
+            pending[j] = False
+            blocked[r] = False
+            continue
+        a = coverage(geom, mats, tex, material_id(itab, inst[q], geom.material_ids[tri]), tri, float(u[q]),
+                     float(v[q]))
+        if a >= 1.0:
+            pending[j] = False
+            continue
+        for c in range(3):
+            color[r, c] *= 1.0 - a
+        dj = vec.row(d, j)
+        p = vec.madd(vec.row(o, j), dj, float(t[q]))
+        ng = to_world_normal(itab, inst[q], vec.row(geom.face_normals, tri))
+        if vec.dot(ng, dj) > 0.0:
+            ng = vec.scale(ng, -1.0)
+        o[j, 0], o[j, 1], o[j, 2] = spawn_ray(p, ng, dj, eps)
+        t_max[j] = t_max[j] - t[q]
 
 
 @kernel

@@ -15,6 +15,7 @@ from .camera import Camera
 from .environment import Environment
 from .lights import AreaLight, DistantLight, PointLight, SpotLight
 from .materials import Materials
+from .texture import as_texture
 
 #: Triangles whose area is at most this fraction of the squared bounding-box diagonal are degenerate and skipped.
 DEGENERATE_AREA = 1e-14
@@ -22,7 +23,9 @@ DEGENERATE_AREA = 1e-14
 #: The Scene fields that hold one row per triangle (row i belongs to ``triangles[i]``; list-valued ones are lists
 #: of such arrays), with the value a row without such data gets. tracer.Session's mesh edits keep every one of
 #: these in step with the triangles; a new per-triangle field belongs here.
-PER_TRIANGLE = {"material_ids": 0, "object_ids": 0, "normals": 0.0, "uvs": 0.0}
+#: Per-triangle fields and the value rows without data get (UV sets: NaN = no coordinates). ``uvs`` is not listed:
+#: it is ``uv_sets[0]``.
+PER_TRIANGLE = {"material_ids": 0, "object_ids": 0, "normals": 0.0, "uv_sets": np.nan, "colors": 1.0}
 
 
 def unit_normals(normals: np.ndarray) -> np.ndarray:
@@ -137,8 +140,13 @@ class Scene:
     material_ids  (T,) int32, rows of ``materials``
     object_ids    (T,) int32, user-facing object index (AOV "objectid"); names in ``object_names``
     normals       optional (T, 3, 3) float32 per-corner shading normals
-    uvs           optional (T, 3, 2) float32 per-corner texture coordinates
-    textures      list of (H, W, 3) float32 linear-RGB images referenced by ``Materials.diffuse_texture``
+    uvs           optional (T, 3, 2) float32 per-corner texture coordinates (UV set 0)
+    uv_sets       list of (T, 3, 2) per-corner texture coordinates; set 0 is ``uvs``. NaN = this triangle has no
+                  coordinates in the set (a texture reading it gives its fallback)
+    colors        optional (T, 3, 3) float32 per-corner vertex colours (linear RGB), read by materials with
+                  ``vertex_color``
+    textures      list of :class:`tracer.Texture` (a bare (H, W, C) array is wrapped with the defaults), referenced
+                  by the materials' ``*_texture`` columns
     background    colour of rays that hit nothing
     ambient       L_a of the seed (the world's colour × strength): ambient term L_a·R_a
     object_names  name per object id; object_pass_indices optionally maps object ids to user pass indices
@@ -156,6 +164,8 @@ class Scene:
     normals: np.ndarray | None = None
     uvs: np.ndarray | None = None
     textures: list = field(default_factory=list)
+    uv_sets: list = field(default_factory=list)
+    colors: np.ndarray | None = None
     background: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
     ambient: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
     object_names: list = field(default_factory=list)
@@ -219,17 +229,17 @@ class Scene:
             if nr.shape != (n, 3, 3):
                 raise ValueError(f"scene.normals must have shape ({n}, 3, 3) (per-corner), got {nr.shape}")
             self.normals = unit_normals(nr)
-        if self.uvs is not None:
-            uv = np.asarray(self.uvs, dtype=np.float32)
-            if uv.shape != (n, 3, 2):
-                raise ValueError(f"scene.uvs must have shape ({n}, 3, 2) (per-corner), got {uv.shape}")
-            self.uvs = np.ascontiguousarray(np.nan_to_num(uv, nan=0, posinf=0, neginf=0))
+        self._validate_uv_sets(n)
+        if self.colors is not None:
+            col = np.asarray(self.colors, dtype=np.float32)
+            if col.ndim == 3 and col.shape[:2] == (n, 3) and col.shape[2] == 4:
+                col = col[..., :3]
+            if col.shape != (n, 3, 3):
+                raise ValueError(f"scene.colors must have shape ({n}, 3, 3) (per-corner RGB), got {col.shape}")
+            self.colors = np.ascontiguousarray(np.nan_to_num(col, nan=1.0, posinf=0.0, neginf=0.0))
 
         for i, tex in enumerate(self.textures):
-            a = np.asarray(tex)
-            if a.ndim != 3 or a.shape[2] not in (3, 4) or a.shape[0] < 1 or a.shape[1] < 1:
-                raise ValueError(f"scene.textures[{i}] must have shape (H, W, 3|4), got {a.shape}")
-            self.textures[i] = np.ascontiguousarray(np.nan_to_num(a[..., :3].astype(np.float32)))
+            self.textures[i] = as_texture(tex, f"scene.textures[{i}]")
 
         for name in ("background", "ambient"):
             c = np.asarray(getattr(self, name), dtype=np.float32).reshape(-1)
@@ -280,6 +290,30 @@ class Scene:
 
         self._drop_degenerate()
 
+    def _validate_uv_sets(self, n):
+        """``uv_sets`` and ``uvs`` are one list (set 0 = ``uvs``): fill one from the other, check shapes. Infinite
+        coordinates become NaN (no coordinates)."""
+        sets = list(self.uv_sets or [])
+        seen = getattr(self, "_uvs_validated", None)  # set 0 as the last validation left it
+        if self.uvs is not None:
+            if not sets:
+                sets = [self.uvs]
+            elif seen is not None and sets[0] is seen and self.uvs is not seen:
+                sets[0] = self.uvs  # uvs was replaced after validation: it is set 0
+            elif (sets[0] is not self.uvs and (seen is None or self.uvs is not seen)
+                  and not np.array_equal(np.asarray(sets[0]), np.asarray(self.uvs), equal_nan=True)):
+                raise ValueError("scene.uvs and scene.uv_sets[0] differ; uvs is UV set 0 (give one of them)")
+        elif seen is not None and sets and sets[0] is seen:
+            sets = []  # uvs was set to None after validation: no UV sets
+        for i, uv in enumerate(sets):
+            a = np.asarray(uv, dtype=np.float32)
+            if a.shape != (n, 3, 2):
+                raise ValueError(f"scene.uv_sets[{i}] must have shape ({n}, 3, 2) (per-corner), got {a.shape}")
+            sets[i] = np.ascontiguousarray(np.where(np.isinf(a), np.float32(np.nan), a))
+        self.uv_sets = sets
+        self.uvs = sets[0] if sets else None
+        self._uvs_validated = self.uvs
+
     @staticmethod
     def _per_triangle(a, name, n):
         if a is None:
@@ -311,8 +345,10 @@ class Scene:
             self.object_ids = np.ascontiguousarray(self.object_ids[keep])
             if self.normals is not None:
                 self.normals = np.ascontiguousarray(self.normals[keep])
-            if self.uvs is not None:
-                self.uvs = np.ascontiguousarray(self.uvs[keep])
+            self.uv_sets = [np.ascontiguousarray(uv[keep]) for uv in self.uv_sets]
+            self.uvs = self._uvs_validated = self.uv_sets[0] if self.uv_sets else None
+            if self.colors is not None:
+                self.colors = np.ascontiguousarray(self.colors[keep])
 
     # ------------------------------------------------------------------ queries
     def prototype_rows(self) -> np.ndarray:

@@ -192,7 +192,7 @@ class Session:
             self._repack()
 
     def update_mesh(self, object_id: int, vertices, triangles, material=0, normals=None, uvs=None,
-                    transform=None) -> None:
+                    transform=None, uv_sets=None, colors=None) -> None:
         """Replace the geometry of object ``object_id`` (arguments as :meth:`tracer.SceneBuilder.add_mesh`:
         object-space vertices, optional 4×4 ``transform``); only that object's Embree geometry is rebuilt."""
         with self._edit("mesh"):
@@ -204,20 +204,23 @@ class Session:
                 if self._geometry.is_prototype(object_id) and transform is not None:
                     raise ValueError(f"update_mesh({object_id}): object {object_id} is a prototype (its mesh is in "
                                      "object space, placed by its instances): pass no transform")
+            label = self._scene.object_name(object_id)
             mesh = place_mesh(vertices, triangles, material, transform=transform, normals=normals, uvs=uvs,
-                              label=self._scene.object_name(object_id), n_materials=len(self._scene.materials))
-            self._geometry.replace(object_id, mesh)
+                              label=label, n_materials=len(self._scene.materials))
+            extra = _corner_rows(label, mesh, vertices, uv_sets, colors)
+            self._geometry.replace(object_id, mesh, extra=extra)
             self._repack()
 
     def add_object(self, vertices, triangles, material=0, name: str | None = None, transform=None, normals=None,
-                   uvs=None) -> int:
+                   uvs=None, uv_sets=None, colors=None) -> int:
         """Add an object (arguments as :meth:`tracer.SceneBuilder.add_mesh`); returns its new object id."""
         with self._edit("add"):
             object_id = self._geometry.next_object_id()
             label = name or f"object{object_id}"
             mesh = place_mesh(vertices, triangles, material, transform=transform, normals=normals, uvs=uvs,
                               label=label, n_materials=len(self._scene.materials))
-            self._geometry.replace(object_id, mesh, name=label)
+            extra = _corner_rows(label, mesh, vertices, uv_sets, colors)
+            self._geometry.replace(object_id, mesh, name=label, extra=extra)
             self._repack()
             return object_id
 
@@ -447,10 +450,11 @@ class _Objects:
             v, t = _object_mesh(s, rows)
             mesh = place_mesh(v, t, s.material_ids[rows], transform=rel,
                               normals=None if s.normals is None else s.normals[rows],
-                              uvs=None if s.uvs is None else s.uvs[rows], label=s.object_name(object_id))
-            # Any other per-triangle data of these rows goes along, corners turned as place_mesh turned them.
+                              label=s.object_name(object_id))
+            # Any other per-triangle data of these rows goes along (UV sets included), corners turned as
+            # place_mesh turned them.
             extra = {f: _rows_of(getattr(s, f), rows, mirrored=True) for f in PER_TRIANGLE
-                     if f not in ("material_ids", "object_ids", "normals", "uvs")}
+                     if f not in ("material_ids", "object_ids", "normals")}
             self._transforms[object_id] = matrix
             self.replace(object_id, mesh, placed_with=matrix, extra=extra)
             return
@@ -486,14 +490,22 @@ class _Objects:
             mesh, rows = _clean(mesh, s, rows)
             nt = len(mesh.triangles)
             rows.update(material_ids=mesh.material_ids, object_ids=np.full(nt, object_id, np.int32),
-                        normals=mesh.normals, uvs=mesh.uvs)
+                        normals=mesh.normals)
+            rows["uv_sets"] = _uv_set_rows(rows.get("uv_sets"), mesh.uvs)
             tris = np.concatenate([s.triangles[keep][:at], mesh.triangles + n_v, s.triangles[keep][at:]])
             verts = np.concatenate([s.vertices, mesh.vertices]).astype(np.float32)
         else:
             nt, tris, verts = 0, s.triangles[keep], s.vertices
+        new_sets = rows.get("uv_sets") or []
+        if len(new_sets) > len(s.uv_sets or []):  # the new rows bring UV sets the scene has not had yet
+            s.uv_sets = list(s.uv_sets or []) + [None] * (len(new_sets) - len(s.uv_sets or []))
         for field_name, fill in PER_TRIANGLE.items():
             setattr(s, field_name, _splice(getattr(s, field_name), rows.get(field_name), keep, at, nt, fill))
             self._owned.add(field_name)
+        n_rows = len(tris)
+        s.uv_sets = [a if a is not None else np.full((n_rows, 3, 2), np.nan, np.float32) for a in s.uv_sets or []]
+        s.uvs = s.uv_sets[0] if s.uv_sets else None
+        s._uvs_validated = s.uvs
         self._owned.update(("vertices", "triangles"))  # new arrays below
         self._rows.clear()  # rows moved, vertices renumbered
         self._vidx.clear()
@@ -560,11 +572,34 @@ def _rows_of(field, rows, mirrored=False):
     return part[:, [0, 2, 1]] if mirrored and part.ndim >= 2 and part.shape[1] == 3 else part
 
 
+def _corner_rows(label, mesh, vertices, uv_sets, colors) -> dict:
+    """The per-corner UV sets and colours of a mesh given to ``add_object``/``update_mesh``, checked and turned as
+    :func:`place_mesh` turned its triangles: {"uv_sets": [arrays or None], "colors": array or None}."""
+    from .builder import _corner_extras
+
+    mirrored = bool(np.linalg.det(mesh.transform[:3, :3]) < 0)
+    n_v = len(np.asarray(vertices).reshape(-1, 3))
+    ex = _corner_extras(label, uv_sets, colors, mesh.uvs, n_v, mesh.triangles, mirrored)
+    sets = ex["uv_sets"]
+    listed = [sets.get(k) for k in range(max(sets, default=-1) + 1)]
+    return {"uv_sets": listed or None, "colors": ex["colors"]}
+
+
+def _uv_set_rows(sets, uvs):
+    """The UV sets of new rows as a list (index = set), with the placed mesh's ``uvs`` as set 0."""
+    out = list(sets or [])
+    if uvs is not None:
+        out = out or [None]
+        out[0] = uvs
+    return out or None
+
+
 def _clean(mesh, scene: Scene, extra: dict):
     """A placed mesh (and its ``extra`` per-triangle rows) as :meth:`Scene.validate` would leave it: unit corner
     normals, finite uvs, degenerate triangles dropped (with the scene's one warning)."""
     normals = None if mesh.normals is None else unit_normals(mesh.normals)
-    uvs = None if mesh.uvs is None else np.ascontiguousarray(np.nan_to_num(mesh.uvs, nan=0, posinf=0, neginf=0))
+    uvs = None if mesh.uvs is None else np.ascontiguousarray(np.where(np.isinf(mesh.uvs), np.nan, mesh.uvs),
+                                                             np.float32)
     lo, hi = scene.bounds
     if len(mesh.vertices):
         lo, hi = np.minimum(lo, mesh.vertices.min(axis=0)), np.maximum(hi, mesh.vertices.max(axis=0))

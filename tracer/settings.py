@@ -7,6 +7,9 @@ from dataclasses import dataclass, field, replace
 AOV_NAMES = ("depth", "normal", "albedo", "objectid", "direct", "reflection", "transmission", "raydepth")
 #: AOVs that split the beauty by the ray type light arrived through (they sum to it), and the deepest ray per pixel.
 RAY_TYPE_AOVS = ("direct", "reflection", "transmission", "raydepth")
+#: Local illumination models (RenderSettings.shading): the Principled BSDF's diffuse + GGX specular evaluated per
+#: light sample (matches Cycles), or the notes' Lambert + Blinn-Phong.
+SHADING_MODELS = ("principled", "classic")
 #: The one default anti-aliasing level (N for N×N samples per pixel) of RenderSettings, the CLI's --aa, the add-on
 #: and `make render`.
 DEFAULT_AA = 2
@@ -34,6 +37,12 @@ class RenderSettings:
     #: Trace one more reflection/transmission bounce past max_depth that collects only background and emission
     #: (what Cycles' last bounce does); False = the notes' hard cut-off.
     terminal_rays: bool = False
+    #: Local model: "principled" (Principled diffuse + GGX specular, as Cycles) or "classic" (the notes' Lambert +
+    #: Blinn-Phong). See README, "Conventions".
+    shading: str = "principled"
+    #: Surfaces with alpha < 1 (or cut-outs) one ray may pass through before it stops (Cycles' Transparent Max
+    #: Bounces, default 8); passing through does not count towards max_depth.
+    max_transparent: int = 8
     #: Paths whose accumulated weight falls below this stop early (Russian roulette-free cut-off; deterministic).
     min_weight: float = 1e-3
     #: Missed eye rays get alpha 0 and no background colour (Blender's Film > Transparent).
@@ -67,6 +76,9 @@ class RenderSettings:
         positive_int("light_samples")
         positive_int("sky_samples", 0)
         positive_int("tile_size", 4)
+        positive_int("max_transparent", 0)
+        if self.shading not in SHADING_MODELS:
+            raise ValueError(f"settings.shading must be one of {', '.join(SHADING_MODELS)}, got {self.shading!r}")
         if self.threads is not None:
             positive_int("threads")
         if self.epsilon is not None and not (self.epsilon > 0 and self.epsilon < float("inf")):

@@ -20,11 +20,16 @@ class Geometry(NamedTuple):
     face_normals: np.ndarray  # (T, 3) float32 unit geometric normals (counter-clockwise front)
     normals: np.ndarray  # (T, 3, 3) float32 per-corner shading normals, or (0, 3, 3)
     corner_ok: np.ndarray  # (T,) bool: all three corner normals usable, or (0,)
-    uvs: np.ndarray  # (T, 3, 2) float32 per-corner texture coordinates, or (0, 3, 2)
+    uvs: np.ndarray  # (T, 3, 2) float32 per-corner texture coordinates (UV set 0), or (0, 3, 2)
     material_ids: np.ndarray  # (T,) int32
     object_ids: np.ndarray  # (T,) int32
     has_normals: bool
     has_uvs: bool
+    uv_sets: np.ndarray  # (S, T, 3, 2) float32 every UV set (NaN: no coordinates), S ≥ 0
+    colors: np.ndarray  # (T, 3, 3) float32 per-corner vertex colours, or (0, 3, 3)
+    has_colors: bool
+    vertices: np.ndarray  # (V, 3) float32
+    triangles: np.ndarray  # (T, 3) int32
 
 
 def geometry_of(scene: Scene) -> Geometry:
@@ -35,9 +40,15 @@ def geometry_of(scene: Scene) -> Geometry:
     corner_ok = np.empty(n_tri if has_n else 0, np.bool_)
     normals = scene.normals if has_n else np.zeros((0, 3, 3), np.float32)
     _face_frames(scene.vertices, scene.triangles, normals, face_normals, corner_ok)
+    sets = scene.uv_sets
+    uv_sets = (sets[0][None] if len(sets) == 1 else np.ascontiguousarray(np.stack(sets))) if sets else \
+        np.zeros((0, n_tri, 3, 2), np.float32)
+    has_c = scene.colors is not None
     return Geometry(face_normals=face_normals, normals=normals, corner_ok=corner_ok,
                     uvs=scene.uvs if has_uv else np.zeros((0, 3, 2), np.float32),
-                    material_ids=scene.material_ids, object_ids=scene.object_ids, has_normals=has_n, has_uvs=has_uv)
+                    material_ids=scene.material_ids, object_ids=scene.object_ids, has_normals=has_n, has_uvs=has_uv,
+                    uv_sets=uv_sets, colors=scene.colors if has_c else np.zeros((0, 3, 3), np.float32),
+                    has_colors=has_c, vertices=scene.vertices, triangles=scene.triangles)
 
 
 @kernel
@@ -91,3 +102,51 @@ def hit_uv(geom, tri, u, v):
     c = geom.uvs
     return (w * c[tri, 0, 0] + u * c[tri, 1, 0] + v * c[tri, 2, 0],
             w * c[tri, 0, 1] + u * c[tri, 1, 1] + v * c[tri, 2, 1])
+
+
+@kernel(inline=True)
+def hit_uv_set(geom, k, tri, u, v):
+    """Texture coordinates (s, t) of UV set k at barycentrics (u, v) of triangle ``tri``, and whether the triangle
+    has coordinates in that set (False: no such set, or NaN corners)."""
+    if k >= geom.uv_sets.shape[0]:
+        return 0.0, 0.0, False
+    w = 1.0 - u - v
+    c = geom.uv_sets[k]
+    s = w * c[tri, 0, 0] + u * c[tri, 1, 0] + v * c[tri, 2, 0]
+    t = w * c[tri, 0, 1] + u * c[tri, 1, 1] + v * c[tri, 2, 1]
+    return s, t, (s == s and t == t)
+
+
+@kernel(inline=True)
+def hit_color(geom, tri, u, v):
+    """Interpolated vertex colour at barycentrics (u, v) of triangle ``tri`` (white without vertex colours)."""
+    if not geom.has_colors:
+        return 1.0, 1.0, 1.0
+    w = 1.0 - u - v
+    c = geom.colors
+    return (w * c[tri, 0, 0] + u * c[tri, 1, 0] + v * c[tri, 2, 0],
+            w * c[tri, 0, 1] + u * c[tri, 1, 1] + v * c[tri, 2, 1],
+            w * c[tri, 0, 2] + u * c[tri, 1, 2] + v * c[tri, 2, 2])
+
+
+@kernel(inline=True)
+def uv_tangent(geom, k, tri, ng):
+    """Unit tangent T (direction of increasing s) and bitangent sign of UV set k on triangle ``tri``, from its
+    corner positions and coordinates (dp/ds of the triangle's affine UV map); (0, 0, 0) where the UVs are
+    degenerate or missing. The sign is +1 where (T, dp/dt) is right-handed about the front-face normal ``ng``."""
+    if k >= geom.uv_sets.shape[0]:
+        return (0.0, 0.0, 0.0), 1.0
+    c = geom.uv_sets[k]
+    p0 = vec.row(geom.vertices, geom.triangles[tri, 0])
+    e1 = vec.sub(vec.row(geom.vertices, geom.triangles[tri, 1]), p0)
+    e2 = vec.sub(vec.row(geom.vertices, geom.triangles[tri, 2]), p0)
+    du1, dv1 = c[tri, 1, 0] - c[tri, 0, 0], c[tri, 1, 1] - c[tri, 0, 1]
+    du2, dv2 = c[tri, 2, 0] - c[tri, 0, 0], c[tri, 2, 1] - c[tri, 0, 1]
+    det = du1 * dv2 - du2 * dv1
+    if not (abs(det) > 1e-20):
+        return (0.0, 0.0, 0.0), 1.0
+    inv = 1.0 / det
+    t = vec.scale(vec.sub(vec.scale(e1, dv2), vec.scale(e2, dv1)), inv)
+    b = vec.scale(vec.sub(vec.scale(e2, du1), vec.scale(e1, du2)), inv)
+    sign = 1.0 if vec.dot(vec.cross(ng, t), b) >= 0.0 else -1.0
+    return vec.normalize(t), sign

@@ -2,7 +2,7 @@
 
 The first render on a machine compiles the kernels (about 10 s); later processes load them from the on-disk cache
 (well under a second). :func:`compile_kernels` renders a tiny scene that takes every path through the kernels (all
-light kinds with and without extent, shading normals, a texture, mirror, glass, emission, sky visibility), so front
+light kinds with and without extent, shading normals, a texture, mirror, glass, alpha, emission, sky visibility), so front
 ends can say "compiling" instead of looking stuck on their first tile.
 """
 
@@ -23,7 +23,7 @@ def compile_kernels() -> None:
     tex = b.add_texture(np.ones((2, 2, 3), np.float32))
     plain = b.add_material("plain", diffuse=(0.5, 0.5, 0.5), specular=(0.1, 0.1, 0.1), emission=(0.01, 0, 0),
                            diffuse_texture=tex)
-    glass = b.add_material("glass", transmission=1.0, ior=1.5)
+    glass = b.add_material("glass", transmission=1.0, ior=1.5, alpha=0.5)  # alpha: transparent shadows
     mirror = b.add_material("mirror", k_m=1.0)
     quad_v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], np.float64)
     quad_f = np.array([[0, 1, 2], [0, 2, 3]])

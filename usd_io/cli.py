@@ -126,7 +126,7 @@ DEPRECATED = {"--spp": ("--aa", "--spp N meant N×N samples per pixel")}
 
 def _add_render_flags(r) -> None:
     """Every ``whitted render`` flag, in one place (other branches add theirs here: one ``add_argument`` each)."""
-    from tracer.settings import DEFAULT_AA
+    from tracer.settings import DEFAULT_AA, SHADING_MODELS
 
     from .mesh import COMPLEXITY, DEFAULT_COMPLEXITY
 
@@ -142,6 +142,9 @@ def _add_render_flags(r) -> None:
                    help=f"anti-aliasing: N×N stratified samples per pixel (default {DEFAULT_AA})")
     r.add_argument("--spp", dest="spp_deprecated", type=int, help=argparse.SUPPRESS)
     r.add_argument("--max-depth", type=int, default=8, help="maximum reflection/refraction depth (default 8)")
+    r.add_argument("--shading", choices=SHADING_MODELS, default=SHADING_MODELS[0],
+                   help="local model: principled (Cycles' Principled BSDF: diffuse + GGX, the default) or classic "
+                        "(the notes' Lambert + Blinn-Phong)")
     r.add_argument("--frames", "-f", help="time codes A:B or A:BxS; output pattern out.####.png")
     r.add_argument("--time", type=float, help="one time code to render (default: the earliest)")
     r.add_argument("--purposes", nargs="+", default=["default", "render"],
@@ -298,7 +301,7 @@ def render_file(scene_path: str, output: str, frames, aovs, args) -> int:
             _print_warnings(info)
         settings = RenderSettings(width=info.width, height=info.height, samples=args.aa, max_depth=args.max_depth,
                                   threads=args.threads, aovs=aovs, progress=not args.quiet,
-                                  transparent=args.transparent)
+                                  transparent=args.transparent, shading=args.shading)
         if not _kernels_ready:  # after the input has been checked: bad input stays one line
             _compile_kernels(quiet=args.quiet)
             _kernels_ready = True
@@ -346,7 +349,7 @@ def _render_on_farm(args, frames, aovs) -> int:
     from .farm import FarmInputError, render_on_farm
 
     settings = dict(samples=args.aa, max_depth=args.max_depth, threads=args.threads, aovs=aovs,
-                    transparent=args.transparent)
+                    transparent=args.transparent, shading=args.shading)
     output = args.output
     name = (lambda f: frame_path(output, f, len(frames) > 1) if f is not None and len(frames) > 1 else output)
 

@@ -34,7 +34,6 @@ import numpy as np
 from pxr import Sdf, UsdGeom, UsdLux
 
 from .texture_files import read_texture_file
-from .tracer_model import HAS_ENVIRONMENT
 
 #: Dome-local (pole +Y, centre +Z) -> Cycles equirect frame (pole +Z, centre +X).
 USD_TO_CYCLES = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
@@ -91,9 +90,6 @@ def dome_texture(prim, world: np.ndarray, time, colour: np.ndarray, warn):
     if w * h == 1:
         return None, None, average
     if fmt == "latlong" or (fmt == "automatic" and w == 2 * h):
-        if not HAS_ENVIRONMENT:
-            warn(f"{name}: this tracer has no environment lookup; the dome is lit by its texture's average colour")
-            return None, None, average
         return np.ascontiguousarray(rgb, np.float32), world_to_environment(prim, world), average
     why = (f"texture:format {fmt!r} is not supported" if fmt != "automatic"
            else f"texture:format automatic with a {w}x{h} image (not a 2:1 lat-long)")

@@ -240,20 +240,14 @@ def cycles_reference(desc: dict, *, kind: str = "beauty") -> dict:
 
 # ====================================================================== tracer side
 def tracer_material(p: dict) -> dict:
-    """Principled BSDF inputs -> tracer material fields (the same mapping the add-on is meant to use).
-
-    metallic -> k_m with mirror_tint = base colour; transmission -> transmission with tint = base colour;
-    the diffuse part keeps the base colour; a dielectric highlight (Specular IOR Level > 0) becomes a Blinn-Phong
-    lobe with R_s = the Fresnel F0 of the IOR scaled by 2·level, exponent from roughness (Blinn-Phong vs GGX:
-    an inherent, isolated difference)."""
-    base = np.asarray(p.get("base_color", (0.8, 0.8, 0.8)), np.float64)[:3]
-    ior = float(p.get("ior", 1.5))
-    level = float(p.get("specular_ior_level", 0.5))
-    f0 = ((ior - 1) / (ior + 1)) ** 2 * 2 * level
+    """Principled BSDF inputs -> tracer material fields: the tracer carries the Principled model, so they are the
+    same parameters (docs/materials-api.md); transmission is tinted by the base colour, as in Cycles."""
+    base = tuple(float(x) for x in np.asarray(p.get("base_color", (0.8, 0.8, 0.8)), np.float64)[:3])
     emission = np.asarray(p.get("emission_color", (0, 0, 0)), np.float64)[:3] * float(p.get("emission_strength", 0))
-    return dict(diffuse=base, specular=(f0,) * 3, roughness=float(p.get("roughness", 0.5)),
-                k_m=float(p.get("metallic", 0.0)), mirror_tint=base, transmission=float(p.get("transmission", 0.0)),
-                transmission_tint=base, ior=ior, emission=emission)
+    return dict(base_color=base, specular=float(p.get("specular_ior_level", 0.5)),
+                roughness=float(p.get("roughness", 0.5)), metallic=float(p.get("metallic", 0.0)),
+                transmission=float(p.get("transmission", 0.0)), transmission_tint=base,
+                ior=float(p.get("ior", 1.5)), emission=tuple(emission))
 
 
 def camera_from_description(c: dict, width: int, height: int) -> tracer.Camera:

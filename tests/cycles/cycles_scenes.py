@@ -285,11 +285,39 @@ def _whitted_1980():
                  note="Whitted's 1980 picture: mirror and glass balls over a checker floor under a blue sky")
 
 
+GOLD = (1.0, 0.766, 0.336)
+#: The Principled lobes, each seen on three spheres under one point light with max bounces 0 (direct light only):
+#: what the local model must reproduce whatever the roughness (issue 10: ≥ 40 dB each, cycles_thresholds.LOBE_PSNR_MIN).
+LOBES = {
+    "lobe_dielectric": ("dielectric GGX lobe, Specular IOR Level 0.5 (F0 from IOR 1.5), roughness 0.15 / 0.4 / 0.8",
+                        [dict(base_color=(0.8, 0.2, 0.1), roughness=r) for r in (0.15, 0.4, 0.8)]),
+    "lobe_metal": ("metal lobe (F82 tint Fresnel, gold base colour), roughness 0.2 / 0.35 / 0.6",
+                   [dict(base_color=GOLD, metallic=1.0, roughness=r) for r in (0.2, 0.35, 0.6)]),
+    "lobe_specular_level": ("Specular IOR Level 0 / 1, IOR 1.33 / 2.0 at roughness 0.3",
+                            [dict(base_color=(0.1, 0.3, 0.8), roughness=0.3, specular_ior_level=0.0),
+                             dict(base_color=(0.1, 0.3, 0.8), roughness=0.3, specular_ior_level=1.0),
+                             dict(base_color=(0.1, 0.3, 0.8), roughness=0.3, ior=2.0)]),
+    "lobe_mixed": ("metallic 0.5, Blender's default surface, a rough dark plastic",
+                   [dict(base_color=GOLD, metallic=0.5, roughness=0.45), dict(base_color=(0.8, 0.8, 0.8)),
+                    dict(base_color=(0.05, 0.05, 0.05), roughness=0.6, specular_ior_level=0.5)]),
+}
+
+
+def _lobe(name):
+    note, params = LOBES[name]
+    mats = dict(grey=GREY, **{f"m{i}": p for i, p in enumerate(params)})
+    balls = [sphere(f"Ball{i}", (-2.2 + 2.2 * i, 0.0, 1.0), 0.95, f"m{i}", 2 + i) for i in range(3)]
+    return scene(name, camera=camera((0.0, -7.5, 2.6), (0.0, 0.0, 0.9)), materials=mats,
+                 objects=[floor(pass_index=1)] + balls, lights=[point("Key", (1.5, -4.0, 5.0), 700.0)],
+                 depth=0, samples=32, note=f"direct light on Principled materials: {note}")
+
+
 def image_scenes() -> dict:
     scenes = [_emissive_flat(), _emission_light(), _environment(), _point_shadow(), _sun(), _spot(), _several_lights(), _world(), _mirror(),
               _metallic_half(), _metallic_half_dielectric(), _glass_sphere(), _water_sphere(), _glass_slab(),
               _tir_prism()] + [_interreflection(d) for d in (1, 2, 4, 8)] + [
-        _interreflection(1, world=(0.35, 0.5, 0.8), name="interreflection_sky_d1"), _orthographic(), _whitted_1980()]
+        _interreflection(1, world=(0.35, 0.5, 0.8), name="interreflection_sky_d1"), _orthographic(), _whitted_1980()] + [
+        _lobe(n) for n in LOBES]
     return {s["name"]: s for s in scenes}
 
 

@@ -376,20 +376,18 @@ def ours_render(build, params: dict):
     return tracer.render(ts, settings).rgb, warnings
 
 
-#: Scenes whose textures today's tracer cannot carry (addon/model.py lowers them with a warning): strict xfail until
-#: the tracer has the Principled model of docs/materials-api.md — then they must pass the shared bar.
-NEEDS_PRINCIPLED = {
+#: Roughness, normal-map and alpha textures: the Principled model carries them per pixel (until it did, these were
+#: strict xfails lowered with a warning).
+SCENES.update({
     "addon_roughness_texture": (scene_roughness_texture, dict(depth=0, samples=64, ours_samples=3)),
     "addon_normal_map": (scene_normal_map, dict(depth=0, samples=32, ours_samples=3)),
     "addon_alpha_cutout": (scene_alpha_cutout, dict(depth=1, samples=64, ours_samples=3)),
-}
+})
 
 
-@pytest.mark.parametrize("name", list(SCENES) + [
-    pytest.param(n, marks=pytest.mark.xfail(strict=True, reason="roughness, normal and alpha textures need the "
-                                            "tracer's Principled model (materials-core)")) for n in NEEDS_PRINCIPLED])
+@pytest.mark.parametrize("name", list(SCENES))
 def test_node_scene_matches_cycles(bpy_module, tmp_path, name):
-    build, params = {**SCENES, **NEEDS_PRINCIPLED}[name]
+    build, params = SCENES[name]
     ref = cycles_render(name, build, params)
     ours, warnings = ours_render(build, params)
     assert not warnings, warnings  # every node of these scenes is supported

@@ -20,7 +20,6 @@ from cycles_thresholds import usd_material_bar
 from cycles_usd_import import cycles_reference_usd
 from tracer import RenderSettings, render
 from usd_io import load_stage
-from usd_io.tracer_model import PRINCIPLED
 
 pytestmark = pytest.mark.cycles
 
@@ -94,8 +93,6 @@ def _dome(d, rot_y=0.0, up="Y"):
     return S.save(s)
 
 
-#: Scenes the classic material table cannot carry (see usd_io/tracer_model.py); they run with the Principled model.
-NEEDS_PRINCIPLED = {"usd_emissive_texture", "usd_cutout", "usd_normal_map_dx", "usd_vertex_colour"}
 
 SCENES = {
     # UsdTransform2d (rotation, non-uniform scale, translation) on a diffuse texture, sRGB
@@ -126,8 +123,7 @@ def render_ours(path, size=SIZE, samples=OURS_SAMPLES, depth=0):
     return img.rgb, info
 
 
-@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.skipif(
-    n in NEEDS_PRINCIPLED and not PRINCIPLED, reason="needs the tracer's Principled material model")) for n in SCENES])
+@pytest.mark.parametrize("name", list(SCENES))
 def test_usd_material_matches_cycles(bpy_module, tmp_path, name):
     path = S.as_blender_writes(SCENES[name](str(tmp_path / name)))
     ref = cycles_reference_usd(path, name, SIZE, SIZE, CYCLES_SAMPLES, depth=2)
