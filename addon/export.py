@@ -10,7 +10,8 @@ particles are included):
   modifiers, curves, text, metaballs, surfaces through ``Object.to_mesh``), as loop triangles with split/custom
   normals (``Mesh.corner_normals``), the active UV map and per-face materials; ``instance.matrix_world`` places it.
   Each instance is its own object (object id); the tracer's ``objectid`` AOV maps to Blender's Object Index
-  through ``scene.object_pass_indices``.
+  through ``scene.object_pass_indices``. Many instances of one mesh (Geometry Nodes, collection instances,
+  particles) share it: one object-space prototype, and a ``tracer.Instances`` row per instance (add_objects).
 - Camera: Blender's exact camera model (DESIGN.md, "Blender's camera model"): sensor fit, lens, shift,
   orthographic scale, clip start/end.
 - Lights, in Blender's units: point P W -> intensity P/(4π)·colour, radius = ``shadow_soft_size``; spot: the same
@@ -317,66 +318,39 @@ def export_objects(depsgraph, writer: MaterialWriter, warnings: list, lights: li
 
 def add_objects(b: "tracer.SceneBuilder", objects: list) -> list[np.ndarray]:
     """Add exported objects to a scene builder in their order, one object id each; returns, per object, the matrix
-    its vertices were placed with *beyond* the recorded transform (identity, or for instances placed in a batch,
-    ``matrix`` itself: see below).
+    its vertices were placed with *beyond* the recorded transform (identity: every object's own matrix is recorded
+    in ``scene.object_transforms``, so a move is ``Session.set_transform(id, matrix_world)``).
 
-    Instances of one mesh with the same materials (Geometry-Nodes and collection instances, particles) are placed
-    in one vectorised batch: their vertices and normals transformed together (numpy, no loop per instance) and
-    added with ``SceneBuilder.add_mesh(instances=K)``, so the scene records identity for them, and the placement
-    returned here says so."""
-    placed = []
-    i = 0
-    while i < len(objects):
-        o = objects[i]
-        j = i + 1
-        while (j < len(objects) and objects[j].geometry is o.geometry and objects[j].material is o.material
-               and objects[j].corners is o.corners and objects[j].right_handed == o.right_handed):
-            j += 1
-        run = objects[i:j]
-        if len(run) < BATCH_MIN:
-            for r in run:
-                b.add_mesh(r.geometry["vertices"], r.geometry["triangles"], material=r.material, name=r.name,
-                           transform=r.matrix, normals=r.geometry["normals"], **r.corners.kwargs())
-                placed.append(np.eye(4))
+    Instances of one mesh with the same materials (Geometry-Nodes and collection instances, particles) are not
+    copied: when at least :data:`BATCH_MIN` objects share the mesh arrays, material rows and corner data (UV sets,
+    colours), the mesh is added once in object space as a prototype (its object id after all exported objects, so
+    the exported objects keep ids 0..N−1 in order) and each object becomes an instance of it
+    (``SceneBuilder.add_instances``: their matrices stacked into one (K, 4, 4) array, no per-instance mesh work;
+    mirrored and non-uniformly scaled ones included — the tracer shades instances with the inverse transpose)."""
+    groups: dict[tuple, list[int]] = {}
+    for i, o in enumerate(objects):
+        groups.setdefault((id(o.geometry), id(o.material), id(o.corners)), []).append(i)
+    instanced = {i for members in groups.values() if len(members) >= BATCH_MIN for i in members}
+    first = len(b.object_names)
+    for i, o in enumerate(objects):
+        if i in instanced:  # an id and a name now, the instance once its prototype exists (below)
+            b.object_names.append(o.name)
         else:
-            first = _add_batch(b, run)
-            for k, r in enumerate(run):
-                b.object_names[first + k] = r.name
-                placed.append(r.matrix)
-        i = j
-    return placed
+            b.add_mesh(o.geometry["vertices"], o.geometry["triangles"], material=o.material, name=o.name,
+                       transform=o.matrix, normals=o.geometry["normals"], **o.corners.kwargs())
+    for members in groups.values():
+        if len(members) < BATCH_MIN:
+            continue
+        o = objects[members[0]]
+        proto = b.add_mesh(o.geometry["vertices"], o.geometry["triangles"], material=o.material,
+                           name=f"{o.name} (instanced mesh)", normals=o.geometry["normals"], **o.corners.kwargs())
+        b.add_instances(proto, np.stack([objects[i].matrix for i in members]),
+                        object_ids=first + np.asarray(members, np.int32))
+    return [np.eye(4) for _ in objects]
 
 
-#: Runs of at least this many instances of one mesh are placed in one vectorised batch.
+#: At least this many instances of one mesh (same materials) become instances of one shared mesh.
 BATCH_MIN = 8
-#: Instances transformed per numpy batch (bounds the float64 temporaries).
-BATCH_CHUNK = 1024
-
-
-def _add_batch(b, run) -> int:
-    """Place K instances of one mesh (same materials, same handedness) in world space with batched matrix
-    products, the same arithmetic as :func:`tracer.builder.place_mesh` per instance; add them as K objects."""
-    g = run[0].geometry
-    v = np.asarray(g["vertices"], np.float64)
-    t = np.asarray(g["triangles"], np.int64)
-    nrm = None if g["normals"] is None else np.asarray(g["normals"], np.float64)
-    mats = np.stack([r.matrix for r in run])
-    verts, norms = [], []
-    for c in range(0, len(run), BATCH_CHUNK):
-        m = mats[c:c + BATCH_CHUNK]
-        verts.append((np.matmul(v[None], m[:, :3, :3].transpose(0, 2, 1)) + m[:, None, :3, 3]).astype(np.float32))
-        if nrm is not None:
-            nm = np.linalg.inv(m[:, :3, :3]).transpose(0, 2, 1)  # inverse transpose, per instance
-            norms.append(np.matmul(nrm.reshape(1, -1, 3), nm.transpose(0, 2, 1)).astype(np.float32))
-    k, nv, nt = len(run), len(v), len(t)
-    tris = (t[None] + (np.arange(k) * nv)[:, None, None]).reshape(-1, 3)
-    normals = None if nrm is None else np.concatenate(norms).reshape(k * nt, 3, 3)
-    material = np.broadcast_to(np.asarray(run[0].material, np.int32), (nt,))
-    if not run[0].right_handed:  # mirrored instances: winding turned back, as place_mesh does
-        tris = tris[:, [0, 2, 1]]
-        normals = None if normals is None else normals[:, [0, 2, 1]]
-    return b.add_mesh(np.concatenate(verts).reshape(-1, 3), tris, material=np.tile(material, k), name=run[0].name,
-                      normals=normals, instances=k, **run[0].corners.repeated(k, not run[0].right_handed).kwargs())
 
 
 def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | None = None,
@@ -411,7 +385,9 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
         camera = scene_camera(bpy_scene, width, height)
     b.camera = camera
     b.background, b.ambient, b.environment = world_from_blender(bpy_scene.world, warnings, writer.images)
-    b.object_pass_indices = np.asarray([o.pass_index for o in exported], np.int32)
+    pass_indices = np.zeros(len(b.object_names), np.int32)  # prototypes (ids after the objects'): 0
+    pass_indices[:len(exported)] = [o.pass_index for o in exported]
+    b.object_pass_indices = pass_indices
     return b.build(), warnings
 
 

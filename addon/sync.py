@@ -14,8 +14,8 @@ a material, a texture image            ``update_materials`` (repack; no BVH work
 a light                                 ``update_lights``
 the world                               ``update_world``
 an object's transform                   ``set_transform`` (instance matrix + top-level commit; no mesh rebuild)
-an object's geometry (edit mode,        ``update_mesh`` of every instance of that mesh (only their BVHs)
-modifiers, geometry nodes)
+an object's geometry (edit mode,        ``update_mesh`` of every instance of that mesh (only their BVHs); all the
+modifiers, geometry nodes)              instances of a shared mesh: one ``update_mesh`` of the prototype
 an object added / deleted / hidden     ``add_object`` / ``remove_object``
 the scene camera (F12)                  ``update_camera``
 anything it cannot map                  one ``rebuild``: a fresh export and a new Session
@@ -91,6 +91,8 @@ class SceneSync:
         self._camera = None
         self._next_id = 0
         self.pass_indices = np.zeros(0, np.int32)
+        self._members: dict[int, set] = {}
+        self._prototype_of: dict[int, int] = {}
         self.warnings: list[str] = []
         #: The last update's timings: {"export": s, "edits": {kind: count}}.
         self.stats: dict = {}
@@ -125,6 +127,12 @@ class SceneSync:
         self._world = (scene.background, scene.ambient, scene.environment)
         self._camera = scene.camera
         self.pass_indices = np.asarray(scene.object_pass_indices, np.int32)
+        self._members = {}  # prototype object id -> object ids of its instances
+        self._prototype_of = {}  # instance object id -> its prototype
+        if scene.instances is not None:
+            for oid, proto in zip(scene.instances.object_ids.tolist(), scene.instances.prototypes.tolist()):
+                self._members.setdefault(proto, set()).add(oid)
+                self._prototype_of[oid] = proto
         self.warnings = list(warnings)
         self.stats = {"export": time.perf_counter() - start, "edits": {"rebuild": 1}}
         return [Edit("rebuild", (scene,))]
@@ -178,6 +186,7 @@ class SceneSync:
                 self._camera = camera
 
         seen = set()
+        reshaped = []  # (old entry, new object) whose mesh changed
         for o in objects:
             if o.key in seen:  # two instances under one key: give up diffing
                 return self.full(depsgraph, width=width, height=height, camera=camera, cancelled=cancelled)
@@ -193,15 +202,18 @@ class SceneSync:
             same_mesh = (old.obj.geometry is o.geometry and _same_array(old.obj.material, o.material)
                          and _same_corners(old.obj.corners, o.corners))
             if not same_mesh:
-                edits.append(Edit("mesh", (old.object_id, _mesh_kwargs(o))))
+                reshaped.append((old, o))
                 self._entries[o.key] = _Entry(old.object_id, o, np.eye(4))
             elif not np.array_equal(old.obj.matrix, o.matrix):
                 edits.append(Edit("transform", (old.object_id, o.matrix @ old.offset)))
                 self._entries[o.key] = old._replace(obj=o)
             if old.obj.pass_index != o.pass_index:
                 self._set_pass_index(old.object_id, o.pass_index)
+        edits.extend(self._mesh_edits(reshaped))
         for key in [k for k in self._entries if k not in seen]:
-            edits.append(Edit("remove", (self._entries.pop(key).object_id,)))
+            oid = self._entries.pop(key).object_id
+            edits.append(Edit("remove", (oid,)))
+            self._leave_prototype(oid)
         self._order = [o.key for o in objects]
         self.warnings = warnings
         edits.sort(key=lambda e: EDIT_KINDS.index(e.kind))
@@ -212,6 +224,43 @@ class SceneSync:
         return edits
 
     # ---------------------------------------------------------------------------------------------- internals
+    def _mesh_edits(self, reshaped) -> list[Edit]:
+        """``mesh`` edits for objects whose mesh changed. Where every instance of a shared mesh (a prototype) got
+        the same new mesh (a Geometry-Nodes instance mesh edited), that is one edit of the prototype — its one
+        BVH rebuilt, its instances follow — plus transform edits for those that moved too; any other changed
+        object gets its own mesh (an instance then becomes an object of its own)."""
+        edits = []
+        by_proto: dict[int, list] = {}
+        for old, o in reshaped:
+            proto = self._prototype_of.get(old.object_id)
+            if proto is not None:
+                by_proto.setdefault(proto, []).append((old, o))
+        done = set()
+        for proto, pairs in by_proto.items():
+            o0 = pairs[0][1]
+            whole = {old.object_id for old, _ in pairs} == self._members[proto]
+            shared = all(o.geometry is o0.geometry and o.material is o0.material and o.corners is o0.corners
+                         for _, o in pairs)
+            if not (whole and shared):
+                continue
+            kw = _mesh_kwargs(o0)
+            del kw["transform"]  # a prototype's mesh is in object space
+            edits.append(Edit("mesh", (proto, kw)))
+            for old, o in pairs:
+                if not np.array_equal(old.obj.matrix, o.matrix):
+                    edits.append(Edit("transform", (old.object_id, o.matrix)))
+                done.add(old.object_id)
+        for old, o in reshaped:
+            if old.object_id not in done:
+                edits.append(Edit("mesh", (old.object_id, _mesh_kwargs(o))))
+                self._leave_prototype(old.object_id)
+        return edits
+
+    def _leave_prototype(self, oid: int) -> None:
+        proto = self._prototype_of.pop(oid, None)
+        if proto is not None:
+            self._members[proto].discard(oid)
+
     def _keep_material_rows(self, writer, depsgraph):
         """Read the materials of the last export first, in their row order, so an unchanged material keeps its
         row (and the meshes their material ids) while another one changes."""

@@ -43,6 +43,7 @@ from . import scenes
 
 ZERO_START = np.zeros(1, np.int64)  # one geometry: row = primID
 NO_ROWS = np.zeros(0, np.int32)
+NO_INSTANCES = np.zeros(0, np.int32)  # no instance array
 
 
 class TraceTimer:
@@ -83,7 +84,7 @@ def build_embree(scene) -> tuple:
     t1 = time.perf_counter()
     top = embree.EmbreeScene("medium", embree.SCENE_FLAG_ROBUST)
     geom = embree.TriangleGeometry(verts, tris, "medium")
-    top.attach(geom, 0)
+    top.attach(geom, embree.OBJECT_GEOM_BASE)  # object 0's geometry id, as the tracer's accelerator
     t2 = time.perf_counter()
     top.commit()
     t3 = time.perf_counter()
@@ -142,8 +143,9 @@ def replay(scene, batches, threads: int, runs: int = 3) -> dict:
                     embree.occluded_rays(handle, o, d, np.float32(0), t, np.empty(n, np.bool_))
                 else:
                     embree.intersect_rays(handle, o, d, np.float32(0), np.zeros(0, np.float32) if t is None else t,
-                                          ZERO_START, NO_ROWS, np.empty(n, np.float32), np.empty(n, np.int32),
-                                          np.empty(n, np.float32), np.empty(n, np.float32))
+                                          ZERO_START, NO_ROWS, NO_INSTANCES, np.empty(n, np.float32),
+                                          np.empty(n, np.int32), np.empty(n, np.int32), np.empty(n, np.float32),
+                                          np.empty(n, np.float32))
 
             work = prepared()
             t0 = time.perf_counter()

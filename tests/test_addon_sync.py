@@ -11,6 +11,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -173,13 +175,17 @@ def test_geometry_nodes_instances_batched_equal_one_by_one_and_move_as_transform
     objects = []
     batched, _ = export.scene_from_depsgraph(dg, objects=objects)
     assert sum(o.key[0] != "Floor" for o in objects) == 30
-    assert batched.object_transforms is None or np.allclose(batched.object_transforms, np.eye(4))  # world space
+    # one shared mesh (a prototype after the 31 objects) and 30 instances of it, with their own object ids
+    assert batched.instances is not None and len(batched.instances) == 30
+    assert sorted(batched.instances.object_ids.tolist()) == [i for i, o in enumerate(objects) if o.key[0] != "Floor"]
     monkeypatch.setattr(export, "BATCH_MIN", 10**9)
     one_by_one, _ = export.scene_from_depsgraph(dg)
     monkeypatch.undo()
-    assert len(batched.triangles) == len(one_by_one.triangles)
-    np.testing.assert_array_equal(batched.vertices[batched.triangles], one_by_one.vertices[one_by_one.triangles])
-    np.testing.assert_array_equal(tracer.render(batched, SETTINGS).rgba, tracer.render(one_by_one, SETTINGS).rgba)
+    assert one_by_one.instances is None and len(batched.triangles) * 10 < len(one_by_one.triangles)
+    ids = dataclasses.replace(SETTINGS, aovs=("objectid",))
+    a, b = tracer.render(batched, ids), tracer.render(one_by_one, ids)
+    assert _close(a.rgba, b.rgba)
+    assert (a.aovs["objectid"] == b.aovs["objectid"]).mean() > 0.995
 
     d = _Driver()
     try:
@@ -188,6 +194,12 @@ def test_geometry_nodes_instances_batched_equal_one_by_one_and_move_as_transform
         assert _close(d.session.render(SETTINGS).rgba, _fresh())
         kinds = d.step(lambda: setattr(host, "rotation_euler", (0.0, 0.0, 0.3)))  # again, from the moved place
         assert kinds == ["transform"] * 30
+        assert _close(d.session.render(SETTINGS).rgba, _fresh())
+        # the instanced mesh itself edited in the node tree: one edit of the shared mesh, not 30 copies
+        ico = next(n for n in host.modifiers["Scatter"].node_group.nodes if n.bl_idname == "GeometryNodeMeshIcoSphere")
+        kinds = d.step(lambda: setattr(ico.inputs["Radius"], "default_value", 0.2))
+        assert kinds == ["mesh"], kinds
+        assert len(d.session.scene.instances) == 30
         assert _close(d.session.render(SETTINGS).rgba, _fresh())
     finally:
         d.close()

@@ -177,3 +177,40 @@ def test_packet_layout_matches_the_header():
         embree._P_TNEAR, embree._P_TFAR, embree._P_MASK)
     assert (hit("u"), hit("v"), hit("primID"), hit("geomID"), hit("instID")) == (
         embree._P_U, embree._P_V, embree._P_PRIM, embree._P_GEOM, embree._P_INST)
+
+
+def test_instance_array_hits_report_the_prototype_row_and_the_instance():
+    """Three instances of the unit right triangle (the prototype, object 1, in object space) lifted to z = 1, 2, 3
+    (the third also turned 90° about z) and a world-space triangle at z = 0 (object 0): closed-form t, row and
+    instance index, the barycentrics in the prototype's own corners."""
+    b = SceneBuilder()
+    tri_v, tri_f = [[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]]
+    b.add_mesh(tri_v, tri_f, name="ground")
+    proto = b.add_mesh(tri_v, tri_f, name="proto")
+    turn = _lifted(3.0)
+    turn[:2, :2] = [[0, -1], [1, 0]]
+    ids = b.add_instances(proto, np.stack([_lifted(1.0), _lifted(2.0), turn]))
+    b.camera = Camera.look_at((0, 0, 5), (0, 0, 0))
+    scene = b.build()
+    for instanced in (False, True):
+        acc = Accelerator(scene, instanced=instanced)
+        o = np.array([[0.2, 0.3, 10.0], [0.2, 0.3, 10.0], [0.2, 0.3, 10.0], [-0.3, 0.2, 10.0], [0.5, 0.6, 10.0]],
+                     np.float32)
+        d = np.tile(np.array([0, 0, -1], np.float32), (5, 1))
+        hits = acc.closest_hits(o, d)
+        hits2 = acc.closest_hits(o[1:2], d[1:2], t_min=8.5)  # past instance 1 (z = 2): instance 0 (z = 1)
+        hits3 = acc.closest_hits(o[2:3], d[2:3], t_min=9.5)  # past both: the ground
+        assert hits.inst.tolist()[:4] == [1, 1, 1, 2] and hits.prim.tolist()[:4] == [1, 1, 1, 1]
+        np.testing.assert_allclose(hits.t[:4], [8.0, 8.0, 8.0, 7.0], rtol=1e-6)
+        # the turned instance: (-0.3, 0.2) is (0.2, 0.3) of the prototype
+        np.testing.assert_allclose([hits.u[3], hits.v[3]], [0.2, 0.3], atol=1e-6)
+        assert hits.prim[4] == -1 and hits.inst[4] == -1 and np.isinf(hits.t[4])
+        assert hits2.inst.tolist() == [0] and hits2.prim.tolist() == [1] and hits2.t[0] == pytest.approx(9.0)
+        assert hits3.prim.tolist() == [0] and hits3.inst.tolist() == [-1] and hits3.t[0] == pytest.approx(10.0)
+        assert acc.occluded(o[:1], d[:1], np.array([8.5], np.float32)).tolist() == [True]
+        assert acc.occluded(o[:1], d[:1], np.array([7.5], np.float32)).tolist() == [False]
+        # moving one instance rewrites its transform row only
+        acc.set_instance_transforms([1], _lifted(4.0)[None])
+        assert acc.closest_hits(o[:1], d[:1]).t[0] == pytest.approx(6.0)
+        acc.close()
+    assert scene.instances.object_ids.tolist() == ids.tolist() == [2, 3, 4]

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade, Vt
 
+from tracer.instances import flatten
 from tracer import RenderSettings, render
 from usd_io import UsdInputError, load_stage
 
@@ -254,6 +255,7 @@ def test_point_instancer_with_invisible_ids():
     UsdGeom.Xformable(pi).AddTranslateOp().Set(Gf.Vec3d(0, 0, 10))
     assert protos  # prototypes are not drawn on their own
     scene, info = load_stage(s, width=16)
+    scene = flatten(scene)  # instances as world-space triangles, to check their placement
     lone = new_stage()  # the gprim reader's tessellation of one sphere, whatever it chooses
     UsdGeom.Sphere.Define(lone, "/Ball")
     n_ball = len(load_stage(lone, width=16)[0].triangles)
@@ -276,6 +278,7 @@ def test_native_instances_are_all_drawn():
         p.SetInstanceable(True)
         UsdGeom.Xformable(p).AddTranslateOp().Set(Gf.Vec3d(10 * (i + 1), 0, 0))
     scene, info = load_stage(s, width=16)
+    scene = flatten(scene)  # instances as world-space triangles, to check their placement
     assert len(scene.triangles) == 4 * 12
     assert scene.bounds[1][0] == pytest.approx(31)
 
@@ -499,5 +502,6 @@ def test_zero_scale_instances_are_dropped():
     inst.CreatePositionsAttr([(0, 0, 0), (3, 0, 0), (-3, 0, 0)])
     inst.CreateScalesAttr([(1, 1, 1), (0, 0, 0), (1, 1, 1)])
     scene, info = load_stage(s, width=16)
+    scene = flatten(scene)  # instances as world-space triangles, to check their placement
     assert len(scene.triangles) == 2 * 12
     assert any("1 instance(s)" in w for w in info.warnings)

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdSkel
 
+from tracer.instances import flatten
 from tracer import RenderSettings, read_image, render
 from usd_io import load_stage
 from usd_io.lights import DEFAULT_DOME, DEFAULT_HEADLIGHT_IRRADIANCE
@@ -239,6 +240,7 @@ def test_nested_point_instancers_place_every_instance_with_its_own_id():
     outer.CreateProtoIndicesAttr([0, 0])
     outer.CreatePositionsAttr([(0, 0, 0), (10, 0, 0)])
     scene, info = load_stage(s, width=8, height=8)
+    scene = flatten(scene)  # instances as world-space triangles, to check their placement
     assert not any("nested" in w for w in info.warnings), info.warnings
     ids = scene.object_ids
     centres = sorted(tuple(np.round(scene.vertices[np.unique(scene.triangles[ids == i])].mean(axis=0), 4))

@@ -26,7 +26,7 @@ _EXPORTS = {
     "AreaLight": "lights", "DistantLight": "lights", "PointLight": "lights", "SpotLight": "lights",
     "DEFAULT_MATERIAL": "materials", "Materials": "materials", "roughness_to_exponent": "materials",
     "RenderCancelled": "render", "render": "render", "render_tile": "render", "tiles_of": "render",
-    "Scene": "scene",
+    "Instances": "scene", "Scene": "scene",
     "Session": "session",
     "AOV_NAMES": "settings", "SHADING_MODELS": "settings", "RenderSettings": "settings",
     "Texture": "texture",

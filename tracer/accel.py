@@ -13,12 +13,20 @@ Two layouts of the same objects:
 Either way a hit reports the *slot* (the object id: instance id, or geometry id in the flat layout) and the
 primitive within that object's mesh; :func:`tracer.embree.intersect_rays` maps it back to the row of
 ``scene.triangles`` through a per-object offset table, so callers see the same ``prim`` as before.
+
+Shared-mesh instances (``scene.instances``, in both layouts): each prototype's object-space triangles are an Embree
+scene of their own (one BVH per prototype, built once however many instances it has), and all K instances are one
+``RTC_GEOMETRY_TYPE_INSTANCE_ARRAY`` in the top-level scene over a shared (K, 12) float32 transform buffer (Embree
+≥ 4.3). A hit on instance k reports the prototype triangle's row in ``prim`` and k in ``inst``
+(:meth:`Accelerator.closest_hits`; -1 for the world-space triangles). Moving an instance writes its row of the
+buffer and commits the top level (a BVH over K boxes), no mesh BVH is touched.
 """
 
 from __future__ import annotations
 
 import threading
 import time
+from typing import NamedTuple
 
 import numpy as np
 
@@ -30,6 +38,19 @@ NO_HIT = -1
 #: Largest finite ray length handed to Embree (inf would be fine for Embree; this keeps recorded rays finite).
 T_FAR_MAX = np.float32(3.0e38)
 _NONE_F32 = np.zeros(0, np.float32)
+_NO_INSTANCES = np.zeros(0, np.int32)
+
+
+class Hits(NamedTuple):
+    """Closest hits of a batch of rays: t (inf on a miss), prim (row of ``scene.triangles``, -1 on a miss), the
+    barycentrics u, v, and inst (the instance index into ``scene.instances``, -1 where the triangle is not
+    instanced or the ray missed)."""
+
+    t: np.ndarray
+    prim: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    inst: np.ndarray
 
 
 class Accelerator:
@@ -56,7 +77,13 @@ class Accelerator:
         self._lock = threading.Lock()
         self._top = embree.EmbreeScene("medium" if instanced else quality, embree.SCENE_FLAG_ROBUST)
         self._objects: dict[int, _Object] = {}
+        self._prototypes: dict[int, _Object] = {}  # prototype object id -> its own scene (never in the top level)
+        self._array = None  # the instance array geometry, or None
+        self._inst_proto = _NO_INSTANCES
+        self._inst_xfm = None
         self._cancelled = cancelled
+        inst = scene.instances
+        protos = set(np.unique(inst.prototypes).tolist()) if inst is not None else set()
         self.triangle_count = len(scene.triangles)
         if self.triangle_count:
             # One padded copy of each array (Embree reads past the last element); every object's geometry reads
@@ -72,7 +99,15 @@ class Accelerator:
             for oid, s, e in zip(present.tolist(), starts.tolist(), ends.tolist()):
                 if cancelled is not None and cancelled():
                     raise embree.BuildCancelled("Embree set-up cancelled")
-                self._add(oid, self._vertices, self._triangles[s:e])
+                if oid in protos:
+                    self._prototypes[oid] = self._scene_of(embree.TriangleGeometry(
+                        self._vertices, self._triangles[s:e], self.quality))
+                else:
+                    self._add(oid, self._vertices, self._triangles[s:e])
+        if inst is not None:
+            if cancelled is not None and cancelled():
+                raise embree.BuildCancelled("Embree set-up cancelled")
+            self.set_instances(inst.prototypes, inst.transforms, commit=False)
         self.set_rows(scene.object_ids, commit=False)
         self._top.commit(cancelled)
         self._cancelled = None  # only the set-up is cancellable: edits are short
@@ -83,32 +118,39 @@ class Accelerator:
                   t_min: float = 0.0):
         """Closest hits on [t_min, t_max]: (t, prim_id, u, v) with prim_id = -1 and t = inf for misses.
 
-        (u, v) are the barycentric coordinates of vertices 1 and 2: p = (1 − u − v)·p0 + u·p1 + v·p2.
+        (u, v) are the barycentric coordinates of vertices 1 and 2: p = (1 − u − v)·p0 + u·p1 + v·p2. A hit on
+        an instance reports its prototype's row; :meth:`closest_hits` also says which instance.
         """
+        return tuple(self.closest_hits(origins, directions, t_max, t_min)[:4])
+
+    def closest_hits(self, origins: np.ndarray, directions: np.ndarray, t_max: np.ndarray | None = None,
+                     t_min: float = 0.0) -> Hits:
+        """Closest hits on [t_min, t_max] as :class:`Hits` (t, prim, u, v, inst)."""
         n = len(origins)
         t = np.empty(n, np.float32)
         prim = np.empty(n, np.int32)
+        inst = np.empty(n, np.int32)
         u = np.empty(n, np.float32)
         v = np.empty(n, np.float32)
-        if n == 0 or not self._objects:
-            t.fill(np.inf), prim.fill(NO_HIT), u.fill(0), v.fill(0)
-            return t, prim, u, v
+        if n == 0 or not (self._objects or self._array is not None):
+            t.fill(np.inf), prim.fill(NO_HIT), inst.fill(NO_HIT), u.fill(0), v.fill(0)
+            return Hits(t, prim, u, v, inst)
         o = np.ascontiguousarray(origins, dtype=np.float32)
         d = np.ascontiguousarray(directions, dtype=np.float32)
         tm = _NONE_F32 if t_max is None else np.ascontiguousarray(np.minimum(t_max, T_FAR_MAX), np.float32)
         start = time.perf_counter()
         embree.intersect_rays(self._top.handle, o, d, np.float32(t_min), tm, self._start, self._rows,
-                              t, prim, u, v)
+                              self._inst_proto, t, prim, inst, u, v)
         embree.library().check()
         self._account(start, "INTERSECT", o, d, None if t_max is None else tm)
-        return t, prim, u, v
+        return Hits(t, prim, u, v, inst)
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray, t_max: np.ndarray, t_min: float = 0.0):
         """Boolean mask: something lies on the segment [origin + t_min·direction, origin + t_max·direction]
         (shadow rays)."""
         n = len(origins)
         blocked = np.zeros(n, bool)
-        if n == 0 or not self._objects:
+        if n == 0 or not (self._objects or self._array is not None):
             return blocked
         o = np.ascontiguousarray(origins, dtype=np.float32)
         d = np.ascontiguousarray(directions, dtype=np.float32)
@@ -125,17 +167,60 @@ class Accelerator:
         the top-level scene. In the flat layout the object first becomes an instance of its own."""
         obj = self._objects[object_id]
         if obj.instance is None:
-            self._top.detach(object_id)
+            self._top.detach(_geom_id(object_id))
             self._objects[object_id] = obj = self._instance_of(obj.geometry)
-            self._top.attach(obj.instance, object_id)
+            self._top.attach(obj.instance, _geom_id(object_id))
         obj.instance.set_transform(matrix)
+        self._top.commit()
+
+    def set_instances(self, prototypes: np.ndarray, transforms: np.ndarray, commit: bool = True) -> None:
+        """The instance array becomes K instances: instance k places prototype object ``prototypes[k]`` (whose
+        scene this accelerator built) with ``transforms[k]`` (4×4). K = 0 removes the array."""
+        prototypes = np.ascontiguousarray(prototypes, np.int32)
+        if self._array is not None:
+            self._top.detach(embree.ARRAY_GEOM_ID)
+            self._array = None
+        self._inst_proto, self._inst_xfm = _NO_INSTANCES, None
+        if len(prototypes):
+            for p in np.unique(prototypes).tolist():
+                if p not in self._prototypes:  # a prototype without triangles: an empty scene
+                    self._prototypes[p] = self._scene_of(None)
+            order = sorted(self._prototypes)
+            index = np.searchsorted(np.asarray(order), prototypes).astype(np.uint32)
+            self._inst_xfm = embree.column_major_3x4(transforms)
+            self._array = embree.InstanceArrayGeometry([self._prototypes[p].mesh for p in order], index,
+                                                       self._inst_xfm)
+            self._top.attach(self._array, embree.ARRAY_GEOM_ID)
+            self._inst_proto = prototypes
+        if commit:
+            self._top.commit()
+
+    def set_instance_transforms(self, indices, transforms) -> None:
+        """Instances ``indices`` get the 4×4 matrices ``transforms`` (one per index): their rows of the shared
+        transform buffer are rewritten and the top level committed (no mesh BVH touched)."""
+        idx = np.asarray(indices, np.int64).reshape(-1)
+        self._inst_xfm[idx] = embree.column_major_3x4(transforms)[:len(idx)]
+        self._array.transforms_changed()
         self._top.commit()
 
     def set_object(self, object_id: int, vertices: np.ndarray | None, triangles: np.ndarray | None) -> None:
         """Object ``object_id`` gets a new mesh (world-space float32 vertices, int32 triangles of its own; None:
         removed). Only its BVH is built; call :meth:`set_rows` after the scene's arrays changed, which commits."""
+        if object_id in self._prototypes:  # a shared mesh: rebuild its scene in place, its instances follow
+            proto = self._prototypes[object_id]
+            proto.mesh.detach(0)
+            geometry = None
+            if vertices is not None and len(triangles):
+                geometry = embree.TriangleGeometry(embree.padded(vertices, np.float32),
+                                                   embree.padded(triangles, np.int32), self.quality)
+                proto.mesh.attach(geometry, 0)
+            proto.mesh.commit()
+            proto.geometry = geometry
+            if self._array is not None:
+                self._array.commit()
+            return
         if object_id in self._objects:
-            self._top.detach(object_id)
+            self._top.detach(_geom_id(object_id))
             del self._objects[object_id]
         if vertices is not None and len(triangles):
             self._add(object_id, embree.padded(vertices, np.float32), embree.padded(triangles, np.int32))
@@ -151,7 +236,8 @@ class Accelerator:
             order = np.argsort(ids, kind="stable")
             rows = order.astype(np.int32)
             sorted_ids = ids[order]
-        n = max(int(ids.max()) + 1 if len(ids) else 0, max(self._objects, default=-1) + 1)
+        n = max(int(ids.max()) + 1 if len(ids) else 0, max(self._objects, default=-1) + 1,
+                max(self._prototypes, default=-1) + 1)
         self._start = np.searchsorted(sorted_ids, np.arange(n)).astype(np.int64)
         self._rows = rows
         self.triangle_count = len(ids)
@@ -161,24 +247,33 @@ class Accelerator:
     def close(self) -> None:
         """Release the Embree scenes now (otherwise when this object is garbage collected)."""
         self._objects.clear()
+        self._array = None
         self._top.release()
+        self._prototypes.clear()
 
     # ---------------------------------------------------------------------------------------------- internals
     def _add(self, object_id, vertices, triangles):
         geometry = embree.TriangleGeometry(vertices, triangles, self.quality)
         if self.instanced:
             obj = self._instance_of(geometry)
-            self._top.attach(obj.instance, object_id)
+            self._top.attach(obj.instance, _geom_id(object_id))
         else:
             obj = _Object(geometry, None, None)
-            self._top.attach(geometry, object_id)
+            self._top.attach(geometry, _geom_id(object_id))
         self._objects[object_id] = obj
 
-    def _instance_of(self, geometry):
+    def _scene_of(self, geometry):
+        """An Embree scene of its own over ``geometry`` (None: empty), committed."""
         mesh = embree.EmbreeScene(self.quality, embree.SCENE_FLAG_ROBUST)
-        mesh.attach(geometry, 0)
+        if geometry is not None:
+            mesh.attach(geometry, 0)
         mesh.commit(self._cancelled)
-        return _Object(geometry, mesh, embree.InstanceGeometry(mesh))
+        return _Object(geometry, mesh, None)
+
+    def _instance_of(self, geometry):
+        obj = self._scene_of(geometry)
+        obj.instance = embree.InstanceGeometry(obj.mesh)
+        return obj
 
     def _account(self, start, query, o, d, t_max):
         elapsed = time.perf_counter() - start
@@ -193,6 +288,11 @@ class _Object:
 
     def __init__(self, geometry, mesh, instance):
         self.geometry, self.mesh, self.instance = geometry, mesh, instance
+
+
+def _geom_id(object_id: int) -> int:
+    """The top-level geometry id of object ``object_id`` (id 0 is the instance array's)."""
+    return int(object_id) + embree.OBJECT_GEOM_BASE
 
 
 def _is_sorted(a: np.ndarray) -> bool:

@@ -56,13 +56,16 @@ DEVICE_PROPERTY_VERSION = 0
 DEVICE_PROPERTY_VERSION_MAJOR = 1
 DEVICE_PROPERTY_VERSION_MINOR = 2
 DEVICE_PROPERTY_VERSION_PATCH = 3
+FORMAT_UINT = 0x5001
 FORMAT_UINT3 = 0x5003
 FORMAT_FLOAT3 = 0x9003
 FORMAT_FLOAT3X4_COLUMN_MAJOR = 0x9234
 BUFFER_TYPE_INDEX = 0
 BUFFER_TYPE_VERTEX = 1
+BUFFER_TYPE_TRANSFORM = 23
 GEOMETRY_TYPE_TRIANGLE = 0
 GEOMETRY_TYPE_INSTANCE = 121
+GEOMETRY_TYPE_INSTANCE_ARRAY = 122  # Embree >= 4.3
 BUILD_QUALITY = {"low": 0, "medium": 1, "high": 2, "refit": 3}
 SCENE_FLAG_NONE, SCENE_FLAG_DYNAMIC, SCENE_FLAG_COMPACT, SCENE_FLAG_ROBUST = 0, 1, 2, 4
 ERROR_NAMES = {0: "RTC_ERROR_NONE", 1: "RTC_ERROR_UNKNOWN", 2: "RTC_ERROR_INVALID_ARGUMENT",
@@ -160,6 +163,7 @@ _SIGNATURES = {  # name: (restype, argtypes)
     "rtcSetSharedGeometryBuffer": (None, [_P, _I, _UI, _I, _P, _S, _S, _S]),
     "rtcUpdateGeometryBuffer": (None, [_P, _I, _UI]),
     "rtcSetGeometryInstancedScene": (None, [_P, _P]),
+    "rtcSetGeometryInstancedScenes": (None, [_P, _P, _S]),
     "rtcSetGeometryTransform": (None, [_P, _UI, _I, _P]),
     "rtcGetSceneBounds": (None, [_P, _P]),
 }
@@ -398,6 +402,53 @@ class InstanceGeometry(Geometry):
         self.commit()
 
 
+def column_major_3x4(matrices) -> np.ndarray:
+    """(K, 4, 4) object-to-world matrices (column vectors) as Embree's ``RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR``
+    records: (K, 12) float32, the four columns of the upper 3×4 block, in a :func:`padded` buffer."""
+    m = np.asarray(matrices, np.float64).reshape(-1, 4, 4)
+    return padded(m[:, :3, :4].transpose(0, 2, 1).reshape(-1, 12), np.float32)
+
+
+class InstanceArrayGeometry(Geometry):
+    """``RTC_GEOMETRY_TYPE_INSTANCE_ARRAY`` (Embree >= 4.3): K instances of a few :class:`EmbreeScene` s in one
+    geometry, over shared numpy buffers: ``transforms`` (K, 12) float32 from :func:`column_major_3x4` and
+    ``scene_index`` (K,) uint32 (which of ``scenes`` instance k places). A hit on instance k reports this
+    geometry's id as ``instID`` and k as ``instPrimID``. Python does no work per instance: a scene of 50 000
+    instances is two shared buffers and one geometry."""
+
+    def __init__(self, scenes: list, scene_index: np.ndarray, transforms: np.ndarray, quality: str = "medium"):
+        if library().version[:2] < (4, 3):
+            raise EmbreeUnavailable(f"instance arrays need Embree >= 4.3, this is {version()}")
+        super().__init__(GEOMETRY_TYPE_INSTANCE_ARRAY)
+        self._lib.call("rtcSetGeometryBuildQuality", self.handle, BUILD_QUALITY[quality])
+        self.set_scenes(scenes)
+        self.set_buffers(scene_index, transforms)
+        self.commit()
+
+    def set_scenes(self, scenes: list) -> None:
+        self.scenes = list(scenes)  # kept alive with the array
+        handles = (ctypes.c_void_p * max(1, len(self.scenes)))(*[s.handle for s in self.scenes])
+        self._lib.call("rtcSetGeometryInstancedScenes", self.handle, handles, len(self.scenes))
+
+    def set_buffers(self, scene_index: np.ndarray, transforms: np.ndarray) -> None:
+        k = len(transforms)
+        if transforms.shape != (k, 12) or transforms.dtype != np.float32 or not transforms.flags.c_contiguous:
+            raise ValueError("transforms must be (K, 12) float32 records from tracer.embree.column_major_3x4")
+        idx = padded(np.asarray(scene_index, np.uint32).reshape(-1, 1), np.uint32)
+        if len(idx) != k:
+            raise ValueError(f"scene_index has {len(idx)} entries for {k} transforms")
+        self.transforms, self.scene_index = transforms, idx
+        self._lib.call("rtcSetSharedGeometryBuffer", self.handle, BUFFER_TYPE_INDEX, 0, FORMAT_UINT,
+                       idx.ctypes.data, 0, 4, k)
+        self._lib.call("rtcSetSharedGeometryBuffer", self.handle, BUFFER_TYPE_TRANSFORM, 0,
+                       FORMAT_FLOAT3X4_COLUMN_MAJOR, transforms.ctypes.data, 0, 48, k)
+
+    def transforms_changed(self) -> None:
+        """Rows of the shared transform buffer were changed in place: the next top-level commit sees them."""
+        self._lib.call("rtcUpdateGeometryBuffer", self.handle, BUFFER_TYPE_TRANSFORM, 0)
+        self.commit()
+
+
 # ---------------------------------------------------------------------------------------------- ray queries
 #: Rays per Embree call: ``rtcIntersect8`` / ``rtcOccluded8`` on packets of 8 (RTCRayHit8 / RTCRay8). Measured on
 #: the recorded rays of the bench scenes (one thread, medians of 6): 10-20 % faster than ``rtcIntersect1`` /
@@ -408,7 +459,7 @@ PACKET = 8
 _P_ORG_X, _P_ORG_Y, _P_ORG_Z, _P_TNEAR = 0, 8, 16, 24
 _P_DIR_X, _P_DIR_Y, _P_DIR_Z, _P_TIME = 32, 40, 48, 56
 _P_TFAR, _P_MASK, _P_ID, _P_FLAGS = 64, 72, 80, 88
-_P_U, _P_V, _P_PRIM, _P_GEOM, _P_INST = 120, 128, 136, 144, 152
+_P_U, _P_V, _P_PRIM, _P_GEOM, _P_INST = 120, 128, 136, 144, 152  # then instPrimID at 160
 RAY8_WORDS = 96  # sizeof(RTCRay8) / 4
 RAYHIT8_WORDS = 168  # sizeof(RTCRayHit8) / 4 (RTCHit8: Ng xyz, u, v, primID, geomID, instID[1], instPrimID[1])
 
@@ -451,17 +502,29 @@ def _load_packet(f, w, valid, o, d, start, count, tnear, t_max):
         w[_P_FLAGS + k] = 0
 
 
+#: Geometry ids in a top-level scene: the instance array (if any) is geometry 0, object i is geometry i + 1.
+ARRAY_GEOM_ID = 0
+OBJECT_GEOM_BASE = 1
+_P_INST_PRIM = 160
+
+
 @kernel
-def intersect_rays(scene, o, d, tnear, t_max, slot_start, slot_rows, t_out, prim_out, u_out, v_out):
+def intersect_rays(scene, o, d, tnear, t_max, slot_start, slot_rows, inst_proto, t_out, prim_out, inst_out,
+                   u_out, v_out):
     """Closest hits of rays (o, d) on [tnear, t_max[i]] (t_max empty: unbounded) against the top-level scene
-    ``scene`` (an RTCScene handle), in packets of :data:`PACKET`. Writes t (inf on a miss), the hit's row
-    (``slot_rows[slot_start[slot] + primID]``, or ``slot_start[slot] + primID`` when ``slot_rows`` is empty; -1 on
-    a miss; slot = the instance id, or the geometry id for geometries attached to ``scene`` directly) and the
-    barycentrics u, v."""
+    ``scene`` (an RTCScene handle), in packets of :data:`PACKET`. Writes t (inf on a miss), the hit's row, the
+    instance index (``inst_out``: k for a hit on instance k of the instance array, else -1) and the barycentrics
+    u, v.
+
+    Rows: object i is top-level geometry i + :data:`OBJECT_GEOM_BASE` (a triangle geometry, or an instance of its
+    own scene); the instance array is geometry :data:`ARRAY_GEOM_ID`, and its instance k places the mesh of object
+    ``inst_proto[k]`` (a prototype). The row of primitive ``primID`` of object i is
+    ``slot_rows[slot_start[i] + primID]`` (``slot_start[i] + primID`` when ``slot_rows`` is empty); -1 on a miss."""
     f = _aligned(RAYHIT8_WORDS, np.float32)
     w = f.view(np.uint32)
     valid = _aligned(PACKET, np.int32)
     indirect = slot_rows.shape[0] > 0
+    has_array = inst_proto.shape[0] > 0
     n = o.shape[0]
     for start in range(0, n, PACKET):
         count = min(PACKET, n - start)
@@ -475,11 +538,20 @@ def intersect_rays(scene, o, d, tnear, t_max, slot_start, slot_rows, t_out, prim
             if w[_P_GEOM + k] == INVALID_ID:
                 t_out[i] = np.inf
                 prim_out[i] = -1
+                inst_out[i] = -1
                 u_out[i] = 0.0
                 v_out[i] = 0.0
                 continue
-            slot = w[_P_INST + k] if w[_P_INST + k] != INVALID_ID else w[_P_GEOM + k]
-            row = slot_start[slot] + np.int64(w[_P_PRIM + k])
+            inst = w[_P_INST + k]
+            if has_array and inst == ARRAY_GEOM_ID:
+                instance = np.int64(w[_P_INST_PRIM + k])
+                obj = np.int64(inst_proto[instance])
+                inst_out[i] = instance
+            else:
+                slot = inst if inst != INVALID_ID else w[_P_GEOM + k]
+                obj = np.int64(slot) - OBJECT_GEOM_BASE
+                inst_out[i] = -1
+            row = slot_start[obj] + np.int64(w[_P_PRIM + k])
             prim_out[i] = slot_rows[row] if indirect else row
             t_out[i] = f[_P_TFAR + k]
             u_out[i] = f[_P_U + k]

@@ -18,7 +18,7 @@ from .integrator import Integrator, RayQueue, Tile
 from .jit import kernel
 from .scene import Scene
 from .settings import RenderSettings
-from .surface import hit_frame
+from .instances import world_frame
 
 RAY_KINDS = ("eye", "shadow", "reflection", "transmission", "sky")
 
@@ -187,16 +187,18 @@ def _ray(bucket, parent, kind, depth, o, d, t_max, weight) -> Ray:
 
 
 def _record_hits(scene, integ, records, queue, hits):
-    t, prim, u, v = hits
+    t, prim, u, v, inst = hits
     n = len(prim)
     ng, ns, front = np.zeros((n, 3), np.float32), np.zeros((n, 3), np.float32), np.zeros(n, np.bool_)
-    _frames(integ.geometry, prim, queue.d, u, v, ng, ns, front)
+    _frames(integ.geometry, integ.instances, prim, inst, queue.d, u, v, ng, ns, front)
     for i, rec in enumerate(records):
         if prim[i] < 0:
             continue
         tri = int(prim[i])
-        oid = int(scene.object_ids[tri])
+        oid = int(scene.object_ids[tri]) if inst[i] < 0 else int(integ.instances.object_ids[inst[i]])
         mid = int(scene.material_ids[tri])
+        if inst[i] >= 0 and integ.instances.materials[inst[i]] >= 0:
+            mid = int(integ.instances.materials[inst[i]])
         names = scene.materials.names
         rec.hit = Hit(t=float(t[i]), point=rec.origin + float(t[i]) * rec.direction,
                       geometric_normal=ng[i].astype(np.float64), shading_normal=ns[i].astype(np.float64),
@@ -206,12 +208,12 @@ def _record_hits(scene, integ, records, queue, hits):
 
 
 @kernel
-def _frames(geom, prim, d, u, v, ng_out, n_out, front_out):
+def _frames(geom, itab, prim, inst, d, u, v, ng_out, n_out, front_out):
     for i in range(prim.shape[0]):
         if prim[i] < 0:
             continue
-        ng, n, front = hit_frame(geom, prim[i], (float(d[i, 0]), float(d[i, 1]), float(d[i, 2])), float(u[i]),
-                                 float(v[i]))
+        ng, n, front = world_frame(geom, itab, inst[i], prim[i], (float(d[i, 0]), float(d[i, 1]), float(d[i, 2])),
+                                   float(u[i]), float(v[i]))
         ng_out[i, 0], ng_out[i, 1], ng_out[i, 2] = ng
         n_out[i, 0], n_out[i, 1], n_out[i, 2] = n
         front_out[i] = front
@@ -222,10 +224,11 @@ def _blockers(integ, shadow, blocked) -> list:
     names = [None] * len(shadow.o)
     idx = np.flatnonzero(blocked)
     if len(idx):
-        _t, prim, _u, _v = integ.accel.intersect(shadow.o[idx], shadow.d[idx], shadow.t_max[idx])
+        hits = integ.accel.closest_hits(shadow.o[idx], shadow.d[idx], shadow.t_max[idx])
         scene = integ.scene
-        for j, p in zip(idx, prim):
-            names[j] = scene.object_name(int(scene.object_ids[p])) if p >= 0 else "(unknown)"
+        for j, p, k in zip(idx, hits.prim, hits.inst):
+            oid = int(scene.object_ids[p]) if k < 0 else int(integ.instances.object_ids[k])
+            names[j] = scene.object_name(oid) if p >= 0 else "(unknown)"
     return names
 
 

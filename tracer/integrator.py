@@ -38,7 +38,10 @@ from . import bsdf, optics, shading, vec
 from .accel import Accelerator
 from .environment import env_radiance, env_sample, pack_environment
 from .jit import kernel
-from .lights import MESH, emitting_triangles, pack_lights, sample_light
+from .instances import (mat3_apply, mat3_apply_transposed, material_id, object_id, pack_instances,
+                        to_world_normal)
+from .instances import world_emitters
+from .lights import MESH, pack_lights, sample_light
 from .sampling import multijitter, stratum, uniform2_1
 from .scene import Scene
 from .settings import RenderSettings
@@ -300,7 +303,9 @@ class Integrator:
         m = scene.materials
         self.materials = MaterialArrays.of(m)
         self.textures = pack_textures(scene.textures)
-        emitters = emitting_triangles(scene.vertices, scene.triangles, scene.material_ids, m.emission * m.alpha[:, None])
+        self.instances = pack_instances(scene)
+        # instanced prototypes' emitting triangles placed per instance (tracer/instances.py)
+        emitters = world_emitters(scene, m.emission * m.alpha[:, None])
         self.lights = pack_lights(scene.lights, settings.light_samples, emitters)
         self.light_samples = int(np.sum(self.lights.side ** 2))  # shadow rays per shading point, at most
         self.env = pack_environment(scene.environment)
@@ -319,6 +324,7 @@ class Integrator:
             principled=settings.shading == "principled", sky_side=int(self.sky_side))
         used = np.zeros(len(m), bool)
         used[np.unique(scene.material_ids)] = True
+        used[self.instances.materials[self.instances.materials >= 0]] = True
         #: Some used material lets light through (alpha < 1 or an alpha texture): shadow rays look through it.
         self.see_through = bool(np.any(used & ((m.alpha < 1) | (self.materials.alpha_texture >= 0))))
 
@@ -331,9 +337,11 @@ class Integrator:
         """The stages for one batch of rays and their hits: returns (ShadowQueue, NextQueue, n_refl, n_tran,
         n_through)."""
         n = len(o)
-        t, prim, u, v = hits
+        t, prim, u, v, inst = hits
         surf = SurfaceQueue.empty(n)
-        n_textured = _surfaces(o, d, t, prim, u, v, self.geometry, self.materials, surf)
+        it = self.instances
+        n_textured = _surfaces(o, d, t, prim, inst, it.normal_matrix, it.materials, u, v, self.geometry,
+                               self.materials, surf)
         if n_textured:
             g, m, x = self.geometry, self.materials, self.textures
             # one eye sample's footprint, for the mip level of lookups: read now, as a session's camera and
@@ -343,9 +351,9 @@ class Integrator:
                                surf.base, surf.roughness, surf.metallic, surf.specular, surf.cover, surf.emission,
                                m.alpha, m.alpha_threshold, m.slots, m.channels, m.normal_strength, g.uv_sets,
                                g.vertices, g.triangles, g.face_normals, x.data, x.params, surf.p, eye, spread,
-                               flat)
+                               flat, inst, it.linear, it.mirrored)
         if depth == 0:
-            _first_hits(surf, t, prim, t0, sample, self.geometry, out)
+            _first_hits(surf, t, prim, inst, self.instances, t0, sample, self.geometry, out)
         _emitted(d, surf, sample, weight, depth, self.options, self.env, out)
         shadow = ShadowQueue.empty(n * (self.light_samples + self.sky_side ** 2))
         n_shadow = _direct_light(surf, d, sample, weight, keys, depth, spawn, self.materials, self.lights,
@@ -365,7 +373,7 @@ class Integrator:
         transmissions; empty past the last depth). Rays that pass through alpha < 1 surfaces are traced again
         within the step (up to ``max_transparent`` surfaces deep)."""
         n = len(rays.o)
-        hits = self.accel.intersect(rays.o, rays.d, rays.t_max)
+        hits = self.accel.closest_hits(rays.o, rays.d, rays.t_max)
         spawn = depth < self.last_depth
         shadows, refl, tran = [], [], []
         o, d, w, smp, t0, h = rays.o, rays.d, rays.weight, rays.sample, np.zeros(n, np.float32), hits
@@ -383,7 +391,7 @@ class Integrator:
             tm = None
             if rays.t_max is not None:  # eye rays stop at the far plane: what is left of their length
                 tm = np.maximum(rays.t_max[0] - t0, 0).astype(np.float32)
-            h = self.accel.intersect(o, d, tm)
+            h = self.accel.closest_hits(o, d, tm)
         shadow = shadows[0] if len(shadows) == 1 else ShadowQueue(*(np.concatenate(c) for c in zip(*shadows)))
         blocked = np.zeros(0, bool)
         if len(shadow.o):
@@ -411,9 +419,9 @@ class Integrator:
             sel = np.flatnonzero(pending)
             if not len(sel):
                 break
-            t, prim, u, v = self.accel.intersect(o[sel], d[sel], t_max[sel])
-            _pass_shadow(sel, idx, t, prim, u, v, self.geometry, self.materials, self.textures, o, d, t_max, color,
-                         pending, blocked, self.options.eps)
+            t, prim, u, v, inst = self.accel.closest_hits(o[sel], d[sel], t_max[sel])
+            _pass_shadow(sel, idx, t, prim, inst, self.instances, u, v, self.geometry, self.materials, self.textures,
+                         o, d, t_max, color, pending, blocked, self.options.eps)
         return blocked
 
     def trace(self, origins: np.ndarray, directions: np.ndarray, keys: np.ndarray,
@@ -491,11 +499,10 @@ def _cut(a, threshold):
 
 
 @kernel(inline=True)
-def coverage(geom, mats, tex, tri, u, v):
-    """Alpha of triangle ``tri`` at barycentrics (u, v): the material's alpha × its texture, cut by its threshold
-    (:func:`_cut`). (Helpers that take the scene's NamedTuples are called only where a texture exists: each call
-    costs reference counting on every array they hold.)"""
-    mat = geom.material_ids[tri]
+def coverage(geom, mats, tex, mat, tri, u, v):
+    """Alpha of triangle ``tri`` at barycentrics (u, v) under material ``mat``: the material's alpha × its texture,
+    cut by its threshold (:func:`_cut`). (Helpers that take the scene's NamedTuples are called only where a texture
+    exists: each call costs reference counting on every array they hold.)"""
     a = float(mats.alpha[mat])
     ti = mats.alpha_texture[mat]
     if ti >= 0:
@@ -568,9 +575,11 @@ def _channel(c, ch):
 
 
 @kernel
-def _surfaces(o, d, t, prim, u, v, geom, mats, surf):
+def _surfaces(o, d, t, prim, inst, normal_matrix, overrides, u, v, geom, mats, surf):
     """Surfaces stage: per ray, the hit point, its frames and the material's constant parameters (× vertex
     colours); the rays whose material reads a texture are listed for :func:`_textured_surfaces`. Returns how many.
+    A hit on an instance (``inst`` ≥ 0) finds its frame in object space and takes it to world space by the
+    instance's normal matrix (:func:`tracer.instances.world_frame`), and shades with its material override.
     (The NamedTuples' fields are read into locals before the loop: a field read inside it can cost numba's
     reference counting per ray.)"""
     material_ids = geom.material_ids
@@ -592,8 +601,19 @@ def _surfaces(o, d, t, prim, u, v, geom, mats, surf):
         di = vec.row(d, i)
         ui, vi = float(u[i]), float(v[i])
         p = vec.madd(vec.row(o, i), di, float(t[i]))
-        ng, n, front = frame_at(face_normals, normals, corner_ok, has_normals, tri, di, ui, vi)
+        k = inst[i]
         mat = material_ids[tri]
+        if k < 0:
+            ng, n, front = frame_at(face_normals, normals, corner_ok, has_normals, tri, di, ui, vi)
+        else:  # an instance: the frame in object space (M⁻¹·d keeps the side), normals to world by (M)⁻ᵀ
+            ng_o, n_o, front = frame_at(face_normals, normals, corner_ok, has_normals, tri,
+                                        mat3_apply_transposed(normal_matrix, k, di), ui, vi)
+            ng = vec.normalize(mat3_apply(normal_matrix, k, ng_o))
+            n = vec.normalize(mat3_apply(normal_matrix, k, n_o))
+            if vec.dot(n, ng) <= 0.0:
+                n = ng
+            if overrides[k] >= 0:
+                mat = overrides[k]
         base = vec.row(diffuse, mat)
         if vertex_color[mat]:
             base = vec.mul(base, color_at(colors, has_colors, tri, ui, vi))
@@ -617,7 +637,7 @@ def _surfaces(o, d, t, prim, u, v, geom, mats, surf):
 @kernel
 def _textured_surfaces(rays, prim, u, v, mat_of, front, ng, n, base, rough, metal, spec, cover, e, alphas, threshold,
                        slots, channels, strength, uv_sets, vertices, triangles, face_normals, tdata, tparams, p_hit,
-                       eye, spread, flat):
+                       eye, spread, flat, inst, linear, mirrored):
     """Textures stage: for the listed rays, each textured parameter × its texture (in the order of
     TEXTURE_PARAMS: base colour, roughness, metallic, specular, alpha, emission, normal map), in place. Every
     array is a parameter of its own, so no reference counting runs per lookup.
@@ -631,6 +651,15 @@ def _textured_surfaces(rays, prim, u, v, mat_of, front, ng, n, base, rough, meta
         ui, vi = float(u[i]), float(v[i])
         alpha = float(alphas[mat])
         footprint = flat + spread * vec.length(vec.sub(vec.row(p_hit, i), eye))
+        k_inst = inst[i]
+        if k_inst >= 0:  # the instance scales the prototype's triangles: footprint in object units
+            det = abs(linear[k_inst, 0, 0] * (linear[k_inst, 1, 1] * linear[k_inst, 2, 2]
+                                              - linear[k_inst, 1, 2] * linear[k_inst, 2, 1])
+                      - linear[k_inst, 0, 1] * (linear[k_inst, 1, 0] * linear[k_inst, 2, 2]
+                                                - linear[k_inst, 1, 2] * linear[k_inst, 2, 0])
+                      + linear[k_inst, 0, 2] * (linear[k_inst, 1, 0] * linear[k_inst, 2, 1]
+                                                - linear[k_inst, 1, 1] * linear[k_inst, 2, 0]))
+            footprint /= max(det, 1e-30) ** (1.0 / 3.0)
         for j in range(7):
             ti = slots[mat, j]
             if ti < 0:
@@ -644,6 +673,10 @@ def _textured_surfaces(rays, prim, u, v, mat_of, front, ng, n, base, rough, meta
                 if ok:
                     c = lookup_at(tdata, tparams, ti, s, t, True, lod)
                     tg, sign = tangent_at(uv_sets, vertices, triangles, k, tri, vec.row(face_normals, tri))
+                    if k_inst >= 0:  # the tangent moves with the instance; a mirroring one turns the bitangent
+                        tg = mat3_apply(linear, k_inst, tg)
+                        if mirrored[k_inst]:
+                            sign = -sign
                     nn = bsdf.perturb_normal((c[0], c[1], c[2]), tg, sign, float(strength[mat]), vec.row(n, i),
                                              vec.row(ng, i), front[i])
                     n[i, 0], n[i, 1], n[i, 2] = nn
@@ -667,7 +700,7 @@ def _textured_surfaces(rays, prim, u, v, mat_of, front, ng, n, base, rough, meta
 
 
 @kernel
-def _first_hits(surf, t, prim, t0, sample, geom, out):
+def _first_hits(surf, t, prim, inst, itab, t0, sample, geom, out):
     """First-hit stage (depth 0): depth, normal, albedo and object id of the first surface each eye sample sees
     (surfaces cut away by alpha are looked through)."""
     for i in range(surf.hit.shape[0]):
@@ -677,7 +710,7 @@ def _first_hits(surf, t, prim, t0, sample, geom, out):
         out.depth[s] = t[i] + t0[i]
         out.normal[s, 0], out.normal[s, 1], out.normal[s, 2] = surf.n[i, 0], surf.n[i, 1], surf.n[i, 2]
         out.albedo[s, 0], out.albedo[s, 1], out.albedo[s, 2] = surf.base[i, 0], surf.base[i, 1], surf.base[i, 2]
-        out.object_id[s] = geom.object_ids[prim[i]]
+        out.object_id[s] = object_id(itab, inst[i], geom.object_ids[prim[i]])
 
 
 @kernel
@@ -914,7 +947,7 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
 
 
 @kernel
-def _pass_shadow(sel, idx, t, prim, u, v, geom, mats, tex, o, d, t_max, color, pending, blocked, eps):
+def _pass_shadow(sel, idx, t, prim, inst, itab, u, v, geom, mats, tex, o, d, t_max, color, pending, blocked, eps):
     """One round of transparent shadows: each pending shadow ray's first blocker either stops it (alpha 1) or lets
     1 − alpha of its colour through, the ray continuing behind it; a ray that reaches its light is unblocked."""
     for q in range(sel.shape[0]):
@@ -925,7 +958,8 @@ def _pass_shadow(sel, idx, t, prim, u, v, geom, mats, tex, o, d, t_max, color, p
             pending[j] = False
             blocked[r] = False
             continue
-        a = coverage(geom, mats, tex, tri, float(u[q]), float(v[q]))
+        a = coverage(geom, mats, tex, material_id(itab, inst[q], geom.material_ids[tri]), tri, float(u[q]),
+                     float(v[q]))
         if a >= 1.0:
             pending[j] = False
             continue
@@ -933,7 +967,7 @@ def _pass_shadow(sel, idx, t, prim, u, v, geom, mats, tex, o, d, t_max, color, p
             color[r, c] *= 1.0 - a
         dj = vec.row(d, j)
         p = vec.madd(vec.row(o, j), dj, float(t[q]))
-        ng = vec.row(geom.face_normals, tri)
+        ng = to_world_normal(itab, inst[q], vec.row(geom.face_normals, tri))
         if vec.dot(ng, dj) > 0.0:
             ng = vec.scale(ng, -1.0)
         o[j, 0], o[j, 1], o[j, 2] = spawn_ray(p, ng, dj, eps)

@@ -45,6 +45,93 @@ def non_degenerate(vertices: np.ndarray, triangles: np.ndarray, diagonal: float)
 
 
 @dataclass
+class Instances:
+    """Placements of shared object-space meshes: K instances, each drawing the triangles of one *prototype*.
+
+    prototypes  (K,) int32: the object id whose triangles instance k draws. An object id named here is a
+                prototype: its rows of ``Scene.triangles`` are in **object space** and are drawn only through its
+                instances (never at their own place; add an instance with its matrix for that)
+    transforms  (K, 4, 4) float64 object-to-world matrices (column vectors: p_world = M @ p), finite and
+                invertible; a mirroring one (det < 0) is fine: the outside stays outside (as ``add_mesh``)
+    object_ids  (K,) int32: each instance's own object id (AOV ``objectid``, ``Scene.object_names``, pass
+                indices); must not be a prototype's id
+    materials   optional (K,) int32 material override (-1: the prototype's own per-triangle materials)
+
+    ``len(instances)`` is K. Build them with :meth:`tracer.SceneBuilder.add_instances`.
+    """
+
+    prototypes: np.ndarray
+    transforms: np.ndarray
+    object_ids: np.ndarray
+    materials: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return len(self.prototypes)
+
+    def material_overrides(self) -> np.ndarray:
+        """(K,) int32 overrides, -1 where the prototype's own materials apply."""
+        return self.materials if self.materials is not None else np.full(len(self), -1, np.int32)
+
+    def validate(self, n_materials: int) -> None:
+        p = np.asarray(self.prototypes)
+        if p.ndim != 1 or (p.size and not np.issubdtype(p.dtype, np.integer)):
+            raise ValueError(f"scene.instances.prototypes must be a 1-D integer array, got shape {p.shape}")
+        k = len(p)
+        if k and p.min() < 0:
+            raise ValueError(f"scene.instances.prototypes: instance {int(np.argmin(p))} names object {int(p.min())}")
+        self.prototypes = np.ascontiguousarray(p, np.int32)
+        m = np.asarray(self.transforms, dtype=np.float64)
+        if m.shape != (k, 4, 4):
+            raise ValueError(f"scene.instances.transforms must have shape ({k}, 4, 4), got {m.shape}")
+        finite = np.isfinite(m).all(axis=(1, 2))
+        if not finite.all():
+            raise ValueError(f"scene.instances.transforms: instance {int(np.argmin(finite))} has a NaN or "
+                             "infinite entry")
+        lin = m[:, :3, :3]
+        size = np.abs(lin).max(axis=(1, 2)) if k else np.zeros(0)
+        singular = np.abs(np.linalg.det(lin)) <= 1e-12 * np.maximum(size, 1e-300) ** 3 if k else np.zeros(0, bool)
+        if singular.any():
+            raise ValueError(f"scene.instances.transforms: instance {int(np.argmax(singular))} is singular "
+                             "(zero scale); leave it out instead")
+        self.transforms = np.ascontiguousarray(m)
+        ids = np.asarray(self.object_ids)
+        if ids.shape != (k,) or (ids.size and not np.issubdtype(ids.dtype, np.integer)):
+            raise ValueError(f"scene.instances.object_ids must be {k} integers, got shape {ids.shape}")
+        if k and ids.min() < 0:
+            raise ValueError(f"scene.instances.object_ids: instance {int(np.argmin(ids))} has a negative id")
+        self.object_ids = np.ascontiguousarray(ids, np.int32)
+        clash = np.isin(self.object_ids, self.prototypes)
+        if clash.any():
+            raise ValueError(f"scene.instances: instance {int(np.argmax(clash))} has object id "
+                             f"{int(self.object_ids[clash][0])}, which is a prototype's")
+        if self.materials is not None:
+            mt = np.asarray(self.materials)
+            if mt.shape != (k,) or (mt.size and not np.issubdtype(mt.dtype, np.integer)):
+                raise ValueError(f"scene.instances.materials must be {k} integers, got shape {mt.shape}")
+            bad = (mt < -1) | (mt >= n_materials)
+            if bad.any():
+                i = int(np.argmax(bad))
+                raise ValueError(f"scene.instances.materials: instance {i} uses material {int(mt[i])}, but there "
+                                 f"are {n_materials} materials")
+            self.materials = np.ascontiguousarray(mt, np.int32)
+
+
+def instance_bounds(transforms: np.ndarray, points: np.ndarray, chunk: int = 2048) -> np.ndarray:
+    """(2, 3) exact bounds of ``points`` (P, 3) placed by every matrix of ``transforms`` (K, 4, 4): per axis the
+    support function max_p (row · p) + t, batched (no (K, P, 3) array, no loop over instances)."""
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    pts = np.asarray(points, np.float64)
+    if not len(pts) or not len(transforms):
+        return np.stack([lo, hi])
+    for c in range(0, len(transforms), chunk):
+        m = transforms[c:c + chunk]
+        proj = m[:, :3, :3] @ pts.T  # (k, 3, P)
+        lo = np.minimum(lo, (proj.min(axis=2) + m[:, :3, 3]).min(axis=0))
+        hi = np.maximum(hi, (proj.max(axis=2) + m[:, :3, 3]).max(axis=0))
+    return np.stack([lo, hi])
+
+
+@dataclass
 class Scene:
     """World-space geometry and everything needed to shade it.
 
@@ -63,6 +150,8 @@ class Scene:
     background    colour of rays that hit nothing
     ambient       L_a of the seed (the world's colour × strength): ambient term L_a·R_a
     object_names  name per object id; object_pass_indices optionally maps object ids to user pass indices
+    instances     optional :class:`Instances`: placements of prototypes (objects whose triangles are in object
+                  space and drawn only through instances); None = every triangle is in world space
     """
 
     vertices: np.ndarray
@@ -90,6 +179,8 @@ class Scene:
     #: (SceneBuilder.add_mesh's transform; None = identity for all). The vertices are already in world space;
     #: tracer.Session.set_transform moves an object from this matrix to a new one.
     object_transforms: np.ndarray | None = None
+    #: Optional shared-mesh instances (see :class:`Instances`); None: a triangle soup in world space.
+    instances: Instances | None = None
 
     def __post_init__(self):
         self.validate()
@@ -179,6 +270,24 @@ class Scene:
                 raise ValueError(f"scene.object_transforms must be finite (O, 4, 4) matrices, got shape {ot.shape}")
             self.object_transforms = ot
 
+        if self.instances is not None:
+            if not isinstance(self.instances, Instances):
+                raise ValueError("scene.instances must be a tracer.Instances table or None")
+            self.instances.validate(len(self.materials))
+            has = np.zeros(max(int(self.object_ids.max()) + 1 if n else 0,
+                               int(self.instances.prototypes.max()) + 1 if len(self.instances) else 0), bool)
+            has[self.object_ids] = True
+            missing = ~has[self.instances.prototypes]
+            if missing.any():
+                raise ValueError(f"scene.instances: instance {int(np.argmax(missing))} places object "
+                                 f"{int(self.instances.prototypes[missing][0])}, which has no triangles")
+            if self.object_pass_indices is not None and len(self.instances) and \
+                    self.instances.object_ids.max() >= len(self.object_pass_indices):
+                raise ValueError(f"scene.object_pass_indices has {len(self.object_pass_indices)} entries but "
+                                 f"instance object id {int(self.instances.object_ids.max())} is used")
+            if not len(self.instances):
+                self.instances = None
+
         self._drop_degenerate()
 
     def _validate_uv_sets(self, n):
@@ -218,6 +327,14 @@ class Scene:
         if not len(self.triangles):
             return
         keep = non_degenerate(self.vertices, self.triangles, self.diagonal)
+        if self.instances is not None:  # prototypes' triangles against their own (object-space) size
+            for proto in np.unique(self.instances.prototypes):
+                rows = np.flatnonzero(self.object_ids == proto)
+                if not len(rows):
+                    continue
+                v = self.vertices[np.unique(self.triangles[rows])]
+                keep[rows] = non_degenerate(self.vertices, self.triangles[rows],
+                                            float(np.linalg.norm(v.max(axis=0) - v.min(axis=0))))
         dropped = int((~keep).sum())
         if dropped:
             warnings.warn(f"scene: skipped {dropped} degenerate (zero-area) triangle(s)", stacklevel=3)
@@ -234,16 +351,35 @@ class Scene:
                 self.colors = np.ascontiguousarray(self.colors[keep])
 
     # ------------------------------------------------------------------ queries
+    def prototype_rows(self) -> np.ndarray:
+        """(T,) bool: the rows of ``triangles`` that belong to a prototype (object space, drawn by instances)."""
+        if self.instances is None or not len(self.instances):
+            return np.zeros(len(self.triangles), bool)
+        return np.isin(self.object_ids, self.instances.prototypes)
+
     @property
     def bounds(self) -> np.ndarray:
-        """(2, 3) min and max corner of the referenced vertices (zeros for an empty scene)."""
+        """(2, 3) min and max corner of what is drawn in world space: the referenced vertices of world-space
+        triangles and every instance's placed prototype vertices (exact; zeros for an empty scene)."""
         if not len(self.triangles):
             return np.zeros((2, 3), np.float64)
         if getattr(self, "_bounds", None) is None:  # cached until the next validate()
-            used = np.zeros(len(self.vertices), bool)
-            used[self.triangles.ravel()] = True
-            v = self.vertices if used.all() else self.vertices[used]
-            self._bounds = np.stack([v.min(axis=0), v.max(axis=0)]).astype(np.float64)
+            proto = self.prototype_rows()
+            world = self.triangles if not proto.any() else self.triangles[~proto]
+            lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+            if len(world):
+                used = np.zeros(len(self.vertices), bool)
+                used[world.ravel()] = True
+                v = self.vertices if used.all() else self.vertices[used]
+                lo, hi = v.min(axis=0).astype(np.float64), v.max(axis=0).astype(np.float64)
+            if proto.any():
+                for p in np.unique(self.instances.prototypes):
+                    pv = self.vertices[np.unique(self.triangles[self.object_ids == p])]
+                    b = instance_bounds(self.instances.transforms[self.instances.prototypes == p], pv)
+                    lo, hi = np.minimum(lo, b[0]), np.maximum(hi, b[1])
+            if not np.all(np.isfinite(lo)):
+                lo = hi = np.zeros(3)
+            self._bounds = np.stack([lo, hi]).astype(np.float64)
         return self._bounds.copy()
 
     @property

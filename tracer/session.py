@@ -19,10 +19,18 @@ What each edit costs (see docs/session-api.md for the full contract):
 ``update_mesh``             rebuild that object's Embree geometry only
 ``add_object``              a new Embree geometry (its BVH) + top-level commit
 ``remove_object``           detach its geometry + top-level commit
+``add_instances``           the instance array's buffers grow (numpy) + top-level commit; no mesh BVH
+``remove_instances``        the instance array's buffers shrink + top-level commit
 ==========================  ===================================================================================
 
-``session.scene`` is always the edited scene, flattened: rendering it afresh with :func:`tracer.render` gives the
-same picture as ``session.render`` (tests/test_session.py checks this for every kind of edit).
+Instances (``scene.instances``): ``set_transform`` of an instance's object id rewrites its row of the instance
+array's transform buffer (no BVH but the top level's, over the instances' boxes); ``update_mesh`` of a prototype
+rebuilds that one shared BVH and every instance of it follows; ``update_mesh`` of an instance's id turns that
+instance into an ordinary object with the given mesh; ``remove_object`` of a prototype removes its instances too.
+
+``session.scene`` is always the edited scene (world-space triangles, prototypes and instances): rendering it afresh
+with :func:`tracer.render` gives the same picture as ``session.render`` (tests/test_session.py and
+tests/test_instances.py check this for every kind of edit).
 
 A session is not thread-safe against itself: make edits between renders (the viewport cancels the render in
 flight first), never during one. Renders themselves run their tiles on threads.
@@ -45,7 +53,7 @@ from .environment import Environment
 from .film import Image
 from .lights import AreaLight, DistantLight, PointLight, SpotLight
 from .materials import Materials
-from .scene import PER_TRIANGLE, Scene, non_degenerate, unit_normals
+from .scene import PER_TRIANGLE, Instances, Scene, non_degenerate, unit_normals
 from .settings import RenderSettings
 
 #: Sentinel for ``update_world`` arguments that stay as they are.
@@ -92,7 +100,8 @@ class Session:
     # ---------------------------------------------------------------------------------------------- queries
     @property
     def scene(self) -> Scene:
-        """The scene as edited so far (world-space, flattened): what a fresh :func:`tracer.render` would need."""
+        """The scene as edited so far (world-space triangles, prototypes and instances): what a fresh
+        :func:`tracer.render` would need."""
         return self._scene
 
     @property
@@ -100,8 +109,11 @@ class Session:
         return self._accel
 
     def object_ids(self) -> np.ndarray:
-        """Ids of the objects that currently have triangles."""
-        return np.unique(self._scene.object_ids)
+        """Ids of the objects that are currently drawn: those with world-space triangles and the instances
+        (prototypes, drawn only through their instances, are not listed)."""
+        s = self._scene
+        ids = np.unique(s.object_ids[~s.prototype_rows()])
+        return ids if s.instances is None else np.union1d(ids, s.instances.object_ids)
 
     def transform(self, object_id: int) -> np.ndarray:
         """The 4×4 object-to-world matrix object ``object_id`` has now."""
@@ -124,6 +136,10 @@ class Session:
             if len(s.material_ids) and int(s.material_ids.max()) >= len(probe.materials):
                 raise ValueError(f"update_materials: the scene uses material {int(s.material_ids.max())} but the "
                                  f"new table has {len(probe.materials)} rows")
+            if s.instances is not None and int(s.instances.material_overrides().max()) >= len(probe.materials):
+                raise ValueError(f"update_materials: an instance uses material "
+                                 f"{int(s.instances.material_overrides().max())} but the new table has "
+                                 f"{len(probe.materials)} rows")
             s.materials, s.textures = probe.materials, probe.textures
             self._repack()
 
@@ -154,7 +170,25 @@ class Session:
         turns around (as :meth:`tracer.SceneBuilder.add_mesh` does)."""
         m = _matrix(matrix, f"set_transform({object_id})")
         with self._edit("transform"):
-            self._geometry.set_transform(int(object_id), m)
+            k = self._geometry.instances_of(int(object_id))
+            if len(k):  # an instance (or several under one id): its rows of the instance array, nothing else
+                self._geometry.move_instances(int(object_id), k, m)
+            else:
+                self._geometry.refuse_prototype(int(object_id), "set_transform")
+                self._geometry.set_transform(int(object_id), m)
+            self._repack()
+
+    def add_instances(self, prototype: int, transforms, names=None, materials=None) -> np.ndarray:
+        """Place object ``prototype``'s mesh K more times (arguments as :meth:`tracer.SceneBuilder.add_instances`;
+        an object drawn in world space so far cannot become a prototype: add its mesh again for that); returns
+        the new instances' object ids. No mesh BVH is built."""
+        with self._edit("add_instances"):
+            return self._geometry.add_instances(int(prototype), transforms, names, materials)
+
+    def remove_instances(self, object_ids) -> None:
+        """Remove the instances with these object ids (their ids and names stay reserved)."""
+        with self._edit("remove_instances"):
+            self._geometry.remove_instances(np.asarray(object_ids, np.int64).reshape(-1))
             self._repack()
 
     def update_mesh(self, object_id: int, vertices, triangles, material=0, normals=None, uvs=None,
@@ -163,7 +197,13 @@ class Session:
         object-space vertices, optional 4×4 ``transform``); only that object's Embree geometry is rebuilt."""
         with self._edit("mesh"):
             object_id = int(object_id)
-            self._geometry.require(object_id)
+            if len(self._geometry.instances_of(object_id)):  # an instance becomes an object of its own
+                self._geometry.remove_instances(np.array([object_id]))
+            else:
+                self._geometry.require(object_id)
+                if self._geometry.is_prototype(object_id) and transform is not None:
+                    raise ValueError(f"update_mesh({object_id}): object {object_id} is a prototype (its mesh is in "
+                                     "object space, placed by its instances): pass no transform")
             label = self._scene.object_name(object_id)
             mesh = place_mesh(vertices, triangles, material, transform=transform, normals=normals, uvs=uvs,
                               label=label, n_materials=len(self._scene.materials))
@@ -187,8 +227,16 @@ class Session:
     def remove_object(self, object_id: int) -> None:
         """Remove object ``object_id``'s triangles (its id and name stay reserved)."""
         with self._edit("remove"):
-            self._geometry.require(int(object_id))
-            self._geometry.replace(int(object_id), None)
+            object_id = int(object_id)
+            if len(self._geometry.instances_of(object_id)):
+                self._geometry.remove_instances(np.array([object_id]))
+                self._repack()
+                return
+            self._geometry.require(object_id)
+            if self._geometry.is_prototype(object_id):  # its instances go with it
+                inst = self._scene.instances
+                self._geometry.remove_instances(inst.object_ids[inst.prototypes == object_id])
+            self._geometry.replace(object_id, None)
             self._repack()
 
     # ---------------------------------------------------------------------------------------------- rendering
@@ -308,7 +356,91 @@ class _Objects:
         s = self.scene
         return max(len(s.object_names), int(s.object_ids.max()) + 1 if len(s.object_ids) else 0,
                    max(self._transforms, default=-1) + 1,
-                   len(self._base) if self._base is not None else 0)
+                   len(self._base) if self._base is not None else 0,
+                   int(s.instances.object_ids.max()) + 1 if s.instances is not None else 0)
+
+    # ------------------------------------------------------------------ instances
+    def is_prototype(self, object_id: int) -> bool:
+        inst = self.scene.instances
+        return inst is not None and bool(np.any(inst.prototypes == object_id))
+
+    def refuse_prototype(self, object_id: int, what: str) -> None:
+        if self.is_prototype(object_id):
+            raise ValueError(f"{what}({object_id}): object {object_id} is a prototype, drawn only through its "
+                             "instances: move its instances instead")
+
+    def instances_of(self, object_id: int) -> np.ndarray:
+        """Indices into ``scene.instances`` of the instances with object id ``object_id``."""
+        inst = self.scene.instances
+        return np.zeros(0, np.int64) if inst is None else np.flatnonzero(inst.object_ids == object_id)
+
+    def _set_instances(self, instances: Instances | None) -> None:
+        s = self.scene
+        s.instances = instances if instances is not None and len(instances) else None
+        s._bounds = None
+        if s.instances is None:
+            self.accel.set_instances(np.zeros(0, np.int32), np.zeros((0, 4, 4)))
+        else:
+            self.accel.set_instances(s.instances.prototypes, s.instances.transforms)
+
+    def move_instances(self, object_id: int, k: np.ndarray, matrix: np.ndarray) -> None:
+        s = self.scene
+        inst = s.instances
+        transforms = inst.transforms.copy() if "instances" not in self._owned else inst.transforms
+        transforms[k] = matrix
+        if "instances" not in self._owned:
+            s.instances = Instances(inst.prototypes, transforms, inst.object_ids, inst.materials)
+            self._owned.add("instances")
+        s._bounds = None
+        self._transforms[object_id] = matrix
+        self._sync_transforms()
+        self.accel.set_instance_transforms(k, np.broadcast_to(matrix, (len(k), 4, 4)))
+
+    def add_instances(self, prototype: int, transforms, names, materials) -> np.ndarray:
+        s = self.scene
+        if not self.is_prototype(prototype):
+            if np.any(s.object_ids == prototype):
+                raise ValueError(f"add_instances({prototype}): object {prototype} is drawn in world space, not a "
+                                 "prototype; add its object-space mesh as a new object and instance that")
+            raise KeyError(f"object {prototype} has no triangles in this session")
+        m = np.asarray(transforms, np.float64)
+        m = m[None] if m.shape == (4, 4) else m
+        first = self.next_object_id()
+        ids = np.arange(first, first + len(m), dtype=np.int32)
+        mats = None if materials is None else np.broadcast_to(np.asarray(materials, np.int32), (len(m),)).copy()
+        inst = s.instances
+        new = Instances(np.full(len(m), prototype, np.int32), m, ids, mats)
+        new.validate(len(s.materials))  # the scene's own checks: shapes, finite, invertible, material rows
+        both = Instances(np.concatenate([inst.prototypes, new.prototypes]),
+                         np.concatenate([inst.transforms, new.transforms]),
+                         np.concatenate([inst.object_ids, ids]),
+                         None if inst.materials is None and mats is None else
+                         np.concatenate([inst.material_overrides(), new.material_overrides()]))
+        label = s.object_name(prototype)
+        names = [f"{label}[{i}]" for i in range(len(m))] if names is None else [str(n) for n in names]
+        if len(names) != len(m):
+            raise ValueError(f"add_instances({prototype}): {len(names)} names for {len(m)} instances")
+        s.object_names = list(s.object_names) + [f"object{i}" for i in range(len(s.object_names), first)] + names
+        if s.object_pass_indices is not None:
+            s.object_pass_indices = np.concatenate([s.object_pass_indices, np.arange(
+                len(s.object_pass_indices), first + len(m), dtype=np.int32)])
+        for i, mi in zip(ids.tolist(), m):
+            self._transforms[i] = mi
+        self._owned.add("instances")
+        self._set_instances(both)
+        self._sync_transforms()
+        return ids
+
+    def remove_instances(self, object_ids: np.ndarray) -> None:
+        inst = self.scene.instances
+        gone = np.zeros(0, bool) if inst is None else np.isin(inst.object_ids, object_ids)
+        unknown = np.setdiff1d(object_ids, [] if inst is None else inst.object_ids)
+        if len(unknown):
+            raise KeyError(f"object {int(unknown[0])} is not an instance in this session")
+        keep = ~gone
+        self._owned.add("instances")
+        self._set_instances(Instances(inst.prototypes[keep], inst.transforms[keep], inst.object_ids[keep],
+                                      None if inst.materials is None else inst.materials[keep]))
 
     def set_transform(self, object_id: int, matrix: np.ndarray) -> None:
         rows = self.require(object_id)

@@ -1,18 +1,18 @@
-"""``UsdGeom.PointInstancer``: flattened into world-space triangles, one builder call per prototype piece.
+"""``UsdGeom.PointInstancer``: its instance matrices, which the reader turns into tracer instances.
 
-embreex exposes no Embree instancing, so instances are copied. Each prototype gprim is read and converted once;
-its K instance matrices W · instanceᵢ · prototype-relative are applied in one batched numpy product (no Python
-loop over instances), normals by the batched inverse transposes, winding flipped where a matrix mirrors.
-``invisibleIds``/``mask`` are honoured through ``ComputeMaskAtTime``. Native (scenegraph) instancing is handled by
-the traversal through instance proxies, with the prototype's geometry read once and cached (reader.py).
+No instance is copied: each prototype gprim is read and converted once and added to the scene in its own space
+(``SceneBuilder.add_mesh``), and its K instance matrices W · instanceᵢ · prototype-relative (one batched numpy
+product, no Python loop over instances) become ``SceneBuilder.add_instances`` — Embree instances of one BVH.
+Nested instancers compose their matrices, so every (outer, inner) instance keeps an object id of its own.
+``invisibleIds``/``mask`` are honoured through ``ComputeMaskAtTime``. Native (scenegraph) instancing: the traversal
+meets instance proxies; the prototype's mesh is added once (per material binding) and each proxy is an instance of
+it (reader.py).
 """
 
 from __future__ import annotations
 
 import numpy as np
 from pxr import UsdGeom
-
-from .xform import batch_normals, batch_points
 
 
 def instance_matrices(prim, time) -> tuple[np.ndarray, np.ndarray, list]:
@@ -29,27 +29,3 @@ def instance_matrices(prim, time) -> tuple[np.ndarray, np.ndarray, list]:
     if mask is not None and len(mask) == len(idx):
         idx = np.where(np.asarray(mask, dtype=bool), idx, -1)
     return mats, idx, list(pi.GetPrototypesRel().GetForwardedTargets())
-
-
-def replicate(mats: np.ndarray, data, material):
-    """Vertices, triangles, normals, uvs and per-triangle materials of ``data`` under K world matrices."""
-    k, nv, nt = len(mats), len(data.points), len(data.triangles)
-    verts = batch_points(mats, data.points).reshape(-1, 3)
-    tris = np.repeat(data.triangles[None], k, axis=0) + (np.arange(k) * nv)[:, None, None]
-    flip = np.linalg.det(mats[:, :3, :3]) < 0
-    tris[flip] = tris[flip][:, :, [0, 2, 1]]
-    normals = uvs = None
-    if data.normals is not None:
-        n = batch_normals(mats, data.normals)  # (K, V, 3) or (K, T, 3, 3)
-        if data.normals.ndim == 3:
-            n[flip] = n[flip][:, :, [0, 2, 1]]
-            normals = n.reshape(-1, 3, 3)
-        else:
-            normals = n.reshape(-1, 3)
-    if data.uvs is not None:
-        u = np.repeat(data.uvs[None], k, axis=0)
-        u[flip] = u[flip][:, :, [0, 2, 1]]
-        uvs = u.reshape(-1, 3, 2)
-    mat = np.asarray(material)
-    mat = np.tile(mat, k) if mat.ndim else mat
-    return verts, tris.reshape(-1, 3), normals, uvs, mat

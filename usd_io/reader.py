@@ -15,15 +15,15 @@ import numpy as np
 from pxr import Usd, UsdGeom, UsdLux
 
 from tracer import SceneBuilder
+from tracer.scene import instance_bounds
 
 from . import camera as cam
 from .curves import read_curves, read_points
 from .gprims import DEFAULT_SEGMENTS, GPRIM_TYPES, read_gprim
-from .instancing import instance_matrices, replicate
+from .instancing import instance_matrices
 from .dome import environment
 from .lights import blender_authored, convert_light, default_lights
 from .material import MaterialTable
-from .material_primvars import replicate_corners
 from .mesh import COMPLEXITY, DEFAULT_COMPLEXITY, SUBDIVIDED, MeshData, read_mesh
 from .skel import Skinning
 from .stage import (DEFAULT_PURPOSES, _first_reason, captured_stderr, UsdInputError, check_purposes, composition_warnings, open_stage,
@@ -65,6 +65,7 @@ class _Reader:
         self.lo = np.full(3, np.inf)
         self.hi = np.full(3, -np.inf)
         self._proto_cache: dict[str, MeshData | None] = {}
+        self._proto_ids: dict[tuple, int] = {}  # (prototype prim path, material rows) -> tracer prototype object id
         self._grey = None
         self.skinning = Skinning(time, self.xf.world)
         self.subdivision_level = COMPLEXITY[DEFAULT_COMPLEXITY]
@@ -132,9 +133,19 @@ class _Reader:
             return
         data, material, extra = self.shaded(prim, data)
         tris = data.triangles
-        # add_mesh turns the winding of mirroring transforms back itself
-        self.b.add_mesh(data.points, tris, material=material, name=str(prim.GetPath()), transform=m,
-                        normals=data.normals, **dict(dict(uvs=data.uvs), **extra))
+        if prim.IsInstanceProxy() and not Skinning.is_skinned(prim):
+            # native instancing: the prototype's mesh once (object space), this proxy an instance of it
+            key = (str(prim.GetPrimInPrototype().GetPath()), np.asarray(material).tobytes())
+            proto = self._proto_ids.get(key)
+            if proto is None:
+                proto = self.b.add_mesh(data.points, tris, material=material, name=key[0], normals=data.normals,
+                                        **dict(dict(uvs=data.uvs), **extra))
+                self._proto_ids[key] = proto
+            self.b.add_instances(proto, m, names=[str(prim.GetPath())])
+        else:
+            # add_mesh turns the winding of mirroring transforms back itself
+            self.b.add_mesh(data.points, tris, material=material, name=str(prim.GetPath()), transform=m,
+                            normals=data.normals, **dict(dict(uvs=data.uvs), **extra))
         self._grow(transform_points(m, data.points))
         self.info.meshes.append((str(prim.GetPath()), int(len(tris))))
 
@@ -174,16 +185,20 @@ class _Reader:
                     full = full[usable]
                 if not len(full):
                     continue
-                v, t, n, uv, mat = replicate(full, data, material)
-                extra = replicate_corners(full, extra)
-                # one object id per instance (AOV objectid, picking), ids consecutive in instance order
-                self.b.add_mesh(v, t, material=mat, name=f"{prim.GetPath()}[{piece.GetPath()}]", normals=n,
-                                instances=len(full), **dict(dict(uvs=uv), **extra))
-                self._grow(v)
-                total += len(t)
+                # the piece's mesh once, in its own space; one instance per (outer instance, instance) with an
+                # object id of its own (AOV objectid, picking), ids consecutive in instance order
+                proto = self.b.add_mesh(data.points, data.triangles, material=material,
+                                        name=f"{prim.GetPath()}[{piece.GetPath()}]", normals=data.normals,
+                                        **dict(dict(uvs=data.uvs), **extra))
+                self.b.add_instances(proto, full)
+                self._grow_instances(full, data.points)
+                total += len(data.triangles) * len(full)
         if depth == 0:
             self.info.meshes.append((str(prim.GetPath()), int(total)))
         return total
+
+    def _grow_instances(self, matrices, points):
+        self._grow(instance_bounds(matrices, points))
 
     def _grow(self, world_points):
         if len(world_points):
