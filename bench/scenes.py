@@ -76,15 +76,27 @@ class BenchScene:
         return self.meshes[inst.mesh].material if inst.material is None else inst.material
 
 
-def to_tracer(bs: BenchScene, width: int, height: int):
-    """Flatten ``bs`` into a :class:`tracer.Scene` for a ``width`` × ``height`` image."""
+def to_tracer(bs: BenchScene, width: int, height: int, instanced: bool = False):
+    """``bs`` as a :class:`tracer.Scene` for a ``width`` × ``height`` image: every instance flattened into world
+    triangles, or (``instanced``) each mesh placed more than once stored once and drawn through
+    :meth:`tracer.SceneBuilder.add_instances` (the same picture: tests/test_instances.py)."""
     b = SceneBuilder()
     for m in bs.materials:
         b.add_material(**m)
+    uses = np.bincount([i.mesh for i in bs.instances], minlength=len(bs.meshes))
+    shared = {}
     for k, inst in enumerate(bs.instances):
         mesh = bs.meshes[inst.mesh]
+        if instanced and uses[inst.mesh] > 1 and np.ndim(mesh.material) == 0:
+            shared.setdefault(inst.mesh, []).append(inst)
+            continue
         b.add_mesh(mesh.vertices, mesh.faces, material=bs.instance_material(inst), name=f"{mesh.name}_{k}",
                    transform=inst.transform, normals=mesh.normals)
+    for index, insts in shared.items():
+        mesh = bs.meshes[index]
+        proto = b.add_mesh(mesh.vertices, mesh.faces, material=mesh.material, name=mesh.name, normals=mesh.normals)
+        b.add_instances(proto, np.stack([i.transform for i in insts]),
+                        materials=np.array([-1 if i.material is None else i.material for i in insts]))
     for light in bs.lights:
         b.add_light(light)
     b.camera = bs.camera(width, height)
