@@ -64,7 +64,8 @@ class Environment:
         """Radiance (N, 3) seen along unit world directions (N, 3) (array form of :func:`env_radiance`)."""
         d = np.ascontiguousarray(np.asarray(directions, np.float64).reshape(-1, 3))
         out = np.empty((len(d), 3), np.float64)
-        _radiance_rows(pack_environment(self), d, out)
+        env = pack_environment(self)
+        _radiance_rows(env.data, env.rot, d, out)
         return out
 
 
@@ -106,17 +107,19 @@ def pack_environment(env: Environment | None) -> EnvTables:
 
 
 @kernel(inline=True)
-def _to_env(env, d):
-    r = env.rot
+def _to_env(r, d):
     return (r[0, 0] * d[0] + r[0, 1] * d[1] + r[0, 2] * d[2], r[1, 0] * d[0] + r[1, 1] * d[1] + r[1, 2] * d[2],
             r[2, 0] * d[0] + r[2, 1] * d[1] + r[2, 2] * d[2])
 
 
 @kernel(inline=True)
-def env_radiance(env, d):
-    """Radiance seen along the unit world direction d (bilinear, wrapping in u, clamped at the poles)."""
-    e = _to_env(env, d)
-    h, w = env.data.shape[0], env.data.shape[1]
+def env_radiance(data, rot, d):
+    """Radiance seen along the unit world direction d (bilinear, wrapping in u, clamped at the poles) of the
+    environment ``data`` (H, W, 3) in frame ``rot`` (an :class:`EnvTables`' arrays, passed one by one: kernels hand
+    inlined helpers arrays, never NamedTuples, whose fields numba reference-counts per call; and read texels as
+    scalars, never as row views)."""
+    e = _to_env(rot, d)
+    h, w = data.shape[0], data.shape[1]
     u = 0.5 - math.atan2(e[1], e[0]) / (2.0 * math.pi)
     t = 0.5 + math.asin(min(max(e[2], -1.0), 1.0)) / math.pi
     x = u * w - 0.5
@@ -127,14 +130,15 @@ def env_radiance(env, d):
     x1 = (x0 + 1) % w
     y0 = min(max(int(yf), 0), h - 1)
     y1 = min(max(int(yf) + 1, 0), h - 1)
-    a, b, c, d = (1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy
-    e00, e01, e10, e11 = env.data[y0, x0], env.data[y0, x1], env.data[y1, x0], env.data[y1, x1]
-    return (a * e00[0] + b * e01[0] + c * e10[0] + d * e11[0], a * e00[1] + b * e01[1] + c * e10[1] + d * e11[1],
-            a * e00[2] + b * e01[2] + c * e10[2] + d * e11[2])
+    a, b, c, dd = (1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy
+    return (a * data[y0, x0, 0] + b * data[y0, x1, 0] + c * data[y1, x0, 0] + dd * data[y1, x1, 0],
+            a * data[y0, x0, 1] + b * data[y0, x1, 1] + c * data[y1, x0, 1] + dd * data[y1, x1, 1],
+            a * data[y0, x0, 2] + b * data[y0, x1, 2] + c * data[y1, x0, 2] + dd * data[y1, x1, 2])
 
 
 @kernel(inline=True)
 def _search(cdf, x):
+    """The first index of the 1-D ``cdf`` whose value exceeds x."""
     lo, hi = 0, cdf.shape[0] - 1
     while lo < hi:
         mid = (lo + hi) // 2
@@ -146,16 +150,29 @@ def _search(cdf, x):
 
 
 @kernel(inline=True)
-def env_sample(env, s0, s1):
+def _search_row(cdf, row, x):
+    """:func:`_search` in row ``row`` of a 2-D ``cdf`` (no row view)."""
+    lo, hi = 0, cdf.shape[1] - 1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if cdf[row, mid] > x:
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
+
+
+@kernel(inline=True)
+def env_sample(data, rot, row_cdf, col_cdf, row_pdf, col_pdf, s0, s1):
     """A world direction drawn with probability ∝ luminance × solid angle from (s0, s1) in [0,1)², and its pdf per
-    steradian (the pixel's probability / its solid angle)."""
-    h, w = env.data.shape[0], env.data.shape[1]
-    row = _search(env.row_cdf, s0)
-    before = env.row_cdf[row - 1] if row > 0 else 0.0
-    fy = min(max((s0 - before) / max(env.row_pdf[row], 1e-30), 0.0), 1.0)
-    col = _search(env.col_cdf[row], s1)
-    cbefore = env.col_cdf[row, col - 1] if col > 0 else 0.0
-    fx = min(max((s1 - cbefore) / max(env.col_pdf[row, col], 1e-30), 0.0), 1.0)
+    steradian (the pixel's probability / its solid angle). The arguments are an :class:`EnvTables`' arrays."""
+    h, w = data.shape[0], data.shape[1]
+    row = _search(row_cdf, s0)
+    before = row_cdf[row - 1] if row > 0 else 0.0
+    fy = min(max((s0 - before) / max(row_pdf[row], 1e-30), 0.0), 1.0)
+    col = _search_row(col_cdf, row, s1)
+    cbefore = col_cdf[row, col - 1] if col > 0 else 0.0
+    fx = min(max((s1 - cbefore) / max(col_pdf[row, col], 1e-30), 0.0), 1.0)
     u = (col + fx) / w
     # uniform in z = sin(latitude) inside the row, i.e. uniform in solid angle inside the pixel
     z_top = math.sin((0.5 - row / h) * math.pi)
@@ -164,14 +181,14 @@ def env_sample(env, s0, s1):
     rho = math.sqrt(max(0.0, 1.0 - z * z))
     lon = (0.5 - u) * 2.0 * math.pi
     e = (rho * math.cos(lon), rho * math.sin(lon), z)
-    r = env.rot  # environment -> world is the transpose of the rotation
+    r = rot  # environment -> world is the transpose of the rotation
     d = (r[0, 0] * e[0] + r[1, 0] * e[1] + r[2, 0] * e[2], r[0, 1] * e[0] + r[1, 1] * e[1] + r[2, 1] * e[2],
          r[0, 2] * e[0] + r[1, 2] * e[1] + r[2, 2] * e[2])
     solid = (2.0 * math.pi / w) * max(z_top - z_bottom, 1e-12)  # the pixel's solid angle
-    return vec.normalize(d), env.row_pdf[row] * env.col_pdf[row, col] / solid
+    return vec.normalize(d), row_pdf[row] * col_pdf[row, col] / solid
 
 
 @kernel
-def _radiance_rows(env, d, out):
+def _radiance_rows(data, rot, d, out):
     for i in range(d.shape[0]):
-        out[i, 0], out[i, 1], out[i, 2] = env_radiance(env, (d[i, 0], d[i, 1], d[i, 2]))
+        out[i, 0], out[i, 1], out[i, 2] = env_radiance(data, rot, (d[i, 0], d[i, 1], d[i, 2]))

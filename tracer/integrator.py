@@ -38,14 +38,13 @@ from . import bsdf, optics, shading, vec
 from .accel import Accelerator
 from .environment import env_radiance, env_sample, pack_environment
 from .jit import kernel
-from .instances import (mat3_apply, mat3_apply_transposed, material_id, object_id, pack_instances,
-                        to_world_normal)
+from .instances import mat3_apply, mat3_apply_transposed, pack_instances
 from .instances import world_emitters
-from .lights import MESH, pack_lights, sample_light
+from .lights import MESH, pack_lights, sample_emitters, sample_light
 from .sampling import multijitter, stratum, uniform2_1
 from .scene import Scene
 from .settings import RenderSettings
-from .surface import areas_at, color_at, frame_at, geometry_of, hit_frame, hit_uv_set, tangent_at, uv_at
+from .surface import areas_at, color_at, frame_at, geometry_of, hit_uv_set, tangent_at, uv_at
 from .texture import lookup, lookup_at, pack_textures, texel_density, uv_set_of
 
 RAY_TYPES = ("eye", "shadow", "reflection", "transmission", "sky")
@@ -511,13 +510,15 @@ def coverage(geom, mats, tex, mat, tri, u, v):
 
 
 @kernel(inline=True)
-def _put(q, j, origin, direction, length, s, c, light):
-    q.o[j, 0], q.o[j, 1], q.o[j, 2] = origin
-    q.d[j, 0], q.d[j, 1], q.d[j, 2] = direction
-    q.t_max[j] = length
-    q.sample[j] = s
-    q.color[j, 0], q.color[j, 1], q.color[j, 2] = c
-    q.light[j] = light
+def _put(qo, qd, qt, qs, qc, ql, j, origin, direction, length, s, c, light):
+    """Row j of a :class:`ShadowQueue` (its arrays, passed one by one: a NamedTuple handed to an inlined helper
+    costs numba's reference counting on each of its arrays per call)."""
+    qo[j, 0], qo[j, 1], qo[j, 2] = origin
+    qd[j, 0], qd[j, 1], qd[j, 2] = direction
+    qt[j] = length
+    qs[j] = s
+    qc[j, 0], qc[j, 1], qc[j, 2] = c
+    ql[j] = light
 
 
 @kernel(inline=True)
@@ -529,12 +530,13 @@ def _put_ray(no, nd, nw, ns, j, origin, direction, w, s):
 
 
 @kernel(inline=True)
-def _put_spawn(rec, j, n, eta_i, eta_r, tir):
+def _put_spawn(rec_n, rec_eta, rec_tir, j, n, eta_i, eta_r, tir):
     """What a spawned ray's direction was computed from (for ``tracer.explain``): the unit normal on the incident
-    side, the two refractive indices and whether total internal reflection turned a transmission into it."""
-    rec.normal[j, 0], rec.normal[j, 1], rec.normal[j, 2] = n
-    rec.eta[j, 0], rec.eta[j, 1] = eta_i, eta_r
-    rec.tir[j] = tir
+    side, the two refractive indices and whether total internal reflection turned a transmission into it (the
+    arrays of a :class:`SpawnRecord`)."""
+    rec_n[j, 0], rec_n[j, 1], rec_n[j, 2] = n
+    rec_eta[j, 0], rec_eta[j, 1] = eta_i, eta_r
+    rec_tir[j] = tir
 
 
 @kernel(inline=True)
@@ -703,89 +705,118 @@ def _textured_surfaces(rays, prim, u, v, mat_of, front, ng, n, base, rough, meta
 def _first_hits(surf, t, prim, inst, itab, t0, sample, geom, out):
     """First-hit stage (depth 0): depth, normal, albedo and object id of the first surface each eye sample sees
     (surfaces cut away by alpha are looked through)."""
-    for i in range(surf.hit.shape[0]):
+    s_hit, s_cover, s_n, s_base = surf.hit, surf.cover, surf.n, surf.base
+    o_depth, o_normal, o_albedo, o_id = out.depth, out.normal, out.albedo, out.object_id
+    inst_ids, tri_ids = itab.object_ids, geom.object_ids
+    for i in range(s_hit.shape[0]):
         s = sample[i]
-        if not surf.hit[i] or surf.cover[i] <= 0.0 or out.object_id[s] >= 0:
+        if not s_hit[i] or s_cover[i] <= 0.0 or o_id[s] >= 0:
             continue
-        out.depth[s] = t[i] + t0[i]
-        out.normal[s, 0], out.normal[s, 1], out.normal[s, 2] = surf.n[i, 0], surf.n[i, 1], surf.n[i, 2]
-        out.albedo[s, 0], out.albedo[s, 1], out.albedo[s, 2] = surf.base[i, 0], surf.base[i, 1], surf.base[i, 2]
-        out.object_id[s] = object_id(itab, inst[i], geom.object_ids[prim[i]])
+        o_depth[s] = t[i] + t0[i]
+        o_normal[s, 0], o_normal[s, 1], o_normal[s, 2] = s_n[i, 0], s_n[i, 1], s_n[i, 2]
+        o_albedo[s, 0], o_albedo[s, 1], o_albedo[s, 2] = s_base[i, 0], s_base[i, 1], s_base[i, 2]
+        k = inst[i]
+        o_id[s] = tri_ids[prim[i]] if k < 0 else inst_ids[k]
 
 
 @kernel
 def _emitted(d, surf, sample, weight, depth, opt, env, out):
     """Emitted stage: what each ray sees itself — the environment (or background) where it leaves the scene (a
     transparent film clears alpha instead, for rays from the eye), the surface's emission × alpha where it hits."""
-    for i in range(surf.hit.shape[0]):
+    s_hit, s_cover, s_e = surf.hit, surf.cover, surf.emission
+    o_color, o_alpha = out.color, out.alpha
+    env_present, env_data, env_rot = env.present, env.data, env.rot
+    clear_alpha = depth == 0 and opt.transparent
+    bg = (opt.background[0], opt.background[1], opt.background[2])
+    for i in range(s_hit.shape[0]):
         s = sample[i]
         w = vec.row(weight, i)
-        if not surf.hit[i]:
-            if depth == 0 and opt.transparent:
-                out.alpha[s] -= (w[0] + w[1] + w[2]) / 3.0
-            elif env.present:
-                sky = env_radiance(env, vec.row(d, i))
-                for c in range(3):
-                    out.color[s, c] += w[c] * sky[c]
-            else:
-                for c in range(3):
-                    out.color[s, c] += w[c] * opt.background[c]
+        if not s_hit[i]:
+            if clear_alpha:
+                o_alpha[s] -= (w[0] + w[1] + w[2]) / 3.0
+                continue
+            sky = env_radiance(env_data, env_rot, vec.row(d, i)) if env_present else bg
+            for c in range(3):
+                o_color[s, c] += w[c] * sky[c]
             continue
-        a = surf.cover[i]
-        for c in range(3):
-            out.color[s, c] += w[c] * a * surf.emission[i, c]
+        a = s_cover[i]
+        if a > 0.0:
+            for c in range(3):
+                o_color[s, c] += w[c] * a * s_e[i, c]
 
 
 @kernel
 def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt, out, shadow, n_shadow, counts):
     """Direct-light stage: per hit, every light sample's colour (local model × irradiance), written with its shadow
     ray (p, l, ε, dist) to the shadow queue; and the ambient term where the sky is not sampled. Returns the
-    shadow queue's new length. Past max_depth (terminal rays) nothing is lit."""
+    shadow queue's new length. Past max_depth (terminal rays) nothing is lit. (Every NamedTuple field is read
+    into a local before the loop, and helpers get arrays: numba reference-counts each array of a NamedTuple read
+    or handed on inside a loop, which cost 40 % of this stage.)"""
+    if depth > opt.max_depth:
+        return n_shadow
     eps = opt.eps
-    n_lights = lights.kind.shape[0]
+    principled, shadows, sky_side, seed = opt.principled, opt.shadows, opt.sky_side, opt.seed
+    needs_random = opt.needs_light_random
+    s_hit, s_mat, s_base, s_metal, s_rough, s_spec, s_cover, s_p, s_ng, s_n = (
+        surf.hit, surf.mat, surf.base, surf.metallic, surf.roughness, surf.specular, surf.cover, surf.p, surf.ng,
+        surf.n)
+    m_tint, m_ior, m_tran, m_km, m_sc, m_exp = (mats.specular_tint, mats.ior, mats.transmission, mats.k_m,
+                                                mats.specular_color, mats.exponent)
+    l_table, l_kind, l_side, l_tri, l_le, l_cdf = (lights.table, lights.kind, lights.side, lights.tri,
+                                                   lights.tri_le, lights.tri_cdf)
+    q_o, q_d, q_t, q_s, q_c, q_l = shadow.o, shadow.d, shadow.t_max, shadow.sample, shadow.color, shadow.light
+    o_color = out.color
+    n_lights = l_kind.shape[0]
     amb = (opt.ambient[0], opt.ambient[1], opt.ambient[2])
-    has_amb = amb[0] > 0.0 or amb[1] > 0.0 or amb[2] > 0.0
-    for i in range(surf.hit.shape[0]):
-        if not surf.hit[i] or depth > opt.max_depth:
+    add_ambient = (amb[0] > 0.0 or amb[1] > 0.0 or amb[2] > 0.0) and sky_side == 0
+    n_new = 0
+    for i in range(s_hit.shape[0]):
+        if not s_hit[i]:
             continue
         s = sample[i]
-        mat = surf.mat[i]
-        cl, wl, g = _local_model(opt.principled, vec.row(surf.base, i), float(surf.metallic[i]),
-                                 float(surf.roughness[i]), float(surf.specular[i]), vec.row(mats.specular_tint, mat),
-                                 float(mats.ior[mat]), float(mats.transmission[mat]), float(mats.k_m[mat]),
-                                 float(surf.cover[i]), vec.row(mats.specular_color, mat), float(mats.exponent[mat]),
-                                 vec.row(surf.n, i), vec.row(d, i), spawn)
+        mat = s_mat[i]
+        n, di = vec.row(s_n, i), vec.row(d, i)
+        cl, wl, g = _local_model(principled, vec.row(s_base, i), float(s_metal[i]), float(s_rough[i]),
+                                 float(s_spec[i]), vec.row(m_tint, mat), float(m_ior[mat]), float(m_tran[mat]),
+                                 float(m_km[mat]), float(s_cover[i]), vec.row(m_sc, mat), float(m_exp[mat]), n, di,
+                                 spawn)
         if wl <= 0.0 or bsdf.is_black(cl):
             continue
         wo = vec.scale(vec.row(weight, i), wl)
-        p = (surf.p[i, 0], surf.p[i, 1], surf.p[i, 2])
-        ng, n = vec.row(surf.ng, i), vec.row(surf.n, i)
-        wi = vec.scale(vec.row(d, i), -1.0)
-        if has_amb and opt.sky_side == 0:  # the notes' ambient term R_a·L_a (and the lobes' albedo × L_a)
+        p = (s_p[i, 0], s_p[i, 1], s_p[i, 2])
+        ng = vec.row(s_ng, i)
+        wi = vec.scale(di, -1.0)
+        if add_ambient:  # the notes' ambient term R_a·L_a (and the lobes' albedo × L_a)
             c = shading.ambient(cl.diffuse, amb)
-            if opt.principled:
+            if principled:
                 c = vec.add(c, vec.scale(vec.mul(bsdf.specular_albedo(cl), amb), 1.0 - g))
             for ch in range(3):
-                out.color[s, ch] += wo[ch] * c[ch]
+                o_color[s, ch] += wo[ch] * c[ch]
         r0, r1 = 0.0, 0.0
-        if opt.needs_light_random:
-            r0, r1 = uniform2_1(keys[s], _STREAM_LIGHT + depth, opt.seed)
+        if needs_random:
+            r0, r1 = uniform2_1(keys[s], _STREAM_LIGHT + depth, seed)
         for j in range(n_lights):
             # a light the mirror ray can see (emissive triangles) gives the mirror share of the lobes to that ray
-            spec_scale = 1.0 - g if lights.kind[j] == MESH else 1.0
-            for k in range(lights.side[j] * lights.side[j]):
-                l, dist, e = sample_light(lights, j, k, p, r0, r1)
+            spec_scale = 1.0 - g if l_kind[j] == MESH else 1.0
+            kd, sd = l_kind[j], l_side[j]
+            for k in range(sd * sd):
+                if kd == MESH:
+                    l, dist, e = sample_emitters(l_tri, l_le, l_cdf, k, sd, p, r0, r1)
+                else:
+                    l, dist, e = sample_light(l_table, kd, sd, j, k, p, r0, r1)
                 n_l = vec.dot(n, l)
                 if n_l <= 0.0 or vec.dot(ng, l) <= 0.0:
                     continue
                 c = vec.mul(wo, vec.mul(bsdf.evaluate(cl, n, wi, l, n_l, spec_scale), e))
-                if opt.shadows:  # the shadow ray (p, l, ε, dist): counts only if nothing is in between
-                    _put(shadow, n_shadow, spawn_ray(p, ng, l, eps), l, dist - 2.0 * eps, s, c, j)
+                if shadows:  # the shadow ray (p, l, ε, dist): counts only if nothing is in between
+                    _put(q_o, q_d, q_t, q_s, q_c, q_l, n_shadow, spawn_ray(p, ng, l, eps), l, dist - 2.0 * eps, s,
+                         c, j)
                     n_shadow += 1
-                    counts[_N_SHADOW] += 1
+                    n_new += 1
                 else:
                     for ch in range(3):
-                        out.color[s, ch] += c[ch]
+                        o_color[s, ch] += c[ch]
+    counts[_N_SHADOW] += n_new
     return n_shadow
 
 
@@ -794,46 +825,60 @@ def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shado
     """Sky stage: the environment as a light (directions importance-sampled by luminance, local model × radiance
     / pdf), or the ambient term weighted by the visible sky (cosine-weighted hemisphere rays); deferred like shadow
     rays. Returns the shadow queue's new length."""
+    if depth > opt.max_depth:
+        return n_shadow
     eps = opt.eps
+    principled, seed = opt.principled, opt.seed
     side = opt.sky_side
     kk = side * side
     amb = (opt.ambient[0], opt.ambient[1], opt.ambient[2])
-    for i in range(surf.hit.shape[0]):
-        if not surf.hit[i] or depth > opt.max_depth:
+    has_amb = amb[0] > 0.0 or amb[1] > 0.0 or amb[2] > 0.0
+    s_hit, s_mat, s_base, s_metal, s_rough, s_spec, s_cover, s_p, s_ng, s_n = (
+        surf.hit, surf.mat, surf.base, surf.metallic, surf.roughness, surf.specular, surf.cover, surf.p, surf.ng,
+        surf.n)
+    m_tint, m_ior, m_tran, m_km, m_sc, m_exp = (mats.specular_tint, mats.ior, mats.transmission, mats.k_m,
+                                                mats.specular_color, mats.exponent)
+    env_present, e_data, e_rot, e_rcdf, e_ccdf, e_rpdf, e_cpdf = (env.present, env.data, env.rot, env.row_cdf,
+                                                                 env.col_cdf, env.row_pdf, env.col_pdf)
+    q_o, q_d, q_t, q_s, q_c, q_l = shadow.o, shadow.d, shadow.t_max, shadow.sample, shadow.color, shadow.light
+    o_color = out.color
+    n_new = 0
+    for i in range(s_hit.shape[0]):
+        if not s_hit[i]:
             continue
         s = sample[i]
-        mat = surf.mat[i]
-        cl, wl, g = _local_model(opt.principled, vec.row(surf.base, i), float(surf.metallic[i]),
-                                 float(surf.roughness[i]), float(surf.specular[i]), vec.row(mats.specular_tint, mat),
-                                 float(mats.ior[mat]), float(mats.transmission[mat]), float(mats.k_m[mat]),
-                                 float(surf.cover[i]), vec.row(mats.specular_color, mat), float(mats.exponent[mat]),
-                                 vec.row(surf.n, i), vec.row(d, i), spawn)
+        mat = s_mat[i]
+        n, di = vec.row(s_n, i), vec.row(d, i)
+        cl, wl, g = _local_model(principled, vec.row(s_base, i), float(s_metal[i]), float(s_rough[i]),
+                                 float(s_spec[i]), vec.row(m_tint, mat), float(m_ior[mat]), float(m_tran[mat]),
+                                 float(m_km[mat]), float(s_cover[i]), vec.row(m_sc, mat), float(m_exp[mat]), n, di,
+                                 spawn)
         if wl <= 0.0 or bsdf.is_black(cl):
             continue
         wo = vec.scale(vec.row(weight, i), wl)
-        p = (surf.p[i, 0], surf.p[i, 1], surf.p[i, 2])
-        ng, n = vec.row(surf.ng, i), vec.row(surf.n, i)
-        wi = vec.scale(vec.row(d, i), -1.0)
-        r0, r1 = uniform2_1(keys[s], _STREAM_SKY + depth, opt.seed)
-        if env.present:  # the mirror ray sees the environment: its share of the lobes is left to it
+        p = (s_p[i, 0], s_p[i, 1], s_p[i, 2])
+        ng = vec.row(s_ng, i)
+        wi = vec.scale(di, -1.0)
+        r0, r1 = uniform2_1(keys[s], _STREAM_SKY + depth, seed)
+        if env_present:  # the mirror ray sees the environment: its share of the lobes is left to it
             for k in range(kk):
                 s0, s1 = multijitter(k, side, r0, r1)
-                dr, pdf = env_sample(env, s0, s1)
+                dr, pdf = env_sample(e_data, e_rot, e_rcdf, e_ccdf, e_rpdf, e_cpdf, s0, s1)
                 n_l = vec.dot(n, dr)
                 if n_l <= 0.0 or vec.dot(ng, dr) <= 0.0 or pdf <= 0.0:
                     continue
                 f = bsdf.evaluate(cl, n, wi, dr, n_l, 1.0 - g)
-                c = vec.scale(vec.mul(wo, vec.mul(f, env_radiance(env, dr))), 1.0 / (pdf * kk))
-                _put(shadow, n_shadow, spawn_ray(p, ng, dr, eps), dr, np.inf, s, c, -1)
+                c = vec.scale(vec.mul(wo, vec.mul(f, env_radiance(e_data, e_rot, dr))), 1.0 / (pdf * kk))
+                _put(q_o, q_d, q_t, q_s, q_c, q_l, n_shadow, spawn_ray(p, ng, dr, eps), dr, np.inf, s, c, -1)
                 n_shadow += 1
-                counts[_N_SKY] += 1
+                n_new += 1
             continue
-        if not (amb[0] > 0.0 or amb[1] > 0.0 or amb[2] > 0.0):
+        if not has_amb:
             continue
-        if opt.principled:  # the lobes' share of the uniform sky, unshadowed
+        if principled:  # the lobes' share of the uniform sky, unshadowed
             c = vec.scale(vec.mul(bsdf.specular_albedo(cl), amb), 1.0 - g)
             for ch in range(3):
-                out.color[s, ch] += wo[ch] * c[ch]
+                o_color[s, ch] += wo[ch] * c[ch]
         c = vec.scale(vec.mul(wo, shading.ambient(cl.diffuse, amb)), 1.0 / kk)
         tu, tv = vec.orthonormal_basis(n)
         for k in range(kk):
@@ -841,9 +886,10 @@ def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shado
             r = np.sqrt(s0)
             phi = 2.0 * np.pi * s1
             dr = vec.madd(vec.madd(vec.scale(n, np.sqrt(max(0.0, 1.0 - s0))), tu, r * np.cos(phi)), tv, r * np.sin(phi))
-            _put(shadow, n_shadow, spawn_ray(p, ng, dr, eps), dr, np.inf, s, c, -1)
+            _put(q_o, q_d, q_t, q_s, q_c, q_l, n_shadow, spawn_ray(p, ng, dr, eps), dr, np.inf, s, c, -1)
             n_shadow += 1
-        counts[_N_SKY] += kk
+        n_new += kk
+    counts[_N_SKY] += n_new
     return n_shadow
 
 
@@ -857,46 +903,54 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
     n_refl = 0
     n_tran = 0
     n_through = 0
-    rec = nxt.spawned
+    rec_n, rec_eta, rec_tir = nxt.spawned.normal, nxt.spawned.eta, nxt.spawned.tir
+    n_o, n_d, n_w, n_s = nxt.o, nxt.d, nxt.weight, nxt.sample
+    th_o, th_d, th_w, th_s, th_t0 = (nxt.through_o, nxt.through_d, nxt.through_weight, nxt.through_sample,
+                                     nxt.through_t0)
+    s_hit, s_mat, s_base, s_metal, s_rough, s_spec, s_cover, s_p, s_ng, s_n, s_front = (
+        surf.hit, surf.mat, surf.base, surf.metallic, surf.roughness, surf.specular, surf.cover, surf.p, surf.ng,
+        surf.n, surf.front)
+    m_tint, m_ior, m_tran, m_km, m_sc, m_exp, m_mirror, m_ttint = (
+        mats.specular_tint, mats.ior, mats.transmission, mats.k_m, mats.specular_color, mats.exponent,
+        mats.mirror_tint, mats.transmission_tint)
+    principled, fresnel, min_weight = opt.principled, opt.fresnel, opt.min_weight
+    n_tir = 0
     for i in range(n_rays):
-        if not surf.hit[i]:
+        if not s_hit[i]:
             continue
         s = sample[i]
         w = vec.row(weight, i)
         di = vec.row(d, i)
-        p = (surf.p[i, 0], surf.p[i, 1], surf.p[i, 2])
-        ng, n = vec.row(surf.ng, i), vec.row(surf.n, i)
-        a = float(surf.cover[i])
+        p = (s_p[i, 0], s_p[i, 1], s_p[i, 2])
+        ng, n = vec.row(s_ng, i), vec.row(s_n, i)
+        a = float(s_cover[i])
         if a < 1.0:  # alpha: 1 − a of the ray continues unchanged behind the surface
             wt = vec.scale(w, 1.0 - a)
-            if vec.max3(wt) > opt.min_weight:
-                _put_ray(nxt.through_o, nxt.through_d, nxt.through_weight, nxt.through_sample, n_through,
-                         spawn_ray(p, ng, di, eps), di, wt, s)
-                nxt.through_t0[n_through] = t0[i] + t[i]
+            if vec.max3(wt) > min_weight:
+                _put_ray(th_o, th_d, th_w, th_s, n_through, spawn_ray(p, ng, di, eps), di, wt, s)
+                th_t0[n_through] = t0[i] + t[i]
                 n_through += 1
                 counts[_N_TRANSMISSION] += 1
         if not spawn or a <= 0.0:
             continue
-        mat = surf.mat[i]
-        k_m = float(mats.k_m[mat])
-        w_t = float(mats.transmission[mat])
-        mirror = vec.scale(vec.row(mats.mirror_tint, mat), k_m)
-        if opt.principled:
-            glass = (1.0 - k_m) * (1.0 - float(surf.metallic[i])) * w_t
-            g = bsdf.mirror_share(float(surf.roughness[i]))
-            if g > 0.0 and (surf.metallic[i] > 0.0 or surf.specular[i] > 0.0):
-                cl, wl, g = _local_model(True, vec.row(surf.base, i), float(surf.metallic[i]),
-                                         float(surf.roughness[i]), float(surf.specular[i]),
-                                         vec.row(mats.specular_tint, mat), float(mats.ior[mat]), w_t, k_m,
-                                         float(surf.cover[i]), vec.row(mats.specular_color, mat),
-                                         float(mats.exponent[mat]), vec.row(surf.n, i), di, spawn)
+        mat = s_mat[i]
+        k_m = float(m_km[mat])
+        w_t = float(m_tran[mat])
+        mirror = vec.scale(vec.row(m_mirror, mat), k_m)
+        if principled:
+            glass = (1.0 - k_m) * (1.0 - float(s_metal[i])) * w_t
+            g = bsdf.mirror_share(float(s_rough[i]))
+            if g > 0.0 and (s_metal[i] > 0.0 or s_spec[i] > 0.0):
+                cl, wl, g = _local_model(True, vec.row(s_base, i), float(s_metal[i]), float(s_rough[i]),
+                                         float(s_spec[i]), vec.row(m_tint, mat), float(m_ior[mat]), w_t, k_m,
+                                         float(s_cover[i]), vec.row(m_sc, mat), float(m_exp[mat]), n, di, spawn)
                 mirror = vec.madd(mirror, bsdf.specular_albedo(cl), (1.0 - k_m) * g)
         else:  # classic: a smooth metal (Principled input) mirrors its base colour, as the notes' k_m·tint
             glass = (1.0 - k_m) * w_t
-            m = float(surf.metallic[i])
+            m = float(s_metal[i])
             if m > 0.0:
-                g = bsdf.mirror_share(float(surf.roughness[i]))
-                mirror = vec.madd(mirror, vec.row(surf.base, i), (1.0 - k_m) * m * g)
+                g = bsdf.mirror_share(float(s_rough[i]))
+                mirror = vec.madd(mirror, vec.row(s_base, i), (1.0 - k_m) * m * g)
         mirror = vec.scale(mirror, a)
         glass *= a
         if glass <= 0.0 and vec.max3(mirror) <= 0.0:
@@ -911,36 +965,37 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
         eta_i, eta_r, tir = 1.0, 1.0, False
         w_refl = vec.mul(w, mirror)
         if glass > 0.0:
-            ior = float(mats.ior[mat])
-            eta_i, eta_r = (1.0, ior) if surf.front[i] else (ior, 1.0)
+            ior = float(m_ior[mat])
+            eta_i, eta_r = (1.0, ior) if s_front[i] else (ior, 1.0)
             t_dir, tir = optics.refract_dir(di, n, eta_i, eta_r)
             t_n = n
-            if opt.fresnel:
+            if fresnel:
                 fr = optics.fresnel_dielectric_1(-vec.dot(di, n), eta_i, eta_r)
             else:
                 fr = 1.0 if tir else 0.0
             w_refl = vec.madd(w_refl, w, glass * fr)
             if tir:
-                counts[_N_TIR] += 1
+                n_tir += 1
                 w_tran = (0.0, 0.0, 0.0)
             else:
-                w_tran = vec.scale(vec.mul(w, vec.row(mats.transmission_tint, mat)), glass * (1.0 - fr))
+                w_tran = vec.scale(vec.mul(w, vec.row(m_ttint, mat)), glass * (1.0 - fr))
                 if vec.dot(t_dir, ng) >= 0.0:  # the shading normal bent it back out: refract about ng
                     t_dir, tir_ng = optics.refract_dir(di, ng, eta_i, eta_r)
                     t_n = ng
                     if tir_ng:
                         w_tran = (0.0, 0.0, 0.0)
-            if vec.max3(w_tran) > opt.min_weight:
+            if vec.max3(w_tran) > min_weight:
                 j = n_rays + n_tran
                 t_dir = vec.normalize(t_dir)
-                _put_ray(nxt.o, nxt.d, nxt.weight, nxt.sample, j, spawn_ray(p, ng, t_dir, eps), t_dir, w_tran, s)
-                _put_spawn(rec, j, t_n, eta_i, eta_r, False)
+                _put_ray(n_o, n_d, n_w, n_s, j, spawn_ray(p, ng, t_dir, eps), t_dir, w_tran, s)
+                _put_spawn(rec_n, rec_eta, rec_tir, j, t_n, eta_i, eta_r, False)
                 n_tran += 1
-        if vec.max3(w_refl) > opt.min_weight:
+        if vec.max3(w_refl) > min_weight:
             r_dir = vec.normalize(r_dir)
-            _put_ray(nxt.o, nxt.d, nxt.weight, nxt.sample, n_refl, spawn_ray(p, ng, r_dir, eps), r_dir, w_refl, s)
-            _put_spawn(rec, n_refl, r_n, eta_i, eta_r, tir)
+            _put_ray(n_o, n_d, n_w, n_s, n_refl, spawn_ray(p, ng, r_dir, eps), r_dir, w_refl, s)
+            _put_spawn(rec_n, rec_eta, rec_tir, n_refl, r_n, eta_i, eta_r, tir)
             n_refl += 1
+    counts[_N_TIR] += n_tir
     counts[_N_REFLECTION] += n_refl
     counts[_N_TRANSMISSION] += n_tran
     return n_refl, n_tran, n_through
@@ -950,6 +1005,9 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
 def _pass_shadow(sel, idx, t, prim, inst, itab, u, v, geom, mats, tex, o, d, t_max, color, pending, blocked, eps):
     """One round of transparent shadows: each pending shadow ray's first blocker either stops it (alpha 1) or lets
     1 − alpha of its colour through, the ray continuing behind it; a ray that reaches its light is unblocked."""
+    material_ids, face_normals, overrides, normal_matrix = (geom.material_ids, geom.face_normals, itab.materials,
+                                                            itab.normal_matrix)
+    alphas, alpha_texture, threshold = mats.alpha, mats.alpha_texture, mats.alpha_threshold
     for q in range(sel.shape[0]):
         j = sel[q]
         r = idx[j]
@@ -958,8 +1016,14 @@ def _pass_shadow(sel, idx, t, prim, inst, itab, u, v, geom, mats, tex, o, d, t_m
             pending[j] = False
             blocked[r] = False
             continue
-        a = coverage(geom, mats, tex, material_id(itab, inst[q], geom.material_ids[tri]), tri, float(u[q]),
-                     float(v[q]))
+        k = inst[q]
+        mat = material_ids[tri]
+        if k >= 0 and overrides[k] >= 0:
+            mat = overrides[k]
+        if alpha_texture[mat] >= 0:
+            a = coverage(geom, mats, tex, mat, tri, float(u[q]), float(v[q]))
+        else:
+            a = _cut(float(alphas[mat]), float(threshold[mat]))
         if a >= 1.0:
             pending[j] = False
             continue
@@ -967,7 +1031,9 @@ def _pass_shadow(sel, idx, t, prim, inst, itab, u, v, geom, mats, tex, o, d, t_m
             color[r, c] *= 1.0 - a
         dj = vec.row(d, j)
         p = vec.madd(vec.row(o, j), dj, float(t[q]))
-        ng = to_world_normal(itab, inst[q], vec.row(geom.face_normals, tri))
+        ng = vec.row(face_normals, tri)
+        if k >= 0:  # to world space by the instance's normal matrix (tracer.instances.to_world_normal)
+            ng = vec.normalize(mat3_apply(normal_matrix, k, ng))
         if vec.dot(ng, dj) > 0.0:
             ng = vec.scale(ng, -1.0)
         o[j, 0], o[j, 1], o[j, 2] = spawn_ray(p, ng, dj, eps)

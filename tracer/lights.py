@@ -235,11 +235,10 @@ def pack_lights(lights: list, light_samples: int, emitters=None) -> LightTables:
 
 
 @kernel(inline=True)
-def _sample_emitters(lights, k, sd, kk, p, r0, r1):
+def _sample_emitters(tri, tri_le, cdf, k, sd, kk, p, r0, r1):
     """Stratum k of the emissive triangles: the first coordinate picks a triangle by the power CDF (its remainder,
     rescaled, and the second place a uniform point on it), E = Le·|cos θ_l|·A/(p_pick·r²)/K (two-sided)."""
     s0, s1 = stratum(k, sd, r0, r1)
-    cdf = lights.tri_cdf
     lo, hi = 0, cdf.shape[0] - 1
     while lo < hi:  # the first triangle whose cumulative probability exceeds s0
         mid = (lo + hi) // 2
@@ -251,9 +250,9 @@ def _sample_emitters(lights, k, sd, kk, p, r0, r1):
     pick = max(cdf[lo] - before, 1e-30)
     u = min(max((s0 - before) / pick, 0.0), 1.0 - 1e-7)
     su = math.sqrt(u)
-    a = (lights.tri[lo, 0, 0], lights.tri[lo, 0, 1], lights.tri[lo, 0, 2])
-    b = (lights.tri[lo, 1, 0], lights.tri[lo, 1, 1], lights.tri[lo, 1, 2])
-    c = (lights.tri[lo, 2, 0], lights.tri[lo, 2, 1], lights.tri[lo, 2, 2])
+    a = (tri[lo, 0, 0], tri[lo, 0, 1], tri[lo, 0, 2])
+    b = (tri[lo, 1, 0], tri[lo, 1, 1], tri[lo, 1, 2])
+    c = (tri[lo, 2, 0], tri[lo, 2, 1], tri[lo, 2, 2])
     e1, e2 = vec.sub(b, a), vec.sub(c, a)
     pt = vec.madd(vec.madd(a, e1, su * (1.0 - s1)), e2, su * s1)
     cr = vec.cross(e1, e2)
@@ -263,7 +262,7 @@ def _sample_emitters(lights, k, sd, kk, p, r0, r1):
     dist = math.sqrt(d2)
     l = vec.scale(to_l, 1.0 / dist)
     cos_l = abs(vec.dot(l, cr)) / max(twice_area, 1e-30)
-    le = (lights.tri_le[lo, 0], lights.tri_le[lo, 1], lights.tri_le[lo, 2])
+    le = (tri_le[lo, 0], tri_le[lo, 1], tri_le[lo, 2])
     return l, dist, vec.scale(le, cos_l * 0.5 * twice_area / pick / d2 / kk)
 
 
@@ -282,15 +281,21 @@ def spot_falloff(cos_a, cos_cone, blend):
 
 
 @kernel(inline=True)
-def sample_light(lights, j, k, p, r0, r1):
-    """Sample ``k`` (of side²) of light ``j`` of a :class:`LightTables` seen from point p: (l, dist, E) with l the
-    unit direction to the light, dist the shadow ray's length and E the irradiance on a surface facing the light,
-    divided by side². (r0, r1) in [0,1)² rotate the stratified pattern of lights with an extent."""
-    table, side = lights.table, lights.side
-    kk = side[j] * side[j]
-    kd = lights.kind[j]
-    if kd == MESH:
-        return _sample_emitters(lights, k, side[j], kk, p, r0, r1)
+def sample_emitters(tri, tri_le, tri_cdf, k, sd, p, r0, r1):
+    """Sample ``k`` (of sd²) of the MESH light (the emissive triangles of a :class:`LightTables`) seen from point p:
+    (l, dist, E) as :func:`sample_light`."""
+    return _sample_emitters(tri, tri_le, tri_cdf, k, sd, sd * sd, p, r0, r1)
+
+
+@kernel(inline=True)
+def sample_light(table, kd, sd, j, k, p, r0, r1):
+    """Sample ``k`` (of sd²) of light ``j`` (``table`` row j of a :class:`LightTables`, kind kd, side sd; not the
+    MESH light: :func:`sample_emitters`) seen from point p: (l, dist, E) with l the unit direction to the light,
+    dist the shadow ray's length and E the irradiance on a surface facing the light, divided by sd². (r0, r1) in
+    [0,1)² rotate the stratified pattern of lights with an extent. Kernels pass it the one array it reads: every
+    array handed to an inlined helper with branches costs numba's reference counting per call (a 6-array light
+    table passed whole cost a third of the direct-light stage)."""
+    kk = sd * sd
     if kd == POINT or kd == SPOT:
         pos = _col3(table, j, _POS)
         radius = table[j, _RADIUS]
@@ -307,7 +312,7 @@ def sample_light(lights, j, k, p, r0, r1):
             return vec.scale(to_c, 1.0 / max(dist, 1e-30)), dist, e
         # Soft shadows: stratified points on the disk of the sphere that faces p.
         u, v = vec.orthonormal_basis(vec.scale(to_c, -1.0 / max(dist, 1e-30)))
-        s0, s1 = stratum(k, side[j], r0, r1)
+        s0, s1 = stratum(k, sd, r0, r1)
         r = radius * math.sqrt(s0)
         phi = 2.0 * math.pi * s1
         to_l = vec.sub(vec.madd(vec.madd(pos, u, r * math.cos(phi)), v, r * math.sin(phi)), p)
@@ -320,14 +325,14 @@ def sample_light(lights, j, k, p, r0, r1):
             return to_light, math.inf, e
         # A disk of angular diameter `angle` around the direction to the sun, sampled uniformly in solid angle.
         u, v = vec.orthonormal_basis(to_light)
-        s0, s1 = stratum(k, side[j], r0, r1)
+        s0, s1 = stratum(k, sd, r0, r1)
         cos_t = 1.0 - s0 * (1.0 - table[j, _COS_MAX])
         sin_t = math.sqrt(max(0.0, 1.0 - cos_t * cos_t))
         phi = 2.0 * math.pi * s1
         l = vec.madd(vec.madd(vec.scale(to_light, cos_t), u, sin_t * math.cos(phi)), v, sin_t * math.sin(phi))
         return l, math.inf, e
     # Area light: a point on the rectangle, or on the (elliptical) disk by a polar mapping.
-    s0, s1 = stratum(k, side[j], r0, r1)
+    s0, s1 = stratum(k, sd, r0, r1)
     if kd == RECT:
         a, b = s0 - 0.5, s1 - 0.5
     else:
