@@ -44,7 +44,7 @@ from .lights import MESH, pack_lights, sample_emitters, sample_light
 from .sampling import multijitter, stratum, uniform2_1
 from .scene import Scene
 from .settings import RenderSettings
-from .surface import areas_at, color_at, frame_at, geometry_of, hit_uv_set, tangent_at, uv_at
+from .surface import areas_at, color_at, geometry_of, hit_uv_set, shading_frame, tangent_at, uv_at
 from .texture import lookup, lookup_at, pack_textures, texel_density, uv_set_of
 
 RAY_TYPES = ("eye", "shadow", "reflection", "transmission", "sky")
@@ -605,11 +605,17 @@ def _surfaces(o, d, t, prim, inst, normal_matrix, overrides, u, v, geom, mats, s
         p = vec.madd(vec.row(o, i), di, float(t[i]))
         k = inst[i]
         mat = material_ids[tri]
+        smooth = has_normals and corner_ok[tri]
+        c = tri if smooth else 0  # the corner normals' row (read either way: no branch around array reads)
+        fn = (float(face_normals[tri, 0]), float(face_normals[tri, 1]), float(face_normals[tri, 2]))
+        n0 = (float(normals[c, 0, 0]), float(normals[c, 0, 1]), float(normals[c, 0, 2]))
+        n1 = (float(normals[c, 1, 0]), float(normals[c, 1, 1]), float(normals[c, 1, 2]))
+        n2 = (float(normals[c, 2, 0]), float(normals[c, 2, 1]), float(normals[c, 2, 2]))
         if k < 0:
-            ng, n, front = frame_at(face_normals, normals, corner_ok, has_normals, tri, di, ui, vi)
+            ng, n, front = shading_frame(fn, smooth, n0, n1, n2, di, ui, vi)
         else:  # an instance: the frame in object space (M⁻¹·d keeps the side), normals to world by (M)⁻ᵀ
-            ng_o, n_o, front = frame_at(face_normals, normals, corner_ok, has_normals, tri,
-                                        mat3_apply_transposed(normal_matrix, k, di), ui, vi)
+            ng_o, n_o, front = shading_frame(fn, smooth, n0, n1, n2, mat3_apply_transposed(normal_matrix, k, di),
+                                             ui, vi)
             ng = vec.normalize(mat3_apply(normal_matrix, k, ng_o))
             n = vec.normalize(mat3_apply(normal_matrix, k, n_o))
             if vec.dot(n, ng) <= 0.0:

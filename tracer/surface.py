@@ -18,7 +18,7 @@ from .scene import Scene
 
 class Geometry(NamedTuple):
     face_normals: np.ndarray  # (T, 3) float32 unit geometric normals (counter-clockwise front)
-    normals: np.ndarray  # (T, 3, 3) float32 per-corner shading normals, or (0, 3, 3)
+    normals: np.ndarray  # (T, 3, 3) float32 per-corner shading normals, or (1, 3, 3) zeros (none)
     corner_ok: np.ndarray  # (T,) bool: all three corner normals usable, or (0,)
     uvs: np.ndarray  # (T, 3, 2) float32 per-corner texture coordinates (UV set 0), or (0, 3, 2)
     material_ids: np.ndarray  # (T,) int32
@@ -38,7 +38,7 @@ def geometry_of(scene: Scene) -> Geometry:
     n_tri = len(scene.triangles)
     face_normals = np.empty((n_tri, 3), np.float32)
     corner_ok = np.empty(n_tri if has_n else 0, np.bool_)
-    normals = scene.normals if has_n else np.zeros((0, 3, 3), np.float32)
+    normals = scene.normals if has_n else np.zeros((1, 3, 3), np.float32)  # one row: kernels read row 0 unused
     _face_frames(scene.vertices, scene.triangles, normals, face_normals, corner_ok)
     sets = scene.uv_sets
     uv_sets = (sets[0][None] if len(sets) == 1 else np.ascontiguousarray(np.stack(sets))) if sets else \
@@ -76,23 +76,34 @@ def hit_frame(geom, tri, d, u, v):
 
 @kernel(inline=True)
 def frame_at(face_normals, normals, corner_ok, has_normals, tri, d, u, v):
-    """(ng, n, front) at barycentrics (u, v) of triangle ``tri`` hit by direction d.
+    """(ng, n, front) at barycentrics (u, v) of triangle ``tri`` hit by direction d (:func:`shading_frame` of that
+    triangle's rows)."""
+    smooth = has_normals and corner_ok[tri]
+    c = normals
+    k = tri if smooth else 0
+    return shading_frame(vec.row(face_normals, tri), smooth, (c[k, 0, 0], c[k, 0, 1], c[k, 0, 2]),
+                         (c[k, 1, 0], c[k, 1, 1], c[k, 1, 2]), (c[k, 2, 0], c[k, 2, 1], c[k, 2, 2]), d, u, v)
+
+
+@kernel(inline=True)
+def shading_frame(face_normal, smooth, n0, n1, n2, d, u, v):
+    """(ng, n, front) at barycentrics (u, v) of a triangle of unit normal ``face_normal`` and (where ``smooth``)
+    corner normals n0, n1, n2, hit by direction d.
 
     ng is the unit geometric normal turned to the incident side, n the interpolated shading normal on the same side
     (p = (1 − u − v)·p0 + u·p1 + v·p2); front is True where the ray hit the front face (entering a closed object).
-    Unusable corner normals, or interpolated ones facing away from the geometric side, fall back to ng.
+    Unusable corner normals, or interpolated ones facing away from the geometric side, fall back to ng. (Plain
+    values in: kernels read the rows themselves, as an array handed to an inlined helper with branches costs
+    numba's reference counting per call.)
     """
-    ng = vec.row(face_normals, tri)
+    ng = face_normal
     front = vec.dot(d, ng) < 0.0
     if not front:
         ng = vec.scale(ng, -1.0)
     n = ng
-    if has_normals and corner_ok[tri]:
+    if smooth:
         w = 1.0 - u - v
-        c = normals
-        m = (w * c[tri, 0, 0] + u * c[tri, 1, 0] + v * c[tri, 2, 0],
-             w * c[tri, 0, 1] + u * c[tri, 1, 1] + v * c[tri, 2, 1],
-             w * c[tri, 0, 2] + u * c[tri, 1, 2] + v * c[tri, 2, 2])
+        m = (w * n0[0] + u * n1[0] + v * n2[0], w * n0[1] + u * n1[1] + v * n2[1], w * n0[2] + u * n1[2] + v * n2[2])
         ln = math.sqrt(vec.dot(m, m))
         if ln > 1e-6:
             m = vec.scale(m, (1.0 if front else -1.0) / ln)
