@@ -128,10 +128,11 @@ def replay(scene, batches, threads: int, runs: int = 3) -> dict:
                 out.append((q, o, d, None if t is None else np.ascontiguousarray(t, np.float32).copy()))
         return out
 
-    times, build_times, build_splits = [], [], []
+    times, build_times, build_splits, cpu_times = [], [], [], []
     with ThreadPoolExecutor(max_workers=threads) as pool:
         for _ in range(runs):
             emb = keep = None  # let the previous run's scene go before building the next (1 M triangles: ~100 MB)
+            c0 = time.process_time()
             emb, keep, split = build_embree(scene)
             build_times.append(sum(split.values()))
             build_splits.append(split)
@@ -147,10 +148,13 @@ def replay(scene, batches, threads: int, runs: int = 3) -> dict:
                                           np.empty(n, np.int32), np.empty(n, np.int32), np.empty(n, np.float32),
                                           np.empty(n, np.float32))
 
+            c1 = time.process_time()
             work = prepared()
+            c2 = time.process_time()
             t0 = time.perf_counter()
             list(pool.map(one, work))
             times.append(time.perf_counter() - t0)
+            cpu_times.append(time.process_time() - c2 + (c1 - c0))  # build + replay, not the batch copies
             del work, one
     del emb, keep
     before = [b for b in (build_embreex(scene) for _ in range(runs)) if b is not None]
@@ -161,6 +165,7 @@ def replay(scene, batches, threads: int, runs: int = 3) -> dict:
             "build_seconds": build, "build_times": build_times,
             "build_split": {k: statistics.median(s[k] for s in build_splits) for k in build_splits[0]},
             "end_to_end_rays_per_second": n_rays / (build + med) if build + med > 0 else 0.0,
+            "cpu_seconds": statistics.median(cpu_times), "cpu_times": cpu_times,
             "embreex_build_seconds": statistics.median(b["seconds"] for b in before) if before else None}
 
 
@@ -169,13 +174,14 @@ def measure(name: str, width: int, height: int, threads: int, runs: int, samples
     bs = scenes.build(name)
     scene = scenes.to_tracer(bs, width, height, instanced=True)  # meshes placed more than once: Embree instances
     settings = RenderSettings(width=width, height=height, samples=samples, max_depth=max_depth, threads=threads)
-    times, trace_times, splits, stats = [], [], [], None
+    times, trace_times, cpu_times, splits, stats = [], [], [], [], None
     for _ in range(runs):
         with TraceTimer() as tt:
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             img = tracer.render(scene, settings)
-            wall = time.perf_counter() - t0
+            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         times.append(wall)
+        cpu_times.append(cpu)
         trace_times.append(wall - img.stats["bvh_seconds"])
         isect = img.stats["intersect_seconds"]
         total = threads * wall
@@ -191,6 +197,9 @@ def measure(name: str, width: int, height: int, threads: int, runs: int, samples
            "width": width, "height": height,
            "threads": threads, "samples": samples, "seconds": med, "times": times, "rays": stats["rays"],
            "rays_per_second": stats["rays"]["total"] / med, "split_thread_seconds": split,
+           # CPU time of the process over the render (every thread, Embree's own included): what the render
+           # costs whatever else the machine runs (wall times on a shared machine include waiting for a core)
+           "cpu_seconds": statistics.median(cpu_times), "cpu_times": cpu_times,
            # Tracing only: wall minus image.stats["bvh_seconds"] of the same run (median over runs).
            "trace_seconds": trace_med, "trace_times": trace_times,
            "trace_rays_per_second": stats["rays"]["total"] / trace_med if trace_med > 0 else 0.0,

@@ -65,6 +65,10 @@ class Closure(NamedTuple):
     reflect: tuple  # directional albedo of the specular lobes at μ (the mirror ray's share)
     spec_color: tuple  # classic: R_s
     exponent: float  # classic: e
+    # Per shading point, so that :func:`evaluate` does not redo them per light sample:
+    lambda_mu: float  # Smith's Λ(μ) of the view direction
+    spec_f0r: float  # F0 of spec_eta (the real dielectric curve's own F0)
+    spec_rescale: float  # 1 / (1 − spec_f0r): the curve rescaled to run from 0 at normal incidence to 1
 
 
 # ---------------------------------------------------------------------------------------------- tables
@@ -226,8 +230,9 @@ def principled(base, metallic, roughness, specular, tint, ior, transmission, mu)
         layer = min(max(1.0 - vec.max3(alb), 0.0), 1.0)
         reflect = vec.madd(reflect, alb, ws)
     diffuse = vec.scale((max(base[0], 0.0), max(base[1], 0.0), max(base[2], 0.0)), w * layer)
+    f0r = f0_from_ior(eta)
     return Closure(True, diffuse, m, f0m, bm, msm, ws, f0s, np.float64(eta), mss, alpha2, np.float64(mu), reflect, zero,
-                   0.0)
+                   0.0, _lambda(alpha2, mu), np.float64(f0r), 1.0 / max(1.0 - f0r, 1e-6))
 
 
 @kernel(inline=True)
@@ -235,12 +240,13 @@ def classic(diffuse, spec_color, exponent):
     """The notes' Lambert + Blinn-Phong as a :class:`Closure` (R_d, R_s, e)."""
     zero = (0.0, 0.0, 0.0)
     return Closure(False, diffuse, 0.0, zero, zero, zero, 0.0, zero, 1.0, zero, 0.0, 1.0, zero, spec_color,
-                   np.float64(exponent))
+                   np.float64(exponent), 0.0, 0.0, 1.0)
 
 
 # ---------------------------------------------------------------------------------------------- evaluation
 @kernel(inline=True)
 def _lambda(alpha2, cos):
+    """Smith's Λ for GGX: (√(1 + α²·tan²θ) − 1)/2."""
     c2 = max(cos * cos, 1e-12)
     return 0.5 * (math.sqrt(1.0 + alpha2 * max(1.0 / c2 - 1.0, 0.0)) - 1.0)
 
@@ -265,15 +271,14 @@ def evaluate(cl, n, wi, l, n_l, spec_scale):
         return c
     a2 = cl.alpha2
     cnh2 = cos_nh * cos_nh
-    d = a2 / (math.pi * (1.0 - cnh2 + a2 * cnh2) ** 2)
-    common = d / (4.0 * cl.mu * (1.0 + _lambda(a2, cl.mu) + _lambda(a2, n_l))) * spec_scale
+    t = 1.0 - cnh2 + a2 * cnh2
+    # D = α²/(π t²) and the height-correlated Smith G₂ = 1/(1 + Λ(μ) + Λ(n·l)) over 4μ, in one division
+    common = a2 * spec_scale / (math.pi * t * t * 4.0 * cl.mu * (1.0 + cl.lambda_mu + _lambda(a2, n_l)))
     if cl.metal > 0.0:
         f = fresnel_f82(cos_hi, cl.metal_f0, cl.metal_b)
         c = vec.add(c, vec.scale(vec.mul(f, cl.metal_ms), cl.metal * common))
     if cl.spec > 0.0:
-        eta = cl.spec_eta
-        f0r = f0_from_ior(eta)
-        s = min(max((fresnel_dielectric(cos_hi, eta) - f0r) / max(1.0 - f0r, 1e-6), 0.0), 1.0)
+        s = min(max((fresnel_dielectric(cos_hi, cl.spec_eta) - cl.spec_f0r) * cl.spec_rescale, 0.0), 1.0)
         f = (cl.spec_f0[0] + (1.0 - cl.spec_f0[0]) * s, cl.spec_f0[1] + (1.0 - cl.spec_f0[1]) * s,
              cl.spec_f0[2] + (1.0 - cl.spec_f0[2]) * s)
         c = vec.add(c, vec.scale(vec.mul(f, cl.spec_ms), cl.spec * common))
