@@ -95,3 +95,41 @@ def test_normal_map_opengl_tilts_towards_increasing_t():
     np.testing.assert_allclose(n, (0.0, r, r), atol=1e-9)
     n = bsdf.perturb_normal((r, 0.0, r), (1.0, 0.0, 0.0), 1.0, 1.0, N, N, True)
     np.testing.assert_allclose(n, (r, 0.0, r), atol=1e-9)
+
+
+def _fresnel_dielectric(cos_i, eta):
+    """The unpolarised Fresnel reflectance from the two Fresnel equations (s and p), not bsdf's closed form."""
+    sin_t = math.sqrt(max(0.0, 1.0 - cos_i * cos_i)) / eta
+    if sin_t >= 1.0:
+        return 1.0
+    cos_t = math.sqrt(1.0 - sin_t * sin_t)
+    rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
+    rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
+    return 0.5 * (rs * rs + rp * rp)
+
+
+@pytest.mark.parametrize("rough", [0.35, 0.6])
+@pytest.mark.parametrize("ior", [1.33, 1.5, 2.4])
+def test_dielectric_lobe_is_ggx_with_the_real_fresnel(rough, ior):
+    """Specular IOR Level 0.5 keeps F0' = F0(ior), so the rescaled Fresnel is the dielectric one itself: the lobe
+    (evaluate, f·cos θ_l, with a black base) is F_η(h·wi)·D(h)·G₂/(4 μ) × the closure's multiscatter factor, with
+    D = α²/(π((n·h)²(α² − 1) + 1)²), α = r², G₂ = 1/(1 + Λ(μ) + Λ(n·l)) (height-correlated Smith), at view and
+    light directions away from the mirror direction (where a wrong D, G₂ or Fresnel curve shows)."""
+    a2 = rough ** 4
+
+    def lam(c):
+        return 0.5 * (math.sqrt(1.0 + a2 * (1.0 / (c * c) - 1.0)) - 1.0)
+
+    mu = 0.6
+    wi = view(mu)
+    cl = bsdf.principled((0.0, 0.0, 0.0), 0.0, rough, 0.5, (1.0, 1.0, 1.0), ior, 0.0, mu)
+    for theta, phi in ((0.3, 2.0), (0.9, 1.0), (1.2, 3.0), (0.5, 0.4)):
+        l = (math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi), math.cos(theta))
+        n_l = l[2]
+        h = np.add(wi, l)
+        h /= np.linalg.norm(h)
+        d = a2 / (math.pi * (h[2] ** 2 * (a2 - 1.0) + 1.0) ** 2)
+        g2 = 1.0 / (1.0 + lam(mu) + lam(n_l))
+        expected = _fresnel_dielectric(float(np.dot(h, wi)), ior) * d * g2 / (4.0 * mu) * np.array(cl.spec_ms)
+        got = np.array(bsdf.evaluate(cl, N, wi, l, n_l, 1.0))  # f·cos θ_l; the black base adds nothing
+        np.testing.assert_allclose(got, expected, rtol=1e-6)
