@@ -576,7 +576,7 @@ def _channel(c, ch):
     return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
 
 
-@kernel
+@kernel(refcounts=False)
 def _surfaces(o, d, t, prim, inst, normal_matrix, overrides, u, v, geom, mats, surf):
     """Surfaces stage: per ray, the hit point, its frames and the material's constant parameters (× vertex
     colours); the rays whose material reads a texture are listed for :func:`_textured_surfaces`. Returns how many.
@@ -642,7 +642,7 @@ def _surfaces(o, d, t, prim, inst, normal_matrix, overrides, u, v, geom, mats, s
     return n_textured
 
 
-@kernel
+@kernel(refcounts=False)
 def _textured_surfaces(rays, prim, u, v, mat_of, front, ng, n, base, rough, metal, spec, cover, e, alphas, threshold,
                        slots, channels, strength, uv_sets, vertices, triangles, face_normals, tdata, tparams, p_hit,
                        eye, spread, flat, inst, linear, mirrored):
@@ -668,13 +668,17 @@ def _textured_surfaces(rays, prim, u, v, mat_of, front, ng, n, base, rough, meta
                       + linear[k_inst, 0, 2] * (linear[k_inst, 1, 0] * linear[k_inst, 2, 1]
                                                 - linear[k_inst, 1, 1] * linear[k_inst, 2, 0]))
             footprint /= max(det, 1e-30) ** (1.0 / 3.0)
+        k_read = -1  # the UV set whose coordinates and areas were last read (textures mostly share one)
+        s, t, ok, uv_area, world_area = 0.0, 0.0, False, 0.0, 0.0
         for j in range(7):
             ti = slots[mat, j]
             if ti < 0:
                 continue
             k = uv_set_of(tparams, ti)
-            s, t, ok = uv_at(uv_sets, k, tri, ui, vi)
-            uv_area, world_area = areas_at(uv_sets, vertices, triangles, k, tri)
+            if k != k_read:
+                s, t, ok = uv_at(uv_sets, k, tri, ui, vi)
+                uv_area, world_area = areas_at(uv_sets, vertices, triangles, k, tri)
+                k_read = k
             texels = footprint * texel_density(tparams, ti, uv_area, world_area)
             lod = math.log2(texels) if texels > 1.0 else 0.0
             if j == 6:  # the normal map: tangent space from this UV set, OpenGL convention
@@ -707,7 +711,7 @@ def _textured_surfaces(rays, prim, u, v, mat_of, front, ng, n, base, rough, meta
         cover[i] = _cut(alpha, float(threshold[mat]))
 
 
-@kernel
+@kernel(refcounts=False)
 def _first_hits(surf, t, prim, inst, itab, t0, sample, geom, out):
     """First-hit stage (depth 0): depth, normal, albedo and object id of the first surface each eye sample sees
     (surfaces cut away by alpha are looked through)."""
@@ -725,7 +729,7 @@ def _first_hits(surf, t, prim, inst, itab, t0, sample, geom, out):
         o_id[s] = tri_ids[prim[i]] if k < 0 else inst_ids[k]
 
 
-@kernel
+@kernel(refcounts=False)
 def _emitted(d, surf, sample, weight, depth, opt, env, out):
     """Emitted stage: what each ray sees itself — the environment (or background) where it leaves the scene (a
     transparent film clears alpha instead, for rays from the eye), the surface's emission × alpha where it hits."""
@@ -751,7 +755,7 @@ def _emitted(d, surf, sample, weight, depth, opt, env, out):
                 o_color[s, c] += w[c] * a * s_e[i, c]
 
 
-@kernel
+@kernel(refcounts=False)
 def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt, out, shadow, n_shadow, counts):
     """Direct-light stage: per hit, every light sample's colour (local model × irradiance), written with its shadow
     ray (p, l, ε, dist) to the shadow queue; and the ambient term where the sky is not sampled. Returns the
@@ -826,7 +830,7 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
     return n_shadow
 
 
-@kernel
+@kernel(refcounts=False)
 def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shadow, n_shadow, counts):
     """Sky stage: the environment as a light (directions importance-sampled by luminance, local model × radiance
     / pdf), or the ambient term weighted by the visible sky (cosine-weighted hemisphere rays); deferred like shadow
@@ -899,7 +903,7 @@ def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shado
     return n_shadow
 
 
-@kernel
+@kernel(refcounts=False)
 def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, counts):
     """Spawn stage: per hit, the reflected ray (k_m·mirror_tint + the Principled lobes' mirror share + glass·F),
     the transmitted ray (glass·(1 − F)) and, where alpha < 1, the ray that passes straight through (weight
@@ -1007,7 +1011,7 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
     return n_refl, n_tran, n_through
 
 
-@kernel
+@kernel(refcounts=False)
 def _pass_shadow(sel, idx, t, prim, inst, itab, u, v, geom, mats, tex, o, d, t_max, color, pending, blocked, eps):
     """One round of transparent shadows: each pending shadow ray's first blocker either stops it (alpha 1) or lets
     1 − alpha of its colour through, the ray continuing behind it; a ray that reaches its light is unblocked."""
@@ -1046,7 +1050,7 @@ def _pass_shadow(sel, idx, t, prim, inst, itab, u, v, geom, mats, tex, o, d, t_m
         t_max[j] = t_max[j] - t[q]
 
 
-@kernel
+@kernel(refcounts=False)
 def _add_unoccluded(color, sample, contrib, blocked):
     """color[sample] += contrib where the shadow (or sky) ray reached its light."""
     for i in range(sample.shape[0]):

@@ -85,9 +85,18 @@ def mark_kernels_cached() -> None:
             pass
 
 
-def kernel(fn=None, *, inline: bool = False):
-    """Compile ``fn`` with the tracer's options; ``inline=True`` for small helpers called from other kernels."""
-    opts = dict(_OPTIONS, inline="always") if inline else _OPTIONS
+def kernel(fn=None, *, inline: bool = False, refcounts: bool = True):
+    """Compile ``fn`` with the tracer's options; ``inline=True`` for small helpers called from other kernels.
+
+    ``refcounts=False`` for a per-ray stage that allocates nothing: numba's runtime (NRT) is left out of it, so the
+    arrays it reads are borrowed from the caller for the call and no reference counting is emitted at all
+    (numba's ``_nrt`` flag). numba counts references to every array an inlined helper is handed, atomically, and
+    cannot prune them across branches: after moving NamedTuples out of the helpers' arguments, what was left cost
+    the textures stage 20 % and the other stages 3-10 % (docs/benchmarks.md). A kernel that allocates (np.empty
+    …) fails to compile with this set, at once."""
+    opts = dict(_OPTIONS, inline="always") if inline else dict(_OPTIONS)
+    if not refcounts:
+        opts["_nrt"] = False
 
     def wrap(f):
         # numba picks a function's cache location when it is decorated: point it at this source version's folder
