@@ -40,7 +40,7 @@ from .environment import env_radiance, env_sample, pack_environment
 from .jit import kernel
 from .instances import mat3_apply, mat3_apply_transposed, pack_instances
 from .instances import world_emitters
-from .lights import MESH, pack_lights, sample_emitters, sample_light
+from .lights import MESH, pack_lights, sample_light
 from .sampling import multijitter, stratum, uniform2_1
 from .scene import Scene
 from .settings import RenderSettings
@@ -772,8 +772,7 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
         surf.n)
     m_tint, m_ior, m_tran, m_km, m_sc, m_exp = (mats.specular_tint, mats.ior, mats.transmission, mats.k_m,
                                                 mats.specular_color, mats.exponent)
-    l_table, l_kind, l_side, l_tri, l_le, l_cdf = (lights.table, lights.kind, lights.side, lights.tri,
-                                                   lights.tri_le, lights.tri_cdf)
+    l_kind, l_side = lights.kind, lights.side
     q_o, q_d, q_t, q_s, q_c, q_l = shadow.o, shadow.d, shadow.t_max, shadow.sample, shadow.color, shadow.light
     o_color = out.color
     n_lights = l_kind.shape[0]
@@ -808,12 +807,8 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
         for j in range(n_lights):
             # a light the mirror ray can see (emissive triangles) gives the mirror share of the lobes to that ray
             spec_scale = 1.0 - g if l_kind[j] == MESH else 1.0
-            kd, sd = l_kind[j], l_side[j]
-            for k in range(sd * sd):
-                if kd == MESH:
-                    l, dist, e = sample_emitters(l_tri, l_le, l_cdf, k, sd, p, r0, r1)
-                else:
-                    l, dist, e = sample_light(l_table, kd, sd, j, k, p, r0, r1)
+            for k in range(l_side[j] * l_side[j]):
+                l, dist, e = sample_light(lights, j, k, p, r0, r1)
                 n_l = vec.dot(n, l)
                 if n_l <= 0.0 or vec.dot(ng, l) <= 0.0:
                     continue

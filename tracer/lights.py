@@ -4,7 +4,7 @@ Every light answers one question for a point p: for each of its K samples, the u
 light, the distance to it (the shadow ray's t_max), and E, the irradiance it delivers on a surface facing it, already
 divided by K. The shading of the seed then multiplies E by the BRDF and max(0, n·l); shadow rays decide which
 samples count. The light classes validate and hold a light; :func:`pack_lights` turns a scene's lights into one
-table, and :func:`sample_light` (a kernel) answers the question for one point and one sample.
+set of tables, and :func:`sample_light` (a kernel) answers the question for one point and one sample.
 
 Units are Blender's and Cycles' (measured in ``docs/units.md``):
 
@@ -152,22 +152,29 @@ class AreaLight:
 
 Light = PointLight | SpotLight | DistantLight | AreaLight
 
-# ---------------------------------------------------------------------- the packed light table
-#: Light kinds in the packed table.
+# ---------------------------------------------------------------------- the packed light tables
+#: Light kinds in the packed tables.
 POINT, SPOT, DISTANT, RECT, DISK, MESH = 0, 1, 2, 3, 4, 5
-#: Columns of the packed table.
-_POS, _COLOR, _RADIUS, _DIR, _COS_CONE, _BLEND, _COS_MAX, _U, _V, _SIZE, _AREA = 0, 3, 6, 7, 10, 11, 12, 13, 16, 19, 21
-_WIDTH = 22
 
 
 class LightTables(NamedTuple):
-    """The scene's lights as the kernels read them: one ``table`` row, ``kind`` and ``side`` (√ samples) per light;
-    the emissive triangles of the MESH light (if any: the last row) as vertices, radiance and the cumulative
-    distribution of their power."""
+    """The scene's lights as the kernels read them, one row per light in each field (the fields a kind does not use
+    stay 0); the emissive triangles of the MESH light (if any: the last row) as vertices, radiance and the
+    cumulative distribution of their power."""
 
-    table: np.ndarray  # (L, 22) float64
-    kind: np.ndarray  # (L,) int64
-    side: np.ndarray  # (L,) int64
+    kind: np.ndarray  # (L,) int64: POINT, SPOT, DISTANT, RECT, DISK or MESH
+    side: np.ndarray  # (L,) int64: √ of the light's sample count
+    position: np.ndarray  # (L, 3) float64: point, spot, area centre
+    color: np.ndarray  # (L, 3) float64: intensity (W/sr), irradiance (W/m²) or radiance (W/m²/sr)
+    radius: np.ndarray  # (L,) float64: point and spot radius
+    direction: np.ndarray  # (L, 3) float64: spot axis, sun direction (travel), area normal (emitting side)
+    cos_cone: np.ndarray  # (L,) float64: spot, cos(size/2)
+    blend: np.ndarray  # (L,) float64: spot blend
+    cos_max: np.ndarray  # (L,) float64: sun, cos(angle/2)
+    u_axis: np.ndarray  # (L, 3) float64: area, unit edge directions
+    v_axis: np.ndarray  # (L, 3) float64
+    size: np.ndarray  # (L, 2) float64: area, extents along u and v
+    area: np.ndarray  # (L,) float64: area, its area
     tri: np.ndarray  # (N, 3, 3) float64 emitting triangles, world space
     tri_le: np.ndarray  # (N, 3) float64 their radiance
     tri_cdf: np.ndarray  # (N,) float64 cumulative pick probability (power-proportional), last = 1
@@ -197,41 +204,29 @@ def pack_lights(lights: list, light_samples: int, emitters=None) -> LightTables:
         tri, tri_le, power = tri[keep], tri_le[keep], power[keep]
         cdf = np.cumsum(power) / power.sum() if len(power) else cdf
         cdf[-1:] = 1.0
-    n_mesh = 1 if len(tri) else 0
-    table = np.zeros((len(lights) + n_mesh, _WIDTH), np.float64)
-    kind = np.zeros(len(lights) + n_mesh, np.int64)
-    side = np.ones(len(lights) + n_mesh, np.int64)
-    if n_mesh:
-        kind[-1] = MESH
-        side[-1] = max(1, int(round(np.sqrt(max(1, light_samples)))))
+    n = len(lights) + (1 if len(tri) else 0)
+    f1, f2, f3 = (lambda: np.zeros(n, np.float64)), (lambda: np.zeros((n, 2))), (lambda: np.zeros((n, 3)))
+    t = LightTables(kind=np.zeros(n, np.int64), side=np.ones(n, np.int64), position=f3(), color=f3(), radius=f1(),
+                    direction=f3(), cos_cone=f1(), blend=f1(), cos_max=f1(), u_axis=f3(), v_axis=f3(), size=f2(),
+                    area=f1(), tri=tri, tri_le=tri_le, tri_cdf=cdf)
+    if len(tri):
+        t.kind[-1] = MESH
+        t.side[-1] = max(1, int(round(np.sqrt(max(1, light_samples)))))
     for i, light in enumerate(lights):
-        row = table[i]
-        k = light.sample_count(light_samples)
-        side[i] = max(1, int(round(np.sqrt(k))))
+        t.side[i] = max(1, int(round(np.sqrt(light.sample_count(light_samples)))))
         if isinstance(light, PointLight):  # SpotLight included
-            kind[i] = SPOT if isinstance(light, SpotLight) else POINT
-            row[_POS:_POS + 3] = light.position
-            row[_COLOR:_COLOR + 3] = light.intensity
-            row[_RADIUS] = light.radius
-            if kind[i] == SPOT:
-                row[_DIR:_DIR + 3] = light.direction
-                row[_COS_CONE] = np.cos(light.cone_angle)
-                row[_BLEND] = light.blend
+            t.kind[i] = SPOT if isinstance(light, SpotLight) else POINT
+            t.position[i], t.color[i], t.radius[i] = light.position, light.intensity, light.radius
+            if t.kind[i] == SPOT:
+                t.direction[i], t.cos_cone[i], t.blend[i] = light.direction, np.cos(light.cone_angle), light.blend
         elif isinstance(light, DistantLight):
-            kind[i] = DISTANT
-            row[_DIR:_DIR + 3] = light.direction
-            row[_COLOR:_COLOR + 3] = light.irradiance
-            row[_COS_MAX] = np.cos(light.angle / 2)
+            t.kind[i] = DISTANT
+            t.direction[i], t.color[i], t.cos_max[i] = light.direction, light.irradiance, np.cos(light.angle / 2)
         else:
-            kind[i] = RECT if light.shape == "rect" else DISK
-            row[_POS:_POS + 3] = light.position
-            row[_COLOR:_COLOR + 3] = light.radiance
-            row[_DIR:_DIR + 3] = light.normal
-            row[_U:_U + 3] = light.u_axis
-            row[_V:_V + 3] = light.v_axis
-            row[_SIZE:_SIZE + 2] = light.size
-            row[_AREA] = light.area
-    return LightTables(table, kind, side, tri, tri_le, cdf)
+            t.kind[i] = RECT if light.shape == "rect" else DISK
+            t.position[i], t.color[i], t.direction[i] = light.position, light.radiance, light.normal
+            t.u_axis[i], t.v_axis[i], t.size[i], t.area[i] = light.u_axis, light.v_axis, light.size, light.area
+    return t
 
 
 @kernel(inline=True)
@@ -267,11 +262,6 @@ def _sample_emitters(tri, tri_le, cdf, k, sd, kk, p, r0, r1):
 
 
 @kernel(inline=True)
-def _col3(table, j, c):
-    return (table[j, c], table[j, c + 1], table[j, c + 2])
-
-
-@kernel(inline=True)
 def spot_falloff(cos_a, cos_cone, blend):
     """Blender's spot: smoothstep(x), x = (cos α − cos(size/2)) / ((1 − cos(size/2))·blend), in cosine."""
     if blend <= 0.0:
@@ -281,33 +271,29 @@ def spot_falloff(cos_a, cos_cone, blend):
 
 
 @kernel(inline=True)
-def sample_emitters(tri, tri_le, tri_cdf, k, sd, p, r0, r1):
-    """Sample ``k`` (of sd²) of the MESH light (the emissive triangles of a :class:`LightTables`) seen from point p:
-    (l, dist, E) as :func:`sample_light`."""
-    return _sample_emitters(tri, tri_le, tri_cdf, k, sd, sd * sd, p, r0, r1)
-
-
-@kernel(inline=True)
-def sample_light(table, kd, sd, j, k, p, r0, r1):
-    """Sample ``k`` (of sd²) of light ``j`` (``table`` row j of a :class:`LightTables`, kind kd, side sd; not the
-    MESH light: :func:`sample_emitters`) seen from point p: (l, dist, E) with l the unit direction to the light,
-    dist the shadow ray's length and E the irradiance on a surface facing the light, divided by sd². (r0, r1) in
-    [0,1)² rotate the stratified pattern of lights with an extent. Kernels pass it the one array it reads: every
-    array handed to an inlined helper with branches costs numba's reference counting per call (a 6-array light
-    table passed whole cost a third of the direct-light stage)."""
+def sample_light(lights, j, k, p, r0, r1):
+    """Sample ``k`` (of side²) of light ``j`` of a :class:`LightTables` seen from point p: (l, dist, E) with l the
+    unit direction to the light, dist the shadow ray's length and E the irradiance on a surface facing the light,
+    divided by side². (r0, r1) in [0,1)² rotate the stratified pattern of lights with an extent. (Called from
+    kernels compiled without reference counting, ``kernel(refcounts=False)``: a NamedTuple of arrays handed to an
+    inlined helper costs nothing there.)"""
+    sd = lights.side[j]
     kk = sd * sd
+    kd = lights.kind[j]
+    if kd == MESH:
+        return _sample_emitters(lights.tri, lights.tri_le, lights.tri_cdf, k, sd, kk, p, r0, r1)
     if kd == POINT or kd == SPOT:
-        pos = _col3(table, j, _POS)
-        radius = table[j, _RADIUS]
+        pos = vec.row(lights.position, j)
+        radius = lights.radius[j]
         to_c = vec.sub(pos, p)
         d2 = vec.dot(to_c, to_c)
         # Blender's soft falloff: irradiance I / (r² + R²), measured against Cycles.
         inv = 1.0 / (d2 + radius * radius)
         dist = math.sqrt(d2)
         if kd == SPOT:
-            cos_a = -vec.dot(to_c, _col3(table, j, _DIR)) / math.sqrt(max(d2, 1e-30))
-            inv *= spot_falloff(cos_a, table[j, _COS_CONE], table[j, _BLEND])
-        e = vec.scale(_col3(table, j, _COLOR), inv / kk)
+            cos_a = -vec.dot(to_c, vec.row(lights.direction, j)) / math.sqrt(max(d2, 1e-30))
+            inv *= spot_falloff(cos_a, lights.cos_cone[j], lights.blend[j])
+        e = vec.scale(vec.row(lights.color, j), inv / kk)
         if kk == 1:
             return vec.scale(to_c, 1.0 / max(dist, 1e-30)), dist, e
         # Soft shadows: stratified points on the disk of the sphere that faces p.
@@ -319,14 +305,14 @@ def sample_light(table, kd, sd, j, k, p, r0, r1):
         ld = vec.length(to_l)
         return vec.scale(to_l, 1.0 / max(ld, 1e-30)), ld, e
     if kd == DISTANT:
-        to_light = vec.scale(_col3(table, j, _DIR), -1.0)
-        e = vec.scale(_col3(table, j, _COLOR), 1.0 / kk)
+        to_light = vec.scale(vec.row(lights.direction, j), -1.0)
+        e = vec.scale(vec.row(lights.color, j), 1.0 / kk)
         if kk == 1:
             return to_light, math.inf, e
         # A disk of angular diameter `angle` around the direction to the sun, sampled uniformly in solid angle.
         u, v = vec.orthonormal_basis(to_light)
         s0, s1 = stratum(k, sd, r0, r1)
-        cos_t = 1.0 - s0 * (1.0 - table[j, _COS_MAX])
+        cos_t = 1.0 - s0 * (1.0 - lights.cos_max[j])
         sin_t = math.sqrt(max(0.0, 1.0 - cos_t * cos_t))
         phi = 2.0 * math.pi * s1
         l = vec.madd(vec.madd(vec.scale(to_light, cos_t), u, sin_t * math.cos(phi)), v, sin_t * math.sin(phi))
@@ -338,12 +324,12 @@ def sample_light(table, kd, sd, j, k, p, r0, r1):
     else:
         r = 0.5 * math.sqrt(s0)
         a, b = r * math.cos(2.0 * math.pi * s1), r * math.sin(2.0 * math.pi * s1)
-    pt = vec.madd(vec.madd(_col3(table, j, _POS), _col3(table, j, _U), a * table[j, _SIZE]),
-                  _col3(table, j, _V), b * table[j, _SIZE + 1])
+    pt = vec.madd(vec.madd(vec.row(lights.position, j), vec.row(lights.u_axis, j), a * lights.size[j, 0]),
+                  vec.row(lights.v_axis, j), b * lights.size[j, 1])
     to_l = vec.sub(pt, p)
     d2 = max(vec.dot(to_l, to_l), 1e-30)
     dist = math.sqrt(d2)
     l = vec.scale(to_l, 1.0 / dist)
-    cos_l = max(0.0, -vec.dot(l, _col3(table, j, _DIR)))
+    cos_l = max(0.0, -vec.dot(l, vec.row(lights.direction, j)))
     # E from a sample of a Lambertian emitter: Le · cosθ_l · A / r², averaged over the K samples.
-    return l, dist, vec.scale(_col3(table, j, _COLOR), cos_l * table[j, _AREA] / d2 / kk)
+    return l, dist, vec.scale(vec.row(lights.color, j), cos_l * lights.area[j] / d2 / kk)
