@@ -204,7 +204,9 @@ class MaterialTable:
             mtlx = None  # no mtlx-specific output: ComputeSurfaceSource fell back to the universal one
         fields, needs = {}, MeshNeeds()
         label = str(mat.GetPath())
-        if preview and net.shader_id(preview) == "UsdPreviewSurface":
+        if mtlx and is_preview_surface(mtlx) and not (preview and is_preview_surface(preview)):
+            preview, mtlx = mtlx, None  # MaterialX's UsdPreviewSurface node: the same inputs, the same reading
+        if preview and is_preview_surface(preview):
             fields, needs = self.preview_surface(preview, label)
         elif preview and not mtlx:
             self.warn(f"{label}: surface shader {net.shader_id(preview)!r} is not supported; using grey")
@@ -437,6 +439,15 @@ class MaterialTable:
         if ior is not None and float(net.floats(ior, 1, (1.5,))[0]) > 0:
             out["ior"] = float(net.floats(ior, 1, (1.5,))[0])
         return out
+
+
+#: Shader ids of UsdPreviewSurface: its own, and MaterialX's node definition of it (what usdMtlx writes for a
+#: ``<UsdPreviewSurface>`` in a .mtlx document, e.g. on ``outputs:mtlx:surface``).
+PREVIEW_SURFACE_IDS = ("UsdPreviewSurface", "ND_UsdPreviewSurface_surfaceshader")
+
+
+def is_preview_surface(shader) -> bool:
+    return net.shader_id(shader) in PREVIEW_SURFACE_IDS
 
 
 def _is_default(src, default) -> bool:

@@ -1,0 +1,99 @@
+"""Patterns found by the usd-wg survey (tools/usdwg_survey.py), each rebuilt in a stage written here.
+
+- Stages without a camera are framed as usdrecord frames them (the assets' thumbnails are usdrecord's): on the
+  front axis, looking at the bounds' centre, backed off by the front face's half-diagonal over tan(half FOV) plus
+  half the depth (UsdAppUtils FrameRecorder). The reference bounds are pxr's own (UsdGeom.BBoxCache).
+- A MaterialX document's ``<UsdPreviewSurface>`` arrives as a shader ``ND_UsdPreviewSurface_surfaceshader`` on
+  ``outputs:mtlx:surface`` (what usdMtlx writes; MaterialXTest/basic_flatten.usda): it is a UsdPreviewSurface.
+- Pixels that are not finite are written black by the film; the CLI says so once.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade
+
+from usd_io import load_stage
+from usd_io.camera import DEFAULT_APERTURE, DEFAULT_FOCAL
+
+
+def box_stage(up: str) -> Usd.Stage:
+    """A 2 × 4 × 1 box (Y-up; its Z-up copy turned +90° about X), off the origin, no camera."""
+    s = Usd.Stage.CreateInMemory()
+    UsdGeom.SetStageUpAxis(s, up)
+    root = UsdGeom.Xform.Define(s, "/World")
+    if up == "Z":
+        root.AddRotateXOp().Set(90.0)
+    cube = UsdGeom.Cube.Define(s, "/World/Box")
+    cube.AddTranslateOp().Set(Gf.Vec3d(3.0, 1.0, -2.0))
+    cube.AddScaleOp().Set(Gf.Vec3f(1.0, 2.0, 0.5))
+    return s
+
+
+def pxr_bounds(stage) -> tuple[np.ndarray, np.ndarray]:
+    cache = UsdGeom.BBoxCache(Usd.TimeCode.Default(), ["default", "render"])
+    r = cache.ComputeWorldBound(stage.GetPseudoRoot()).ComputeAlignedRange()
+    return np.array(r.GetMin()), np.array(r.GetMax())
+
+
+@pytest.mark.parametrize("up", ["Y", "Z"])
+def test_camera_less_stage_is_framed_as_usdrecord_frames_it(up):
+    width, height = 64, 64
+    stage = box_stage(up)
+    scene, info = load_stage(stage, width=width, height=height)
+    assert any("no camera" in w for w in info.warnings)
+    lo, hi = pxr_bounds(stage)
+    centre, dim = (lo + hi) / 2, hi - lo
+    # usdrecord: Y-up looks along −Z from +Z; Z-up along +Y from −Y (rotated 90° about X), up = the up axis.
+    face, depth, back, up_vec = (((dim[0], dim[1]), dim[2], (0, 0, 1), (0, 1, 0)) if up == "Y" else
+                                 ((dim[0], dim[2]), dim[1], (0, -1, 0), (0, 0, 1)))
+    # a square image widens the default 20.955 × 15.29 aperture to 20.955 × 20.955: both FOVs are usdrecord's
+    # horizontal one (usdrecord itself keeps 15.29 vertically and crops what its horizontal framing lets through)
+    half_fov = np.arctan(max(DEFAULT_APERTURE) / 2 / DEFAULT_FOCAL)
+    distance = np.hypot(*face) / 2 / np.tan(half_fov) + depth / 2
+    c2w = scene.camera.camera_to_world
+    np.testing.assert_allclose(c2w[:3, 3], centre + distance * np.array(back), atol=1e-6)
+    np.testing.assert_allclose(-c2w[:3, 2] / np.linalg.norm(c2w[:3, 2]), -np.array(back, float), atol=1e-9)
+    np.testing.assert_allclose(c2w[:3, 1] / np.linalg.norm(c2w[:3, 1]), up_vec, atol=1e-9)
+
+
+def mtlx_preview_stage(path) -> Usd.Stage:
+    """A sphere bound to a Material whose only surface is MaterialX's UsdPreviewSurface node."""
+    s = Usd.Stage.CreateNew(str(path))
+    sphere = UsdGeom.Sphere.Define(s, "/Sphere")
+    mat = UsdShade.Material.Define(s, "/MaterialX/Materials/USD_Plastic")
+    sh = UsdShade.Shader.Define(s, "/MaterialX/Materials/USD_Plastic/SR_plastic")
+    sh.CreateIdAttr("ND_UsdPreviewSurface_surfaceshader")
+    sh.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(0.1047, 0.2419, 0.818))
+    sh.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(0.3247)
+    sh.CreateInput("metallic", Sdf.ValueTypeNames.Float).Set(0.25)
+    mat.CreateSurfaceOutput("mtlx").ConnectToSource(sh.ConnectableAPI(), "surface")
+    UsdShade.MaterialBindingAPI.Apply(sphere.GetPrim()).Bind(mat)
+    s.Save()
+    return s
+
+
+def test_materialx_usd_preview_surface_node_reads_as_a_usd_preview_surface(tmp_path):
+    stage = mtlx_preview_stage(tmp_path / "mtlx_preview.usda")
+    _scene, info = load_stage(stage, width=8, height=8)
+    fields = info.materials["/MaterialX/Materials/USD_Plastic"]
+    sh = UsdShade.Shader.Get(stage, "/MaterialX/Materials/USD_Plastic/SR_plastic")
+    want = tuple(round(float(x), 4) for x in sh.GetInput("diffuseColor").Get())
+    assert fields["base_color"] == want  # not the 0.18 grey of an unread surface
+    assert fields["roughness"] == pytest.approx(float(sh.GetInput("roughness").Get()), abs=1e-4)
+    assert fields["metallic"] == pytest.approx(0.25, abs=1e-4)
+    assert not [w for w in info.warnings if "not supported" in w]
+
+
+def test_non_finite_pixels_are_reported_once(capsys):
+    from usd_io.cli import _warn_not_finite
+
+    rgba = np.ones((4, 5, 4), np.float32)
+    rgba[1, 2, 0] = np.nan
+    rgba[3, 4, 1] = np.inf
+    _warn_not_finite(rgba, "scene.usda")
+    err = capsys.readouterr().err.splitlines()
+    assert err == ["whitted: warning: scene.usda: 2 pixel(s) not finite (NaN or inf; written black)"]
+    _warn_not_finite(np.ones((4, 5, 4), np.float32), "scene.usda")
+    assert capsys.readouterr().err == ""
