@@ -10,6 +10,8 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade
@@ -97,3 +99,103 @@ def test_non_finite_pixels_are_reported_once(capsys):
     assert err == ["whitted: warning: scene.usda: 2 pixel(s) not finite (NaN or inf; written black)"]
     _warn_not_finite(np.ones((4, 5, 4), np.float32), "scene.usda")
     assert capsys.readouterr().err == ""
+
+
+# ---------------------------------------------------------------- MaterialX documents (the chess set's pattern)
+MTLX_LAMBERT = """<?xml version="1.0"?>
+<materialx version="1.38" colorspace="lin_rec709">
+  <nodegraph name="NG_blocks">
+    <texcoord name="uv" type="vector2" />
+    <image name="blocks" type="color3">
+      <input name="file" type="filename" value="tex/blocks.png" colorspace="srgb_texture" />
+      <input name="texcoord" type="vector2" nodename="uv" />
+    </image>
+    <output name="color_out" type="color3" nodename="blocks" />
+  </nodegraph>
+  <UsdPreviewSurface name="SR_blocks" type="surfaceshader">
+    <input name="diffuseColor" type="color3" nodegraph="NG_blocks" output="color_out" />
+    <input name="useSpecularWorkflow" type="integer" value="1" />
+    <input name="specularColor" type="color3" value="0, 0, 0" />
+  </UsdPreviewSurface>
+  <surfacematerial name="M_blocks" type="material">
+    <input name="surfaceshader" type="surfaceshader" nodename="SR_blocks" />
+  </surfacematerial>
+</materialx>
+"""
+
+MTLX_STANDARD = """<?xml version="1.0"?>
+<materialx version="1.38">
+  <image name="rough" type="float"><input name="file" type="filename" value="r.png" /></image>
+  <image name="nrm" type="vector3"><input name="file" type="filename" value="n.png" /></image>
+  <normalmap name="nmap" type="vector3"><input name="in" type="vector3" nodename="nrm" /></normalmap>
+  <standard_surface name="SR_std" type="surfaceshader">
+    <input name="base" type="float" value="0.5" />
+    <input name="base_color" type="color3" value="0.2, 0.4, 0.6" />
+    <input name="metalness" type="float" value="0.7" />
+    <input name="specular_roughness" type="float" nodename="rough" />
+    <input name="normal" type="vector3" nodename="nmap" />
+    <input name="coat" type="float" value="1" />
+  </standard_surface>
+  <surfacematerial name="M_std" type="material">
+    <input name="surfaceshader" type="surfaceshader" nodename="SR_std" />
+  </surfacematerial>
+</materialx>
+"""
+
+
+def mtlx_quad_stage(d, document: str, material: str) -> str:
+    """The standard lit quad, its material referenced from ``looks/mat.mtlx`` as the chess set does it
+    (``def Scope "Materials" (references = @looks/mat.mtlx@</MaterialX/Materials>)``)."""
+    import usd_material_stages as S
+
+    os.makedirs(os.path.join(d, "looks", "tex"), exist_ok=True)
+    with open(os.path.join(d, "looks", "mat.mtlx"), "w") as f:
+        f.write(document)
+    s = S.new_stage(os.path.join(d, "scene.usda"))
+    S.camera(s)
+    q = S.quad(s)
+    S.sun(s)
+    s.DefinePrim("/Materials", "Scope").GetReferences().AddReference("./looks/mat.mtlx", "/MaterialX/Materials")
+    UsdShade.MaterialBindingAPI.Apply(q.GetPrim()).GetDirectBindingRel().SetTargets([f"/Materials/{material}"])
+    return S.save(s)
+
+
+def test_mtlx_document_reference_renders_its_image_node_in_srgb(tmp_path):
+    """Closed form (as the texture-orientation test): a Lambert quad under a π W/m² sun at normal incidence shows
+    its albedo, so every pixel is the sRGB-decoded texel under it. Before usd_io.mtlx: the reference does not
+    compose, the quad is unbound and 0.5 grey; a raw (not sRGB) read or a flipped lookup moves every block."""
+    import usd_material_stages as S
+    from test_usd_materials import N, assert_blocks, render_stage, st_of_pixels
+
+    d = str(tmp_path)
+    os.makedirs(os.path.join(d, "looks", "tex"), exist_ok=True)
+    blocks = S.block_texture(os.path.join(d, "looks", "tex", "blocks.png"))
+    img, info, _ = render_stage(mtlx_quad_stage(d, MTLX_LAMBERT, "M_blocks"))
+    assert not [w for w in info.warnings if "composition" in w or "not supported" in w], info.warnings
+    expected, ok = S.block_lookup(st_of_pixels(), blocks, margin=1.5 / N)
+    assert_blocks(img, expected, ok)
+
+
+def test_mtlx_standard_surface_weights_textures_and_normal_map(tmp_path):
+    import usd_material_stages as S
+
+    d = str(tmp_path)
+    path = mtlx_quad_stage(d, MTLX_STANDARD, "M_std")
+    S.write_png(os.path.join(d, "looks", "r.png"), np.full((4, 4, 1), 128, np.uint8))
+    S.write_png(os.path.join(d, "looks", "n.png"), np.full((4, 4, 3), (128, 128, 255), np.uint8))
+    _scene, info = load_stage(path, width=8, height=8)
+    f = info.materials["/Materials/M_std"]
+    assert f["base_color"] == pytest.approx((0.1, 0.2, 0.3))  # base · base_color, Standard Surface's weight
+    assert f["metallic"] == pytest.approx(0.7)
+    assert "r.png" in f["roughness_texture"] and f["roughness_channel"] == 0
+    assert "n.png" in f["normal_texture"]
+    assert [w for w in info.warnings if "coat is not supported" in w]
+    from usd_io.shade_network import source
+
+    stage = Usd.Stage.Open(path)
+    from usd_io.stage import open_stage
+
+    open_stage(stage)
+    sh = UsdShade.Material(stage.GetPrimAtPath("/Materials/M_std")).ComputeSurfaceSource("mtlx")[0]
+    n = source(sh, "normal", None)
+    assert n.scale[:3] == (2.0, 2.0, 2.0) and n.bias[:3] == (-1.0, -1.0, -1.0)  # MaterialX normalmap: 2·texel − 1
