@@ -199,3 +199,15 @@ def test_mtlx_standard_surface_weights_textures_and_normal_map(tmp_path):
     sh = UsdShade.Material(stage.GetPrimAtPath("/Materials/M_std")).ComputeSurfaceSource("mtlx")[0]
     n = source(sh, "normal", None)
     assert n.scale[:3] == (2.0, 2.0, 2.0) and n.bias[:3] == (-1.0, -1.0, -1.0)  # MaterialX normalmap: 2·texel − 1
+
+
+@pytest.mark.parametrize("token", ["X", "invalid"])
+def test_up_axis_that_is_not_y_or_z_reads_as_y_with_one_warning(token):
+    """foundation/stage_configuration/upAxis_X.usda and upAxis_invalid.usda: pxr hands back the authored token;
+    it is not valid USD, so it reads as UsdGeom's fallback Y and says so (it was silently taken before)."""
+    stage = box_stage("Y")
+    stage.SetMetadata("upAxis", token)
+    assert UsdGeom.GetStageUpAxis(stage) == token  # what pxr itself gives
+    _scene, info = load_stage(stage, width=16, height=16)
+    assert info.up_axis == "Y"
+    assert [w for w in info.warnings if "upAxis" in w] == [f"upAxis {token!r} is not Y or Z: read as Y, UsdGeom's fallback"]

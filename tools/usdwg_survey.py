@@ -16,8 +16,8 @@ and every stderr line are recorded (``OUT_DIR/results.json``) and flagged:
     exit        an exit code other than 0 and 2, or exit 2 with more than one error line
 
 A summary table is printed. Then the contact sheet: for every file with a thumbnail or screenshot of its own
-(``thumbnails/STEM.png``, ``screenshots/STEM.png``, ``STEM.png``/``.jpg`` next to it, or ``thumbnail.png`` for the
-file named after its directory), ours (left) beside theirs (right), labelled, as one JPEG written by OpenImageIO.
+(``thumbnails/STEM.png``, ``screenshots/STEM.png``, ``STEM.png``/``.jpg`` next to it, ``thumbnail.png`` for the
+file named after its directory, or ``screenshots|media/STEM_*.png|jpg``), ours (left) beside theirs (right), labelled, as one JPEG written by OpenImageIO.
 """
 
 from __future__ import annotations
@@ -60,6 +60,11 @@ def thumbnail_for(path: str) -> str | None:
                   for ext in IMAGE_EXTENSIONS]
     if stem == os.path.basename(folder):
         candidates += [os.path.join(folder, "thumbnail" + ext) for ext in IMAGE_EXTENSIONS]
+    for sub in ("thumbnails", "screenshots", "Screenshots", "media"):  # STEM_<renderer>.jpg
+        d = os.path.join(folder, sub)
+        names = sorted(os.listdir(d)) if os.path.isdir(d) else []
+        candidates += [os.path.join(d, n) for n in names
+                       if n.startswith(stem + "_") and n.lower().endswith(IMAGE_EXTENSIONS)]
     return next((c for c in candidates if os.path.isfile(c)), None)
 
 
