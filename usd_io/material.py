@@ -30,8 +30,11 @@ see :mod:`usd_io.shade_network`) or, for diffuseColor, a colour primvar reader (
 A MaterialX OpenPBR (``ND_open_pbr_surface_surfaceshader``) or Standard Surface shader on
 ``outputs:mtlx:surface`` supplies ``transmission_weight``/``transmission`` (-> transmission),
 ``specular_ior``/``specular_IOR`` (-> ior) and ``transmission_color`` (-> transmission_tint): the only way a
-Blender glass survives its USD export. Without a UsdPreviewSurface, base colour, metalness and specular roughness
-come from it as well.
+Blender glass survives its USD export. Without a UsdPreviewSurface, base colour (× its weight), metalness, specular
+roughness and the normal come from it as well, each a constant or a MaterialX ``image``/``tiledimage`` (normal:
+through ``normalmap``); coat, sheen/fuzz, subsurface and emission warn. MaterialX's own UsdPreviewSurface node
+(``ND_UsdPreviewSurface_surfaceshader``) is a UsdPreviewSurface. ``.mtlx`` documents referenced from USD are
+translated by :mod:`usd_io.mtlx` before any of this sees them.
 
 Everything dropped or approximated prints one warning naming the material and the input or node.
 """

@@ -4,7 +4,8 @@
 inputs, ``UsdShade.Input.GetValueProducingAttributes``) and returns one of
 
     Const(value)                      an authored or fallback value (also: a node's input that is not connected)
-    TextureLookup(...)                a ``UsdUVTexture`` read through one of its outputs (r, g, b, a or rgb)
+    TextureLookup(...)                a ``UsdUVTexture`` read through one of its outputs (r, g, b, a or rgb), or a
+                                      MaterialX ``image``/``tiledimage`` (a ``normalmap`` over one: scale 2, bias −1)
     PrimvarLookup(name, fallback)     a ``UsdPrimvarReader_float/float2/float3/float4`` (e.g. displayColor)
     Unsupported(node id, fallback)    any other node (the caller warns once and uses the fallback)
 
