@@ -82,24 +82,33 @@ def to_tracer(raw: dict, width: int, height: int, policy: str = CONFORM_POLICY) 
                   horizontal_aperture_offset=ho * scale, vertical_aperture_offset=vo * scale, near=near, far=far)
 
 
+def framing_distance(bounds: np.ndarray, up_axis: str, half_fov: float) -> float:
+    """usdrecord's distance from the bounds' centre to the eye (UsdAppUtils FrameRecorder,
+    ``_ComputeCameraToFrameStage``): the front face's half-diagonal over tan(half FOV), plus half the depth."""
+    lo, hi = np.asarray(bounds, dtype=np.float64)
+    dim = hi - lo
+    face, depth = ((dim[0], dim[1]), dim[2]) if up_axis != "Z" else ((dim[0], dim[2]), dim[1])
+    radius = max(float(np.hypot(*face)) / 2, 1e-3)
+    return radius / np.tan(half_fov) + depth / 2
+
+
 def framing_camera(bounds: np.ndarray, up_axis: str, width: int, height: int) -> Camera:
-    """A perspective camera that sees the whole bounding box from the front-left, above, with ``up_axis`` up."""
+    """usdrecord's default camera (a stage without one): a 50 mm perspective camera on the front axis, looking
+    at the bounds' centre along −Z (Y-up; along +Y with Z up for a Z-up stage), backed off to frame the front face
+    of the bounds (:func:`framing_distance`). usdrecord divides by the horizontal FOV and crops tall scenes; this
+    uses the narrower of the image's two FOVs, so nothing is cut off."""
     lo, hi = np.asarray(bounds, dtype=np.float64)
     center = (lo + hi) / 2
-    radius = max(float(np.linalg.norm(hi - lo)) / 2, 1e-3)
-    up = np.array([0.0, 0.0, 1.0]) if up_axis == "Z" else np.array([0.0, 1.0, 0.0])
-    # View direction: from -Y (front) for Z-up, from +Z (front) for Y-up; turned 30° and raised 25°.
     if up_axis == "Z":
-        back = np.array([-np.sin(np.radians(30)), -np.cos(np.radians(30)), 0.0])
+        up, back = np.array([0.0, 0.0, 1.0]), np.array([0.0, -1.0, 0.0])
     else:
-        back = np.array([-np.sin(np.radians(30)), 0.0, np.cos(np.radians(30))])
-    back = back * np.cos(np.radians(25)) + up * np.sin(np.radians(25))
+        up, back = np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0])
     hv, vv = fit_apertures(*DEFAULT_APERTURE, width, height, "expand")
-    half_fov = np.arctan(min(hv, vv) / 2 / DEFAULT_FOCAL)
-    dist = radius / np.sin(half_fov) * 1.05
+    half_fov = float(np.arctan(min(hv, vv) / 2 / DEFAULT_FOCAL))
+    dist = framing_distance(bounds, up_axis, half_fov)
     eye = center + back * dist
     return Camera.look_at(eye, center, up=up, focal_length=DEFAULT_FOCAL, horizontal_aperture=hv,
-                          vertical_aperture=vv, near=max(dist - radius * 2, 0.0) * 0.01, far=np.inf)
+                          vertical_aperture=vv, near=dist * 1e-4, far=np.inf)
 
 
 def find_camera(stage, path=None, prims=None):

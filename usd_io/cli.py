@@ -309,6 +309,7 @@ def render_file(scene_path: str, output: str, frames, aovs, args) -> int:
                 _compile_kernels(quiet=args.quiet)
             _kernels_ready = True
         image = render(scene, settings)
+        _warn_not_finite(image.rgba, scene_path)
         if args.exposure:
             image.rgba[..., :3] *= np.float32(2.0 ** args.exposure)
         out = frame_path(output, frame, many) if frame is not None and many else output
@@ -318,6 +319,13 @@ def render_file(scene_path: str, output: str, frames, aovs, args) -> int:
             print(f"{out}: {info.width}x{info.height}, {len(scene.triangles):,} triangles, "
                   f"{s['rays']['total']:,} rays in {s['seconds']:.2f} s", file=sys.stderr)
     return EXIT_OK
+
+
+def _warn_not_finite(rgba: np.ndarray, scene_path: str) -> None:
+    """One warning when the renderer produced NaN/inf pixels (the film writes them black, silently)."""
+    bad = int(np.count_nonzero(~np.all(np.isfinite(rgba), axis=-1)))
+    if bad:
+        warn(f"{scene_path}: {bad} pixel(s) not finite (NaN or inf; written black)")
 
 
 def _save(image, out: str) -> None:

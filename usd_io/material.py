@@ -30,8 +30,11 @@ see :mod:`usd_io.shade_network`) or, for diffuseColor, a colour primvar reader (
 A MaterialX OpenPBR (``ND_open_pbr_surface_surfaceshader``) or Standard Surface shader on
 ``outputs:mtlx:surface`` supplies ``transmission_weight``/``transmission`` (-> transmission),
 ``specular_ior``/``specular_IOR`` (-> ior) and ``transmission_color`` (-> transmission_tint): the only way a
-Blender glass survives its USD export. Without a UsdPreviewSurface, base colour, metalness and specular roughness
-come from it as well.
+Blender glass survives its USD export. Without a UsdPreviewSurface, base colour (× its weight), metalness, specular
+roughness and the normal come from it as well, each a constant or a MaterialX ``image``/``tiledimage`` (normal:
+through ``normalmap``); coat, sheen/fuzz, subsurface and emission warn. MaterialX's own UsdPreviewSurface node
+(``ND_UsdPreviewSurface_surfaceshader``) is a UsdPreviewSurface. ``.mtlx`` documents referenced from USD are
+translated by :mod:`usd_io.mtlx` before any of this sees them.
 
 Everything dropped or approximated prints one warning naming the material and the input or node.
 """
@@ -204,13 +207,15 @@ class MaterialTable:
             mtlx = None  # no mtlx-specific output: ComputeSurfaceSource fell back to the universal one
         fields, needs = {}, MeshNeeds()
         label = str(mat.GetPath())
-        if preview and net.shader_id(preview) == "UsdPreviewSurface":
+        if mtlx and is_preview_surface(mtlx) and not (preview and is_preview_surface(preview)):
+            preview, mtlx = mtlx, None  # MaterialX's UsdPreviewSurface node: the same inputs, the same reading
+        if preview and is_preview_surface(preview):
             fields, needs = self.preview_surface(preview, label)
         elif preview and not mtlx:
             self.warn(f"{label}: surface shader {net.shader_id(preview)!r} is not supported; using grey")
             fields = self.model(base_color=FALLBACK_DIFFUSE)
         if mtlx:
-            fields = self.materialx(mtlx, fields, label)
+            fields = self.materialx(mtlx, fields, label, needs)
         if not fields:
             fields = self.model(base_color=FALLBACK_DIFFUSE)
         return fields, needs
@@ -275,17 +280,7 @@ class MaterialTable:
 
         self._colour_input(t, "emission", src["emissiveColor"], (0.0, 0.0, 0.0), label, "emissiveColor", needs)
 
-        # normal map
-        n = src["normal"]
-        if isinstance(n, net.TextureLookup):
-            idx, _const = self._texture(n, label, "normal", needs)
-            if idx is not None:
-                t["normal_texture"] = idx
-        elif isinstance(n, net.Const):
-            if not np.allclose(net.floats(n.value, 3, (0.0, 0.0, 1.0)), (0.0, 0.0, 1.0)):
-                self.warn(f"{label}: a constant normal {tuple(n.value)} is not supported (ignored)")
-        else:
-            self.warn(f"{label}: normal driven by {self._what(n)} is not supported (ignored)")
+        self._normal_input(t, src["normal"], label, "normal", needs, (0.0, 0.0, 1.0))
 
         # what the model leaves out
         if not _is_default(src["clearcoat"], 0.0):
@@ -297,6 +292,19 @@ class MaterialTable:
         return t, needs
 
     # ------------------------------------------------------------------ inputs
+    def _normal_input(self, t, n, label, name, needs, neutral):
+        """A tangent-space normal map (a texture lookup whose scale and bias give the normal); a constant equal
+        to ``neutral`` (or unauthored) is nothing; anything else warns."""
+        if isinstance(n, net.TextureLookup):
+            idx, _const = self._texture(n, label, name, needs)
+            if idx is not None:
+                t["normal_texture"] = idx
+        elif isinstance(n, net.Const):
+            if n.value is not None and not np.allclose(net.floats(n.value, 3, neutral), neutral):
+                self.warn(f"{label}: a constant {name} {tuple(n.value)} is not supported (ignored)")
+        else:
+            self.warn(f"{label}: {name} driven by {self._what(n)} is not supported (ignored)")
+
     def _what(self, src) -> str:
         if isinstance(src, net.PrimvarLookup):
             return f"{src.reader} {src.node!r} (primvar {src.name!r})"
@@ -406,18 +414,17 @@ class MaterialTable:
         return dict(fields)
 
     # ------------------------------------------------------------------ MaterialX
-    def materialx(self, s: UsdShade.Shader, fields: dict, label: str) -> dict:
+    def materialx(self, s: UsdShade.Shader, fields: dict, label: str, needs: MeshNeeds) -> dict:
+        """OpenPBR / Standard Surface. Without a UsdPreviewSurface (``fields`` empty) base colour (× its weight),
+        metalness, specular roughness and the normal come from it, each a constant or a MaterialX image
+        (:func:`usd_io.shade_network.mx_image_lookup`); transmission, its colour and the ior always do."""
         sid = net.shader_id(s)
-        if "open_pbr_surface" in sid:
-            names = dict(base="base_color", metal="base_metalness", rough="specular_roughness",
-                         trans="transmission_weight", ior="specular_ior", tint="transmission_color")
-        elif "standard_surface" in sid:
-            names = dict(base="base_color", metal="metalness", rough="specular_roughness",
-                         trans="transmission", ior="specular_IOR", tint="transmission_color")
-        else:
+        family = next((f for f in MX_SURFACES if f in sid), None)
+        if family is None:
             if not fields:
                 self.warn(f"{label}: MaterialX shader {sid!r} is not supported")
             return fields
+        names = MX_SURFACES[family]
         out = dict(fields)
 
         def num(name, default):
@@ -425,9 +432,26 @@ class MaterialTable:
             return net.floats(v, 1, (default,))[0] if v is not None else None
 
         if not fields:  # no UsdPreviewSurface: take the basics from MaterialX
-            base = net.floats(net.value(s, names["base"], (0.8, 0.8, 0.8), self.time), 3, (0.8, 0.8, 0.8))
-            out.update(self.model(base_color=base, roughness=float(num(names["rough"], 0.3)), specular=0.5,
-                                  metallic=float(np.clip(num(names["metal"], 0.0), 0, 1))))
+            t = self.model(specular=0.5)
+            weight = float(num(names["weight"], names["weight_default"]))
+            base = net.source(s, names["base"], names["base_default"], self.time)
+            if isinstance(base, net.Const):
+                base = net.Const(tuple(weight * c for c in net.floats(base.value, 3, names["base_default"])))
+            elif isinstance(base, net.TextureLookup):
+                base.scale = tuple(weight * c for c in base.scale[:3]) + (base.scale[3],)
+            self._colour_input(t, "base_color", base, names["base_default"], label, names["base"], needs)
+            self._scalar_input(t, "metallic", net.source(s, names["metal"], 0.0, self.time), 0.0, label,
+                               names["metal"], needs)
+            self._scalar_input(t, "roughness", net.source(s, names["rough"], names["rough_default"], self.time),
+                               names["rough_default"], label, names["rough"], needs)
+            t["metallic"] = float(np.clip(t["metallic"], 0.0, 1.0))
+            self._normal_input(t, net.source(s, names["normal"], None, self.time), label, names["normal"], needs,
+                               (0.0, 0.0, 0.0))
+            out.update(t)
+        for what in names["dropped"]:  # lobes the Principled model here does not have
+            w = net.source(s, what, 0.0, self.time)
+            if not isinstance(w, net.Const) or float(net.floats(w.value, 1, (0.0,))[0]) > 0:
+                self.warn(f"{label}: MaterialX {what} is not supported (dropped)")
         trans = num(names["trans"], None) if net.value(s, names["trans"], None, self.time) is not None else None
         if trans is not None and float(trans) > 0:
             out["transmission"] = float(np.clip(trans, 0, 1))
@@ -437,6 +461,29 @@ class MaterialTable:
         if ior is not None and float(net.floats(ior, 1, (1.5,))[0]) > 0:
             out["ior"] = float(net.floats(ior, 1, (1.5,))[0])
         return out
+
+
+#: MaterialX surfaces: input names and the defaults of their node definitions (base colour = weight × colour).
+MX_SURFACES = {
+    "open_pbr_surface": dict(weight="base_weight", weight_default=1.0, base="base_color",
+                             base_default=(0.8, 0.8, 0.8), metal="base_metalness", rough="specular_roughness",
+                             rough_default=0.3, normal="geometry_normal", trans="transmission_weight",
+                             ior="specular_ior", tint="transmission_color",
+                             dropped=("coat_weight", "emission_luminance", "subsurface_weight", "fuzz_weight")),
+    "standard_surface": dict(weight="base", weight_default=0.8, base="base_color", base_default=(1.0, 1.0, 1.0),
+                             metal="metalness", rough="specular_roughness", rough_default=0.2, normal="normal",
+                             trans="transmission", ior="specular_IOR", tint="transmission_color",
+                             dropped=("coat", "emission", "subsurface", "sheen")),
+}
+
+
+#: Shader ids of UsdPreviewSurface: its own, and MaterialX's node definition of it (what usdMtlx writes for a
+#: ``<UsdPreviewSurface>`` in a .mtlx document, e.g. on ``outputs:mtlx:surface``).
+PREVIEW_SURFACE_IDS = ("UsdPreviewSurface", "ND_UsdPreviewSurface_surfaceshader")
+
+
+def is_preview_surface(shader) -> bool:
+    return net.shader_id(shader) in PREVIEW_SURFACE_IDS
 
 
 def _is_default(src, default) -> bool:

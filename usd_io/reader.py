@@ -282,6 +282,16 @@ def _read_prims(r: _Reader, stage, tc, purposes, info: StageInfo) -> None:
             info.warn(f"{prim.GetPath()}: {t} is not supported (skipped)")
 
 
+def stage_up_axis(stage, warn) -> str:
+    """The stage's upAxis, "Y" or "Z". pxr returns any authored token; others ("X", typos) are not valid USD and
+    read as UsdGeom's fallback Y, with one warning (usdrecord's framing treats every non-Y value as Z)."""
+    axis = str(UsdGeom.GetStageUpAxis(stage))
+    if axis in ("Y", "Z"):
+        return axis
+    warn(f"upAxis {axis!r} is not Y or Z: read as Y, UsdGeom's fallback")
+    return "Y"
+
+
 def load_stage(path_or_stage, time=None, camera: str | None = None, width: int | None = None,
                height: int | None = None, purposes=DEFAULT_PURPOSES, segments: int = DEFAULT_SEGMENTS,
                default_light: bool = True, variants=(), complexity: str = DEFAULT_COMPLEXITY):
@@ -310,9 +320,12 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
         if v is not None and (isinstance(v, bool) or int(v) != v or v <= 0):
             raise UsdInputError(f"{label}: image {name} must be a positive integer, got {v!r}")
     tc = stage_time(stage, time)
+    warnings_first: list[str] = []
     info = StageInfo(path=label, time=None if time is None or tc.IsDefault() else tc.GetValue(),
-                     up_axis=str(UsdGeom.GetStageUpAxis(stage)),
+                     up_axis=stage_up_axis(stage, lambda m: warnings_first.append(m)),
                      meters_per_unit=float(UsdGeom.GetStageMetersPerUnit(stage)))
+    for w in warnings_first:
+        info.warn(w)
     for w in composition_warnings(stage):
         info.warn(w)
     for w in stage_messages.get(id(stage), []):

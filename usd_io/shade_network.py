@@ -4,7 +4,8 @@
 inputs, ``UsdShade.Input.GetValueProducingAttributes``) and returns one of
 
     Const(value)                      an authored or fallback value (also: a node's input that is not connected)
-    TextureLookup(...)                a ``UsdUVTexture`` read through one of its outputs (r, g, b, a or rgb)
+    TextureLookup(...)                a ``UsdUVTexture`` read through one of its outputs (r, g, b, a or rgb), or a
+                                      MaterialX ``image``/``tiledimage`` (a ``normalmap`` over one: scale 2, bias −1)
     PrimvarLookup(name, fallback)     a ``UsdPrimvarReader_float/float2/float3/float4`` (e.g. displayColor)
     Unsupported(node id, fallback)    any other node (the caller warns once and uses the fallback)
 
@@ -124,11 +125,75 @@ def source(shader: UsdShade.Shader, name: str, fallback, time=None):
     node = UsdShade.Shader(a.GetPrim())
     out_name = UsdShade.Output(a).GetBaseName()
     sid = shader_id(node)
-    if sid == "UsdUVTexture":
+    if sid == "UsdUVTexture" or sid.startswith("ND_UsdUVTexture"):
         return texture_lookup(node, out_name, time)
-    if sid in PRIMVAR_READERS:
+    if sid in PRIMVAR_READERS or sid.startswith("ND_UsdPrimvarReader"):
         return PrimvarLookup(str(node.GetPath()), _varname(node, time), value(node, "fallback", None, time), sid)
+    if sid.startswith(MX_IMAGES):
+        return mx_image_lookup(node, time)
+    if sid.startswith("ND_normalmap"):
+        return mx_normal_map(node, fallback, time)
     return Unsupported(str(node.GetPath()), sid or a.GetPrim().GetTypeName(), value(node, "fallback", fallback, time))
+
+
+#: MaterialX image nodes (``ND_image_color3``, ``ND_tiledimage_float``, ...) read as texture lookups.
+MX_IMAGES = ("ND_image_", "ND_tiledimage_")
+#: MaterialX address modes -> UsdUVTexture wrap tokens.
+MX_ADDRESS = {"periodic": "repeat", "clamp": "clamp", "mirror": "mirror", "constant": "black"}
+
+
+def mx_image_lookup(node: UsdShade.Shader, time=None) -> TextureLookup:
+    """A MaterialX ``image``/``tiledimage`` node as a texture lookup (MaterialX, like USD, puts uv (0, 0) at the
+    image's lower left). A float image reads its red channel; colour and vector ones rgb. The ``file`` input's
+    colour space: ``srgb_texture`` is sRGB, anything else (and none: the document's linear space) raw.
+    ``tiledimage``: uv · uvtiling − uvoffset."""
+    sid = shader_id(node)
+    notes: list = []
+    kind = sid.rsplit("_", 1)[-1]
+    file_input = node.GetInput("file")
+    space = file_input.GetAttr().GetColorSpace() if file_input else ""
+    uv, m = _mx_texcoord(node, notes, time)
+    if sid.startswith("ND_tiledimage_"):
+        tiling = floats(value(node, "uvtiling", (1.0, 1.0), time), 2, (1.0, 1.0))
+        offset = floats(value(node, "uvoffset", (0.0, 0.0), time), 2, (0.0, 0.0))
+        m = np.array([[tiling[0], 0.0, -offset[0]], [0.0, tiling[1], -offset[1]], [0.0, 0.0, 1.0]]) @ m
+    default = floats(value(node, "default", (0.0,), time), 3 if kind != "float" else 1, (0.0, 0.0, 0.0))
+    fallback = (tuple(default) * 3)[:3] + (1.0,)
+    asset = value(node, "file", None, time)
+    wrap = [MX_ADDRESS.get(str(value(node, f"{a}addressmode", "periodic", time)), "repeat") for a in "uv"]
+    return TextureLookup(node=str(node.GetPath()), asset=asset if isinstance(asset, Sdf.AssetPath) else None,
+                         channel=0 if kind == "float" else -1, uv=uv, transform=m, scale=(1.0, 1.0, 1.0, 1.0),
+                         bias=(0.0, 0.0, 0.0, 0.0), fallback=fallback, wrap_s=wrap[0], wrap_t=wrap[1],
+                         colorspace="sRGB" if space == "srgb_texture" else "raw", notes=notes)
+
+
+def mx_normal_map(node: UsdShade.Shader, fallback, time=None):
+    """A MaterialX ``normalmap`` node over an image: the image as a tangent-space normal map, texel·2 − 1 (its
+    ``scale`` on x and y). Anything else upstream is Unsupported."""
+    up = source(node, "in", (0.5, 0.5, 1.0), time)
+    if not isinstance(up, TextureLookup):
+        return Unsupported(str(node.GetPath()), shader_id(node), fallback)
+    k = floats(value(node, "scale", 1.0, time), 1, (1.0,))[0]
+    up.scale = (2.0 * k, 2.0 * k, 2.0, 1.0)
+    up.bias = (-k, -k, -1.0, 0.0)
+    return up
+
+
+def _mx_texcoord(node, notes: list, time):
+    """(uv primvar name or None, identity) for a MaterialX image's ``texcoord`` input."""
+    a, is_out = _producer(node, "texcoord")
+    if a is None or not is_out:
+        return None, np.eye(3)
+    up = UsdShade.Shader(a.GetPrim())
+    sid = shader_id(up)
+    if sid.startswith("ND_texcoord_") and int(value(up, "index", 0, time) or 0) == 0:
+        return None, np.eye(3)
+    if sid.startswith("ND_geompropvalue_"):
+        return (str(value(up, "geomprop", "", time) or "") or None), np.eye(3)
+    if sid in PRIMVAR_READERS or sid.startswith("ND_UsdPrimvarReader"):
+        return (_varname(up, time) or None), np.eye(3)
+    notes.append(f"texcoord driven by {sid or up.GetPrim().GetTypeName()!r} (the mesh's texture coordinates are used)")
+    return None, np.eye(3)
 
 
 def _varname(node, time) -> str:
@@ -186,7 +251,7 @@ def _st_chain(tex: UsdShade.Shader, notes: list, time):
             m = m @ step  # the node nearer the texture applies last
             node, inp = up, "in"
             continue
-        if sid in PRIMVAR_READERS:
+        if sid in PRIMVAR_READERS or sid.startswith("ND_UsdPrimvarReader"):
             name = _varname(up, time)
             return (name or None), m
         notes.append(f"st driven by {sid or up.GetPrim().GetTypeName()!r}, not a primvar reader or UsdTransform2d "

@@ -15,6 +15,7 @@ import tempfile
 
 from pxr import Sdf, Usd, UsdGeom
 
+from .mtlx import resolve_mtlx_references
 from .errors import UsdInputError  # noqa: F401  (raised here; usd_io.stage.UsdInputError stays importable)
 
 #: The purposes a render includes by default (usdrecord's default is the same pair).
@@ -43,6 +44,7 @@ def captured_stderr():
 def open_stage(path_or_stage) -> Usd.Stage:
     """A ``Usd.Stage`` from a path (everything loaded, payloads included) or an already-open stage."""
     if isinstance(path_or_stage, Usd.Stage):
+        resolve_mtlx_references(path_or_stage)
         return path_or_stage
     path = os.fspath(path_or_stage)
     if not os.path.exists(path):
@@ -57,6 +59,8 @@ def open_stage(path_or_stage) -> Usd.Stage:
             stage = Usd.Stage.Open(path, Usd.Stage.LoadAll)
         except Exception as exc:  # pxr raises Tf.ErrorException with a multi-line message
             detail = _first_reason(str(exc))
+        if stage is not None:
+            resolve_mtlx_references(stage)  # .mtlx references: usd-core cannot read them (usd_io.mtlx)
     if stage is None:
         detail = detail or _first_reason("".join(text))
         raise UsdInputError(f"{path}: not a readable USD file" + (f" ({detail})" if detail else ""))
