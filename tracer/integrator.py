@@ -202,13 +202,16 @@ class SurfaceQueue(NamedTuple):
     cover: np.ndarray  # (N,) float32 alpha in [0, 1]
     emission: np.ndarray  # (N, 3) float32
     textured: np.ndarray  # (N,) int32: the rays whose material reads a texture (the first _surfaces returns)
+    mirror: np.ndarray  # (N, 3) float32: the Principled lobes' share of the mirror ray, g(r)·(their albedo at the
+    #                     view angle), written by the direct-light stage from its closure for the spawn stage
 
     @classmethod
     def empty(cls, n: int) -> "SurfaceQueue":
         f3 = lambda: np.empty((n, 3), np.float32)  # noqa: E731
         f1 = lambda: np.empty(n, np.float32)  # noqa: E731
         return cls(np.empty(n, np.bool_), np.empty((n, 3), np.float64), f3(), f3(), np.empty(n, np.bool_),
-                   np.empty(n, np.int32), f3(), f1(), f1(), f1(), f1(), f3(), np.empty(n, np.int32))
+                   np.empty(n, np.int32), f3(), f1(), f1(), f1(), f1(), f3(), np.empty(n, np.int32),
+                   np.zeros((n, 3), np.float32))
 
 
 class ShadowQueue(NamedTuple):
@@ -775,6 +778,7 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
     l_kind, l_side = lights.kind, lights.side
     q_o, q_d, q_t, q_s, q_c, q_l = shadow.o, shadow.d, shadow.t_max, shadow.sample, shadow.color, shadow.light
     o_color = out.color
+    s_mirror = surf.mirror
     n_lights = l_kind.shape[0]
     amb = (opt.ambient[0], opt.ambient[1], opt.ambient[2])
     add_ambient = (amb[0] > 0.0 or amb[1] > 0.0 or amb[2] > 0.0) and sky_side == 0
@@ -789,6 +793,8 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
                                  float(s_spec[i]), vec.row(m_tint, mat), float(m_ior[mat]), float(m_tran[mat]),
                                  float(m_km[mat]), float(s_cover[i]), vec.row(m_sc, mat), float(m_exp[mat]), n, di,
                                  spawn)
+        if g > 0.0:  # what the spawn stage's mirror ray takes of the lobes (zeros where there is no closure)
+            s_mirror[i, 0], s_mirror[i, 1], s_mirror[i, 2] = vec.scale(bsdf.specular_albedo(cl), g)
         if wl <= 0.0 or bsdf.is_black(cl):
             continue
         wo = vec.scale(vec.row(weight, i), wl)
@@ -912,12 +918,11 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
     n_o, n_d, n_w, n_s = nxt.o, nxt.d, nxt.weight, nxt.sample
     th_o, th_d, th_w, th_s, th_t0 = (nxt.through_o, nxt.through_d, nxt.through_weight, nxt.through_sample,
                                      nxt.through_t0)
-    s_hit, s_mat, s_base, s_metal, s_rough, s_spec, s_cover, s_p, s_ng, s_n, s_front = (
-        surf.hit, surf.mat, surf.base, surf.metallic, surf.roughness, surf.specular, surf.cover, surf.p, surf.ng,
-        surf.n, surf.front)
-    m_tint, m_ior, m_tran, m_km, m_sc, m_exp, m_mirror, m_ttint = (
-        mats.specular_tint, mats.ior, mats.transmission, mats.k_m, mats.specular_color, mats.exponent,
-        mats.mirror_tint, mats.transmission_tint)
+    s_hit, s_mat, s_base, s_metal, s_rough, s_cover, s_p, s_ng, s_n, s_front, s_mirror = (
+        surf.hit, surf.mat, surf.base, surf.metallic, surf.roughness, surf.cover, surf.p, surf.ng, surf.n,
+        surf.front, surf.mirror)
+    m_ior, m_tran, m_km, m_mirror, m_ttint = (mats.ior, mats.transmission, mats.k_m, mats.mirror_tint,
+                                              mats.transmission_tint)
     principled, fresnel, min_weight = opt.principled, opt.fresnel, opt.min_weight
     n_tir = 0
     for i in range(n_rays):
@@ -942,14 +947,9 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
         k_m = float(m_km[mat])
         w_t = float(m_tran[mat])
         mirror = vec.scale(vec.row(m_mirror, mat), k_m)
-        if principled:
+        if principled:  # the lobes' mirror share, from the direct-light stage's closure (SurfaceQueue.mirror)
             glass = (1.0 - k_m) * (1.0 - float(s_metal[i])) * w_t
-            g = bsdf.mirror_share(float(s_rough[i]))
-            if g > 0.0 and (s_metal[i] > 0.0 or s_spec[i] > 0.0):
-                cl, wl, g = _local_model(True, vec.row(s_base, i), float(s_metal[i]), float(s_rough[i]),
-                                         float(s_spec[i]), vec.row(m_tint, mat), float(m_ior[mat]), w_t, k_m,
-                                         float(s_cover[i]), vec.row(m_sc, mat), float(m_exp[mat]), n, di, spawn)
-                mirror = vec.madd(mirror, bsdf.specular_albedo(cl), (1.0 - k_m) * g)
+            mirror = vec.madd(mirror, vec.row(s_mirror, i), 1.0 - k_m)
         else:  # classic: a smooth metal (Principled input) mirrors its base colour, as the notes' k_m·tint
             glass = (1.0 - k_m) * w_t
             m = float(s_metal[i])
