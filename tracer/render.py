@@ -96,12 +96,30 @@ def eye_rays(scene: Scene, settings: RenderSettings, x0: int, y0: int, x1: int, 
     return o, d, keys
 
 
+@kernel(refcounts=False)
+def _write_rgba(rgba, color, alpha, x0, y0, tw, th, spp):
+    """rgba[y0:y0+th, x0:x0+tw] = the box-filtered colour and alpha of a tile's samples (``spp`` consecutive per
+    pixel), summed in float32 in sample order and divided by spp, as :func:`tracer.film.box_filter` does; without
+    the GIL (the numpy form, a strided copy per channel, held the main thread 0.06 s per 1080p frame)."""
+    n = np.float32(spp)
+    for r in range(th):
+        for c in range(tw):
+            i = (r * tw + c) * spp
+            cr, cg, cb, ca = color[i, 0], color[i, 1], color[i, 2], alpha[i]
+            for k in range(1, spp):
+                cr += color[i + k, 0]
+                cg += color[i + k, 1]
+                cb += color[i + k, 2]
+                ca += alpha[i + k]
+            px = rgba[y0 + r, x0 + c]
+            px[0], px[1], px[2], px[3] = cr / n, cg / n, cb / n, ca / n
+
+
 def write_tile(image: Image, res, tile, spp: int) -> None:
     """Box-filter a tile's samples into the image and its AOVs."""
     x0, y0, x1, y1 = tile
     th, tw = y1 - y0, x1 - x0
-    image.rgba[y0:y1, x0:x1, :3] = box_filter(res.color, spp).reshape(th, tw, 3)
-    image.rgba[y0:y1, x0:x1, 3] = box_filter(res.alpha, spp).reshape(th, tw)
+    _write_rgba(image.rgba, res.color, res.alpha, x0, y0, tw, th, spp)
     aovs = image.aovs
     if "depth" in aovs:
         hit = np.isfinite(res.depth).reshape(-1, spp)
