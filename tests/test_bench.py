@@ -95,8 +95,8 @@ def test_report_markdown_sections(quick):
     # The targets table has both raw-Embree columns, and says which one the issue's target is.
     assert ("| scene | ours / POV-Ray time (≤ 1.0, aim 0.5) | (i) end to end: ours / raw Embree build + replay "
             "rays/s (≥ 67 %) | (ii) tracing only: ours − BVH build / raw Embree replay rays/s | "
-            "Cycles / ours time (≥ 20×) |") in md
-    assert re.search(r"^\| tiny \| ([\d.]+|–) \| \d+ % \| \d+ % \| [\d.]+× \(4 spp\) \|$", md, re.M)
+            "(iii) end to end in CPU time: raw Embree / ours | Cycles / ours time (≥ 20×) |") in md
+    assert re.search(r"^\| tiny \| ([\d.]+|–) \| \d+ % \| \d+ % \| \d+ % \| [\d.]+× \(4 spp\) \|$", md, re.M)
     assert "Column (i) is end to end as stated" in md and "Column (ii) leaves that build out of both sides" in md
     # --report-only rebuilds the same tables from results.json.
     again = work / "again.md"
@@ -122,6 +122,10 @@ def test_raw_embree_comparisons_are_like_for_like():
     """End to end: both sides include their build; tracing only: neither does; the old mixed ratio stays, labelled."""
     c = harness.comparisons(_fake_ours())
     assert c["end_to_end"] == pytest.approx(250 / 500)  # 1000/4 s vs 1000/(1.4 + 0.6) s
+    assert c["cpu"] is None  # results without CPU times (saved before the column existed) report none
+    cpu = _fake_ours()
+    cpu["cpu_seconds"], cpu["replay"]["cpu_seconds"] = 5.0, 2.5
+    assert harness.comparisons(cpu)["cpu"] == pytest.approx(0.5)  # raw Embree's CPU seconds / ours
     assert c["tracing"] == pytest.approx((1000 / 2.6) / (1000 / 0.6))
     assert c["mixed"] == pytest.approx(250 / (1000 / 0.6))
     r = {"scene": "fake", "max_depth": 8, "ours": _fake_ours(), "povray": "--skip povray", "cycles": "--skip cycles"}
@@ -130,7 +134,7 @@ def test_raw_embree_comparisons_are_like_for_like():
     assert "End-to-end rays/s vs raw Embree build + replay: **50 %**" in text
     assert "Tracing-only rays/s (our wall − BVH build) vs raw Embree replay: **23 %**" in text
     assert "our end to end vs the replay alone 15 %" in text
-    assert "| fake | – | 50 % | 23 % | – |" in harness.targets([r], None)
+    assert "| fake | – | 50 % | 23 % | – | – |" in harness.targets([r], None)
     # Results saved before the raw build was timed: no end-to-end figure, the rest still reported.
     old = _fake_ours(replay_build=False)
     del old["trace_seconds"], old["trace_times"], old["trace_rays_per_second"]
@@ -140,7 +144,7 @@ def test_raw_embree_comparisons_are_like_for_like():
     r["ours"] = old
     text = harness.scene_report(r)
     assert "raw Embree build + replay |" not in text and "| raw Embree replay | 0.600 s |" in text
-    assert "| fake | – | – | 23 % | – |" in harness.targets([r], None)
+    assert "| fake | – | – | 23 % | – | – |" in harness.targets([r], None)
 
 
 def test_bench_scene_matches_example():
