@@ -18,8 +18,10 @@ import pytest
 from tracer import read_image
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-STAGE = '#usda 1.0\n(\n    upAxis = "Z"\n)\ndef Sphere "Ball" {}\ndef SphereLight "Key" {\n    float inputs:intensity = 5\n}\n'
-ENTRIES = {"run": "from usd_io.cli import run; run()", "main": "import sys; from usd_io.cli import main; sys.exit(main())"}
+STAGE = ('#usda 1.0\n(\n    upAxis = "Z"\n)\ndef Sphere "Ball" {}\n'
+         'def SphereLight "Key" {\n    float inputs:intensity = 5\n}\n')
+ENTRIES = {"run": "from usd_io.cli import run; run()",
+           "main": "import sys; from usd_io.cli import main; sys.exit(main())"}
 
 
 def _python(code, *args, env=None):
