@@ -18,7 +18,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def whitted(*args, cwd=None):
-    cmd = [sys.executable, "-c", "import sys; from usd_io.cli import main; sys.exit(main())", *map(str, args)]
+    cmd = [sys.executable, "-c", "from usd_io.cli import run; run()", *map(str, args)]  # as the whitted script
     env = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
     return subprocess.run(cmd, capture_output=True, text=True, cwd=cwd or ROOT, env=env, timeout=300)
 

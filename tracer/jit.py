@@ -24,6 +24,7 @@ import hashlib
 import os
 
 import numba
+from numba.core.caching import FunctionCache
 
 _OPTIONS = dict(cache=True, nogil=True, error_model="numpy")
 
@@ -85,6 +86,28 @@ def mark_kernels_cached() -> None:
             pass
 
 
+class _KernelCache(FunctionCache):
+    """numba's on-disk cache of one kernel, loading a cached specialisation without numba's full target set-up.
+
+    numba's ``Cache.load_overload`` refreshes the CPU target before every load: the first time in a process that
+    imports some forty modules of numba (typed containers, np.random, polynomials, datetime, ...) and installs
+    their typing and lowering registries, 90 ms of a 0.7 s ``whitted render`` of one sphere. Machine code loaded
+    from the cache needs none of it, only numba's runtime (NRT, initialised here as the refresh would); compiling
+    still gets it all, since numba's compiler refreshes the target itself before typing anything
+    (``compiler.compile_extra``), as does a lowering lookup that misses (``BaseContext.get_function``)."""
+
+    def load_overload(self, sig, target_context):
+        from numba.core.runtime import rtsys
+
+        rtsys.initialize(target_context)
+        with self._guard_against_spurious_io_errors():
+            return self._load_overload(sig, target_context)
+
+
+#: numba versions whose cache has the two internals :class:`_KernelCache` relies on (else numba's own is kept).
+_LIGHT_LOADS = all(hasattr(FunctionCache, name) for name in ("_load_overload", "_guard_against_spurious_io_errors"))
+
+
 def kernel(fn=None, *, inline: bool = False, refcounts: bool = True):
     """Compile ``fn`` with the tracer's options; ``inline=True`` for small helpers called from other kernels.
 
@@ -105,8 +128,11 @@ def kernel(fn=None, *, inline: bool = False, refcounts: bool = True):
         if _CACHE_DIR is not None:
             numba.config.CACHE_DIR = _CACHE_DIR
         try:
-            return numba.njit(**opts)(f)
+            dispatcher = numba.njit(**opts)(f)
         finally:
             numba.config.CACHE_DIR = saved
+        if _LIGHT_LOADS and type(getattr(dispatcher, "_cache", None)) is FunctionCache:
+            dispatcher._cache.__class__ = _KernelCache
+        return dispatcher
 
     return wrap(fn) if fn is not None else wrap
