@@ -129,63 +129,6 @@ def test_a_process_that_loaded_kernels_without_refresh_still_compiles_new_ones(b
     assert r.returncode == 0 and r.stdout.strip().endswith("ok"), r.stderr[-3000:]
 
 
-def _stored(path):
-    """The pixel bytes a PNG stores (its IDAT, inflated, row filters undone for filter 0 only)."""
-    import struct
-    import zlib
-
-    b = open(path, "rb").read()
-    i, idat, header = 8, b"", None
-    while i < len(b):
-        n, kind = struct.unpack(">I", b[i:i + 4])[0], b[i + 4:i + 8]
-        if kind == b"IHDR":
-            header = struct.unpack(">IIBBBBB", b[i + 8:i + 8 + n])
-        elif kind == b"IDAT":
-            idat += b[i + 8:i + 8 + n]
-        i += 12 + n
-    return header, zlib.decompress(idat)
-
-
-@pytest.mark.parametrize("channels, opaque", [(1, False), (2, False), (3, False), (4, True), (4, False)])
-def test_png_written_without_openimageio_has_its_pixels(tmp_path, channels, opaque):
-    """tracer.film writes opaque PNGs with zlib: the bytes OpenImageIO stores (alpha < 1 and grey + alpha: by
-    OpenImageIO, which un-premultiplies them)."""
-    import OpenImageIO as oiio
-
-    from tracer import write_image
-    from tracer.film import _write_oiio, to_display
-
-    rng = np.random.default_rng(channels)
-    pixels = rng.random((7, 5, channels), dtype=np.float32) * 1.2 - 0.1  # out of range too: clipped alike
-    pixels[0, 0, 0] = np.nan
-    if opaque:
-        pixels[..., 3] = 1.0
-    ours = tmp_path / "ours.png"
-    write_image(ours, pixels)
-    clean = np.nan_to_num(pixels, nan=0.0)
-    if channels in (3, 4):
-        full = clean if channels == 4 else np.concatenate([clean, np.ones((7, 5, 1), np.float32)], -1)
-        data = np.ascontiguousarray(to_display(full)[..., :channels])
-    else:
-        data = np.round(np.clip(clean, 0, 1) * 255).astype(np.uint8)
-    theirs = tmp_path / "theirs.png"
-    _write_oiio(oiio, str(theirs), str(theirs), ".png", oiio.ImageSpec(5, 7, channels, oiio.UINT8), data)
-    a, b = oiio.ImageBuf(str(ours)), oiio.ImageBuf(str(theirs))
-    assert a.spec().nchannels == b.spec().nchannels == channels and a.spec().format == b.spec().format
-    assert np.array_equal(a.get_pixels(oiio.UINT8), b.get_pixels(oiio.UINT8))
-    (h_ours, raw_ours), (h_theirs, raw_theirs) = _stored(ours), _stored(theirs)
-    assert h_ours == h_theirs
-    if raw_theirs[0::1 + 5 * channels] == bytes(7):  # OpenImageIO chose filter 0 for every row: bytes comparable
-        assert raw_ours == raw_theirs
-    assert oct(os.stat(ours).st_mode & 0o777) == oct(0o666 & ~_umask())
-
-
-def _umask():
-    m = os.umask(0)
-    os.umask(m)
-    return m
-
-
 def test_png_write_errors_name_the_file(tmp_path):
     from tracer import write_image
 

@@ -76,31 +76,11 @@ def heat_map(values: np.ndarray, vmax: float | None = None) -> np.ndarray:
     return srgb_to_linear(srgb).astype(np.float32)
 
 
-def _write_png(path: str, data: np.ndarray) -> None:
-    """8-bit PNG of (H, W, C) uint8 ``data`` (C = 1 grey, 3 RGB, 4 RGBA with alpha 255 everywhere), written with
-    zlib: the bytes OpenImageIO stores for the same pixels (its other chunks, an empty eXIf and a zero oFFs, say
-    nothing), without its import and the first write's set-up (35 ms of a 0.6 s one-sphere ``whitted render``).
-    Not for alpha < 1: OpenImageIO un-premultiplies those pixels, and :func:`write_image` leaves them to it."""
-    import struct
-    import zlib
-
-    h, w, c = data.shape
-    rows = np.zeros((h, 1 + w * c), np.uint8)  # filter byte 0 (None) before each row
-    rows[:, 1:] = data.reshape(h, w * c)
-
-    def chunk(kind: bytes, body: bytes) -> bytes:
-        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
-
-    header = struct.pack(">IIBBBBB", w, h, 8, {1: 0, 3: 2, 4: 6}[c], 0, 0, 0)
-    with open(path, "wb") as f:
-        f.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(rows.tobytes(), 6))
-                + chunk(b"IEND", b""))
-
-
 def write_image(path: str, pixels: np.ndarray, channel_names=None, float32: bool = False) -> None:
     """Write (H, W, C) float pixels: linear for EXR/HDR, sRGB 8-bit otherwise. Atomic (temp file + rename).
-    EXR is half float unless ``float32`` (AOVs: object ids and depths beyond half's exact range). PNGs without
-    channel names are written here (:func:`_write_png`), everything else by OpenImageIO."""
+    EXR is half float unless ``float32`` (AOVs: object ids and depths beyond half's exact range)."""
+    import OpenImageIO as oiio
+
     path = os.fspath(path)
     pixels = np.nan_to_num(np.asarray(pixels, dtype=np.float32), nan=0.0, posinf=0.0, neginf=0.0)
     if pixels.ndim == 2:
@@ -110,10 +90,6 @@ def write_image(path: str, pixels: np.ndarray, channel_names=None, float32: bool
     if not ext:
         raise ValueError(f"{path}: the output needs a file extension (.png, .exr, ...)")
     linear = ext in LINEAR_EXTENSIONS
-    own_png = ext == ".png" and not channel_names and c in (1, 3, 4)
-    oiio = None
-    if not own_png:
-        import OpenImageIO as oiio
     if linear:
         data, fmt = pixels, oiio.HALF if ext == ".exr" and not float32 else oiio.FLOAT
     else:
@@ -122,15 +98,10 @@ def write_image(path: str, pixels: np.ndarray, channel_names=None, float32: bool
             data = data[..., :c]
         else:
             data = np.round(np.clip(pixels, 0, 1) * 255).astype(np.uint8)
-        # OpenImageIO's PNG writer un-premultiplies colour by alpha: an image with alpha < 1 anywhere goes to it
-        own_png = own_png and (c != 4 or bool(data[..., 3].min() == 255))
-        if not own_png and oiio is None:
-            import OpenImageIO as oiio
-        fmt = None if own_png else oiio.UINT8
-    if not own_png:
-        spec = oiio.ImageSpec(w, h, c, fmt)
-        if channel_names:
-            spec.channelnames = tuple(channel_names)
+        fmt = oiio.UINT8
+    spec = oiio.ImageSpec(w, h, c, fmt)
+    if channel_names:
+        spec.channelnames = tuple(channel_names)
     directory = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(directory):
         raise ValueError(f"{path}: directory {directory} does not exist")
@@ -140,13 +111,16 @@ def write_image(path: str, pixels: np.ndarray, channel_names=None, float32: bool
         raise ValueError(f"{path}: cannot write into {directory} ({exc.strerror})") from None
     os.close(fd)
     try:
-        if own_png:
-            try:
-                _write_png(tmp, data)
-            except OSError as exc:
-                raise ValueError(f"{path}: write failed ({exc.strerror or exc})") from None
-        else:
-            _write_oiio(oiio, path, tmp, ext, spec, data)
+        out = oiio.ImageOutput.create(tmp)
+        if out is None:
+            raise ValueError(f"{path}: OpenImageIO cannot write '{ext}' files ({oiio.geterror()})")
+        if not out.open(tmp, spec):
+            msg = out.geterror()
+            raise ValueError(f"{path}: cannot open for writing ({msg})")
+        ok = out.write_image(data)
+        out.close()
+        if not ok:
+            raise ValueError(f"{path}: write failed ({out.geterror()})")
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600 files; give the image the usual permissions
@@ -157,19 +131,6 @@ def write_image(path: str, pixels: np.ndarray, channel_names=None, float32: bool
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
-
-
-def _write_oiio(oiio, path: str, tmp: str, ext: str, spec, data: np.ndarray) -> None:
-    out = oiio.ImageOutput.create(tmp)
-    if out is None:
-        raise ValueError(f"{path}: OpenImageIO cannot write '{ext}' files ({oiio.geterror()})")
-    if not out.open(tmp, spec):
-        msg = out.geterror()
-        raise ValueError(f"{path}: cannot open for writing ({msg})")
-    ok = out.write_image(data)
-    out.close()
-    if not ok:
-        raise ValueError(f"{path}: write failed ({out.geterror()})")
 
 
 def read_image(path: str) -> np.ndarray:
