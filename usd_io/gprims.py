@@ -8,7 +8,6 @@ Plane double-sided with its normal along ``axis``.
 from __future__ import annotations
 
 import numpy as np
-import trimesh
 from pxr import UsdGeom
 
 from .mesh import MeshData
@@ -65,14 +64,37 @@ def _merge(parts):
     return np.concatenate(pts), np.concatenate(tris), np.concatenate(nrm)
 
 
+def _dome(radius, z, sign, segments):
+    """The hemisphere of ``radius`` on the plane z, bulging towards ``sign`` (±1): latitude bands from the equator
+    to the pole, radial normals. (A capsule's ends; a sphere is two.)"""
+    rows = max(segments // 4, 3)
+    theta = np.linspace(0, np.pi / 2, rows + 1)
+    theta[-1] = np.pi / 2
+    parts = []
+    for a0, a1 in zip(theta[:-1], theta[1:]):
+        r0, r1 = radius * np.cos(a0), radius * np.cos(a1)
+        z0, z1 = z + sign * radius * np.sin(a0), z + sign * radius * np.sin(a1)
+        p, t, _ = _lathe(r0, z0, r1, z1, (1, 0), segments)
+        if sign < 0:
+            t = t[:, [0, 2, 1]]
+        n = p - [0.0, 0.0, z]
+        parts.append((p, t, n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)))
+    return parts
+
+
 def sphere(radius, segments=DEFAULT_SEGMENTS):
-    m = trimesh.creation.uv_sphere(radius=radius, count=[segments, max(segments // 2, 4)])
-    return np.asarray(m.vertices), np.asarray(m.faces), np.asarray(m.vertices) / radius
+    return _merge(_dome(radius, 0.0, 1, segments) + _dome(radius, 0.0, -1, segments))
+
+
+#: The unit cube's corners and its 12 outward-wound triangles.
+_CUBE_CORNERS = np.array([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1],
+                          [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], np.float64)
+_CUBE_TRIANGLES = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
+                            [3, 7, 6], [3, 6, 2], [0, 4, 7], [0, 7, 3], [1, 2, 6], [1, 6, 5]])
 
 
 def cube(size):
-    m = trimesh.creation.box(extents=(size, size, size))
-    return np.asarray(m.vertices), np.asarray(m.faces), None  # flat faces: geometric normals
+    return _CUBE_CORNERS * (size / 2), _CUBE_TRIANGLES.copy(), None  # flat faces: geometric normals
 
 
 def cylinder(radius, height, segments=DEFAULT_SEGMENTS):
@@ -89,21 +111,8 @@ def cone(radius, height, segments=DEFAULT_SEGMENTS):
 
 
 def capsule(radius, height, segments=DEFAULT_SEGMENTS):
-    rows = max(segments // 4, 3)
-    parts = [_lathe(radius, -height / 2, radius, height / 2, (1.0, 0.0), segments)]
-    theta = np.linspace(0, np.pi / 2, rows + 1)
-    theta[-1] = np.pi / 2
-    for sign in (1, -1):
-        for a0, a1 in zip(theta[:-1], theta[1:]):
-            r0, r1 = radius * np.cos(a0), radius * np.cos(a1)
-            z0, z1 = sign * (height / 2 + radius * np.sin(a0)), sign * (height / 2 + radius * np.sin(a1))
-            p, t, _ = _lathe(r0, z0, r1, z1, (1, 0), segments)
-            if sign < 0:
-                t = t[:, [0, 2, 1]]
-            centre = np.array([0, 0, sign * height / 2])
-            n = p - centre
-            parts.append((p, t, n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)))
-    return _merge(parts)
+    side = _lathe(radius, -height / 2, radius, height / 2, (1.0, 0.0), segments)
+    return _merge([side] + _dome(radius, height / 2, 1, segments) + _dome(radius, -height / 2, -1, segments))
 
 
 def plane(width, length):
