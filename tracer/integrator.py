@@ -566,6 +566,17 @@ def _local_model(principled, base, m, rough, spec, tint, ior, w_t, k_m, cover, s
 
 # ---------------------------------------------------------------------------------------------- stages
 @kernel(inline=True)
+def _closure_at(surf, mats, i, n, di, principled, spawn):
+    """:func:`_local_model` at hit i of a :class:`SurfaceQueue` seen along di, shading normal n (the direct-light and
+    sky stages; kernels without reference counting may hand it the NamedTuples)."""
+    mat = surf.mat[i]
+    return _local_model(principled, vec.row(surf.base, i), float(surf.metallic[i]), float(surf.roughness[i]),
+                        float(surf.specular[i]), vec.row(mats.specular_tint, mat), float(mats.ior[mat]),
+                        float(mats.transmission[mat]), float(mats.k_m[mat]), float(surf.cover[i]),
+                        vec.row(mats.specular_color, mat), float(mats.exponent[mat]), n, di, spawn)
+
+
+@kernel(inline=True)
 def _channel(c, ch):
     """Channel ``ch`` of an RGBA tuple; -1: its Rec.709 luminance (Blender's colour-to-float conversion)."""
     if ch == 0:
@@ -770,11 +781,7 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
     eps = opt.eps
     principled, shadows, sky_side, seed = opt.principled, opt.shadows, opt.sky_side, opt.seed
     needs_random = opt.needs_light_random
-    s_hit, s_mat, s_base, s_metal, s_rough, s_spec, s_cover, s_p, s_ng, s_n = (
-        surf.hit, surf.mat, surf.base, surf.metallic, surf.roughness, surf.specular, surf.cover, surf.p, surf.ng,
-        surf.n)
-    m_tint, m_ior, m_tran, m_km, m_sc, m_exp = (mats.specular_tint, mats.ior, mats.transmission, mats.k_m,
-                                                mats.specular_color, mats.exponent)
+    s_hit, s_p, s_ng, s_n = surf.hit, surf.p, surf.ng, surf.n
     l_kind, l_side = lights.kind, lights.side
     q_o, q_d, q_t, q_s, q_c, q_l = shadow.o, shadow.d, shadow.t_max, shadow.sample, shadow.color, shadow.light
     o_color = out.color
@@ -787,12 +794,8 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
         if not s_hit[i]:
             continue
         s = sample[i]
-        mat = s_mat[i]
         n, di = vec.row(s_n, i), vec.row(d, i)
-        cl, wl, g = _local_model(principled, vec.row(s_base, i), float(s_metal[i]), float(s_rough[i]),
-                                 float(s_spec[i]), vec.row(m_tint, mat), float(m_ior[mat]), float(m_tran[mat]),
-                                 float(m_km[mat]), float(s_cover[i]), vec.row(m_sc, mat), float(m_exp[mat]), n, di,
-                                 spawn)
+        cl, wl, g = _closure_at(surf, mats, i, n, di, principled, spawn)
         if g > 0.0:  # what the spawn stage's mirror ray takes of the lobes (zeros where there is no closure)
             s_mirror[i, 0], s_mirror[i, 1], s_mirror[i, 2] = vec.scale(bsdf.specular_albedo(cl), g)
         if wl <= 0.0 or bsdf.is_black(cl):
@@ -844,11 +847,7 @@ def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shado
     kk = side * side
     amb = (opt.ambient[0], opt.ambient[1], opt.ambient[2])
     has_amb = amb[0] > 0.0 or amb[1] > 0.0 or amb[2] > 0.0
-    s_hit, s_mat, s_base, s_metal, s_rough, s_spec, s_cover, s_p, s_ng, s_n = (
-        surf.hit, surf.mat, surf.base, surf.metallic, surf.roughness, surf.specular, surf.cover, surf.p, surf.ng,
-        surf.n)
-    m_tint, m_ior, m_tran, m_km, m_sc, m_exp = (mats.specular_tint, mats.ior, mats.transmission, mats.k_m,
-                                                mats.specular_color, mats.exponent)
+    s_hit, s_p, s_ng, s_n = surf.hit, surf.p, surf.ng, surf.n
     env_present, e_data, e_rot, e_rcdf, e_ccdf, e_rpdf, e_cpdf = (env.present, env.data, env.rot, env.row_cdf,
                                                                  env.col_cdf, env.row_pdf, env.col_pdf)
     q_o, q_d, q_t, q_s, q_c, q_l = shadow.o, shadow.d, shadow.t_max, shadow.sample, shadow.color, shadow.light
@@ -858,12 +857,8 @@ def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shado
         if not s_hit[i]:
             continue
         s = sample[i]
-        mat = s_mat[i]
         n, di = vec.row(s_n, i), vec.row(d, i)
-        cl, wl, g = _local_model(principled, vec.row(s_base, i), float(s_metal[i]), float(s_rough[i]),
-                                 float(s_spec[i]), vec.row(m_tint, mat), float(m_ior[mat]), float(m_tran[mat]),
-                                 float(m_km[mat]), float(s_cover[i]), vec.row(m_sc, mat), float(m_exp[mat]), n, di,
-                                 spawn)
+        cl, wl, g = _closure_at(surf, mats, i, n, di, principled, spawn)
         if wl <= 0.0 or bsdf.is_black(cl):
             continue
         wo = vec.scale(vec.row(weight, i), wl)
