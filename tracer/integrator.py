@@ -773,9 +773,9 @@ def _emitted(d, surf, sample, weight, depth, opt, env, out):
 def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt, out, shadow, n_shadow, counts):
     """Direct-light stage: per hit, every light sample's colour (local model × irradiance), written with its shadow
     ray (p, l, ε, dist) to the shadow queue; and the ambient term where the sky is not sampled. Returns the
-    shadow queue's new length. Past max_depth (terminal rays) nothing is lit. (Every NamedTuple field is read
-    into a local before the loop, and helpers get arrays: numba reference-counts each array of a NamedTuple read
-    or handed on inside a loop, which cost 40 % of this stage.)"""
+    shadow queue's new length. Past max_depth (terminal rays) nothing is lit. (Compiled without reference counting,
+    ``kernel(refcounts=False)``: with it, numba's atomic counts on the arrays of the NamedTuples read and handed on
+    per ray and per light sample cost 40 % of this stage.)"""
     if depth > opt.max_depth:
         return n_shadow
     eps = opt.eps
