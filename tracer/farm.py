@@ -5,13 +5,12 @@ with ``load(frame) -> (Scene, RenderSettings)`` (``usd_io.farm.UsdSource`` reads
 themselves and keep it prepared for the tasks that share it (every tile of a frame), so nothing is exported per
 tile. The client only submits, assembles and writes:
 
-    from dask.distributed import Client
-    from tracer.farm import render_frames
-    from usd_io.farm import UsdSource
-
-    client = Client("tcp://scheduler:8786")
-    for frame, image in render_frames(client, UsdSource("/shared/shot.usd", width=1920), range(1, 241)):
-        image.save(f"/shared/out.{int(frame):04d}.png")
+    >>> from dask.distributed import Client
+    >>> from tracer.farm import render_frames
+    >>> from usd_io.farm import UsdSource  # a front end's scene source: the tracer itself never imports usd_io
+    >>> client = Client("tcp://scheduler:8786")
+    >>> for frame, image in render_frames(client, UsdSource("/shared/shot.usd", width=1920), range(1, 241)):
+    ...     image.save(f"/shared/out.{int(frame):04d}.png")
 
 With ``assets`` (bytes the source can unpack, e.g. a .usdz package of a stage and its dependencies), the package
 is sent to every worker once and the workers read it instead of a shared path.
