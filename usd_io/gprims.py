@@ -64,10 +64,9 @@ def _merge(parts):
     return np.concatenate(pts), np.concatenate(tris), np.concatenate(nrm)
 
 
-def _dome(radius, z, sign, segments):
-    """The hemisphere of ``radius`` on the plane z, bulging towards ``sign`` (±1): latitude bands from the equator
-    to the pole, radial normals. (A capsule's ends; a sphere is two.)"""
-    rows = max(segments // 4, 3)
+def _dome(radius, z, sign, segments, rows):
+    """The hemisphere of ``radius`` on the plane z, bulging towards ``sign`` (±1): ``rows`` latitude bands from the
+    equator to the pole, ``segments`` around, radial normals. (A capsule's ends; a sphere is two.)"""
     theta = np.linspace(0, np.pi / 2, rows + 1)
     theta[-1] = np.pi / 2
     parts = []
@@ -83,7 +82,9 @@ def _dome(radius, z, sign, segments):
 
 
 def sphere(radius, segments=DEFAULT_SEGMENTS):
-    return _merge(_dome(radius, 0.0, 1, segments) + _dome(radius, 0.0, -1, segments))
+    """A UV sphere of ``segments`` around and as many latitude bands pole to pole (48: 4 512 triangles)."""
+    rows = max(segments // 2, 4)
+    return _merge(_dome(radius, 0.0, 1, segments, rows) + _dome(radius, 0.0, -1, segments, rows))
 
 
 #: The unit cube's corners and its 12 outward-wound triangles.
@@ -112,7 +113,9 @@ def cone(radius, height, segments=DEFAULT_SEGMENTS):
 
 def capsule(radius, height, segments=DEFAULT_SEGMENTS):
     side = _lathe(radius, -height / 2, radius, height / 2, (1.0, 0.0), segments)
-    return _merge([side] + _dome(radius, height / 2, 1, segments) + _dome(radius, -height / 2, -1, segments))
+    rows = max(segments // 4, 3)
+    ends = _dome(radius, height / 2, 1, segments, rows) + _dome(radius, -height / 2, -1, segments, rows)
+    return _merge([side] + ends)
 
 
 def plane(width, length):
