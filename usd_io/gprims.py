@@ -68,10 +68,11 @@ def _dome(radius, z, sign, segments, rows):
     """The hemisphere of ``radius`` on the plane z, bulging towards ``sign`` (±1): ``rows`` latitude bands from the
     equator to the pole, ``segments`` around, radial normals. (A capsule's ends; a sphere is two.)"""
     theta = np.linspace(0, np.pi / 2, rows + 1)
-    theta[-1] = np.pi / 2
+    ring = radius * np.cos(theta)
+    ring[-1] = 0.0  # the pole exactly: every apex of the last band's fan is one point (cos(π/2) is 6e-17, and
+    #                 apexes that far apart leave a crack a ray through the pole slips through)
     parts = []
-    for a0, a1 in zip(theta[:-1], theta[1:]):
-        r0, r1 = radius * np.cos(a0), radius * np.cos(a1)
+    for a0, a1, r0, r1 in zip(theta[:-1], theta[1:], ring[:-1], ring[1:]):
         z0, z1 = z + sign * radius * np.sin(a0), z + sign * radius * np.sin(a1)
         p, t, _ = _lathe(r0, z0, r1, z1, (1, 0), segments)
         if sign < 0:
