@@ -284,3 +284,33 @@ def test_cancel_stops_the_embree_build():
     with pytest.raises(tracer.RenderCancelled) as stop:
         tracer.render(scene, SETTINGS, cancelled=after(0))
     assert stop.value.image.rgba.shape == (36, 48, 4)
+
+
+#: A value other than SETTINGS' for every RenderSettings field: the test below fails for a new field until it is
+#: listed here, so a setting the session's cached Integrator ignores cannot slip in unnoticed.
+CHANGED = {"width": 40, "height": 30, "samples": 2, "max_depth": 1, "epsilon": 1e-3, "fresnel": False,
+           "shadows": False, "light_samples": 9, "sky_samples": 4, "terminal_rays": True, "shading": "classic",
+           "max_transparent": 0, "min_weight": 0.2, "transparent": True, "tile_size": 16, "threads": 1,
+           "aovs": ("depth", "objectid", "normal"), "region": (4, 4, 30, 20), "seed": 7, "progress": False,
+           "extra": {}}
+
+
+def test_every_setting_reaches_a_session_that_rendered_before():
+    """A session that already rendered with other settings renders each changed setting as a fresh session does
+    (its cached Integrator was once keyed without `shading`: Principled ↔ Classic kept the old model)."""
+    import dataclasses
+
+    fields = {f.name for f in dataclasses.fields(RenderSettings)}
+    assert fields == set(CHANGED), f"list a changed value for {sorted(fields ^ set(CHANGED))}"
+    scene = build()
+    with Session(scene) as s:
+        s.render(SETTINGS)
+        for name, value in CHANGED.items():
+            settings = SETTINGS.with_(**{name: value})
+            got = s.render(settings)
+            assert_same(got, fresh_with(scene, settings))
+
+
+def fresh_with(scene, settings):
+    with Session(scene) as s:
+        return s.render(settings)

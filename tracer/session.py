@@ -654,7 +654,7 @@ def _integrator_key(settings: RenderSettings) -> tuple:
     """Settings the packed tables depend on (everything else the integrator reads per render)."""
     return (settings.light_samples, settings.epsilon, settings.sky_samples, settings.max_depth,
             settings.shadows, settings.fresnel, settings.min_weight, settings.transparent, settings.seed,
-            settings.terminal_rays)
+            settings.terminal_rays, settings.shading)
 
 
 def _matrix(m, what):
