@@ -53,6 +53,15 @@ TEXTURE_PARAMS = ("base_color", "roughness", "metallic", "specular", "alpha", "e
 COLOR_PARAMS = ("base_color", "emission", "normal")
 
 
+#: The Principled BSDF's defaults (Blender 4/5, = Cycles'), written once: every front end and the IR's
+#: ``principled_bsdf`` node use these for inputs a file leaves unset (tracer.shader_graph).
+PRINCIPLED_DEFAULTS = {
+    "Base Color": (0.8, 0.8, 0.8), "Metallic": 0.0, "Roughness": 0.5, "IOR": 1.5, "Alpha": 1.0,
+    "Specular IOR Level": 0.5, "Specular Tint": (1.0, 1.0, 1.0), "Transmission Weight": 0.0,
+    "Emission Color": (1.0, 1.0, 1.0), "Emission Strength": 0.0,
+}
+
+
 def roughness_to_exponent(roughness):
     """Blinn-Phong exponent e from a roughness r in [0, 1].
 
