@@ -22,6 +22,7 @@ import numpy as np
 from typing import NamedTuple
 
 from .nodes import TextureRef, read_material
+from .shader_tree import material_graph
 
 try:  # inside the installed extension the tracer is bundled next to this module
     from . import tracer
@@ -77,8 +78,30 @@ class MaterialWriter:
         if material is None:
             return self.default_row
         if material.name not in self._rows:
-            self._rows[material.name] = self._add(material.name, read_material(material, self.warn, self.images))
+            if _compiler() is not None:
+                self._rows[material.name] = self._add_graph(material)
+            else:
+                self._rows[material.name] = self._add(material.name, read_material(material, self.warn,
+                                                                                   self.images))
         return self._rows[material.name]
+
+    def uv_index(self, name: str) -> int:
+        """UV set of a UV map name ('' = each mesh's active render map), given the next index when new."""
+        return self.uv_sets.setdefault(name or "", len(self.uv_sets))
+
+    def _add_graph(self, material) -> int:
+        """The material's node tree as a shader graph (addon.shader_tree), compiled by the tracer: its row, with
+        the program where something varies per hit; the Color Attribute and UV maps it reads for mesh_inputs."""
+        sc = _compiler()
+        graph = material_graph(material, self.warn, self.images)
+        compiled = sc.compile_graph(graph, self.warn, self.uv_index)
+        fields = dict(compiled.row)
+        if compiled.program is not None:
+            fields["program"] = sc.BoundGraph(graph, sc._uv_table(compiled.uv_maps, self.uv_index))
+        row = self.b.add_material(material.name, **fields)
+        vc = compiled.vertex_colors[0] if compiled.vertex_colors else None
+        self.fields.setdefault(row, (material.name, {"vertex_color": vc, "uv_maps": list(compiled.uv_maps)}))
+        return row
 
     def _add(self, name: str, f: dict) -> int:
         row = self.b.add_material(name, **self._principled(f))
@@ -156,4 +179,18 @@ class MaterialWriter:
             _, f = self.fields.get(int(row), ("", {}))
             if any(isinstance(v, TextureRef) and self.uv_sets.get(v.uv_map) == k for v in f.values()):
                 return True
+            if any(self.uv_sets.get(n) == k for n in f.get("uv_maps", ())):
+                return True
         return False
+
+
+def _compiler():
+    """tracer.shader_compile where the tracer evaluates shader graphs, else None (the Principled reader)."""
+    try:
+        from .tracer import shader_compile
+    except ImportError:
+        try:
+            from tracer import shader_compile
+        except ImportError:
+            return None
+    return shader_compile
