@@ -45,11 +45,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from pxr import UsdGeom, UsdShade
+from tracer.shader_graph import Graph, ImageRef
 
 from . import shade_network as net
 from .material_primvars import mesh_primvars
 from .texture_files import TextureCache, resolve_wrap
-from .tracer_model import ModelWriter, TextureSpec
 
 FALLBACK_DIFFUSE = (0.18, 0.18, 0.18)  # UsdPreviewSurface's diffuseColor fallback
 DEFAULT_DISPLAY = (0.5, 0.5, 0.5)  # Hydra's colour for geometry with neither material nor displayColor
@@ -63,8 +63,24 @@ PREVIEW_DEFAULTS = dict(diffuseColor=FALLBACK_DIFFUSE, emissiveColor=(0.0, 0.0, 
 
 
 def f0_from_ior(ior: float) -> float:
-    """UsdPreviewSurface's F0 of a dielectric, ((1 − ior)/(1 + ior))²."""
-    return float(((ior - 1.0) / (ior + 1.0)) ** 2)
+    """UsdPreviewSurface's F0 of a dielectric (:func:`tracer.materials.f0_from_ior`, the one formula)."""
+    from tracer.materials import f0_from_ior as f0
+    return float(f0(ior))
+
+
+@dataclass(eq=False)
+class UVLookup:
+    """A UsdUVTexture (or MaterialX image) lookup as the reader resolved it, before it is written as IR nodes:
+    the image (:class:`tracer.shader_graph.ImageRef`, wrap resolved), the UV primvar (None = the default set),
+    the composed UsdTransform2d matrix and the spec's scale, bias and fallback."""
+
+    image: object
+    uv: str | None
+    transform: np.ndarray
+    scale: tuple
+    bias: tuple
+    fallback: tuple
+    label: str = ""
 
 
 def ior_from_f0(f0: float) -> float:
@@ -101,9 +117,10 @@ class MaterialTable:
         self.by_path: dict[str, tuple[int, MeshNeeds]] = {}  # material path -> (row, needs)
         self.summary: dict[str, dict] = {}  # material name -> tracer fields (for `whitted info`)
         self.files = TextureCache()
-        self._textures: dict = {}  # lookup key -> TextureSpec
+        self._textures: dict = {}  # lookup key -> UVLookup
+        self._images: dict = {}  # (pixels id, wraps) -> ImageRef (one tracer texture per image and wrap)
         self.uv_set_names: list[str] = [DEFAULT_UV]  # index in Scene.uv_sets
-        self.writer = ModelWriter(builder, warn)
+        self.writer = self  # ``writer.add_material(name, fields)``: what usd_io.reader calls
         self._primvar_cache: dict = {}
 
     # ------------------------------------------------------------------ binding
@@ -158,7 +175,14 @@ class MaterialTable:
             uv_sets, colors = mesh_primvars(prim, data, needs, self.uv_set_names, self.time, self.warn)
             if key is not None:
                 self._primvar_cache[key] = (uv_sets, colors)
-        return self.writer.mesh_kwargs(str(prim.GetPath()), rows, len(data.triangles), uv_sets, colors)
+        kw = {}
+        if uv_sets:
+            kw["uv_sets"] = uv_sets
+            if 0 in uv_sets:
+                kw["uvs"] = uv_sets[0]
+        if colors is not None:
+            kw["colors"] = colors
+        return rows, kw
 
     def uv_set_index(self, name: str | None) -> int:
         """Index in Scene.uv_sets of a texture's UV primvar (None and "st" read the mesh's default set 0)."""
@@ -184,7 +208,7 @@ class MaterialTable:
     def _plain(self, name, rgb, **extra):
         fields = self.model(base_color=tuple(float(x) for x in rgb), specular=0.0, **extra)
         self.summary.setdefault(name, fields)
-        return self.writer.add_material(name, fields)
+        return self.add_material(name, fields)
 
     # ------------------------------------------------------------------ UsdShade.Material
     def material(self, mat: UsdShade.Material):
@@ -192,8 +216,8 @@ class MaterialTable:
         if key in self.by_path:
             return self.by_path[key]
         fields, needs = self.convert(mat)
-        row = self.writer.add_material(key, fields)
-        self.summary[key] = {k: (v.label if isinstance(v, TextureSpec) else
+        row = self.add_material(key, fields, needs)
+        self.summary[key] = {k: (v.label if isinstance(v, UVLookup) else
                                  tuple(round(float(x), 4) for x in np.ravel(v)) if np.ndim(v) else
                                  (round(float(v), 4) if isinstance(v, float) else v)) for k, v in fields.items()}
         self.by_path[key] = (row, needs)
@@ -403,15 +427,27 @@ class MaterialTable:
         needs.uv_sets.add(self.uv_set_names[uv_set])
         key = (id(f.pixels), wrap_s, wrap_t, uv_set, lk.transform.round(9).tobytes(), lk.scale, lk.bias, lk.fallback)
         if key not in self._textures:
-            self._textures[key] = TextureSpec(f.pixels, wrap_s, wrap_t, uv_set, lk.transform, lk.scale, lk.bias,
-                                              lk.fallback, label=f"{asset.path} ({lk.node})")
+            ikey = (id(f.pixels), wrap_s, wrap_t)
+            if ikey not in self._images:
+                self._images[ikey] = ImageRef(pixels=f.pixels, wrap_s=wrap_s, wrap_t=wrap_t,
+                                              label=f"{asset.path} ({lk.node})")
+            self._textures[key] = UVLookup(self._images[ikey], lk.uv, lk.transform, lk.scale, lk.bias, lk.fallback,
+                                           label=f"{asset.path} ({lk.node})")
         return self._textures[key], None
 
     # ------------------------------------------------------------------ the tracer's model
     @staticmethod
     def model(**fields) -> dict:
-        """A tracer material row (fields of docs/materials-api.md)."""
+        """The reader's description of a surface: Principled fields (docs/materials-api.md), a parameter P read
+        from a texture as ``P_texture`` (a :class:`UVLookup`) and ``P_channel``; written as IR by
+        :meth:`add_material`."""
         return dict(fields)
+
+    def add_material(self, name: str, fields: dict, needs: MeshNeeds | None = None) -> int:
+        """Write one surface as a shader graph (tracer.shader_graph) and add its row (tracer.shader_compile)."""
+        from tracer.shader_compile import add_graph
+        color = needs.color[0] if needs is not None and needs.color is not None else "displayColor"
+        return add_graph(self.b, principled_graph(name, fields, color), self.warn, self.uv_set_index, name=name)
 
     # ------------------------------------------------------------------ MaterialX
     def materialx(self, s: UsdShade.Shader, fields: dict, label: str, needs: MeshNeeds) -> dict:
@@ -491,3 +527,20 @@ def _is_default(src, default) -> bool:
     if not isinstance(src, net.Const):
         return False
     return bool(np.allclose(net.floats(src.value, 1, (default,))[0], default))
+
+
+# ---------------------------------------------------------------------------------------------- the IR
+def principled_graph(name: str, f: dict, color_primvar: str = "displayColor") -> Graph:
+    """A reader description (:meth:`MaterialTable.model` fields) as a shader graph (tracer.shader_fields); each
+    :class:`UVLookup` becomes a ``usd_uv_texture`` node, its st a ``uvmap`` through ``usd_transform2d``."""
+    from tracer.shader_fields import graph_from_fields
+
+    def texture(g, lk: UVLookup):
+        st = g.add("uvmap", attribute=lk.uv if lk.uv not in (None, "st") else "")["UV"]
+        if not np.allclose(lk.transform, np.eye(3)):
+            st = g.add("usd_transform2d", {"in": st}, matrix=np.asarray(lk.transform, np.float64))["result"]
+        node = g.add("usd_uv_texture", {"st": st}, image=lk.image, scale=tuple(lk.scale), bias=tuple(lk.bias),
+                     fallback=tuple(lk.fallback), name=lk.label)
+        return node, lk.uv if lk.uv not in (None, "st") else ""
+
+    return graph_from_fields(name, f, texture, color_primvar, base_default=FALLBACK_DIFFUSE)
