@@ -279,9 +279,10 @@ def _input(R, o, what, arg, variant, setup, hit, geo):
             x = (0.0, 0.0, 0.0)
             lo = (bounds[oid, 0, 0], bounds[oid, 0, 1], bounds[oid, 0, 2])
             hi = (bounds[oid, 1, 0], bounds[oid, 1, 1], bounds[oid, 1, 2])
-            x = ((po[0] - lo[0]) / (hi[0] - lo[0]) if hi[0] > lo[0] else 0.0,
-                 (po[1] - lo[1]) / (hi[1] - lo[1]) if hi[1] > lo[1] else 0.0,
-                 (po[2] - lo[2]) / (hi[2] - lo[2]) if hi[2] > lo[2] else 0.0)
+            # a flat axis sits in the middle of its texture space (Blender sizes it 1 about the centre)
+            x = ((po[0] - lo[0]) / (hi[0] - lo[0]) if hi[0] > lo[0] else 0.5,
+                 (po[1] - lo[1]) / (hi[1] - lo[1]) if hi[1] > lo[1] else 0.5,
+                 (po[2] - lo[2]) / (hi[2] - lo[2]) if hi[2] > lo[2] else 0.5)
         elif what == IN_OBJECT:
             x = po
         else:  # location: the instance's translation, or the centre of a baked mesh's bounds
@@ -625,7 +626,7 @@ def shade_programs(rays, prim, u, v, t, inst, d, depth, code, pstart, pbase, out
             s_cover[i] = cut(R[rb + r], float(threshold[mat]))
         r = outs[mat, OUT_EMIT]
         if r >= 0:
-            s_e[i, 0], s_e[i, 1], s_e[i, 2] = (max(R[rb + r], 0.0), max(R[rb + r + 1], 0.0), max(R[rb + r + 2], 0.0))
+            s_e[i, 0], s_e[i, 1], s_e[i, 2] = R[rb + r], R[rb + r + 1], R[rb + r + 2]  # unclamped, as Cycles
         r = outs[mat, OUT_NORMAL]
         if r >= 0:
             s_n[i, 0], s_n[i, 1], s_n[i, 2] = R[rb + r], R[rb + r + 1], R[rb + r + 2]
