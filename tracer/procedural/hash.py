@@ -8,6 +8,8 @@ C's ``uint`` does; a negative int (a lattice coordinate) enters as its two's com
 Float inputs are hashed by their *float32* bit pattern (``__float_as_uint``), computed here without an array view so
 that the scalar functions stay allocation-free inside kernels.
 
+Voronoi's 2-4D cells use the PCG hashes (``hash_pcg{2,3,4}d_i``, signed-int variant) of the same header.
+
 Scalar functions (``@kernel``) for the shader VM; :func:`hash_uint_array` etc. are numpy forms.
 """
 
@@ -181,6 +183,88 @@ def hash_float4_to_float3(x, y, z, w):
 def hash_float4_to_float4(x, y, z, w):
     return (hash_float4_to_float(x, y, z, w), hash_float4_to_float(w, x, y, z), hash_float4_to_float(z, w, x, y),
             hash_float4_to_float(y, z, w, x))
+
+
+# --- PCG integer hashes (Jarzynski & Olano, JCGT 2020, in Cycles' signed-int variant): Voronoi's n-D cells
+@kernel(inline=True)
+def _mul32(a, b):
+    """a · b mod 2^32 for uint32 words, without overflowing int64 (b split into 16-bit halves)."""
+    return (a * (b & 0xFFFF) + (((a * (b >> 16)) & 0xFFFF) << 16)) & M32
+
+
+@kernel(inline=True)
+def _xorshift16(v):
+    """v ^ (v >> 16) with C's arithmetic (sign-extending) shift of a signed int."""
+    s = v - 0x100000000 if v & 0x80000000 else v
+    return (v ^ ((s >> 16) & M32)) & M32
+
+
+@kernel(inline=True)
+def _lcg(v):
+    return (_mul32(v & M32, 1664525) + 1013904223) & M32
+
+
+@kernel
+def hash_pcg2d(x, y):
+    x, y = _lcg(x), _lcg(y)
+    x = (x + _mul32(y, 1664525)) & M32
+    y = (y + _mul32(x, 1664525)) & M32
+    x, y = _xorshift16(x), _xorshift16(y)
+    x = (x + _mul32(y, 1664525)) & M32
+    y = (y + _mul32(x, 1664525)) & M32
+    return x & 0x7FFFFFFF, y & 0x7FFFFFFF
+
+
+@kernel
+def hash_pcg3d(x, y, z):
+    x, y, z = _lcg(x), _lcg(y), _lcg(z)
+    x = (x + _mul32(y, z)) & M32
+    y = (y + _mul32(z, x)) & M32
+    z = (z + _mul32(x, y)) & M32
+    x, y, z = _xorshift16(x), _xorshift16(y), _xorshift16(z)
+    x = (x + _mul32(y, z)) & M32
+    y = (y + _mul32(z, x)) & M32
+    z = (z + _mul32(x, y)) & M32
+    return x & 0x7FFFFFFF, y & 0x7FFFFFFF, z & 0x7FFFFFFF
+
+
+@kernel
+def hash_pcg4d(x, y, z, w):
+    x, y, z, w = _lcg(x), _lcg(y), _lcg(z), _lcg(w)
+    x = (x + _mul32(y, w)) & M32
+    y = (y + _mul32(z, x)) & M32
+    z = (z + _mul32(x, y)) & M32
+    w = (w + _mul32(y, z)) & M32
+    x, y, z, w = _xorshift16(x), _xorshift16(y), _xorshift16(z), _xorshift16(w)
+    x = (x + _mul32(y, w)) & M32
+    y = (y + _mul32(z, x)) & M32
+    z = (z + _mul32(x, y)) & M32
+    w = (w + _mul32(y, z)) & M32
+    return x & 0x7FFFFFFF, y & 0x7FFFFFFF, z & 0x7FFFFFFF, w & 0x7FFFFFFF
+
+
+@kernel(inline=True)
+def _int31_to_float(h):
+    """[0, 2^31-1] -> [0, 1]: float32(h) · 2^-31 (Cycles' (float)h · (1 / (float)0x7FFFFFFF))."""
+    return float(np.float32(h)) * 4.656612873077393e-10
+
+
+@kernel
+def hash_int2_to_float2(x, y):
+    a, b = hash_pcg2d(x, y)
+    return (_int31_to_float(a), _int31_to_float(b))
+
+
+@kernel
+def hash_int3_to_float3(x, y, z):
+    a, b, c = hash_pcg3d(x, y, z)
+    return (_int31_to_float(a), _int31_to_float(b), _int31_to_float(c))
+
+
+@kernel
+def hash_int4_to_float4(x, y, z, w):
+    a, b, c, d = hash_pcg4d(x, y, z, w)
+    return (_int31_to_float(a), _int31_to_float(b), _int31_to_float(c), _int31_to_float(d))
 
 
 # ---------------------------------------------------------------------- array forms (tests, constant folding)
