@@ -25,7 +25,7 @@ import pytest
 import cycles_harness as H
 
 from tests import blender_support as bs
-from tracer.procedural import noise, patterns, voronoi
+from tracer.procedural import color, noise, patterns, voronoi
 
 pytestmark = pytest.mark.cycles
 
@@ -189,13 +189,122 @@ for _dim in (1, 2, 3, 4):
     VARIANTS[f"white_noise_{_dim}d_value"] = tex("ShaderNodeTexWhiteNoise", "Value",
                                                  {"noise_dimensions": f"{_dim}D"})
 
+# ---- colour nodes: small graphs over texture outputs (magic colour A, noise colour B, noise factor)
+def graph(kind, output=None, **params):
+    return {"graph": kind, "params": params, "output": output}
+
+
+for _blend in color.BLEND_TYPES:
+    VARIANTS[f"mix_{_blend.lower()}"] = graph("mix", blend=_blend, fac=None, clamp_factor=True, clamp_result=False)
+VARIANTS["mix_linear_light_clamped"] = graph("mix", blend="LINEAR_LIGHT", fac=0.8, clamp_factor=True,
+                                             clamp_result=True)
+VARIANTS["mix_add_factor_unclamped"] = graph("mix", blend="ADD", fac=1.6, clamp_factor=False, clamp_result=False)
+VARIANTS["mix_burn_constant"] = graph("mix", blend="BURN", fac=0.9, clamp_factor=True, clamp_result=False)
+VARIANTS["hue_saturation_value"] = graph("hsv", hue=0.3, saturation=1.5, value=0.8, fac=0.9, hue_linked=False)
+VARIANTS["hue_saturation_value_linked"] = graph("hsv", hue=0.0, saturation=0.6, value=1.3, fac=1.0, hue_linked=True)
+for _mode in ("HSV", "HSL"):
+    VARIANTS[f"separate_{_mode.lower()}"] = graph("separate", mode=_mode)
+    VARIANTS[f"combine_{_mode.lower()}"] = graph("combine", mode=_mode)
+VARIANTS["rgb_to_bw"] = graph("bw")
+VARIANTS["blackbody"] = graph("blackbody")
+VARIANTS["wavelength"] = graph("wavelength")
+RAMP_STOPS = [(0.1, (0.9, 0.1, 0.05, 1.0)), (0.35, (0.1, 0.8, 0.2, 0.6)), (0.6, (0.2, 0.3, 0.95, 1.0)),
+              (0.85, (0.95, 0.9, 0.1, 0.3))]
+for _ipo in color.RAMP_INTERPOLATIONS:
+    VARIANTS[f"ramp_{_ipo.lower()}"] = graph("ramp", "Color", interpolation=_ipo, color_mode="RGB",
+                                             hue_interpolation="NEAR")
+VARIANTS["ramp_linear_alpha"] = graph("ramp", "Alpha", interpolation="LINEAR", color_mode="RGB",
+                                      hue_interpolation="NEAR")
+for _hue in color.RAMP_HUE_INTERPOLATIONS:
+    VARIANTS[f"ramp_hsv_{_hue.lower()}"] = graph("ramp", "Color", interpolation="LINEAR", color_mode="HSV",
+                                                 hue_interpolation=_hue)
+VARIANTS["ramp_hsl_near"] = graph("ramp", "Color", interpolation="EASE", color_mode="HSL", hue_interpolation="NEAR")
+VARIANTS["ramp_hsl_far"] = graph("ramp", "Color", interpolation="LINEAR", color_mode="HSL", hue_interpolation="FAR")
+VARIANTS["rgb_curves"] = graph("rgb_curves", extend="EXTRAPOLATED")
+VARIANTS["rgb_curves_horizontal"] = graph("rgb_curves", extend="HORIZONTAL")
+VARIANTS["vector_curves"] = graph("vector_curves", extend="EXTRAPOLATED")
+VARIANTS["float_curve"] = graph("float_curve", extend="EXTRAPOLATED")
+
 
 def _grey(x):
     return np.repeat(np.asarray(x)[..., None], 3, -1)
 
 
+def _magic(vec):
+    return patterns.magic_array(vec, turbulence_depth=2, scale=1.7, distortion=1.4)
+
+
+def _noise_color(vec):
+    return noise.noise_texture_array(vec, dimensions=3, scale=3.0, detail=2.0)[1]
+
+
+def _noise_fac(vec):
+    return noise.noise_texture_array(vec, dimensions=2, scale=2.0, detail=1.0)[0]
+
+
+def ours_graph(spec, vec, w):
+    kind, p = spec["graph"], spec["params"]
+    f = np.float32
+    if kind == "mix":
+        fac = _noise_fac(vec) if p["fac"] is None else p["fac"]
+        return color.mix_color_array(p["blend"], fac, _magic(vec), _noise_color(vec), p["clamp_factor"],
+                                     p["clamp_result"])
+    if kind == "hsv":
+        hue = _noise_fac(vec) if p["hue_linked"] else p["hue"]
+        return color.hue_saturation_value_array(_magic(vec), hue, p["saturation"], p["value"], p["fac"])
+    if kind == "separate":
+        return color.convert_array(_magic(vec), f"rgb_to_{p['mode'].lower()}")
+    if kind == "combine":
+        return color.convert_array(_magic(vec), f"{p['mode'].lower()}_to_rgb")
+    if kind == "bw":
+        return _grey(color.rgb_to_bw_array(_magic(vec)))
+    if kind == "blackbody":
+        return color.blackbody_array(vec[..., 0] * f(6500.0) + f(6500.0))
+    if kind == "wavelength":
+        return color.wavelength_array(vec[..., 0] * f(220.0) + f(580.0))
+    if kind == "ramp":
+        table = color.color_ramp_table([s[0] for s in RAMP_STOPS], [s[1] for s in RAMP_STOPS], p["interpolation"],
+                                       p["color_mode"], p["hue_interpolation"])
+        fac = _noise_fac(vec) * f(1.6) + f(-0.3)
+        rgba = color.color_ramp_array(fac, table, p["interpolation"] != "CONSTANT")
+        return rgba[..., :3] if spec["output"] == "Color" else _grey(rgba[..., 3])
+    if kind in ("rgb_curves", "vector_curves", "float_curve"):
+        table, lo, hi, extrapolate = bake_curves(kind, p)
+        if kind == "rgb_curves":
+            return color.rgb_curves_array(_magic(vec), table, 0.85, lo, hi, extrapolate)
+        if kind == "vector_curves":
+            return color.rgb_curves_array(vec, table, 1.0, lo, hi, extrapolate)
+        return _grey(color.float_curve_array(_noise_fac(vec), table, 0.9, lo, hi, extrapolate))
+    raise ValueError(f"no numpy form for graph {kind}")
+
+
+def bake_curves(kind, params):
+    """The curve node of ``kind`` set up as in the Cycles scene, sampled into Cycles' table the way Blender's sync
+    does it (CurveMapping.evaluate at 256 points over [min first x, max last x]); returns (table, min, max,
+    extrapolate)."""
+    import bpy
+
+    mat = bpy.data.materials.new("bake")
+    node = mat.node_tree.nodes.new(CURVE_NODES[kind])
+    setup_curves(node, kind, params)
+    cm = node.mapping
+    curves = list(cm.curves)
+    lo = min(c.points[0].location[0] for c in curves)
+    hi = max(c.points[-1].location[0] for c in curves)
+    xs = color.curve_table_points(lo, hi)
+    if kind == "rgb_curves":
+        rows = [[cm.evaluate(curves[k], cm.evaluate(curves[3], float(x))) for k in range(3)] for x in xs]
+    else:
+        rows = [[cm.evaluate(c, float(x)) for c in curves] for x in xs]
+    extrapolate = cm.extend == "EXTRAPOLATED"
+    bpy.data.materials.remove(mat)
+    return np.asarray(rows, np.float32), lo, hi, extrapolate
+
+
 def ours(spec, vec, w):
     """Our numpy function for one variant at the tile's coordinates -> (TILE, TILE, 3) linear."""
+    if "graph" in spec:
+        return ours_graph(spec, vec, w)
     node, props, inp = spec["node"], spec["props"], spec["inputs"]
     if node == "ShaderNodeTexNoise":
         fac, col = noise.noise_texture_array(
@@ -246,6 +355,151 @@ def ours(spec, vec, w):
 
 
 # ---------------------------------------------------------------------------------------------------- Cycles
+CURVE_NODES = {"rgb_curves": "ShaderNodeRGBCurve", "vector_curves": "ShaderNodeVectorCurve",
+               "float_curve": "ShaderNodeFloatCurve"}
+
+
+def setup_curves(node, kind, params):
+    """Edit the curve node's default curves (same edits for the Cycles scene and for baking ours)."""
+    cm = node.mapping
+    cm.extend = params["extend"]
+    c = cm.curves
+    if kind == "rgb_curves":
+        c[3].points.new(0.4, 0.55)
+        c[0].points[1].location = (1.0, 0.8)
+        c[0].points.new(0.3, 0.4)
+        c[2].points.new(0.6, 0.9)
+        c[1].points[0].location = (0.1, 0.05)
+    elif kind == "vector_curves":
+        c[0].points.new(0.0, 0.3)
+        c[1].points[0].location = (-1.0, -0.5)
+        c[2].points.new(0.5, -0.2)
+    else:
+        c[0].points.new(0.3, 0.7)
+        c[0].points.new(0.7, 0.2)
+    cm.update()
+
+
+def _texture(nt, node, vec, props=None, **inputs):
+    tex = nt.nodes.new(node)
+    for key, value in (props or {}).items():
+        setattr(tex, key, value)
+    for key, value in inputs.items():
+        tex.inputs[key].default_value = value
+    nt.links.new(vec, tex.inputs["Vector"])
+    return tex
+
+
+def _sources(nt, vec):
+    """The graph inputs: magic colour (A), noise colour (B), noise factor, as ours' _magic/_noise_* compute them."""
+    magic = _texture(nt, "ShaderNodeTexMagic", vec, {"turbulence_depth": 2}, Scale=1.7, Distortion=1.4)
+    ncol = _texture(nt, "ShaderNodeTexNoise", vec, {"noise_dimensions": "3D"}, Scale=3.0, Detail=2.0)
+    nfac = _texture(nt, "ShaderNodeTexNoise", vec, {"noise_dimensions": "2D"}, Scale=2.0, Detail=1.0)
+    return magic.outputs["Color"], ncol.outputs["Color"], nfac.outputs["Factor"]
+
+
+def build_graph(nt, spec, vec, w):
+    """A colour-node variant's graph; returns the socket to emit."""
+    kind, p = spec["graph"], spec["params"]
+    a, b, fac = _sources(nt, vec)
+    x = None
+    if kind in ("blackbody", "wavelength"):
+        sep = nt.nodes.new("ShaderNodeSeparateXYZ")
+        nt.links.new(vec, sep.inputs[0])
+        x = sep.outputs["X"]
+    if kind == "mix":
+        n = nt.nodes.new("ShaderNodeMix")
+        n.data_type, n.blend_type = "RGBA", p["blend"]
+        n.clamp_factor, n.clamp_result = p["clamp_factor"], p["clamp_result"]
+        ins = {i.identifier: i for i in n.inputs}
+        if p["fac"] is None:
+            nt.links.new(fac, ins["Factor_Float"])
+        else:
+            ins["Factor_Float"].default_value = p["fac"]
+        nt.links.new(a, ins["A_Color"])
+        nt.links.new(b, ins["B_Color"])
+        return next(o for o in n.outputs if o.identifier == "Result_Color")
+    if kind == "hsv":
+        n = nt.nodes.new("ShaderNodeHueSaturation")
+        n.inputs["Hue"].default_value = p["hue"]
+        n.inputs["Saturation"].default_value = p["saturation"]
+        n.inputs["Value"].default_value = p["value"]
+        n.inputs["Fac"].default_value = p["fac"]
+        if p["hue_linked"]:
+            nt.links.new(fac, n.inputs["Hue"])
+        nt.links.new(a, n.inputs["Color"])
+        return n.outputs["Color"]
+    if kind == "separate":
+        n = nt.nodes.new("ShaderNodeSeparateColor")
+        n.mode = p["mode"]
+        nt.links.new(a, n.inputs["Color"])
+        comb = nt.nodes.new("ShaderNodeCombineXYZ")
+        for i in range(3):
+            nt.links.new(n.outputs[i], comb.inputs[i])
+        return comb.outputs[0]
+    if kind == "combine":
+        sep = nt.nodes.new("ShaderNodeSeparateColor")
+        nt.links.new(a, sep.inputs["Color"])
+        n = nt.nodes.new("ShaderNodeCombineColor")
+        n.mode = p["mode"]
+        for i in range(3):
+            nt.links.new(sep.outputs[i], n.inputs[i])
+        return n.outputs["Color"]
+    if kind == "bw":
+        n = nt.nodes.new("ShaderNodeRGBToBW")
+        nt.links.new(a, n.inputs["Color"])
+        return n.outputs["Val"]
+    if kind == "blackbody":
+        n = nt.nodes.new("ShaderNodeBlackbody")
+        nt.links.new(_math(nt, "ADD", _math(nt, "MULTIPLY", x, 6500.0), 6500.0), n.inputs["Temperature"])
+        return n.outputs["Color"]
+    if kind == "wavelength":
+        n = nt.nodes.new("ShaderNodeWavelength")
+        nt.links.new(_math(nt, "ADD", _math(nt, "MULTIPLY", x, 220.0), 580.0), n.inputs["Wavelength"])
+        return n.outputs["Color"]
+    if kind == "ramp":
+        n = nt.nodes.new("ShaderNodeValToRGB")
+        cr = n.color_ramp
+        cr.interpolation, cr.color_mode, cr.hue_interpolation = (p["interpolation"], p["color_mode"],
+                                                                 p["hue_interpolation"])
+        els = cr.elements
+        els[0].position, els[0].color = RAMP_STOPS[0]
+        els[1].position, els[1].color = RAMP_STOPS[-1]
+        for pos, col in RAMP_STOPS[1:-1]:
+            els.new(pos).color = col
+        nt.links.new(_math(nt, "ADD", _math(nt, "MULTIPLY", fac, 1.6), -0.3), n.inputs["Fac"])
+        return n.outputs[spec["output"]]
+    if kind in CURVE_NODES:
+        n = nt.nodes.new(CURVE_NODES[kind])
+        setup_curves(n, kind, p)
+        if kind == "rgb_curves":
+            n.inputs["Fac"].default_value = 0.85
+            nt.links.new(a, n.inputs["Color"])
+        elif kind == "vector_curves":
+            n.inputs["Fac"].default_value = 1.0
+            nt.links.new(vec, n.inputs["Vector"])
+        else:
+            n.inputs["Factor"].default_value = 0.9
+            nt.links.new(fac, n.inputs["Value"])
+        return n.outputs[0]
+    raise ValueError(f"unknown graph {kind}")
+
+
+def add_texture(nt, spec, vec, w):
+    """A texture variant's node; returns the socket to emit."""
+    tex = nt.nodes.new(spec["node"])
+    for key, value in spec["props"].items():
+        setattr(tex, key, value)
+    for key, value in spec["inputs"].items():
+        if key in tex.inputs:  # (Blender 5 hides sockets a mode does not read; so does our function)
+            tex.inputs[key].default_value = value
+    if "Vector" in tex.inputs:
+        nt.links.new(vec, tex.inputs["Vector"])
+    if "W" in tex.inputs:
+        nt.links.new(w, tex.inputs["W"])
+    return tex.outputs[spec["output"]]
+
+
 def build_scene(variants: dict):
     """The grid of emission tiles, one plane and material per variant, and the orthographic camera."""
     import bpy
@@ -259,19 +513,10 @@ def build_scene(variants: dict):
         nt = mat.node_tree
         nt.nodes.clear()
         vec, w = coordinate_sockets(nt)
-        tex = nt.nodes.new(spec["node"])
-        for key, value in spec["props"].items():
-            setattr(tex, key, value)
-        for key, value in spec["inputs"].items():
-            if key in tex.inputs:  # (Blender 5 hides sockets a mode does not read; so does our function)
-                tex.inputs[key].default_value = value
-        if "Vector" in tex.inputs:
-            nt.links.new(vec, tex.inputs["Vector"])
-        if "W" in tex.inputs:
-            nt.links.new(w, tex.inputs["W"])
+        sock = build_graph(nt, spec, vec, w) if "graph" in spec else add_texture(nt, spec, vec, w)
         em = nt.nodes.new("ShaderNodeEmission")
         em.inputs["Strength"].default_value = 1.0
-        nt.links.new(tex.outputs[spec["output"]], em.inputs["Color"])
+        nt.links.new(sock, em.inputs["Color"])
         out = nt.nodes.new("ShaderNodeOutputMaterial")
         nt.links.new(em.outputs[0], out.inputs["Surface"])
         row, col = divmod(i, COLS)
@@ -291,8 +536,9 @@ def _spec_key(variants):
 
 def cycles_grid(variants: dict) -> dict:
     """name -> the Cycles tile (TILE, TILE, 3), from the reference cache or rendered now."""
-    key = H.content_hash("procedural", inspect.getsource(build_scene), inspect.getsource(coordinate_sockets),
-                         inspect.getsource(_math), TILE, COLS, _spec_key(variants))
+    scene_code = [inspect.getsource(f) for f in (build_scene, coordinate_sockets, _math, add_texture, build_graph,
+                                                 _sources, _texture, setup_curves)]
+    key = H.content_hash("procedural", scene_code, TILE, COLS, RAMP_STOPS, _spec_key(variants))
     path = os.path.join(H.CACHE_DIR, f"procedural-{key}.exr")
     if not os.path.exists(path):
         os.makedirs(H.CACHE_DIR, exist_ok=True)
