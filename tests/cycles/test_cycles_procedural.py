@@ -8,7 +8,7 @@ whatever sub-pixel position Cycles' one sample lands on (filter width 0.01 px), 
 bricks, checkers, white noise) are compared on both sides of every edge. Cycles renders the grid once into a linear
 EXR, cached by the content hash of this file's scene code and the variant table (tests/cycles/cycles_harness.py's
 ``content_hash`` and cache folder); each test then compares one tile with the numpy form of the tracer's function
-evaluated at the same coordinates. Bar: PSNR ≥ 40 dB on linear values (peak max(1, the tile's range)).
+evaluated at the same coordinates. Bar: PSNR ≥ 60 dB on linear values (peak max(1, the tile's range)).
 """
 
 from __future__ import annotations
@@ -32,7 +32,9 @@ pytestmark = pytest.mark.cycles
 TILE = 64  # pixels per tile side
 PER_UNIT = TILE // 2  # pixels per unit of object space (planes are 2 × 2)
 COLS = 16
-MIN_PSNR = 40.0
+#: The issue asks ≥ 40 dB; every variant measures ≥ 85 dB (float32 vs float64 rounding), and 40 dB would let a 1 %
+#: error in a noise constant through (0.982 -> 0.972 measured 48-62 dB), so the bar is 60 dB.
+MIN_PSNR = 60.0
 
 
 # ---------------------------------------------------------------------------------------------------- coordinates
@@ -509,7 +511,8 @@ def build_scene(variants: dict):
     scene = bs.reset(size=(COLS * TILE, rows * TILE))
     for i, (name, spec) in enumerate(variants.items()):
         mat = bpy.data.materials.new(name)
-        mat.use_nodes = True
+        if mat.node_tree is None:  # (Blender 5 gives new materials a node tree; use_nodes is deprecated)
+            mat.use_nodes = True
         nt = mat.node_tree
         nt.nodes.clear()
         vec, w = coordinate_sockets(nt)
