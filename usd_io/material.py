@@ -48,6 +48,7 @@ from pxr import UsdGeom, UsdShade
 
 from . import shade_network as net
 from .material_primvars import mesh_primvars
+from .preview_ranges import clamp_preview_inputs
 from .texture_files import TextureCache, resolve_wrap
 from .tracer_model import ModelWriter, TextureSpec
 
@@ -226,6 +227,7 @@ class MaterialTable:
         t = self.model()
         needs = MeshNeeds()
         src = {name: net.source(s, name, default, self.time) for name, default in PREVIEW_DEFAULTS.items()}
+        src = clamp_preview_inputs(src, label, self.warn)  # the spec's ranges (usd_io.preview_ranges)
 
         # diffuseColor -> base colour
         d = src["diffuseColor"]

@@ -22,6 +22,7 @@ from .curves import read_curves, read_points
 from .gprims import DEFAULT_SEGMENTS, GPRIM_TYPES, read_gprim
 from .instancing import instance_matrices
 from .dome import environment
+from .layer_metadata import meters_per_unit
 from .lights import blender_authored, convert_light, default_lights
 from .material import MaterialTable
 from .mesh import COMPLEXITY, DEFAULT_COMPLEXITY, SUBDIVIDED, MeshData, read_mesh
@@ -323,7 +324,7 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     warnings_first: list[str] = []
     info = StageInfo(path=label, time=None if time is None or tc.IsDefault() else tc.GetValue(),
                      up_axis=stage_up_axis(stage, lambda m: warnings_first.append(m)),
-                     meters_per_unit=float(UsdGeom.GetStageMetersPerUnit(stage)))
+                     meters_per_unit=meters_per_unit(stage, lambda m: warnings_first.append(m)))
     for w in warnings_first:
         info.warn(w)
     for w in composition_warnings(stage):

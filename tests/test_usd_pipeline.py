@@ -1,0 +1,92 @@
+"""USD as pipelines write it (issue #21): stages that crashed, were refused, or lost geometry silently. Each stage is
+built in tests/usd_pipeline_stages.py; each test checks the picture or the geometry against a closed form."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pxr import Gf, UsdGeom, UsdLux
+
+from tracer import RenderSettings, read_image, render
+from usd_io import load_stage
+
+from test_cli import whitted
+from usd_pipeline_stages import (add_camera, bind, blend_shape_stage, float_meters_per_unit_usdc, new_stage,
+                                 preview_material, quad)
+
+
+# ---------------------------------------------------------------- crashes and refusals
+def test_float_meters_per_unit_renders(tmp_path):
+    """pxr raises on a float metersPerUnit; the layer's value is read as authored and the ball is drawn."""
+    path = float_meters_per_unit_usdc(tmp_path / "f.usdc", 0.5)
+    scene, info = load_stage(str(path), width=24, height=16)
+    assert info.meters_per_unit == 0.5
+    img = render(scene, RenderSettings(width=24, height=16, samples=1)).rgb
+    assert img[8, 12].mean() > 0.2 and img[0, 0].mean() < img[8, 12].mean()  # the ball, centred, lit
+    out = tmp_path / "f.png"
+    res = whitted("info", path)
+    assert res.returncode == 0 and "Traceback" not in res.stderr and "metersPerUnit: 0.5" in res.stdout
+    res = whitted("render", path, "-o", out, "--width", 24, "--quiet")
+    assert res.returncode == 0 and "Traceback" not in res.stderr, res.stderr
+
+
+def _lifted(scene):
+    """z of the quad's two far corners (y = +1) and two near ones, from the scene's vertices."""
+    v = np.unique(np.round(scene.vertices, 5), axis=0)
+    return v[v[:, 1] > 0][:, 2], v[v[:, 1] < 0][:, 2]
+
+
+@pytest.mark.parametrize("time,want", [(0.0, 0.0), (0.5, 0.5), (1.0, 1.0)])
+def test_blend_shape_without_joint_influences(time, want):
+    """No traceback from ComputeJointInfluences: the blend shape alone deforms the quad by weight × offset."""
+    scene, info = load_stage(blend_shape_stage(), time=time, width=8, height=8, complexity="low")
+    far, near = _lifted(scene)
+    np.testing.assert_allclose(far, want, atol=1e-5)
+    np.testing.assert_allclose(near, 0.0, atol=1e-5)
+    assert not any("rest" in w for w in info.warnings), info.warnings
+
+
+def test_blend_shape_inbetween_and_skinning_compose():
+    """Inbetween at 0.5 lifts by its own 0.8 (UsdSkel's piecewise-linear sub-shapes); with a joint that moves
+    (0, 3, 0) the shape is applied first, then the skinning."""
+    scene, _ = load_stage(blend_shape_stage(inbetween=True), time=0.5, width=8, height=8, complexity="low")
+    far, _near = _lifted(scene)
+    np.testing.assert_allclose(far, 0.8, atol=1e-5)
+    scene, info = load_stage(blend_shape_stage(with_joints=True), time=1.0, width=8, height=8, complexity="low")
+    v = np.unique(np.round(scene.vertices, 5), axis=0)
+    want = np.array([(-1, -1, 0), (1, -1, 0), (1, 1, 1), (-1, 1, 1)], float) + [0, 3, 0]
+    np.testing.assert_allclose(v, np.unique(want, axis=0), atol=1e-5)
+
+
+def test_blend_shape_frames_differ_in_the_picture():
+    """The camera looks along +y at the quad edge-on: lifted at frame 1 it turns towards the camera and covers
+    rows of the picture it did not."""
+    cover = []
+    for t in (0.0, 1.0):
+        scene, _ = load_stage(blend_shape_stage(), time=t, width=32, height=24, complexity="low")
+        img = render(scene, RenderSettings(width=32, height=24, samples=1)).rgb
+        cover.append(int((np.abs(img - img[0, 0]).max(axis=2) > 0.02).sum()))
+    assert cover[1] > cover[0] + 60, cover
+
+
+def _lit_quad(**inputs):
+    s = new_stage()
+    add_camera(s, eye=(0, 0, 10))
+    sun = UsdLux.DistantLight.Define(s, "/Sun")
+    sun.CreateIntensityAttr(2.0)
+    sun.CreateNormalizeAttr(True)  # irradiance = intensity
+    q = quad(s, "/Q", half=3.0)
+    bind(q, preview_material(s, "/M", diffuseColor=(0.8, 0.4, 0.2), **inputs))
+    return s
+
+
+def test_preview_surface_out_of_range_is_clamped_not_refused():
+    """roughness 1.05 and metallic -0.2 render as 1 and 0, one warning per material and input."""
+    scene, info = load_stage(_lit_quad(roughness=1.05, metallic=-0.2), width=16, height=12)
+    ref, _ = load_stage(_lit_quad(roughness=1.0, metallic=0.0), width=16, height=12)
+    got = [w for w in info.warnings if "outside the UsdPreviewSurface range" in w]
+    assert len(got) == 2 and any("roughness 1.05" in w for w in got) and any("metallic -0.2" in w for w in got)
+    a = render(scene, RenderSettings(width=16, height=12, samples=1)).rgb
+    b = render(ref, RenderSettings(width=16, height=12, samples=1)).rgb
+    assert a[6, 8].max() > 0.1
+    np.testing.assert_array_equal(a, b)

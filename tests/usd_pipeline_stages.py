@@ -1,0 +1,112 @@
+"""Stages for tests/test_usd_pipeline.py (issue #21): the patterns third-party pipelines write, built with pxr."""
+
+from __future__ import annotations
+
+import struct
+
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, UsdSkel
+
+
+def new_stage(up="Z"):
+    s = Usd.Stage.CreateInMemory()
+    UsdGeom.SetStageUpAxis(s, up)
+    return s
+
+
+def add_camera(stage, path="/Cam", eye=(0, 0, 10), h=3.6, v=2.4, focal=5.0, rotate_x=0.0):
+    """A perspective camera at ``eye`` looking down −z, turned ``rotate_x`` degrees about x (90: looking +y)."""
+    cam = UsdGeom.Camera.Define(stage, path)
+    cam.CreateFocalLengthAttr(focal)
+    cam.CreateHorizontalApertureAttr(h)
+    cam.CreateVerticalApertureAttr(v)
+    cam.AddTranslateOp().Set(Gf.Vec3d(*eye))
+    if rotate_x:
+        cam.AddRotateXOp().Set(rotate_x)
+    return cam
+
+
+def quad(stage, path, z=0.0, half=1.0):
+    m = UsdGeom.Mesh.Define(stage, path)
+    m.CreatePointsAttr([(-half, -half, z), (half, -half, z), (half, half, z), (-half, half, z)])
+    m.CreateFaceVertexCountsAttr([4])
+    m.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
+    m.CreateSubdivisionSchemeAttr("none")
+    return m
+
+
+def float_meters_per_unit_usdc(path, value=0.5):
+    """A .usdc whose ``metersPerUnit`` is a ``float`` (as tinyusdz writes it): pxr writes a double that a float
+    represents exactly inline in the value rep; the rep's type byte is turned from Double (9) to Float (8)."""
+    s = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(s, "Z")
+    UsdGeom.SetStageMetersPerUnit(s, value)
+    UsdGeom.Sphere.Define(s, "/Ball")
+    add_camera(s)
+    s.GetRootLayer().Save()
+    bits = struct.unpack("<I", struct.pack("<f", value))[0]
+    as_double = struct.pack("<Q", (1 << 62) | (9 << 48) | bits)
+    as_float = struct.pack("<Q", (1 << 62) | (8 << 48) | bits)
+    data = open(path, "rb").read()
+    assert data.count(as_double) == 1
+    open(path, "wb").write(data.replace(as_double, as_float))
+    return path
+
+
+def blend_shape_stage(with_joints=False, inbetween=False):
+    """A unit quad in a SkelRoot with one blend shape ``up`` lifting points 2 and 3 by (0, 0, 1); the animation's
+    weight is 0 at time 0 and 1 at time 1. No joint influences unless ``with_joints``. ``inbetween``: an
+    inbetween at weight 0.5 lifting them by 0.8 (so weight 0.5 lifts by 0.8, not 0.5)."""
+    s = new_stage()
+    add_camera(s, eye=(0, -8, 0.5), rotate_x=90.0)  # looking +y at the quad's edge
+    root = UsdSkel.Root.Define(s, "/Root")
+    skel = UsdSkel.Skeleton.Define(s, "/Root/Skel")
+    anim = UsdSkel.Animation.Define(s, "/Root/Skel/Anim")
+    if with_joints:
+        skel.CreateJointsAttr(["j"])
+        skel.CreateBindTransformsAttr([Gf.Matrix4d(1)])
+        skel.CreateRestTransformsAttr([Gf.Matrix4d(1)])
+        anim.CreateJointsAttr(["j"])
+        anim.CreateTranslationsAttr().Set([Gf.Vec3f(0, 3, 0)])
+        anim.CreateRotationsAttr().Set([Gf.Quatf(1, 0, 0, 0)])
+        anim.CreateScalesAttr().Set([Gf.Vec3h(1, 1, 1)])
+    else:
+        skel.CreateJointsAttr([])
+    anim.CreateBlendShapesAttr(["up"])
+    w = anim.CreateBlendShapeWeightsAttr()
+    w.Set([0.0], 0.0)
+    w.Set([1.0], 1.0)
+    UsdSkel.BindingAPI.Apply(skel.GetPrim()).CreateAnimationSourceRel().SetTargets([anim.GetPath()])
+    mesh = quad(s, "/Root/M")
+    binding = UsdSkel.BindingAPI.Apply(mesh.GetPrim())
+    binding.CreateSkeletonRel().SetTargets([skel.GetPath()])
+    binding.CreateBlendShapesAttr(["up"])
+    shape = UsdSkel.BlendShape.Define(s, "/Root/M/up")
+    shape.CreateOffsetsAttr([Gf.Vec3f(0, 0, 1), Gf.Vec3f(0, 0, 1)])
+    shape.CreatePointIndicesAttr([2, 3])
+    if inbetween:
+        ib = shape.CreateInbetween("half")
+        ib.SetWeight(0.5)
+        ib.SetOffsets([Gf.Vec3f(0, 0, 0.8), Gf.Vec3f(0, 0, 0.8)])
+    binding.CreateBlendShapeTargetsRel().SetTargets([shape.GetPath()])
+    if with_joints:
+        binding.CreateJointIndicesPrimvar(constant=True, elementSize=1).Set([0])
+        binding.CreateJointWeightsPrimvar(constant=True, elementSize=1).Set([1.0])
+        binding.CreateGeomBindTransformAttr(Gf.Matrix4d(1))
+    assert root
+    return s
+
+
+def preview_material(stage, path, **inputs):
+    """A Material with a UsdPreviewSurface whose inputs are ``inputs`` (floats or 3-tuples)."""
+    mat = UsdShade.Material.Define(stage, path)
+    sh = UsdShade.Shader.Define(stage, f"{path}/Surface")
+    sh.CreateIdAttr("UsdPreviewSurface")
+    for name, v in inputs.items():
+        typ = Sdf.ValueTypeNames.Color3f if isinstance(v, tuple) else Sdf.ValueTypeNames.Float
+        sh.CreateInput(name, typ).Set(Gf.Vec3f(*v) if isinstance(v, tuple) else v)
+    mat.CreateSurfaceOutput().ConnectToSource(sh.ConnectableAPI(), "surface")
+    return mat
+
+
+def bind(prim, mat):
+    UsdShade.MaterialBindingAPI.Apply(prim.GetPrim() if hasattr(prim, "GetPrim") else prim).Bind(mat)
