@@ -10,7 +10,9 @@ from pxr import Gf, UsdGeom, UsdLux
 from tracer import RenderSettings, read_image, render
 from usd_io import load_stage
 
+import usd_pipeline_stages as st
 from test_cli import whitted
+from test_usd_reader import usd_pixel
 from usd_pipeline_stages import (add_camera, bind, blend_shape_stage, float_meters_per_unit_usdc, new_stage,
                                  preview_material, quad)
 
@@ -90,3 +92,42 @@ def test_preview_surface_out_of_range_is_clamped_not_refused():
     b = render(ref, RenderSettings(width=16, height=12, samples=1)).rgb
     assert a[6, 8].max() > 0.1
     np.testing.assert_array_equal(a, b)
+
+
+# ---------------------------------------------------------------- instancing, every combination
+def _cube_centres(scene):
+    from tracer.instances import flatten
+
+    f = flatten(scene)
+    c = f.vertices[f.triangles].reshape(-1, 36, 3).mean(axis=1)  # 12 triangles per cube
+    return sorted(map(tuple, np.round(c, 4).tolist()))
+
+
+def test_prototypes_under_an_over_are_drawn_through_the_instancer():
+    s = st.instancer_under_over()
+    add_camera(s, eye=(1.5, 0, 12))
+    scene, info = load_stage(s, width=48, height=32)
+    assert _cube_centres(scene) == [(0, 0, 0), (3, 0, 0)]
+    img = render(scene, RenderSettings(width=48, height=32, samples=1)).rgb
+    cam = s.GetPrimAtPath("/Cam")
+    for x in (0.0, 3.0):  # both cubes are in the picture where pxr's frustum puts them
+        px, py = np.round(usd_pixel(cam, (x, 0, 0.5), 48, 32)).astype(int)
+        assert np.abs(img[py, px] - img[0, 0]).max() > 0.05
+
+
+def test_instancer_of_instancers():
+    scene, _ = load_stage(st.nested_instancers(), width=16)
+    want = [(x, y, 1.0) for x in (0, 2, 4) for y in (0, 5)]
+    assert _cube_centres(scene) == sorted(want)
+
+
+def test_native_instances_holding_an_instancer():
+    scene, _ = load_stage(st.native_instance_of_instancer(), width=16)
+    assert _cube_centres(scene) == sorted((x, y, 0.0) for x in (0, 2) for y in (0, 4))
+
+
+@pytest.mark.parametrize("time,far", [(0.0, 20), (1.0, 30)])
+def test_deep_mixed_instancing_with_ids_invisible_ids_and_time_samples(time, far):
+    scene, info = load_stage(st.deep_mixed_instancing(), width=16, time=time)
+    want = [(ox + x, y, 0.0) for ox in (0, far) for x in (0, 4) for y in (0, 10)]  # id 8 (x = 2) invisible
+    assert _cube_centres(scene) == sorted(want)

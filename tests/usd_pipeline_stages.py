@@ -110,3 +110,87 @@ def preview_material(stage, path, **inputs):
 
 def bind(prim, mat):
     UsdShade.MaterialBindingAPI.Apply(prim.GetPrim() if hasattr(prim, "GetPrim") else prim).Bind(mat)
+
+
+# ---------------------------------------------------------------- instancing patterns
+def point_instancer(stage, path, protos, positions, indices=None, **attrs):
+    """A PointInstancer at ``path`` over prototype paths ``protos`` at ``positions`` (prototype 0 unless
+    ``indices``); ``attrs``: ids, invisibleIds, ..."""
+    pi = UsdGeom.PointInstancer.Define(stage, path)
+    pi.CreatePrototypesRel().SetTargets([Sdf.Path(p) for p in protos])
+    pi.CreateProtoIndicesAttr([0] * len(positions) if indices is None else indices)
+    pi.CreatePositionsAttr([Gf.Vec3f(*p) for p in positions])
+    for k, v in attrs.items():
+        getattr(pi, f"Create{k}Attr")(v)
+    return pi
+
+
+def cube(stage, path, size=1.0):
+    c = UsdGeom.Cube.Define(stage, path)
+    c.CreateSizeAttr(size)
+    return c
+
+
+def instancer_under_over():
+    """Prototypes under an ``over`` (not drawn on their own): two unit cubes at x = 0 and 3."""
+    s = new_stage()
+    point_instancer(s, "/PI", ["/Protos/Box"], [(0, 0, 0), (3, 0, 0)])
+    cube(s, "/Protos/Box")
+    s.GetPrimAtPath("/Protos").SetSpecifier(Sdf.SpecifierOver)  # Define wrote a def for the parent
+    return s
+
+
+def nested_instancers():
+    """An instancer whose prototype is an instancer (3 cubes along x, 2 apart), itself placed at y = 0 and 5 and
+    the outer moved to z = 1: 6 cubes."""
+    s = new_stage()
+    outer = point_instancer(s, "/Outer", ["/Outer/Protos/Inner"], [(0, 0, 0), (0, 5, 0)])
+    UsdGeom.Xformable(outer).AddTranslateOp().Set(Gf.Vec3d(0, 0, 1))
+    UsdGeom.Scope.Define(s, "/Outer/Protos")
+    point_instancer(s, "/Outer/Protos/Inner", ["/Outer/Protos/Inner/P/Box"], [(0, 0, 0), (2, 0, 0), (4, 0, 0)])
+    UsdGeom.Scope.Define(s, "/Outer/Protos/Inner/P")
+    cube(s, "/Outer/Protos/Inner/P/Box")
+    return s
+
+
+def native_instance_of_instancer():
+    """Two native instances (at y = 0 and 4) of an asset that holds an instancer of two cubes (x = 0 and 2)."""
+    s = new_stage()
+    asset = s.CreateClassPrim("/Asset")
+    point_instancer(s, "/Asset/PI", ["/Asset/PI/P/Box"], [(0, 0, 0), (2, 0, 0)])
+    UsdGeom.Scope.Define(s, "/Asset/PI/P")
+    cube(s, "/Asset/PI/P/Box")
+    for name, y in (("A", 0), ("B", 4)):
+        x = UsdGeom.Xform.Define(s, f"/{name}")
+        x.GetPrim().GetInherits().AddInherit(asset.GetPath())
+        x.GetPrim().SetInstanceable(True)
+        x.AddTranslateOp().Set(Gf.Vec3d(0, y, 0))
+    return s
+
+
+def deep_mixed_instancing():
+    """Every pattern at once, three levels deep, animated:
+    native instances /I0 (y = 0) and /I1 (y = 10) of /Asset, which holds PointInstancer /Asset/Outer (positions
+    time-sampled: x = 0 and 20 at time 0, x = 0 and 30 at time 1) whose prototype is an instanceable prim
+    /Asset/Outer/Protos/Row (under an ``over``) referencing /RowAsset: a PointInstancer of cubes at x = 0, 2, 4
+    with ids [7, 8, 9] and invisibleIds [8]. Cubes: 2 natives × 2 outer × 2 visible = 8."""
+    s = new_stage()
+    row = s.CreateClassPrim("/RowAsset")
+    point_instancer(s, "/RowAsset/Inner", ["/RowAsset/Inner/P/Box"], [(0, 0, 0), (2, 0, 0), (4, 0, 0)],
+                    Ids=[7, 8, 9], InvisibleIds=[8])
+    UsdGeom.Scope.Define(s, "/RowAsset/Inner/P")
+    cube(s, "/RowAsset/Inner/P/Box")
+    asset = s.CreateClassPrim("/Asset")
+    outer = point_instancer(s, "/Asset/Outer", ["/Asset/Outer/Protos/Row"], [(0, 0, 0), (20, 0, 0)])
+    outer.GetPositionsAttr().Set([Gf.Vec3f(0, 0, 0), Gf.Vec3f(20, 0, 0)], 0.0)
+    outer.GetPositionsAttr().Set([Gf.Vec3f(0, 0, 0), Gf.Vec3f(30, 0, 0)], 1.0)
+    r = UsdGeom.Xform.Define(s, "/Asset/Outer/Protos/Row").GetPrim()
+    r.GetInherits().AddInherit(row.GetPath())
+    r.SetInstanceable(True)
+    s.GetPrimAtPath("/Asset/Outer/Protos").SetSpecifier(Sdf.SpecifierOver)
+    for name, y in (("I0", 0), ("I1", 10)):
+        x = UsdGeom.Xform.Define(s, f"/{name}")
+        x.GetPrim().GetInherits().AddInherit(asset.GetPath())
+        x.GetPrim().SetInstanceable(True)
+        x.AddTranslateOp().Set(Gf.Vec3d(0, y, 0))
+    return s

@@ -120,9 +120,12 @@ def renderable_prims(stage: Usd.Stage, time: Usd.TimeCode, purposes=DEFAULT_PURP
     """Yield prims (of the stage, or of the subtree at ``root``, root included) to convert: active, defined, non-abstract, visible at ``time``, of a wanted purpose.
 
     Subtrees are pruned at the first invisible prim, at prims of an unwanted purpose and below PointInstancers
-    (their prototypes are drawn only through the instancer). Instance proxies are included.
+    (their prototypes are drawn only through the instancer). Instance proxies are included. Under a ``root`` (a
+    PointInstancer's prototype) a ``def`` counts even when an ancestor is an ``over``: prototypes kept under an
+    ``over`` so that they do not render on their own are drawn through their instancer, as Hydra draws them.
     """
-    predicate = Usd.TraverseInstanceProxies(Usd.PrimIsActive & Usd.PrimIsDefined & ~Usd.PrimIsAbstract)
+    defined = Usd.PrimIsDefined if root is None else Usd.PrimHasDefiningSpecifier
+    predicate = Usd.TraverseInstanceProxies(Usd.PrimIsActive & defined & ~Usd.PrimIsAbstract)
     it = iter(Usd.PrimRange(root if root is not None else stage.GetPseudoRoot(), predicate))
     if root is None:
         next(it)  # the pseudo-root
