@@ -131,3 +131,54 @@ def test_deep_mixed_instancing_with_ids_invisible_ids_and_time_samples(time, far
     scene, info = load_stage(st.deep_mixed_instancing(), width=16, time=time)
     want = [(ox + x, y, 0.0) for ox in (0, far) for x in (0, 4) for y in (0, 10)]  # id 8 (x = 2) invisible
     assert _cube_centres(scene) == sorted(want)
+
+
+# ---------------------------------------------------------------- NURBS, tetrahedra
+def _centre_pixel_hits(stage, w=40, h=30):
+    scene, info = load_stage(stage, width=w, height=h)
+    img = render(scene, RenderSettings(width=w, height=h, samples=1)).rgb
+    return np.abs(img[h // 2, w // 2] - img[0, 0]).max() > 0.05, scene, info
+
+
+def _looking_at_the_arc(stage):
+    add_camera(stage, eye=(6, 6, 1.5), rotate_z=135.0, rotate_x=90.0)  # looks along (−1, −1, 0) at (√2, √2, 1.5)
+    return stage
+
+
+def test_rational_nurbs_patch_is_an_exact_circular_arc_and_is_drawn():
+    s = _looking_at_the_arc(st.nurbs_patch_stage(weights=(1, 0.5 ** 0.5, 1)))
+    hit, scene, info = _centre_pixel_hits(s)
+    r = np.hypot(scene.vertices[:, 0], scene.vertices[:, 1])
+    np.testing.assert_allclose(r, 2.0, atol=1e-9)  # rational quadratic: exactly the circle (non-rational bulges)
+    assert scene.vertices[:, 2].min() == 0 and scene.vertices[:, 2].max() == 3
+    assert hit and not any("not supported" in w for w in info.warnings), info.warnings
+
+
+def test_nurbs_patch_trim_loop_cuts_a_hole():
+    """An inner trim loop (0.25..0.75)² removes the middle: the centre ray passes through the hole."""
+    s = _looking_at_the_arc(st.nurbs_patch_stage(weights=(1, 0.5 ** 0.5, 1), trim_hole=True))
+    hit, scene, _ = _centre_pixel_hits(s)
+    assert not hit
+    full, _ = load_stage(st.nurbs_patch_stage(weights=(1, 0.5 ** 0.5, 1)), width=8)
+    assert 0.7 < len(scene.triangles) / len(full.triangles) < 0.8  # a quarter of the square (grid-cell precision)
+
+
+def test_nurbs_curve_is_a_tube_of_its_width():
+    s = st.nurbs_curve_stage(width=0.4)
+    add_camera(s, eye=(3, 0, 10))
+    scene, info = load_stage(s, width=60, height=40)
+    lo, hi = scene.vertices.min(axis=0), scene.vertices.max(axis=0)
+    np.testing.assert_allclose([lo, hi], [[0, -0.2, -0.2], [6, 0.2, 0.2]], atol=1e-9)
+    img = render(scene, RenderSettings(width=60, height=40, samples=1)).rgb
+    cam = s.GetPrimAtPath("/Cam")
+    on = np.round(usd_pixel(cam, (3, 0, 0.2), 60, 40)).astype(int)
+    off = np.round(usd_pixel(cam, (3, 0.6, 0), 60, 40)).astype(int)
+    assert np.abs(img[on[1], on[0]] - img[0, 0]).max() > 0.05
+    assert np.abs(img[off[1], off[0]] - img[0, 0]).max() < 1e-3
+
+
+def test_tet_mesh_renders_its_surface_faces():
+    s = st.tet_stage()
+    add_camera(s, eye=(0.4, 0.4, 8))
+    hit, scene, _ = _centre_pixel_hits(s)
+    assert hit and len(scene.triangles) == 6  # the shared face is inside

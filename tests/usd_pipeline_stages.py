@@ -13,13 +13,16 @@ def new_stage(up="Z"):
     return s
 
 
-def add_camera(stage, path="/Cam", eye=(0, 0, 10), h=3.6, v=2.4, focal=5.0, rotate_x=0.0):
-    """A perspective camera at ``eye`` looking down −z, turned ``rotate_x`` degrees about x (90: looking +y)."""
+def add_camera(stage, path="/Cam", eye=(0, 0, 10), h=3.6, v=2.4, focal=5.0, rotate_x=0.0, rotate_z=0.0):
+    """A perspective camera at ``eye`` looking down −z, turned ``rotate_x`` degrees about x (90: looking +y), then
+    ``rotate_z`` about z."""
     cam = UsdGeom.Camera.Define(stage, path)
     cam.CreateFocalLengthAttr(focal)
     cam.CreateHorizontalApertureAttr(h)
     cam.CreateVerticalApertureAttr(v)
     cam.AddTranslateOp().Set(Gf.Vec3d(*eye))
+    if rotate_z:
+        cam.AddRotateZOp().Set(rotate_z)
     if rotate_x:
         cam.AddRotateXOp().Set(rotate_x)
     return cam
@@ -193,4 +196,61 @@ def deep_mixed_instancing():
         x.GetPrim().GetInherits().AddInherit(asset.GetPath())
         x.GetPrim().SetInstanceable(True)
         x.AddTranslateOp().Set(Gf.Vec3d(0, y, 0))
+    return s
+
+
+# ---------------------------------------------------------------- NURBS and tetrahedra
+def nurbs_patch_stage(weights=None, trim_hole=False):
+    """A bilinear-in-v, quadratic-in-u NurbsPatch. With ``weights`` (1, √½, 1) on its u rows the u direction is an
+    exact quarter circle of radius 2 about the z axis (the classic rational quadratic arc), swept from z = 0 to 3:
+    every point of the surface is at distance 2 from the axis. ``trim_hole``: an outer loop around the whole
+    parameter square and an inner square loop (0.25..0.75)² (a hole) as linear trim curves."""
+    s = new_stage()
+    patch = UsdGeom.NurbsPatch.Define(s, "/Patch")
+    arc = [(2, 0), (2, 2), (0, 2)]
+    pts = [(x, y, z) for z in (0.0, 3.0) for (x, y) in arc]  # u fastest
+    patch.CreatePointsAttr(pts)
+    patch.CreateUVertexCountAttr(3)
+    patch.CreateVVertexCountAttr(2)
+    patch.CreateUOrderAttr(3)
+    patch.CreateVOrderAttr(2)
+    patch.CreateUKnotsAttr([0, 0, 0, 1, 1, 1])
+    patch.CreateVKnotsAttr([0, 0, 1, 1])
+    patch.CreateURangeAttr(Gf.Vec2d(0, 1))
+    patch.CreateVRangeAttr(Gf.Vec2d(0, 1))
+    if weights is not None:
+        patch.CreatePointWeightsAttr(list(weights) * 2)
+    if trim_hole:
+        outer = [(0, 0), (1, 0), (1, 1), (0, 1), (0, 0)]
+        inner = [(0.25, 0.25), (0.75, 0.25), (0.75, 0.75), (0.25, 0.75), (0.25, 0.25)]
+        patch.CreateTrimCurveCountsAttr([1, 1])
+        patch.CreateTrimCurveOrdersAttr([2, 2])
+        patch.CreateTrimCurveVertexCountsAttr([5, 5])
+        knots = [0, 0, 1, 2, 3, 4, 4]
+        patch.CreateTrimCurveKnotsAttr(knots + knots)
+        patch.CreateTrimCurveRangesAttr([Gf.Vec2d(0, 4), Gf.Vec2d(0, 4)])
+        patch.CreateTrimCurvePointsAttr([Gf.Vec3d(u, v, 1) for u, v in outer + inner])
+    return s
+
+
+def nurbs_curve_stage(width=0.4):
+    """One cubic NurbsCurve whose control polygon is a straight line along x from 0 to 6, width ``width``."""
+    s = new_stage()
+    nc = UsdGeom.NurbsCurves.Define(s, "/Curve")
+    nc.CreatePointsAttr([(0, 0, 0), (2, 0, 0), (4, 0, 0), (6, 0, 0)])
+    nc.CreateCurveVertexCountsAttr([4])
+    nc.CreateOrderAttr([4])
+    nc.CreateKnotsAttr([0, 0, 0, 0, 1, 1, 1, 1])
+    nc.CreateRangesAttr([Gf.Vec2d(0, 1)])
+    nc.CreateWidthsAttr([width])
+    nc.SetWidthsInterpolation("constant")
+    return s
+
+
+def tet_stage():
+    """Two tetrahedra sharing a face: the surface is the 6 outer faces (the shared one is inside)."""
+    s = new_stage()
+    tm = UsdGeom.TetMesh.Define(s, "/Tets")
+    tm.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 1)])
+    tm.CreateTetVertexIndicesAttr([Gf.Vec4i(0, 1, 2, 3), Gf.Vec4i(1, 2, 3, 4)])
     return s

@@ -49,6 +49,20 @@ def read_points(prim, time) -> MeshData | None:
     return MeshData(verts, tris[keep], np.zeros(int(keep.sum()), np.int64), 1, normals=normals)
 
 
+def curve_widths(schema, time, n_points, n_curves, label):
+    """Control-point widths (P,) of a curves prim: per point as authored (vertex/varying with one value per point),
+    per curve repeated over its points, else the first value everywhere; None when unauthored."""
+    w = _widths(schema, time, n_points, label, "curve")
+    if w is None:
+        return None
+    if len(w) == n_points:
+        return w
+    counts = np.asarray(schema.GetCurveVertexCountsAttr().Get(time), np.int64)
+    if len(w) == n_curves and len(counts) == n_curves:
+        return np.repeat(w, counts)
+    return np.full(n_points, w[0])
+
+
 def read_curves(prim, time) -> MeshData | None:
     label = str(prim.GetPath())
     curves = UsdGeom.BasisCurves(prim)
@@ -65,6 +79,16 @@ def read_curves(prim, time) -> MeshData | None:
         warnings.append(f"{label}: cubic {curves.GetBasisAttr().Get(time)} curves drawn as tubes along their "
                         "control polygon")
     periodic = curves.GetWrapAttr().Get(time) == UsdGeom.Tokens.periodic
+    data = tube_mesh(p, counts, curve_widths(curves, time, len(p), len(counts), label), periodic)
+    if data is not None:
+        data.warnings = warnings
+    return data
+
+
+def tube_mesh(p: np.ndarray, counts: np.ndarray, widths, periodic: bool) -> MeshData | None:
+    """Polylines (points ``p`` (P, 3), ``counts`` points per curve) as TUBE_SIDES-sided tubes whose diameter at each
+    point is ``widths`` (P,) (None: 1 unit); a segment's radius is the mean of its ends'. ``periodic`` closes each
+    curve. No Python loop over segments."""
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
     curve_of_point = np.repeat(np.arange(len(counts)), counts)
     a = np.arange(len(p))
@@ -79,15 +103,10 @@ def read_curves(prim, time) -> MeshData | None:
         seg = np.stack([a, nxt], 1)[~is_last]
     if not len(seg):
         return None
-    w = _widths(curves, time, len(p), label, "curve")
-    if w is None:
+    if widths is None:
         r = np.full(len(seg), 0.5)
-    elif len(w) == len(p):
-        r = (w[seg[:, 0]] + w[seg[:, 1]]) / 4
-    elif len(w) == len(counts):
-        r = w[curve_of_point[seg[:, 0]]] / 2
     else:
-        r = np.full(len(seg), w[0] / 2)
+        r = (widths[seg[:, 0]] + widths[seg[:, 1]]) / 4
     p0, p1 = p[seg[:, 0]], p[seg[:, 1]]
     d = p1 - p0
     length = np.linalg.norm(d, axis=1)
@@ -110,4 +129,4 @@ def read_curves(prim, time) -> MeshData | None:
     n_seg = len(p0)
     tris = (quad[None] + (np.arange(n_seg) * 2 * TUBE_SIDES)[:, None, None]).reshape(-1, 3)
     return MeshData(verts.reshape(-1, 3), tris, np.zeros(len(tris), np.int64), 1,
-                    normals=normals.reshape(-1, 3), warnings=warnings)
+                    normals=normals.reshape(-1, 3))

@@ -25,6 +25,7 @@ from .dome import environment
 from .layer_metadata import meters_per_unit
 from .lights import blender_authored, convert_light, default_lights
 from .material import MaterialTable
+from .nurbs import read_nurbs_curves, read_nurbs_patch, read_tet_mesh
 from .mesh import COMPLEXITY, DEFAULT_COMPLEXITY, SUBDIVIDED, MeshData, read_mesh
 from .skel import Skinning
 from .stage import (DEFAULT_PURPOSES, _first_reason, captured_stderr, UsdInputError, check_purposes, composition_warnings, open_stage,
@@ -82,6 +83,12 @@ class _Reader:
                 data = read_points(prim, self.time)
             elif prim.IsA(UsdGeom.BasisCurves):
                 data = read_curves(prim, self.time)
+            elif prim.IsA(UsdGeom.NurbsCurves):
+                data = read_nurbs_curves(prim, self.time)
+            elif prim.IsA(UsdGeom.NurbsPatch):
+                data = read_nurbs_patch(prim, self.time)
+            elif prim.IsA(UsdGeom.TetMesh):
+                data = read_tet_mesh(prim, self.time)
             else:
                 data = read_gprim(prim, self.time, self.segments)
         except ValueError as exc:
@@ -256,7 +263,12 @@ def select_variant(stage, prim_path: str, vset: str, value: str) -> None:
 
 
 def _is_points_or_curves(prim) -> bool:
-    return prim.IsA(UsdGeom.Points) or prim.IsA(UsdGeom.BasisCurves)
+    """Gprims drawn through a reader of their own (points, curves, NURBS, tetrahedral meshes)."""
+    return any(prim.IsA(t) for t in OTHER_GPRIMS)
+
+
+#: Gprim schemas besides Mesh and the implicit shapes of usd_io.gprims, each with its reader in geometry().
+OTHER_GPRIMS = (UsdGeom.Points, UsdGeom.BasisCurves, UsdGeom.NurbsCurves, UsdGeom.NurbsPatch, UsdGeom.TetMesh)
 
 
 def _usable(m: np.ndarray) -> np.ndarray:
