@@ -182,3 +182,32 @@ def test_tet_mesh_renders_its_surface_faces():
     add_camera(s, eye=(0.4, 0.4, 8))
     hit, scene, _ = _centre_pixel_hits(s)
     assert hit and len(scene.triangles) == 6  # the shared face is inside
+
+
+# ---------------------------------------------------------------- texture paths
+def _emission_image(path, w=32, h=32):
+    scene, info = load_stage(path, width=w, height=h, default_light=False)
+    return render(scene, RenderSettings(width=w, height=h, samples=1)).rgb, info
+
+
+def test_udim_tiles_land_where_their_numbers_say(tmp_path):
+    """uv spans [0, 2] × [0, 2]: tiles 1001 (red, lower left), 1002 (green, lower right), 1011 (blue, upper left);
+    1012 is missing and reads the fallback (black)."""
+    path = st.emissive_texture_quad(str(tmp_path), "./tex/paint.<UDIM>.png", ((0, 0), (2, 0), (2, 2), (0, 2)),
+                                    {"tex/paint.1001.png": (255, 0, 0), "tex/paint.1002.png": (0, 255, 0),
+                                     "tex/paint.1011.png": (0, 0, 255)})
+    img, info = _emission_image(path)
+    assert not any("UDIM" in w for w in info.warnings), info.warnings
+    quarters = {"lower left": img[24, 8], "lower right": img[24, 24], "upper left": img[8, 8], "upper right": img[8, 24]}
+    np.testing.assert_allclose(quarters["lower left"], (1, 0, 0), atol=1e-3)
+    np.testing.assert_allclose(quarters["lower right"], (0, 1, 0), atol=1e-3)
+    np.testing.assert_allclose(quarters["upper left"], (0, 0, 1), atol=1e-3)
+    np.testing.assert_allclose(quarters["upper right"], (0, 0, 0), atol=1e-3)
+
+
+def test_windows_backslash_texture_path_is_found(tmp_path):
+    path = st.emissive_texture_quad(str(tmp_path), "textures\\green.png", ((0, 0), (1, 0), (1, 1), (0, 1)),
+                                    {"textures/green.png": (0, 255, 0)})
+    img, info = _emission_image(path)
+    np.testing.assert_allclose(img[16, 16], (0, 1, 0), atol=1e-3)
+    assert any("backslash" in w for w in info.warnings)

@@ -254,3 +254,28 @@ def tet_stage():
     tm.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 1)])
     tm.CreateTetVertexIndicesAttr([Gf.Vec4i(0, 1, 2, 3), Gf.Vec4i(1, 2, 3, 4)])
     return s
+
+
+# ---------------------------------------------------------------- texture paths
+def emissive_texture_quad(d, file_path, uvs, tiles):
+    """An emissive quad (2 × 2 units, seen by an orthographic camera that fills the frame with it) whose emission is
+    a UsdUVTexture reading ``file_path``; ``tiles`` maps relative file names to a flat 8-bit RGB colour, written as
+    4 × 4 PNGs. Returns the stage's path."""
+    import os
+
+    import numpy as np
+
+    import usd_material_stages as ms
+
+    for name, rgb in tiles.items():
+        os.makedirs(os.path.dirname(os.path.join(d, name)) or d, exist_ok=True)
+        ms.write_png(os.path.join(d, name), np.tile(np.asarray(rgb, np.uint8), (4, 4, 1)))
+    s = ms.new_stage(os.path.join(d, "stage.usda"))
+    ms.camera(s, ortho=True)
+    q = ms.quad(s, uvs=uvs)
+    mat, ps = ms.preview(s)
+    ps.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(0, 0, 0))
+    tex = ms.uv_texture(s, "/Looks/M", "Tex", file_path, st_reader="st", sourceColorSpace="raw")
+    ms.connect(ps, "emissiveColor", Sdf.ValueTypeNames.Color3f, tex, "rgb")
+    ms.bind(q, mat)
+    return ms.save(s)

@@ -49,6 +49,7 @@ from pxr import UsdGeom, UsdShade
 from . import shade_network as net
 from .material_primvars import mesh_primvars
 from .preview_ranges import clamp_preview_inputs
+from .texture_assets import open_texture
 from .texture_files import TextureCache, resolve_wrap
 from .tracer_model import ModelWriter, TextureSpec
 
@@ -384,21 +385,14 @@ class MaterialTable:
         if asset is None or not asset.path:
             self.warn(f"{label}: {name} texture {lk.node!r} has no file; its fallback {lk.fallback} is used")
             return None, lk.fallback
-        if "<UDIM>" in asset.path:
-            self.warn(f"{label}: UDIM texture {asset.path!r} is not supported; {name} uses the fallback "
-                      f"{lk.fallback}")
-            return None, lk.fallback
-        if not asset.resolvedPath:
-            self.warn(f"{label}: texture {asset.path!r} not found; {name} uses the fallback {lk.fallback}")
-            return None, lk.fallback
         cs = lk.colorspace if lk.colorspace in ("sRGB", "raw") else "auto"
         if lk.colorspace not in ("sRGB", "raw", "auto"):
             self.warn(f"{lk.node}: unknown sourceColorSpace {lk.colorspace!r} (auto used)")
-        try:
-            f = self.files.get(asset.resolvedPath, cs, asset.path)
-        except ValueError as exc:
-            self.warn(f"{label}: {exc}; {name} uses the fallback {lk.fallback}")
+        got = open_texture(lk, cs, self.files, self.warn, label, name)  # UDIM sets, backslashes: texture_assets
+        if got is None:
             return None, lk.fallback
+        f, udim_m = got
+        lk.transform = udim_m @ lk.transform
         wrap_s = resolve_wrap(lk.wrap_s, f.wrap_meta[0], lk.node, self.warn)
         wrap_t = resolve_wrap(lk.wrap_t, f.wrap_meta[1], lk.node, self.warn)
         uv_set = self.uv_set_index(lk.uv)
