@@ -211,3 +211,62 @@ def test_windows_backslash_texture_path_is_found(tmp_path):
     img, info = _emission_image(path)
     np.testing.assert_allclose(img[16, 16], (0, 1, 0), atol=1e-3)
     assert any("backslash" in w for w in info.warnings)
+
+
+# ---------------------------------------------------------------- primvars: inheritance, interpolation
+@pytest.mark.parametrize("subdivided", [False, True])
+def test_display_color_on_an_ancestor_is_inherited(subdivided):
+    s = st.inherited_display_color(subdivided)
+    scene, info = load_stage(s, width=60, height=40)
+    img = render(scene, RenderSettings(width=60, height=40, samples=1)).rgb
+    cam = s.GetPrimAtPath("/Cam")
+    for p in ((0, 0, 0), (2.5, 0, 0.5)):  # the quad's centre, the ball's top
+        x, y = np.round(usd_pixel(cam, p, 60, 40)).astype(int)
+        c = img[y, x]
+        assert c[0] > 3 * c[1] and c[0] > 3 * c[2], (p, c)  # red-orange, not Hydra's grey
+
+
+def test_points_keep_their_per_point_colours():
+    """Not averaged to grey: each sphere shows its own point's colour, in the picture."""
+    for interpolation in ("vertex", "varying", "uniform"):
+        s = st.coloured_points(interpolation)
+        scene, info = load_stage(s, width=60, height=40)
+        assert not any("averaged" in w for w in info.warnings)
+        img = render(scene, RenderSettings(width=60, height=40, samples=1)).rgb
+        cam = s.GetPrimAtPath("/Cam")
+        for x_world, channel in ((-2, 0), (0, 1), (2, 2)):
+            x, y = np.round(usd_pixel(cam, (x_world, 0, 0.5), 60, 40)).astype(int)
+            c = img[y, x]
+            assert c[channel] > 0.1 and c[channel] > 5 * np.delete(c, channel).max(), (interpolation, x_world, c)
+
+
+@pytest.mark.parametrize("interpolation", ["vertex", "uniform"])
+def test_curves_keep_per_vertex_and_per_curve_colours(interpolation):
+    s = st.coloured_curves(interpolation)
+    scene, info = load_stage(s, width=60, height=40)
+    assert not any("averaged" in w for w in info.warnings)
+    # vertex: the tube's ring at a control point has that point's colour; uniform: each curve its own
+    want = {"vertex": {(-2, 0, 0): (1, 0, 0), (2, 2, 0): (0, 0, 1)},
+            "uniform": {(0, 0, 0): (1, 0, 0), (0, 2, 0): (0, 0, 1)}}[interpolation]
+    for p, c in want.items():
+        v = np.linalg.norm(scene.vertices - np.asarray(p, float), axis=1)
+        corner = np.isin(scene.triangles, np.flatnonzero(v < 0.3))
+        got = scene.colors[corner]
+        assert len(got) and np.allclose(got, c, atol=1e-6), (p, got[:2])
+
+
+def test_camera_clipping_plane_parallel_to_the_image_cuts_the_near_quad():
+    """Two quads facing the camera at depths 4 (red) and 8 (blue); a clipping plane (0, 0, −1, −6) keeps depth >= 6:
+    the centre pixel sees blue through where red was. An oblique plane warns."""
+    s = new_stage()
+    cam = add_camera(s, eye=(0, 0, 10))
+    for path, z, rgb in (("/Near", 6.0, (1, 0, 0)), ("/Far", 2.0, (0, 0, 1))):
+        q = quad(s, path, z=z, half=3.0)
+        q.CreateDisplayColorAttr([rgb])
+    scene, _ = load_stage(s, width=20, height=14)
+    before = render(scene, RenderSettings(width=20, height=14, samples=1)).rgb[7, 10]
+    cam.CreateClippingPlanesAttr([Gf.Vec4f(0, 0, -1, -6), Gf.Vec4f(0.5, 0, -1, -1)])
+    scene, info = load_stage(s, width=20, height=14)
+    after = render(scene, RenderSettings(width=20, height=14, samples=1)).rgb[7, 10]
+    assert before[0] > 5 * before[2] and after[2] > 5 * after[0], (before, after)
+    assert any("1 clipping plane(s) not parallel" in w for w in info.warnings)

@@ -279,3 +279,48 @@ def emissive_texture_quad(d, file_path, uvs, tiles):
     ms.connect(ps, "emissiveColor", Sdf.ValueTypeNames.Color3f, tex, "rgb")
     ms.bind(q, mat)
     return ms.save(s)
+
+
+# ---------------------------------------------------------------- primvars
+def inherited_display_color(subdivided=False):
+    """displayColor (0.9, 0.2, 0.1) authored only on the Xform /Group; a quad and a sphere below it."""
+    s = new_stage()
+    add_camera(s, eye=(0, 0, 10))
+    g = UsdGeom.Xform.Define(s, "/Group")
+    UsdGeom.PrimvarsAPI(g).CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray,
+                                         UsdGeom.Tokens.constant).Set([Gf.Vec3f(0.9, 0.2, 0.1)])
+    q = quad(s, "/Group/Quad", half=1.5)
+    q.CreateSubdivisionSchemeAttr("catmullClark" if subdivided else "none")
+    ball = UsdGeom.Sphere.Define(s, "/Group/Ball")
+    ball.AddTranslateOp().Set(Gf.Vec3d(2.5, 0, 0))
+    ball.CreateRadiusAttr(0.5)
+    return s
+
+
+def coloured_points(interpolation="vertex"):
+    """Three points of width 1 along x (x = −2, 0, 2), per-point displayColor red, green, blue."""
+    s = new_stage()
+    add_camera(s, eye=(0, 0, 10))
+    pts = UsdGeom.Points.Define(s, "/Points")
+    pts.CreatePointsAttr([(-2, 0, 0), (0, 0, 0), (2, 0, 0)])
+    pts.CreateWidthsAttr([1.0, 1.0, 1.0])
+    pv = UsdGeom.PrimvarsAPI(pts).CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray, interpolation)
+    pv.Set([Gf.Vec3f(1, 0, 0), Gf.Vec3f(0, 1, 0), Gf.Vec3f(0, 0, 1)])
+    return s
+
+
+def coloured_curves(interpolation):
+    """Two linear curves (y = 0 and y = 2), each of two segments along x (−2 → 0 → 2), width 0.5;
+    displayColor per vertex (red, green, blue on each) or per curve (uniform: red, blue)."""
+    s = new_stage()
+    add_camera(s, eye=(0, 1, 10))
+    c = UsdGeom.BasisCurves.Define(s, "/Curves")
+    c.CreateTypeAttr("linear")
+    c.CreatePointsAttr([(-2, 0, 0), (0, 0, 0), (2, 0, 0), (-2, 2, 0), (0, 2, 0), (2, 2, 0)])
+    c.CreateCurveVertexCountsAttr([3, 3])
+    c.CreateWidthsAttr([0.5])
+    c.SetWidthsInterpolation("constant")
+    values = {"vertex": [(1, 0, 0), (0, 1, 0), (0, 0, 1)] * 2, "uniform": [(1, 0, 0), (0, 0, 1)]}[interpolation]
+    pv = UsdGeom.PrimvarsAPI(c).CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray, interpolation)
+    pv.Set([Gf.Vec3f(*v) for v in values])
+    return s

@@ -56,7 +56,28 @@ def read_camera(prim, time):
         vertical_aperture_offset=float(gf.verticalApertureOffset),
         near=float(gf.clippingRange.min),
         far=float(gf.clippingRange.max),
+        clipping_planes=[tuple(float(x) for x in p) for p in (cam.GetClippingPlanesAttr().Get(time) or [])],
     )
+
+
+def fold_clipping_planes(raw: dict, warn) -> dict:
+    """``clippingPlanes`` (a, b, c, d) in camera space keep the points where a·x + b·y + c·z + d >= 0 (UsdGeomCamera).
+    A plane parallel to the image plane (a = b = 0) is a depth bound on depth = −z: c < 0 keeps depth >= d/c (it
+    raises ``near``), c > 0 keeps depth <= d/c (it lowers ``far``) — what the tracer's near/far planes do. Oblique
+    planes are not supported (one warning naming the camera)."""
+    out = dict(raw)
+    oblique = 0
+    for a, b, c, d in raw.get("clipping_planes", ()):
+        if abs(a) > 1e-9 * abs(c) or abs(b) > 1e-9 * abs(c) or c == 0:
+            oblique += 1
+        elif c < 0:  # c·z >= −d, z <= −d/c: depth >= d/c
+            out["near"] = max(out["near"], d / c)
+        else:  # z >= −d/c: depth <= d/c
+            out["far"] = min(out["far"], d / c)
+    if oblique:
+        warn(f"{raw['path']}: {oblique} clipping plane(s) not parallel to the image plane are not supported "
+             "(ignored); planes parallel to it are honoured as near/far")
+    return out
 
 
 def image_size(raw: dict, width=None, height=None) -> tuple[int, int]:

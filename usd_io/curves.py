@@ -46,7 +46,9 @@ def read_points(prim, time) -> MeshData | None:
     tris = (faces[None] + (np.arange(len(p)) * nv)[:, None, None]).reshape(-1, 3)
     normals = np.broadcast_to(unit[None], (len(p), nv, 3)).reshape(-1, 3).copy()
     keep = np.repeat(radius > 0, len(faces))
-    return MeshData(verts, tris[keep], np.zeros(int(keep.sum()), np.int64), 1, normals=normals)
+    point_of_tri = np.repeat(np.arange(len(p)), len(faces))[keep]  # primvars: one "face" per point
+    return MeshData(verts, tris[keep], point_of_tri, len(p), normals=normals,
+                    source_points=np.repeat(np.arange(len(p)), nv))
 
 
 def curve_widths(schema, time, n_points, n_curves, label):
@@ -111,7 +113,7 @@ def tube_mesh(p: np.ndarray, counts: np.ndarray, widths, periodic: bool) -> Mesh
     d = p1 - p0
     length = np.linalg.norm(d, axis=1)
     ok = (length > 0) & (r > 0)
-    p0, p1, d, r, length = p0[ok], p1[ok], d[ok], r[ok], length[ok]
+    p0, p1, d, r, length, seg = p0[ok], p1[ok], d[ok], r[ok], length[ok], seg[ok]
     if not len(p0):
         return None
     d = d / length[:, None]
@@ -128,5 +130,8 @@ def tube_mesh(p: np.ndarray, counts: np.ndarray, widths, periodic: bool) -> Mesh
     quad = np.concatenate([np.stack([k, k1, TUBE_SIDES + k1], 1), np.stack([k, TUBE_SIDES + k1, TUBE_SIDES + k], 1)])
     n_seg = len(p0)
     tris = (quad[None] + (np.arange(n_seg) * 2 * TUBE_SIDES)[:, None, None]).reshape(-1, 3)
-    return MeshData(verts.reshape(-1, 3), tris, np.zeros(len(tris), np.int64), 1,
-                    normals=normals.reshape(-1, 3))
+    # primvars: a triangle's face is its curve (uniform), a vertex's source point the end of its segment it rings
+    faces = np.repeat(curve_of_point[seg[:, 0]], len(quad))
+    source = np.concatenate([np.repeat(seg[:, :1], TUBE_SIDES, 1), np.repeat(seg[:, 1:], TUBE_SIDES, 1)], 1)
+    return MeshData(verts.reshape(-1, 3), tris, faces, len(counts), normals=normals.reshape(-1, 3),
+                    source_points=source.reshape(-1))

@@ -47,7 +47,7 @@ import numpy as np
 from pxr import UsdGeom, UsdShade
 
 from . import shade_network as net
-from .material_primvars import mesh_primvars
+from .material_primvars import find_primvar, mesh_primvars
 from .preview_ranges import clamp_preview_inputs
 from .texture_assets import open_texture
 from .texture_files import TextureCache, resolve_wrap
@@ -172,8 +172,8 @@ class MaterialTable:
     # ------------------------------------------------------------------ displayColor
     def display_color(self, prim):
         """Unbound geometry: displayColor as a vertex colour (any interpolation), on a plain diffuse surface."""
-        pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayColor")
-        if not (pv and pv.HasValue()):
+        pv = find_primvar(prim, "displayColor")  # inherited from ancestors as UsdGeomPrimvarsAPI says
+        if pv is None:
             return self._plain("displayColor(none)", DEFAULT_DISPLAY), MeshNeeds()
         op = UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayOpacity")
         if op and op.HasValue():

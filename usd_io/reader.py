@@ -359,7 +359,7 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
 
     cam_prim = cam.find_camera(stage, camera, prims)
     if cam_prim is not None:
-        raw = cam.read_camera(cam_prim, tc)
+        raw = cam.fold_clipping_planes(cam.read_camera(cam_prim, tc), info.warn)
         info.width, info.height = cam.image_size(raw, width, height)
         r.b.camera = cam.to_tracer(raw, info.width, info.height)
         info.camera = str(cam_prim.GetPath())
