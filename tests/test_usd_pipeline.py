@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from pxr import Gf, UsdGeom, UsdLux
+from pxr import Gf, Sdf, UsdGeom, UsdLux, UsdShade
 
 from tracer import RenderSettings, read_image, render
 from usd_io import load_stage
@@ -270,3 +270,98 @@ def test_camera_clipping_plane_parallel_to_the_image_cuts_the_near_quad():
     after = render(scene, RenderSettings(width=20, height=14, samples=1)).rgb[7, 10]
     assert before[0] > 5 * before[2] and after[2] > 5 * after[0], (before, after)
     assert any("1 clipping plane(s) not parallel" in w for w in info.warnings)
+
+
+# ---------------------------------------------------------------- Arnold, OmniPBR, unknown surfaces (#20, USD side)
+F, C3, A, B, I, F2 = (Sdf.ValueTypeNames.Float, Sdf.ValueTypeNames.Color3f, Sdf.ValueTypeNames.Asset,
+                      Sdf.ValueTypeNames.Bool, Sdf.ValueTypeNames.Int, Sdf.ValueTypeNames.Float2)
+
+
+def _centre(stage, w=24, h=16):
+    scene, info = load_stage(stage, width=w, height=h)
+    return render(scene, RenderSettings(width=w, height=h, samples=1)).rgb[h // 2, w // 2], info
+
+
+def test_arnold_lambert_is_lambertian_with_kd_times_colour():
+    """Closed form: irradiance 2 head-on on albedo Kd·Kd_color gives radiance albedo·2/π."""
+    c = (0.2, 0.4, 0.8)
+    px, info = _centre(st.lit_quad_with("arnold:lambert", {"Kd": (F, 0.5), "Kd_color": (C3, Gf.Vec3f(*c))},
+                                        output="arnold:surface"))
+    np.testing.assert_allclose(px, 0.5 * np.asarray(c) * 2 / np.pi, rtol=0.02)
+    assert not any("not supported" in w for w in info.warnings), info.warnings
+
+
+def test_arnold_standard_surface_reads_as_materialx_standard_surface():
+    c = (0.1, 0.3, 0.9)
+    s = st.lit_quad_with("arnold:standard_surface", {"base": (F, 1.0), "base_color": (C3, Gf.Vec3f(*c)),
+                                                     "specular_roughness": (F, 0.6), "metalness": (F, 0.0)},
+                         output="arnold:surface")
+    px, info = _centre(s)
+    fields = info.materials["/M"]
+    assert fields["base_color"] == c and fields["roughness"] == 0.6
+    assert px[2] > 2 * px[0] and px[2] > 1.5 * px[1]  # blue, not 18 % grey
+    assert not any("not supported" in w for w in info.warnings), info.warnings
+
+
+def test_arnold_user_data_rgb_reads_the_primvar():
+    s = st.lit_quad_with("arnold:standard_surface", {"base": (F, 1.0), "specular": (F, 0.0),
+                                                     "specular_roughness": (F, 1.0)},
+                         output="arnold:surface", display_color=(0.9, 0.1, 0.1))
+    ud = UsdShade.Shader.Define(s, "/M/UD")
+    ud.CreateIdAttr("arnold:user_data_rgb")
+    ud.CreateInput("attribute", Sdf.ValueTypeNames.String).Set("displayColor")
+    UsdShade.Shader(s.GetPrimAtPath("/M/S")).CreateInput("base_color", C3).ConnectToSource(ud.ConnectableAPI(), "out")
+    px, _ = _centre(s)
+    np.testing.assert_allclose(px, np.asarray((0.9, 0.1, 0.1)) * 2 / np.pi, rtol=0.03)
+
+
+def test_omnipbr_constant_inputs_without_the_mdl_file():
+    """diffuse_color_constant · albedo_brightness · diffuse_tint, specular_level 0: Lambert's closed form."""
+    s = st.lit_quad_with(None, {"diffuse_color_constant": (C3, Gf.Vec3f(0.8, 0.4, 0.2)),
+                                "albedo_brightness": (F, 0.5), "diffuse_tint": (C3, Gf.Vec3f(1, 1, 0.5)),
+                                "specular_level": (F, 0.0), "reflection_roughness_constant": (F, 0.7)},
+                         output="mdl:surface", mdl="OmniPBR")
+    px, info = _centre(s)
+    np.testing.assert_allclose(px, np.asarray((0.4, 0.2, 0.05)) * 2 / np.pi, rtol=0.02)
+    assert info.materials["/M"]["roughness"] == 0.7
+    assert not any("not supported" in w for w in info.warnings), info.warnings
+
+
+def test_omnipbr_emission_in_kit_units():
+    s = st.lit_quad_with(None, {"diffuse_color_constant": (C3, Gf.Vec3f(0, 0, 0)), "enable_emission": (B, True),
+                                "emissive_color": (C3, Gf.Vec3f(0.5, 1.0, 0.25)), "emissive_intensity": (F, 512.0),
+                                "specular_level": (F, 0.0)}, output="mdl:surface", mdl="OmniPBR")
+    px, _ = _centre(s)
+    np.testing.assert_allclose(px, (0.5, 1.0, 0.25), rtol=0.02)  # 512 · 2^−9 = 1
+
+
+def test_omnipbr_diffuse_texture_with_texture_scale(tmp_path):
+    """A texture red on its left half, green on its right, with texture_scale (2, 1): across the quad red, green,
+    red, green."""
+    import usd_material_stages as ms
+
+    rg = np.zeros((4, 64, 3), np.uint8)
+    rg[:, :32, 0] = rg[:, 32:, 1] = 255
+    ms.write_png(str(tmp_path / "rg.png"), rg)
+    s = st.lit_quad_with(None, {"diffuse_texture": (A, Sdf.AssetPath(str(tmp_path / "rg.png"))),
+                                "texture_scale": (F2, Gf.Vec2f(2, 1)), "specular_level": (F, 0.0)},
+                         output="mdl:surface", mdl="OmniPBR")
+    UsdGeom.PrimvarsAPI(s.GetPrimAtPath("/Q")).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                                              UsdGeom.Tokens.vertex).Set([(0, 0), (1, 0), (1, 1), (0, 1)])
+    s.GetPrimAtPath("/Cam").GetAttribute("horizontalAperture").Set(8.0)  # sees the quad's whole width
+    scene, info = load_stage(s, width=64, height=16)
+    img = render(scene, RenderSettings(width=64, height=16, samples=1)).rgb
+    cam = s.GetPrimAtPath("/Cam")
+    for x_world, channel in ((-2.25, 0), (-0.75, 1), (0.75, 0), (2.25, 1)):
+        x, y = np.round(usd_pixel(cam, (x_world, 0, 0), 64, 16)).astype(int)
+        c = img[y, x]
+        assert c[channel] > 5 * c[1 - channel], (x_world, c)
+
+
+def test_unknown_surface_warns_once_and_shows_display_color():
+    s = st.lit_quad_with("PxrSurface", {"diffuseColor": (C3, Gf.Vec3f(0, 1, 0))}, output="ri:surface",
+                         display_color=(0.9, 0.1, 0.1))
+    px, info = _centre(s)
+    got = [w for w in info.warnings if "/M" in w and "not supported" in w]
+    assert len(got) == 1 and "PxrSurface" in got[0] and "displayColor" in got[0], info.warnings
+    assert px[0] > 5 * px[1]  # the prim's red displayColor, not 18 % grey
