@@ -365,3 +365,115 @@ def test_unknown_surface_warns_once_and_shows_display_color():
     got = [w for w in info.warnings if "/M" in w and "not supported" in w]
     assert len(got) == 1 and "PxrSurface" in got[0] and "displayColor" in got[0], info.warnings
     assert px[0] > 5 * px[1]  # the prim's red displayColor, not 18 % grey
+
+
+# ---------------------------------------------------------------- the first frame
+@pytest.mark.parametrize("up", ["Y", "Z"])
+def test_flat_stage_without_camera_is_framed_obliquely_not_edge_on(up):
+    """A ground plane (the plane through the up axis's normal) seen from usdrecord's front view is a line: the
+    default camera takes the oblique view and the plane fills the middle of the picture."""
+    s = new_stage(up)
+    ground = quad(s, "/Ground", half=2.0)
+    if up == "Y":
+        ground.AddRotateXOp().Set(-90.0)  # the quad in the XZ plane, facing +Y
+    ground.CreateDisplayColorAttr([(0.8, 0.6, 0.2)])
+    scene, info = load_stage(s, width=48, height=32)
+    img = render(scene, RenderSettings(width=48, height=32, samples=1)).rgb
+    hit = np.abs(img - img[0, 0]).max(axis=2) > 0.05
+    assert hit[16, 24] and hit.mean() > 0.15, hit.mean()
+    assert any("front-right-above" in w for w in info.warnings), info.warnings
+
+
+def test_solid_stage_without_camera_keeps_usdrecords_front_view():
+    s = new_stage("Y")
+    UsdGeom.Cube.Define(s, "/Box")
+    scene, info = load_stage(s, width=32, height=24)
+    assert any("framed from the front" in w for w in info.warnings), info.warnings
+    eye = scene.camera.camera_to_world[:3, 3]
+    np.testing.assert_allclose(eye[:2], 0.0, atol=1e-9)  # on the +Z axis through the centre
+    assert eye[2] > 1
+
+
+# ---------------------------------------------------------------- UsdRender
+def _render_settings_stage(policy=None, resolution=(100, 100), window=None, par=None, products=("beauty.exr",),
+                           var_sources=("color", "depth", "fancyLobe")):
+    from pxr import UsdRender
+
+    s = new_stage()
+    add_camera(s, "/CamA", eye=(0, 0, 5))
+    add_camera(s, "/CamB", eye=(0, 0, 20), h=3.6, v=2.4)
+    ball = UsdGeom.Sphere.Define(s, "/Ball")
+    ball.CreateRadiusAttr(0.5)
+    ball.AddTranslateOp().Set(Gf.Vec3d(0.8, 0.4, 0))
+    rs = UsdRender.Settings.Define(s, "/Render/Settings")
+    rs.CreateResolutionAttr(Gf.Vec2i(*resolution))
+    rs.CreateCameraRel().SetTargets(["/CamB"])
+    if policy:
+        rs.CreateAspectRatioConformPolicyAttr(policy)
+    if window:
+        rs.CreateDataWindowNDCAttr(Gf.Vec4f(*window))
+    if par:
+        rs.CreatePixelAspectRatioAttr(par)
+    targets = []
+    for i, name in enumerate(products):
+        p = UsdRender.Product.Define(s, f"/Render/P{i}")
+        p.CreateProductNameAttr(name)
+        vars_ = []
+        for j, src in enumerate(var_sources):
+            v = UsdRender.Var.Define(s, f"/Render/P{i}/V{j}")
+            v.CreateSourceNameAttr(src)
+            vars_.append(v.GetPath())
+        p.CreateOrderedVarsRel().SetTargets(vars_)
+        targets.append(p.GetPath())
+    rs.CreateProductsRel().SetTargets(targets)
+    s.SetMetadata("renderSettingsPrimPath", "/Render/Settings")
+    return s
+
+
+@pytest.mark.parametrize("policy,want", [("expandAperture", (3.6, 3.6)), ("cropAperture", (2.4, 2.4)),
+                                         ("adjustApertureWidth", (2.4, 2.4)), ("adjustApertureHeight", (3.6, 3.6)),
+                                         ("adjustPixelAspectRatio", (3.6, 2.4))])
+def test_render_settings_conform_policies(policy, want):
+    """Resolution 100 × 100 and CamB (3.6 × 2.4) from the RenderSettings; the conformed aperture as the UsdRender
+    spec defines each policy (expand grows the short side, crop shrinks the long one, adjustApertureWidth keeps the
+    height, adjustApertureHeight the width, adjustPixelAspectRatio neither)."""
+    scene, info = load_stage(_render_settings_stage(policy))
+    assert (info.width, info.height, info.camera) == (100, 100, "/CamB")
+    np.testing.assert_allclose([scene.camera.horizontal_aperture, scene.camera.vertical_aperture], want,
+                               rtol=1e-6)
+
+
+def test_render_settings_pixel_aspect_ratio():
+    """pixelAspectRatio 2 at 100 × 100: the image is 2:1 wide, so expandAperture grows the width: 4.8 × 2.4
+    (each pixel 0.048 wide, 0.024 high)."""
+    scene, info = load_stage(_render_settings_stage(par=2.0))
+    np.testing.assert_allclose([scene.camera.horizontal_aperture, scene.camera.vertical_aperture], (4.8, 2.4),
+                               rtol=1e-6)
+
+
+def test_render_settings_products_vars_and_flags_win():
+    scene, info = load_stage(_render_settings_stage(), width=30, camera="/CamA")
+    assert info.camera == "/CamA" and info.width == 30
+    spec = info.render_settings
+    assert spec.products == ["beauty.exr"] and spec.aovs == ["depth"]
+    assert any("fancyLobe" in w for w in info.warnings)
+
+
+def test_render_settings_data_window_renders_that_part():
+    """dataWindowNDC (0.5, 0.5, 1, 1): the upper-right quarter of the full frame, as its own 50 × 50 image."""
+    full_scene, _ = load_stage(_render_settings_stage())
+    part_scene, info = load_stage(_render_settings_stage(window=(0.5, 0.5, 1.0, 1.0)))
+    assert (info.width, info.height) == (50, 50)
+    full = render(full_scene, RenderSettings(width=100, height=100, samples=2)).rgb
+    part = render(part_scene, RenderSettings(width=50, height=50, samples=2)).rgb
+    assert np.abs(full[:50, 50:] - part).mean() < 0.01 and part.max() > 0.2  # the ball is up and right
+
+
+def test_camera_without_render_settings_expands_its_aperture():
+    """A 16:9 aperture rendered at 4:3 keeps its whole width (Arnold's expandAperture), not a 1.33x zoom."""
+    s = new_stage()
+    add_camera(s, h=3.2, v=1.8)
+    UsdGeom.Sphere.Define(s, "/Ball")
+    scene, _ = load_stage(s, width=80, height=60)
+    np.testing.assert_allclose([scene.camera.horizontal_aperture, scene.camera.vertical_aperture], [3.2, 2.4],
+                               rtol=1e-6)

@@ -25,6 +25,7 @@ from .dome import environment
 from .layer_metadata import meters_per_unit
 from .lights import blender_authored, convert_light, default_lights
 from .material import MaterialTable
+from .render_settings import CONFORM, DEFAULT_CONFORM, crop_to_data_window, read_render_settings
 from .nurbs import read_nurbs_curves, read_nurbs_patch, read_tet_mesh
 from .mesh import COMPLEXITY, DEFAULT_COMPLEXITY, SUBDIVIDED, MeshData, read_mesh
 from .skel import Skinning
@@ -51,6 +52,7 @@ class StageInfo:
     default_lighting: bool = False
     up_axis: str = "Y"
     meters_per_unit: float = 0.01
+    render_settings: object = None  # usd_io.render_settings.RenderSpec of the RenderSettings used, or None
 
     def warn(self, message: str) -> None:
         if message not in self.warnings:
@@ -240,6 +242,33 @@ class _Reader:
         return np.stack([self.lo, self.hi])
 
 
+def _camera(stage, r, info, tc, camera, width, height, render_settings) -> None:
+    """The render camera and image size (info.width/height/camera, r.b.camera): the stage camera (``camera``, the
+    RenderSettings' camera, the first found) conformed by the RenderSettings' policy (expandAperture without one)
+    and cropped to its data window, or the default framing camera."""
+    spec = read_render_settings(stage, render_settings, tc, info.warn)
+    info.render_settings = spec
+    if spec is not None and width is None and height is None and spec.resolution is not None:
+        width, height = spec.resolution
+    cam_prim = cam.find_camera(stage, camera or (spec.camera if spec else None), r.prims)
+    par = spec.pixel_aspect if spec else 1.0
+    policy = CONFORM[spec.conform] if spec else CONFORM[DEFAULT_CONFORM]
+    if cam_prim is not None:
+        raw = cam.fold_clipping_planes(cam.read_camera(cam_prim, tc), info.warn)
+        info.width, info.height = cam.image_size(raw, width, height, par)
+        r.b.camera = cam.to_tracer(raw, info.width, info.height, policy, par)
+        info.camera = str(cam_prim.GetPath())
+    else:
+        aspect = cam.DEFAULT_APERTURE[0] / cam.DEFAULT_APERTURE[1]
+        info.width, info.height = cam.image_size(dict(horizontal_aperture=aspect, vertical_aperture=1.0),
+                                                 width, height)
+        r.b.camera, view = cam.framing_camera(r.bounds(), info.up_axis, info.width, info.height)
+        info.warn(f"no camera in the stage: a default camera frames the scene's bounds, {view}")
+    if spec is not None:
+        r.b.camera, info.width, info.height = crop_to_data_window(r.b.camera, info.width, info.height,
+                                                                  spec.data_window)
+
+
 def select_variant(stage, prim_path: str, vset: str, value: str) -> None:
     """Select ``vset=value`` on the prim at ``prim_path`` (UsdInputError naming what does not exist)."""
     from pxr import Sdf
@@ -307,7 +336,8 @@ def stage_up_axis(stage, warn) -> str:
 
 def load_stage(path_or_stage, time=None, camera: str | None = None, width: int | None = None,
                height: int | None = None, purposes=DEFAULT_PURPOSES, segments: int = DEFAULT_SEGMENTS,
-               default_light: bool = True, variants=(), complexity: str = DEFAULT_COMPLEXITY):
+               default_light: bool = True, variants=(), complexity: str = DEFAULT_COMPLEXITY,
+               render_settings: str | None = None):
     """Read a USD stage (a path or an open ``Usd.Stage``) into a render-ready :class:`tracer.Scene`.
 
     time      time code (None: the earliest time, i.e. default values or the first time sample)
@@ -320,6 +350,9 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     variants  ``(prim path, variant set, variant)`` selections applied (on the session layer) before reading
     complexity  refinement of subdivision surfaces, as usdrecord's: low (the control cage), medium (one level of
               Catmull-Clark, the default), high (2), veryhigh (3)
+    render_settings  a UsdRender RenderSettings prim path (None: the stage's renderSettingsPrimPath, if any):
+              its resolution, camera, pixel aspect, conform policy and data window apply where the arguments
+              above are None; ``info.render_settings`` keeps its products and AOVs (usd_io.render_settings)
 
     Returns ``(scene, info)``; ``info.warnings`` lists what was skipped or approximated (each message once).
     Raises :class:`UsdInputError` (a ``ValueError``) for input the user can fix.
@@ -357,18 +390,7 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     info.materials = dict(r.mats.summary)
 
 
-    cam_prim = cam.find_camera(stage, camera, prims)
-    if cam_prim is not None:
-        raw = cam.fold_clipping_planes(cam.read_camera(cam_prim, tc), info.warn)
-        info.width, info.height = cam.image_size(raw, width, height)
-        r.b.camera = cam.to_tracer(raw, info.width, info.height)
-        info.camera = str(cam_prim.GetPath())
-    else:
-        aspect = cam.DEFAULT_APERTURE[0] / cam.DEFAULT_APERTURE[1]
-        info.width, info.height = cam.image_size(dict(horizontal_aperture=aspect, vertical_aperture=1.0),
-                                                 width, height)
-        r.b.camera = cam.framing_camera(r.bounds(), info.up_axis, info.width, info.height)
-        info.warn("no camera in the stage: framing the scene's bounds with a default camera")
+    _camera(stage, r, info, tc, camera, width, height, render_settings)
     if default_light and not info.lights:
         sun, dome = default_lights(r.b.camera)
         r.b.add_light(sun)
