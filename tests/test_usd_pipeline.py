@@ -477,3 +477,63 @@ def test_camera_without_render_settings_expands_its_aperture():
     scene, _ = load_stage(s, width=80, height=60)
     np.testing.assert_allclose([scene.camera.horizontal_aperture, scene.camera.vertical_aperture], [3.2, 2.4],
                                rtol=1e-6)
+
+
+# ---------------------------------------------------------------- light units of known exporters
+def _exporter_stage(doc=None, custom=None, light="sphere", intensity=10.0, radius=0.1, normalize=None):
+    s = new_stage()
+    if doc:
+        s.GetRootLayer().documentation = doc
+    if custom:
+        s.GetRootLayer().customLayerData = custom
+    add_camera(s, eye=(0, 0, 10))
+    q = quad(s, "/Floor", half=3.0)
+    q.CreateDisplayColorAttr([(0.5, 0.5, 0.5)])
+    if light == "sphere":
+        lt = UsdLux.SphereLight.Define(s, "/Lamp")
+        lt.CreateRadiusAttr(radius)
+        lt.AddTranslateOp().Set(Gf.Vec3d(0, 0, 2))
+    else:
+        lt = UsdLux.DomeLight.Define(s, "/Dome")
+    lt.CreateIntensityAttr(intensity)
+    if normalize is not None:
+        lt.CreateNormalizeAttr(normalize)
+    return s
+
+
+def _first_light(info):
+    return info.lights[0][2]
+
+
+def test_blender_31_sphere_light_is_power_over_100():
+    """Blender 2.83–3.1 wrote intensity = P/100: 10 is a 1000 W point light, 1000/4π W/sr (the spec would read a
+    radiance of 10 over r = 0.1: 0.31 W/sr, a near-black frame). The floor under it: radiance albedo·E/π with
+    E = I/d², d = 2."""
+    s = _exporter_stage("Blender v3.1.2")
+    scene, info = load_stage(s, width=40, height=30)
+    np.testing.assert_allclose(_first_light(info).intensity, 1000 / (4 * np.pi), rtol=1e-6)
+    assert any("Blender 3.1.2" in n for n in info.notes), info.notes
+    img = render(scene, RenderSettings(width=40, height=30, samples=4)).rgb
+    np.testing.assert_allclose(img[15, 20], 0.5 * (1000 / (4 * np.pi)) / 4 / np.pi, rtol=0.03)
+    spec, info = load_stage(s, width=40, height=30, light_units="spec")
+    np.testing.assert_allclose(_first_light(info).intensity, 10 * np.pi * 0.01, rtol=1e-6)
+    assert not any("exporter" in n for n in info.notes)
+
+
+def test_blender_34_dome_light_683_is_strength_one():
+    s = _exporter_stage("Blender v3.4.1", light="dome", intensity=683.0)
+    scene, info = load_stage(s, width=20, height=16)
+    np.testing.assert_allclose(scene.background, 683 * 0.0014641, rtol=1e-5)
+
+
+def test_omniverse_kit_lights_are_minus_nine_ev():
+    s = _exporter_stage(custom={"omni_layer": {"name": "root"}}, intensity=512.0, normalize=True)
+    scene, info = load_stage(s, width=20, height=16)
+    np.testing.assert_allclose(_first_light(info).intensity, 512 * 2 ** -9 / 4, rtol=1e-6)
+    assert any("Omniverse Kit" in n for n in info.notes)
+
+
+def test_current_blender_and_unknown_writers_keep_the_spec():
+    for doc in ("Blender v5.0.1", None, "written by hand"):
+        scene, info = load_stage(_exporter_stage(doc, normalize=True), width=20, height=16)
+        np.testing.assert_allclose(_first_light(info).intensity, 10 / 4, rtol=1e-6)

@@ -23,7 +23,8 @@ from .gprims import DEFAULT_SEGMENTS, GPRIM_TYPES, read_gprim
 from .instancing import instance_matrices
 from .dome import environment
 from .layer_metadata import meters_per_unit
-from .lights import blender_authored, convert_light, default_lights
+from .exporters import light_units as exporter_light_units
+from .lights import convert_light, default_lights
 from .material import MaterialTable
 from .render_settings import CONFORM, DEFAULT_CONFORM, crop_to_data_window, read_render_settings
 from .nurbs import read_nurbs_curves, read_nurbs_patch, read_tet_mesh
@@ -60,9 +61,11 @@ class StageInfo:
 
 
 class _Reader:
-    def __init__(self, stage, time, purposes, segments, info: StageInfo):
+    def __init__(self, stage, time, purposes, segments, info: StageInfo, light_units: str = "auto"):
         self.stage, self.time, self.purposes, self.segments, self.info = stage, time, purposes, segments, info
-        self.blender = blender_authored(stage)
+        self.light_units, note = exporter_light_units(stage, light_units)  # usd_io.exporters
+        if note:
+            info.notes.append(note)
         self.b = SceneBuilder()
         self.xf = Transforms(time)
         self.mats = MaterialTable(self.b, time, info.warn)
@@ -218,7 +221,8 @@ class _Reader:
     # ------------------------------------------------------------------ lights
     def add_light(self, prim):
         try:
-            kind, light, world = convert_light(prim, self.xf.world(prim), self.time, self.info.warn, self.blender)
+            kind, light, world = convert_light(prim, self.xf.world(prim), self.time, self.info.warn,
+                                               units=self.light_units)
         except ValueError as exc:  # the tracer's light validation (NaN/Inf intensity, zero-length axes, ...)
             self.info.warn(f"{prim.GetPath()}: {exc} (light skipped)")
             return
@@ -337,7 +341,7 @@ def stage_up_axis(stage, warn) -> str:
 def load_stage(path_or_stage, time=None, camera: str | None = None, width: int | None = None,
                height: int | None = None, purposes=DEFAULT_PURPOSES, segments: int = DEFAULT_SEGMENTS,
                default_light: bool = True, variants=(), complexity: str = DEFAULT_COMPLEXITY,
-               render_settings: str | None = None):
+               render_settings: str | None = None, light_units: str = "auto"):
     """Read a USD stage (a path or an open ``Usd.Stage``) into a render-ready :class:`tracer.Scene`.
 
     time      time code (None: the earliest time, i.e. default values or the first time sample)
@@ -353,6 +357,8 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     render_settings  a UsdRender RenderSettings prim path (None: the stage's renderSettingsPrimPath, if any):
               its resolution, camera, pixel aspect, conform policy and data window apply where the arguments
               above are None; ``info.render_settings`` keeps its products and AOVs (usd_io.render_settings)
+    light_units  "auto": lights in the units of the application that wrote the stage (usd_io.exporters; a note
+              names it); "spec": as UsdLux says; or one of usd_io.exporters.UNITS
 
     Returns ``(scene, info)``; ``info.warnings`` lists what was skipped or approximated (each message once).
     Raises :class:`UsdInputError` (a ``ValueError``) for input the user can fix.
@@ -378,7 +384,10 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
         info.warn(f"usd: {w}")
     if complexity not in COMPLEXITY:
         raise UsdInputError(f"complexity {complexity!r}: choose from {', '.join(COMPLEXITY)}")
-    r = _Reader(stage, tc, purposes, segments, info)
+    try:
+        r = _Reader(stage, tc, purposes, segments, info, light_units)
+    except ValueError as exc:  # an unknown --light-units value
+        raise UsdInputError(f"{label}: {exc}") from None
     r.subdivision_level = COMPLEXITY[complexity]
     with captured_stderr() as said:  # USD's own diagnostics while reading: warnings of ours, not raw lines
         _read_prims(r, stage, tc, purposes, info)
