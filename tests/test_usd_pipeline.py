@@ -537,3 +537,60 @@ def test_current_blender_and_unknown_writers_keep_the_spec():
     for doc in ("Blender v5.0.1", None, "written by hand"):
         scene, info = load_stage(_exporter_stage(doc, normalize=True), width=20, height=16)
         np.testing.assert_allclose(_first_light(info).intensity, 10 / 4, rtol=1e-6)
+
+
+# ---------------------------------------------------------------- smaller defects
+def test_info_shows_a_textureless_dome_without_nan(tmp_path):
+    s = new_stage()
+    UsdLux.DomeLight.Define(s, "/Dome").CreateIntensityAttr(0.5)
+    UsdGeom.Sphere.Define(s, "/Ball")
+    path = str(tmp_path / "dome.usda")
+    s.GetRootLayer().Export(path)
+    res = whitted("info", path)
+    assert res.returncode == 0 and "nan" not in res.stdout and "background=[0.5, 0.5, 0.5]" in res.stdout
+
+
+@pytest.mark.parametrize("argv,want", [(["rendr", "x.usda"], "unknown command 'rendr': choose from render"),
+                                       (["-q"], "a command is required")])
+def test_command_errors_are_one_plain_line(argv, want):
+    res = whitted(*argv)
+    lines = res.stderr.strip().splitlines()
+    assert res.returncode == 2 and len(lines) == 1 and want in lines[0], res.stderr
+    assert "whitted: error: whitted:" not in res.stderr
+
+
+def test_zero_triangles_warns_and_fails_only_when_there_were_gprims(tmp_path):
+    bad = new_stage()
+    m = UsdGeom.Mesh.Define(bad, "/Lines")
+    m.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (1, 1, 0)])
+    m.CreateFaceVertexCountsAttr([2])
+    m.CreateFaceVertexIndicesAttr([0, 1])
+    empty = new_stage()
+    UsdGeom.Xform.Define(empty, "/Nothing")
+    codes = {}
+    for name, stage in (("bad", bad), ("empty", empty)):
+        path = str(tmp_path / f"{name}.usda")
+        stage.GetRootLayer().Export(path)
+        res = whitted("render", path, "-o", tmp_path / f"{name}.png", "--width", 16, "--quiet")
+        codes[name] = res
+    assert codes["bad"].returncode == 2 and "1 visible gprim(s) (Mesh) gave 0 triangles" in codes["bad"].stderr
+    assert [ln for ln in codes["bad"].stderr.splitlines() if ln.startswith("whitted: error")].__len__() == 1
+    assert codes["empty"].returncode == 0 and "no visible gprims" in codes["empty"].stderr
+
+
+def test_usd_diagnostics_are_summarised_alike_in_info_and_render(tmp_path):
+    """A primvar with 40 out-of-range indices: pxr prints a line per index; we print one line."""
+    s = new_stage()
+    add_camera(s)
+    q = quad(s, "/Q")
+    pv = UsdGeom.PrimvarsAPI(q).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying)
+    pv.Set([(0, 0)] * 4)
+    pv.SetIndices([0, 1, 2, 3])
+    pv.SetIndices([9] * 4)
+    q.CreateDisplayColorAttr([(1, 0, 0)])
+    path = str(tmp_path / "d.usda")
+    s.GetRootLayer().Export(path)
+    info = [ln for ln in whitted("info", path).stderr.splitlines() if "usd:" in ln]
+    rend = [ln for ln in whitted("render", path, "-o", tmp_path / "d.png", "--width", 8, "--quiet").stderr.splitlines()
+            if "usd:" in ln]
+    assert info == rend and 1 <= len(info) <= 5, (info, rend)

@@ -23,6 +23,7 @@ from .gprims import DEFAULT_SEGMENTS, GPRIM_TYPES, read_gprim
 from .instancing import instance_matrices
 from .dome import environment
 from .layer_metadata import meters_per_unit
+from .diagnostics import summarize
 from .exporters import light_units as exporter_light_units
 from .lights import convert_light, default_lights
 from .material import MaterialTable
@@ -54,6 +55,7 @@ class StageInfo:
     up_axis: str = "Y"
     meters_per_unit: float = 0.01
     render_settings: object = None  # usd_io.render_settings.RenderSpec of the RenderSettings used, or None
+    nothing_drawn: str | None = None  # why a stage with visible gprims drew no triangle (the CLI exits 2)
 
     def warn(self, message: str) -> None:
         if message not in self.warnings:
@@ -229,16 +231,20 @@ class _Reader:
         if light is not None:
             self.b.add_light(light)
             self.info.lights.append((str(prim.GetPath()), kind, light))
-        elif world is not None and world.get("environment") is not None:  # a lat-long dome texture
+        elif world is not None:  # `whitted info` shows what the dome is: no "environment" key without a texture
+            self._add_world(prim, kind, world)
+
+    def _add_world(self, prim, kind, world):
+        if world.get("environment") is not None:  # a lat-long dome texture
             if getattr(self.b, "environment", None) is not None:
                 self.info.warn(f"{prim.GetPath()}: a second textured DomeLight is not supported (skipped)")
                 return
             self.b.environment = environment(world["environment"])
             self.info.lights.append((str(prim.GetPath()), kind, world))
-        elif world is not None:
+        else:
             self.b.background = self.b.background + np.asarray(world["background"], np.float32)
             self.b.ambient = self.b.ambient + np.asarray(world["ambient"], np.float32)
-            self.info.lights.append((str(prim.GetPath()), kind, world))
+            self.info.lights.append((str(prim.GetPath()), kind, {k: v for k, v in world.items() if v is not None}))
 
     def bounds(self):
         if not np.all(np.isfinite(self.lo)):
@@ -271,6 +277,21 @@ def _camera(stage, r, info, tc, camera, width, height, render_settings) -> None:
     if spec is not None:
         r.b.camera, info.width, info.height = crop_to_data_window(r.b.camera, info.width, info.height,
                                                                   spec.data_window)
+
+
+def _say_if_empty(r, info) -> None:
+    """0 triangles: one warning; ``info.nothing_drawn`` names the gprims that gave none (the CLI exits 2 then),
+    and stays None when the stage has no visible gprims at all (an empty stage renders its empty frame)."""
+    if sum(n for _p, n in info.meshes):
+        return
+    gprims = [p for p in r.prims if p.IsA(UsdGeom.Gprim) or p.IsA(UsdGeom.PointInstancer)]
+    if not gprims:
+        info.warn("the stage has no visible gprims: the frame shows only the background")
+        return
+    kinds = sorted({p.GetTypeName() for p in gprims})
+    info.nothing_drawn = (f"{len(gprims)} visible gprim(s) ({', '.join(kinds)}) gave 0 triangles (see the warnings "
+                          "above): nothing is drawn")
+    info.warn(info.nothing_drawn)
 
 
 def select_variant(stage, prim_path: str, vset: str, value: str) -> None:
@@ -391,12 +412,10 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     r.subdivision_level = COMPLEXITY[complexity]
     with captured_stderr() as said:  # USD's own diagnostics while reading: warnings of ours, not raw lines
         _read_prims(r, stage, tc, purposes, info)
-    for line in "".join(said).splitlines():
-        reason = _first_reason(line)
-        if reason:
-            info.warn(f"usd: {reason}")
-    prims = r.prims
+    for line in summarize("".join(said)):  # usd_io.diagnostics: one line per kind, not pxr's raw lines
+        info.warn(f"usd: {line}")
     info.materials = dict(r.mats.summary)
+    _say_if_empty(r, info)
 
 
     _camera(stage, r, info, tc, camera, width, height, render_settings)
