@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from pxr import Gf, UsdGeom, UsdLux
+from pxr import Gf, Sdf, UsdGeom, UsdLux, UsdShade
 
 from tracer import RenderSettings, read_image, render
 from usd_io import load_stage
@@ -270,3 +270,327 @@ def test_camera_clipping_plane_parallel_to_the_image_cuts_the_near_quad():
     after = render(scene, RenderSettings(width=20, height=14, samples=1)).rgb[7, 10]
     assert before[0] > 5 * before[2] and after[2] > 5 * after[0], (before, after)
     assert any("1 clipping plane(s) not parallel" in w for w in info.warnings)
+
+
+# ---------------------------------------------------------------- Arnold, OmniPBR, unknown surfaces (#20, USD side)
+F, C3, A, B, I, F2 = (Sdf.ValueTypeNames.Float, Sdf.ValueTypeNames.Color3f, Sdf.ValueTypeNames.Asset,
+                      Sdf.ValueTypeNames.Bool, Sdf.ValueTypeNames.Int, Sdf.ValueTypeNames.Float2)
+
+
+def _centre(stage, w=24, h=16):
+    scene, info = load_stage(stage, width=w, height=h)
+    return render(scene, RenderSettings(width=w, height=h, samples=1)).rgb[h // 2, w // 2], info
+
+
+def test_arnold_lambert_is_lambertian_with_kd_times_colour():
+    """Closed form: irradiance 2 head-on on albedo Kd·Kd_color gives radiance albedo·2/π."""
+    c = (0.2, 0.4, 0.8)
+    px, info = _centre(st.lit_quad_with("arnold:lambert", {"Kd": (F, 0.5), "Kd_color": (C3, Gf.Vec3f(*c))},
+                                        output="arnold:surface"))
+    np.testing.assert_allclose(px, 0.5 * np.asarray(c) * 2 / np.pi, rtol=0.02)
+    assert not any("not supported" in w for w in info.warnings), info.warnings
+
+
+def test_arnold_standard_surface_reads_as_materialx_standard_surface():
+    c = (0.1, 0.3, 0.9)
+    s = st.lit_quad_with("arnold:standard_surface", {"base": (F, 1.0), "base_color": (C3, Gf.Vec3f(*c)),
+                                                     "specular_roughness": (F, 0.6), "metalness": (F, 0.0)},
+                         output="arnold:surface")
+    px, info = _centre(s)
+    fields = info.materials["/M"]
+    assert fields["base_color"] == c and fields["roughness"] == 0.6
+    assert px[2] > 2 * px[0] and px[2] > 1.5 * px[1]  # blue, not 18 % grey
+    assert not any("not supported" in w for w in info.warnings), info.warnings
+
+
+def test_arnold_user_data_rgb_reads_the_primvar():
+    s = st.lit_quad_with("arnold:standard_surface", {"base": (F, 1.0), "specular": (F, 0.0),
+                                                     "specular_roughness": (F, 1.0)},
+                         output="arnold:surface", display_color=(0.9, 0.1, 0.1))
+    ud = UsdShade.Shader.Define(s, "/M/UD")
+    ud.CreateIdAttr("arnold:user_data_rgb")
+    ud.CreateInput("attribute", Sdf.ValueTypeNames.String).Set("displayColor")
+    UsdShade.Shader(s.GetPrimAtPath("/M/S")).CreateInput("base_color", C3).ConnectToSource(ud.ConnectableAPI(), "out")
+    px, _ = _centre(s)
+    np.testing.assert_allclose(px, np.asarray((0.9, 0.1, 0.1)) * 2 / np.pi, rtol=0.03)
+
+
+def test_omnipbr_constant_inputs_without_the_mdl_file():
+    """diffuse_color_constant · albedo_brightness · diffuse_tint, specular_level 0: Lambert's closed form."""
+    s = st.lit_quad_with(None, {"diffuse_color_constant": (C3, Gf.Vec3f(0.8, 0.4, 0.2)),
+                                "albedo_brightness": (F, 0.5), "diffuse_tint": (C3, Gf.Vec3f(1, 1, 0.5)),
+                                "specular_level": (F, 0.0), "reflection_roughness_constant": (F, 0.7)},
+                         output="mdl:surface", mdl="OmniPBR")
+    px, info = _centre(s)
+    np.testing.assert_allclose(px, np.asarray((0.4, 0.2, 0.05)) * 2 / np.pi, rtol=0.02)
+    assert info.materials["/M"]["roughness"] == 0.7
+    assert not any("not supported" in w for w in info.warnings), info.warnings
+
+
+def test_omnipbr_emission_in_kit_units():
+    s = st.lit_quad_with(None, {"diffuse_color_constant": (C3, Gf.Vec3f(0, 0, 0)), "enable_emission": (B, True),
+                                "emissive_color": (C3, Gf.Vec3f(0.5, 1.0, 0.25)), "emissive_intensity": (F, 512.0),
+                                "specular_level": (F, 0.0)}, output="mdl:surface", mdl="OmniPBR")
+    px, _ = _centre(s)
+    np.testing.assert_allclose(px, (0.5, 1.0, 0.25), rtol=0.02)  # 512 · 2^−9 = 1
+
+
+def test_omnipbr_diffuse_texture_with_texture_scale(tmp_path):
+    """A texture red on its left half, green on its right, with texture_scale (2, 1): across the quad red, green,
+    red, green."""
+    import usd_material_stages as ms
+
+    rg = np.zeros((4, 64, 3), np.uint8)
+    rg[:, :32, 0] = rg[:, 32:, 1] = 255
+    ms.write_png(str(tmp_path / "rg.png"), rg)
+    s = st.lit_quad_with(None, {"diffuse_texture": (A, Sdf.AssetPath(str(tmp_path / "rg.png"))),
+                                "texture_scale": (F2, Gf.Vec2f(2, 1)), "specular_level": (F, 0.0)},
+                         output="mdl:surface", mdl="OmniPBR")
+    UsdGeom.PrimvarsAPI(s.GetPrimAtPath("/Q")).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                                              UsdGeom.Tokens.vertex).Set([(0, 0), (1, 0), (1, 1), (0, 1)])
+    s.GetPrimAtPath("/Cam").GetAttribute("horizontalAperture").Set(8.0)  # sees the quad's whole width
+    scene, info = load_stage(s, width=64, height=16)
+    img = render(scene, RenderSettings(width=64, height=16, samples=1)).rgb
+    cam = s.GetPrimAtPath("/Cam")
+    for x_world, channel in ((-2.25, 0), (-0.75, 1), (0.75, 0), (2.25, 1)):
+        x, y = np.round(usd_pixel(cam, (x_world, 0, 0), 64, 16)).astype(int)
+        c = img[y, x]
+        assert c[channel] > 5 * c[1 - channel], (x_world, c)
+
+
+def test_unknown_surface_warns_once_and_shows_display_color():
+    s = st.lit_quad_with("PxrSurface", {"diffuseColor": (C3, Gf.Vec3f(0, 1, 0))}, output="ri:surface",
+                         display_color=(0.9, 0.1, 0.1))
+    px, info = _centre(s)
+    got = [w for w in info.warnings if "/M" in w and "not supported" in w]
+    assert len(got) == 1 and "PxrSurface" in got[0] and "displayColor" in got[0], info.warnings
+    assert px[0] > 5 * px[1]  # the prim's red displayColor, not 18 % grey
+
+
+# ---------------------------------------------------------------- the first frame
+@pytest.mark.parametrize("up", ["Y", "Z"])
+def test_flat_stage_without_camera_is_framed_obliquely_not_edge_on(up):
+    """A ground plane (the plane through the up axis's normal) seen from usdrecord's front view is a line: the
+    default camera takes the oblique view and the plane fills the middle of the picture."""
+    s = new_stage(up)
+    ground = quad(s, "/Ground", half=2.0)
+    if up == "Y":
+        ground.AddRotateXOp().Set(-90.0)  # the quad in the XZ plane, facing +Y
+    ground.CreateDisplayColorAttr([(0.8, 0.6, 0.2)])
+    scene, info = load_stage(s, width=48, height=32)
+    img = render(scene, RenderSettings(width=48, height=32, samples=1)).rgb
+    hit = np.abs(img - img[0, 0]).max(axis=2) > 0.05
+    assert hit[16, 24] and hit.mean() > 0.15, hit.mean()
+    assert any("front-right-above" in w for w in info.warnings), info.warnings
+
+
+def test_solid_stage_without_camera_keeps_usdrecords_front_view():
+    s = new_stage("Y")
+    UsdGeom.Cube.Define(s, "/Box")
+    scene, info = load_stage(s, width=32, height=24)
+    assert any("framed from the front" in w for w in info.warnings), info.warnings
+    eye = scene.camera.camera_to_world[:3, 3]
+    np.testing.assert_allclose(eye[:2], 0.0, atol=1e-9)  # on the +Z axis through the centre
+    assert eye[2] > 1
+
+
+# ---------------------------------------------------------------- UsdRender
+def _render_settings_stage(policy=None, resolution=(100, 100), window=None, par=None, products=("beauty.exr",),
+                           var_sources=("color", "depth", "fancyLobe")):
+    from pxr import UsdRender
+
+    s = new_stage()
+    add_camera(s, "/CamA", eye=(0, 0, 5))
+    add_camera(s, "/CamB", eye=(0, 0, 20), h=3.6, v=2.4)
+    ball = UsdGeom.Sphere.Define(s, "/Ball")
+    ball.CreateRadiusAttr(0.5)
+    ball.AddTranslateOp().Set(Gf.Vec3d(0.8, 0.4, 0))
+    rs = UsdRender.Settings.Define(s, "/Render/Settings")
+    rs.CreateResolutionAttr(Gf.Vec2i(*resolution))
+    rs.CreateCameraRel().SetTargets(["/CamB"])
+    if policy:
+        rs.CreateAspectRatioConformPolicyAttr(policy)
+    if window:
+        rs.CreateDataWindowNDCAttr(Gf.Vec4f(*window))
+    if par:
+        rs.CreatePixelAspectRatioAttr(par)
+    targets = []
+    for i, name in enumerate(products):
+        p = UsdRender.Product.Define(s, f"/Render/P{i}")
+        p.CreateProductNameAttr(name)
+        vars_ = []
+        for j, src in enumerate(var_sources):
+            v = UsdRender.Var.Define(s, f"/Render/P{i}/V{j}")
+            v.CreateSourceNameAttr(src)
+            vars_.append(v.GetPath())
+        p.CreateOrderedVarsRel().SetTargets(vars_)
+        targets.append(p.GetPath())
+    rs.CreateProductsRel().SetTargets(targets)
+    s.SetMetadata("renderSettingsPrimPath", "/Render/Settings")
+    return s
+
+
+@pytest.mark.parametrize("policy,want", [("expandAperture", (3.6, 3.6)), ("cropAperture", (2.4, 2.4)),
+                                         ("adjustApertureWidth", (2.4, 2.4)), ("adjustApertureHeight", (3.6, 3.6)),
+                                         ("adjustPixelAspectRatio", (3.6, 2.4))])
+def test_render_settings_conform_policies(policy, want):
+    """Resolution 100 × 100 and CamB (3.6 × 2.4) from the RenderSettings; the conformed aperture as the UsdRender
+    spec defines each policy (expand grows the short side, crop shrinks the long one, adjustApertureWidth keeps the
+    height, adjustApertureHeight the width, adjustPixelAspectRatio neither)."""
+    scene, info = load_stage(_render_settings_stage(policy))
+    assert (info.width, info.height, info.camera) == (100, 100, "/CamB")
+    np.testing.assert_allclose([scene.camera.horizontal_aperture, scene.camera.vertical_aperture], want,
+                               rtol=1e-6)
+
+
+def test_render_settings_pixel_aspect_ratio():
+    """pixelAspectRatio 2 at 100 × 100: the image is 2:1 wide, so expandAperture grows the width: 4.8 × 2.4
+    (each pixel 0.048 wide, 0.024 high)."""
+    scene, info = load_stage(_render_settings_stage(par=2.0))
+    np.testing.assert_allclose([scene.camera.horizontal_aperture, scene.camera.vertical_aperture], (4.8, 2.4),
+                               rtol=1e-6)
+
+
+def test_render_settings_products_vars_and_flags_win():
+    scene, info = load_stage(_render_settings_stage(), width=30, camera="/CamA")
+    assert info.camera == "/CamA" and info.width == 30
+    spec = info.render_settings
+    assert spec.products == ["beauty.exr"] and spec.aovs == ["depth"]
+    assert any("fancyLobe" in w for w in info.warnings)
+
+
+def test_render_settings_data_window_renders_that_part():
+    """dataWindowNDC (0.5, 0.5, 1, 1): the upper-right quarter of the full frame, as its own 50 × 50 image."""
+    full_scene, _ = load_stage(_render_settings_stage())
+    part_scene, info = load_stage(_render_settings_stage(window=(0.5, 0.5, 1.0, 1.0)))
+    assert (info.width, info.height) == (50, 50)
+    full = render(full_scene, RenderSettings(width=100, height=100, samples=2)).rgb
+    part = render(part_scene, RenderSettings(width=50, height=50, samples=2)).rgb
+    assert np.abs(full[:50, 50:] - part).mean() < 0.01 and part.max() > 0.2  # the ball is up and right
+
+
+def test_camera_without_render_settings_expands_its_aperture():
+    """A 16:9 aperture rendered at 4:3 keeps its whole width (Arnold's expandAperture), not a 1.33x zoom."""
+    s = new_stage()
+    add_camera(s, h=3.2, v=1.8)
+    UsdGeom.Sphere.Define(s, "/Ball")
+    scene, _ = load_stage(s, width=80, height=60)
+    np.testing.assert_allclose([scene.camera.horizontal_aperture, scene.camera.vertical_aperture], [3.2, 2.4],
+                               rtol=1e-6)
+
+
+# ---------------------------------------------------------------- light units of known exporters
+def _exporter_stage(doc=None, custom=None, light="sphere", intensity=10.0, radius=0.1, normalize=None):
+    s = new_stage()
+    if doc:
+        s.GetRootLayer().documentation = doc
+    if custom:
+        s.GetRootLayer().customLayerData = custom
+    add_camera(s, eye=(0, 0, 10))
+    q = quad(s, "/Floor", half=3.0)
+    q.CreateDisplayColorAttr([(0.5, 0.5, 0.5)])
+    if light == "sphere":
+        lt = UsdLux.SphereLight.Define(s, "/Lamp")
+        lt.CreateRadiusAttr(radius)
+        lt.AddTranslateOp().Set(Gf.Vec3d(0, 0, 2))
+    else:
+        lt = UsdLux.DomeLight.Define(s, "/Dome")
+    lt.CreateIntensityAttr(intensity)
+    if normalize is not None:
+        lt.CreateNormalizeAttr(normalize)
+    return s
+
+
+def _first_light(info):
+    return info.lights[0][2]
+
+
+def test_blender_31_sphere_light_is_power_over_100():
+    """Blender 2.83–3.1 wrote intensity = P/100: 10 is a 1000 W point light, 1000/4π W/sr (the spec would read a
+    radiance of 10 over r = 0.1: 0.31 W/sr, a near-black frame). The floor under it: radiance albedo·E/π with
+    E = I/d², d = 2."""
+    s = _exporter_stage("Blender v3.1.2")
+    scene, info = load_stage(s, width=40, height=30)
+    np.testing.assert_allclose(_first_light(info).intensity, 1000 / (4 * np.pi), rtol=1e-6)
+    assert any("Blender 3.1.2" in n for n in info.notes), info.notes
+    img = render(scene, RenderSettings(width=40, height=30, samples=4)).rgb
+    np.testing.assert_allclose(img[15, 20], 0.5 * (1000 / (4 * np.pi)) / 4 / np.pi, rtol=0.03)
+    spec, info = load_stage(s, width=40, height=30, light_units="spec")
+    np.testing.assert_allclose(_first_light(info).intensity, 10 * np.pi * 0.01, rtol=1e-6)
+    assert not any("exporter" in n for n in info.notes)
+
+
+def test_blender_34_dome_light_683_is_strength_one():
+    s = _exporter_stage("Blender v3.4.1", light="dome", intensity=683.0)
+    scene, info = load_stage(s, width=20, height=16)
+    np.testing.assert_allclose(scene.background, 683 * 0.0014641, rtol=1e-5)
+
+
+def test_omniverse_kit_lights_are_minus_nine_ev():
+    s = _exporter_stage(custom={"omni_layer": {"name": "root"}}, intensity=512.0, normalize=True)
+    scene, info = load_stage(s, width=20, height=16)
+    np.testing.assert_allclose(_first_light(info).intensity, 512 * 2 ** -9 / 4, rtol=1e-6)
+    assert any("Omniverse Kit" in n for n in info.notes)
+
+
+def test_current_blender_and_unknown_writers_keep_the_spec():
+    for doc in ("Blender v5.0.1", None, "written by hand"):
+        scene, info = load_stage(_exporter_stage(doc, normalize=True), width=20, height=16)
+        np.testing.assert_allclose(_first_light(info).intensity, 10 / 4, rtol=1e-6)
+
+
+# ---------------------------------------------------------------- smaller defects
+def test_info_shows_a_textureless_dome_without_nan(tmp_path):
+    s = new_stage()
+    UsdLux.DomeLight.Define(s, "/Dome").CreateIntensityAttr(0.5)
+    UsdGeom.Sphere.Define(s, "/Ball")
+    path = str(tmp_path / "dome.usda")
+    s.GetRootLayer().Export(path)
+    res = whitted("info", path)
+    assert res.returncode == 0 and "nan" not in res.stdout and "background=[0.5, 0.5, 0.5]" in res.stdout
+
+
+@pytest.mark.parametrize("argv,want", [(["rendr", "x.usda"], "unknown command 'rendr': choose from render"),
+                                       (["-q"], "a command is required")])
+def test_command_errors_are_one_plain_line(argv, want):
+    res = whitted(*argv)
+    lines = res.stderr.strip().splitlines()
+    assert res.returncode == 2 and len(lines) == 1 and want in lines[0], res.stderr
+    assert "whitted: error: whitted:" not in res.stderr
+
+
+def test_zero_triangles_warns_and_fails_only_when_there_were_gprims(tmp_path):
+    bad = new_stage()
+    m = UsdGeom.Mesh.Define(bad, "/Lines")
+    m.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (1, 1, 0)])
+    m.CreateFaceVertexCountsAttr([2])
+    m.CreateFaceVertexIndicesAttr([0, 1])
+    empty = new_stage()
+    UsdGeom.Xform.Define(empty, "/Nothing")
+    codes = {}
+    for name, stage in (("bad", bad), ("empty", empty)):
+        path = str(tmp_path / f"{name}.usda")
+        stage.GetRootLayer().Export(path)
+        res = whitted("render", path, "-o", tmp_path / f"{name}.png", "--width", 16, "--quiet")
+        codes[name] = res
+    assert codes["bad"].returncode == 2 and "1 visible gprim(s) (Mesh) gave 0 triangles" in codes["bad"].stderr
+    assert [ln for ln in codes["bad"].stderr.splitlines() if ln.startswith("whitted: error")].__len__() == 1
+    assert codes["empty"].returncode == 0 and "no visible gprims" in codes["empty"].stderr
+
+
+def test_usd_diagnostics_are_summarised_alike_in_info_and_render(tmp_path):
+    """A primvar with 40 out-of-range indices: pxr prints a line per index; we print one line."""
+    s = new_stage()
+    add_camera(s)
+    q = quad(s, "/Q")
+    pv = UsdGeom.PrimvarsAPI(q).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying)
+    pv.Set([(0, 0)] * 4)
+    pv.SetIndices([0, 1, 2, 3])
+    pv.SetIndices([9] * 4)
+    q.CreateDisplayColorAttr([(1, 0, 0)])
+    path = str(tmp_path / "d.usda")
+    s.GetRootLayer().Export(path)
+    info = [ln for ln in whitted("info", path).stderr.splitlines() if "usd:" in ln]
+    rend = [ln for ln in whitted("render", path, "-o", tmp_path / "d.png", "--width", 8, "--quiet").stderr.splitlines()
+            if "usd:" in ln]
+    assert info == rend and 1 <= len(info) <= 5, (info, rend)

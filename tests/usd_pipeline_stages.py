@@ -324,3 +324,33 @@ def coloured_curves(interpolation):
     pv = UsdGeom.PrimvarsAPI(c).CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray, interpolation)
     pv.Set([Gf.Vec3f(*v) for v in values])
     return s
+
+
+# ---------------------------------------------------------------- other renderers' surfaces
+def lit_quad_with(shader_id, inputs, output="surface", display_color=None, mdl=None):
+    """A 6 × 6 quad facing a camera at z = 10, lit head-on by a normalised DistantLight of irradiance 2, bound to a
+    material whose ``outputs:<output>`` is one shader (``info:id`` = shader_id, or an MDL sourceAsset ``mdl``)
+    with ``inputs`` {name: (Sdf type, value)}."""
+    s = new_stage()
+    add_camera(s, eye=(0, 0, 10))
+    from pxr import UsdLux
+
+    sun = UsdLux.DistantLight.Define(s, "/Sun")
+    sun.CreateIntensityAttr(2.0)
+    sun.CreateNormalizeAttr(True)
+    q = quad(s, "/Q", half=3.0)
+    if display_color is not None:
+        q.CreateDisplayColorAttr([display_color])
+    mat = UsdShade.Material.Define(s, "/M")
+    sh = UsdShade.Shader.Define(s, "/M/S")
+    if mdl:
+        sh.SetSourceAsset(Sdf.AssetPath(f"{mdl}.mdl"), "mdl")
+        sh.SetSourceAssetSubIdentifier(mdl, "mdl")
+    else:
+        sh.CreateIdAttr(shader_id)
+    for name, (typ, v) in inputs.items():
+        sh.CreateInput(name, typ).Set(v)
+    ctx = output.split(":")[0] if ":" in output else UsdShade.Tokens.universalRenderContext
+    mat.CreateSurfaceOutput(ctx).ConnectToSource(sh.ConnectableAPI(), "out")
+    bind(q, mat)
+    return s

@@ -37,7 +37,12 @@ class BadInput(Exception):
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # argparse's own errors are bad input too: one line, exit 2
-        raise BadInput(f"{self.prog}: {message}")
+        m = re.match(r"argument command: invalid choice: '([^']*)' \(choose from (.*)\)", message)
+        if m:
+            raise BadInput(f"unknown command {m.group(1)!r}: choose from {m.group(2).replace(chr(39), '')}")
+        if "required: command" in message:
+            raise BadInput("a command is required: whitted render SCENE -o OUT.png | whitted info SCENE")
+        raise BadInput(message if self.prog == "whitted" else f"{self.prog}: {message}")
 
 
 def parse_frames(text: str) -> list[float]:
@@ -332,6 +337,9 @@ def render_file(scene_path: str, output: str, frames, aovs, args) -> int:
             s = image.stats
             print(f"{out}: {info.width}x{info.height}, {len(scene.triangles):,} triangles, "
                   f"{s['rays']['total']:,} rays in {s['seconds']:.2f} s", file=sys.stderr)
+    if info.nothing_drawn:  # gprims that gave no triangle: written, but not a success (usd_io.reader)
+        print(f"whitted: error: {scene_path}: {info.nothing_drawn}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     return EXIT_OK
 
 

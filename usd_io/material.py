@@ -49,6 +49,7 @@ from pxr import UsdGeom, UsdShade
 from . import shade_network as net
 from .material_primvars import find_primvar, mesh_primvars
 from .preview_ranges import clamp_preview_inputs
+from .surfaces import other_surface
 from .texture_assets import open_texture
 from .texture_files import TextureCache, resolve_wrap
 from .tracer_model import ModelWriter, TextureSpec
@@ -213,13 +214,10 @@ class MaterialTable:
             preview, mtlx = mtlx, None  # MaterialX's UsdPreviewSurface node: the same inputs, the same reading
         if preview and is_preview_surface(preview):
             fields, needs = self.preview_surface(preview, label)
-        elif preview and not mtlx:
-            self.warn(f"{label}: surface shader {net.shader_id(preview)!r} is not supported; using grey")
-            fields = self.model(base_color=FALLBACK_DIFFUSE)
         if mtlx:
             fields = self.materialx(mtlx, fields, label, needs)
-        if not fields:
-            fields = self.model(base_color=FALLBACK_DIFFUSE)
+        if not fields:  # Arnold, MDL OmniPBR, or nothing understood (displayColor + a warning): usd_io.surfaces
+            fields = other_surface(self, mat, preview, label, needs)
         return fields, needs
 
     # ------------------------------------------------------------------ UsdPreviewSurface
@@ -410,12 +408,12 @@ class MaterialTable:
         return dict(fields)
 
     # ------------------------------------------------------------------ MaterialX
-    def materialx(self, s: UsdShade.Shader, fields: dict, label: str, needs: MeshNeeds) -> dict:
+    def materialx(self, s: UsdShade.Shader, fields: dict, label: str, needs: MeshNeeds, family=None) -> dict:
         """OpenPBR / Standard Surface. Without a UsdPreviewSurface (``fields`` empty) base colour (× its weight),
         metalness, specular roughness and the normal come from it, each a constant or a MaterialX image
         (:func:`usd_io.shade_network.mx_image_lookup`); transmission, its colour and the ior always do."""
         sid = net.shader_id(s)
-        family = next((f for f in MX_SURFACES if f in sid), None)
+        family = family or next((f for f in MX_SURFACES if f in sid), None)
         if family is None:
             if not fields:
                 self.warn(f"{label}: MaterialX shader {sid!r} is not supported")
@@ -435,7 +433,17 @@ class MaterialTable:
                 base = net.Const(tuple(weight * c for c in net.floats(base.value, 3, names["base_default"])))
             elif isinstance(base, net.TextureLookup):
                 base.scale = tuple(weight * c for c in base.scale[:3]) + (base.scale[3],)
-            self._colour_input(t, "base_color", base, names["base_default"], label, names["base"], needs)
+            if isinstance(base, net.PrimvarLookup):  # a primvar read (Arnold's user_data_rgb): vertex colour
+                needs.color = (base.name, net.floats(base.fallback, 3, names["base_default"]))
+                t.update(base_color=(weight, weight, weight), vertex_color=True)
+            else:
+                self._colour_input(t, "base_color", base, names["base_default"], label, names["base"], needs)
+            if "spec" in names:  # the specular weight scales the Principled level (0.5 at weight 1)
+                t["specular"] = 0.5 * float(np.clip(num(names["spec"], 1.0), 0.0, 2.0))
+            if "emission" in names:  # Standard Surface: emission weight x emission_color
+                self._colour_input(t, "emission", _weighted(net.source(s, names["emission_color"], (1.0, 1.0, 1.0),
+                                                                       self.time), num(names["emission"], 0.0)),
+                                   (0.0, 0.0, 0.0), label, names["emission_color"], needs)
             self._scalar_input(t, "metallic", net.source(s, names["metal"], 0.0, self.time), 0.0, label,
                                names["metal"], needs)
             self._scalar_input(t, "roughness", net.source(s, names["rough"], names["rough_default"], self.time),
@@ -464,12 +472,13 @@ MX_SURFACES = {
     "open_pbr_surface": dict(weight="base_weight", weight_default=1.0, base="base_color",
                              base_default=(0.8, 0.8, 0.8), metal="base_metalness", rough="specular_roughness",
                              rough_default=0.3, normal="geometry_normal", trans="transmission_weight",
-                             ior="specular_ior", tint="transmission_color",
+                             ior="specular_ior", tint="transmission_color", spec="specular_weight",
                              dropped=("coat_weight", "emission_luminance", "subsurface_weight", "fuzz_weight")),
     "standard_surface": dict(weight="base", weight_default=0.8, base="base_color", base_default=(1.0, 1.0, 1.0),
                              metal="metalness", rough="specular_roughness", rough_default=0.2, normal="normal",
                              trans="transmission", ior="specular_IOR", tint="transmission_color",
-                             dropped=("coat", "emission", "subsurface", "sheen")),
+                             emission="emission", emission_color="emission_color", spec="specular",
+                             dropped=("coat", "subsurface", "sheen")),
 }
 
 
@@ -480,6 +489,15 @@ PREVIEW_SURFACE_IDS = ("UsdPreviewSurface", "ND_UsdPreviewSurface_surfaceshader"
 
 def is_preview_surface(shader) -> bool:
     return net.shader_id(shader) in PREVIEW_SURFACE_IDS
+
+
+def _weighted(src, w: float):
+    """A colour source scaled by ``w`` (a constant's value, a texture's scale)."""
+    if isinstance(src, net.Const):
+        return net.Const(tuple(w * c for c in net.floats(src.value, 3, (1.0, 1.0, 1.0))))
+    if isinstance(src, net.TextureLookup):
+        src.scale = tuple(w * c for c in src.scale[:3]) + (src.scale[3],)
+    return src
 
 
 def _is_default(src, default) -> bool:

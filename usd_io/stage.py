@@ -65,9 +65,11 @@ def open_stage(path_or_stage) -> Usd.Stage:
         detail = detail or _first_reason("".join(text))
         raise UsdInputError(f"{path}: not a readable USD file" + (f" ({detail})" if detail else ""))
     # Composition problems are reported by composition_warnings(); anything else USD said is kept for the reader.
-    other = [ln.strip() for ln in "".join(text).splitlines()
+    other = [ln for ln in "".join(text).splitlines()
              if ln.strip() and "_ReportErrors" not in ln and "Could not open asset" not in ln]
-    stage_messages[id(stage)] = other[:20]
+    from .diagnostics import summarize
+
+    stage_messages[id(stage)] = summarize("\n".join(other))  # a few lines, as the reader's (usd_io.diagnostics)
     return stage
 
 
