@@ -18,7 +18,7 @@ import numpy as np
 
 from .camera import Camera
 from .materials import Materials
-from .scene import Instances, Scene
+from .scene import Instances, Scene, handed_over
 from .texture import as_texture
 
 
@@ -171,48 +171,61 @@ class SceneBuilder:
         return sum(len(t) for t in self._triangles)
 
     def build(self) -> Scene:
+        """The :class:`Scene` of everything added. The per-mesh pieces are joined into one array per field and
+        freed as they are copied (the peak holds each field once plus the piece being copied); the builder keeps
+        the joined arrays (as one mesh of everything), so a second build() copies nothing, and hands the shading
+        arrays to the Scene, whose validation then normalises them in place instead of copying them."""
         if self.camera is None:
             raise ValueError("SceneBuilder.build: no camera set")
         n = self.triangle_count
+        sizes = [len(t) for t in self._triangles]
 
         def cat(parts, tail, dtype):
-            return np.concatenate(parts).astype(dtype) if parts else np.zeros((0,) + tail, dtype)
-
-        def corners(parts, fill_shape, fill):
-            if all(p is None for p in parts):
-                return None
-            filled = []
-            for p, tris in zip(parts, self._triangles):
-                filled.append(p if p is not None else np.full((len(tris),) + fill_shape, fill, np.float32))
-            return np.concatenate(filled) if filled else None
+            if not parts:
+                return np.zeros((0,) + tail, dtype)
+            out = (parts[0] if len(parts) == 1 else np.concatenate(parts)).astype(dtype, copy=False)
+            parts[:] = [out]
+            return out
 
         # Meshes without normals get zero normals: the integrator uses the geometric normal for those.
-        normals = corners(self._normals, (3, 3), 0.0)
+        normals = _joined(self._normals, sizes, 0.0)
         # Meshes without a UV set have no coordinates in it (NaN: textures read their fallback there).
         n_sets = max([1 if u is not None else 0 for u in self._uvs]
                      + [max(e["uv_sets"], default=-1) + 1 for e in self._extra], default=0)
-        uv_sets = [corners([e["uv_sets"].get(k) for e in self._extra], (3, 2), np.nan) for k in range(n_sets)]
-        colors = corners([e["colors"] for e in self._extra], (3, 3), 1.0)
-        return Scene(
-            vertices=cat(self._vertices, (3,), np.float32),
-            triangles=cat(self._triangles, (3,), np.int32),
-            material_ids=cat(self._material_ids, (), np.int32) if n else np.zeros(0, np.int32),
-            object_ids=cat(self._object_ids, (), np.int32) if n else np.zeros(0, np.int32),
-            normals=normals,
-            uv_sets=uv_sets,
-            colors=colors,
-            materials=Materials.from_list(self.materials),
-            camera=self.camera,
-            lights=list(self.lights),
-            textures=list(self.textures),
-            background=self.background,
-            ambient=self.ambient,
-            environment=self.environment,
-            object_names=list(self.object_names),
-            object_pass_indices=self.object_pass_indices,
-            object_transforms=self._object_transforms(),
-            instances=self._instance_table(),
-        )
+        had_uvs = any(u is not None for u in self._uvs)
+        self._uvs[:] = [None] * len(self._uvs)  # set 0 of the extras: the same arrays
+        uv_sets = [_joined([e["uv_sets"].pop(k, None) for e in self._extra], sizes, np.nan) for k in range(n_sets)]
+        colors = _joined([e.pop("colors", None) for e in self._extra], sizes, 1.0)
+        vertices = cat(self._vertices, (3,), np.float32)
+        triangles = cat(self._triangles, (3,), np.int32)
+        material_ids = cat(self._material_ids, (), np.int32) if n else np.zeros(0, np.int32)
+        object_ids = cat(self._object_ids, (), np.int32) if n else np.zeros(0, np.int32)
+        if sizes:  # from now on one mesh of everything
+            self._normals[:] = [normals]
+            self._uvs[:] = [uv_sets[0] if had_uvs and uv_sets else None]
+            self._extra[:] = [{"uv_sets": {k: uv for k, uv in enumerate(uv_sets) if uv is not None},
+                               "colors": colors}]
+        with handed_over(normals, colors, *uv_sets):
+            return Scene(
+                vertices=vertices,
+                triangles=triangles,
+                material_ids=material_ids,
+                object_ids=object_ids,
+                normals=normals,
+                uv_sets=uv_sets,
+                colors=colors,
+                materials=Materials.from_list(self.materials),
+                camera=self.camera,
+                lights=list(self.lights),
+                textures=list(self.textures),
+                background=self.background,
+                ambient=self.ambient,
+                environment=self.environment,
+                object_names=list(self.object_names),
+                object_pass_indices=self.object_pass_indices,
+                object_transforms=self._object_transforms(),
+                instances=self._instance_table(),
+            )
 
     def _instance_table(self) -> Instances | None:
         if not self._instances:
@@ -237,6 +250,21 @@ class SceneBuilder:
         for _p, m, ids, _mat in self._instances:
             out[ids] = m
         return out
+
+
+def _joined(parts: list, sizes: list, fill) -> np.ndarray | None:
+    """Per-mesh per-corner float32 arrays (None: ``fill`` for that mesh's ``sizes[i]`` rows) as one array, or None
+    when no mesh has any. Each piece is dropped from ``parts`` once copied."""
+    first = next((p for p in parts if p is not None), None)
+    if first is None:
+        return None
+    out = np.empty((sum(sizes),) + first.shape[1:], np.float32)
+    at = 0
+    for i, size in enumerate(sizes):
+        out[at:at + size] = fill if parts[i] is None else parts[i]
+        parts[i] = None
+        at += size
+    return out
 
 
 class PlacedMesh(NamedTuple):
@@ -290,8 +318,7 @@ def place_mesh(vertices, triangles, material=0, *, transform=None, normals=None,
             raise ValueError(f"mesh {label!r}: normals must be per vertex ({len(v)}, 3) "
                              f"or per corner ({n_tri}, 3, 3), got {nr.shape}")
         if transform is not None:
-            nm = np.linalg.inv(m[:3, :3]).T
-            nr = nr @ nm.T
+            nr = nr @ _inverse_transpose(m[:3, :3]).T
         corner_normals = nr.astype(np.float32)
     corner_uvs = None
     if uvs is not None:
@@ -311,6 +338,13 @@ def place_mesh(vertices, triangles, material=0, *, transform=None, normals=None,
         corner_uvs = None if corner_uvs is None else corner_uvs[:, [0, 2, 1]]
     return PlacedMesh(np.ascontiguousarray(v, np.float32), np.ascontiguousarray(t, np.int32), mat,
                       corner_normals, corner_uvs, m)
+
+
+def _inverse_transpose(a: np.ndarray) -> np.ndarray:
+    """inv(a).T of a 3×3 matrix by cofactors (cof / det): np.linalg.inv goes through LAPACK and OpenBLAS's
+    threads, 80 µs a call on an idle machine and milliseconds on a busy one, once per mesh."""
+    cof = np.stack([np.cross(a[1], a[2]), np.cross(a[2], a[0]), np.cross(a[0], a[1])])
+    return cof / np.dot(a[0], cof[0])
 
 
 def _corner_extras(label, uv_sets, colors, corner_uvs, n_vertices, t, mirrored) -> dict:
