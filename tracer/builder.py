@@ -17,6 +17,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .camera import Camera
+from .jit import kernel
 from .materials import Materials
 from .scene import Instances, Scene, handed_over
 from .texture import as_texture
@@ -112,7 +113,8 @@ class SceneBuilder:
                                           n_tri // instances))
         self._normals.append(mesh.normals)
         self._uvs.append(mesh.uvs)
-        mirrored = bool(np.linalg.det(mesh.transform[:3, :3]) < 0)
+        a = mesh.transform[:3, :3]
+        mirrored = bool(float(a[0] @ _cofactors(a)[0]) < 0)
         self._extra.append(_corner_extras(label, uv_sets, colors, mesh.uvs, len(mesh.vertices), mesh.triangles,
                                           mirrored))
         return object_id
@@ -296,10 +298,14 @@ def place_mesh(vertices, triangles, material=0, *, transform=None, normals=None,
         m = np.asarray(transform, dtype=np.float64)
         if m.shape != (4, 4) or not np.all(np.isfinite(m)):
             raise ValueError(f"mesh {label!r}: transform must be a finite 4x4 matrix")
-        det = np.linalg.det(m[:3, :3])
-        if abs(det) <= 1e-12 * max(np.abs(m[:3, :3]).max(), 1e-300) ** 3:
+        a = m[:3, :3]
+        inv_t = _inverse_transpose(a)
+        det = float(a[0] @ _cofactors(a)[0])
+        if abs(det) <= 1e-12 * max(np.abs(a).max(), 1e-300) ** 3:
             raise ValueError(f"mesh {label!r}: transform is singular (zero scale); skip the object instead")
-        v = v @ m[:3, :3].T + m[:3, 3]
+        world = np.empty((len(v), 3), np.float32)
+        _affine_rows(np.ascontiguousarray(v), np.ascontiguousarray(a), np.ascontiguousarray(m[:3, 3]), world)
+        v = world
         mirrored = det < 0
     n_tri = len(t)
     mat = np.asarray(material, dtype=np.int32)
@@ -311,18 +317,24 @@ def place_mesh(vertices, triangles, material=0, *, transform=None, normals=None,
 
     corner_normals = None
     if normals is not None:
-        nr = np.asarray(normals, dtype=np.float64)
+        nr = np.asarray(normals)
+        if nr.dtype != np.float32:
+            nr = nr.astype(np.float64, copy=False)
         if nr.shape == (len(v), 3):
             nr = nr[t]
         if nr.shape != (n_tri, 3, 3):
             raise ValueError(f"mesh {label!r}: normals must be per vertex ({len(v)}, 3) "
                              f"or per corner ({n_tri}, 3, 3), got {nr.shape}")
-        if transform is not None:
-            nr = nr @ _inverse_transpose(m[:3, :3]).T
-        corner_normals = nr.astype(np.float32)
+        if transform is not None:  # by the inverse transpose, in float64, stored as float32
+            corner_normals = np.empty((n_tri, 3, 3), np.float32)
+            _linear_rows(np.ascontiguousarray(nr, np.float64).reshape(-1, 3), inv_t, corner_normals.reshape(-1, 3))
+        else:
+            corner_normals = nr.astype(np.float32)
     corner_uvs = None
     if uvs is not None:
-        uv = np.asarray(uvs, dtype=np.float64)
+        uv = np.asarray(uvs)
+        if uv.dtype != np.float32:  # float32 as it is (a float64 round trip changes nothing)
+            uv = uv.astype(np.float64, copy=False)
         if uv.shape == (len(v), 2):
             uv = uv[t]
         if uv.shape != (n_tri, 3, 2):
@@ -340,11 +352,38 @@ def place_mesh(vertices, triangles, material=0, *, transform=None, normals=None,
                       corner_normals, corner_uvs, m)
 
 
+def _cofactors(a: np.ndarray) -> np.ndarray:
+    """The cofactor matrix of a 3×3 matrix (rows: cross products of the other two rows), in plain floats: numpy's
+    cross, det and inv go through moveaxis or LAPACK (OpenBLAS's threads: 80 µs a call idle, milliseconds on a
+    busy machine), once per mesh."""
+    (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = a.tolist()
+    return np.array([[b1 * c2 - b2 * c1, b2 * c0 - b0 * c2, b0 * c1 - b1 * c0],
+                     [c1 * a2 - c2 * a1, c2 * a0 - c0 * a2, c0 * a1 - c1 * a0],
+                     [a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0]])
+
+
 def _inverse_transpose(a: np.ndarray) -> np.ndarray:
-    """inv(a).T of a 3×3 matrix by cofactors (cof / det): np.linalg.inv goes through LAPACK and OpenBLAS's
-    threads, 80 µs a call on an idle machine and milliseconds on a busy one, once per mesh."""
-    cof = np.stack([np.cross(a[1], a[2]), np.cross(a[2], a[0]), np.cross(a[0], a[1])])
-    return cof / np.dot(a[0], cof[0])
+    """inv(a).T of a 3×3 matrix: its cofactors over its determinant."""
+    cof = _cofactors(a)
+    return cof / float(a[0] @ cof[0])
+
+
+@kernel
+def _affine_rows(src, a, b, out):
+    """out[i] = a @ src[i] + b (float64 arithmetic, float32 result): a mesh's points into the world."""
+    for i in range(len(src)):
+        x, y, z = src[i, 0], src[i, 1], src[i, 2]
+        for k in range(3):
+            out[i, k] = a[k, 0] * x + a[k, 1] * y + a[k, 2] * z + b[k]
+
+
+@kernel
+def _linear_rows(src, a, out):
+    """out[i] = a @ src[i] (float64 arithmetic, float32 result): normals by the inverse transpose."""
+    for i in range(len(src)):
+        x, y, z = src[i, 0], src[i, 1], src[i, 2]
+        for k in range(3):
+            out[i, k] = a[k, 0] * x + a[k, 1] * y + a[k, 2] * z
 
 
 def _corner_extras(label, uv_sets, colors, corner_uvs, n_vertices, t, mirrored) -> dict:
