@@ -5,6 +5,7 @@
                    [--variant /Prim:set=value ...] [--no-default-light|--disableCameraLight] [--exposure EV]
                    [--transparent] [--threads N] [--aov depth,normal,albedo,objectid] [--quiet]
     whitted info SCENE [--time T] [--variant /Prim:set=value ...]
+    whitted warmup    (compile the tracer's kernels once, e.g. at install time)
     whitted --version
 
 Several scenes render in one process (kernels and imports loaded once) to an output pattern with ``{stem}``;
@@ -211,6 +212,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--json", help="write the tree as JSON (format in README)")
     e.add_argument("--usd", help="write the tree as BasisCurves + camera over the stage (.usda)")
     e.add_argument("--png", help="write the rendered image with the pixel marked and the rays drawn")
+    sub.add_parser("warmup", help="compile the tracer's kernels now (once per install; renders then start at once)")
     i = sub.add_parser("info", help="list cameras, lights, meshes and materials of a USD stage")
     i.add_argument("scene")
     i.add_argument("--time", type=float, help="time code (default: earliest)")
@@ -468,7 +470,22 @@ def cmd_explain(args) -> int:
     return run(args)
 
 
-_COMMANDS = {"render": cmd_render, "info": cmd_info, "explain": cmd_explain}
+def cmd_warmup(args) -> int:
+    """``whitted warmup``: compile (or load) every tracer kernel into the on-disk cache, as the first render on a
+    machine would; run it after installing so that no render pays the compile."""
+    import time
+
+    from tracer.jit import kernels_cached
+
+    start = time.perf_counter()
+    was = kernels_cached()
+    _compile_kernels(quiet=True)
+    print(f"whitted: kernels {'were already compiled' if was else 'compiled'} "
+          f"({time.perf_counter() - start:.1f} s)", file=sys.stderr)
+    return 0
+
+
+_COMMANDS = {"render": cmd_render, "info": cmd_info, "explain": cmd_explain, "warmup": cmd_warmup}
 
 
 def main(argv=None) -> int:
