@@ -30,10 +30,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-try:  # inside the installed extension the tracer is bundled next to this module
-    from . import tracer
-except ImportError:  # the repository's ``addon`` package uses the top-level tracer
-    import tracer
+from .bundled import tracer
 
 from .model import Corners, MaterialWriter
 from .nodes import image_rgba
@@ -432,7 +429,8 @@ class _Placed:
 
 
 def settings_from_scene(bpy_scene, view_layer=None) -> "tracer.RenderSettings":
-    """Render settings from a Blender scene: ``scene.whitted`` (defaults where unregistered), the render size
+    """Render settings from a Blender scene: ``scene.whitted`` (every property addon/properties.py made from a
+    RenderSettings field; the defaults where unregistered), the render size
     (resolution × percentage), the render border as ``region``, Film > Transparent, and the AOVs the view layer
     asks for (Z -> depth, Normal -> normal, Object Index -> objectid)."""
     r = bpy_scene.render
@@ -440,11 +438,9 @@ def settings_from_scene(bpy_scene, view_layer=None) -> "tracer.RenderSettings":
     props = getattr(bpy_scene, "whitted", None)
     kw = {}
     if props is not None:
-        kw = dict(samples=props.samples, max_depth=props.max_depth, epsilon=props.epsilon or None,
-                  fresnel=props.fresnel, shadows=props.shadows, threads=props.threads or None,
-                  light_samples=props.light_samples, sky_samples=props.sky_samples,
-                  terminal_rays=props.terminal_rays, shading=props.shading,
-                  max_transparent=props.max_transparent)
+        from .properties import settings_kwargs
+
+        kw = settings_kwargs(props)
     region = border_region(bpy_scene) if r.use_border else None
     aovs = []
     layer = view_layer if view_layer is not None else (bpy_scene.view_layers[0] if bpy_scene.view_layers else None)

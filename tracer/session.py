@@ -54,7 +54,7 @@ from .film import Image
 from .lights import AreaLight, DistantLight, PointLight, SpotLight
 from .materials import Materials
 from .scene import PER_TRIANGLE, Instances, Scene, non_degenerate, unit_normals
-from .settings import RenderSettings
+from .settings import RenderSettings, integrator_key
 
 #: Sentinel for ``update_world`` arguments that stay as they are.
 KEEP = object()
@@ -252,7 +252,7 @@ class Session:
         until an edit other than the camera drops it."""
         from .integrator import Integrator
 
-        key = _integrator_key(settings)
+        key = integrator_key(settings)
         with self._lock:
             integ = self._integrators.get(key)
             if integ is None:
@@ -648,13 +648,6 @@ def _probe(scene: Scene, **fields) -> Scene:
                 background=scene.background, ambient=scene.ambient, environment=scene.environment)
     keep.update(fields)
     return Scene(vertices=np.zeros((0, 3), np.float32), triangles=np.zeros((0, 3), np.int32), **keep)
-
-
-def _integrator_key(settings: RenderSettings) -> tuple:
-    """Settings the packed tables depend on (everything else the integrator reads per render)."""
-    return (settings.light_samples, settings.epsilon, settings.sky_samples, settings.max_depth,
-            settings.shadows, settings.fresnel, settings.min_weight, settings.transparent, settings.seed,
-            settings.terminal_rays, settings.shading)
 
 
 def _matrix(m, what):
