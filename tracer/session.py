@@ -55,6 +55,7 @@ from .lights import AreaLight, DistantLight, PointLight, SpotLight
 from .materials import Materials
 from .scene import PER_TRIANGLE, Instances, Scene, non_degenerate, unit_normals
 from .settings import RenderSettings, integrator_key
+from .tiles import RenderCancelled, render_session
 
 #: Sentinel for ``update_world`` arguments that stay as they are.
 KEEP = object()
@@ -89,8 +90,6 @@ class Session:
             try:
                 accel = Accelerator(self._scene, quality=quality, instanced=instanced, cancelled=cancelled)
             except BuildCancelled:
-                from .render import RenderCancelled
-
                 raise RenderCancelled(None) from None
         self._accel = accel
         self._geometry = _Objects(self._scene, self._accel)
@@ -243,8 +242,6 @@ class Session:
     def render(self, settings: RenderSettings | None = None, on_tile=None, cancelled=None) -> Image:
         """Render the session's scene (as :func:`tracer.render`: tiles on threads, ``on_tile(image, tile)`` after
         each tile, ``cancelled()`` polled between tiles and depths, :class:`tracer.RenderCancelled` on a True)."""
-        from .render import render_session
-
         return render_session(self, settings, on_tile=on_tile, cancelled=cancelled)
 
     def integrator(self, settings: RenderSettings):
