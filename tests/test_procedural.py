@@ -24,6 +24,25 @@ def test_perlin_noise_vanishes_on_the_lattice():
         assert np.mean(off == 0.5) < 0.05, dim
 
 
+def test_noise_value_is_the_textures_fac():
+    """noise_value (the Fac-only entry point the VM calls when Color is unused) equals noise_texture's Fac."""
+    from tracer.jit import kernel
+
+    @kernel
+    def both(pts, out):
+        for i in range(pts.shape[0]):
+            p = (pts[i, 0], pts[i, 1], pts[i, 2], pts[i, 0] * 0.3)
+            for dim in range(1, 5):
+                f, c = noise.noise_texture(p, dim, noise.HETERO_TERRAIN, 2.0, 3.3, 0.6, 2.1, 0.4, 1.2, 0.7, True)
+                out[i, dim - 1, 0] = f
+                out[i, dim - 1, 1] = noise.noise_value(p, dim, noise.HETERO_TERRAIN, 2.0, 3.3, 0.6, 2.1, 0.4, 1.2,
+                                                       0.7, True)
+
+    out = np.empty((100, 4, 2))
+    both(RNG.uniform(-3, 3, (100, 3)), out)
+    assert np.array_equal(out[..., 0], out[..., 1])
+
+
 def test_gradient_closed_forms():
     p = RNG.uniform(-1.5, 1.5, (500, 3))
     x, y, z = p.T
