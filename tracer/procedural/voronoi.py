@@ -370,7 +370,8 @@ def voronoi_texture(p, dim, feature, metric, scale, detail, roughness, lacunarit
     roughness = min(max(roughness, 0.0), 1.0)
     randomness = min(max(randomness, 0.0), 1.0)
     smoothness = min(max(smoothness / 2.0, 0.0), 0.5)
-    coord = _scale(p, scale)
+    scale = float(scale)
+    coord = (float(p[0]) * scale, float(p[1]) * scale, float(p[2]) * scale, float(p[3]) * scale)
     if dim < 4:  # the components a dimension does not read are exactly zero
         coord = (coord[0], coord[1] if dim >= 2 else 0.0, coord[2] if dim >= 3 else 0.0, 0.0)
     zero3 = (0.0, 0.0, 0.0)
