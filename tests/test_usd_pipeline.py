@@ -594,3 +594,27 @@ def test_usd_diagnostics_are_summarised_alike_in_info_and_render(tmp_path):
     rend = [ln for ln in whitted("render", path, "-o", tmp_path / "d.png", "--width", 8, "--quiet").stderr.splitlines()
             if "usd:" in ln]
     assert info == rend and 1 <= len(info) <= 5, (info, rend)
+
+
+def test_instancer_with_velocities_at_the_earliest_time_is_placed_not_nan():
+    """Positions and velocities sampled from frame 1001 only (a particle cache): at the default (earliest) time the
+    instances stand at the first sample's positions; velocity × (EarliestTime − 1001) used to make them NaN."""
+    s = new_stage()
+    st.cube(s, "/Protos/Box")
+    pi = st.point_instancer(s, "/PI", ["/Protos/Box"], [(0, 0, 0), (3, 0, 0)])
+    pi.GetPositionsAttr().Clear()
+    pi.GetPositionsAttr().Set([Gf.Vec3f(0, 0, 0), Gf.Vec3f(3, 0, 0)], 1001.0)
+    pi.CreateVelocitiesAttr().Set([Gf.Vec3f(1, 0, 0), Gf.Vec3f(1, 0, 0)], 1001.0)
+    s.GetPrimAtPath("/Protos").SetSpecifier(Sdf.SpecifierOver)
+    scene, info = load_stage(s, width=16)
+    assert _cube_centres(scene) == [(0, 0, 0), (3, 0, 0)]
+    assert not any("singular" in w or "not finite" in w for w in info.warnings), info.warnings
+
+
+def test_gprims_without_points_are_an_empty_stage_not_a_failure(tmp_path):
+    s = new_stage()
+    UsdGeom.Mesh.Define(s, "/NoPoints")
+    path = str(tmp_path / "e.usda")
+    s.GetRootLayer().Export(path)
+    res = whitted("render", path, "-o", tmp_path / "e.png", "--width", 16, "--quiet")
+    assert res.returncode == 0 and "1 gprim(s) without points or faces" in res.stderr, res.stderr

@@ -246,8 +246,8 @@ def _subdivided(prim, mesh, points, counts, indices, holes, left, scheme, level,
     if (~keep).any():
         warnings.append(f"{label}: skipped {int((~keep).sum())} face(s) with fewer than 3 vertices")
         indices, counts = indices[fv_keep], counts[keep]
-    if not len(counts):
-        return None
+    if not len(counts):  # malformed, not empty: the reader warns and counts it (usd_io.reader._say_if_empty)
+        raise ValueError(f"{label}: all {n_faces_in} face(s) have fewer than 3 vertices")
 
     def attr(get, default=None):
         a = get()
