@@ -618,3 +618,23 @@ def test_gprims_without_points_are_an_empty_stage_not_a_failure(tmp_path):
     s.GetRootLayer().Export(path)
     res = whitted("render", path, "-o", tmp_path / "e.png", "--width", 16, "--quiet")
     assert res.returncode == 0 and "1 gprim(s) without points or faces" in res.stderr, res.stderr
+
+
+def test_cylinder_1_is_a_truncated_cone():
+    """UsdGeom Cylinder_1 (radiusBottom 1, radiusTop 0.5, height 2, axis Z): every side point at height z has
+    radius 0.75 − z/4; its silhouette seen from above is the bottom disk."""
+    s = new_stage()
+    c = UsdGeom.Cylinder_1.Define(s, "/C")
+    c.CreateRadiusBottomAttr(1.0)
+    c.CreateRadiusTopAttr(0.5)
+    c.CreateHeightAttr(2.0)
+    c.CreateAxisAttr("Z")
+    add_camera(s, eye=(0, 0, 10))
+    scene, info = load_stage(s, width=40, height=30)
+    v = scene.vertices
+    r = np.hypot(v[:, 0], v[:, 1])
+    rim = r > 1e-9
+    on_side = rim & (np.abs(r - (0.75 - v[:, 2] / 4)) < 1e-9)
+    assert on_side.sum() >= 0.5 * rim.sum() and not any("not supported" in w for w in info.warnings)
+    hit, _, _ = _centre_pixel_hits(s)
+    assert hit
