@@ -638,3 +638,18 @@ def test_cylinder_1_is_a_truncated_cone():
     assert on_side.sum() >= 0.5 * rim.sum() and not any("not supported" in w for w in info.warnings)
     hit, _, _ = _centre_pixel_hits(s)
     assert hit
+
+
+def test_explain_and_the_farm_frame_a_flat_stage_as_render_does(tmp_path):
+    """One framing rule (usd_io.camera.framing_view, through load_stage): the farm's UsdSource gets the same
+    oblique camera as a local render."""
+    from usd_io.farm import UsdSource
+
+    s = new_stage("Z")
+    quad(s, "/Ground", half=2.0).CreateDisplayColorAttr([(0.8, 0.6, 0.2)])
+    path = str(tmp_path / "flat.usda")
+    s.GetRootLayer().Export(path)
+    local, _ = load_stage(path, width=32, height=24)
+    farm, settings = UsdSource(path, width=32, height=24).load(None)
+    np.testing.assert_allclose(farm.camera.camera_to_world, local.camera.camera_to_world)
+    assert local.camera.camera_to_world[2, 3] > 1  # above the ground, not edge-on
