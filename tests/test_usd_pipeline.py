@@ -653,3 +653,18 @@ def test_explain_and_the_farm_frame_a_flat_stage_as_render_does(tmp_path):
     farm, settings = UsdSource(path, width=32, height=24).load(None)
     np.testing.assert_allclose(farm.camera.camera_to_world, local.camera.camera_to_world)
     assert local.camera.camera_to_world[2, 3] > 1  # above the ground, not edge-on
+
+
+def test_nurbs_patch_vertex_colours_blend_like_the_points():
+    """displayColor per control point: red on the z = 0 row, blue on the z = 3 row; v is linear (order 2), so the
+    colour at height z is red·(1 − z/3) + blue·z/3 exactly."""
+    s = st.nurbs_patch_stage(weights=(1, 0.5 ** 0.5, 1))
+    pv = UsdGeom.PrimvarsAPI(s.GetPrimAtPath("/Patch")).CreatePrimvar(
+        "displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex)
+    pv.Set([Gf.Vec3f(1, 0, 0)] * 3 + [Gf.Vec3f(0, 0, 1)] * 3)
+    scene, info = load_stage(s, width=16)
+    z = scene.vertices[scene.triangles][..., 2]  # (T, 3)
+    c = scene.colors
+    np.testing.assert_allclose(c[..., 0], 1 - z / 3, atol=1e-6)
+    np.testing.assert_allclose(c[..., 2], z / 3, atol=1e-6)
+    assert not any("averaged" in w for w in info.warnings)

@@ -117,6 +117,7 @@ class MeshData:
     n_face_vertices: int = 0
     primvars: dict | None = None  # refined subdivision surfaces: {name: (T, 3, k) per corner} (no corners then)
     source_points: np.ndarray | None = None  # points and curves: (V,) the authored point each vertex stands for
+    point_weights: np.ndarray | None = None  # NURBS patches: (V, P) each vertex as a combination of the CVs
 
 
 def _primvar(prim, name):

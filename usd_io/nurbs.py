@@ -7,6 +7,9 @@ tensor product, ``S(u, v) = Σ_ij N_i(u) N_j(v) w_ij P_ij / Σ_ij N_i(u) N_j(v) 
 ``order − 1`` points, come out closed); parameters run over ``uRange``/``vRange`` (``ranges`` per curve), or the
 knots' valid span ``[k[order−1], k[n]]`` when unauthored.
 
+Primvars of vertex/varying interpolation (one value per control point, e.g. displayColor) are evaluated at every
+sample with the same rational basis as the points (``MeshData.point_weights``).
+
 Sampling: :data:`SAMPLES_PER_SPAN` samples per non-empty knot span (at least :data:`MIN_SAMPLES` over a patch
 direction), a grid of quads split in two. Normals: area-weighted from the grid (smooth; the patch's own
 orientation attribute turns the winding as for meshes).
@@ -127,8 +130,13 @@ def read_nurbs_patch(prim, time) -> MeshData | None:
         return None
     uv = np.stack(np.meshgrid((u - u[0]) / max(u[-1] - u[0], 1e-30), (v - v[0]) / max(v[-1] - v[0], 1e-30),
                               indexing="xy"), axis=-1).reshape(-1, 2)
-    return MeshData(points, tris, np.zeros(len(tris), np.int64), 1, normals=smooth_normals(points, tris),
+    data = MeshData(points, tris, np.zeros(len(tris), np.int64), 1, normals=smooth_normals(points, tris),
                     uvs=uv[tris], warnings=warnings)
+    # vertex/varying primvars follow the surface: each sample is the same rational combination of the control
+    # points' values as of their positions (usd_io.material_primvars.gprim_colors reads it)
+    wgt = np.einsum("ai,bj,ji->baji", Nu, Nv, w.reshape(nv, nu)).reshape(len(v) * len(u), nv * nu)
+    data.point_weights = wgt / wgt.sum(axis=1, keepdims=True)
+    return data
 
 
 def _trim_mask(patch, time, u, v, tris, label) -> np.ndarray:
