@@ -668,3 +668,17 @@ def test_nurbs_patch_vertex_colours_blend_like_the_points():
     np.testing.assert_allclose(c[..., 0], 1 - z / 3, atol=1e-6)
     np.testing.assert_allclose(c[..., 2], z / 3, atol=1e-6)
     assert not any("averaged" in w for w in info.warnings)
+
+
+def test_nurbs_curve_without_knots_uses_open_uniform_knots():
+    """As Storm draws it: an order-2 curve without knots is its control polyline (x 0 → 6 along a right angle)."""
+    s = new_stage()
+    nc = UsdGeom.NurbsCurves.Define(s, "/C")
+    nc.CreatePointsAttr([(0, 0, 0), (3, 0, 0), (3, 3, 0)])
+    nc.CreateCurveVertexCountsAttr([3])
+    nc.CreateOrderAttr([2])
+    nc.CreateWidthsAttr([0.2])
+    scene, info = load_stage(s, width=16)
+    lo, hi = scene.vertices.min(axis=0), scene.vertices.max(axis=0)
+    np.testing.assert_allclose([lo[:2], hi[:2]], [[0.0, -0.1], [3.1, 3.0]], atol=0.02)  # tube ends are open
+    assert any("open uniform knots" in w for w in info.warnings)

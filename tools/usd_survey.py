@@ -13,8 +13,7 @@ directory (sorted; layers referenced by a test's stage sit beside it). A worker 
     refusal     UsdInputError on a file pxr opens
     blank       every pixel the same colour although the stage has visible gprims with points or a size
     empty       0 triangles although it has such gprims
-    grey        a material rendered with UsdPreviewSurface's 18 % grey or Hydra's 50 % grey that no shader of its
-                authored and no warning names (a surface nothing read, silently)
+    grey        a material no reader understood, drawn in a fallback grey (18 % or 50 %) with no warning naming it
 
 Workers are restarted (and the file counted as ``hang``) when one file takes longer than ``--timeout`` seconds in
 total for the chunk. The summary prints the counts; ``--compare`` prints them beside another run's. The contact
@@ -69,35 +68,18 @@ def has_gprims(stage) -> bool:
     return False
 
 
-#: Inputs that carry a surface's base colour, by shader family (an authored one means the grey is intended).
-COLOUR_INPUTS = ("diffuseColor", "base_color", "diffuse_color_constant", "Kd_color", "color", "base")
-
-
 def silently_grey(info, stage) -> list[str]:
-    """Materials rendered with UsdPreviewSurface's 18 % or Hydra's 50 % grey although no shader of theirs authored
-    that colour and no warning names them."""
-    from pxr import UsdShade
-
+    """Materials no reader understood and no warning names, drawn in a fallback grey: their fields are only a grey
+    ``base_color`` (what the reader wrote for a surface it could not read; a UsdPreviewSurface left at its 0.18
+    fallback has roughness, ior, … as well, and is the spec's grey, not a silent one)."""
     greys = []
     for name, fields in info.materials.items():
         bc = fields.get("base_color")
-        if not (isinstance(bc, tuple) and len(bc) == 3 and (np.allclose(bc, 0.18, atol=1e-4) or np.allclose(bc, 0.5))):
+        if set(fields) != {"base_color"} or not (isinstance(bc, tuple) and len(bc) == 3):
             continue
-        if name.startswith("displayColor") or fields.get("vertex_color") or fields.get("base_color_texture"):
+        if not (np.allclose(bc, 0.18, atol=1e-4) or np.allclose(bc, 0.5)) or name.startswith("displayColor"):
             continue
-        if any(name in w for w in info.warnings):
-            continue
-        prim = stage.GetPrimAtPath(name)
-        authored = False
-        if prim:
-            for out in UsdShade.Material(prim).GetSurfaceOutputs():
-                for src in out.GetConnectedSources()[0]:
-                    sh = UsdShade.Shader(src.source.GetPrim())
-                    for n in COLOUR_INPUTS:
-                        inp = sh.GetInput(n) if sh else None
-                        if inp and (inp.GetAttr().HasAuthoredValue() or inp.HasConnectedSource()):
-                            authored = True
-        if not authored:
+        if not any(name in w for w in info.warnings):
             greys.append(name)
     return greys
 

@@ -160,6 +160,8 @@ def read_mesh(prim, time, uv_name="st", subdivision_level: int = COMPLEXITY[DEFA
     points = np.asarray(points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"{label}: points are not 3-vectors (shape {points.shape})")
+    if not np.all(np.isfinite(points)):  # before refinement, which would spread the NaN (and warn about it)
+        raise ValueError(f"{label}: points with NaN or infinite coordinates")
     left = mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded
     holes = mesh.GetHoleIndicesAttr().Get(time) or ()
     scheme = mesh.GetSubdivisionSchemeAttr().Get(time) or UsdGeom.Tokens.catmullClark

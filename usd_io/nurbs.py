@@ -205,6 +205,10 @@ def nurbs_curve_polylines(prim, time):
     if len(orders) != len(counts):
         raise ValueError(f"{label}: {len(orders)} orders for {len(counts)} curves")
     knots = np.asarray(nc.GetKnotsAttr().Get(time) or [], np.float64)
+    warnings = []
+    if not len(knots):  # Storm draws such curves too: open uniform knots (the curve ends at its end points)
+        knots = np.concatenate([_open_uniform(int(n), int(o)) for n, o in zip(counts, orders)])
+        warnings.append(f"{label}: NurbsCurves without knots: open uniform knots used")
     if len(knots) != int((counts + orders).sum()):
         raise ValueError(f"{label}: {len(knots)} knots; the curves need {int((counts + orders).sum())}")
     w = nc.GetPointWeightsAttr().Get(time)
@@ -228,7 +232,13 @@ def nurbs_curve_polylines(prim, time):
             out_w.append(B @ per_point_w[pi:pi + n])
         pi, ki = pi + n, ki + n + o
     return (np.concatenate(out_p), np.asarray(out_c, np.int64),
-            np.concatenate(out_w) if out_w else None)
+            np.concatenate(out_w) if out_w else None, warnings)
+
+
+def _open_uniform(n: int, order: int) -> np.ndarray:
+    """The clamped uniform knot vector of n points of ``order`` (order equal knots at each end)."""
+    inner = np.linspace(0.0, 1.0, max(n - order + 2, 2))
+    return np.concatenate([np.zeros(order - 1), inner, np.ones(order - 1)])[: n + order]
 
 
 def read_nurbs_curves(prim, time) -> MeshData | None:
@@ -237,8 +247,11 @@ def read_nurbs_curves(prim, time) -> MeshData | None:
     got = nurbs_curve_polylines(prim, time)
     if got is None:
         return None
-    points, counts, widths = got
-    return tube_mesh(points, counts, widths, periodic=False)
+    points, counts, widths, warnings = got
+    data = tube_mesh(points, counts, widths, periodic=False)
+    if data is not None:
+        data.warnings = warnings
+    return data
 
 
 def read_tet_mesh(prim, time) -> MeshData | None:
