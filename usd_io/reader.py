@@ -29,7 +29,7 @@ from .lights import convert_light, default_lights
 from .material import MaterialTable
 from .render_settings import CONFORM, DEFAULT_CONFORM, crop_to_data_window, read_render_settings
 from .nurbs import read_nurbs_curves, read_nurbs_patch, read_tet_mesh
-from .mesh import COMPLEXITY, DEFAULT_COMPLEXITY, SUBDIVIDED, MeshData, read_mesh
+from .mesh import COMPLEXITY, DEFAULT_COMPLEXITY, SUBDIVIDED, MeshData, read_mesh, read_subdivided
 from .skel import Skinning
 from .stage import (DEFAULT_PURPOSES, _first_reason, captured_stderr, UsdInputError, check_purposes, composition_warnings, open_stage,
                     renderable_prims, stage_messages, stage_time)
@@ -79,6 +79,23 @@ class _Reader:
         self.empty: set = set()  # gprims whose geometry is absent or has no faces at this time
         self.skinning = Skinning(time, self.xf.world)
         self.subdivision_level = COMPLEXITY[DEFAULT_COMPLEXITY]
+        self._refined: dict = {}  # prim path -> MeshData refined ahead (prefetch_subdivided)
+
+    def prefetch_subdivided(self, prims) -> None:
+        """Refine the subdivision meshes among ``prims`` in one batch (usd_io.mesh.read_subdivided: meshes of
+        one topology refined once) before they are added one by one; geometry() takes them from here. Skinned
+        meshes (posed before refinement) and all but one proxy of each instance prototype are left out."""
+        seen, todo = set(), []
+        for prim in prims:
+            if not prim.IsA(UsdGeom.Mesh) or Skinning.is_skinned(prim):
+                continue
+            if prim.IsInstanceProxy():
+                key = str(prim.GetPrimInPrototype().GetPath())
+                if key in seen:
+                    continue
+                seen.add(key)
+            todo.append(prim)
+        self._refined = read_subdivided(todo, self.time, "st", self.subdivision_level)
 
     # ------------------------------------------------------------------ geometry
     def geometry(self, prim, uv_name="st") -> MeshData | None:
@@ -86,7 +103,11 @@ class _Reader:
         try:
             if prim.IsA(UsdGeom.Mesh):
                 skinned = Skinning.is_skinned(prim)  # skinned: the cage now, refined once posed (add_gprim)
-                data = read_mesh(prim, self.time, uv_name, 0 if skinned else self.subdivision_level)
+                data = self._refined.pop(str(prim.GetPath()), self) if uv_name == "st" and not skinned else self
+                if isinstance(data, ValueError):
+                    raise data
+                if data is self:  # not refined ahead by prefetch_subdivided
+                    data = read_mesh(prim, self.time, uv_name, 0 if skinned else self.subdivision_level)
             elif prim.IsA(UsdGeom.Points):
                 data = read_points(prim, self.time)
             elif prim.IsA(UsdGeom.BasisCurves):
@@ -343,6 +364,7 @@ def _usable(m: np.ndarray) -> np.ndarray:
 
 def _read_prims(r: _Reader, stage, tc, purposes, info: StageInfo) -> None:
     r.prims = list(renderable_prims(stage, tc, purposes))
+    r.prefetch_subdivided(r.prims)
     for prim in r.prims:
         t = prim.GetTypeName()
         if prim.IsA(UsdGeom.PointInstancer):
