@@ -682,3 +682,31 @@ def test_nurbs_curve_without_knots_uses_open_uniform_knots():
     lo, hi = scene.vertices.min(axis=0), scene.vertices.max(axis=0)
     np.testing.assert_allclose([lo[:2], hi[:2]], [[0.0, -0.1], [3.1, 3.0]], atol=0.02)  # tube ends are open
     assert any("open uniform knots" in w for w in info.warnings)
+
+
+def test_cli_render_settings_and_light_units_flags(tmp_path):
+    """--render-settings picks the prim (its 100 × 100 resolution and CamB), its RenderVar depth is written as an
+    AOV; info lists the products; --light-units spec reads a Blender 3.1 lamp as the spec says (darker)."""
+    import OpenImageIO as oiio
+
+    s = _render_settings_stage()
+    s.SetMetadata("renderSettingsPrimPath", "")
+    path = str(tmp_path / "rs.usda")
+    s.GetRootLayer().Export(path)
+    out = tmp_path / "rs.png"
+    res = whitted("render", path, "-o", out, "--render-settings", "/Render/Settings", "--quiet")
+    assert res.returncode == 0, res.stderr
+    assert oiio.ImageInput.open(str(out)).spec().width == 100 and (tmp_path / "rs.depth.exr").exists()
+    info = whitted("info", path, "--render-settings", "/Render/Settings")
+    assert "products beauty.exr, AOVs depth" in info.stdout
+    bad = whitted("render", path, "-o", out, "--render-settings", "/Nope", "--quiet")
+    assert bad.returncode == 2 and "/Render/Settings" in bad.stderr and "Traceback" not in bad.stderr
+    lamp = _exporter_stage("Blender v3.1.2")
+    lpath = str(tmp_path / "lamp.usda")
+    lamp.GetRootLayer().Export(lpath)
+    means = []
+    for units in ("auto", "spec"):
+        o = tmp_path / f"lamp_{units}.exr"
+        assert whitted("render", lpath, "-o", o, "--width", 32, "--light-units", units, "--quiet").returncode == 0
+        means.append(float(read_image(str(o))[..., :3].mean()))
+    assert means[0] > 50 * means[1], means
