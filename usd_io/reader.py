@@ -76,6 +76,7 @@ class _Reader:
         self._proto_cache: dict[str, MeshData | None] = {}
         self._proto_ids: dict[tuple, int] = {}  # (prototype prim path, material rows) -> tracer prototype object id
         self._grey = None
+        self.empty: set = set()  # gprims whose geometry is absent or has no faces at this time
         self.skinning = Skinning(time, self.xf.world)
         self.subdivision_level = COMPLEXITY[DEFAULT_COMPLEXITY]
         self._refined: dict = {}  # prim path -> MeshData refined ahead (prefetch_subdivided)
@@ -122,6 +123,8 @@ class _Reader:
         except ValueError as exc:
             self.info.warn(f"{exc} (skipped)")
             return None
+        if data is None:
+            self.empty.add(str(prim.GetPath()))  # no points or no faces authored at this time: _say_if_empty
         if data is not None and not np.all(np.isfinite(data.points)):
             self.info.warn(f"{prim.GetPath()}: points with NaN or infinite coordinates (skipped)")
             return None
@@ -208,6 +211,9 @@ class _Reader:
                     continue
                 if (piece.GetTypeName() not in GPRIM_TYPES and not piece.IsA(UsdGeom.Mesh)
                         and not _is_points_or_curves(piece)):
+                    if piece.IsA(UsdGeom.Gprim):
+                        self.info.warn(f"{piece.GetPath()}: {piece.GetTypeName()} is not supported (a prototype of "
+                                       f"{prim.GetPath()}; skipped)")
                     continue
                 data = self.geometry(piece)
                 if data is None or not len(data.triangles):
@@ -305,9 +311,11 @@ def _say_if_empty(r, info) -> None:
     and stays None when the stage has no visible gprims at all (an empty stage renders its empty frame)."""
     if sum(n for _p, n in info.meshes):
         return
-    gprims = [p for p in r.prims if p.IsA(UsdGeom.Gprim) or p.IsA(UsdGeom.PointInstancer)]
+    gprims = [p for p in r.prims if (p.IsA(UsdGeom.Gprim) or p.IsA(UsdGeom.PointInstancer))
+              and str(p.GetPath()) not in r.empty]
     if not gprims:
-        info.warn("the stage has no visible gprims: the frame shows only the background")
+        empty = f" ({len(r.empty)} gprim(s) without points or faces at this time)" if r.empty else ""
+        info.warn(f"the stage has no visible gprims with geometry{empty}: the frame shows only the background")
         return
     kinds = sorted({p.GetTypeName() for p in gprims})
     info.nothing_drawn = (f"{len(gprims)} visible gprim(s) ({', '.join(kinds)}) gave 0 triangles (see the warnings "
