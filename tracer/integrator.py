@@ -956,12 +956,10 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
         if glass <= 0.0 and vec.max3(mirror) <= 0.0:
             continue
         # Secondary rays where a mirror or glass part exists: reflection and transmission.
-        r_dir = optics.reflect_dir(di, n)
-        r_n = n
-        # Interpolated normals can tilt a reflection below the surface: use the geometric normal there.
-        if vec.dot(r_dir, ng) <= 0.0:
-            r_dir = optics.reflect_dir(di, ng)
-            r_n = ng
+        # Interpolated normals can tilt a reflection below the surface: the normal is bent towards ng just enough
+        # to keep it above (Cycles' glossy lobes do the same).
+        r_n = optics.valid_reflection_normal(di, n, ng)
+        r_dir = optics.reflect_dir(di, r_n)
         eta_i, eta_r, tir = 1.0, 1.0, False
         w_refl = vec.mul(w, mirror)
         if glass > 0.0:

@@ -116,6 +116,7 @@ class MeshData:
     corners: np.ndarray | None = None  # (T, 3) face-vertex positions, to expand further primvars (materials)
     n_face_vertices: int = 0
     primvars: dict | None = None  # refined subdivision surfaces: {name: (T, 3, k) per corner} (no corners then)
+    source_points: np.ndarray | None = None  # points and curves: (V,) the authored point each vertex stands for
 
 
 def _primvar(prim, name):

@@ -188,6 +188,19 @@ def _mirror():
         note="a perfect mirror ball (metallic 1, roughness 0 ⇔ k_m = 1) over a checker floor")
 
 
+def _gold_coarse_sphere():
+    """A coarse smooth-shaded gold ball under a spot and a sky: near its silhouette the interpolated normals send
+    mirror directions below the faces; Cycles bends those normals (ensure_valid_specular_reflection)."""
+    mats = dict(BASE_MATS, gold=dict(base_color=[1.0, 0.766, 0.336], metallic=1.0, roughness=0.0,
+                                     specular_ior_level=0.5), red=lambert((0.8, 0.1, 0.1)))
+    return scene("gold_coarse_sphere", camera=CAM, materials=mats, objects=[
+        floor(checker=("grey", "red"), divisions=(8, 8), pass_index=1),
+        sphere("Gold", (0.0, 0.5, 1.2), 1.2, "gold", 2, segments=12, rings=6)],
+        lights=[spot("Spot", (0.5, -2.5, 6.0), (0.0, 0.5, 0.0), 2500.0, math.radians(45), 0.3)],
+        world=(0.3, 0.4, 0.6), depth=4, samples=128, sky_samples=64,
+        note="a 12×6 smooth gold ball: reflections off interpolated normals near the rim stay above the surface")
+
+
 def _metallic_half():
     mats = dict(BASE_MATS, half=dict(base_color=[0.9, 0.9, 0.9], metallic=0.5, roughness=0.0,
                                      specular_ior_level=0.0), red=lambert((0.8, 0.1, 0.1)))
@@ -314,7 +327,7 @@ def _lobe(name):
 
 def image_scenes() -> dict:
     scenes = [_emissive_flat(), _emission_light(), _environment(), _point_shadow(), _sun(), _spot(), _several_lights(), _world(), _mirror(),
-              _metallic_half(), _metallic_half_dielectric(), _glass_sphere(), _water_sphere(), _glass_slab(),
+              _metallic_half(), _metallic_half_dielectric(), _gold_coarse_sphere(), _glass_sphere(), _water_sphere(), _glass_slab(),
               _tir_prism()] + [_interreflection(d) for d in (1, 2, 4, 8)] + [
         _interreflection(1, world=(0.35, 0.5, 0.8), name="interreflection_sky_d1"), _orthographic(), _whitted_1980()] + [
         _lobe(n) for n in LOBES]
