@@ -2,7 +2,8 @@
 
 Followed: ``intern/cycles/kernel/svm/voronoi.h`` (Blender 5.0) and the manual's Voronoi Texture page. The space is
 cut into unit cells; each cell holds one point at cell + randomness · hash(cell) (the ``hash_float{n}_to_float{n}``
-of a 1D cell, the PCG hash ``hash_int{n}_to_float{n}`` of an n-D cell's integer coordinates since Blender 4.2,
+of a 1D cell, the PCG hash ``hash_int{n}_to_float{n}`` of an n-D cell's integer coordinates (Blender 5.0; older
+Cycles hashed float cells),
 :mod:`.hash`), its colour another hash of the cell. Features:
 
 - F1 / F2: the distance to the nearest / second-nearest point, that point's cell colour and position (3×3×… cells);
@@ -88,7 +89,7 @@ def distance(a, b, dim, metric, exponent):
 @kernel
 def cell_point(cell, dim):
     """The cell's random point offset in [0, 1]^dim: 1D hash_float_to_float of the cell, n-D the PCG hash
-    hash_int{n}_to_float{n} of its integer coordinates (Blender ≥ 4.2)."""
+    hash_int{n}_to_float{n} of its integer coordinates (Blender 5.0)."""
     if dim == 1:
         return (hash_float_to_float(cell[0]), 0.0, 0.0, 0.0)
     if dim == 2:
