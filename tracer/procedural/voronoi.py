@@ -1,10 +1,9 @@
 """Cycles' Voronoi Texture (Worley noise): every feature, metric and dimension, with Blender 4's fractal octaves.
 
 Followed: ``intern/cycles/kernel/svm/voronoi.h`` (Blender 5.0) and the manual's Voronoi Texture page. The space is
-cut into unit cells; each cell holds one point at cell + randomness · hash(cell) (the ``hash_float{n}_to_float{n}``
-of a 1D cell, the PCG hash ``hash_int{n}_to_float{n}`` of an n-D cell's integer coordinates (Blender 5.0; older
-Cycles hashed float cells),
-:mod:`.hash`), its colour another hash of the cell. Features:
+cut into unit cells; each cell holds one point at cell + randomness · hash(cell): ``hash_float_to_float`` of a 1D
+cell, the PCG hash ``hash_int{n}_to_float{n}`` of an n-D cell's integer coordinates (Blender 5.0; older Cycles hashed
+float cells), see :mod:`.hash`; its colour is another hash of the cell. Features:
 
 - F1 / F2: the distance to the nearest / second-nearest point, that point's cell colour and position (3×3×… cells);
 - Smooth F1: Inigo Quilez' smooth minimum over the 5×5×… cells, smoothness/2 as its width;
