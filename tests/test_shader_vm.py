@@ -262,3 +262,54 @@ def test_mapping_point_rotates_and_scales_the_coordinates():
     # Point: R·(S ⊙ v) + T, R a quarter turn about z: (x, y) -> (−y, x)
     np.testing.assert_allclose(img[..., 0], -V + 0.1, atol=1e-5)
     np.testing.assert_allclose(img[..., 1], 2 * U + 0.2, atol=1e-5)
+
+
+# ---------------------------------------------------------------------------------------------- procedural
+def _generated():
+    """The Generated coordinates of the quad's pixel centres (the flat z axis reads 0.5)."""
+    return np.stack([U, V, np.full_like(U, 0.5)], -1)
+
+
+def test_noise_texture_4d_reads_w_per_hit_and_its_parameters():
+    from tracer.procedural.noise import noise_texture_array
+
+    def build(g, uv):
+        u, _v = xyz(g, uv)
+        return g.add("noise_texture", {"W": u, "Scale": 3.0, "Detail": 3.0, "Roughness": 0.6, "Distortion": 0.3},
+                     noise_dimensions="4D", noise_type="RIDGED_MULTIFRACTAL")["Color"]
+    img = picture(build)
+    _fac, col = noise_texture_array(_generated(), U, dimensions=4, noise_type="RIDGED_MULTIFRACTAL", scale=3.0,
+                                    detail=3.0, roughness=0.6, distortion=0.3)
+    np.testing.assert_allclose(img, col, atol=1e-5)
+
+
+def test_voronoi_outputs_and_enums():
+    from tracer.procedural.voronoi import voronoi_texture_array
+
+    def build(g, uv):
+        v = g.add("voronoi_texture", {"Scale": 4.0, "Randomness": 0.8}, feature="F2", distance="MANHATTAN")
+        pos = g.add("separate_xyz", {"Vector": v["Position"]})
+        col = g.add("separate_color", {"Color": v["Color"]})
+        return g.add("combine_xyz", {"X": v["Distance"], "Y": pos["X"], "Z": col["Green"]})["Vector"]
+    img = picture(build)
+    want = voronoi_texture_array(_generated(), feature="F2", distance="MANHATTAN", scale=4.0, randomness=0.8)
+    np.testing.assert_allclose(img[..., 0], want["Distance"], atol=1e-5)
+    np.testing.assert_allclose(img[..., 1], want["Position"][..., 0], atol=1e-5)
+    np.testing.assert_allclose(img[..., 2], want["Color"][..., 1], atol=1e-5)
+
+
+def test_wave_magic_and_brick_factors():
+    from tracer.procedural.patterns import brick_array, magic_array, wave_array
+
+    def build(g, uv):
+        w = g.add("wave_texture", {"Scale": 2.0, "Distortion": 1.5}, wave_type="RINGS", rings_direction="SPHERICAL",
+                  wave_profile="TRI")["Fac"]
+        m = g.add("magic_texture", {"Scale": 2.0}, turbulence_depth=3)["Fac"]
+        b = g.add("brick_texture", {"Scale": 3.0, "Mortar Size": 0.05}, offset=0.3)["Fac"]
+        return g.add("combine_xyz", {"X": w, "Y": m, "Z": b})["Vector"]
+    img = picture(build)
+    p = _generated()
+    np.testing.assert_allclose(img[..., 0], wave_array(p, wave_type="RINGS", rings_direction="SPHERICAL",
+                                                       wave_profile="TRI", scale=2.0, distortion=1.5), atol=1e-5)
+    np.testing.assert_allclose(img[..., 1], magic_array(p, turbulence_depth=3, scale=2.0).mean(-1), atol=1e-5)
+    np.testing.assert_allclose(img[..., 2], brick_array(p, scale=3.0, mortar_size=0.05, offset=0.3)[1], atol=1e-5)

@@ -834,6 +834,129 @@ class Compiler:
     def _n_float_curve(self, node, var):
         return self._curve_node(node, var, 2, "Value", "Value", "Factor")
 
+    # ------------------------------------------------------------------ procedural textures (tracer.procedural)
+    def block(self, values: list) -> Reg:
+        """Consecutive registers holding ``values`` (constants written once, per-hit values copied in)."""
+        flat = []
+        for x in values:
+            flat += list(_vec(x)) if (not isinstance(x, Reg) and np.ndim(x)) else [x]
+        if all(_is_const(x) for x in flat):
+            return self.e.const(tuple(float(x) for x in flat))
+        base = self.e.alloc(len(flat))
+        for j, x in enumerate(flat):
+            if _is_const(x):
+                self.e.init[base + j] = float(x)
+            else:
+                self.e.code.append([vm.OP_COPY, base + j, x.r, 0, 0, 0, 0, 0, 1])
+                self.e.reads.append([(x.r, 1)])
+                self.e.widths.append(1)
+        return Reg(base, len(flat))
+
+    def _flat(self, values):
+        out = []
+        for x in values:
+            if isinstance(x, Reg) and x.n == 3:
+                out += [Reg(x.r + j, 1) for j in range(3)]
+            else:
+                out.append(x)
+        return out
+
+    def _proc(self, op, node, var, names, imm, width):
+        if self.estimate:
+            return None
+        vec_in = self.inp(node, "Vector", VECTOR, var) if "Vector" in [s.name for s in NODE_TYPES[node.type].inputs] \
+            else 0.0
+        blk = self.block(self._flat([self.inp(node, n, None, var) for n in names]))
+        raw = {"reads": [(blk.r, blk.n)]}
+        return self.e.emit(op, width, [(vec_in, 3), blk.r], imm=imm, raw=raw)
+
+    def _n_noise_texture(self, node, var):
+        from .procedural import noise as pn
+        dim = int(str(node.param("noise_dimensions"))[0])
+        kind = pn.NOISE_TYPES[str(node.param("noise_type")).upper()]
+        if self.estimate:
+            return {"Fac": 0.5, "Color": (0.5, 0.5, 0.5)}
+        r = self._proc(vm.OP_NOISE, node, var, ["W", "Scale", "Detail", "Roughness", "Lacunarity", "Offset", "Gain",
+                                                "Distortion"], dim | kind << 4 | int(bool(node.param("normalize"))) << 8
+                       | 1 << 12, 4)
+        return {"Fac": Reg(r.r, 1), "Color": Reg(r.r + 1, 3)}
+
+    def _n_voronoi_texture(self, node, var):
+        from .procedural import voronoi as pv
+        dim = int(str(node.param("voronoi_dimensions"))[0])
+        feat = pv.FEATURES[str(node.param("feature")).upper()]
+        metric = pv.METRICS[str(node.param("distance")).upper()]
+        if self.estimate:
+            return {"Distance": 0.5, "Color": (0.5, 0.5, 0.5), "Position": (0.5, 0.5, 0.5), "W": 0.5, "Radius": 0.5}
+        r = self._proc(vm.OP_VORONOI, node, var, ["W", "Scale", "Detail", "Roughness", "Lacunarity", "Smoothness",
+                                                  "Exponent", "Randomness"],
+                       dim | feat << 4 | metric << 8 | int(bool(node.param("normalize"))) << 12, 9)
+        return {"Distance": Reg(r.r, 1), "Color": Reg(r.r + 1, 3), "Position": Reg(r.r + 4, 3), "W": Reg(r.r + 7, 1),
+                "Radius": Reg(r.r + 8, 1)}
+
+    def _n_wave_texture(self, node, var):
+        from .procedural import patterns as pp
+        kind = pp.WAVE_TYPES[str(node.param("wave_type")).upper()]
+        dirs = pp.BANDS_DIRECTIONS if kind == pp.BANDS else pp.RINGS_DIRECTIONS
+        direction = dirs[str(node.param("bands_direction" if kind == pp.BANDS else "rings_direction")).upper()]
+        prof = pp.WAVE_PROFILES[str(node.param("wave_profile")).upper()]
+        if self.estimate:
+            return {"Fac": 0.5, "Color": (0.5, 0.5, 0.5)}
+        r = self._proc(vm.OP_WAVE, node, var, ["Scale", "Distortion", "Detail", "Detail Scale", "Detail Roughness",
+                                               "Phase Offset"], kind | direction << 4 | prof << 8, 1)
+        return {"Fac": r, "Color": self.convert(r, FLOAT, COLOR)}
+
+    def _n_magic_texture(self, node, var):
+        if self.estimate:
+            return {"Fac": 0.5, "Color": (0.5, 0.5, 0.5)}
+        r = self._proc(vm.OP_MAGIC, node, var, ["Scale", "Distortion"], int(node.param("turbulence_depth")) & 15, 4)
+        return {"Color": Reg(r.r, 3), "Fac": Reg(r.r + 3, 1)}
+
+    def _n_gradient_texture(self, node, var):
+        from .procedural import patterns as pp
+        kind = pp.GRADIENT_TYPES[str(node.param("gradient_type")).upper()]
+        if self.estimate:
+            return {"Fac": 0.5, "Color": (0.5, 0.5, 0.5)}
+        r = self._proc(vm.OP_GRADIENT, node, var, [], kind, 1)
+        return {"Fac": r, "Color": self.convert(r, FLOAT, COLOR)}
+
+    def _n_brick_texture(self, node, var):
+        if self.estimate:
+            c1, c2 = self.inp(node, "Color1", None, var), self.inp(node, "Color2", None, var)
+            mean = tuple(0.5 * (a + b) for a, b in zip(_vec(c1), _vec(c2))) if _is_const(c1) and _is_const(c2) \
+                else (0.5, 0.5, 0.5)
+            return {"Color": mean, "Fac": 0.1}
+        names = ["Color1", "Color2", "Mortar", "Scale", "Mortar Size", "Mortar Smooth", "Bias", "Brick Width",
+                 "Row Height"]
+        vals = [self.inp(node, n, None, var) for n in names] + [
+            float(node.param("offset")), float(node.param("offset_frequency")), float(node.param("squash")),
+            float(node.param("squash_frequency"))]
+        v = self.inp(node, "Vector", VECTOR, var)
+        blk = self.block(self._flat(vals))
+        r = self.e.emit(vm.OP_BRICK, 4, [(v, 3), blk.r], raw={"reads": [(blk.r, blk.n)]})
+        return {"Color": Reg(r.r, 3), "Fac": Reg(r.r + 3, 1)}
+
+    def _n_white_noise_texture(self, node, var):
+        dim = int(str(node.param("noise_dimensions"))[0])
+        if self.estimate:
+            return {"Value": 0.5, "Color": (0.5, 0.5, 0.5)}
+        r = self._proc(vm.OP_WHITE_NOISE, node, var, ["W"], dim, 4)
+        return {"Value": Reg(r.r, 1), "Color": Reg(r.r + 1, 3)}
+
+    def _n_blackbody(self, node, var):
+        from .procedural import color as pc
+        t = self.inp(node, "Temperature", FLOAT, var)
+        if _is_const(t):
+            return {"Color": tuple(float(x) for x in pc.blackbody(float(t)))}
+        return {"Color": self.e.emit(vm.OP_BLACKBODY, 3, [(t, 1)])}
+
+    def _n_wavelength(self, node, var):
+        from .procedural import color as pc
+        t = self.inp(node, "Wavelength", FLOAT, var)
+        if _is_const(t):
+            return {"Color": tuple(float(x) for x in pc.wavelength(float(t)))}
+        return {"Color": self.e.emit(vm.OP_WAVELENGTH, 3, [(t, 1)])}
+
     # ------------------------------------------------------------------ normals
     def _n_normal_map(self, node, var):
         space = node.param("space") or "TANGENT"

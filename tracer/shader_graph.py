@@ -212,7 +212,7 @@ NODE_TYPES: dict[str, NodeType] = {
     "gradient_texture": _t([_v("Vector", GENERATED)], [_c("Color"), _f("Fac")], gradient_type="LINEAR"),
     "brick_texture": _t([_v("Vector", GENERATED), _c("Color1"), _c("Color2", (0.2, 0.2, 0.2)),
                          _c("Mortar", (0.0, 0.0, 0.0)), _f("Scale", 5.0), _f("Mortar Size", 0.02),
-                         _f("Mortar Smooth"), _f("Bias"), _f("Brick Width", 0.5), _f("Row Height", 0.25)],
+                         _f("Mortar Smooth", 0.1), _f("Bias"), _f("Brick Width", 0.5), _f("Row Height", 0.25)],
                         [_c("Color"), _f("Fac")], offset=0.5, offset_frequency=2, squash=1.0, squash_frequency=2),
     "white_noise_texture": _t([_v("Vector", GENERATED), _f("W")], [_f("Value"), _c("Color")],
                               noise_dimensions="3D"),

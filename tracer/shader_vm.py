@@ -27,6 +27,10 @@ import numpy as np
 from . import bsdf, shader_ops as ops, vec
 from .instances import mat3_apply
 from .jit import kernel
+from .procedural import color as pcolor
+from .procedural import noise as pnoise
+from .procedural import patterns as ppat
+from .procedural import voronoi as pvor
 from .surface import areas_at, tangent_at, uv_at
 from .texture import lookup_at, texel_density
 
@@ -35,12 +39,14 @@ WIDTH = 9  # op, dst, a, b, c, d, e, f, imm
 (OP_NOP, OP_MATH, OP_VMATH, OP_MIX_F, OP_MIX_V, OP_MIX_VN, OP_MIX_C, OP_LUM, OP_AVG, OP_COMBINE, OP_INPUT,
  OP_IMAGE, OP_CHECKER, OP_NORMAL_MAP, OP_BUMP_SETUP, OP_BUMP, OP_RAMP, OP_CURVE, OP_MAPPING, OP_HSV, OP_GAMMA,
  OP_BRIGHT, OP_INVERT, OP_SEP_COLOR, OP_COMB_COLOR, OP_MAP_RANGE, OP_CLAMP, OP_FRESNEL, OP_LAYER_WEIGHT,
- OP_VROTATE, OP_COPY, OP_AFFINE2, OP_MAP_RANGE_V, OP_SELECT, OP_NORMALIZE_N) = range(35)
+ OP_VROTATE, OP_COPY, OP_AFFINE2, OP_MAP_RANGE_V, OP_SELECT, OP_NORMALIZE_N, OP_NOISE, OP_VORONOI, OP_WAVE,
+ OP_MAGIC, OP_GRADIENT, OP_BRICK, OP_WHITE_NOISE, OP_BLACKBODY, OP_WAVELENGTH) = range(44)
 
 OP_NAMES = ("nop", "math", "vmath", "mix_f", "mix_v", "mix_vn", "mix_c", "lum", "avg", "combine", "input", "image",
             "checker", "normal_map", "bump_setup", "bump", "ramp", "curve", "mapping", "hsv", "gamma", "bright",
             "invert", "sep_color", "comb_color", "map_range", "clamp", "fresnel", "layer_weight", "vrotate", "copy",
-            "affine2", "map_range_v", "select", "normalize_n")
+            "affine2", "map_range_v", "select", "normalize_n", "noise", "voronoi", "wave", "magic", "gradient",
+            "brick", "white_noise", "blackbody", "wavelength")
 
 (IN_POSITION, IN_NORMAL, IN_TRUE_NORMAL, IN_INCOMING, IN_UV, IN_GENERATED, IN_OBJECT, IN_BACKFACING, IN_PARAMETRIC,
  IN_COLOR, IN_COLOR_ALPHA, IN_OBJ_LOCATION, IN_OBJ_RANDOM, IN_OBJ_INDEX, IN_RAY_DEPTH, IN_RAY_LENGTH, IN_IS_CAMERA,
@@ -239,6 +245,8 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
             R[o] = R[b] * s_ + R[b + 1] * t_ + R[b + 2]
             R[o + 1] = R[b + 3] * s_ + R[b + 4] * t_ + R[b + 5]
             R[o + 2] = R[a + 2]
+        elif op >= OP_NOISE:  # procedural textures (tracer.procedural): a = vector, b = parameter block
+            _procedural(R, op, o, a, b, imm)
         elif op == OP_NORMALIZE_N:  # a normal output: unit, on the incident side (else the shading normal)
             x = (R[a], R[a + 1], R[a + 2])
             ln = math.sqrt(vec.dot(x, x))
@@ -247,6 +255,57 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
             else:
                 x = n
             R[o], R[o + 1], R[o + 2] = x
+
+
+@kernel(refcounts=False)
+def _procedural(R, op, o, a, b, imm):
+    """A procedural texture node (tracer.procedural, Cycles' algorithms) at the vector R[a…], its other inputs the
+    block R[b…] (per op below), its enums in ``imm`` (4 bits each, low first)."""
+    e0, e1, e2, e3 = imm & 15, (imm >> 4) & 15, (imm >> 8) & 15, (imm >> 12) & 15
+    p3 = (R[a], R[a + 1], R[a + 2])
+    if op == OP_NOISE:  # block: W, Scale, Detail, Roughness, Lacunarity, Offset, Gain, Distortion; e0 dim, e1 type,
+        #                 e2 normalize, e3 colour wanted
+        p4 = (p3[0], p3[1], p3[2], R[b]) if e0 != 1 else (R[b], 0.0, 0.0, 0.0)
+        if e3:
+            f, c = pnoise.noise_texture(p4, e0, e1, R[b + 1], R[b + 2], R[b + 3], R[b + 4], R[b + 5], R[b + 6],
+                                        R[b + 7], e2 != 0)
+            R[o], R[o + 1], R[o + 2], R[o + 3] = f, c[0], c[1], c[2]
+        else:
+            R[o] = pnoise.noise_value(p4, e0, e1, R[b + 1], R[b + 2], R[b + 3], R[b + 4], R[b + 5], R[b + 6],
+                                      R[b + 7], e2 != 0)
+    elif op == OP_VORONOI:  # block: W, Scale, Detail, Roughness, Lacunarity, Smoothness, Exponent, Randomness;
+        #                     e0 dim, e1 feature, e2 metric, e3 normalize -> Distance, Color, Position, W, Radius
+        p4 = (p3[0], p3[1], p3[2], R[b]) if e0 != 1 else (R[b], 0.0, 0.0, 0.0)
+        d, c, pos, w, rad = pvor.voronoi_texture(p4, e0, e1, e2, R[b + 1], R[b + 2], R[b + 3], R[b + 4], R[b + 5],
+                                                 R[b + 6], R[b + 7], e3 != 0)
+        R[o] = d
+        R[o + 1], R[o + 2], R[o + 3] = c
+        R[o + 4], R[o + 5], R[o + 6] = pos
+        R[o + 7], R[o + 8] = w, rad
+    elif op == OP_WAVE:  # block: Scale, Distortion, Detail, Detail Scale, Detail Roughness, Phase Offset;
+        #                  e0 type, e1 direction, e2 profile -> Fac
+        R[o] = ppat.wave(p3, e0, e1, e2, R[b], R[b + 1], R[b + 2], R[b + 3], R[b + 4], R[b + 5])
+    elif op == OP_MAGIC:  # block: Scale, Distortion; e0 depth -> Color, Fac
+        c = ppat.magic(p3, e0, R[b], R[b + 1])
+        R[o], R[o + 1], R[o + 2] = c
+        R[o + 3] = (c[0] + c[1] + c[2]) / 3.0
+    elif op == OP_GRADIENT:  # e0 type -> Fac
+        R[o] = ppat.gradient(p3, e0)
+    elif op == OP_BRICK:  # block: Color1 (3), Color2 (3), Mortar (3), Scale, Mortar Size, Mortar Smooth, Bias,
+        #                   Brick Width, Row Height, offset, offset frequency, squash, squash frequency -> Color, Fac
+        c, f = ppat.brick_color(p3, (R[b], R[b + 1], R[b + 2]), (R[b + 3], R[b + 4], R[b + 5]),
+                                (R[b + 6], R[b + 7], R[b + 8]), R[b + 9], R[b + 10], R[b + 11], R[b + 12], R[b + 13],
+                                R[b + 14], R[b + 15], int(R[b + 16]), R[b + 17], int(R[b + 18]))
+        R[o], R[o + 1], R[o + 2] = c
+        R[o + 3] = f
+    elif op == OP_WHITE_NOISE:  # block: W; e0 dim -> Value, Color
+        x, c = ppat.white_noise(p3, R[b], e0)
+        R[o] = x
+        R[o + 1], R[o + 2], R[o + 3] = c
+    elif op == OP_BLACKBODY:
+        R[o], R[o + 1], R[o + 2] = pcolor.blackbody(R[a])
+    elif op == OP_WAVELENGTH:
+        R[o], R[o + 1], R[o + 2] = pcolor.wavelength(R[a])
 
 
 @kernel(refcounts=False)
