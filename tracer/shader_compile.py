@@ -791,19 +791,19 @@ class Compiler:
         return {"Color": Reg(r.r, 3), "Fac": Reg(r.r + 3, 1)}
 
     def _n_rgb_ramp(self, node, var):
+        from .procedural.color import color_ramp_table
         ramp = node.param("ramp")
-        interp = _enum("rgb_ramp.interpolation", node.param("interpolation"))
-        if node.param("color_mode") not in (None, "RGB"):
-            self.warn(node.name + "mode", f"Color Ramp {node.name!r}: {node.param('color_mode')} colour mode is "
-                                          "interpolated in RGB")
-        stops = sorted(((float(p), tuple(float(x) for x in (tuple(c) + (1.0,))[:4])) for p, c in (ramp or [])),
-                       key=lambda s: s[0])
+        interp = str(node.param("interpolation") or "LINEAR").upper()
         f = self.inp(node, "Fac", FLOAT, var)
-        if not stops:
+        if not ramp:
             return {"Color": (0.0, 0.0, 0.0), "Alpha": 1.0}
-        flat = [x for p, c in stops for x in (p,) + c]
-        table = self.e.const(tuple(flat))
-        r = self.e.emit(vm.OP_RAMP, 4, [(f, 1), (table, len(flat)), len(stops)], imm=interp)
+        stops = sorted(((float(p), tuple(float(x) for x in (tuple(c) + (1.0,))[:4])) for p, c in ramp),
+                       key=lambda s: s[0])
+        table = color_ramp_table([p for p, _c in stops], [c for _p, c in stops], interp,
+                                 str(node.param("color_mode") or "RGB").upper(),
+                                 str(node.param("hue_interpolation") or "NEAR").upper())
+        k = self.e.const(tuple(np.asarray(table, np.float64).reshape(-1)))
+        r = self.e.emit(vm.OP_RAMP, 4, [(f, 1), (k, table.size), len(table)], imm=int(interp != "CONSTANT"))
         if _is_const(f):
             rgba = self._fold(r, 4)
             return {"Color": tuple(rgba[:3]), "Alpha": rgba[3]}

@@ -441,55 +441,19 @@ def _bump(R, o, h0, hx, hy, strength, distance, nrm, setup, ng):
 
 
 @kernel(refcounts=False)
-def _ramp(R, o, f, table, count, interp):
-    """Color Ramp: ``count`` stops at R[table…] as (position, r, g, b, a), sorted; interp 0 linear, 1 constant,
-    2 ease, 3 cardinal, 4 B-spline (Blender's ``BKE_colorband_evaluate``)."""
-    if count <= 0:
-        R[o], R[o + 1], R[o + 2], R[o + 3] = 0.0, 0.0, 0.0, 1.0
-        return
-    if f <= R[table] or count == 1:
-        for j in range(4):
-            R[o + j] = R[table + 1 + j]
-        return
-    last = table + 5 * (count - 1)
-    if f >= R[last]:
-        for j in range(4):
-            R[o + j] = R[last + 1 + j]
-        return
-    k = 0
-    while k < count - 1 and R[table + 5 * (k + 1)] <= f:
-        k += 1
-    s0 = table + 5 * k
-    s1 = s0 + 5
-    if interp == 1:
-        for j in range(4):
-            R[o + j] = R[s0 + 1 + j]
-        return
-    span = R[s1] - R[s0]
-    t = (f - R[s0]) / span if span > 0.0 else 0.0
-    if interp == 2:
-        t = t * t * (3.0 - 2.0 * t)
-    if interp == 3 or interp == 4:  # cardinal / B-spline through the neighbouring stops
-        sm = table + 5 * max(k - 1, 0)
-        sp = table + 5 * min(k + 2, count - 1)
-        t2 = t * t
-        t3 = t2 * t
-        if interp == 3:  # Catmull-Rom (Blender's KEY_CARDINAL, 0.5 tension)
-            w0 = -0.5 * t3 + t2 - 0.5 * t
-            w1 = 1.5 * t3 - 2.5 * t2 + 1.0
-            w2 = -1.5 * t3 + 2.0 * t2 + 0.5 * t
-            w3 = 0.5 * t3 - 0.5 * t2
-        else:
-            w0 = (1.0 - t) ** 3 / 6.0
-            w1 = (3.0 * t3 - 6.0 * t2 + 4.0) / 6.0
-            w2 = (-3.0 * t3 + 3.0 * t2 + 3.0 * t + 1.0) / 6.0
-            w3 = t3 / 6.0
-        for j in range(4):
-            x = w0 * R[sm + 1 + j] + w1 * R[s0 + 1 + j] + w2 * R[s1 + 1 + j] + w3 * R[sp + 1 + j]
-            R[o + j] = min(max(x, 0.0), 1.0) if interp == 3 else x
-        return
-    for j in range(4):
-        R[o + j] = (1.0 - t) * R[s0 + 1 + j] + t * R[s1 + 1 + j]
+def _ramp(R, o, f, table, size, interpolate):
+    """Color Ramp: Cycles' ``rgb_ramp_lookup`` on the (size, 4) RGBA table at R[table…] (Blender's 257 samples of
+    the ramp, made by tracer.procedural.color.color_ramp_table): entry int(f·(size − 1)) of f clamped to [0, 1],
+    linear to the next unless the ramp is CONSTANT."""
+    x = min(max(f, 0.0), 1.0) * (size - 1)
+    if x != x:
+        x = 0.0
+    i = min(max(int(x), 0), size - 1)
+    t = x - i if interpolate else 0.0
+    j = min(i + 1, size - 1)
+    for k in range(4):
+        a = R[table + 4 * i + k]
+        R[o + k] = a if t <= 0.0 else (1.0 - t) * a + t * R[table + 4 * j + k]
 
 
 @kernel(refcounts=False)
