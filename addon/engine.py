@@ -3,8 +3,9 @@ render result (with Persistent Data on, it keeps the session and syncs only what
 viewport's Rendered shading keeps a session on a worker thread and draws its newest progressive pass
 (addon/viewport.py), where a GPU context exists, and fails soft where it does not.
 
-The last final render's tracer statistics (ray counts per type, timings) are kept in :data:`LAST_STATS` and on
-``WhittedRenderEngine.last_stats``, for tests and for the curious.
+The last final render's tracer statistics (ray counts per type, timings) and export warnings are kept in
+``WhittedRenderEngine.last_render`` (a :class:`RenderReport`), for tests and for the curious; tests stop a render
+as Esc would with ``WhittedRenderEngine.break_hook``.
 """
 
 from __future__ import annotations
@@ -12,20 +13,14 @@ from __future__ import annotations
 import threading
 import time
 import weakref
+from dataclasses import dataclass
 
 import bpy
 import numpy as np
 
 from . import export, sync, viewport
-
-tracer = export.tracer
-
-#: Tracer statistics of the last final render (``image.stats``: rays per type, seconds, ...), or None.
-LAST_STATS: dict | None = None
-#: Warnings of the last final render's scene export.
-LAST_WARNINGS: list[str] = []
-#: Test seam: a callable polled with ``test_break`` (True ends the render as Esc would). None in normal use.
-break_hook = None
+from .bundled import tracer
+from .export import viewport_camera
 
 #: Blender pass name, channels, channel ids, type — for each tracer AOV.
 PASSES = {
@@ -50,7 +45,10 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
     bl_use_shading_nodes_custom = False
     bl_use_eevee_viewport = False
 
-    last_stats: dict | None = None
+    #: What the last final render (of any instance) did: a :class:`RenderReport`.
+    last_render: "RenderReport" = None
+    #: Test seam: a callable polled with ``test_break`` (True ends the render as Esc would). None in normal use.
+    break_hook = None
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
@@ -75,138 +73,73 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
 
     # ---------------------------------------------------------------------------------------------- F12
     def render(self, depsgraph):
-        global LAST_STATS, LAST_WARNINGS
-        bpy_scene = depsgraph.scene
-        layer_name = depsgraph.view_layer.name
-        stop = [False]
-        main_thread = threading.current_thread()
+        """F12 and the material preview: three paths, as Cycles has them. A preview renders a small, cheap image;
+        a final render exports the scene and traces it (:func:`tracer.render`: Esc reaches the export, the Embree
+        build and the tiles); with Persistent Data the session is kept and only changes are synced."""
+        if self.is_preview:
+            return self._render_preview(depsgraph)
+        if depsgraph.scene.render.use_persistent_data:
+            return self._render_persistent(depsgraph)
+        self._drop_final_session()
+        return self._render_final(depsgraph)
 
-        def cancelled():
-            # Blender's API is only called from the thread that runs render(); the tracer's worker threads
-            # read the flag (the tracer polls on the calling thread after every tile as well).
-            if not stop[0] and threading.current_thread() is main_thread:
-                stop[0] = bool(self.test_break() or (break_hook is not None and break_hook()))
-            return stop[0]
+    def _render_preview(self, depsgraph):
+        """The material preview: at most 2×2 samples, 4 light samples, depth 4, no AOVs; a grey image on error."""
+        s = export.settings_from_scene(depsgraph.scene, view_layer=depsgraph.view_layer)
+        job = _Job(self, depsgraph, s.with_(samples=min(s.samples, 2), light_samples=4, sky_samples=0,
+                                            max_depth=min(s.max_depth, 4), region=None, aovs=()))
+        try:
+            scene, _ = export.scene_from_depsgraph(depsgraph, width=job.settings.width, height=job.settings.height,
+                                                   cancelled=job.cancelled)
+            tracer.render(scene, job.settings, on_tile=job.tile_writer(scene), cancelled=job.cancelled)
+        except (export.ExportCancelled, tracer.RenderCancelled):
+            pass
+        except Exception as exc:  # a scene we cannot export: say why, show grey
+            self.report({"ERROR"}, f"Whitted: {exc}")
+            self._fill_preview(export.render_size(depsgraph.scene))
 
-        # Persistent Data (Render Properties > Performance > Final Render, as Cycles): Blender keeps this engine
-        # between F12s, and the session with it; depsgraph.updates says what changed since the last one.
-        persistent = bool(bpy_scene.render.use_persistent_data) and not self.is_preview
-        if not persistent:
-            self._drop_final_session()
-        sync_stats = None
+    def _render_final(self, depsgraph):
+        """F12: export the evaluated depsgraph and render it (the one-off :func:`tracer.render`)."""
+        job = _Job(self, depsgraph)
+        try:
+            scene, warnings = export.scene_from_depsgraph(depsgraph, width=job.settings.width,
+                                                          height=job.settings.height, cancelled=job.cancelled)
+        except export.ExportCancelled:
+            return job.stopped("export")
+        except Exception as exc:  # a scene we cannot export: say why, leave an empty result
+            return self.report({"ERROR"}, f"Whitted: {exc}")
+        job.exported(warnings)
+        job.trace(lambda on_tile: tracer.render(scene, job.settings, on_tile=on_tile, cancelled=job.cancelled),
+                  scene)
+
+    def _render_persistent(self, depsgraph):
+        """F12 with Persistent Data (Render Properties > Performance > Final Render, as Cycles): Blender keeps this
+        engine between F12s, and the session with it; ``depsgraph.updates`` says what changed since the last."""
+        job = _Job(self, depsgraph)
+        first = self._final_sync is None
+        self.update_stats("", "Whitted: exporting scene" if first else "Whitted: syncing changes (Persistent Data)")
+        if first:
+            self._final_sync = sync.SceneSync(quality="medium")
         stage = "export"
         try:
-            settings = export.settings_from_scene(bpy_scene, view_layer=depsgraph.view_layer)
-            if self.is_preview:
-                settings = settings.with_(samples=min(settings.samples, 2), light_samples=4, sky_samples=0,
-                                          max_depth=min(settings.max_depth, 4), region=None, aovs=())
-            t0 = time.perf_counter()
-            self.update_stats("", "Whitted: exporting scene" if self._final_sync is None or not persistent
-                              else "Whitted: syncing changes (Persistent Data)")
-            if persistent:
-                if self._final_sync is None:
-                    self._final_sync = sync.SceneSync(quality="medium")
-                edits = self._final_sync.update(depsgraph, width=settings.width, height=settings.height,
-                                                cancelled=cancelled)
-                if cancelled():
-                    raise export.ExportCancelled("export cancelled")
-                stage = "build"
-                self._final_session = sync.apply_edits(self._final_session, edits, quality="medium",
-                                                       cancelled=cancelled)
-                session = self._final_session
-                warnings, pass_indices = self._final_sync.warnings, self._final_sync.pass_indices
-                sync_stats = dict(self._final_sync.stats)
-            else:
-                scene, warnings = export.scene_from_depsgraph(depsgraph, width=settings.width,
-                                                              height=settings.height, cancelled=cancelled)
-                pass_indices = scene.object_pass_indices
-                stage = "build"  # what tracer.render(scene) builds, made here so Esc reaches the BVH build too
-                session = tracer.Session(scene, instanced=False, cancelled=cancelled)
-            scene = session.scene
+            edits = self._final_sync.update(depsgraph, width=job.settings.width, height=job.settings.height,
+                                            cancelled=job.cancelled)
+            if job.cancelled():
+                raise export.ExportCancelled("export cancelled")
+            stage = "build"
+            self._final_session = sync.apply_edits(self._final_session, edits, quality="medium",
+                                                   cancelled=job.cancelled)
         except (export.ExportCancelled, tracer.RenderCancelled):  # Esc: nothing traced, nothing half-synced kept
             self._drop_final_session()
-            self._write_empty(settings, layer_name)
-            if not self.is_preview:
-                LAST_STATS = {"cancelled": True, "cancelled_in": stage}
-                type(self).last_stats = LAST_STATS
-            return
-        except Exception as exc:  # a scene we cannot export: say why, leave an empty result
-            self._drop_final_session()
-            self.report({"ERROR"}, f"Whitted: {exc}")
-            if self.is_preview:
-                self._fill_preview(settings_or_size=self._size_of(bpy_scene))
-            return
-        if not self.is_preview:
-            LAST_WARNINGS = list(warnings)
-            for w in warnings:
-                self.report({"WARNING"}, f"Whitted: {w}")
-        export_s = time.perf_counter() - t0
-        x0, y0, x1, y1 = settings.region or (0, 0, settings.width, settings.height)
-        tiles_total = len(tracer.tiles_of(settings))
-        done = [0]
-        if pass_indices is None:
-            pass_indices = np.arange(len(scene.object_names), dtype=np.int32)
-
-        def write(image, tile):
-            tx0, ty0, tx1, ty1 = tile
-            tw, th = tx1 - tx0, ty1 - ty0
-            # Result coordinates: relative to the border, y up from the bottom.
-            rx, ry = tx0 - x0, (y1 - ty1)
-            result = self.begin_result(rx, ry, tw, th, layer=layer_name)
-            try:
-                passes = result.layers[0].passes
-                rgba = image.rgba[ty0:ty1, tx0:tx1][::-1]
-                passes["Combined"].rect.foreach_set(np.ascontiguousarray(rgba, np.float32).reshape(-1))
-                for aov, (pname, _, _, _) in PASSES.items():
-                    p = passes.get(pname)
-                    if p is None or aov not in image.aovs:
-                        continue
-                    data = image.aovs[aov][ty0:ty1, tx0:tx1][::-1]
-                    if aov == "depth":
-                        data = _tile_z(scene.camera, image.aovs["depth"], tile, settings.width,
-                                       settings.height)[::-1]
-                    elif aov == "objectid":
-                        ids = data
-                        idx = np.zeros(ids.shape, np.float32)
-                        ok = (ids >= 0) & (ids < len(pass_indices))
-                        idx[ok] = pass_indices[ids[ok]]
-                        data = idx
-                    p.rect.foreach_set(np.ascontiguousarray(data, np.float32).reshape(-1))
-            finally:
-                self.end_result(result)
-
-        def on_tile(image, tile):
-            write(image, tile)
-            done[0] += 1
-            self.update_progress(min(1.0, done[0] / max(tiles_total, 1)))
-            self.update_stats("", f"Whitted: tile {done[0]}/{tiles_total}")
-
-        # The first render on a machine compiles the tracer's kernels (numba, cached on disk afterwards); the
-        # add-on started that on a thread when it was enabled, so this mostly waits for it or returns at once.
-        self.update_stats("", "Whitted: preparing kernels (the first render on this machine compiles them, ~10 s)")
-        tracer.compile_kernels()
-        self.update_stats("", f"Whitted: tracing {len(scene.triangles):,} triangles, {len(scene.lights)} lights")
-        try:
-            image = session.render(settings, on_tile=on_tile, cancelled=cancelled)
-        except tracer.RenderCancelled as stopped:
-            image = stopped.image
-            image.stats["cancelled"] = True
+            return job.stopped(stage)
         except Exception as exc:
-            self.report({"ERROR"}, f"Whitted: render failed: {exc}")
-            return
-        finally:
-            if not persistent:
-                session.close()
-        if not self.is_preview:
-            image.stats["export_seconds"] = export_s
-            image.stats["bvh_seconds"] = session.stats["build_seconds"]
-            image.stats["persistent"] = persistent
-            if sync_stats is not None:
-                image.stats["sync"] = sync_stats
-            LAST_STATS = dict(image.stats)
-            type(self).last_stats = LAST_STATS
-            rays = image.stats["rays"]
-            self.update_stats("", f"Whitted: {rays['total']:,} rays in {image.stats['seconds']:.2f} s")
+            self._drop_final_session()
+            return self.report({"ERROR"}, f"Whitted: {exc}")
+        session, synced = self._final_session, self._final_sync
+        job.exported(synced.warnings, synced.pass_indices, sync=dict(synced.stats),
+                     bvh_seconds=session.stats["build_seconds"])
+        job.trace(lambda on_tile: session.render(job.settings, on_tile=on_tile, cancelled=job.cancelled),
+                  session.scene)
 
     def _write_empty(self, settings, layer_name):
         """A black result for a render stopped before its first tile (Blender 5.0 crashes writing a result no
@@ -221,17 +154,16 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
         self._final_session = None
         self._final_sync = None
 
-    @staticmethod
-    def _size_of(bpy_scene):
-        return export.render_size(bpy_scene)
-
-    def _fill_preview(self, settings_or_size):
+    def _fill_preview(self, size):
         """Fallback for the material preview: a flat mid-grey image, so the preview never shows garbage."""
-        w, h = settings_or_size
+        w, h = size
         result = self.begin_result(0, 0, w, h)
         rgba = np.tile(np.array([0.18, 0.18, 0.18, 1.0], np.float32), w * h)
         result.layers[0].passes["Combined"].rect.foreach_set(rgba)
         self.end_result(result)
+
+    def _record(self, report: "RenderReport") -> None:
+        type(self).last_render = report
 
     # ---------------------------------------------------------------------------------------------- viewport
     def view_update(self, context, depsgraph):
@@ -294,6 +226,115 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
             s.close()
 
 
+@dataclass(frozen=True)
+class RenderReport:
+    """What a final render did: the tracer's statistics (``image.stats``: rays per type, seconds; plus
+    ``export_seconds``, ``bvh_seconds``, ``persistent``, ``sync``; or ``{"cancelled": True, "cancelled_in":
+    "export" | "build"}`` when Esc stopped it before a tile) and the export's warnings."""
+
+    stats: dict
+    warnings: tuple = ()
+
+
+class _Job:
+    """One render of the engine: its settings, Esc (``test_break``, and ``break_hook`` in tests), and the tiles
+    written into Blender's render result as they finish."""
+
+    def __init__(self, engine, depsgraph, settings=None):
+        self.engine = engine
+        self.layer = depsgraph.view_layer.name
+        self.settings = settings or export.settings_from_scene(depsgraph.scene, view_layer=depsgraph.view_layer)
+        self.persistent = bool(depsgraph.scene.render.use_persistent_data) and not engine.is_preview
+        self.warnings: list = []
+        self.pass_indices = None
+        self.extra: dict = {}
+        self._stop = False
+        self._main = threading.current_thread()
+        self._t0 = time.perf_counter()
+        self.export_seconds = 0.0
+
+    def cancelled(self) -> bool:
+        # Blender's API is only called from the thread that runs render(); the tracer's worker threads read the
+        # flag (the tracer polls on the calling thread after every tile as well).
+        if not self._stop and threading.current_thread() is self._main:
+            hook = type(self.engine).break_hook
+            self._stop = bool(self.engine.test_break() or (hook is not None and hook()))
+        return self._stop
+
+    def stopped(self, stage: str) -> None:
+        """Esc before the first tile (in the export or the Embree build): a black result, and the report."""
+        self.engine._write_empty(self.settings, self.layer)
+        self.engine._record(RenderReport({"cancelled": True, "cancelled_in": stage}))
+
+    def exported(self, warnings, pass_indices=None, **stats) -> None:
+        """The scene is exported (or synced): its warnings reported, ``stats`` kept for the report."""
+        self.export_seconds = time.perf_counter() - self._t0
+        self.warnings, self.pass_indices, self.extra = list(warnings), pass_indices, stats
+        for w in self.warnings:
+            self.engine.report({"WARNING"}, f"Whitted: {w}")
+
+    def trace(self, run, scene) -> None:
+        """``run(on_tile)`` renders (tracer.render or a kept session's render); the report is recorded."""
+        engine = self.engine
+        # The first render on a machine compiles the tracer's kernels (numba, cached on disk afterwards); the
+        # add-on started that on a thread when it was enabled, so this mostly waits for it or returns at once.
+        engine.update_stats("", "Whitted: preparing kernels (the first render on this machine compiles them, ~10 s)")
+        tracer.compile_kernels()
+        engine.update_stats("", f"Whitted: tracing {len(scene.triangles):,} triangles, {len(scene.lights)} lights")
+        try:
+            image = run(self.tile_writer(scene))
+        except tracer.RenderCancelled as stopped:
+            if stopped.image is None:  # during the Embree build: nothing traced
+                return self.stopped("build")
+            image = stopped.image
+            image.stats["cancelled"] = True
+        except Exception as exc:
+            return engine.report({"ERROR"}, f"Whitted: render failed: {exc}")
+        stats = dict(image.stats, export_seconds=self.export_seconds, persistent=self.persistent, **self.extra)
+        engine._record(RenderReport(stats, tuple(self.warnings)))
+        engine.update_stats("", f"Whitted: {stats['rays']['total']:,} rays in {stats['seconds']:.2f} s")
+
+    def tile_writer(self, scene):
+        """``on_tile(image, tile)``: the tile's pixels and passes into Blender's result, and the progress."""
+        engine, settings = self.engine, self.settings
+        x0, y0, x1, y1 = settings.region or (0, 0, settings.width, settings.height)
+        tiles_total = len(tracer.tiles_of(settings))
+        pass_indices = self.pass_indices if self.pass_indices is not None else scene.object_pass_indices
+        if pass_indices is None:
+            pass_indices = np.arange(len(scene.object_names), dtype=np.int32)
+        done = [0]
+
+        def on_tile(image, tile):
+            tx0, ty0, tx1, ty1 = tile
+            # Result coordinates: relative to the border, y up from the bottom.
+            result = engine.begin_result(tx0 - x0, y1 - ty1, tx1 - tx0, ty1 - ty0, layer=self.layer)
+            try:
+                passes = result.layers[0].passes
+                rgba = image.rgba[ty0:ty1, tx0:tx1][::-1]
+                passes["Combined"].rect.foreach_set(np.ascontiguousarray(rgba, np.float32).reshape(-1))
+                for aov, (pname, _, _, _) in PASSES.items():
+                    p = passes.get(pname)
+                    if p is None or aov not in image.aovs:
+                        continue
+                    data = image.aovs[aov][ty0:ty1, tx0:tx1][::-1]
+                    if aov == "depth":
+                        data = _tile_z(scene.camera, image.aovs["depth"], tile, settings.width,
+                                       settings.height)[::-1]
+                    elif aov == "objectid":
+                        ids = data
+                        data = np.zeros(ids.shape, np.float32)
+                        ok = (ids >= 0) & (ids < len(pass_indices))
+                        data[ok] = pass_indices[ids[ok]]
+                    p.rect.foreach_set(np.ascontiguousarray(data, np.float32).reshape(-1))
+            finally:
+                engine.end_result(result)
+            done[0] += 1
+            engine.update_progress(min(1.0, done[0] / max(tiles_total, 1)))
+            engine.update_stats("", f"Whitted: tile {done[0]}/{tiles_total}")
+
+        return on_tile
+
+
 def viewport_settings(bpy_scene) -> "tracer.RenderSettings":
     """The viewport's render settings: the scene's, with 4 samples per extended light (the passes refine the
     anti-aliasing themselves)."""
@@ -332,22 +373,6 @@ def _tile_z(camera, distance, tile, width, height):
     cos = (d @ fwd).reshape(y1 - y0, x1 - x0)
     dist = distance[y0:y1, x0:x1]
     return np.where(np.isfinite(dist), dist * cos, NO_DEPTH).astype(np.float32)
-
-
-def viewport_camera(rv3d) -> "tracer.Camera":
-    """A tracer camera from the 3D view's view and projection matrices (OpenGL convention)."""
-    view = np.array(rv3d.view_matrix, dtype=np.float64)
-    proj = np.array(rv3d.window_matrix, dtype=np.float64)
-    c2w = np.linalg.inv(view)
-    w_ap, h_ap = 2.0 / proj[0, 0], 2.0 / proj[1, 1]
-    if rv3d.is_perspective:
-        return tracer.Camera(camera_to_world=c2w, focal_length=1.0, horizontal_aperture=w_ap,
-                             vertical_aperture=h_ap, horizontal_aperture_offset=proj[0, 2] / proj[0, 0],
-                             vertical_aperture_offset=proj[1, 2] / proj[1, 1])
-    return tracer.Camera(camera_to_world=c2w, projection=tracer.ORTHOGRAPHIC, focal_length=1.0,
-                         horizontal_aperture=w_ap, vertical_aperture=h_ap,
-                         horizontal_aperture_offset=-proj[0, 3] / proj[0, 0],
-                         vertical_aperture_offset=-proj[1, 3] / proj[1, 1])
 
 
 def register():

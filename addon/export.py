@@ -30,10 +30,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-try:  # inside the installed extension the tracer is bundled next to this module
-    from . import tracer
-except ImportError:  # the repository's ``addon`` package uses the top-level tracer
-    import tracer
+from .bundled import tracer
 
 from .model import Corners, MaterialWriter
 from .nodes import image_rgba
@@ -110,41 +107,55 @@ def _object_mesh_arrays(obj, depsgraph):
 
 
 # ---------------------------------------------------------------------------------------------------- camera
+#: Blender's sensor fit -> the tracer's aperture fit policy (tracer.camera.fit_apertures) and the sensor side used.
+SENSOR_FIT = {"AUTO": ("larger", "sensor_width"), "HORIZONTAL": ("horizontal", "sensor_width"),
+              "VERTICAL": ("vertical", "sensor_height")}
+
+
 def camera_from_blender(cam_obj, width: int, height: int, pixel_aspect: float = 1.0) -> "tracer.Camera":
     """A tracer camera reproducing Blender's projection of ``cam_obj`` on a width × height image.
 
-    E = sensor/lens (perspective) or ortho_scale (orthographic); A = RX/RY (× pixel aspect). The fitted side is
-    the larger one for AUTO (sensor_width), the width for HORIZONTAL (sensor_width), the height for VERTICAL
-    (sensor_height); W = E if the width is fitted else E·A, H = E if the height is fitted else E/A; the shift moves
-    the window by shift·E. In tracer terms (focal length f = lens for perspective, 1 for orthographic):
-    apertures W·f, H·f, offsets shift·E·f.
+    E = sensor/lens (perspective) or ortho_scale (orthographic), the window on the fitted side (Blender's sensor
+    fit as :func:`tracer.camera.fit_apertures`' policy, :data:`SENSOR_FIT`; the aspect includes the pixel aspect);
+    the shift moves the window by shift·E. In tracer terms (focal length f = lens for perspective, 1 for
+    orthographic): apertures W·f, H·f, offsets shift·E·f.
     """
     cam = cam_obj.data
-    aspect = width * pixel_aspect / height
-    fit = cam.sensor_fit
-    if fit == "AUTO":
-        fit_width = aspect >= 1.0
-        sensor = cam.sensor_width
-    elif fit == "HORIZONTAL":
-        fit_width, sensor = True, cam.sensor_width
-    else:
-        fit_width, sensor = False, cam.sensor_height
+    policy, side = SENSOR_FIT[cam.sensor_fit]
     if cam.type == "ORTHO":
-        e, f, projection = cam.ortho_scale, 1.0, tracer.ORTHOGRAPHIC
+        e, f, ortho = cam.ortho_scale, 1.0, True
     elif cam.type == "PERSP":
-        e, f, projection = sensor / cam.lens, cam.lens, tracer.PERSPECTIVE
+        e, f, ortho = getattr(cam, side) / cam.lens, cam.lens, False
     else:
         raise ValueError(f"camera {cam_obj.name!r}: {cam.type} cameras are not supported (perspective and "
                          "orthographic only)")
-    w_ap = e if fit_width else e * aspect
-    h_ap = e if not fit_width else e / aspect
+    w_ap, h_ap = tracer.fit_apertures(e, e, width * pixel_aspect, height, policy)
     m = np.array(cam_obj.matrix_world, dtype=np.float64)
     m[:3, :3] /= np.linalg.norm(m[:3, :3], axis=0, keepdims=True)  # Blender ignores the camera's scale
-    return tracer.Camera(camera_to_world=m, projection=projection, focal_length=f,
-                         horizontal_aperture=w_ap * f, vertical_aperture=h_ap * f,
-                         horizontal_aperture_offset=cam.shift_x * e * f,
-                         vertical_aperture_offset=cam.shift_y * e * f,
-                         near=cam.clip_start, far=cam.clip_end)
+    return window_camera(m, ortho, f, (w_ap, h_ap), (cam.shift_x * e, cam.shift_y * e), cam.clip_start,
+                         cam.clip_end)
+
+
+def viewport_camera(rv3d) -> "tracer.Camera":
+    """A tracer camera from the 3D view's view and projection matrices (OpenGL convention): the window is 2/P[0,0]
+    × 2/P[1,1] at distance 1, shifted by the projection's offsets (P[0,2], P[1,2] perspective; −P[0,3], −P[1,3]
+    orthographic), in units of the window's half size."""
+    view = np.array(rv3d.view_matrix, dtype=np.float64)
+    proj = np.array(rv3d.window_matrix, dtype=np.float64)
+    ortho = not rv3d.is_perspective
+    shift = (-proj[0, 3], -proj[1, 3]) if ortho else (proj[0, 2], proj[1, 2])
+    return window_camera(np.linalg.inv(view), ortho, 1.0, (2.0 / proj[0, 0], 2.0 / proj[1, 1]),
+                         (shift[0] / proj[0, 0], shift[1] / proj[1, 1]))
+
+
+def window_camera(camera_to_world, ortho: bool, f: float, window, shift, near=None, far=None) -> "tracer.Camera":
+    """The one place a Blender camera becomes a ``tracer.Camera``: a film ``window`` (W, H) and its ``shift`` in
+    units of the focal length ``f`` (1 for orthographic), i.e. apertures W·f, H·f and offsets shift·f."""
+    clip = {} if near is None else {"near": near, "far": far}
+    return tracer.Camera(camera_to_world=camera_to_world, projection=tracer.ORTHOGRAPHIC if ortho else
+                         tracer.PERSPECTIVE, focal_length=f, horizontal_aperture=window[0] * f,
+                         vertical_aperture=window[1] * f, horizontal_aperture_offset=shift[0] * f,
+                         vertical_aperture_offset=shift[1] * f, **clip)
 
 
 # ---------------------------------------------------------------------------------------------------- lights
@@ -177,20 +188,23 @@ def light_from_blender(obj, warnings: list):
         return tracer.DistantLight(direction=-axis_z, irradiance=colour * power,
                                    angle=min(float(light.angle), math.pi - 1e-6), name=name)
     if light.type == "AREA":
-        ux, uy = m[:3, 0], m[:3, 1]
-        sx = float(light.size) * np.linalg.norm(ux)
-        shape = light.shape
-        sy = float(light.size_y if shape in ("RECTANGLE", "ELLIPSE") else light.size) * np.linalg.norm(uy)
-        disk = shape in ("DISK", "ELLIPSE")
-        area = math.pi / 4.0 * sx * sy if disk else sx * sy
+        (sx, sy), shape = area_shape(light, m)
+        area = tracer.AreaLight.area_of((sx, sy), shape)
         if area <= 0:
             warnings.append(f"light {name!r}: zero-size area light skipped")
             return None
-        return tracer.AreaLight(position=pos, u_axis=ux, v_axis=uy, normal=-axis_z, size=(sx, sy),
-                                radiance=colour * power / (math.pi * area), shape="disk" if disk else "rect",
-                                name=name)
+        return tracer.AreaLight(position=pos, u_axis=m[:3, 0], v_axis=m[:3, 1], normal=-axis_z, size=(sx, sy),
+                                radiance=colour * power / (math.pi * area), shape=shape, name=name)
     warnings.append(f"light {name!r}: {light.type} lights are not supported")
     return None
+
+
+def area_shape(light, m: np.ndarray) -> tuple[tuple[float, float], str]:
+    """A Blender area light's world-space size (sx, sy) (``size``/``size_y`` × the matrix's axis lengths) and the
+    tracer's shape ("rect" for Square/Rectangle, "disk" for Disk/Ellipse)."""
+    sx = float(light.size) * np.linalg.norm(m[:3, 0])
+    sy = float(light.size_y if light.shape in ("RECTANGLE", "ELLIPSE") else light.size) * np.linalg.norm(m[:3, 1])
+    return (sx, sy), "disk" if light.shape in ("DISK", "ELLIPSE") else "rect"
 
 
 def unnormalized_factor(light, m: np.ndarray) -> float:
@@ -203,9 +217,7 @@ def unnormalized_factor(light, m: np.ndarray) -> float:
         a = float(light.angle) / 2.0
         return math.pi * a * a if a > 0 else 1.0
     if light.type == "AREA":
-        sx = float(light.size) * np.linalg.norm(m[:3, 0])
-        sy = float(light.size_y if light.shape in ("RECTANGLE", "ELLIPSE") else light.size) * np.linalg.norm(m[:3, 1])
-        area = math.pi / 4.0 * sx * sy if light.shape in ("DISK", "ELLIPSE") else sx * sy
+        area = tracer.AreaLight.area_of(*area_shape(light, m))
         return area if area > 0 else 1.0
     return 1.0
 
@@ -432,7 +444,8 @@ class _Placed:
 
 
 def settings_from_scene(bpy_scene, view_layer=None) -> "tracer.RenderSettings":
-    """Render settings from a Blender scene: ``scene.whitted`` (defaults where unregistered), the render size
+    """Render settings from a Blender scene: ``scene.whitted`` (every property addon/properties.py made from a
+    RenderSettings field; the defaults where unregistered), the render size
     (resolution × percentage), the render border as ``region``, Film > Transparent, and the AOVs the view layer
     asks for (Z -> depth, Normal -> normal, Object Index -> objectid)."""
     r = bpy_scene.render
@@ -440,11 +453,9 @@ def settings_from_scene(bpy_scene, view_layer=None) -> "tracer.RenderSettings":
     props = getattr(bpy_scene, "whitted", None)
     kw = {}
     if props is not None:
-        kw = dict(samples=props.samples, max_depth=props.max_depth, epsilon=props.epsilon or None,
-                  fresnel=props.fresnel, shadows=props.shadows, threads=props.threads or None,
-                  light_samples=props.light_samples, sky_samples=props.sky_samples,
-                  terminal_rays=props.terminal_rays, shading=props.shading,
-                  max_transparent=props.max_transparent)
+        from .properties import settings_kwargs
+
+        kw = settings_kwargs(props)
     region = border_region(bpy_scene) if r.use_border else None
     aovs = []
     layer = view_layer if view_layer is not None else (bpy_scene.view_layers[0] if bpy_scene.view_layers else None)

@@ -1,6 +1,8 @@
-"""The Principled description of :mod:`addon.nodes` written into the tracer's material model (docs/materials-api.md).
+"""The materials :mod:`addon.nodes` reads, written as the tracer's shader graphs (tracer.shader_graph, the IR of
+docs/materials-api.md) and compiled into rows (tracer.shader_compile.add_graph).
 
-The reader describes every material in the Principled model's fields; this module writes them as they are:
+The reader gives either a graph (written as it is) or the Principled fields of a surface, which
+:func:`tracer.shader_fields.graph_from_fields` turns into one ``principled_bsdf`` graph:
 
     every parameter       its constant and, where a texture feeds it, a ``tracer.Texture`` (pixels shared by every
                           lookup of one image; wrap from the Extension; the Mapping node as the texture's UV
@@ -21,13 +23,17 @@ import numpy as np
 
 from typing import NamedTuple
 
-from .nodes import TextureRef, read_material
+from .nodes import TextureRef
 from .shader_tree import material_graph
 
 try:  # inside the installed extension the tracer is bundled next to this module
-    from . import tracer
+    from .tracer.shader_compile import add_graph
+    from .tracer.shader_fields import graph_from_fields
+    from .tracer.shader_graph import Graph, ImageRef
 except ImportError:  # the repository's ``addon`` package uses the top-level tracer
-    import tracer
+    from tracer.shader_compile import add_graph
+    from tracer.shader_fields import graph_from_fields
+    from tracer.shader_graph import Graph, ImageRef
 
 #: Blender's default surface (no material): 0.8 grey, Principled defaults.
 DEFAULT_FIELDS = {"base_color": (0.8, 0.8, 0.8), "roughness": 0.5, "specular": 0.5, "ior": 1.5}
@@ -61,10 +67,10 @@ class MaterialWriter:
         self.b = builder
         self.warnings = warnings
         self.images: dict = {}  # image name -> (H, W, 4) pixels (shared by materials and the world)
-        self.fields: dict[int, tuple[str, dict]] = {}  # row -> (material name, Principled fields)
+        self.fields: dict[int, tuple[str, dict]] = {}  # row -> (material name, Principled fields or {"graph": g})
         self.uv_sets: dict[str, int] = {"": 0}  # UV map name ('' = the mesh's active render map) -> UV set
         self._rows: dict[str, int] = {}
-        self._textures: dict = {}
+        self._images: dict = {}  # (pixels id, wrap) -> ImageRef
         self._said: set = set()
         self.default_row = self._add("__default__", dict(DEFAULT_FIELDS))
 
@@ -78,55 +84,39 @@ class MaterialWriter:
         if material is None:
             return self.default_row
         if material.name not in self._rows:
-            if _compiler() is not None:
-                self._rows[material.name] = self._add_graph(material)
-            else:
-                self._rows[material.name] = self._add(material.name, read_material(material, self.warn,
-                                                                                   self.images))
+            self._rows[material.name] = self._add(material.name, material_graph(material, self.warn, self.images))
         return self._rows[material.name]
 
-    def uv_index(self, name: str) -> int:
-        """UV set of a UV map name ('' = each mesh's active render map), given the next index when new."""
+    def _add(self, name: str, f) -> int:
+        graph = f if isinstance(f, Graph) else graph_from_fields(name, self._principled(f), self._texture_node)
+        row = add_graph(self.b, graph, self.warn, self.uv_index, name=name)
+        self.fields.setdefault(row, (name, f if not isinstance(f, Graph) else {"graph": f}))
+        return row
+
+    def uv_index(self, name) -> int:
+        """UV set index of a UV map name ('' = the mesh's active render map, set 0); new names get the next."""
+        if isinstance(name, (int, np.integer)):
+            return int(name)
         return self.uv_sets.setdefault(name or "", len(self.uv_sets))
 
-    def _add_graph(self, material) -> int:
-        """The material's node tree as a shader graph (addon.shader_tree), compiled by the tracer: its row, with
-        the program where something varies per hit; the Color Attribute and UV maps it reads for mesh_inputs."""
-        sc = _compiler()
-        graph = material_graph(material, self.warn, self.images)
-        compiled = sc.compile_graph(graph, self.warn, self.uv_index)
-        fields = dict(compiled.row)
-        if compiled.program is not None:
-            fields["program"] = sc.BoundGraph(graph, sc._uv_table(compiled.uv_maps, self.uv_index))
-        row = self.b.add_material(material.name, **fields)
-        vc = compiled.vertex_colors[0] if compiled.vertex_colors else None
-        self.fields.setdefault(row, (material.name, {"vertex_color": vc, "uv_maps": list(compiled.uv_maps)}))
-        return row
-
-    def _add(self, name: str, f: dict) -> int:
-        row = self.b.add_material(name, **self._principled(f))
-        self.fields.setdefault(row, (name, f))
-        return row
-
-    def _texture(self, tex: TextureRef) -> int:
-        uv_set = self.uv_sets.setdefault(tex.uv_map, len(self.uv_sets))
-        key = (id(tex.pixels), tex.wrap, uv_set, np.asarray(tex.transform, np.float64).tobytes(), tex.scale,
-               tex.bias)
-        if key not in self._textures:
-            t = tracer.Texture(image=tex.pixels, wrap_s=tex.wrap, wrap_t=tex.wrap, uv_set=uv_set,
-                               transform=tex.transform, scale=tex.scale, bias=tex.bias, fallback=(1, 1, 1, 1))
-            self._textures[key] = (self.b.add_texture(t), tex)  # tex keeps its pixels alive: ids stay unique
-        return self._textures[key][0]
+    def _texture_node(self, g: Graph, tex: TextureRef):
+        """A :class:`TextureRef` as IR: ``usd_uv_texture`` (its scale and bias; fallback 1 where a mesh has no
+        coordinates) at ``uvmap`` through the Mapping node's matrix."""
+        key = (id(tex.pixels), tex.wrap)
+        if key not in self._images:
+            self._images[key] = (ImageRef(pixels=tex.pixels, wrap_s=tex.wrap, wrap_t=tex.wrap, label=tex.label), tex)
+        st = g.add("uvmap", attribute=tex.uv_map)["UV"]
+        if not np.allclose(tex.transform, np.eye(3)):
+            st = g.add("usd_transform2d", {"in": st}, matrix=np.asarray(tex.transform, np.float64))["result"]
+        node = g.add("usd_uv_texture", {"st": st}, image=self._images[key][0], scale=tuple(tex.scale),
+                     bias=tuple(tex.bias), fallback=(1.0, 1.0, 1.0, 1.0), name=tex.label)
+        return node, tex.uv_map
 
     def _principled(self, f: dict) -> dict:
-        """Principled fields (TextureRefs inside) -> a tracer material row."""
+        """The reader's Principled fields as :func:`graph_from_fields` reads them."""
         out: dict = {}
         for key, v in f.items():
-            if key == "vertex_color":
-                out[key] = v is not None
-            elif isinstance(v, TextureRef):
-                out[key] = self._texture(v)
-            elif key == "specular" and np.ndim(v):  # a colour on a float socket: Blender reads its luminance
+            if key == "specular" and np.ndim(v):  # a colour on a float socket: Blender reads its luminance
                 out[key] = float(np.dot(np.asarray(v, np.float64)[:3], (0.2126, 0.7152, 0.0722)))
             else:
                 out[key] = v
@@ -157,7 +147,7 @@ class MaterialWriter:
         colors, chosen = None, None
         for row in np.unique(rows):
             name, f = self.fields.get(int(row), ("", {}))
-            vc = f.get("vertex_color")
+            vc = f.get("vertex_color") if "graph" not in f else _graph_color(f["graph"])
             if vc is None:
                 continue
             attr = vc or g.get("color_default")
@@ -177,20 +167,24 @@ class MaterialWriter:
         """Does a material among ``rows`` read a texture in UV set k?"""
         for row in np.unique(rows):
             _, f = self.fields.get(int(row), ("", {}))
-            if any(isinstance(v, TextureRef) and self.uv_sets.get(v.uv_map) == k for v in f.values()):
+            if "graph" in f and k in _graph_uv_sets(f["graph"], self.uv_sets):
                 return True
-            if any(self.uv_sets.get(n) == k for n in f.get("uv_maps", ())):
+            if any(isinstance(v, TextureRef) and self.uv_sets.get(v.uv_map) == k for v in f.values()):
                 return True
         return False
 
 
-def _compiler():
-    """tracer.shader_compile where the tracer evaluates shader graphs, else None (the Principled reader)."""
-    try:
-        from .tracer import shader_compile
-    except ImportError:
-        try:
-            from tracer import shader_compile
-        except ImportError:
-            return None
-    return shader_compile
+def _graph_color(graph: Graph):
+    """The Color Attribute name a graph reads ('' = the active one), or None."""
+    for node in graph.nodes.values():
+        if node.type == "vertex_color":
+            return node.param("layer_name") or ""
+        if node.type == "attribute" and node.param("attribute_type") in (None, "GEOMETRY"):
+            return node.param("attribute") or ""
+    return None
+
+
+def _graph_uv_sets(graph: Graph, uv_sets: dict) -> set:
+    names = {n.param("attribute") or "" for n in graph.nodes.values() if n.type == "uvmap"}
+    names |= {n.param("uv_map") or "" for n in graph.nodes.values() if n.type == "normal_map"}
+    return {uv_sets[n] for n in names if n in uv_sets}

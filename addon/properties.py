@@ -1,46 +1,58 @@
-"""Scene settings of the Whitted engine: ``scene.whitted`` (a PointerProperty), shown in the Render properties."""
+"""Scene settings of the Whitted engine: ``scene.whitted`` (a PointerProperty), shown in the Render properties.
+
+Every property is made from the :class:`tracer.RenderSettings` field of the same name (its ``Setting``'s
+``blender`` label, help, bounds, choices and ``ui`` options; tracer/settings.py): nothing about a setting is
+written here, so a setting added there with a ``blender`` label appears in the add-on by itself.
+:func:`settings_kwargs` reads them back (``none_as``: the stored value meaning None, e.g. Threads 0 = all cores).
+"""
 
 from __future__ import annotations
 
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
 
+from .bundled import tracer
 
-class WhittedSceneSettings(bpy.types.PropertyGroup):
-    samples: IntProperty(
-        name="Samples", description="N for N×N stratified anti-aliasing samples per pixel (box filter)",
-        default=2, min=1, soft_max=8, max=64)
-    max_depth: IntProperty(
-        name="Max Depth", description="Maximum recursion depth of reflection and transmission rays",
-        default=8, min=0, max=64)
-    shading: EnumProperty(
-        name="Shading", description="Local model each light sample is weighted by",
-        items=[("principled", "Principled", "Cycles' Principled BSDF: diffuse + GGX specular (matches Cycles)"),
-               ("classic", "Classic", "The notes' Lambert + Blinn-Phong")], default="principled")
-    max_transparent: IntProperty(
-        name="Transparent Max Bounces", description="Alpha < 1 and cut-out surfaces a ray may pass through (not "
-        "counted in Max Depth), as Cycles' Transparent bounces", default=8, min=0, max=1024)
-    epsilon: FloatProperty(
-        name="Epsilon", description="Offset of spawned rays; 0 = automatic (5e-5 of the scene size)",
-        default=0.0, min=0.0, soft_max=0.01, precision=6, subtype="DISTANCE")
-    fresnel: BoolProperty(
-        name="Fresnel", description="Dielectric Fresnel weighting of glass (as Cycles); off = the classic fixed "
-        "weights of Whitted's notes", default=True)
-    shadows: BoolProperty(name="Shadows", description="Cast shadow rays towards the lights", default=True)
-    threads: IntProperty(name="Threads", description="Worker threads; 0 = all cores", default=0, min=0, max=1024)
-    light_samples: IntProperty(
-        name="Light Samples", description="Samples per light with an extent (point radius, sun angle, area "
-        "lights); rounded to N×N", default=16, min=1, max=1024)
-    sky_samples: IntProperty(
-        name="Sky Visibility Samples", description="Hemisphere shadow rays weighting the world (ambient) light "
-        "by sky visibility, as Cycles does; 0 = Whitted's unoccluded ambient term", default=0, min=0, max=1024)
-    terminal_rays: BoolProperty(
-        name="Terminal Bounce", description="Trace one more bounce past Max Depth that collects only the world "
-        "colour and emission, as Cycles' last bounce does; off = the notes' hard cut-off", default=False)
-    ray_type_passes: BoolProperty(
-        name="Ray-Type Passes", description="Passes Whitted Direct / Reflection / Transmission (the beauty split by "
-        "each path's first secondary ray; they sum to Combined) and Whitted Ray Depth (deepest ray per pixel)",
-        default=False)
+SETTINGS = tracer.settings.SETTINGS
+
+
+def blender_property(name: str):
+    """The ``bpy.props`` property of RenderSettings field ``name`` (which has a ``blender`` label)."""
+    s = SETTINGS[name]
+    default = tracer.settings.default_of(name)
+    value = s.none_as if default is None else default
+    desc = s.help[:1].upper() + s.help[1:] + (f" ({s.unit})" if s.unit else "")
+    opts = dict(s.ui)
+    if isinstance(value, bool):
+        return BoolProperty(name=s.blender, description=desc, default=value)
+    if s.choices:
+        return EnumProperty(name=s.blender, description=desc, default=value,
+                            items=[(c, c.title(), f"{s.blender}: {c}") for c in s.choices])
+    lo = s.lo if s.none_as is None or s.lo is None else min(s.lo, s.none_as)
+    if name in tracer.settings.INT_FIELDS:
+        return IntProperty(name=s.blender, description=desc, default=value, min=int(lo), **opts)
+    return FloatProperty(name=s.blender, description=desc, default=value, min=float(lo), **opts)
+
+
+def settings_kwargs(props) -> dict:
+    """RenderSettings keyword arguments of the scene's ``scene.whitted`` properties."""
+    out = {}
+    for name, s in SETTINGS.items():
+        if s.blender is None:
+            continue
+        v = getattr(props, name)
+        out[name] = None if s.none_as is not None and v == s.none_as else v
+    return out
+
+
+#: Add-on properties that are not render settings: the ray-type passes (which AOVs the view layer gets).
+EXTRA = {"ray_type_passes": BoolProperty(
+    name="Ray-Type Passes", description="Passes Whitted Direct / Reflection / Transmission (the beauty split by "
+    "each path's first secondary ray; they sum to Combined) and Whitted Ray Depth (deepest ray per pixel)")}
+
+WhittedSceneSettings = type("WhittedSceneSettings", (bpy.types.PropertyGroup,), {
+    "__annotations__": {**{n: blender_property(n) for n, s in SETTINGS.items() if s.blender}, **EXTRA},
+    "__doc__": "Whitted's render settings (one per tracer.RenderSettings field with a Blender label)."})
 
 
 def settings_of(scene) -> "WhittedSceneSettings | None":

@@ -26,10 +26,7 @@ import numpy as np
 
 from .nodes import read_world
 
-try:  # inside the installed extension the tracer is bundled next to this module
-    from . import tracer
-except ImportError:  # the repository's ``addon`` package uses the top-level tracer
-    import tracer
+from .bundled import tracer
 
 #: Size (width, height) of a baked world: 2:1 lat-long, 0.7° per texel. Measured on the Sky Texture scene: 256 × 128
 #: blurs the horizon (36.9 dB against Cycles), 512 × 256 gives 42.4 dB; a bake takes about 4–7 s on 2 shared cores,

@@ -91,8 +91,8 @@ def measure(renderer, width, height, threads):
         t0 = time.perf_counter()
         bpy.ops.render.render()
         out["f12_s"] = time.perf_counter() - t0
-        out["export_s"] = engine.LAST_STATS["export_seconds"]
-        out["trace_s"] = engine.LAST_STATS["seconds"]
+        out["export_s"] = engine.WhittedRenderEngine.last_render.stats["export_seconds"]
+        out["trace_s"] = engine.WhittedRenderEngine.last_render.stats["seconds"]
     else:
         from bench.cycles import whitted_cycles_settings
 

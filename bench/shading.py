@@ -1,8 +1,9 @@
 """What the material model costs: the bench scenes rendered with the notes' classic model, the Principled model, and
 the Principled model with a texture on every parameter, against the tracer before the Principled model.
 
-    python -m bench.shading [--before REV] [--scenes whitted,heavy,instances] [--width 960 --height 540] [--runs 3]
-                            [--threads 2] [--texture 1024] [--cpu]
+    python -m bench.shading [--before REV | --before-tree PATH] [--scenes whitted,heavy,instances]
+                            [--width 960 --height 540] [--runs 3] [--threads 2] [--texture 1024] [--cpu]
+                            [--variants classic,principled,textured,procedural]
 
 Each variant renders in a fresh child process (kernels warmed by one untimed render first), 2 threads, depth 8,
 pixel centres; the median wall time of ``--runs`` renders is printed with its ratio to the classic model of the
@@ -59,6 +60,31 @@ if variant == "textured":
     m.roughness_channel[:] = 0
     m.normal_texture[:] = first + 2
     scene.validate()
+if variant == "procedural":  # every material a dozen-node program (tracer.shader_graph), bump included
+    from tracer.shader_compile import BoundGraph, compile_graph
+    from tracer.shader_graph import Graph
+    m = scene.materials
+    programs, n_ops = [], 0
+    for i in range(len(m)):
+        g = Graph(f"proc{i}")
+        p = g.add("texture_coordinate")["Object"]
+        p = g.add("mapping", {"Vector": p, "Scale": (4.0, 4.0, 4.0)})["Vector"]
+        w = g.add("vector_math", {"Vector": p}, operation="SINE")["Vector"]
+        xyz = g.add("separate_xyz", {"Vector": w})
+        f = g.add("math", {"Value": xyz["X"], "Value_001": xyz["Y"]}, operation="ADD")["Value"]
+        f = g.add("math", {"Value": f, "Value_001": 0.25, "Value_002": 0.5}, operation="MULTIPLY_ADD")["Value"]
+        ramp = g.add("rgb_ramp", {"Fac": f}, ramp=[(0.2, (0.6, 0.6, 0.6, 1)), (0.8, (1, 1, 1, 1))])["Color"]
+        base = g.add("vector_math", {"Vector": ramp, "Vector_001": tuple(map(float, m.diffuse[i]))},
+                     operation="MULTIPLY")["Vector"]
+        h = g.add("math", {"Value": xyz["Z"], "Value_001": xyz["Y"]}, operation="MULTIPLY")["Value"]
+        nrm = g.add("bump", {"Height": h, "Strength": 0.05, "Distance": 0.1})["Normal"]
+        g.output(g.add("principled_bsdf", {"Base Color": base, "Roughness": float(m.roughness[i]),
+                                           "Metallic": float(m.metallic[i]), "Specular IOR Level": float(m.specular[i]),
+                                           "Normal": nrm})["BSDF"])
+        programs.append(BoundGraph(g, {}))
+        n_ops = compile_graph(g).program.n_ops
+    m.programs = programs
+    print(json.dumps({"ops": n_ops}), file=sys.stderr)
 settings = tracer.RenderSettings(**kw)
 img = tracer.render(scene, settings)  # warm-up: kernels compiled or loaded
 times = []
@@ -91,14 +117,19 @@ def main(argv=None) -> None:
     ap.add_argument("--height", type=int, default=540)
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--before", help="a git revision to measure too (the tracer before the Principled model)")
+    ap.add_argument("--before-tree", help="a checkout to measure as 'before' (instead of --before's worktree)")
+    ap.add_argument("--variants", default="classic,principled,textured",
+                    help="of classic, principled, textured, procedural (a dozen-node program on every material)")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--texture", type=int, default=1024, help="texture size of the textured variant (default 1024)")
     ap.add_argument("--cpu", action="store_true", help="time the child's CPU (steadier on a shared machine with "
                                                        "--threads 1) instead of the wall clock")
     a = ap.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="whitted-before-") as tmp:
-        trees = [("classic", ROOT, "classic"), ("principled", ROOT, "principled"), ("textured", ROOT, "textured")]
-        if a.before:
+        trees = [(v, ROOT, v) for v in a.variants.split(",")]
+        if a.before_tree:
+            trees.insert(0, ("before", a.before_tree, "principled"))
+        elif a.before:
             before = os.path.join(tmp, "tree")
             subprocess.run(["git", "-C", ROOT, "worktree", "add", "--detach", before, a.before], check=True,
                            capture_output=True)
@@ -109,7 +140,7 @@ def main(argv=None) -> None:
             for scene in a.scenes.split(","):
                 got = {label: measure(tree, scene, a.width, a.height, a.runs, variant, a.threads,
                                       "cpu" if a.cpu else "wall", a.texture) for label, tree, variant in trees}
-                ref = got["classic"]["best" if a.cpu else "median"]
+                ref = got[trees[0][0]]["best" if a.cpu else "median"]
                 key = "best" if a.cpu else "median"
                 cells = [f"{g[key]:.3f} s ({g[key] / ref:.2f}×)" for g in got.values()]
                 print(f"| {scene} | {' | '.join(cells)} |", flush=True)

@@ -66,7 +66,11 @@ def load_overload(self, sig, ctx):
 caching.Cache._load_overload = load_overload
 from tracer import RenderSettings, render
 image = render(scene, RenderSettings(width=info.width, height=info.height, progress=False)); mark("render")
-cli.write_outputs(image, sys.argv[2], ()); mark("write the PNG (incl. OpenImageIO's import where used)")
+try:
+    from usd_io.outputs import write_outputs
+except ImportError:  # trees before usd_io/outputs.py
+    write_outputs = cli.write_outputs
+write_outputs(image, sys.argv[2], ()); mark("write the PNG (incl. OpenImageIO's import where used)")
 print(repr([(n, t - marks[i][1]) for i, (n, t) in enumerate(marks[1:])]
            + [(f"  of which {len(loads)} kernel cache loads", sum(loads)), ("start", marks[0][1]),
               ("end", marks[-1][1])]))

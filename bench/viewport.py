@@ -159,7 +159,7 @@ def measure_persistent(size=(1920, 1080), threads=2, samples=1):
                     change()
                 t0 = time.perf_counter()
                 bpy.ops.render.render()
-                st = engine.LAST_STATS
+                st = engine.WhittedRenderEngine.last_render.stats
                 runs[label] = {"seconds": time.perf_counter() - t0, "trace_s": st["seconds"],
                                "prepare_s": st["export_seconds"], "edits": st.get("sync", {}).get("edits")}
             cam.location.x -= 0.2

@@ -36,10 +36,10 @@ def whitted():
 def render_whitted(scene=None, passes=(), samples=1):
     scene = scene or bpy.context.scene
     scene.whitted.samples = samples
-    engine.LAST_STATS = None
+    engine.WhittedRenderEngine.last_render = None
     out = bs.render_exr(scene, engine="WHITTED", passes=passes)
-    assert engine.LAST_STATS is not None, "the engine did not render"
-    return out, engine.LAST_STATS
+    assert engine.WhittedRenderEngine.last_render is not None, "the engine did not render"
+    return out, engine.WhittedRenderEngine.last_render.stats
 
 
 def test_registered_engine_and_panels(bpy_module, whitted):
@@ -162,11 +162,11 @@ def test_cancelled_render_stops_and_blender_stays_usable(bpy_module, whitted):
         polls.append(1)
         return len(polls) > 2
 
-    engine.break_hook = hook
+    engine.WhittedRenderEngine.break_hook = hook
     try:
         _, stats = render_whitted(scene)
     finally:
-        engine.break_hook = None
+        engine.WhittedRenderEngine.break_hook = None
     assert stats.get("cancelled") is True
     # stopped before every tile was traced (Esc is polled during export and the Embree build too: there no tile)
     assert stats.get("rays", {"eye": 0})["eye"] < 256 * 192

@@ -219,7 +219,7 @@ def f12(whitted, tmp_path):
             first[0] = False
         else:
             bpy.ops.render.render(write_still=True)
-        return bs.read_exr(path)["rgba"], engine.LAST_STATS
+        return bs.read_exr(path)["rgba"], engine.WhittedRenderEngine.last_render.stats
 
     return render
 
@@ -288,13 +288,13 @@ def test_esc_during_export_stops_it(whitted, monkeypatch):
     bpy.context.scene.render.engine = "WHITTED"
     polls = []
     monkeypatch.setattr(export, "POLL_EVERY", 16)
-    monkeypatch.setattr(engine, "break_hook", lambda: polls.append(1) or len(polls) >= 3)
+    monkeypatch.setattr(engine.WhittedRenderEngine, "break_hook", lambda: polls.append(1) or len(polls) >= 3)
     for persistent in (False, True):
         polls.clear()
         bpy.context.scene.render.use_persistent_data = persistent
-        engine.LAST_STATS = None
+        engine.WhittedRenderEngine.last_render = None
         bpy.ops.render.render()
-        assert engine.LAST_STATS == {"cancelled": True, "cancelled_in": "export"}
+        assert engine.WhittedRenderEngine.last_render.stats == {"cancelled": True, "cancelled_in": "export"}
         assert len(polls) == 3  # stopped at the third poll, 32 instances in: not after the 200
     bpy.context.scene.render.use_persistent_data = False
 
@@ -317,13 +317,13 @@ def test_esc_during_the_embree_build_stops_it(whitted, monkeypatch, tmp_path):
         return real(self, *a, **k)
 
     monkeypatch.setattr(tracer.Session, "__init__", init)
-    monkeypatch.setattr(engine, "break_hook", lambda: building[0])
+    monkeypatch.setattr(engine.WhittedRenderEngine, "break_hook", lambda: building[0])
     for persistent in (False, True):
         building[0] = False
         scene.render.use_persistent_data = persistent
         scene.render.filepath = str(tmp_path / f"esc{int(persistent)}.png")
-        engine.LAST_STATS = None
+        engine.WhittedRenderEngine.last_render = None
         bpy.ops.render.render(write_still=True)
-        assert engine.LAST_STATS == {"cancelled": True, "cancelled_in": "build"}
+        assert engine.WhittedRenderEngine.last_render.stats == {"cancelled": True, "cancelled_in": "build"}
         assert (tmp_path / f"esc{int(persistent)}.png").exists()
     scene.render.use_persistent_data = False

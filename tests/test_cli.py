@@ -155,7 +155,7 @@ def test_purposes_take_commas_or_spaces(scene_file):
     from usd_io.cli import build_parser, split_purposes
 
     args = build_parser().parse_args(["info", str(scene_file), "--purposes", "default,render", "proxy"])
-    assert split_purposes(args.purposes) == ["default", "render", "proxy"]
+    assert split_purposes(args.purposes) == ("default", "render", "proxy")
     res = whitted("info", scene_file, "--purposes", "default,render")
     assert res.returncode == 0 and "/Ball" in res.stdout, res.stderr
     one_line_error(whitted("info", scene_file, "--purposes", "default,nope"), "nope")

@@ -201,7 +201,9 @@ def _whitted(*args):
 def test_cli_explains_the_rendered_pixel(tmp_path):
     scene_file = os.path.join(ROOT, "examples", "whitted_1980.usda")
     out = tmp_path / "r.exr"
-    args = ("--width", 96, "--spp", 2)
+    # render's flags, non-default ones included (explain once took --spp and had no --shading: issue #22)
+    args = ("--width", 96, "--aa", 2, "--shading", "classic", "--max-depth", 3, "--no-fresnel", "--purposes",
+            "default,render")
     assert _whitted("render", scene_file, "-o", out, *args, "--quiet").returncode == 0
     r = _whitted("explain", scene_file, "--pixel", 60, 30, *args, "--json", tmp_path / "t.json",
                  "--usd", tmp_path / "t.usda", "--png", tmp_path / "t.png")

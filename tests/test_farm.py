@@ -174,3 +174,61 @@ def test_a_worker_killed_mid_run_still_completes_every_frame(tmp_path):
     finally:
         client.close()
         cluster.close()
+
+
+def _switch_stage(path):
+    """A stage whose picture depends on a variant (the ball left or right) and on the proxy purpose (a cube)."""
+    s = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(s, "Z")
+    cam = UsdGeom.Camera.Define(s, "/Cam")
+    cam.CreateHorizontalApertureAttr(4.0)
+    cam.CreateVerticalApertureAttr(3.0)
+    cam.CreateFocalLengthAttr(5.0)
+    cam.AddTranslateOp().Set(Gf.Vec3d(0, 0, 8))
+    sw = UsdGeom.Xform.Define(s, "/Sw").GetPrim()
+    looks = sw.GetVariantSets().AddVariantSet("look")
+    for name, x in (("left", -2.0), ("right", 2.0)):
+        looks.AddVariant(name)
+        looks.SetVariantSelection(name)
+        with looks.GetVariantEditContext():
+            UsdGeom.Sphere.Define(s, "/Sw/Ball").AddTranslateOp().Set(Gf.Vec3d(x, 0, 0))
+    looks.SetVariantSelection("left")
+    proxy = UsdGeom.Cube.Define(s, "/Proxy")
+    proxy.CreatePurposeAttr(UsdGeom.Tokens.proxy)
+    proxy.AddTranslateOp().Set(Gf.Vec3d(0, 2, 0))
+    floor = UsdGeom.Cube.Define(s, "/Floor")
+    floor.AddTranslateOp().Set(Gf.Vec3d(0, 0, -2))
+    floor.AddScaleOp().Set(Gf.Vec3f(6, 6, 0.5))
+    light = UsdLux.SphereLight.Define(s, "/Light")
+    light.CreateIntensityAttr(300.0)
+    light.AddTranslateOp().Set(Gf.Vec3d(2, 2, 6))
+    s.GetRootLayer().Save()
+    return str(path)
+
+
+def test_the_farm_takes_every_flag_a_local_render_takes(tmp_path, client):
+    """Issue #22's drift: the farm once ignored --variant, read --purposes render,proxy as one unknown purpose,
+    and --worker-writes skipped --exposure and --max-depth (the raydepth heat map's scale)."""
+    stage = _switch_stage(tmp_path / "switch.usda")
+    dirs = {k: tmp_path / k for k in ("local", "default", "farm", "shared")}
+    for d in dirs.values():
+        d.mkdir()
+    flags = ("--frames", "1:2", "--width", 48, "--aa", 1, "--variant", "/Sw:look=right", "--purposes",
+             "default,render,proxy", "--exposure", 1, "--max-depth", 2, "--aov", "raydepth", "--shading",
+             "classic", "--quiet")
+    assert _cli("render", stage, "-o", dirs["local"] / "f.####.png", *flags) == 0
+    assert _cli("render", stage, "-o", dirs["default"] / "f.####.png", "--frames", "1:2", "--width", 48,
+                "--aa", 1, "--quiet") == 0
+    farm = client.scheduler.address  # the running test cluster
+    assert _cli("render", stage, "-o", dirs["farm"] / "f.####.png", *flags, "--scheduler", farm) == 0
+    assert _cli("render", stage, "-o", dirs["shared"] / "f.####.png", *flags, "--scheduler", farm,
+                "--worker-writes") == 0
+    local = read_image(dirs["local"] / "f.0001.png")
+    assert not np.array_equal(local, read_image(dirs["default"] / "f.0001.png"))  # the flags change the picture
+    names = sorted(os.listdir(dirs["local"]))
+    assert names == ["f.0001.png", "f.0001.raydepth.exr", "f.0001.raydepth.png",
+                     "f.0002.png", "f.0002.raydepth.exr", "f.0002.raydepth.png"]
+    for other in (dirs["farm"], dirs["shared"]):
+        assert sorted(os.listdir(other)) == names
+        for n in names:
+            assert np.array_equal(read_image(dirs["local"] / n), read_image(other / n)), other / n

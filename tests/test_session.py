@@ -279,11 +279,19 @@ def test_cancel_stops_the_embree_build():
     with pytest.raises(tracer.RenderCancelled):  # one object: only Embree's progress monitor can stop it
         Session(scene, cancelled=after(1))
     assert len(calls) == 2
-    # tracer.render polls only between tiles and depths (front ends count on a cancel leaving tiles to show).
+    # tracer.render polls during its build too (Esc in the add-on reaches it: issue #22), and between tiles: a
+    # cancel after the first tile leaves that tile to show.
     calls.clear()
     with pytest.raises(tracer.RenderCancelled) as stop:
-        tracer.render(scene, SETTINGS, cancelled=after(0))
-    assert stop.value.image.rgba.shape == (36, 48, 4)
+        tracer.render(scene, SETTINGS, cancelled=after(1))
+    assert stop.value.image is None and len(calls) == 2
+    done = []
+    with pytest.raises(tracer.RenderCancelled) as stop:
+        tracer.render(scene, SETTINGS.with_(tile_size=16), cancelled=lambda: bool(done),
+                      on_tile=lambda image, tile: done.append(tile))
+    assert stop.value.image.rgba.shape == (36, 48, 4) and len(done) == 1
+    x0, y0, x1, y1 = done[0]
+    assert stop.value.image.rgba[y0:y1, x0:x1, 3].max() > 0 and stop.value.image.rgba[y1:, :, 3].max() == 0
 
 
 #: A value other than SETTINGS' for every RenderSettings field: the test below fails for a new field until it is

@@ -206,10 +206,9 @@ def test_channel_outputs_drive_scalar_inputs(tmp_path):
     scene, info = load_stage(S.save(s), width=8, height=8)
     m = scene.materials
     row = scene.material_ids[0]
-    assert m.roughness_channel[row] == 1 and m.metallic_channel[row] == 2
-    rough_tex, metal_tex = scene.textures[m.roughness_texture[row]], scene.textures[m.metallic_texture[row]]
-    assert np.allclose(rough_tex.image[..., 1], 150 / 255, atol=1e-6)  # raw: not sRGB-decoded
-    assert np.allclose(metal_tex.image[..., 2], 250 / 255, atol=1e-6)
+    assert m.programs[row] is not None  # per-hit lookups; the row holds what they give on average (uniform here)
+    assert m.roughness[row] == pytest.approx(150 / 255, abs=1e-6)  # raw: not sRGB-decoded; g
+    assert m.metallic[row] == pytest.approx(250 / 255, abs=1e-6)  # b
     assert len([w for w in info.warnings if "occlusion" in w]) == 1
 
 
@@ -480,7 +479,6 @@ def principled_recorder(monkeypatch):
     import tracer
     import usd_io.dome
     import usd_io.reader
-    import usd_io.tracer_model as tm
 
     class Texture(types.SimpleNamespace):
         pass
@@ -537,20 +535,44 @@ def test_principled_fields_for_channels_uv_sets_and_vertex_colours(tmp_path, pri
     S.bind(q, mat)
     b, info = load_stage(S.save(s), width=8, height=8)
     (row_fields,) = [m for m in b.materials if m["name"] == "/Looks/M"]
-    tex = b.textures
-    assert row_fields["roughness_channel"] == 1 and row_fields["metallic_channel"] == 2
-    assert row_fields["roughness_texture"] == row_fields["metallic_texture"]  # one node read once
-    rough = tex[row_fields["roughness_texture"]]
-    assert rough.uv_set == 0 and np.allclose(rough.image[..., 1], 150 / 255)  # no st: the mesh's default set
-    nrm = tex[row_fields["normal_texture"]]
-    assert nrm.uv_set == 1 and (nrm.wrap_s, nrm.wrap_t) == ("mirror", "clamp")
-    assert np.allclose(nrm.scale, (2, 2, 2, 1)) and np.allclose(nrm.bias, (-1, -1, -1, 0))
-    assert np.allclose(nrm.transform, [[0, -2, 0.5], [1, 0, 0], [0, 0, 1]], atol=1e-9)  # T · R(90°) · S(1, 2)
-    assert row_fields["alpha_texture"] == row_fields["normal_texture"] and row_fields["alpha_channel"] == 3
-    assert row_fields["alpha_threshold"] == pytest.approx(0.4)
-    assert row_fields["emission_texture"] == row_fields["roughness_texture"]
-    assert row_fields["emission_channel"] == -1
-    assert row_fields["vertex_color"] is True and np.allclose(row_fields["base_color"], 1.0)
+    g = row_fields["program"].graph  # the shader graph the reader wrote (tracer.shader_graph)
+    (bsdf,) = [n for n in g.nodes.values() if n.type == "principled_bsdf"]
+
+    def src(node, socket):
+        ref = node.inputs[socket]
+        return g.node(ref), ref.socket
+
+    def through(node, socket, op_type):  # the texture read behind a constant multiply
+        mul, _ = src(node, socket)
+        assert mul.type == op_type
+        return src(mul, "Value" if op_type == "math" else "Vector")
+
+    rough, rough_out = through(bsdf, "Roughness", "math")
+    metal, metal_out = through(bsdf, "Metallic", "math")
+    assert rough.type == "usd_uv_texture" and (rough_out, metal_out) == ("g", "b")
+    assert rough is metal  # one node read once, through two outputs
+    assert np.allclose(rough.param("image").rgba()[..., 1], 150 / 255)
+    uv, _ = src(rough, "st")
+    assert uv.type == "uvmap" and uv.param("attribute") == ""  # no st: the mesh's default set
+    nmap, _ = src(bsdf, "Normal")
+    half, _ = src(nmap, "Color")
+    blocks, out = src(half, "Vector")
+    assert nmap.type == "normal_map" and blocks.type == "usd_uv_texture" and out == "rgb"
+    img = blocks.param("image")
+    assert (img.wrap_s, img.wrap_t) == ("mirror", "clamp")
+    assert np.allclose(blocks.param("scale"), (2, 2, 2, 1)) and np.allclose(blocks.param("bias"), (-1, -1, -1, 0))
+    t2d, _ = src(blocks, "st")
+    assert np.allclose(t2d.param("matrix"), [[0, -2, 0.5], [1, 0, 0], [0, 0, 1]], atol=1e-9)  # T · R(90°) · S(1, 2)
+    assert src(t2d, "in")[0].param("attribute") == "map1"
+    alpha, alpha_out = through(bsdf, "Alpha", "math")
+    assert alpha is blocks and alpha_out == "a"
+    assert bsdf.inputs["Alpha Threshold"] == pytest.approx(0.4) and row_fields["alpha_threshold"] == pytest.approx(0.4)
+    emit, emit_out = through(bsdf, "Emission Color", "vector_math")
+    assert emit is rough and emit_out == "rgb"
+    mul, _ = src(bsdf, "Base Color")
+    vc, _ = src(mul, "Vector_001")
+    assert vc.type == "vertex_color" and vc.param("layer_name") == "displayColor"
+    assert np.allclose(mul.inputs["Vector"], 1.0)
     (mesh,) = b.meshes
     assert set(mesh["uv_sets"]) == {0, 1}  # the default set (map1, the only UV primvar) and map1 by name
     assert np.allclose(mesh["uv_sets"][0], mesh["uv_sets"][1]) and np.allclose(mesh["uvs"], mesh["uv_sets"][0])

@@ -186,9 +186,13 @@ def fit_apertures(horizontal: float, vertical: float, width: int, height: int, p
     """Conform a film window to an image aspect ratio (usdrecord / UsdGeom ``ConformWindow`` policies).
 
     ``expand`` grows the short side (everything the aperture shows stays visible), ``crop`` shrinks the long side,
-    ``horizontal`` / ``vertical`` keep that aperture and derive the other, ``none`` leaves both as they are.
+    ``horizontal`` / ``vertical`` keep that aperture and derive the other, ``larger`` keeps the horizontal one for
+    a landscape image and the vertical one for a portrait image (Blender's sensor fit Auto), ``none`` leaves both
+    as they are. ``width``/``height`` may be fractional (a pixel aspect ratio folded in).
     """
     aspect = width / height
+    if policy == "larger":
+        policy = "horizontal" if aspect >= 1.0 else "vertical"
     if policy == "none":
         return horizontal, vertical
     if policy == "horizontal":
@@ -200,4 +204,5 @@ def fit_apertures(horizontal: float, vertical: float, width: int, height: int, p
         return (horizontal, horizontal / aspect) if window > aspect else (vertical * aspect, vertical)
     if policy == "crop":
         return (vertical * aspect, vertical) if window > aspect else (horizontal, horizontal / aspect)
-    raise ValueError(f"unknown aperture fit policy {policy!r}: use expand, crop, horizontal, vertical or none")
+    raise ValueError(f"unknown aperture fit policy {policy!r}: use expand, crop, horizontal, vertical, larger or "
+                     "none")

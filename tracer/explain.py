@@ -103,7 +103,7 @@ class Explanation:
 def explain_pixel(scene: Scene, settings: RenderSettings, x: int, y: int, accel: Accelerator | None = None,
                   integrator: Integrator | None = None) -> Explanation:
     """The ray tree of pixel (x, y) (image pixels, origin top-left) under ``settings``."""
-    from .render import eye_rays
+    from .tiles import eye_rays
 
     settings = settings.validate()
     if not (0 <= x < settings.width and 0 <= y < settings.height):

@@ -120,7 +120,7 @@ class _TileRenderer:
     def tile(self, settings: RenderSettings, tile):
         from .accel import Accelerator
         from .integrator import Integrator
-        from .render import empty_aovs, eye_rays, uses_ray_types, write_tile
+        from .tiles import empty_aovs, eye_rays, uses_ray_types, write_tile
 
         with self._lock:
             if self._integ is None:
@@ -187,7 +187,7 @@ def render_tiled(client, source, frame=None, *, tile_size: int = DEFAULT_FARM_TI
     settings = client.submit(_settings_task, source, frame, shipped, pure=False).result()
     tiles = frame_tiles(settings, tile_size)
     h, w = settings.height, settings.width
-    from .render import empty_aovs
+    from .tiles import empty_aovs
 
     image = Image(rgba=np.zeros((h, w, 4), np.float32), aovs=empty_aovs(settings, h, w))
     start = time.perf_counter()

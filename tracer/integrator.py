@@ -44,8 +44,11 @@ from .lights import MESH, pack_lights, sample_light
 from .sampling import multijitter, stratum, uniform2_1
 from .scene import Scene
 from .settings import RenderSettings
-from .surface import areas_at, color_at, geometry_of, hit_uv_set, shading_frame, tangent_at, uv_at
-from .texture import lookup, lookup_at, pack_textures, texel_density, uv_set_of
+from .shader_compile import pack_programs
+from .shader_vm import cut as _cut
+from .shader_vm import program_alpha, shade_programs
+from .surface import color_at, geometry_of, shading_frame
+from .texture import pack_textures
 
 RAY_TYPES = ("eye", "shadow", "reflection", "transmission", "sky")
 
@@ -132,16 +135,13 @@ class MaterialArrays(NamedTuple):
     alpha_channel: np.ndarray
     emission_channel: np.ndarray
     normal_channel: np.ndarray
-    textured: np.ndarray  # (N,) bool: some parameter reads a texture
-    slots: np.ndarray  # (N, 7) int32: the texture of each parameter of TEXTURE_PARAMS (-1 = none)
-    channels: np.ndarray  # (N, 7) int32: and its channel
+    textured: np.ndarray  # (N,) bool: the material has a program (tracer.shader_vm) the textures stage runs
 
     @classmethod
-    def of(cls, m) -> "MaterialArrays":
+    def of(cls, m, has_program: np.ndarray) -> "MaterialArrays":
         f32, i32 = (lambda a: np.ascontiguousarray(a, np.float32)), (lambda a: np.ascontiguousarray(a, np.int32))
-        tex, ch = m.texture_slots()
-        cols = {"textured": np.ascontiguousarray((tex >= 0).any(axis=1)), "slots": tex, "channels": ch}
-        for name in cls._fields[:-3]:
+        cols = {"textured": np.ascontiguousarray(has_program, np.bool_)}
+        for name in cls._fields[:-1]:
             if name == "base_color_texture":
                 a = m.diffuse_texture
             else:
@@ -201,9 +201,10 @@ class SurfaceQueue(NamedTuple):
     specular: np.ndarray  # (N,) float32 Specular IOR Level
     cover: np.ndarray  # (N,) float32 alpha in [0, 1]
     emission: np.ndarray  # (N, 3) float32
-    textured: np.ndarray  # (N,) int32: the rays whose material reads a texture (the first _surfaces returns)
+    textured: np.ndarray  # (N,) int32: the rays whose material has a program (the first _surfaces returns)
     mirror: np.ndarray  # (N, 3) float32: the Principled lobes' share of the mirror ray, g(r)·(their albedo at the
     #                     view angle), written by the direct-light stage from its closure for the spawn stage
+    transmission: np.ndarray  # (N,) float32 glass weight of the non-metal part
 
     @classmethod
     def empty(cls, n: int) -> "SurfaceQueue":
@@ -211,7 +212,7 @@ class SurfaceQueue(NamedTuple):
         f1 = lambda: np.empty(n, np.float32)  # noqa: E731
         return cls(np.empty(n, np.bool_), np.empty((n, 3), np.float64), f3(), f3(), np.empty(n, np.bool_),
                    np.empty(n, np.int32), f3(), f1(), f1(), f1(), f1(), f3(), np.empty(n, np.int32),
-                   np.zeros((n, 3), np.float32))
+                   np.zeros((n, 3), np.float32), f1())
 
 
 class ShadowQueue(NamedTuple):
@@ -303,8 +304,11 @@ class Integrator:
         self.eps = np.float32(eps)
         self.geometry = geometry_of(scene)
         m = scene.materials
-        self.materials = MaterialArrays.of(m)
-        self.textures = pack_textures(scene.textures)
+        #: every material's program (tracer.shader_compile), and the textures its image ops read
+        self.programs, textures = pack_programs(m, scene.textures)
+        self.materials = MaterialArrays.of(m, self.programs.has)
+        self.textures = pack_textures(textures)
+        self.bounds = _object_bounds(scene) if self.programs.has.any() else np.zeros((1, 2, 3), np.float64)
         self.instances = pack_instances(scene)
         # instanced prototypes' emitting triangles placed per instance (tracer/instances.py)
         emitters = world_emitters(scene, m.emission * m.alpha[:, None])
@@ -328,7 +332,7 @@ class Integrator:
         used[np.unique(scene.material_ids)] = True
         used[self.instances.materials[self.instances.materials >= 0]] = True
         #: Some used material lets light through (alpha < 1 or an alpha texture): shadow rays look through it.
-        self.see_through = bool(np.any(used & ((m.alpha < 1) | (self.materials.alpha_texture >= 0))))
+        self.see_through = bool(np.any(used & ((m.alpha < 1) | self.programs.alpha_varies)))
 
     @property
     def last_depth(self) -> int:
@@ -344,16 +348,17 @@ class Integrator:
         it = self.instances
         n_textured = _surfaces(o, d, t, prim, inst, it.normal_matrix, it.materials, u, v, self.geometry,
                                self.materials, surf)
-        if n_textured:
-            g, m, x = self.geometry, self.materials, self.textures
-            # one eye sample's footprint, for the mip level of lookups: read now, as a session's camera and
-            # settings change between renders without a new Integrator
+        if n_textured:  # the textures stage: the materials' programs (tracer.shader_vm)
+            g, m, x, pt = self.geometry, self.materials, self.textures, self.programs
+            # one eye sample's footprint, for the mip level of lookups and the bump offsets: read now, as a
+            # session's camera and settings change between renders without a new Integrator
             eye, spread, flat = self.scene.camera.sample_footprint(self.settings.width, self.settings.samples)
-            _textured_surfaces(surf.textured[:n_textured], prim, u, v, surf.mat, surf.front, surf.ng, surf.n,
-                               surf.base, surf.roughness, surf.metallic, surf.specular, surf.cover, surf.emission,
-                               m.alpha, m.alpha_threshold, m.slots, m.channels, m.normal_strength, g.uv_sets,
-                               g.vertices, g.triangles, g.face_normals, x.data, x.params, surf.p, eye, spread,
-                               flat, inst, it.linear, it.mirrored)
+            shade_programs(surf.textured[:n_textured], prim, u, v, t, inst, d, depth, pt.code, pt.pstart, pt.pbase,
+                           pt.outs, pt.R0, np.empty_like(pt.R0), surf.mat, surf.p, surf.ng, surf.n, surf.front,
+                           surf.base, surf.roughness, surf.metallic, surf.specular, surf.cover, surf.emission,
+                           surf.transmission, m.alpha_threshold, g.uv_sets, g.colors, g.has_colors, g.vertices,
+                           g.triangles, g.face_normals, g.object_ids, self.bounds, x.data, x.params, it.linear,
+                           it.mirrored, it.object_ids, eye, spread, flat)
         if depth == 0:
             _first_hits(surf, t, prim, inst, self.instances, t0, sample, self.geometry, out)
         _emitted(d, surf, sample, weight, depth, self.options, self.env, out)
@@ -422,8 +427,12 @@ class Integrator:
             if not len(sel):
                 break
             t, prim, u, v, inst = self.accel.closest_hits(o[sel], d[sel], t_max[sel])
-            _pass_shadow(sel, idx, t, prim, inst, self.instances, u, v, self.geometry, self.materials, self.textures,
-                         o, d, t_max, color, pending, blocked, self.options.eps)
+            g, pt, x, it = self.geometry, self.programs, self.textures, self.instances
+            _pass_shadow(sel, idx, t, prim, inst, it.materials, it.normal_matrix, u, v, g.material_ids,
+                         g.face_normals, self.materials.alpha, self.materials.alpha_threshold, o, d, t_max, color,
+                         pending, blocked, self.options.eps, pt.code, pt.pstart, pt.pbase, pt.outs, pt.R0,
+                         np.empty_like(pt.R0), g.uv_sets, g.colors, g.has_colors, g.vertices, g.triangles,
+                         g.object_ids, self.bounds, x.data, x.params, it.linear, it.mirrored, it.object_ids)
         return blocked
 
     def trace(self, origins: np.ndarray, directions: np.ndarray, keys: np.ndarray,
@@ -471,6 +480,23 @@ class Integrator:
 
 
 # ---------------------------------------------------------------------------------------------- helpers
+def _object_bounds(scene) -> np.ndarray:
+    """(O, 2, 3) float64: each object's bounding box over its triangles (in the space the triangles are stored:
+    world for placed meshes, object space for instance prototypes) — the texture space of Generated
+    coordinates."""
+    oid = np.asarray(scene.object_ids, np.int64)
+    n = int(oid.max()) + 1 if len(oid) else 1
+    lo = np.full((n, 3), np.inf)
+    hi = np.full((n, 3), -np.inf)
+    if len(oid):
+        tv = np.asarray(scene.vertices, np.float64)[scene.triangles]
+        np.minimum.at(lo, oid, tv.min(axis=1))
+        np.maximum.at(hi, oid, tv.max(axis=1))
+    bad = ~np.isfinite(lo).all(axis=1)
+    lo[bad], hi[bad] = 0.0, 0.0
+    return np.ascontiguousarray(np.stack([lo, hi], axis=1))
+
+
 @kernel(inline=True)
 def spawn_ray(p, ng, direction, eps):
     """The origin of a ray leaving surface point p along ``direction``: p moved ε along the geometric normal ng, to
@@ -481,35 +507,18 @@ def spawn_ray(p, ng, direction, eps):
 
 
 @kernel(inline=True)
-def _scalar_param(value, ti, ch, tex, geom, tri, u, v):
-    """A scalar material parameter: the constant × its texture lookup (channel ``ch``; -1 = luminance)."""
-    if ti < 0:
-        return value
-    s, t, ok = hit_uv_set(geom, uv_set_of(tex.params, ti), tri, u, v)
-    c = lookup(tex, ti, s, t, ok)
-    if ch < 0:
-        return value * (0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2])
-    return value * c[ch]
-
-
-@kernel(inline=True)
-def _cut(a, threshold):
-    """Coverage from alpha: clamped to [0, 1]; a cut-out (threshold > 0) gives 0 below the threshold, else 1."""
-    if threshold > 0.0:
-        return 1.0 if a >= threshold else 0.0
-    return min(max(a, 0.0), 1.0)
-
-
-@kernel(inline=True)
-def coverage(geom, mats, tex, mat, tri, u, v):
-    """Alpha of triangle ``tri`` at barycentrics (u, v) under material ``mat``: the material's alpha × its texture,
-    cut by its threshold (:func:`_cut`). (Helpers that take the scene's NamedTuples are called only where a texture
-    exists: each call costs reference counting on every array they hold.)"""
-    a = float(mats.alpha[mat])
-    ti = mats.alpha_texture[mat]
-    if ti >= 0:
-        a = _scalar_param(a, ti, mats.alpha_channel[mat], tex, geom, tri, u, v)
-    return _cut(a, float(mats.alpha_threshold[mat]))
+def shadow_ray(p, ng, l, dist, eps):
+    """The shadow ray from surface point p towards a light sample at distance ``dist`` along l (inf: a direction):
+    (origin, unit direction, length). It leaves through :func:`spawn_ray` and aims at the sample from there, stopping
+    ε short of it: aimed along l from the lifted origin instead, a ray that meets an emitting surface at a grazing
+    angle would pass ε·(ng·l)-ish beyond the sample's plane and hit the emitter itself (a floor far from an emissive
+    panel went black)."""
+    o = spawn_ray(p, ng, l, eps)
+    if not math.isfinite(dist):
+        return o, l, dist
+    to = vec.sub(vec.madd(p, l, dist), o)
+    length = vec.length(to)
+    return o, vec.scale(to, 1.0 / max(length, 1e-30)), length - eps
 
 
 @kernel(inline=True)
@@ -572,28 +581,14 @@ def _closure_at(surf, mats, i, n, di, principled, spawn):
     mat = surf.mat[i]
     return _local_model(principled, vec.row(surf.base, i), float(surf.metallic[i]), float(surf.roughness[i]),
                         float(surf.specular[i]), vec.row(mats.specular_tint, mat), float(mats.ior[mat]),
-                        float(mats.transmission[mat]), float(mats.k_m[mat]), float(surf.cover[i]),
+                        float(surf.transmission[i]), float(mats.k_m[mat]), float(surf.cover[i]),
                         vec.row(mats.specular_color, mat), float(mats.exponent[mat]), n, di, spawn)
-
-
-@kernel(inline=True)
-def _channel(c, ch):
-    """Channel ``ch`` of an RGBA tuple; -1: its Rec.709 luminance (Blender's colour-to-float conversion)."""
-    if ch == 0:
-        return c[0]
-    if ch == 1:
-        return c[1]
-    if ch == 2:
-        return c[2]
-    if ch == 3:
-        return c[3]
-    return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
 
 
 @kernel(refcounts=False)
 def _surfaces(o, d, t, prim, inst, normal_matrix, overrides, u, v, geom, mats, surf):
     """Surfaces stage: per ray, the hit point, its frames and the material's constant parameters (× vertex
-    colours); the rays whose material reads a texture are listed for :func:`_textured_surfaces`. Returns how many.
+    colours); the rays whose material has a program are listed for the textures stage. Returns how many.
     A hit on an instance (``inst`` ≥ 0) finds its frame in object space and takes it to world space by the
     instance's normal matrix (:func:`tracer.instances.world_frame`), and shades with its material override.
     (The NamedTuples' fields are read into locals before the loop: a field read inside it can cost numba's
@@ -607,7 +602,7 @@ def _surfaces(o, d, t, prim, inst, normal_matrix, overrides, u, v, geom, mats, s
     s_hit, s_p, s_ng, s_n, s_front, s_mat = surf.hit, surf.p, surf.ng, surf.n, surf.front, surf.mat
     s_base, s_rough, s_metal, s_spec, s_cover, s_e = (surf.base, surf.roughness, surf.metallic, surf.specular,
                                                        surf.cover, surf.emission)
-    s_textured = surf.textured
+    s_textured, s_tran, transmission = surf.textured, surf.transmission, mats.transmission
     n_textured = 0
     for i in range(o.shape[0]):
         tri = prim[i]
@@ -653,76 +648,8 @@ def _surfaces(o, d, t, prim, inst, normal_matrix, overrides, u, v, geom, mats, s
         s_spec[i] = max(float(specular[mat]), 0.0)
         s_cover[i] = _cut(float(alphas[mat]), float(threshold[mat]))
         s_e[i, 0], s_e[i, 1], s_e[i, 2] = emission[mat, 0], emission[mat, 1], emission[mat, 2]
+        s_tran[i] = transmission[mat]
     return n_textured
-
-
-@kernel(refcounts=False)
-def _textured_surfaces(rays, prim, u, v, mat_of, front, ng, n, base, rough, metal, spec, cover, e, alphas, threshold,
-                       slots, channels, strength, uv_sets, vertices, triangles, face_normals, tdata, tparams, p_hit,
-                       eye, spread, flat, inst, linear, mirrored):
-    """Textures stage: for the listed rays, each textured parameter × its texture (in the order of
-    TEXTURE_PARAMS: base colour, roughness, metallic, specular, alpha, emission, normal map), in place. Every
-    array is a parameter of its own, so no reference counting runs per lookup.
-
-    Mip level: a ray's footprint at its hit is ``flat + spread·|p − eye|`` world units (one eye sample's share of a
-    pixel, spreading with the distance from the eye; mirrors and glass are not followed, so reflections are read
-    sharper than a ray cone would), times the texture's texels per world unit on the triangle."""
-    for q in range(rays.shape[0]):
-        i = rays[q]
-        tri, mat = prim[i], mat_of[i]
-        ui, vi = float(u[i]), float(v[i])
-        alpha = float(alphas[mat])
-        footprint = flat + spread * vec.length(vec.sub(vec.row(p_hit, i), eye))
-        k_inst = inst[i]
-        if k_inst >= 0:  # the instance scales the prototype's triangles: footprint in object units
-            det = abs(linear[k_inst, 0, 0] * (linear[k_inst, 1, 1] * linear[k_inst, 2, 2]
-                                              - linear[k_inst, 1, 2] * linear[k_inst, 2, 1])
-                      - linear[k_inst, 0, 1] * (linear[k_inst, 1, 0] * linear[k_inst, 2, 2]
-                                                - linear[k_inst, 1, 2] * linear[k_inst, 2, 0])
-                      + linear[k_inst, 0, 2] * (linear[k_inst, 1, 0] * linear[k_inst, 2, 1]
-                                                - linear[k_inst, 1, 1] * linear[k_inst, 2, 0]))
-            footprint /= max(det, 1e-30) ** (1.0 / 3.0)
-        k_read = -1  # the UV set whose coordinates and areas were last read (textures mostly share one)
-        s, t, ok, uv_area, world_area = 0.0, 0.0, False, 0.0, 0.0
-        for j in range(7):
-            ti = slots[mat, j]
-            if ti < 0:
-                continue
-            k = uv_set_of(tparams, ti)
-            if k != k_read:
-                s, t, ok = uv_at(uv_sets, k, tri, ui, vi)
-                uv_area, world_area = areas_at(uv_sets, vertices, triangles, k, tri)
-                k_read = k
-            texels = footprint * texel_density(tparams, ti, uv_area, world_area)
-            lod = math.log2(texels) if texels > 1.0 else 0.0
-            if j == 6:  # the normal map: tangent space from this UV set, OpenGL convention
-                if ok:
-                    c = lookup_at(tdata, tparams, ti, s, t, True, lod)
-                    tg, sign = tangent_at(uv_sets, vertices, triangles, k, tri, vec.row(face_normals, tri))
-                    if k_inst >= 0:  # the tangent moves with the instance; a mirroring one turns the bitangent
-                        tg = mat3_apply(linear, k_inst, tg)
-                        if mirrored[k_inst]:
-                            sign = -sign
-                    nn = bsdf.perturb_normal((c[0], c[1], c[2]), tg, sign, float(strength[mat]), vec.row(n, i),
-                                             vec.row(ng, i), front[i])
-                    n[i, 0], n[i, 1], n[i, 2] = nn
-                continue
-            c = lookup_at(tdata, tparams, ti, s, t, ok, lod)
-            ch = channels[mat, j]
-            x = _channel(c, ch)
-            if j == 0 or j == 5:  # colours: rgb, or one channel as grey
-                target = base if j == 0 else e
-                for m in range(3):
-                    target[i, m] *= c[m] if ch < 0 else x
-            elif j == 1:
-                rough[i] = min(max(rough[i] * x, 0.0), 1.0)
-            elif j == 2:
-                metal[i] = min(max(metal[i] * x, 0.0), 1.0)
-            elif j == 3:
-                spec[i] = max(spec[i] * x, 0.0)
-            else:
-                alpha *= x
-        cover[i] = _cut(alpha, float(threshold[mat]))
 
 
 @kernel(refcounts=False)
@@ -822,9 +749,9 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
                 if n_l <= 0.0 or vec.dot(ng, l) <= 0.0:
                     continue
                 c = vec.mul(wo, vec.mul(bsdf.evaluate(cl, n, wi, l, n_l, spec_scale), e))
-                if shadows:  # the shadow ray (p, l, ε, dist): counts only if nothing is in between
-                    _put(q_o, q_d, q_t, q_s, q_c, q_l, n_shadow, spawn_ray(p, ng, l, eps), l, dist - 2.0 * eps, s,
-                         c, j)
+                if shadows:  # the shadow ray from p to the light sample: counts only if nothing is in between
+                    so, sd, st = shadow_ray(p, ng, l, dist, eps)
+                    _put(q_o, q_d, q_t, q_s, q_c, q_l, n_shadow, so, sd, st, s, c, j)
                     n_shadow += 1
                     n_new += 1
                 else:
@@ -916,7 +843,7 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
     s_hit, s_mat, s_base, s_metal, s_rough, s_cover, s_p, s_ng, s_n, s_front, s_mirror = (
         surf.hit, surf.mat, surf.base, surf.metallic, surf.roughness, surf.cover, surf.p, surf.ng, surf.n,
         surf.front, surf.mirror)
-    m_ior, m_tran, m_km, m_mirror, m_ttint = (mats.ior, mats.transmission, mats.k_m, mats.mirror_tint,
+    m_ior, s_tran, m_km, m_mirror, m_ttint = (mats.ior, surf.transmission, mats.k_m, mats.mirror_tint,
                                               mats.transmission_tint)
     principled, fresnel, min_weight = opt.principled, opt.fresnel, opt.min_weight
     n_tir = 0
@@ -940,7 +867,7 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
             continue
         mat = s_mat[i]
         k_m = float(m_km[mat])
-        w_t = float(m_tran[mat])
+        w_t = float(s_tran[i])
         mirror = vec.scale(vec.row(m_mirror, mat), k_m)
         if principled:  # the lobes' mirror share, from the direct-light stage's closure (SurfaceQueue.mirror)
             glass = (1.0 - k_m) * (1.0 - float(s_metal[i])) * w_t
@@ -956,12 +883,10 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
         if glass <= 0.0 and vec.max3(mirror) <= 0.0:
             continue
         # Secondary rays where a mirror or glass part exists: reflection and transmission.
-        r_dir = optics.reflect_dir(di, n)
-        r_n = n
-        # Interpolated normals can tilt a reflection below the surface: use the geometric normal there.
-        if vec.dot(r_dir, ng) <= 0.0:
-            r_dir = optics.reflect_dir(di, ng)
-            r_n = ng
+        # Interpolated normals can tilt a reflection below the surface: the normal is bent towards ng just enough
+        # to keep it above (Cycles' glossy lobes do the same).
+        r_n = optics.valid_reflection_normal(di, n, ng)
+        r_dir = optics.reflect_dir(di, r_n)
         eta_i, eta_r, tir = 1.0, 1.0, False
         w_refl = vec.mul(w, mirror)
         if glass > 0.0:
@@ -1002,12 +927,18 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
 
 
 @kernel(refcounts=False)
-def _pass_shadow(sel, idx, t, prim, inst, itab, u, v, geom, mats, tex, o, d, t_max, color, pending, blocked, eps):
+def _pass_shadow(sel, idx, t, prim, inst, overrides, normal_matrix, u, v, material_ids, face_normals, alphas,
+                 threshold, o, d, t_max, color, pending, blocked, eps, code, pstart, pbase, outs, R0, R, uv_sets,
+                 colors, has_colors, vertices, triangles, object_ids, bounds, tdata, tparams, linear, mirrored,
+                 inst_ids):
     """One round of transparent shadows: each pending shadow ray's first blocker either stops it (alpha 1) or lets
-    1 − alpha of its colour through, the ray continuing behind it; a ray that reaches its light is unblocked."""
-    material_ids, face_normals, overrides, normal_matrix = (geom.material_ids, geom.face_normals, itab.materials,
-                                                            itab.normal_matrix)
-    alphas, alpha_texture, threshold = mats.alpha, mats.alpha_texture, mats.alpha_threshold
+    1 − alpha of its colour through, the ray continuing behind it; a ray that reaches its light is unblocked. A
+    material whose alpha is a program runs it at the blocker (Light Path: a shadow ray)."""
+    for j in range(R0.shape[0]):
+        R[j] = R0[j]
+    geo = (uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, bounds, linear, mirrored,
+           inst_ids)
+    tex = (tdata, tparams)
     for q in range(sel.shape[0]):
         j = sel[q]
         r = idx[j]
@@ -1020,8 +951,17 @@ def _pass_shadow(sel, idx, t, prim, inst, itab, u, v, geom, mats, tex, o, d, t_m
         mat = material_ids[tri]
         if k >= 0 and overrides[k] >= 0:
             mat = overrides[k]
-        if alpha_texture[mat] >= 0:
-            a = coverage(geom, mats, tex, mat, tri, float(u[q]), float(v[q]))
+        dj = vec.row(d, j)
+        p = vec.madd(vec.row(o, j), dj, float(t[q]))
+        ng = vec.row(face_normals, tri)
+        if k >= 0:  # to world space by the instance's normal matrix (tracer.instances.to_world_normal)
+            ng = vec.normalize(mat3_apply(normal_matrix, k, ng))
+        front = vec.dot(ng, dj) < 0.0
+        if not front:
+            ng = vec.scale(ng, -1.0)
+        if outs[mat, 4] >= 0:  # OUT_ALPHA: the program's
+            a = _cut(program_alpha(code, pstart, pbase, outs, R, mat, tri, float(u[q]), float(v[q]), p, ng, front,
+                                   dj, float(t[q]), k, geo, tex), float(threshold[mat]))
         else:
             a = _cut(float(alphas[mat]), float(threshold[mat]))
         if a >= 1.0:
@@ -1029,13 +969,6 @@ def _pass_shadow(sel, idx, t, prim, inst, itab, u, v, geom, mats, tex, o, d, t_m
             continue
         for c in range(3):
             color[r, c] *= 1.0 - a
-        dj = vec.row(d, j)
-        p = vec.madd(vec.row(o, j), dj, float(t[q]))
-        ng = vec.row(face_normals, tri)
-        if k >= 0:  # to world space by the instance's normal matrix (tracer.instances.to_world_normal)
-            ng = vec.normalize(mat3_apply(normal_matrix, k, ng))
-        if vec.dot(ng, dj) > 0.0:
-            ng = vec.scale(ng, -1.0)
         o[j, 0], o[j, 1], o[j, 2] = spawn_ray(p, ng, dj, eps)
         t_max[j] = t_max[j] - t[q]
 

@@ -140,8 +140,14 @@ class AreaLight:
 
     @property
     def area(self) -> float:
-        sx, sy = self.size
-        return sx * sy if self.shape == "rect" else np.pi / 4 * sx * sy
+        return AreaLight.area_of(self.size, self.shape)
+
+    @staticmethod
+    def area_of(size, shape: str = "rect") -> float:
+        """The emitting area of a ``size`` (sx, sy) light: a rectangle sx·sy, a disk (ellipse) π/4·sx·sy. The one
+        place this is written (the add-on's power conversion and its unnormalized lights use it)."""
+        sx, sy = size
+        return sx * sy if shape == "rect" else np.pi / 4 * sx * sy
 
     def sample_count(self, requested: int) -> int:
         return max(1, requested)

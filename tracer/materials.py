@@ -149,6 +149,9 @@ class Materials:
     alpha_channel: np.ndarray | None = None
     emission_channel: np.ndarray | None = None
     normal_channel: np.ndarray | None = None
+    #: per row: None, or the material's graph (:class:`tracer.shader_compile.BoundGraph`) when something in it
+    #: varies per hit; the kernels run it compiled (tracer.shader_vm), the columns hold its constants
+    programs: list | None = None
 
     def __post_init__(self):
         self._fill_defaults()
@@ -196,15 +199,16 @@ class Materials:
         """
         if not rows:
             rows = [dict(DEFAULT_MATERIAL)]
-        known = set(DEFAULT_MATERIAL) | set(_OPTIONAL) | {"base_color", "base_color_texture", "name"}
+        known = set(DEFAULT_MATERIAL) | set(_OPTIONAL) | {"base_color", "base_color_texture", "name", "program"}
         cols: dict[str, list] = {k: [] for k in list(DEFAULT_MATERIAL) + list(_OPTIONAL)}
         names = []
+        programs = [row.get("program") for row in rows]
         for i, row in enumerate(rows):
             label = f"material {i} ({row.get('name', f'material{i}')})"
             unknown = set(row) - known
             if unknown:
                 raise ValueError(f"{label}: unknown field(s) {sorted(unknown)}; known: {sorted(known)}")
-            row = dict(row)
+            row = {k: v for k, v in row.items() if k != "program"}
             for alias, canonical in (("base_color", "diffuse"), ("base_color_texture", "diffuse_texture")):
                 if alias in row:
                     if canonical in row:
@@ -255,7 +259,7 @@ class Materials:
                 kw[k] = _scalar_column(cols[k], n, k, np.int32)
             else:
                 kw[k] = _scalar_column(cols[k], n, k)
-        return cls(names=names, **kw)
+        return cls(names=names, programs=programs if any(p is not None for p in programs) else None, **kw)
 
     def texture_slots(self) -> tuple[np.ndarray, np.ndarray]:
         """((N, 7) texture indices, (N, 7) channels) in the order of :data:`TEXTURE_PARAMS`."""
@@ -267,6 +271,8 @@ class Materials:
         """Check every column's shape and range; raise ``ValueError`` naming the material and the field."""
         self._fill_defaults()
         n = len(self)
+        if self.programs is not None and len(self.programs) != n:
+            raise ValueError(f"materials.programs must have {n} entries (None or a graph), got {len(self.programs)}")
         for name in _RGB:
             setattr(self, name, _rgb_column(getattr(self, name), n, name))
         for name in _FLOAT:

@@ -1,168 +1,18 @@
-"""``tracer.render(scene, settings)``: tiles on a thread pool, eye rays per tile, film out.
-
-Each tile is traced independently with sample patterns keyed by pixel, so images do not depend on the number of
-threads or on tile order. Memory per tile is bounded by ``tile_size² × samples²`` rays.
+"""``tracer.render(scene, settings)``: a :class:`tracer.Session` made for one render (the tile loop is
+:mod:`tracer.tiles`, under the session).
 """
 
 from __future__ import annotations
 
-import os
 import time
-from concurrent.futures import ThreadPoolExecutor
-
-import numpy as np
 
 from .accel import Accelerator
-from .camera import eye_ray
-from .film import Image, box_filter, majority
-from .integrator import PATH_TYPES, RayCounts
-from .jit import kernel
-from .sampling import uniform2_1
+from .film import Image
 from .scene import Scene
-from .settings import RAY_TYPE_AOVS, RenderSettings
+from .session import Session
+from .settings import RenderSettings
+from .tiles import RenderCancelled, render_session, render_tile, tiles_of  # noqa: F401 — their former home
 
-
-class RenderCancelled(Exception):
-    """Raised by :func:`render` when its ``cancelled`` callback returned True; carries the partial image (None if
-    it came before any pixel, while the Embree scene was being built)."""
-
-    def __init__(self, image: Image):
-        super().__init__("render cancelled")
-        self.image = image
-
-
-def tiles_of(settings: RenderSettings):
-    """Tile rectangles (x0, y0, x1, y1) covering the render region, row by row from the top."""
-    x0, y0, x1, y1 = settings.region or (0, 0, settings.width, settings.height)
-    ts = settings.tile_size
-    return [(x, y, min(x + ts, x1), min(y + ts, y1)) for y in range(y0, y1, ts) for x in range(x0, x1, ts)]
-
-
-@kernel(inline=True)
-def pixel_sample(px, py, s, n, width, height, seed):
-    """Film position (u, v) and hash key of sample s of pixel (px, py) under N×N stratified sampling.
-
-    The key is unique per sample (pixel·N² + s, modulo 2³²); with N = 1 the single sample goes through the pixel
-    centre, otherwise it is jittered inside its stratum by the key's stream-0 random numbers.
-    """
-    key = ((py * width + px) * (n * n) + s) & 0xFFFFFFFF
-    if n == 1:
-        jx, jy = 0.5, 0.5
-    else:
-        r0, r1 = uniform2_1(key, 0, seed)
-        jx, jy = ((s % n) + r0) / n, ((s // n) + r1) / n
-    return (px + jx) / width, 1.0 - (py + jy) / height, key
-
-
-@kernel
-def _tile_samples(x0, y0, x1, y1, n, width, height, seed, u, v, keys):
-    i = 0
-    for py in range(y0, y1):
-        for px in range(x0, x1):
-            for s in range(n * n):
-                u[i], v[i], keys[i] = pixel_sample(px, py, s, n, width, height, seed)
-                i += 1
-
-
-@kernel
-def _tile_eye_rays(cam, x0, y0, x1, y1, n, width, height, seed, o, d, keys):
-    i = 0
-    for py in range(y0, y1):
-        for px in range(x0, x1):
-            for s in range(n * n):
-                u, v, keys[i] = pixel_sample(px, py, s, n, width, height, seed)
-                oi, di = eye_ray(cam, u, v)
-                o[i, 0], o[i, 1], o[i, 2] = oi
-                d[i, 0], d[i, 1], d[i, 2] = di
-                i += 1
-
-
-def eye_samples(settings: RenderSettings, x0: int, y0: int, x1: int, y1: int):
-    """Film positions (u, v) and hash keys of the N×N stratified samples of every pixel in a tile (array form of
-    :func:`pixel_sample`). Samples of one pixel are consecutive."""
-    count = (x1 - x0) * (y1 - y0) * settings.samples**2
-    u, v, keys = np.empty(count), np.empty(count), np.empty(count, np.int64)
-    _tile_samples(x0, y0, x1, y1, settings.samples, settings.width, settings.height, settings.seed, u, v, keys)
-    return u, v, keys.astype(np.uint32)
-
-
-def eye_rays(scene: Scene, settings: RenderSettings, x0: int, y0: int, x1: int, y1: int):
-    """Eye-ray origins and directions (float32) and sample keys of a tile: :func:`eye_samples` through
-    :func:`tracer.camera.eye_ray` in one pass."""
-    count = (x1 - x0) * (y1 - y0) * settings.samples**2
-    o, d, keys = np.empty((count, 3), np.float32), np.empty((count, 3), np.float32), np.empty(count, np.int64)
-    _tile_eye_rays(scene.camera.packed(), x0, y0, x1, y1, settings.samples, settings.width, settings.height,
-                   settings.seed, o, d, keys)
-    return o, d, keys
-
-
-@kernel(refcounts=False)
-def _write_rgba(rgba, color, alpha, x0, y0, tw, th, spp):
-    """rgba[y0:y0+th, x0:x0+tw] = the box-filtered colour and alpha of a tile's samples (``spp`` consecutive per
-    pixel), summed in float32 in sample order and divided by spp, as :func:`tracer.film.box_filter` does; without
-    the GIL (the numpy form, a strided copy per channel, held the main thread 0.06 s per 1080p frame)."""
-    n = np.float32(spp)
-    for r in range(th):
-        for c in range(tw):
-            i = (r * tw + c) * spp
-            cr, cg, cb, ca = color[i, 0], color[i, 1], color[i, 2], alpha[i]
-            for k in range(1, spp):
-                cr += color[i + k, 0]
-                cg += color[i + k, 1]
-                cb += color[i + k, 2]
-                ca += alpha[i + k]
-            px = rgba[y0 + r, x0 + c]
-            px[0], px[1], px[2], px[3] = cr / n, cg / n, cb / n, ca / n
-
-
-def write_tile(image: Image, res, tile, spp: int) -> None:
-    """Box-filter a tile's samples into the image and its AOVs."""
-    x0, y0, x1, y1 = tile
-    th, tw = y1 - y0, x1 - x0
-    _write_rgba(image.rgba, res.color, res.alpha, x0, y0, tw, th, spp)
-    aovs = image.aovs
-    if "depth" in aovs:
-        hit = np.isfinite(res.depth).reshape(-1, spp)
-        dsum = np.where(hit, res.depth.reshape(-1, spp), 0).sum(axis=1)
-        nhit = hit.sum(axis=1)
-        aovs["depth"][y0:y1, x0:x1] = np.where(nhit > 0, dsum / np.maximum(nhit, 1), np.inf).reshape(th, tw)
-    if "normal" in aovs:
-        nm = box_filter(res.normal, spp)
-        nm = nm / np.maximum(np.linalg.norm(nm, axis=1, keepdims=True), 1e-30)
-        aovs["normal"][y0:y1, x0:x1] = nm.reshape(th, tw, 3)
-    if "albedo" in aovs:
-        aovs["albedo"][y0:y1, x0:x1] = box_filter(res.albedo, spp).reshape(th, tw, 3)
-    if "objectid" in aovs:
-        aovs["objectid"][y0:y1, x0:x1] = majority(res.object_id, spp).reshape(th, tw)
-    for i, name in enumerate(PATH_TYPES):
-        if name in aovs:
-            aovs[name][y0:y1, x0:x1] = box_filter(res.by_type[:, i], spp).reshape(th, tw, 3)
-    if "raydepth" in aovs:
-        aovs["raydepth"][y0:y1, x0:x1] = res.deepest.reshape(th, tw, spp).max(axis=2)
-
-
-def empty_aovs(settings: RenderSettings, h: int, w: int) -> dict:
-    """The AOV arrays ``settings.aovs`` asks for, (h, w[, 3]), filled with their "nothing here" value."""
-    aovs = {}
-    if "depth" in settings.aovs:
-        aovs["depth"] = np.full((h, w), np.inf, np.float32)
-    if "normal" in settings.aovs:
-        aovs["normal"] = np.zeros((h, w, 3), np.float32)
-    if "albedo" in settings.aovs:
-        aovs["albedo"] = np.zeros((h, w, 3), np.float32)
-    if "objectid" in settings.aovs:
-        aovs["objectid"] = np.full((h, w), -1, np.int32)
-    for name in PATH_TYPES:
-        if name in settings.aovs:
-            aovs[name] = np.zeros((h, w, 3), np.float32)
-    if "raydepth" in settings.aovs:
-        aovs["raydepth"] = np.full((h, w), -1, np.int32)
-    return aovs
-
-
-def uses_ray_types(settings: RenderSettings) -> bool:
-    """Whether the integrator must split colours by ray type (a ray-type AOV is asked for)."""
-    return any(a in RAY_TYPE_AOVS for a in settings.aovs)
 
 
 def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None, cancelled=None,
@@ -170,113 +20,20 @@ def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None
     """Render ``scene`` and return an :class:`~tracer.film.Image`: a :class:`tracer.Session` made for one render.
 
     on_tile(image, (x0, y0, x1, y1)) is called after each tile is written (in the calling thread), for progressive
-    display; cancelled() is polled between tiles and depths, and a True ends the render with :class:`RenderCancelled`.
-    ``accel``: an :class:`~tracer.accel.Accelerator` already built over this scene (kept for callers that hold
-    one; a :class:`tracer.Session` is the way to keep a prepared scene across renders).
+    display; cancelled() is polled while the Embree scene is built and then between tiles and depths, and a True
+    ends the render with :class:`RenderCancelled` (its ``image`` the tiles done so far, or None when it came
+    during the build). ``accel``: an :class:`~tracer.accel.Accelerator` already built over this scene (kept for
+    callers that hold one; a :class:`tracer.Session` is the way to keep a prepared scene across renders).
     """
-    from .session import Session
-
     if not isinstance(scene, Scene):
         raise TypeError(f"render() expects a tracer.Scene, got {type(scene).__name__}")
     settings = (settings or RenderSettings()).validate()
     start = time.perf_counter()
-    record = bool(settings.extra.get("record_rays"))
-    if record:
+    if settings.extra.get("record_rays"):
         accel = Accelerator(scene, record=True)
-    # ``cancelled`` is polled between tiles and depths only, as it always was: a front end that wants Esc to stop
-    # the Embree build too makes a tracer.Session(scene, cancelled=...) itself (and then has no tile to show).
-    session = Session(scene, accel=accel, instanced=False)
+    session = Session(scene, accel=accel, instanced=False, cancelled=cancelled)
     try:
         return render_session(session, settings, on_tile=on_tile, cancelled=cancelled, started=start)
     finally:
         if accel is None:
             session.close()
-
-
-def trace_tile(session, settings: RenderSettings, tile, cancelled=None):
-    """Trace one tile's eye samples through the session's integrator: the per-sample :class:`TileResult`."""
-    scene = session.scene
-    integ = session.integrator(settings)
-    x0, y0, x1, y1 = tile
-    o, d, keys = eye_rays(scene, settings, x0, y0, x1, y1)
-    res = integ.trace(o, d, keys, cancelled or (lambda: False), ray_types=uses_ray_types(settings))
-    cam = scene.camera
-    if cam.near > 0:  # depth is measured from the eye (the film plane for orthographic cameras)
-        res.depth += (np.linalg.norm(o - cam.position.astype(np.float32), axis=1)
-                      if cam.projection == "perspective" else np.float32(cam.near))
-    return res
-
-
-def render_tile(session, settings: RenderSettings, tile) -> Image:
-    """The pixels of one tile (x0, y0, x1, y1) of ``session``'s image under ``settings``: an
-    :class:`~tracer.film.Image` of the tile's size (its AOVs too), identical to that rectangle of a whole
-    :meth:`tracer.Session.render`. Thread-safe: call it from several threads for different tiles."""
-    settings = settings.validate()
-    x0, y0, x1, y1 = (int(c) for c in tile)
-    if not (0 <= x0 < x1 <= settings.width and 0 <= y0 < y1 <= settings.height):
-        raise ValueError(f"tile {tile} must lie inside {settings.width}x{settings.height} and be non-empty")
-    res = trace_tile(session, settings, (x0, y0, x1, y1))
-    th, tw = y1 - y0, x1 - x0
-    img = Image(rgba=np.zeros((th, tw, 4), np.float32), aovs=empty_aovs(settings, th, tw))
-    write_tile(img, res, (0, 0, tw, th), settings.samples**2)
-    img.stats = {"rays": res.counts.as_dict()}
-    return img
-
-
-def render_session(session, settings: RenderSettings | None = None, *, on_tile=None, cancelled=None,
-                   started: float | None = None) -> Image:
-    """:meth:`tracer.Session.render`: every tile of ``settings`` on a thread pool, written into one image."""
-    settings = (settings or RenderSettings()).validate()
-    cancelled = cancelled or (lambda: False)
-    start = started if started is not None else time.perf_counter()
-    scene = session.scene
-    accel = session.accel
-    build_time = session.stats["build_seconds"] if started is not None else 0.0
-    integ = session.integrator(settings)
-    w, h = settings.width, settings.height
-    spp = settings.samples**2
-    image = Image(rgba=np.zeros((h, w, 4), np.float32))
-    image.aovs = empty_aovs(settings, h, w)
-    counts = RayCounts()
-    isect_before = accel.seconds
-
-    def work(tile):
-        if cancelled():
-            return None
-        return trace_tile(session, settings, tile, cancelled)
-
-    tiles = tiles_of(settings)
-    threads = settings.threads or os.cpu_count() or 1
-    bar = None
-    if settings.progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=len(tiles), unit="tile", desc="whitted", leave=False)
-    was_cancelled = False
-    pool = ThreadPoolExecutor(max_workers=threads) if threads > 1 else None
-    results = pool.map(work, tiles) if pool is not None else map(work, tiles)
-    try:
-        for tile, res in zip(tiles, results):
-            if res is None or cancelled():
-                was_cancelled = True
-                break
-            write_tile(image, res, tile, spp)
-            counts.add(res.counts)
-            if bar is not None:
-                bar.update(1)
-            if on_tile is not None:
-                on_tile(image, tile)
-    finally:
-        if pool is not None:
-            pool.shutdown(wait=True, cancel_futures=True)
-    if bar is not None:
-        bar.close()
-    elapsed = time.perf_counter() - start
-    image.stats = {"rays": counts.as_dict(), "seconds": elapsed, "bvh_seconds": build_time, "threads": threads,
-                   "rays_per_second": counts.total / elapsed if elapsed > 0 else 0.0, "epsilon": float(integ.eps),
-                   "triangles": len(scene.triangles), "intersect_seconds": accel.seconds - isect_before}
-    if getattr(accel, "record", False):
-        image.stats["ray_batches"] = accel.batches
-    if was_cancelled:
-        raise RenderCancelled(image)
-    return image

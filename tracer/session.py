@@ -54,7 +54,8 @@ from .film import Image
 from .lights import AreaLight, DistantLight, PointLight, SpotLight
 from .materials import Materials
 from .scene import PER_TRIANGLE, Instances, Scene, non_degenerate, unit_normals
-from .settings import RenderSettings
+from .settings import RenderSettings, integrator_key
+from .tiles import RenderCancelled, render_session
 
 #: Sentinel for ``update_world`` arguments that stay as they are.
 KEEP = object()
@@ -89,8 +90,6 @@ class Session:
             try:
                 accel = Accelerator(self._scene, quality=quality, instanced=instanced, cancelled=cancelled)
             except BuildCancelled:
-                from .render import RenderCancelled
-
                 raise RenderCancelled(None) from None
         self._accel = accel
         self._geometry = _Objects(self._scene, self._accel)
@@ -243,8 +242,6 @@ class Session:
     def render(self, settings: RenderSettings | None = None, on_tile=None, cancelled=None) -> Image:
         """Render the session's scene (as :func:`tracer.render`: tiles on threads, ``on_tile(image, tile)`` after
         each tile, ``cancelled()`` polled between tiles and depths, :class:`tracer.RenderCancelled` on a True)."""
-        from .render import render_session
-
         return render_session(self, settings, on_tile=on_tile, cancelled=cancelled)
 
     def integrator(self, settings: RenderSettings):
@@ -252,7 +249,7 @@ class Session:
         until an edit other than the camera drops it."""
         from .integrator import Integrator
 
-        key = _integrator_key(settings)
+        key = integrator_key(settings)
         with self._lock:
             integ = self._integrators.get(key)
             if integ is None:
@@ -648,13 +645,6 @@ def _probe(scene: Scene, **fields) -> Scene:
                 background=scene.background, ambient=scene.ambient, environment=scene.environment)
     keep.update(fields)
     return Scene(vertices=np.zeros((0, 3), np.float32), triangles=np.zeros((0, 3), np.int32), **keep)
-
-
-def _integrator_key(settings: RenderSettings) -> tuple:
-    """Settings the packed tables depend on (everything else the integrator reads per render)."""
-    return (settings.light_samples, settings.epsilon, settings.sky_samples, settings.max_depth,
-            settings.shadows, settings.fresnel, settings.min_weight, settings.transparent, settings.seed,
-            settings.terminal_rays, settings.shading)
 
 
 def _matrix(m, what):

@@ -1,8 +1,24 @@
-"""Render settings: everything about *how* to trace, nothing about *what*."""
+"""Render settings: everything about *how* to trace, nothing about *what*.
+
+:class:`RenderSettings` is the one definition of every setting. Each field carries a :class:`Setting` in its
+metadata (as Mitsuba documents each plugin parameter once): help text, unit, bounds, choices, how it appears as a
+command-line flag and as a Blender property, and whether the session's packed tables depend on it. Everything
+else is generated from it or checked against it:
+
+- :meth:`RenderSettings.validate` reads the bounds and choices;
+- ``usd_io/request.py`` makes the ``whitted render/explain/info`` flags and reads them back into one
+  :class:`RenderSettings` (which the farm's ``UsdSource`` carries to its workers);
+- ``addon/properties.py`` makes the Blender properties (``scene.whitted``) and ``addon/export.py`` reads them back;
+- :func:`integrator_key` (``tracer.Session``'s cache of the packed tables) takes the ``rebuilds_integrator`` fields.
+
+Adding a setting is a one-place change: a field here with its :func:`setting` (tests/test_settings.py walks every
+field through the CLI, the add-on, the session key and the farm source).
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+import math
+from dataclasses import MISSING, dataclass, field, fields, replace
 
 AOV_NAMES = ("depth", "normal", "albedo", "objectid", "direct", "reflection", "transmission", "raydepth")
 #: AOVs that split the beauty by the ray type light arrived through (they sum to it), and the deepest ray per pixel.
@@ -15,79 +31,112 @@ SHADING_MODELS = ("principled", "classic")
 DEFAULT_AA = 2
 
 
+@dataclass(frozen=True)
+class Setting:
+    """What one :class:`RenderSettings` field means and where it appears (the field's ``metadata["setting"]``).
+
+    ``lo``/``hi``: the valid range (None: unbounded; ``lo_open``/``hi_open``: the bound itself is not valid); ``choices``: the
+    valid values (for a tuple field: of each item). ``flag``: the command line's flag (``aliases`` too; a bool
+    becomes ``--flag/--no-flag``); None: not a flag, and ``cli_from`` says where the CLI takes it from.
+    ``blender``: the Blender property's label (``ui``: its extra options, ``soft_max``, ``precision``,
+    ``subtype``; ``none_as``: the value a property stores for None, e.g. 0 = automatic); None: not a property,
+    and ``blender_from`` says where the add-on takes it from. ``rebuilds_integrator``: the session's packed tables
+    (the Integrator's ``Options``, its light table) depend on it, so a change makes a new Integrator; any other
+    setting is read per render."""
+
+    help: str
+    unit: str = ""
+    lo: float | None = None
+    lo_open: bool = False
+    hi: float | None = None
+    hi_open: bool = False
+    choices: tuple = ()
+    flag: str | None = None
+    aliases: tuple = ()
+    metavar: str | None = None
+    cli_from: str = ""
+    blender: str | None = None
+    ui: tuple = ()
+    none_as: object = None
+    blender_from: str = ""
+    rebuilds_integrator: bool = False
+
+
+def setting(default, help: str, *, factory=None, **meta):
+    """A :class:`RenderSettings` field with its :class:`Setting` (keyword arguments as Setting's)."""
+    md = {"setting": Setting(help=help, **meta)}
+    if factory is not None:
+        return field(default_factory=factory, metadata=md)
+    return field(default=default, metadata=md)
+
+
 @dataclass
 class RenderSettings:
-    width: int = 640
-    height: int = 480
-    #: N for N×N stratified samples per pixel (box filter). 1 = one ray through each pixel centre.
-    samples: int = DEFAULT_AA
-    #: Maximum recursion depth of reflection/transmission rays (0 = eye rays and shadow rays only).
-    max_depth: int = 8
-    #: ε for spawned rays; None = :meth:`tracer.Scene.default_epsilon`.
-    epsilon: float | None = None
-    #: Dielectric Fresnel weighting of glass (matches Cycles); False = the notes' fixed weights ("classic").
-    fresnel: bool = True
-    #: Cast shadow rays; False lights every surface as if nothing were in the way.
-    shadows: bool = True
-    #: Samples per light for lights with an extent (point radius > 0, sun angle > 0, area lights); rounded to N×N.
-    light_samples: int = 16
-    #: Hemisphere shadow rays per shading point to weight the ambient term by sky visibility (0 = the classic,
-    #: unoccluded ambient term; Cycles shadows its world light, so matching it needs e.g. 64).
-    sky_samples: int = 0
-    #: Trace one more reflection/transmission bounce past max_depth that collects only background and emission
-    #: (what Cycles' last bounce does); False = the notes' hard cut-off.
-    terminal_rays: bool = False
-    #: Local model: "principled" (Principled diffuse + GGX specular, as Cycles) or "classic" (the notes' Lambert +
-    #: Blinn-Phong). See README, "Conventions".
-    shading: str = "principled"
-    #: Surfaces with alpha < 1 (or cut-outs) one ray may pass through before it stops (Cycles' Transparent Max
-    #: Bounces, default 8); passing through does not count towards max_depth.
-    max_transparent: int = 8
-    #: Paths whose accumulated weight falls below this stop early (Russian roulette-free cut-off; deterministic).
-    min_weight: float = 1e-3
-    #: Missed eye rays get alpha 0 and no background colour (Blender's Film > Transparent).
-    transparent: bool = False
-    #: Pixel tile edge; memory is bounded by tile size × samples, not by the image size.
-    tile_size: int = 128
-    #: Worker threads (None = all cores). Images are identical for any thread count.
-    threads: int | None = None
-    #: Arbitrary-output variables to produce besides the colour: any of depth, normal, albedo, objectid, and the
-    #: ray-type AOVs direct, reflection, transmission (colour by the path's first secondary ray; they sum to the
-    #: beauty) and raydepth (the deepest ray of the pixel's samples: 0 = eye rays only).
-    aovs: tuple = ()
-    #: Render only this pixel rectangle (x0, y0, x1, y1), top-left origin, exclusive upper bounds.
-    region: tuple | None = None
-    #: Seed of the deterministic sample patterns.
-    seed: int = 0
-    #: Show a tqdm progress bar on stderr.
-    progress: bool = False
-    extra: dict = field(default_factory=dict)
+    width: int = setting(640, "image width", unit="px", lo=1, flag="--width", aliases=("--imageWidth", "-w"),
+                         metavar="W", blender_from="the render resolution × percentage")
+    height: int = setting(480, "image height", unit="px", lo=1, flag="--height", metavar="H",
+                          blender_from="the render resolution × percentage")
+    samples: int = setting(DEFAULT_AA, "anti-aliasing: N×N stratified samples per pixel (box filter); 1 = one ray "
+                           "through each pixel centre", unit="N", lo=1, flag="--aa", metavar="N", blender="Samples",
+                           ui=(("soft_max", 8), ("max", 64)))
+    max_depth: int = setting(8, "maximum recursion depth of reflection/transmission rays (0 = eye and shadow rays "
+                             "only)", lo=0, flag="--max-depth", metavar="D", blender="Max Depth", ui=(("max", 64),),
+                             rebuilds_integrator=True)
+    epsilon: float | None = setting(None, "offset of spawned rays; unset = automatic (tracer.Scene.default_epsilon: "
+                                    "5e-5 of the scene size)", unit="scene units", lo=0, lo_open=True, flag="--epsilon",
+                                    blender="Epsilon", none_as=0.0, rebuilds_integrator=True,
+                                    ui=(("soft_max", 0.01), ("precision", 6), ("subtype", "DISTANCE")))
+    fresnel: bool = setting(True, "dielectric Fresnel weighting of glass (as Cycles); off = the notes' fixed "
+                            "weights", flag="--fresnel", blender="Fresnel", rebuilds_integrator=True)
+    shadows: bool = setting(True, "cast shadow rays towards the lights; off lights every surface as if nothing "
+                            "were in the way", flag="--shadows", blender="Shadows", rebuilds_integrator=True)
+    light_samples: int = setting(16, "samples per light with an extent (point radius, sun angle, area lights); "
+                                 "rounded to N×N", lo=1, flag="--light-samples", metavar="N",
+                                 blender="Light Samples", ui=(("max", 1024),), rebuilds_integrator=True)
+    sky_samples: int = setting(0, "hemisphere shadow rays per shading point weighting the world (ambient) light by "
+                               "sky visibility, as Cycles does (e.g. 64); 0 = the classic unoccluded ambient term",
+                               lo=0, flag="--sky-samples", metavar="N", blender="Sky Visibility Samples",
+                               ui=(("max", 1024),), rebuilds_integrator=True)
+    terminal_rays: bool = setting(False, "one more reflection/transmission bounce past the max depth that collects "
+                                  "only background and emission (Cycles' last bounce); off = the notes' hard "
+                                  "cut-off", flag="--terminal-rays", blender="Terminal Bounce",
+                                  rebuilds_integrator=True)
+    shading: str = setting("principled", "local model: principled (Cycles' Principled BSDF: diffuse + GGX) or "
+                           "classic (the notes' Lambert + Blinn-Phong)", choices=SHADING_MODELS, flag="--shading",
+                           blender="Shading", rebuilds_integrator=True)
+    max_transparent: int = setting(8, "surfaces with alpha < 1 (or cut-outs) one ray may pass through (Cycles' "
+                                   "Transparent Max Bounces); not counted in the max depth", lo=0,
+                                   flag="--max-transparent", metavar="N", blender="Transparent Max Bounces",
+                                   ui=(("max", 1024),))
+    min_weight: float = setting(1e-3, "paths whose accumulated weight falls below this stop (deterministic "
+                                "cut-off)", lo=0, hi=1, hi_open=True, flag="--min-weight", rebuilds_integrator=True,
+                                blender_from="the default (not in the add-on's panel)")
+    transparent: bool = setting(False, "missed eye rays get alpha 0 and no background colour (Blender's Film > "
+                                "Transparent)", flag="--transparent", rebuilds_integrator=True,
+                                blender_from="Film > Transparent")
+    tile_size: int = setting(128, "pixel tile edge; memory is bounded by tile size × samples", unit="px", lo=4,
+                             flag="--tile-size", metavar="PX", blender_from="the default (Blender shows no tiles)")
+    threads: int | None = setting(None, "worker threads; unset = all cores (images are identical for any count)",
+                                  lo=1, flag="--threads", metavar="N", blender="Threads", none_as=0,
+                                  ui=(("max", 1024),))
+    aovs: tuple = setting((), "extra outputs (float32 EXR next to the image): depth, normal, albedo, objectid, and "
+                          "direct, reflection, transmission (the beauty by the path's first secondary ray; they "
+                          "sum to it), raydepth (deepest ray per pixel: EXR + heat-map PNG)", choices=AOV_NAMES,
+                          flag="--aov", metavar="A[,A...]",
+                          blender_from="the view layer's passes (Z, Normal, Object Index) and Ray-Type Passes")
+    region: tuple | None = setting(None, "render only this pixel rectangle (x0, y0, x1, y1), top-left origin, "
+                                   "exclusive upper bounds", cli_from="not on the command line (the API; the "
+                                   "farm's tiles)", blender_from="the render border")
+    seed: int = setting(0, "seed of the deterministic sample patterns", lo=0, flag="--seed",
+                        rebuilds_integrator=True, blender_from="the default (not in the add-on's panel)")
+    progress: bool = setting(False, "a tqdm progress bar on stderr", cli_from="on unless --quiet",
+                             blender_from="off (Blender shows its own progress)")
+    extra: dict = setting(None, "internal switches (record_rays: keep the ray batches for the benchmarks)",
+                          factory=dict, cli_from="not on the command line", blender_from="not in the add-on")
 
     def validate(self) -> "RenderSettings":
-        def positive_int(name, lo=1):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < lo:
-                raise ValueError(f"settings.{name} must be an integer >= {lo}, got {v!r}")
-
-        positive_int("width")
-        positive_int("height")
-        positive_int("samples")
-        positive_int("max_depth", 0)
-        positive_int("light_samples")
-        positive_int("sky_samples", 0)
-        positive_int("tile_size", 4)
-        positive_int("max_transparent", 0)
-        if self.shading not in SHADING_MODELS:
-            raise ValueError(f"settings.shading must be one of {', '.join(SHADING_MODELS)}, got {self.shading!r}")
-        if self.threads is not None:
-            positive_int("threads")
-        if self.epsilon is not None and not (self.epsilon > 0 and self.epsilon < float("inf")):
-            raise ValueError(f"settings.epsilon must be a positive finite number, got {self.epsilon!r}")
-        if not (0 <= self.min_weight < 1):
-            raise ValueError(f"settings.min_weight must be in [0, 1), got {self.min_weight!r}")
-        unknown = [a for a in self.aovs if a not in AOV_NAMES]
-        if unknown:
-            raise ValueError(f"unknown AOV(s) {unknown}; choose from {', '.join(AOV_NAMES)}")
+        for f in fields(self):
+            _check(f.name, getattr(self, f.name), f.default, f.metadata["setting"])
         if self.region is not None:
             x0, y0, x1, y1 = (int(c) for c in self.region)
             if not (0 <= x0 < x1 <= self.width and 0 <= y0 < y1 <= self.height):
@@ -97,3 +146,70 @@ class RenderSettings:
 
     def with_(self, **changes) -> "RenderSettings":
         return replace(self, **changes)
+
+
+def spec(name: str) -> Setting:
+    """The :class:`Setting` of field ``name``."""
+    return SETTINGS[name]
+
+
+#: Field name -> its :class:`Setting`, in field order.
+SETTINGS = {f.name: f.metadata["setting"] for f in fields(RenderSettings)}
+
+
+def default_of(name: str):
+    """The default value of field ``name``."""
+    f = next(f for f in fields(RenderSettings) if f.name == name)
+    return f.default if f.default_factory is MISSING else f.default_factory()
+
+
+def integrator_key(settings: RenderSettings) -> tuple:
+    """The settings a session's packed tables (its Integrator) depend on: the ``rebuilds_integrator`` fields."""
+    return tuple(getattr(settings, name) for name in INTEGRATOR_FIELDS)
+
+
+#: Fields the Integrator's packed tables depend on (everything else it reads per render).
+INTEGRATOR_FIELDS = tuple(name for name, s in SETTINGS.items() if s.rebuilds_integrator)
+
+
+def _check(name: str, v, default, s: Setting) -> None:
+    """One field against its :class:`Setting`: type (from the default), bounds, choices."""
+    if v is None and default is None:
+        return
+    if isinstance(default, bool):
+        if v not in (True, False):  # bool, numpy's bool_, 0/1
+            raise ValueError(f"settings.{name} must be True or False, got {v!r}")
+        return
+    if s.choices and isinstance(default, tuple):
+        unknown = [a for a in v if a not in s.choices]
+        if unknown:
+            raise ValueError(f"unknown {'AOV' if name == 'aovs' else name}(s) {unknown}; choose from "
+                             f"{', '.join(s.choices)}")
+        return
+    if s.choices:
+        if v not in s.choices:
+            raise ValueError(f"settings.{name} must be one of {', '.join(s.choices)}, got {v!r}")
+        return
+    integral = name in INT_FIELDS
+    if integral and (isinstance(v, bool) or not isinstance(v, int)):
+        raise ValueError(f"settings.{name} must be an integer >= {s.lo:g}, got {v!r}")
+    if not integral and s.lo is not None:
+        try:
+            ok = math.isfinite(v)
+        except TypeError:
+            ok = False
+        if not ok:
+            raise ValueError(f"settings.{name} must be a finite number, got {v!r}")
+    lo_ok = s.lo is None or (v > s.lo if s.lo_open else v >= s.lo)
+    hi_ok = s.hi is None or (v < s.hi if s.hi_open else v <= s.hi)
+    if lo_ok and hi_ok:
+        return
+    if integral:
+        raise ValueError(f"settings.{name} must be an integer >= {s.lo:g}, got {v!r}")
+    interval = (f"{'(' if s.lo_open else '['}{s.lo:g}, {'inf' if s.hi is None else f'{s.hi:g}'}"
+                f"{')' if s.hi_open or s.hi is None else ']'}")
+    raise ValueError(f"settings.{name} must be in {interval}, got {v!r}")
+
+
+#: Fields whose values are integers (from the annotations).
+INT_FIELDS = {f.name for f in fields(RenderSettings) if str(f.type).split(" ")[0] == "int"}

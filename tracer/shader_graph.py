@@ -155,7 +155,7 @@ NODE_TYPES: dict[str, NodeType] = {
     "principled_bsdf": _t([(_c if np.ndim(d) else _f)(k, d) for k, d in PRINCIPLED_DEFAULTS.items()] + [
                           _N, _f("Coat Weight"), _f("Sheen Weight"), _f("Subsurface Weight"), _f("Anisotropic"),
                            _f("Alpha Threshold")],  # Alpha Threshold: USD's opacityThreshold (not in Blender)
-                          [_s("BSDF")]),
+                          [_s("BSDF")], transmission_tint=None),  # None: the base colour tints (Cycles)
     "diffuse_bsdf": _t([_c("Color"), _f("Roughness"), _N], [_s("BSDF")]),
     "glossy_bsdf": _t([_c("Color"), _f("Roughness", 0.5), _f("Anisotropy"), _f("Rotation"), _N],
                       [_s("BSDF")], distribution="MULTI_GGX"),
@@ -212,7 +212,7 @@ NODE_TYPES: dict[str, NodeType] = {
     "gradient_texture": _t([_v("Vector", GENERATED)], [_c("Color"), _f("Fac")], gradient_type="LINEAR"),
     "brick_texture": _t([_v("Vector", GENERATED), _c("Color1"), _c("Color2", (0.2, 0.2, 0.2)),
                          _c("Mortar", (0.0, 0.0, 0.0)), _f("Scale", 5.0), _f("Mortar Size", 0.02),
-                         _f("Mortar Smooth"), _f("Bias"), _f("Brick Width", 0.5), _f("Row Height", 0.25)],
+                         _f("Mortar Smooth", 0.1), _f("Bias"), _f("Brick Width", 0.5), _f("Row Height", 0.25)],
                         [_c("Color"), _f("Fac")], offset=0.5, offset_frequency=2, squash=1.0, squash_frequency=2),
     "white_noise_texture": _t([_v("Vector", GENERATED), _f("W")], [_f("Value"), _c("Color")],
                               noise_dimensions="3D"),
@@ -269,8 +269,12 @@ NODE_TYPES: dict[str, NodeType] = {
     "usd_uv_texture": _t([_v("st", UV)], [_f("r"), _f("g"), _f("b"), _f("a"), _c("rgb")], image=None,
                          scale=(1.0, 1.0, 1.0, 1.0), bias=(0.0, 0.0, 0.0, 0.0), fallback=(0.0, 0.0, 0.0, 1.0)),
     # UsdTransform2d: in · scale · rotate (degrees, counter-clockwise) + translation, on (s, t)
+    # (internal) a row's P_texture column: Scene.textures[index] read in its own UV set with its own transform,
+    # scale, bias and fallback — how rows of the table API become programs
+    "scene_texture": _t([], [_c("Color"), _f("Alpha")], index=0, uv_set=0),
+    # (or ``matrix``: the 3 × 3 on (s, t, 1) of a chain of them, composed)
     "usd_transform2d": _t([_v("in", UV)], [_v("result")], scale=(1.0, 1.0), rotation=0.0,
-                          translation=(0.0, 0.0)),
+                          translation=(0.0, 0.0), matrix=None),
 }
 
 

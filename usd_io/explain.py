@@ -69,44 +69,41 @@ def _camera(stage, cam) -> None:
 
 
 def cmd_explain(args) -> int:
-    """``whitted explain SCENE --pixel X Y``: the tree on stdout, and the JSON / USD / PNG files asked for."""
+    """``whitted explain SCENE --pixel X Y``: the tree on stdout, and the JSON / USD / PNG files asked for. Takes
+    render's stage and settings flags (usd_io/request.py), so the explained colour is the pixel ``whitted render``
+    writes with the same flags (before ``--exposure``, which only the ``--png`` picture gets)."""
     import json
-    import sys
 
-    from tracer import RenderSettings, render, write_image
+    from tracer import render
     from tracer.explain import draw_overlay, explain_pixel, format_tree
 
-    from .cli import BadInput, check_output
-    from .reader import load_stage
+    from .outputs import BadInput, Outputs, check_output, print_warnings
+    from .request import StageRequest, settings_from_args
 
     for out, exts in ((args.json, (".json",)), (args.usd, (".usda", ".usd", ".usdc")), (args.png, (".png",))):
-        if out is None:
-            continue
-        if os.path.splitext(out)[1].lower() not in exts:
-            raise BadInput(f"{out}: expected a {' or '.join(exts)} file")
-        if not os.path.isdir(os.path.dirname(os.path.abspath(out))):
-            raise BadInput(f"{out}: output directory does not exist")
-    if args.png:
-        check_output(args.png)
-    scene, info = load_stage(args.scene, time=args.frame, camera=args.camera, width=args.width,
-                             height=args.height, purposes=args.purposes, default_light=not args.no_default_light,
-                             complexity=args.complexity)
+        if out is not None:
+            check_output(out, exts)
+    settings = settings_from_args(args)  # every flag checked before the stage is read
+    outputs = Outputs.of(settings, args.exposure)
+    request = StageRequest.from_args(args)
+    scene, info = request.read()
+    settings = settings.with_(width=info.width, height=info.height)
     x, y = args.pixel
     if not (0 <= x < info.width and 0 <= y < info.height):
         raise BadInput(f"--pixel {x} {y} is outside the {info.width}x{info.height} image")
-    settings = RenderSettings(width=info.width, height=info.height, samples=args.spp, max_depth=args.max_depth)
     ex = explain_pixel(scene, settings, x, y)
     print(format_tree(ex))
     if args.json:
         _atomic_text(args.json, json.dumps(ex.to_json(), indent=1))
     if args.usd:
-        write_ray_tree(ex, scene, args.usd, stage_path=args.scene)
+        write_ray_tree(ex, scene, args.usd, stage_path=request.path)
     if args.png:
-        image = render(scene, settings)
-        write_image(args.png, draw_overlay(ex, scene, image.rgba))
-    from .cli import _print_warnings
+        image = render(scene, settings.with_(progress=False))
+        outputs.expose(image)
+        from tracer import write_image
 
-    _print_warnings(info)
+        write_image(args.png, draw_overlay(ex, scene, image.rgba))
+    print_warnings(info)
     return 0
 
 

@@ -2,7 +2,10 @@
 
 Workers read the stage from its path (a shared filesystem: the same absolute path on every machine), or, with
 ``--ship-assets``, from a .usdz package the client builds of the stage and every asset it resolves (UsdUtils) and
-sends to each worker once. The client writes every output file (atomically, as a local render does).
+sends to each worker once. The client writes every output file (atomically, as a local render does), or with
+``--worker-writes`` the workers do. A worker reads the stage from the same :class:`usd_io.request.StageRequest`
+(:class:`UsdSource` is one) and renders with the same :class:`tracer.RenderSettings` as a local render, and writes
+through the same :class:`usd_io.outputs.Outputs`: nothing is copied field by field, so nothing can drift.
 """
 
 from __future__ import annotations
@@ -12,43 +15,45 @@ import os
 import sys
 import tempfile
 import threading
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
+
+from .errors import UsdInputError
+from .outputs import Outputs, frame_path
+from .request import StageRequest
 
 #: Scheduler address forms: a Dask address, ``local:N``, or a scheduler file written by ``dask scheduler``.
 ADDRESS_SCHEMES = ("tcp://", "tls://", "ws://", "wss://", "inproc://", "ucx://")
 
 
-class FarmInputError(ValueError):
-    """A bad --scheduler / --ship-assets request (one line for the CLI)."""
-
-
 @dataclass(frozen=True)
-class UsdSource:
+class UsdSource(StageRequest):
     """A USD stage as a farm scene source: ``load(frame) -> (tracer.Scene, RenderSettings)`` on the worker.
 
-    ``settings`` are the render settings except the image size, which comes from the stage's camera and the
-    requested width/height, exactly as a local ``whitted render`` computes it."""
+    Every field of :class:`usd_io.request.StageRequest` (camera, width, height, purposes, variants, complexity,
+    ...), read as a local ``whitted render`` reads it. ``settings`` (a :class:`tracer.RenderSettings`, or a dict of
+    its fields) are the render settings except the image size, which comes from the stage's camera and the
+    requested width/height."""
 
-    path: str
-    camera: str | None = None
-    width: int | None = None
-    height: int | None = None
-    purposes: tuple = ("default", "render")
-    default_light: bool = True
-    complexity: str = "medium"
-    settings: dict = field(default_factory=dict, hash=False, compare=False)
+    settings: object = field(default_factory=dict, hash=False, compare=False)
     #: sha256 of the shipped package this source was unpacked from (None: read ``path`` itself).
     package: str | None = None
 
-    def load(self, frame):
+    @classmethod
+    def of(cls, request: StageRequest, settings) -> "UsdSource":
+        """The farm source of a stage request (its path made absolute) and render settings."""
+        values = {f.name: getattr(request, f.name) for f in fields(StageRequest)}
+        values["path"] = os.path.abspath(request.path)
+        return cls(**values, settings=settings)
+
+    def render_settings(self):
+        """``settings`` as :class:`tracer.RenderSettings` (the stage decides the image size at ``load``)."""
         from tracer import RenderSettings
 
-        from .reader import load_stage
+        return self.settings if isinstance(self.settings, RenderSettings) else RenderSettings(**self.settings)
 
-        scene, info = load_stage(_open(self.path), time=frame, camera=self.camera, width=self.width,
-                                 height=self.height, purposes=list(self.purposes), default_light=self.default_light,
-                                 complexity=self.complexity)
-        return scene, RenderSettings(width=info.width, height=info.height, **self.settings)
+    def load(self, frame):
+        scene, info = self.at(frame).read(_open(self.path))
+        return scene, self.render_settings().with_(width=info.width, height=info.height)
 
     def unpacked(self, assets: bytes) -> "UsdSource":
         """This source reading the package ``assets`` (written once per worker to a temporary file)."""
@@ -66,20 +71,28 @@ class UsdSource:
 @dataclass(frozen=True)
 class WriteFrames:
     """``--worker-writes``: a worker writes its frame (and AOVs) itself, atomically, to ``pattern`` — an absolute path
-    on a filesystem every worker shares."""
+    on a filesystem every worker shares — through the same :class:`usd_io.outputs.Outputs` as the client."""
 
     pattern: str
     many: bool
-    aovs: tuple = ()
+    outputs: Outputs = Outputs()
 
     def __call__(self, image, frame):
-        from .cli import BadInput, frame_path, write_outputs
-
         try:
-            write_outputs(image, frame_path(self.pattern, frame, self.many) if frame is not None else self.pattern,
-                          self.aovs)
-        except BadInput as exc:  # an unwritable path on this worker: the frame's error, in one line
+            self.outputs.write(image, frame_path(self.pattern, frame, self.many))
+        except UsdInputError as exc:  # an unwritable path on this worker: the frame's error, in one line
             raise OSError(str(exc)) from None
+
+
+@dataclass(frozen=True)
+class FarmOptions:
+    """How ``whitted render --scheduler`` runs: the scheduler address, whether the workers write the frames
+    themselves (``--worker-writes``) and read a shipped package (``--ship-assets``), and ``quiet``."""
+
+    scheduler: str
+    worker_writes: bool = False
+    ship_assets: bool = False
+    quiet: bool = False
 
 
 _write_lock = threading.Lock()
@@ -103,7 +116,7 @@ def package_assets(path: str) -> bytes:
     with tempfile.TemporaryDirectory() as d:
         out = os.path.join(d, "package.usdz")
         if not UsdUtils.CreateNewUsdzPackage(Sdf.AssetPath(os.path.abspath(path)), out):
-            raise FarmInputError(f"{path}: could not package the stage and its assets for --ship-assets")
+            raise UsdInputError(f"{path}: could not package the stage and its assets for --ship-assets")
         with open(out, "rb") as f:
             return f.read()
 
@@ -117,13 +130,13 @@ def connect(address: str):
     try:
         from dask.distributed import Client, LocalCluster
     except ImportError:
-        raise FarmInputError("--scheduler needs Dask: pip install 'whitted[farm]' (dask[distributed])") from None
+        raise UsdInputError("--scheduler needs Dask: pip install 'whitted[farm]' (dask[distributed])") from None
     import logging
 
     if address.startswith("local:") or address == "local":
         n = address.partition(":")[2] or str(os.cpu_count() or 1)
         if not n.isdigit() or int(n) < 1:
-            raise FarmInputError(f"--scheduler {address!r}: expected local:N with N >= 1 workers")
+            raise UsdInputError(f"--scheduler {address!r}: expected local:N with N >= 1 workers")
         n = int(n)
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
                                dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
@@ -134,39 +147,39 @@ def connect(address: str):
 
             if not dask.config.get("distributed.comm.tls.client.cert", None) and \
                     not dask.config.get("distributed.comm.tls.ca-file", None):
-                raise FarmInputError(f"--scheduler {address}: tls:// needs Dask's TLS configuration "
+                raise UsdInputError(f"--scheduler {address}: tls:// needs Dask's TLS configuration "
                                      "(distributed.comm.tls.ca-file and client cert/key)")
         try:
             return Client(address, timeout="20s"), None, None
         except OSError as exc:
-            raise FarmInputError(f"--scheduler {address}: cannot reach the scheduler ({exc})") from None
+            raise UsdInputError(f"--scheduler {address}: cannot reach the scheduler ({exc})") from None
     if os.path.isfile(address):
         try:
             return Client(scheduler_file=address, timeout="20s"), None, None
         except (OSError, ValueError) as exc:
-            raise FarmInputError(f"--scheduler {address}: cannot use this scheduler file ({exc})") from None
-    raise FarmInputError(f"--scheduler {address!r}: expected tcp://HOST:PORT, tls://HOST:PORT, local:N "
+            raise UsdInputError(f"--scheduler {address}: cannot use this scheduler file ({exc})") from None
+    raise UsdInputError(f"--scheduler {address!r}: expected tcp://HOST:PORT, tls://HOST:PORT, local:N "
                          "or a scheduler file")
 
 
-def render_on_farm(args, frames, settings: dict, out_path, write) -> int:
+def render_on_farm(request: StageRequest, settings, frames, output: str, outputs: Outputs,
+                   farm: FarmOptions) -> int:
     """The CLI's farm path: frames (one task each) or, for a single frame, tiles; returns the exit code.
 
-    ``frames`` are time codes (``[None]`` for the stage's default time); ``out_path(frame)`` names each output;
-    ``write(image, path)`` writes an image and its AOVs (atomically) on the client."""
+    ``frames`` are time codes (``[None]`` for the stage's default time), ``output`` the output pattern
+    (:func:`usd_io.outputs.frame_path` names each frame); ``outputs`` writes each image, on the client or, with
+    ``farm.worker_writes``, on the workers."""
     from tqdm import tqdm
 
     from tracer.farm import render_frames, render_tiled
 
-    path = os.path.abspath(args.scene)
-    assets = package_assets(path) if args.ship_assets else None
-    source = UsdSource(path=path, camera=args.camera, width=args.width, height=args.height,
-                       purposes=tuple(args.purposes), default_light=not args.no_default_light,
-                       complexity=getattr(args, "complexity", "medium"), settings=settings)
-    client, cluster, threads = connect(args.scheduler)
-    if threads is not None and settings.get("threads") is None:
-        source = replace(source, settings=dict(settings, threads=threads))
-    quiet = args.quiet
+    source = UsdSource.of(request, settings.with_(progress=False))
+    assets = package_assets(source.path) if farm.ship_assets else None
+    many = len(frames) > 1
+    client, cluster, threads = connect(farm.scheduler)
+    if threads is not None and settings.threads is None:
+        source = replace(source, settings=source.settings.with_(threads=threads))
+    quiet = farm.quiet
     try:
         if not quiet and client.dashboard_link:
             print(f"whitted: Dask dashboard: {client.dashboard_link}", file=sys.stderr)
@@ -177,17 +190,16 @@ def render_on_farm(args, frames, settings: dict, out_path, write) -> int:
                                  on_tile=(lambda t: bar.update(1)) if bar is not None else None)
             if bar is not None:
                 bar.close()
-            write(image, out_path(frames[0]))
+            outputs.write(image, frame_path(output, frames[0], many))
         else:
             bar = None if quiet else tqdm(total=len(frames), unit="frame", desc="whitted farm", leave=False)
-            worker_write = WriteFrames(os.path.abspath(args.output), True, tuple(settings.get("aovs", ()))) \
-                if args.worker_writes else None
+            worker_write = WriteFrames(os.path.abspath(output), many, outputs) if farm.worker_writes else None
             for res in render_frames(client, source, frames, assets=assets, write=worker_write):
                 if res.error is not None:
                     failed += 1
                     print(f"whitted: error: frame {res.frame:g}: {res.error}", file=sys.stderr)
                 elif res.image is not None:
-                    write(res.image, out_path(res.frame))
+                    outputs.write(res.image, frame_path(output, res.frame, many))
                 if bar is not None:
                     bar.update(1)
             if bar is not None:

@@ -32,11 +32,14 @@ A MaterialX OpenPBR (``ND_open_pbr_surface_surfaceshader``) or Standard Surface 
 ``specular_ior``/``specular_IOR`` (-> ior) and ``transmission_color`` (-> transmission_tint): the only way a
 Blender glass survives its USD export. Without a UsdPreviewSurface, base colour (× its weight), metalness, specular
 roughness and the normal come from it as well, each a constant or a MaterialX ``image``/``tiledimage`` (normal:
-through ``normalmap``); coat, sheen/fuzz, subsurface and emission warn. MaterialX's own UsdPreviewSurface node
+through ``normalmap``), Standard Surface's emission × emission_color and either's specular weight; coat,
+sheen/fuzz, subsurface and OpenPBR's emission warn. MaterialX's own UsdPreviewSurface node
 (``ND_UsdPreviewSurface_surfaceshader``) is a UsdPreviewSurface. ``.mtlx`` documents referenced from USD are
 translated by :mod:`usd_io.mtlx` before any of this sees them.
 
-Everything dropped or approximated prints one warning naming the material and the input or node.
+Any other surface (Arnold's, NVIDIA's OmniPBR, or one nothing reads) goes to :mod:`usd_io.surfaces`; an unread one
+shows the prim's displayColor with a warning, never a silent 18 % grey. Everything dropped or approximated prints
+one warning naming the material and the input or node.
 """
 
 from __future__ import annotations
@@ -45,11 +48,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from pxr import UsdGeom, UsdShade
+from tracer.shader_graph import Graph, ImageRef
 
 from . import shade_network as net
-from .material_primvars import mesh_primvars
+from .material_primvars import find_primvar, mesh_primvars
+from .preview_ranges import clamp_preview_inputs
+from .surfaces import other_surface
+from .texture_assets import open_texture
 from .texture_files import TextureCache, resolve_wrap
-from .tracer_model import ModelWriter, TextureSpec
 
 FALLBACK_DIFFUSE = (0.18, 0.18, 0.18)  # UsdPreviewSurface's diffuseColor fallback
 DEFAULT_DISPLAY = (0.5, 0.5, 0.5)  # Hydra's colour for geometry with neither material nor displayColor
@@ -63,8 +69,24 @@ PREVIEW_DEFAULTS = dict(diffuseColor=FALLBACK_DIFFUSE, emissiveColor=(0.0, 0.0, 
 
 
 def f0_from_ior(ior: float) -> float:
-    """UsdPreviewSurface's F0 of a dielectric, ((1 − ior)/(1 + ior))²."""
-    return float(((ior - 1.0) / (ior + 1.0)) ** 2)
+    """UsdPreviewSurface's F0 of a dielectric (:func:`tracer.materials.f0_from_ior`, the one formula)."""
+    from tracer.materials import f0_from_ior as f0
+    return float(f0(ior))
+
+
+@dataclass(eq=False)
+class UVLookup:
+    """A UsdUVTexture (or MaterialX image) lookup as the reader resolved it, before it is written as IR nodes:
+    the image (:class:`tracer.shader_graph.ImageRef`, wrap resolved), the UV primvar (None = the default set),
+    the composed UsdTransform2d matrix and the spec's scale, bias and fallback."""
+
+    image: object
+    uv: str | None
+    transform: np.ndarray
+    scale: tuple
+    bias: tuple
+    fallback: tuple
+    label: str = ""
 
 
 def ior_from_f0(f0: float) -> float:
@@ -101,9 +123,10 @@ class MaterialTable:
         self.by_path: dict[str, tuple[int, MeshNeeds]] = {}  # material path -> (row, needs)
         self.summary: dict[str, dict] = {}  # material name -> tracer fields (for `whitted info`)
         self.files = TextureCache()
-        self._textures: dict = {}  # lookup key -> TextureSpec
+        self._textures: dict = {}  # lookup key -> UVLookup
+        self._images: dict = {}  # (pixels id, wraps) -> ImageRef (one tracer texture per image and wrap)
         self.uv_set_names: list[str] = [DEFAULT_UV]  # index in Scene.uv_sets
-        self.writer = ModelWriter(builder, warn)
+        self.writer = self  # ``writer.add_material(name, fields)``: what usd_io.reader calls
         self._primvar_cache: dict = {}
 
     # ------------------------------------------------------------------ binding
@@ -158,7 +181,14 @@ class MaterialTable:
             uv_sets, colors = mesh_primvars(prim, data, needs, self.uv_set_names, self.time, self.warn)
             if key is not None:
                 self._primvar_cache[key] = (uv_sets, colors)
-        return self.writer.mesh_kwargs(str(prim.GetPath()), rows, len(data.triangles), uv_sets, colors)
+        kw = {}
+        if uv_sets:
+            kw["uv_sets"] = uv_sets
+            if 0 in uv_sets:
+                kw["uvs"] = uv_sets[0]
+        if colors is not None:
+            kw["colors"] = colors
+        return rows, kw
 
     def uv_set_index(self, name: str | None) -> int:
         """Index in Scene.uv_sets of a texture's UV primvar (None and "st" read the mesh's default set 0)."""
@@ -170,8 +200,8 @@ class MaterialTable:
     # ------------------------------------------------------------------ displayColor
     def display_color(self, prim):
         """Unbound geometry: displayColor as a vertex colour (any interpolation), on a plain diffuse surface."""
-        pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayColor")
-        if not (pv and pv.HasValue()):
+        pv = find_primvar(prim, "displayColor")  # inherited from ancestors as UsdGeomPrimvarsAPI says
+        if pv is None:
             return self._plain("displayColor(none)", DEFAULT_DISPLAY), MeshNeeds()
         op = UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayOpacity")
         if op and op.HasValue():
@@ -184,7 +214,7 @@ class MaterialTable:
     def _plain(self, name, rgb, **extra):
         fields = self.model(base_color=tuple(float(x) for x in rgb), specular=0.0, **extra)
         self.summary.setdefault(name, fields)
-        return self.writer.add_material(name, fields)
+        return self.add_material(name, fields)
 
     # ------------------------------------------------------------------ UsdShade.Material
     def material(self, mat: UsdShade.Material):
@@ -192,8 +222,8 @@ class MaterialTable:
         if key in self.by_path:
             return self.by_path[key]
         fields, needs = self.convert(mat)
-        row = self.writer.add_material(key, fields)
-        self.summary[key] = {k: (v.label if isinstance(v, TextureSpec) else
+        row = self.add_material(key, fields, needs)
+        self.summary[key] = {k: (v.label if isinstance(v, UVLookup) else
                                  tuple(round(float(x), 4) for x in np.ravel(v)) if np.ndim(v) else
                                  (round(float(v), 4) if isinstance(v, float) else v)) for k, v in fields.items()}
         self.by_path[key] = (row, needs)
@@ -211,13 +241,10 @@ class MaterialTable:
             preview, mtlx = mtlx, None  # MaterialX's UsdPreviewSurface node: the same inputs, the same reading
         if preview and is_preview_surface(preview):
             fields, needs = self.preview_surface(preview, label)
-        elif preview and not mtlx:
-            self.warn(f"{label}: surface shader {net.shader_id(preview)!r} is not supported; using grey")
-            fields = self.model(base_color=FALLBACK_DIFFUSE)
         if mtlx:
             fields = self.materialx(mtlx, fields, label, needs)
-        if not fields:
-            fields = self.model(base_color=FALLBACK_DIFFUSE)
+        if not fields:  # Arnold, MDL OmniPBR, or nothing understood (displayColor + a warning): usd_io.surfaces
+            fields = other_surface(self, mat, preview, label, needs)
         return fields, needs
 
     # ------------------------------------------------------------------ UsdPreviewSurface
@@ -226,6 +253,7 @@ class MaterialTable:
         t = self.model()
         needs = MeshNeeds()
         src = {name: net.source(s, name, default, self.time) for name, default in PREVIEW_DEFAULTS.items()}
+        src = clamp_preview_inputs(src, label, self.warn)  # the spec's ranges (usd_io.preview_ranges)
 
         # diffuseColor -> base colour
         d = src["diffuseColor"]
@@ -382,44 +410,49 @@ class MaterialTable:
         if asset is None or not asset.path:
             self.warn(f"{label}: {name} texture {lk.node!r} has no file; its fallback {lk.fallback} is used")
             return None, lk.fallback
-        if "<UDIM>" in asset.path:
-            self.warn(f"{label}: UDIM texture {asset.path!r} is not supported; {name} uses the fallback "
-                      f"{lk.fallback}")
-            return None, lk.fallback
-        if not asset.resolvedPath:
-            self.warn(f"{label}: texture {asset.path!r} not found; {name} uses the fallback {lk.fallback}")
-            return None, lk.fallback
         cs = lk.colorspace if lk.colorspace in ("sRGB", "raw") else "auto"
         if lk.colorspace not in ("sRGB", "raw", "auto"):
             self.warn(f"{lk.node}: unknown sourceColorSpace {lk.colorspace!r} (auto used)")
-        try:
-            f = self.files.get(asset.resolvedPath, cs, asset.path)
-        except ValueError as exc:
-            self.warn(f"{label}: {exc}; {name} uses the fallback {lk.fallback}")
+        got = open_texture(lk, cs, self.files, self.warn, label, name)  # UDIM sets, backslashes: texture_assets
+        if got is None:
             return None, lk.fallback
+        f, udim_m = got
+        lk.transform = udim_m @ lk.transform
         wrap_s = resolve_wrap(lk.wrap_s, f.wrap_meta[0], lk.node, self.warn)
         wrap_t = resolve_wrap(lk.wrap_t, f.wrap_meta[1], lk.node, self.warn)
         uv_set = self.uv_set_index(lk.uv)
         needs.uv_sets.add(self.uv_set_names[uv_set])
         key = (id(f.pixels), wrap_s, wrap_t, uv_set, lk.transform.round(9).tobytes(), lk.scale, lk.bias, lk.fallback)
         if key not in self._textures:
-            self._textures[key] = TextureSpec(f.pixels, wrap_s, wrap_t, uv_set, lk.transform, lk.scale, lk.bias,
-                                              lk.fallback, label=f"{asset.path} ({lk.node})")
+            ikey = (id(f.pixels), wrap_s, wrap_t)
+            if ikey not in self._images:
+                self._images[ikey] = ImageRef(pixels=f.pixels, wrap_s=wrap_s, wrap_t=wrap_t,
+                                              label=f"{asset.path} ({lk.node})")
+            self._textures[key] = UVLookup(self._images[ikey], lk.uv, lk.transform, lk.scale, lk.bias, lk.fallback,
+                                           label=f"{asset.path} ({lk.node})")
         return self._textures[key], None
 
     # ------------------------------------------------------------------ the tracer's model
     @staticmethod
     def model(**fields) -> dict:
-        """A tracer material row (fields of docs/materials-api.md)."""
+        """The reader's description of a surface: Principled fields (docs/materials-api.md), a parameter P read
+        from a texture as ``P_texture`` (a :class:`UVLookup`) and ``P_channel``; written as IR by
+        :meth:`add_material`."""
         return dict(fields)
 
+    def add_material(self, name: str, fields: dict, needs: MeshNeeds | None = None) -> int:
+        """Write one surface as a shader graph (tracer.shader_graph) and add its row (tracer.shader_compile)."""
+        from tracer.shader_compile import add_graph
+        color = needs.color[0] if needs is not None and needs.color is not None else "displayColor"
+        return add_graph(self.b, principled_graph(name, fields, color), self.warn, self.uv_set_index, name=name)
+
     # ------------------------------------------------------------------ MaterialX
-    def materialx(self, s: UsdShade.Shader, fields: dict, label: str, needs: MeshNeeds) -> dict:
+    def materialx(self, s: UsdShade.Shader, fields: dict, label: str, needs: MeshNeeds, family=None) -> dict:
         """OpenPBR / Standard Surface. Without a UsdPreviewSurface (``fields`` empty) base colour (× its weight),
         metalness, specular roughness and the normal come from it, each a constant or a MaterialX image
         (:func:`usd_io.shade_network.mx_image_lookup`); transmission, its colour and the ior always do."""
         sid = net.shader_id(s)
-        family = next((f for f in MX_SURFACES if f in sid), None)
+        family = family or next((f for f in MX_SURFACES if f in sid), None)
         if family is None:
             if not fields:
                 self.warn(f"{label}: MaterialX shader {sid!r} is not supported")
@@ -439,7 +472,17 @@ class MaterialTable:
                 base = net.Const(tuple(weight * c for c in net.floats(base.value, 3, names["base_default"])))
             elif isinstance(base, net.TextureLookup):
                 base.scale = tuple(weight * c for c in base.scale[:3]) + (base.scale[3],)
-            self._colour_input(t, "base_color", base, names["base_default"], label, names["base"], needs)
+            if isinstance(base, net.PrimvarLookup):  # a primvar read (Arnold's user_data_rgb): vertex colour
+                needs.color = (base.name, net.floats(base.fallback, 3, names["base_default"]))
+                t.update(base_color=(weight, weight, weight), vertex_color=True)
+            else:
+                self._colour_input(t, "base_color", base, names["base_default"], label, names["base"], needs)
+            if "spec" in names:  # the specular weight scales the Principled level (0.5 at weight 1)
+                t["specular"] = 0.5 * float(np.clip(num(names["spec"], 1.0), 0.0, 2.0))
+            if "emission" in names:  # Standard Surface: emission weight x emission_color
+                self._colour_input(t, "emission", _weighted(net.source(s, names["emission_color"], (1.0, 1.0, 1.0),
+                                                                       self.time), num(names["emission"], 0.0)),
+                                   (0.0, 0.0, 0.0), label, names["emission_color"], needs)
             self._scalar_input(t, "metallic", net.source(s, names["metal"], 0.0, self.time), 0.0, label,
                                names["metal"], needs)
             self._scalar_input(t, "roughness", net.source(s, names["rough"], names["rough_default"], self.time),
@@ -468,12 +511,13 @@ MX_SURFACES = {
     "open_pbr_surface": dict(weight="base_weight", weight_default=1.0, base="base_color",
                              base_default=(0.8, 0.8, 0.8), metal="base_metalness", rough="specular_roughness",
                              rough_default=0.3, normal="geometry_normal", trans="transmission_weight",
-                             ior="specular_ior", tint="transmission_color",
+                             ior="specular_ior", tint="transmission_color", spec="specular_weight",
                              dropped=("coat_weight", "emission_luminance", "subsurface_weight", "fuzz_weight")),
     "standard_surface": dict(weight="base", weight_default=0.8, base="base_color", base_default=(1.0, 1.0, 1.0),
                              metal="metalness", rough="specular_roughness", rough_default=0.2, normal="normal",
                              trans="transmission", ior="specular_IOR", tint="transmission_color",
-                             dropped=("coat", "emission", "subsurface", "sheen")),
+                             emission="emission", emission_color="emission_color", spec="specular",
+                             dropped=("coat", "subsurface", "sheen")),
 }
 
 
@@ -486,8 +530,34 @@ def is_preview_surface(shader) -> bool:
     return net.shader_id(shader) in PREVIEW_SURFACE_IDS
 
 
+def _weighted(src, w: float):
+    """A colour source scaled by ``w`` (a constant's value, a texture's scale)."""
+    if isinstance(src, net.Const):
+        return net.Const(tuple(w * c for c in net.floats(src.value, 3, (1.0, 1.0, 1.0))))
+    if isinstance(src, net.TextureLookup):
+        src.scale = tuple(w * c for c in src.scale[:3]) + (src.scale[3],)
+    return src
+
+
 def _is_default(src, default) -> bool:
     """Whether an input is left at its default (unconnected, and equal to ``default``)."""
     if not isinstance(src, net.Const):
         return False
     return bool(np.allclose(net.floats(src.value, 1, (default,))[0], default))
+
+
+# ---------------------------------------------------------------------------------------------- the IR
+def principled_graph(name: str, f: dict, color_primvar: str = "displayColor") -> Graph:
+    """A reader description (:meth:`MaterialTable.model` fields) as a shader graph (tracer.shader_fields); each
+    :class:`UVLookup` becomes a ``usd_uv_texture`` node, its st a ``uvmap`` through ``usd_transform2d``."""
+    from tracer.shader_fields import graph_from_fields
+
+    def texture(g, lk: UVLookup):
+        st = g.add("uvmap", attribute=lk.uv if lk.uv not in (None, "st") else "")["UV"]
+        if not np.allclose(lk.transform, np.eye(3)):
+            st = g.add("usd_transform2d", {"in": st}, matrix=np.asarray(lk.transform, np.float64))["result"]
+        node = g.add("usd_uv_texture", {"st": st}, image=lk.image, scale=tuple(lk.scale), bias=tuple(lk.bias),
+                     fallback=tuple(lk.fallback), name=lk.label)
+        return node, lk.uv if lk.uv not in (None, "st") else ""
+
+    return graph_from_fields(name, f, texture, color_primvar, base_default=FALLBACK_DIFFUSE)

@@ -1,0 +1,107 @@
+"""RenderSettings is the one definition of every render setting (issue #22): each field, given a value other than
+its default, reaches the settings of ``whitted render``, of ``whitted explain`` and of the farm's UsdSource through
+the flag its metadata names, the add-on's ``scene.whitted`` property of the same name through F12's settings, and
+the session's integrator key when the packed tables depend on it. A field that is not a flag or a property says
+where it comes from instead."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from tracer.settings import INTEGRATOR_FIELDS, SETTINGS, RenderSettings, default_of, integrator_key
+
+#: A valid value other than the default for every field (a new field fails the walk until it is listed here).
+CHANGED = {"width": 40, "height": 30, "samples": 3, "max_depth": 1, "epsilon": 1e-3, "fresnel": False,
+           "shadows": False, "light_samples": 9, "sky_samples": 4, "terminal_rays": True, "shading": "classic",
+           "max_transparent": 0, "min_weight": 0.25, "transparent": True, "tile_size": 16, "threads": 1,
+           "aovs": ("depth", "objectid"), "region": (4, 4, 30, 20), "seed": 7, "progress": True,
+           "extra": {"record_rays": True}}
+
+
+def test_every_field_has_a_changed_value_and_metadata():
+    assert set(CHANGED) == set(SETTINGS), f"list a changed value for {sorted(set(CHANGED) ^ set(SETTINGS))}"
+    for name, value in CHANGED.items():
+        assert value != default_of(name), name
+        RenderSettings(**{name: value}).validate()
+        s = SETTINGS[name]
+        assert s.help, name
+        assert s.flag or s.cli_from, f"{name}: neither a flag nor where the CLI takes it from"
+        assert s.blender or s.blender_from, f"{name}: neither a Blender property nor where the add-on takes it from"
+
+
+def _argv(name, value):
+    s = SETTINGS[name]
+    if isinstance(value, bool):
+        return [s.flag if value else "--no-" + s.flag[2:]]
+    if isinstance(value, tuple):
+        return [s.flag, ",".join(value)]
+    return [s.flag, str(value)]
+
+
+@pytest.mark.parametrize("name", [n for n, s in SETTINGS.items() if s.flag])
+def test_each_flag_reaches_render_explain_and_the_farm(name):
+    from usd_io.cli import build_parser
+    from usd_io.farm import UsdSource
+    from usd_io.request import StageRequest, settings_from_args
+
+    value = CHANGED[name]
+    parser = build_parser()
+    render_args = parser.parse_args(["render", "x.usda", "-o", "x.png", *_argv(name, value)])
+    explain_args = parser.parse_args(["explain", "x.usda", "--pixel", "0", "0", *_argv(name, value)])
+    for args in (render_args, explain_args):
+        assert getattr(settings_from_args(args), name) == value, args.command
+    source = UsdSource.of(StageRequest.from_args(render_args, "x.usda"), settings_from_args(render_args))
+    assert getattr(source.render_settings(), name) == value
+    if name in ("width", "height"):  # the size asked for: the stage's camera decides the missing side
+        assert getattr(source, name) == value
+
+
+def test_bad_flag_values_name_the_flag():
+    from usd_io.cli import build_parser
+    from usd_io.errors import UsdInputError
+    from usd_io.request import settings_from_args
+
+    for argv, flag in ((["--aa", "0"], "--aa"), (["--min-weight", "1"], "--min-weight"),
+                       (["--epsilon", "0"], "--epsilon"), (["--tile-size", "2"], "--tile-size")):
+        args = build_parser().parse_args(["render", "x.usda", "-o", "x.png", *argv])
+        with pytest.raises(UsdInputError, match=flag):
+            settings_from_args(args)
+
+
+def test_integrator_key_holds_the_fields_its_packed_tables_read():
+    """The Integrator's Options (what the kernels get as constants) and its light table are made once per session
+    and settings: every setting they read must be in the key (shading once was not: the old model rendered)."""
+    from tracer.integrator import Options
+
+    read = {n for n in Options._fields if n in SETTINGS} | {"epsilon", "shading", "light_samples"}  # eps, principled
+    assert read <= set(INTEGRATOR_FIELDS), sorted(read - set(INTEGRATOR_FIELDS))
+    base = RenderSettings()
+    for name in INTEGRATOR_FIELDS:
+        assert integrator_key(base.with_(**{name: CHANGED[name]})) != integrator_key(base), name
+
+
+def test_every_blender_property_reaches_f12_settings(bpy_module):
+    """Each property addon/properties.py makes from a field (no literal there) has the field's default and its
+    value reaches the settings F12 renders with."""
+    import addon
+    from addon import export
+
+    addon.register()
+    try:
+        scene = bpy_module.context.scene
+        props = scene.whitted
+        fields = [n for n, s in SETTINGS.items() if s.blender]
+        assert fields, "no Blender properties"
+        defaults = export.settings_from_scene(scene)
+        for name in fields:
+            assert getattr(defaults, name) == default_of(name), name
+            s = SETTINGS[name]
+            stored = CHANGED[name]
+            setattr(props, name, stored)
+            assert getattr(export.settings_from_scene(scene), name) == pytest.approx(CHANGED[name]), name
+            setattr(props, name, s.none_as if default_of(name) is None else default_of(name))
+        assert dataclasses.asdict(export.settings_from_scene(scene)) == dataclasses.asdict(defaults)
+    finally:
+        addon.unregister()

@@ -1,0 +1,676 @@
+"""The shader VM: compiled material programs (:mod:`tracer.shader_compile`) evaluated per hit, in numba.
+
+A program is a run of fixed-width instructions ``[op, dst, a, b, c, d, e, f, imm]`` (int32, :data:`WIDTH` words)
+over a float64 register file. Operands a–f are register numbers relative to the material's register base, except
+where an op's description below says otherwise (texture index, UV set); ``imm`` holds the node's enum (operation,
+blend mode, clamp flags). Constants are registers too, written once per stage call from the packed initial register
+file, so the per-hit loop reads and writes registers only: no Python, no allocation, no reference counting (the
+stage kernels are compiled with ``kernel(refcounts=False)`` and take every array as its own argument).
+
+A vector or colour occupies three consecutive registers; an image lookup writes four (r, g, b, a). A program ends
+with its outputs in registers the material's row of ``outs`` names (:data:`OUT_SLOTS`; -1 = the row's constant).
+
+Inputs a program reads at a hit (``OP_INPUT``, ``imm`` one of the ``IN_*`` codes): position, shading and true
+normals, incoming direction, UVs of any set, generated / object coordinates (object-space position within the
+object's bounds), vertex colour, backfacing, the ray's depth and length (Light Path), object info (location,
+random, index). ``b`` = 1 or 2 reads them at the bump offset points set up by ``OP_BUMP_SETUP`` (register ``c``):
+the hit moved one footprint along two tangent directions, its barycentrics moved with it, as Cycles' Bump node
+evaluates its height input at P + dPdx and P + dPdy.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import bsdf, shader_ops as ops, vec
+from .instances import mat3_apply
+from .jit import kernel
+from .procedural import color as pcolor
+from .procedural import noise as pnoise
+from .procedural import patterns as ppat
+from .procedural import voronoi as pvor
+from .surface import areas_at, tangent_at, uv_at
+from .texture import lookup_at, texel_density
+
+WIDTH = 9  # op, dst, a, b, c, d, e, f, imm
+
+(OP_NOP, OP_MATH, OP_VMATH, OP_MIX_F, OP_MIX_V, OP_MIX_VN, OP_MIX_C, OP_LUM, OP_AVG, OP_COMBINE, OP_INPUT,
+ OP_IMAGE, OP_CHECKER, OP_NORMAL_MAP, OP_BUMP_SETUP, OP_BUMP, OP_RAMP, OP_CURVE, OP_MAPPING, OP_HSV, OP_GAMMA,
+ OP_BRIGHT, OP_INVERT, OP_SEP_COLOR, OP_COMB_COLOR, OP_MAP_RANGE, OP_CLAMP, OP_FRESNEL, OP_LAYER_WEIGHT,
+ OP_VROTATE, OP_COPY, OP_AFFINE2, OP_MAP_RANGE_V, OP_SELECT, OP_NORMALIZE_N, OP_NOISE, OP_VORONOI, OP_WAVE,
+ OP_MAGIC, OP_GRADIENT, OP_BRICK, OP_WHITE_NOISE, OP_BLACKBODY, OP_WAVELENGTH) = range(44)
+
+OP_NAMES = ("nop", "math", "vmath", "mix_f", "mix_v", "mix_vn", "mix_c", "lum", "avg", "combine", "input", "image",
+            "checker", "normal_map", "bump_setup", "bump", "ramp", "curve", "mapping", "hsv", "gamma", "bright",
+            "invert", "sep_color", "comb_color", "map_range", "clamp", "fresnel", "layer_weight", "vrotate", "copy",
+            "affine2", "map_range_v", "select", "normalize_n", "noise", "voronoi", "wave", "magic", "gradient",
+            "brick", "white_noise", "blackbody", "wavelength")
+
+(IN_POSITION, IN_NORMAL, IN_TRUE_NORMAL, IN_INCOMING, IN_UV, IN_GENERATED, IN_OBJECT, IN_BACKFACING, IN_PARAMETRIC,
+ IN_COLOR, IN_COLOR_ALPHA, IN_OBJ_LOCATION, IN_OBJ_RANDOM, IN_OBJ_INDEX, IN_RAY_DEPTH, IN_RAY_LENGTH, IN_IS_CAMERA,
+ IN_IS_REFLECTION, IN_IS_TRANSMISSION, IN_IS_SHADOW, IN_TANGENT, IN_CAMERA, IN_WINDOW, IN_REFLECTION,
+ IN_MAT_INDEX, IN_ZERO) = range(26)
+
+#: The closure inputs a program writes (its row of ``outs``): base colour (3), roughness, metallic, specular
+#: level, alpha, emission (3), shading normal (3), transmission.
+OUT_SLOTS = ("base", "roughness", "metallic", "specular", "alpha", "emission", "normal", "transmission")
+OUT_BASE, OUT_ROUGH, OUT_METAL, OUT_SPEC, OUT_ALPHA, OUT_EMIT, OUT_NORMAL, OUT_TRANS = range(8)
+
+
+@kernel
+def _bary_at(vertices, triangles, tri, u, v):
+    """Object-space position at barycentrics (u, v) of triangle ``tri``."""
+    w = 1.0 - u - v
+    a, b, c = triangles[tri, 0], triangles[tri, 1], triangles[tri, 2]
+    return (w * vertices[a, 0] + u * vertices[b, 0] + v * vertices[c, 0],
+            w * vertices[a, 1] + u * vertices[b, 1] + v * vertices[c, 1],
+            w * vertices[a, 2] + u * vertices[b, 2] + v * vertices[c, 2])
+
+
+@kernel
+def _hash01(k):
+    """A float in [0, 1) from an integer (Object Info's Random: a hash of the object id)."""
+    h = (k * 2654435761 + 0x9E3779B9) & 0xFFFFFFFF
+    h ^= h >> 16
+    h = (h * 0x85EBCA6B) & 0xFFFFFFFF
+    h ^= h >> 13
+    return (h & 0xFFFFFF) / 16777216.0
+
+
+@kernel(refcounts=False)
+def execute(code, pc0, pc1, R, base, hit, geo, tex):
+    """Run instructions pc0..pc1 of ``code`` for one hit, registers ``R[base + …]``. ``hit`` = (tri, u, v, p, n, ng,
+    front, d, ray length, depth, instance, footprint, shadow ray?, eye), ``geo`` = (uv_sets, colors, has_colors,
+    vertices, triangles, face_normals, object_ids, bounds, linear, mirrored, instance object ids), ``tex`` =
+    (texel data, texture params). (Tuples: Python passes a call of more than 30 arguments as *args, which numba
+    cannot inline; the callers are compiled without reference counting, so the tuples cost nothing.)"""
+    tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye = hit
+    uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, bounds, linear, mirrored, inst_ids = geo
+    tdata, tparams = tex
+    for pc in range(pc0, pc1):
+        op = code[pc, 0]
+        o = base + code[pc, 1]
+        a = base + code[pc, 2]
+        b = base + code[pc, 3]
+        c = base + code[pc, 4]
+        imm = code[pc, 8]
+        if op == OP_MATH:
+            x = ops.math_op(imm & 255, R[a], R[b], R[c])
+            if imm & 256:
+                x = min(max(x, 0.0), 1.0)
+            R[o] = x
+        elif op == OP_VMATH:
+            s = R[base + code[pc, 5]]
+            x0, x1, x2, x3 = ops.vmath_op(imm, R[a], R[a + 1], R[a + 2], R[b], R[b + 1], R[b + 2], R[c], R[c + 1],
+                                          R[c + 2], s)
+            R[o], R[o + 1], R[o + 2], R[o + 3] = x0, x1, x2, x3
+        elif op == OP_MIX_F:
+            f = R[a]
+            if imm & 1:
+                f = min(max(f, 0.0), 1.0)
+            R[o] = (1.0 - f) * R[b] + f * R[c]
+        elif op == OP_MIX_V:
+            f = R[a]
+            if imm & 1:
+                f = min(max(f, 0.0), 1.0)
+            for j in range(3):
+                R[o + j] = (1.0 - f) * R[b + j] + f * R[c + j]
+        elif op == OP_MIX_VN:
+            for j in range(3):
+                f = R[a + j]
+                if imm & 1:
+                    f = min(max(f, 0.0), 1.0)
+                R[o + j] = (1.0 - f) * R[b + j] + f * R[c + j]
+        elif op == OP_MIX_C:
+            f = R[a]
+            if imm & 256:
+                f = min(max(f, 0.0), 1.0)
+            x0, x1, x2 = ops.mix_blend(imm & 255, f, R[b], R[b + 1], R[b + 2], R[c], R[c + 1], R[c + 2])
+            if imm & 512:
+                x0, x1, x2 = min(max(x0, 0.0), 1.0), min(max(x1, 0.0), 1.0), min(max(x2, 0.0), 1.0)
+            R[o], R[o + 1], R[o + 2] = x0, x1, x2
+        elif op == OP_LUM:
+            R[o] = 0.2126 * R[a] + 0.7152 * R[a + 1] + 0.0722 * R[a + 2]
+        elif op == OP_AVG:
+            R[o] = (R[a] + R[a + 1] + R[a + 2]) / 3.0
+        elif op == OP_COMBINE:
+            x0, x1, x2 = R[a], R[b], R[c]
+            R[o], R[o + 1], R[o + 2] = x0, x1, x2
+        elif op == OP_COPY:
+            for j in range(imm):
+                R[o + j] = R[a + j]
+        elif op == OP_SELECT:  # o = a if R[c] > 0.5 else b, width imm
+            src = a if R[c] > 0.5 else b
+            for j in range(imm):
+                R[o + j] = R[src + j]
+        elif op == OP_INPUT:
+            _input(R, o, imm, code[pc, 2], code[pc, 3], base + code[pc, 4], hit, geo)
+        elif op == OP_IMAGE:
+            ti = code[pc, 3]
+            s_, t_ = R[a], R[a + 1]
+            ok = s_ == s_ and t_ == t_
+            lod = 0.0
+            k_fp = code[pc, 4]
+            if k_fp >= 0 and footprint > 0.0:
+                uv_area, world_area = areas_at(uv_sets, vertices, triangles, k_fp, tri)
+                texels = footprint * texel_density(tparams, ti, uv_area, world_area)
+                lod = math.log2(texels) if texels > 1.0 else 0.0
+            x0, x1, x2, x3 = lookup_at(tdata, tparams, ti, s_, t_, ok, lod)
+            R[o], R[o + 1], R[o + 2], R[o + 3] = x0, x1, x2, x3
+        elif op == OP_CHECKER:  # Cycles' svm_checker: Color1 where the cell parities differ
+            sc = R[base + code[pc, 5]]
+            px = (R[a] * sc + 0.000001) * 0.999999
+            py = (R[a + 1] * sc + 0.000001) * 0.999999
+            pz = (R[a + 2] * sc + 0.000001) * 0.999999
+            xi, yi, zi = int(abs(math.floor(px))), int(abs(math.floor(py))), int(abs(math.floor(pz)))
+            first = (xi % 2 == yi % 2) == (zi % 2 != 0)
+            src = b if first else c
+            R[o], R[o + 1], R[o + 2] = R[src], R[src + 1], R[src + 2]
+            R[o + 3] = 1.0 if first else 0.0
+        elif op == OP_NORMAL_MAP:
+            k_uv = code[pc, 4]
+            nn = n
+            if k_uv >= 0:
+                tg, sign = tangent_at(uv_sets, vertices, triangles, k_uv, tri, vec.row(face_normals, tri))
+                if k_inst >= 0:
+                    tg = mat3_apply(linear, k_inst, tg)
+                    if mirrored[k_inst]:
+                        sign = -sign
+                if tg[0] != 0.0 or tg[1] != 0.0 or tg[2] != 0.0:
+                    tv = (2.0 * R[a] - 1.0, 2.0 * R[a + 1] - 1.0, 2.0 * R[a + 2] - 1.0)
+                    nn = bsdf.perturb_normal(tv, tg, sign, R[b], n, ng, front)
+            R[o], R[o + 1], R[o + 2] = nn
+        elif op == OP_BUMP_SETUP:
+            _bump_setup(R, o, tri, u, v, ng, footprint, k_inst, vertices, triangles, linear)
+        elif op == OP_BUMP:
+            _bump(R, o, R[a], R[b], R[c], R[base + code[pc, 5]], R[base + code[pc, 6]], base + code[pc, 7],
+                  base + imm, ng)
+        elif op == OP_RAMP:
+            _ramp(R, o, R[a], b, code[pc, 4], code[pc, 8])
+        elif op == OP_CURVE:
+            _curve(R, o, a, b, code[pc, 4], R[base + code[pc, 5]], imm)
+        elif op == OP_MAPPING:
+            _mapping(R, o, a, b, c, base + code[pc, 5], imm)
+        elif op == OP_HSV:
+            x0, x1, x2 = ops.hue_sat(R[b], R[c], R[base + code[pc, 5]], R[base + code[pc, 6]], R[a], R[a + 1],
+                                     R[a + 2])
+            R[o], R[o + 1], R[o + 2] = x0, x1, x2
+        elif op == OP_GAMMA:
+            g = R[b]
+            R[o], R[o + 1], R[o + 2] = ops.gamma(R[a], g), ops.gamma(R[a + 1], g), ops.gamma(R[a + 2], g)
+        elif op == OP_BRIGHT:
+            x0, x1, x2 = ops.bright_contrast(R[a], R[a + 1], R[a + 2], R[b], R[c])
+            R[o], R[o + 1], R[o + 2] = x0, x1, x2
+        elif op == OP_INVERT:
+            f = R[b]
+            R[o], R[o + 1], R[o + 2] = ((1.0 - f) * R[a] + f * (1.0 - R[a]), (1.0 - f) * R[a + 1] + f * (1.0 - R[a + 1]),
+                                        (1.0 - f) * R[a + 2] + f * (1.0 - R[a + 2]))
+        elif op == OP_SEP_COLOR:
+            x0, x1, x2 = R[a], R[a + 1], R[a + 2]
+            if imm == 1:
+                x0, x1, x2 = ops.rgb_to_hsv(x0, x1, x2)
+            elif imm == 2:
+                x0, x1, x2 = ops.rgb_to_hsl(x0, x1, x2)
+            R[o], R[o + 1], R[o + 2] = x0, x1, x2
+        elif op == OP_COMB_COLOR:
+            x0, x1, x2 = R[a], R[b], R[c]
+            if imm == 1:
+                x0, x1, x2 = ops.hsv_to_rgb(x0, x1, x2)
+            elif imm == 2:
+                x0, x1, x2 = ops.hsl_to_rgb(x0, x1, x2)
+            R[o], R[o + 1], R[o + 2] = x0, x1, x2
+        elif op == OP_MAP_RANGE:
+            R[o] = ops.map_range_clamp(imm & 255, R[a], R[b], R[c], R[base + code[pc, 5]], R[base + code[pc, 6]],
+                                       R[base + code[pc, 7]], (imm & 256) != 0)
+        elif op == OP_MAP_RANGE_V:
+            for j in range(3):
+                R[o + j] = ops.map_range_clamp(imm & 255, R[a + j], R[b + j], R[c + j], R[base + code[pc, 5] + j],
+                                               R[base + code[pc, 6] + j], R[base + code[pc, 7] + j],
+                                               (imm & 256) != 0)
+        elif op == OP_CLAMP:
+            lo, hi = R[b], R[c]
+            if imm == 1 and lo > hi:
+                lo, hi = hi, lo
+            R[o] = min(max(R[a], lo), hi)
+        elif op == OP_FRESNEL:
+            R[o] = _fresnel(R[a], (R[b], R[b + 1], R[b + 2]), d, front)
+        elif op == OP_LAYER_WEIGHT:
+            _layer_weight(R, o, R[a], (R[b], R[b + 1], R[b + 2]), d, front)
+        elif op == OP_VROTATE:
+            _vrotate(R, o, a, b, c, base + code[pc, 5], base + code[pc, 6], imm)
+        elif op == OP_AFFINE2:  # (s, t) -> M (s, t, 1), M the six constants at b
+            s_, t_ = R[a], R[a + 1]
+            R[o] = R[b] * s_ + R[b + 1] * t_ + R[b + 2]
+            R[o + 1] = R[b + 3] * s_ + R[b + 4] * t_ + R[b + 5]
+            R[o + 2] = R[a + 2]
+        elif op >= OP_NOISE:  # procedural textures (tracer.procedural): a = vector, b = parameter block
+            _procedural(R, op, o, a, b, imm)
+        elif op == OP_NORMALIZE_N:  # a normal output: unit, on the incident side (else the shading normal)
+            x = (R[a], R[a + 1], R[a + 2])
+            ln = math.sqrt(vec.dot(x, x))
+            if ln > 0.0 and vec.dot(x, ng) > 0.0:
+                x = vec.scale(x, 1.0 / ln)
+            else:
+                x = n
+            R[o], R[o + 1], R[o + 2] = x
+
+
+@kernel(refcounts=False)
+def _procedural(R, op, o, a, b, imm):
+    """A procedural texture node (tracer.procedural, Cycles' algorithms) at the vector R[a…], its other inputs the
+    block R[b…] (per op below), its enums in ``imm`` (4 bits each, low first)."""
+    e0, e1, e2, e3 = imm & 15, (imm >> 4) & 15, (imm >> 8) & 15, (imm >> 12) & 15
+    p3 = (R[a], R[a + 1], R[a + 2])
+    if op == OP_NOISE:  # block: W, Scale, Detail, Roughness, Lacunarity, Offset, Gain, Distortion; e0 dim, e1 type,
+        #                 e2 normalize, e3 colour wanted
+        p4 = (p3[0], p3[1], p3[2], R[b]) if e0 != 1 else (R[b], 0.0, 0.0, 0.0)
+        if e3:
+            f, c = pnoise.noise_texture(p4, e0, e1, R[b + 1], R[b + 2], R[b + 3], R[b + 4], R[b + 5], R[b + 6],
+                                        R[b + 7], e2 != 0)
+            R[o], R[o + 1], R[o + 2], R[o + 3] = f, c[0], c[1], c[2]
+        else:
+            R[o] = pnoise.noise_value(p4, e0, e1, R[b + 1], R[b + 2], R[b + 3], R[b + 4], R[b + 5], R[b + 6],
+                                      R[b + 7], e2 != 0)
+    elif op == OP_VORONOI:  # block: W, Scale, Detail, Roughness, Lacunarity, Smoothness, Exponent, Randomness;
+        #                     e0 dim, e1 feature, e2 metric, e3 normalize -> Distance, Color, Position, W, Radius
+        p4 = (p3[0], p3[1], p3[2], R[b]) if e0 != 1 else (R[b], 0.0, 0.0, 0.0)
+        d, c, pos, w, rad = pvor.voronoi_texture(p4, e0, e1, e2, R[b + 1], R[b + 2], R[b + 3], R[b + 4], R[b + 5],
+                                                 R[b + 6], R[b + 7], e3 != 0)
+        R[o] = d
+        R[o + 1], R[o + 2], R[o + 3] = c
+        R[o + 4], R[o + 5], R[o + 6] = pos
+        R[o + 7], R[o + 8] = w, rad
+    elif op == OP_WAVE:  # block: Scale, Distortion, Detail, Detail Scale, Detail Roughness, Phase Offset;
+        #                  e0 type, e1 direction, e2 profile -> Fac
+        R[o] = ppat.wave(p3, e0, e1, e2, R[b], R[b + 1], R[b + 2], R[b + 3], R[b + 4], R[b + 5])
+    elif op == OP_MAGIC:  # block: Scale, Distortion; e0 depth -> Color, Fac
+        c = ppat.magic(p3, e0, R[b], R[b + 1])
+        R[o], R[o + 1], R[o + 2] = c
+        R[o + 3] = (c[0] + c[1] + c[2]) / 3.0
+    elif op == OP_GRADIENT:  # e0 type -> Fac
+        R[o] = ppat.gradient(p3, e0)
+    elif op == OP_BRICK:  # block: Color1 (3), Color2 (3), Mortar (3), Scale, Mortar Size, Mortar Smooth, Bias,
+        #                   Brick Width, Row Height, offset, offset frequency, squash, squash frequency -> Color, Fac
+        c, f = ppat.brick_color(p3, (R[b], R[b + 1], R[b + 2]), (R[b + 3], R[b + 4], R[b + 5]),
+                                (R[b + 6], R[b + 7], R[b + 8]), R[b + 9], R[b + 10], R[b + 11], R[b + 12], R[b + 13],
+                                R[b + 14], R[b + 15], int(R[b + 16]), R[b + 17], int(R[b + 18]))
+        R[o], R[o + 1], R[o + 2] = c
+        R[o + 3] = f
+    elif op == OP_WHITE_NOISE:  # block: W; e0 dim -> Value, Color
+        x, c = ppat.white_noise(p3, R[b], e0)
+        R[o] = x
+        R[o + 1], R[o + 2], R[o + 3] = c
+    elif op == OP_BLACKBODY:
+        R[o], R[o + 1], R[o + 2] = pcolor.blackbody(R[a])
+    elif op == OP_WAVELENGTH:
+        R[o], R[o + 1], R[o + 2] = pcolor.wavelength(R[a])
+
+
+@kernel(refcounts=False)
+def _input(R, o, what, arg, variant, setup, hit, geo):
+    """An ``OP_INPUT``: a value of the hit into R[o…] (``hit``, ``geo``: :func:`execute`'s)."""
+    tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye = hit
+    uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, bounds, linear, mirrored, inst_ids = geo
+    if variant > 0:  # the bump offset points: barycentrics and world position moved by the setup's offsets
+        j = 2 * (variant - 1)
+        u = u + R[setup + j]
+        v = v + R[setup + j + 1]
+        q = 4 + 3 * (variant - 1)
+        p = (p[0] + R[setup + q], p[1] + R[setup + q + 1], p[2] + R[setup + q + 2])
+    x = (0.0, 0.0, 0.0)
+    if what == IN_POSITION:
+        x = p
+    elif what == IN_NORMAL:
+        x = n
+    elif what == IN_TRUE_NORMAL:
+        x = ng
+    elif what == IN_INCOMING:
+        x = (-d[0], -d[1], -d[2])
+    elif what == IN_UV:
+        s, t, ok = uv_at(uv_sets, arg, tri, u, v)
+        x = (s, t, 0.0) if ok else (np.nan, np.nan, 0.0)
+    elif what == IN_GENERATED or what == IN_OBJECT or what == IN_OBJ_LOCATION:
+        po = _bary_at(vertices, triangles, tri, u, v)
+        oid = object_ids[tri]
+        if what == IN_GENERATED:
+            x = (0.0, 0.0, 0.0)
+            lo = (bounds[oid, 0, 0], bounds[oid, 0, 1], bounds[oid, 0, 2])
+            hi = (bounds[oid, 1, 0], bounds[oid, 1, 1], bounds[oid, 1, 2])
+            # a flat axis sits in the middle of its texture space (Blender sizes it 1 about the centre)
+            x = ((po[0] - lo[0]) / (hi[0] - lo[0]) if hi[0] > lo[0] else 0.5,
+                 (po[1] - lo[1]) / (hi[1] - lo[1]) if hi[1] > lo[1] else 0.5,
+                 (po[2] - lo[2]) / (hi[2] - lo[2]) if hi[2] > lo[2] else 0.5)
+        elif what == IN_OBJECT:
+            x = po
+        else:  # location: the instance's translation, or the centre of a baked mesh's bounds
+            if k_inst >= 0:
+                m = mat3_apply(linear, k_inst, po)
+                x = (p[0] - m[0], p[1] - m[1], p[2] - m[2])
+            else:
+                x = (0.5 * (bounds[oid, 0, 0] + bounds[oid, 1, 0]), 0.5 * (bounds[oid, 0, 1] + bounds[oid, 1, 1]),
+                     0.5 * (bounds[oid, 0, 2] + bounds[oid, 1, 2]))
+    elif what == IN_BACKFACING:
+        x = (0.0 if front else 1.0, 0.0, 0.0)
+    elif what == IN_PARAMETRIC:
+        x = (1.0 - u - v, u, 0.0)
+    elif what == IN_COLOR:
+        if has_colors:
+            w = 1.0 - u - v
+            x = (w * colors[tri, 0, 0] + u * colors[tri, 1, 0] + v * colors[tri, 2, 0],
+                 w * colors[tri, 0, 1] + u * colors[tri, 1, 1] + v * colors[tri, 2, 1],
+                 w * colors[tri, 0, 2] + u * colors[tri, 1, 2] + v * colors[tri, 2, 2])
+        else:
+            x = (1.0, 1.0, 1.0)
+    elif what == IN_COLOR_ALPHA:
+        x = (1.0, 0.0, 0.0)
+    elif what == IN_OBJ_RANDOM or what == IN_OBJ_INDEX:
+        oid = object_ids[tri] if k_inst < 0 else inst_ids[k_inst]
+        x = (_hash01(oid) if what == IN_OBJ_RANDOM else float(oid), 0.0, 0.0)
+    elif what == IN_RAY_DEPTH:
+        x = (float(depth), 0.0, 0.0)
+    elif what == IN_RAY_LENGTH:
+        x = (t_len, 0.0, 0.0)
+    elif what == IN_IS_CAMERA:
+        x = (1.0 if depth == 0 and not shadow else 0.0, 0.0, 0.0)
+    elif what == IN_IS_REFLECTION:
+        x = (1.0 if depth > 0 and not shadow else 0.0, 0.0, 0.0)
+    elif what == IN_IS_SHADOW:
+        x = (1.0 if shadow else 0.0, 0.0, 0.0)
+    elif what == IN_TANGENT:
+        tg, sign = tangent_at(uv_sets, vertices, triangles, arg, tri, vec.row(face_normals, tri))
+        if k_inst >= 0:
+            tg = vec.normalize(mat3_apply(linear, k_inst, tg))
+        x = tg
+    elif what == IN_CAMERA:
+        x = (p[0] - eye[0], p[1] - eye[1], p[2] - eye[2])
+    elif what == IN_REFLECTION:
+        dn = vec.dot(d, n)
+        x = (d[0] - 2.0 * dn * n[0], d[1] - 2.0 * dn * n[1], d[2] - 2.0 * dn * n[2])
+    R[o], R[o + 1], R[o + 2] = x
+
+
+@kernel(refcounts=False)
+def _bump_setup(R, o, tri, u, v, ng, footprint, k_inst, vertices, triangles, linear):
+    """The two bump offsets: world offsets dPdx, dPdy of length ``footprint`` along an orthonormal tangent pair of
+    the true normal, and the barycentric shifts (du, dv) that move the hit by them on its triangle. R[o…o+9] =
+    du₁, dv₁, du₂, dv₂, dPdx (3), dPdy (3)."""
+    a, b, c = triangles[tri, 0], triangles[tri, 1], triangles[tri, 2]
+    p0 = vec.row(vertices, a)
+    e1 = vec.sub(vec.row(vertices, b), p0)
+    e2 = vec.sub(vec.row(vertices, c), p0)
+    if k_inst >= 0:
+        e1 = mat3_apply(linear, k_inst, e1)
+        e2 = mat3_apply(linear, k_inst, e2)
+    fp = footprint if footprint > 0.0 else 1e-3
+    tu, tv = vec.orthonormal_basis(ng)
+    dx = vec.scale(tu, fp)
+    dy = vec.scale(tv, fp)
+    g11, g12, g22 = vec.dot(e1, e1), vec.dot(e1, e2), vec.dot(e2, e2)
+    det = g11 * g22 - g12 * g12
+    inv = 1.0 / det if det != 0.0 else 0.0
+    for j in range(2):
+        dp = dx if j == 0 else dy
+        r1, r2 = vec.dot(e1, dp), vec.dot(e2, dp)
+        R[o + 2 * j] = (g22 * r1 - g12 * r2) * inv
+        R[o + 2 * j + 1] = (g11 * r2 - g12 * r1) * inv
+    R[o + 4], R[o + 5], R[o + 6] = dx
+    R[o + 7], R[o + 8], R[o + 9] = dy
+
+
+@kernel(refcounts=False)
+def _bump(R, o, h0, hx, hy, strength, distance, nrm, setup, ng):
+    """Cycles' Bump node (``svm_node_set_bump``): the surface gradient of the height from its values at P,
+    P + dPdx, P + dPdy (the offsets of the ``OP_BUMP_SETUP`` at register ``setup``; Invert is a negated distance)."""
+    dpx = (R[setup + 4], R[setup + 5], R[setup + 6])
+    dpy = (R[setup + 7], R[setup + 8], R[setup + 9])
+    nin = (R[nrm], R[nrm + 1], R[nrm + 2])
+    rx = vec.cross(dpy, nin)
+    ry = vec.cross(nin, dpx)
+    det = vec.dot(dpx, rx)
+    surfgrad = vec.add(vec.scale(rx, hx - h0), vec.scale(ry, hy - h0))
+    dist = distance
+    sgn = 1.0 if det >= 0.0 else -1.0
+    out = vec.normalize(vec.sub(vec.scale(nin, abs(det)), vec.scale(surfgrad, dist * sgn)))
+    st = max(strength, 0.0)
+    out = vec.normalize(vec.add(vec.scale(out, st), vec.scale(nin, 1.0 - st)))
+    if not (vec.dot(out, ng) > 0.0):
+        out = nin
+    R[o], R[o + 1], R[o + 2] = out
+
+
+@kernel(refcounts=False)
+def _ramp(R, o, f, table, size, interpolate):
+    """Color Ramp: Cycles' ``rgb_ramp_lookup`` on the (size, 4) RGBA table at R[table…] (Blender's 257 samples of
+    the ramp, made by tracer.procedural.color.color_ramp_table): entry int(f·(size − 1)) of f clamped to [0, 1],
+    linear to the next unless the ramp is CONSTANT."""
+    x = min(max(f, 0.0), 1.0) * (size - 1)
+    if x != x:
+        x = 0.0
+    i = min(max(int(x), 0), size - 1)
+    t = x - i if interpolate else 0.0
+    j = min(i + 1, size - 1)
+    for k in range(4):
+        a = R[table + 4 * i + k]
+        R[o + k] = a if t <= 0.0 else (1.0 - t) * a + t * R[table + 4 * j + k]
+
+
+@kernel(refcounts=False)
+def _curve_lookup(R, table, size, x, ch):
+    """Curve channel ``ch`` of a baked table at R[table…]: header (x_min, x_max, channels), then ``size`` samples
+    per channel over [x_min, x_max], linear between samples and extrapolated from the end slopes (Cycles'
+    ``rgb_ramp_lookup`` with extrapolation)."""
+    lo, hi = R[table], R[table + 1]
+    first = table + 3 + ch * size
+    f = (x - lo) / (hi - lo) * (size - 1) if hi > lo else 0.0
+    if f < 0.0:
+        return R[first] + (R[first] - R[first + 1]) * (-f)
+    if f > size - 1:
+        return R[first + size - 1] + (R[first + size - 1] - R[first + size - 2]) * (f - (size - 1))
+    i = min(int(f), size - 2)
+    t = f - i
+    return (1.0 - t) * R[first + i] + t * R[first + i + 1]
+
+
+@kernel(refcounts=False)
+def _curve(R, o, a, table, size, fac, kind):
+    """RGB Curves (kind 0: the combined curve after each channel's, channels 3 then 0–2 in the table), Vector
+    Curves (1: x, y, z) and Float Curve (2), blended with the input by ``fac``."""
+    if kind == 2:
+        x = R[a]
+        y = _curve_lookup(R, table, size, x, 0)
+        R[o] = (1.0 - fac) * x + fac * y
+        return
+    for j in range(3):
+        x = R[a + j]
+        if kind == 0:
+            y = _curve_lookup(R, table, size, _curve_lookup(R, table, size, x, j + 1), 0)
+        else:
+            y = _curve_lookup(R, table, size, x, j)
+        R[o + j] = (1.0 - fac) * x + fac * y
+
+
+@kernel
+def _euler(rx, ry, rz):
+    """Blender's XYZ Euler rotation matrix rows (R = Rz·Ry·Rx)."""
+    cx, sx, cy, sy, cz, sz = math.cos(rx), math.sin(rx), math.cos(ry), math.sin(ry), math.cos(rz), math.sin(rz)
+    return ((cy * cz, sx * sy * cz - cx * sz, cx * sy * cz + sx * sz),
+            (cy * sz, sx * sy * sz + cx * cz, cx * sy * sz - sx * cz),
+            (-sy, sx * cy, cx * cy))
+
+
+@kernel
+def _rot(m, v):
+    return (vec.dot(m[0], v), vec.dot(m[1], v), vec.dot(m[2], v))
+
+
+@kernel
+def _rot_t(m, v):
+    return (m[0][0] * v[0] + m[1][0] * v[1] + m[2][0] * v[2], m[0][1] * v[0] + m[1][1] * v[1] + m[2][1] * v[2],
+            m[0][2] * v[0] + m[1][2] * v[1] + m[2][2] * v[2])
+
+
+@kernel(refcounts=False)
+def _mapping(R, o, a, loc, rot, scl, kind):
+    """Blender's Mapping node (``svm_mapping``): 0 point, 1 texture, 2 vector, 3 normal."""
+    v = (R[a], R[a + 1], R[a + 2])
+    lv = (R[loc], R[loc + 1], R[loc + 2])
+    sv = (R[scl], R[scl + 1], R[scl + 2])
+    m = _euler(R[rot], R[rot + 1], R[rot + 2])
+    if kind == 0:
+        x = vec.add(_rot(m, vec.mul(v, sv)), lv)
+    elif kind == 1:
+        w = _rot_t(m, vec.sub(v, lv))
+        x = (ops.safe_divide(w[0], sv[0]), ops.safe_divide(w[1], sv[1]), ops.safe_divide(w[2], sv[2]))
+    elif kind == 2:
+        x = _rot(m, vec.mul(v, sv))
+    else:
+        w = _rot(m, (ops.safe_divide(v[0], sv[0]), ops.safe_divide(v[1], sv[1]), ops.safe_divide(v[2], sv[2])))
+        ln = math.sqrt(vec.dot(w, w))
+        x = vec.scale(w, 1.0 / ln) if ln > 0.0 else w
+    R[o], R[o + 1], R[o + 2] = x
+
+
+@kernel
+def _axis_angle(v, axis, angle):
+    ln = math.sqrt(vec.dot(axis, axis))
+    if ln == 0.0:
+        return v
+    k = vec.scale(axis, 1.0 / ln)
+    c, s = math.cos(angle), math.sin(angle)
+    return vec.add(vec.add(vec.scale(v, c), vec.scale(vec.cross(k, v), s)), vec.scale(k, vec.dot(k, v) * (1.0 - c)))
+
+
+@kernel(refcounts=False)
+def _vrotate(R, o, a, center, axis, angle_r, rot, imm):
+    """Blender's Vector Rotate (``svm_node_vector_rotate``): imm = type (0 axis-angle, 1–3 X/Y/Z, 4 Euler) + 8·invert."""
+    kind, inv = imm & 7, (imm & 8) != 0
+    v = (R[a], R[a + 1], R[a + 2])
+    cen = (R[center], R[center + 1], R[center + 2])
+    w = vec.sub(v, cen)
+    ang = R[angle_r] * (-1.0 if inv else 1.0)
+    if kind == 4:
+        m = _euler(R[rot], R[rot + 1], R[rot + 2])
+        w = _rot_t(m, w) if inv else _rot(m, w)
+    elif kind == 0:
+        w = _axis_angle(w, (R[axis], R[axis + 1], R[axis + 2]), ang)
+    else:
+        ax = (1.0 if kind == 1 else 0.0, 1.0 if kind == 2 else 0.0, 1.0 if kind == 3 else 0.0)
+        w = _axis_angle(w, ax, ang)
+    R[o], R[o + 1], R[o + 2] = vec.add(w, cen)
+
+
+@kernel
+def _fresnel_dielectric_cos(cosi, eta):
+    """Cycles' ``fresnel_dielectric_cos``."""
+    c = abs(cosi)
+    g = eta * eta - 1.0 + c * c
+    if g > 0.0:
+        g = math.sqrt(g)
+        a = (g - c) / (g + c)
+        b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0)
+        return 0.5 * a * a * (1.0 + b * b)
+    return 1.0
+
+
+@kernel
+def _fresnel(ior, nrm, d, front):
+    """Blender's Fresnel node (``svm_node_fresnel``): η = ior on the front face, 1/ior on the back."""
+    eta = max(ior, 1e-5)
+    eta = eta if front else 1.0 / eta
+    cosi = -vec.dot(d, nrm)
+    return _fresnel_dielectric_cos(cosi, eta)
+
+
+@kernel(refcounts=False)
+def _layer_weight(R, o, blend, nrm, d, front):
+    """Blender's Layer Weight node (``svm_node_layer_weight``): Fresnel and Facing outputs."""
+    b = max(blend, 0.0)
+    eta = max(1.0 - b, 1e-5)
+    eta = 1.0 / eta if front else eta
+    cosi = -vec.dot(d, nrm)
+    R[o] = _fresnel_dielectric_cos(cosi, eta)
+    f = abs(cosi)
+    if b != 0.5:
+        bb = min(max(b, 0.0), 1.0 - 1e-5)
+        bb = 2.0 * bb if bb < 0.5 else 0.5 / (1.0 - bb)
+        f = f ** bb
+    R[o + 1] = 1.0 - f
+
+
+# ---------------------------------------------------------------------------------------------- the stage
+@kernel(refcounts=False)
+def shade_programs(rays, prim, u, v, t, inst, d, depth, code, pstart, pbase, outs, R0, R, s_mat, s_p, s_ng, s_n,
+                   s_front, s_base, s_rough, s_metal, s_spec, s_cover, s_e, s_tran, threshold, uv_sets, colors,
+                   has_colors, vertices, triangles, face_normals, object_ids, bounds, tdata, tparams, linear,
+                   mirrored, inst_ids, eye, spread, flat):
+    """The textures stage: for the listed rays (their material has a program), run it and write its outputs over
+    the constants the surfaces stage wrote. ``R`` is this call's register file (``R0`` copied in once)."""
+    for j in range(R0.shape[0]):
+        R[j] = R0[j]
+    geo = (uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, bounds, linear, mirrored,
+           inst_ids)
+    tex = (tdata, tparams)
+    for q in range(rays.shape[0]):
+        i = rays[q]
+        tri, mat = prim[i], s_mat[i]
+        ui, vi = float(u[i]), float(v[i])
+        p = (s_p[i, 0], s_p[i, 1], s_p[i, 2])
+        n = vec.row(s_n, i)
+        ng = vec.row(s_ng, i)
+        di = vec.row(d, i)
+        k_inst = inst[i]
+        footprint = flat + spread * vec.length(vec.sub(p, eye))
+        if k_inst >= 0:  # the instance scales the prototype's triangles: footprint in object units
+            lk = linear
+            det = abs(lk[k_inst, 0, 0] * (lk[k_inst, 1, 1] * lk[k_inst, 2, 2] - lk[k_inst, 1, 2] * lk[k_inst, 2, 1])
+                      - lk[k_inst, 0, 1] * (lk[k_inst, 1, 0] * lk[k_inst, 2, 2] - lk[k_inst, 1, 2] * lk[k_inst, 2, 0])
+                      + lk[k_inst, 0, 2] * (lk[k_inst, 1, 0] * lk[k_inst, 2, 1] - lk[k_inst, 1, 1] * lk[k_inst, 2, 0]))
+            footprint /= max(det, 1e-30) ** (1.0 / 3.0)
+        rb = pbase[mat]
+        hit = (tri, ui, vi, p, n, ng, s_front[i], di, float(t[i]), depth, k_inst, footprint, False, eye)
+        execute(code, pstart[mat], pstart[mat + 1], R, rb, hit, geo, tex)
+        r = outs[mat, OUT_BASE]
+        if r >= 0:
+            s_base[i, 0], s_base[i, 1], s_base[i, 2] = (max(R[rb + r], 0.0), max(R[rb + r + 1], 0.0),
+                                                        max(R[rb + r + 2], 0.0))
+        r = outs[mat, OUT_ROUGH]
+        if r >= 0:
+            s_rough[i] = min(max(R[rb + r], 0.0), 1.0)
+        r = outs[mat, OUT_METAL]
+        if r >= 0:
+            s_metal[i] = min(max(R[rb + r], 0.0), 1.0)
+        r = outs[mat, OUT_SPEC]
+        if r >= 0:
+            s_spec[i] = max(R[rb + r], 0.0)
+        r = outs[mat, OUT_ALPHA]
+        if r >= 0:
+            s_cover[i] = cut(R[rb + r], float(threshold[mat]))
+        r = outs[mat, OUT_EMIT]
+        if r >= 0:
+            s_e[i, 0], s_e[i, 1], s_e[i, 2] = R[rb + r], R[rb + r + 1], R[rb + r + 2]  # unclamped, as Cycles
+        r = outs[mat, OUT_NORMAL]
+        if r >= 0:
+            s_n[i, 0], s_n[i, 1], s_n[i, 2] = R[rb + r], R[rb + r + 1], R[rb + r + 2]
+        r = outs[mat, OUT_TRANS]
+        if r >= 0:
+            s_tran[i] = min(max(R[rb + r], 0.0), 1.0)
+
+
+@kernel(inline=True)
+def cut(a, threshold):
+    """Coverage from alpha: clamped to [0, 1]; a cut-out (threshold > 0) gives 0 below the threshold, else 1."""
+    if threshold > 0.0:
+        return 1.0 if a >= threshold else 0.0
+    return min(max(a, 0.0), 1.0)
+
+
+@kernel(inline=True)
+def program_alpha(code, pstart, pbase, outs, R, mat, tri, u, v, p, ng, front, d, t_len, k_inst, geo, tex):
+    """The alpha a material's program gives at a hit seen by a shadow ray (Light Path: Is Shadow Ray = 1; ``geo``,
+    ``tex``: :func:`execute`'s)."""
+    rb = pbase[mat]
+    hit = (tri, u, v, p, ng, ng, front, d, t_len, 1, k_inst, 0.0, True, p)
+    execute(code, pstart[mat], pstart[mat + 1], R, rb, hit, geo, tex)
+    return R[rb + outs[mat, OUT_ALPHA]]

@@ -1,0 +1,135 @@
+"""What a render writes, the same wherever it runs (a local render, the farm's client, a farm worker with
+``--worker-writes``), and the one user-error type of the command line.
+
+:class:`Outputs` is the image post-processing and the files of one render: the exposure, the AOVs (EXR next to
+the image; ``raydepth`` also as a heat-map PNG scaled to the max depth). :func:`frame_path` names each frame of
+an output pattern. Bad input anywhere in ``usd_io`` is :class:`usd_io.UsdInputError` (``BadInput`` is the same
+class): one line on stderr and exit 2 from the CLI.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import sys
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import UsdInputError
+
+#: The command line's name for :class:`usd_io.UsdInputError` (the same class: there is one user-error type).
+BadInput = UsdInputError
+
+#: Image types the outputs can be written as.
+OUTPUT_TYPES = (".png", ".exr", ".jpg", ".jpeg", ".tif", ".tiff", ".hdr")
+
+
+@dataclass(frozen=True)
+class Outputs:
+    """How an image becomes files: ``exposure`` in stops (pixels × 2^EV), the ``aovs`` written next to it,
+    ``max_depth`` the top of the ``raydepth`` heat map."""
+
+    aovs: tuple = ()
+    exposure: float = 0.0
+    max_depth: int | None = None
+
+    @classmethod
+    def of(cls, settings, exposure: float = 0.0) -> "Outputs":
+        """The outputs of a render with ``settings`` (its AOVs and max depth) at ``exposure`` (checked finite)."""
+        if not np.isfinite(exposure):
+            raise BadInput(f"--exposure must be a finite number, got {exposure}")
+        return cls(aovs=tuple(settings.aovs), exposure=float(exposure), max_depth=settings.max_depth)
+
+    def expose(self, image) -> None:
+        """The exposure applied to ``image`` in place (colour only; alpha and AOVs stay)."""
+        if self.exposure:
+            image.rgba[..., :3] *= np.float32(2.0 ** self.exposure)
+
+    def write(self, image, out: str) -> None:
+        """Expose ``image`` (in place) and write it and its AOVs to ``out`` (atomically, as tracer.film writes)."""
+        self.expose(image)
+        write_outputs(image, out, self.aovs, max_depth=self.max_depth)
+
+
+def warn(message: str) -> None:
+    """One ``whitted: warning:`` line on stderr."""
+    print(f"whitted: warning: {message}", file=sys.stderr)
+
+
+def print_warnings(info) -> None:
+    """A stage's notes and warnings (``StageInfo``), one line each on stderr."""
+    for n in getattr(info, "notes", ()):
+        print(f"whitted: note: {n}", file=sys.stderr)
+    for w in info.warnings:
+        warn(w)
+
+
+def frame_path(pattern: str, frame: float | None, many: bool) -> str:
+    """The output path of ``frame``: ``#`` runs replaced by the zero-padded frame number, or (``many`` frames and
+    no ``#``) ``.####`` inserted before the extension; a single frame (or ``frame`` None) keeps ``pattern``."""
+    if frame is None:
+        return pattern
+    label = lambda width: (f"{int(frame):0{width}d}" if float(frame).is_integer()  # noqa: E731
+                           else f"{frame:0{width + 4}.3f}".rstrip("0"))
+    if re.search(r"#+", pattern):
+        return re.sub(r"#+", lambda m: label(len(m.group(0))), pattern, count=1) if many else pattern
+    if not many:
+        return pattern
+    root, ext = os.path.splitext(pattern)
+    return f"{root}.{label(4)}{ext}"
+
+
+def output_for(pattern: str, scene: str) -> str:
+    """The output path of one scene: ``{stem}`` -> file name without extension, ``{name}`` -> with it."""
+    base = os.path.basename(scene)
+    return pattern.replace("{stem}", os.path.splitext(base)[0]).replace("{name}", base)
+
+
+def aov_path(image_path: str, aov: str) -> str:
+    root, _ext = os.path.splitext(image_path)
+    return f"{root}.{aov}.exr"
+
+
+def check_output(path: str, types=OUTPUT_TYPES):
+    """A clear UsdInputError unless ``path`` has one of ``types`` and its directory exists."""
+    ext = os.path.splitext(path)[1].lower()
+    if ext not in types:
+        raise BadInput(f"{path}: unsupported output type {ext or '(none)'!r}; use "
+                       f"{', '.join(t for t in types if t not in ('.jpeg', '.tiff'))}")
+    directory = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(directory):
+        raise BadInput(f"{path}: output directory {directory} does not exist")
+
+
+def write_outputs(image, out, aovs, max_depth: int | None = None) -> None:
+    """The image and its AOVs (EXR next to it; ``raydepth`` also as a heat-map PNG scaled to ``max_depth``)."""
+    try:
+        _save(image, out)
+        for name in aovs:
+            a = image.aovs[name]
+            a = a[..., None] if a.ndim == 2 else a
+            _write_aov(aov_path(out, name), a.astype(np.float32))
+            if name == "raydepth":  # and a heat-map picture of it (black: eye rays only; yellow: max depth)
+                from tracer.film import heat_map
+
+                _write_aov(aov_path(out, name)[:-4] + ".png", heat_map(a[..., 0], max_depth))
+    except ValueError as exc:  # unwritable output (the tracer's film names the file and the reason)
+        raise BadInput(str(exc)) from None
+
+
+def _save(image, out: str) -> None:
+    """PNG/TIFF/EXR keep alpha; JPEG has none (RGB only)."""
+    from tracer import write_image
+
+    ext = os.path.splitext(out)[1].lower()
+    if ext in (".jpg", ".jpeg"):
+        write_image(out, image.rgba[..., :3])
+    else:
+        image.save(out)
+
+
+def _write_aov(path, pixels):
+    from tracer import write_image
+
+    write_image(path, np.nan_to_num(pixels, posinf=0.0, neginf=0.0), float32=True)
