@@ -14,8 +14,8 @@ What Cycles' own export does before its ``ShaderGraph::simplify``, this module d
 - A colour or float linked into a shader socket becomes an Emission of strength 1 (Cycles' implicit conversion).
 - Every node maps to IR nodes of the same meaning (:data:`HANDLERS`); a few are written as small IR sub-graphs
   (Light Falloff, Camera Data, Normal, Texture Coordinate from another object). Curves are baked from
-  ``CurveMapping.evaluate`` into the 256-sample tables Cycles bakes; Color Ramps whose interpolation or colour mode
-  is not a plain linear/constant RGB blend are baked the same way (256 stops, linear), as Cycles bakes every ramp.
+  ``CurveMapping.evaluate`` into the 256-sample tables Cycles bakes; a Color Ramp keeps its stops, interpolation and
+  colour modes (the tracer builds Blender's ramp table from them).
 - Anything else: **one warning per material naming the node**, and Blender's mute pass-through as the stand-in
   (the output reads the input Blender would pass through, else the receiving socket's own value); an unsupported
   shader stands in as a Diffuse BSDF of its colour. docs/addon.md lists every node and its stand-in.
@@ -527,18 +527,13 @@ def _curves(ir_type, curves, combined=False):
     return handler
 
 
-def ramp_stops(ramp) -> tuple[list, str]:
-    """([(position, (r, g, b, a))], interpolation) of a ColorRamp: its own stops for linear / constant RGB ramps,
-    else TABLE_SIZE stops of ``ColorRamp.evaluate`` (how Cycles bakes every ramp) blended linearly."""
-    if ramp.color_mode == "RGB" and ramp.interpolation in ("LINEAR", "CONSTANT"):
-        return [(float(e.position), tuple(float(x) for x in e.color)) for e in ramp.elements], ramp.interpolation
-    xs = np.arange(TABLE_SIZE) / (TABLE_SIZE - 1)
-    return [(float(x), tuple(float(c) for c in ramp.evaluate(float(x)))) for x in xs], "LINEAR"
-
-
 def _color_ramp(t, node, ctx):
-    stops, interp = ramp_stops(node.color_ramp)
-    return t.add(node, ctx, "rgb_ramp", ramp=stops, interpolation=interp, color_mode="RGB")
+    """Color Ramp: its stops, interpolation, colour mode and hue interpolation (the tracer builds Blender's table
+    from them, as Cycles does)."""
+    cr = node.color_ramp
+    stops = [(float(e.position), tuple(float(x) for x in e.color)) for e in cr.elements]
+    return t.add(node, ctx, "rgb_ramp", ramp=stops, interpolation=cr.interpolation, color_mode=cr.color_mode,
+                 hue_interpolation=cr.hue_interpolation)
 
 
 def _map_range(t, node, ctx):
@@ -709,5 +704,5 @@ def material_graph(material, warn, images: dict | None = None) -> Graph:
     return g
 
 
-__all__ = ["material_graph", "tree_graph", "output_node", "Translator", "HANDLERS", "curve_table", "ramp_stops"]
+__all__ = ["material_graph", "tree_graph", "output_node", "Translator", "HANDLERS", "curve_table"]
 

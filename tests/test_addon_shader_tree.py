@@ -265,20 +265,19 @@ def test_curves_are_sampled_as_blender_evaluates_them(tree):
         assert table[i, 3] == pytest.approx(cm.evaluate(cm.curves[2], c), abs=1e-6)
 
 
-def test_ramp_keeps_linear_stops_and_bakes_the_rest(tree):
+def test_ramp_keeps_its_stops_and_modes(tree):
     mat, nt, emit = tree
     r = nt.nodes.new("ShaderNodeValToRGB")
     r.color_ramp.elements.new(0.3).color = (0.1, 0.9, 0.2, 1.0)
+    r.color_ramp.color_mode, r.color_ramp.hue_interpolation = "HSV", "FAR"
+    r.color_ramp.interpolation = "EASE"
     nt.links.new(r.outputs[0], emit.inputs["Color"])
     g, _ = translate(mat)
-    stops = only(g, "rgb_ramp").params["ramp"]
-    assert [p for p, _c in stops] == pytest.approx([0.0, 0.3, 1.0])
-    r.color_ramp.color_mode = "HSV"
-    g, _ = translate(mat)
     node = only(g, "rgb_ramp")
-    assert len(node.params["ramp"]) == st.TABLE_SIZE and node.params["interpolation"] == "LINEAR"
-    p, c = node.params["ramp"][100]
-    assert c == pytest.approx(tuple(r.color_ramp.evaluate(p)), abs=1e-6)
+    assert [p for p, _c in node.params["ramp"]] == pytest.approx([0.0, 0.3, 1.0])
+    assert node.params["ramp"][1][1] == pytest.approx((0.1, 0.9, 0.2, 1.0))
+    assert (node.params["interpolation"], node.params["color_mode"], node.params["hue_interpolation"]) == \
+        ("EASE", "HSV", "FAR")
 
 
 def test_texture_coordinate_from_object_is_a_mapping_of_position(tree):
