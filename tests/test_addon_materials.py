@@ -69,19 +69,20 @@ def test_unsupported_nodes_warn_once_each_and_keep_the_best_colour(bpy_module):
     bs.add_camera()
     mat, nt, out, bsdf = node_material("Odd")
     bsdf.inputs["Base Color"].default_value = (0.2, 0.4, 0.6, 1)
-    noise = nt.nodes.new("ShaderNodeTexNoise")
-    noise.name = "My Noise"
-    nt.links.new(noise.outputs["Color"], bsdf.inputs["Base Color"])
-    bump = nt.nodes.new("ShaderNodeBump")
-    bump.name = "My Bump"
-    nt.links.new(bump.outputs["Normal"], bsdf.inputs["Normal"])
+    ao = nt.nodes.new("ShaderNodeAmbientOcclusion")  # a stand-in: its colour passes through
+    ao.name = "My AO"
+    ao.inputs["Color"].default_value = (0.2, 0.4, 0.6, 1)
+    nt.links.new(ao.outputs["Color"], bsdf.inputs["Base Color"])
+    wire = nt.nodes.new("ShaderNodeWireframe")
+    wire.name = "My Wire"
+    nt.links.new(wire.outputs["Fac"], bsdf.inputs["Metallic"])
     bs.add_cube((0, 0, 0), material=mat)
     bs.add_cube((3, 0, 0), material=mat, name="Cube2")  # the same material twice: still one warning per node
     scene, warnings = export.scene_from_depsgraph(depsgraph())
     i = scene.materials.names.index("Odd")
     np.testing.assert_allclose(scene.materials.diffuse[i], (0.2, 0.4, 0.6), rtol=1e-6)
-    assert len([w for w in warnings if "My Noise" in w]) == 1, warnings
-    assert len([w for w in warnings if "My Bump" in w]) == 1, warnings
+    assert len([w for w in warnings if "My AO" in w]) == 1, warnings
+    assert len([w for w in warnings if "My Wire" in w]) == 1, warnings
 
 
 def test_cutout_patterns_read_the_alpha_texture(bpy_module):

@@ -95,11 +95,11 @@ def colour_field(nt):
     return c.outputs[0]
 
 
-def image_block(name, w=16, h=12):
+def image_block(name, w=8, h=6):
     import bpy
 
     rows, cols = np.mgrid[0:h, 0:w]
-    px = np.stack([(cols + 0.5) / w, (h - rows - 0.5) / h, ((cols // 4 + rows // 4) % 2) * 0.8 + 0.1,
+    px = np.stack([(cols + 0.5) / w, (h - rows - 0.5) / h, ((cols // 2 + rows // 2) % 2) * 0.8 + 0.1,
                    np.ones_like(rows, float)], -1).astype(np.float32)
     img = bpy.data.images.new(name, w, h, alpha=True, float_buffer=True)
     img.colorspace_settings.name = "Linear Rec.709"
@@ -335,7 +335,7 @@ def _voronoi(**kw):
 def _snapped(nt):
     m = _new(nt, "ShaderNodeVectorMath", operation="SNAP")
     _link(nt, coords(nt), m.inputs[0])
-    m.inputs[1].default_value = (0.125, 0.125, 0.125)
+    m.inputs[1].default_value = (0.34, 0.34, 0.34)
     return m.outputs[0]
 
 
@@ -380,7 +380,7 @@ EMISSION = {
     **{f"noise_{t.lower()}": _noise(noise_type=t) for t in ("MULTIFRACTAL", "RIDGED_MULTIFRACTAL",
                                                             "HYBRID_MULTIFRACTAL", "HETERO_TERRAIN")},
     "voronoi_f1": _voronoi(),
-    "voronoi_f1_color": _voronoi(out="Color"),
+    "voronoi_f1_color": _voronoi(out="Color", in_Scale=2.5),
     "voronoi_f1_position": _voronoi(out="Position"),
     "voronoi_f2": _voronoi(feature="F2"),
     "voronoi_smooth_f1": _voronoi(feature="SMOOTH_F1"),
@@ -393,21 +393,21 @@ EMISSION = {
     "voronoi_1d": _voronoi(voronoi_dimensions="1D"),
     "voronoi_4d": _voronoi(voronoi_dimensions="4D"),
     "voronoi_detail": _voronoi(in_Detail=3.0),
-    **{f"wave_{w.lower()}_{p.lower()}": v_tex("ShaderNodeTexWave", wave_type=w, wave_profile=p)
+    **{f"wave_{w.lower()}_{p.lower()}": v_tex("ShaderNodeTexWave", wave_type=w, wave_profile=p, in_Scale=0.5)
        for w in ("BANDS", "RINGS") for p in ("SIN", "SAW", "TRI")},
-    "wave_diagonal": v_tex("ShaderNodeTexWave", bands_direction="DIAGONAL"),
-    "wave_distort": v_tex("ShaderNodeTexWave", "Fac", in_Distortion=3.0),
-    "magic_2": v_tex("ShaderNodeTexMagic"),
-    "magic_5": v_tex("ShaderNodeTexMagic", turbulence_depth=5),
+    "wave_diagonal": v_tex("ShaderNodeTexWave", bands_direction="DIAGONAL", in_Scale=0.5),
+    "wave_distort": v_tex("ShaderNodeTexWave", "Fac", in_Distortion=3.0, in_Scale=0.5),
+    "magic_2": v_tex("ShaderNodeTexMagic", in_Scale=1.5),
+    "magic_5": v_tex("ShaderNodeTexMagic", turbulence_depth=5, in_Scale=1.0),
     **{f"gradient_{g.lower()}": v_tex("ShaderNodeTexGradient", "Fac", vec=lambda nt: vaffine(nt, coords(nt), 2.0,
                                                                                              -1.0),
                                       gradient_type=g)
        for g in ("LINEAR", "QUADRATIC", "EASING", "DIAGONAL", "SPHERICAL", "QUADRATIC_SPHERE", "RADIAL")},
-    "brick": v_tex("ShaderNodeTexBrick"),
-    "brick_fac_squash": v_tex("ShaderNodeTexBrick", "Fac", offset=0.3, squash=0.6),
-    "checker_generated": v_tex("ShaderNodeTexChecker"),
-    "checker_object": v_tex("ShaderNodeTexChecker", vec=lambda nt: coords(nt, "Object")),
-    "checker_fac_uv": v_tex("ShaderNodeTexChecker", "Fac", vec=lambda nt: coords(nt, "UV")),
+    "brick": v_tex("ShaderNodeTexBrick", in_Scale=1.5, in_Mortar_Smooth=0.3),
+    "brick_fac_squash": v_tex("ShaderNodeTexBrick", "Fac", offset=0.3, squash=0.6, in_Scale=1.5),
+    "checker_generated": v_tex("ShaderNodeTexChecker", in_Scale=2.0),
+    "checker_object": v_tex("ShaderNodeTexChecker", vec=lambda nt: coords(nt, "Object"), in_Scale=2.5),
+    "checker_fac_uv": v_tex("ShaderNodeTexChecker", "Fac", vec=lambda nt: coords(nt, "UV"), in_Scale=2.0),
     **{f"white_noise_{d.lower()}": v_tex("ShaderNodeTexWhiteNoise", "Color", vec=_snapped, noise_dimensions=d)
        for d in ("1D", "2D", "3D", "4D")},
     # colour
@@ -468,15 +468,22 @@ EMISSION = {
                                    post=lambda nt, s: vaffine(nt, s, 0.5, 0.5)),
     **{f"vmath_{op.lower()}": v_vmath(op) for op in (
         "ADD", "SUBTRACT", "MULTIPLY", "DIVIDE", "MULTIPLY_ADD", "CROSS_PRODUCT", "PROJECT", "REFLECT", "REFRACT",
-        "FACEFORWARD", "SCALE", "NORMALIZE", "ABSOLUTE", "POWER", "SIGN", "MINIMUM", "MAXIMUM", "FLOOR", "CEIL",
+        "FACEFORWARD", "SCALE", "NORMALIZE", "ABSOLUTE", "SIGN", "MINIMUM", "MAXIMUM", "FLOOR", "CEIL",
         "FRACTION", "MODULO", "WRAP", "SNAP", "SINE", "COSINE", "TANGENT")},
     **{f"vmath_{op.lower()}": v_vmath(op, out=1) for op in ("DOT_PRODUCT", "DISTANCE", "LENGTH")},
+    "vmath_power": v_simple("ShaderNodeVectorMath", {0: lambda nt: coords(nt), 1: (0.5, 1.5, 2.5)},
+                            operation="POWER"),
     **{f"math_{op.lower()}": v_math(op) for op in (
-        "ADD", "SUBTRACT", "MULTIPLY", "DIVIDE", "MULTIPLY_ADD", "POWER", "LOGARITHM", "SQRT", "INVERSE_SQRT",
-        "ABSOLUTE", "EXPONENT", "MINIMUM", "MAXIMUM", "LESS_THAN", "GREATER_THAN", "SIGN", "COMPARE", "SMOOTH_MIN",
+        "ADD", "SUBTRACT", "MULTIPLY", "MULTIPLY_ADD", "SQRT", "ABSOLUTE", "MINIMUM", "MAXIMUM", "LESS_THAN", "GREATER_THAN", "SIGN", "COMPARE", "SMOOTH_MIN",
         "SMOOTH_MAX", "ROUND", "FLOOR", "CEIL", "TRUNC", "FRACT", "MODULO", "FLOORED_MODULO", "WRAP", "SNAP",
-        "PINGPONG", "SINE", "COSINE", "TANGENT", "ARCTANGENT", "ARCTAN2", "SINH", "COSH", "TANH", "RADIANS",
-        "DEGREES")},
+        "PINGPONG", "SINE", "COSINE", "TANGENT", "ARCTANGENT", "ARCTAN2", "SINH", "COSH", "TANH", "RADIANS")},
+    "math_divide": v_math("DIVIDE", b=(0.3, 1.5)),
+    "math_power": v_math("POWER", a=(0.2, 1.5)),
+    "math_power_negative_base": v_math("POWER", a=(-1.0, -0.2), b=(1.0, 3.0)),
+    "math_logarithm": v_math("LOGARITHM", a=(0.2, 3.0), b=(1.5, 4.0)),
+    "math_inverse_sqrt": v_math("INVERSE_SQRT", a=(0.3, 2.0)),
+    "math_exponent": v_math("EXPONENT", a=(-1.5, 1.0)),
+    "math_degrees": v_math("DEGREES", a=(-0.02, 0.02)),
     "math_arcsine": v_math("ARCSINE", a=(-1, 1)),
     "math_arccosine": v_math("ARCCOSINE", a=(-1, 1)),
     "math_clamp": v_math("MULTIPLY", clamp=True),
@@ -709,7 +716,7 @@ def build_lit_grid():
 
 
 # ---------------------------------------------------------------------------------------------------- rendering
-SCENES = {"nodes_emission": (build_emission_grid, dict(depth=0, samples=16, ours_samples=4)),
+SCENES = {"nodes_emission": (build_emission_grid, dict(depth=0, samples=64, ours_samples=8)),
           "nodes_lit": (build_lit_grid, dict(depth=0, samples=64, ours_samples=4))}
 
 
