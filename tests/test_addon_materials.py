@@ -1,10 +1,9 @@
-"""The add-on's node-tree reader (addon/nodes.py), its lowering (addon/model.py) and world baking (addon/world.py),
-checked against Blender's own math (mathutils), closed forms and the values put into the scene. The pictures are
+"""The add-on's material translation (addon/shader_tree.py compiled by the tracer), its writer (addon/model.py),
+image decoding and world baking (addon/nodes.py, addon/world.py),
+checked against closed forms and the values put into the scene. The pictures are
 compared with Cycles in tests/cycles/test_cycles_addon_materials.py."""
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 import pytest
@@ -12,9 +11,9 @@ import pytest
 from tests import blender_support as bs
 
 import bpy  # noqa: E402  (the test extra installs bpy; a missing bpy must fail, not skip)
-from mathutils import Euler, Matrix, Vector  # noqa: E402
 
-from addon import export, nodes, world  # noqa: E402
+from addon import export, nodes, shader_tree, world  # noqa: E402
+from tracer.shader_compile import compile_graph  # noqa: E402
 
 
 def depsgraph():
@@ -38,30 +37,12 @@ def image(name, pixels, *, float_buffer=True, colorspace="Linear Rec.709"):
 
 
 def read(mat):
+    """The material's graph (addon.shader_tree) compiled by the tracer: (constant row, warnings)."""
     warnings = []
-    return nodes.read_material(mat, warnings.append, {}), warnings
-
-
-@pytest.mark.parametrize("kind", ["POINT", "TEXTURE"])
-def test_mapping_matches_blender_math(bpy_module, kind):
-    """The Mapping node's UV transform equals mathutils' Matrix.LocRotScale (Point) or its inverse (Texture)
-    applied to (u, v, 0): a wrong Euler order, sign or composition order fails."""
-    mat, nt, _out, _bsdf = node_material("M")
-    mapping = nt.nodes.new("ShaderNodeMapping")
-    mapping.vector_type = kind
-    loc, rot, scale = (0.3, -0.7, 0.2), (0.4, -0.25, 1.1), (1.7, 0.6, 1.3)
-    mapping.inputs["Location"].default_value = loc
-    mapping.inputs["Rotation"].default_value = rot
-    mapping.inputs["Scale"].default_value = scale
-    m = nodes.mapping_matrix(mapping)
-    ref = Matrix.LocRotScale(Vector(loc), Euler(rot, "XYZ"), Vector(scale))
-    if kind == "TEXTURE":
-        ref = ref.inverted()
-    rng = np.random.default_rng(3)
-    for u, v in rng.uniform(-2, 2, (6, 2)):
-        want = ref @ Vector((u, v, 0.0))
-        got = m @ np.array([u, v, 1.0])
-        np.testing.assert_allclose(got[:2], (want.x, want.y), atol=1e-5)  # mathutils is float32
+    graph = shader_tree.material_graph(mat, warnings.append, {})
+    uv_sets = {"": 0}
+    row = compile_graph(graph, warnings.append, lambda n: uv_sets.setdefault(n or "", len(uv_sets))).row
+    return row, warnings, graph
 
 
 def test_unsupported_nodes_warn_once_each_and_keep_the_best_colour(bpy_module):
@@ -85,39 +66,6 @@ def test_unsupported_nodes_warn_once_each_and_keep_the_best_colour(bpy_module):
     assert len([w for w in warnings if "My Wire" in w]) == 1, warnings
 
 
-def test_cutout_patterns_read_the_alpha_texture(bpy_module):
-    """Blender's two cut-out patterns: image Alpha on the Principled Alpha, and Mix Shader(Transparent, BSDF) with
-    the image alpha as factor; both give alpha = the texture's alpha channel (transparent where it is 0)."""
-    px = np.zeros((4, 4, 4), np.float32)
-    px[..., :3] = 0.5
-    px[:2, :, 3] = 1.0  # top half opaque
-    img = image("leaf", px)
-    mat, nt, out, bsdf = node_material("Direct")
-    tex = nt.nodes.new("ShaderNodeTexImage")
-    tex.image = img
-    nt.links.new(tex.outputs["Alpha"], bsdf.inputs["Alpha"])
-    f, _ = read(mat)
-    np.testing.assert_allclose(f["alpha_texture"].values(f["alpha_channel"]), px[..., 3])
-
-    mat2, nt, out, bsdf = node_material("Mixed")
-    tex = nt.nodes.new("ShaderNodeTexImage")
-    tex.image = img
-    mix = nt.nodes.new("ShaderNodeMixShader")
-    transparent = nt.nodes.new("ShaderNodeBsdfTransparent")
-    nt.links.new(tex.outputs["Alpha"], mix.inputs["Fac"])
-    nt.links.new(transparent.outputs[0], mix.inputs[1])
-    nt.links.new(bsdf.outputs[0], mix.inputs[2])
-    nt.links.new(mix.outputs[0], out.inputs["Surface"])
-    f, warnings = read(mat2)
-    assert not warnings
-    np.testing.assert_allclose(f["alpha_texture"].values(f["alpha_channel"]), px[..., 3])
-    # the other order (BSDF at factor 0): alpha = 1 - factor
-    nt.links.new(bsdf.outputs[0], mix.inputs[1])
-    nt.links.new(transparent.outputs[0], mix.inputs[2])
-    f, _ = read(mat2)
-    np.testing.assert_allclose(f["alpha_texture"].values(f["alpha_channel"]), 1 - px[..., 3])
-
-
 def test_mix_shader_mixes_parameters(bpy_module):
     mat, nt, out, bsdf = node_material("Mix")
     bsdf.inputs["Base Color"].default_value = (1, 0, 0, 1)
@@ -130,7 +78,7 @@ def test_mix_shader_mixes_parameters(bpy_module):
     nt.links.new(bsdf.outputs[0], mix.inputs[1])
     nt.links.new(glossy.outputs[0], mix.inputs[2])
     nt.links.new(mix.outputs[0], out.inputs["Surface"])
-    f, warnings = read(mat)
+    f, warnings, _graph = read(mat)
     assert not warnings
     np.testing.assert_allclose(f["base_color"], (0.75, 0, 0.25))
     assert f["roughness"] == pytest.approx(0.75 * 0.2 + 0.25 * 0.6)
@@ -189,22 +137,12 @@ def test_normal_map_is_described_tangent_space_opengl(bpy_module):
     nmap.uv_map = "Detail"
     nt.links.new(tex.outputs["Color"], nmap.inputs["Color"])
     nt.links.new(nmap.outputs["Normal"], bsdf.inputs["Normal"])
-    f, warnings = read(mat)
+    _f, warnings, graph = read(mat)
     assert not warnings
-    t = f["normal_texture"]
-    assert f["normal_strength"] == pytest.approx(0.7) and t.uv_map == "Detail"
-    np.testing.assert_allclose(t.values(-1)[0, 0], 0.0, atol=1e-6)  # 0.5 grey is the unperturbed normal
-
-
-def test_checker_bake_follows_cycles_rule(bpy_module):
-    """The baked checker: Color1 where ⌊u·s⌋ and ⌊v·s⌋ have different parity (Cycles' svm_checker at z = 0)."""
-    tex = nodes.checker_texture(np.array([1.0, 0, 0]), np.array([0, 0, 1.0]), 4.0, "", np.eye(3), "c")
-    h, w = tex.pixels.shape[:2]
-    for u, v in ((0.1, 0.1), (0.3, 0.1), (0.1, 0.3), (0.3, 0.3), (0.6, 0.85)):
-        s, t, _ = tex.transform @ np.array([u, v, 1.0])
-        x, y = int((s % 1) * w), int((1 - t % 1) * h)
-        c1 = (math.floor(u * 4) % 2) != (math.floor(v * 4) % 2)
-        np.testing.assert_allclose(tex.pixels[y, x, :3], (1, 0, 0) if c1 else (0, 0, 1))
+    nm = next(n for n in graph.nodes.values() if n.type == "normal_map")
+    assert nm.params["space"] == "TANGENT" and nm.params["uv_map"] == "Detail"
+    assert nm.inputs["Strength"] == pytest.approx(0.7)
+    assert graph.node(nm.inputs["Color"]).type == "image_texture"
 
 
 def test_world_bake_is_cached_by_the_node_tree(bpy_module, monkeypatch):
