@@ -303,7 +303,7 @@ def _camera(stage, r, info, tc, camera, width, height, render_settings) -> None:
     par = spec.pixel_aspect if spec else 1.0
     policy = CONFORM[spec.conform] if spec else CONFORM[DEFAULT_CONFORM]
     if cam_prim is not None:
-        raw = cam.fold_clipping_planes(cam.read_camera(cam_prim, tc), info.warn)
+        raw = cam.fold_depth_of_field(cam.fold_clipping_planes(cam.read_camera(cam_prim, tc), info.warn), info.warn)
         info.width, info.height = cam.image_size(raw, width, height, par)
         r.b.camera = cam.to_tracer(raw, info.width, info.height, policy, par)
         info.camera = str(cam_prim.GetPath())
