@@ -162,6 +162,7 @@ def read_subdivided(prims, time, uv_name="st", subdivision_level: int = COMPLEXI
     """:func:`read_mesh` of many subdivision surfaces with one :func:`tracer.subdivision.refine_batch` (meshes of
     one topology refined once): {prim path: MeshData, None, or the ValueError read_mesh would raise}. Prims that
     are not subdivided at this level are left out (read them with read_mesh)."""
+    from tracer.heap import trim
     from tracer.subdivision import refine, refine_batch
 
     out, jobs = {}, []
@@ -195,8 +196,11 @@ def read_subdivided(prims, time, uv_name="st", subdivision_level: int = COMPLEXI
                 refined.append(refine(**request))
             except ValueError as exc:
                 refined.append(exc)
-    for (key, (_request, finish)), r in zip(jobs, refined):
+    for i, ((key, (_request, finish)), r) in enumerate(zip(jobs, refined)):
         out[key] = r if isinstance(r, ValueError) else finish(r)
+        refined[i] = None  # the refinement's shared arrays go once the last mesh of a topology is done
+    del refined, jobs
+    trim()  # the refinement's temporaries, back to the OS
     return out
 
 

@@ -80,11 +80,13 @@ class _Reader:
         self.skinning = Skinning(time, self.xf.world)
         self.subdivision_level = COMPLEXITY[DEFAULT_COMPLEXITY]
         self._refined: dict = {}  # prim path -> MeshData refined ahead (prefetch_subdivided)
+        self._todo, self._todo_at = [], {}  # meshes to refine ahead, and the position of each
 
     def prefetch_subdivided(self, prims) -> None:
-        """Refine the subdivision meshes among ``prims`` in one batch (usd_io.mesh.read_subdivided: meshes of
-        one topology refined once) before they are added one by one; geometry() takes them from here. Skinned
-        meshes (posed before refinement) and all but one proxy of each instance prototype are left out."""
+        """Refine the subdivision meshes among ``prims`` in batches of PREFETCH_MESHES (usd_io.mesh.read_subdivided:
+        the meshes of one topology in a batch refined once) ahead of adding them one by one: geometry() takes them
+        from here, refining the next batch when it reaches a mesh not yet refined. Skinned meshes (posed before
+        refinement) and all but one proxy of each instance prototype are left out."""
         seen, todo = set(), []
         for prim in prims:
             if not prim.IsA(UsdGeom.Mesh) or Skinning.is_skinned(prim):
@@ -95,7 +97,17 @@ class _Reader:
                     continue
                 seen.add(key)
             todo.append(prim)
-        self._refined = read_subdivided(todo, self.time, "st", self.subdivision_level)
+        self._todo, self._todo_at = todo, {str(p.GetPath()): i for i, p in enumerate(todo)}
+
+    def _prefetched(self, prim):
+        """The MeshData refined ahead for ``prim`` (its batch refined now if need be), or self if there is none."""
+        key = str(prim.GetPath())
+        if key not in self._refined and key in self._todo_at:
+            batch = self._todo[self._todo_at[key]:][:PREFETCH_MESHES]
+            for p in batch:
+                self._todo_at.pop(str(p.GetPath()), None)
+            self._refined.update(read_subdivided(batch, self.time, "st", self.subdivision_level))
+        return self._refined.pop(key, self)
 
     # ------------------------------------------------------------------ geometry
     def geometry(self, prim, uv_name="st") -> MeshData | None:
@@ -103,7 +115,7 @@ class _Reader:
         try:
             if prim.IsA(UsdGeom.Mesh):
                 skinned = Skinning.is_skinned(prim)  # skinned: the cage now, refined once posed (add_gprim)
-                data = self._refined.pop(str(prim.GetPath()), self) if uv_name == "st" and not skinned else self
+                data = self._prefetched(prim) if uv_name == "st" and not skinned else self
                 if isinstance(data, ValueError):
                     raise data
                 if data is self:  # not refined ahead by prefetch_subdivided
@@ -291,7 +303,7 @@ def _camera(stage, r, info, tc, camera, width, height, settings_prim) -> None:
     par = spec.pixel_aspect if spec else 1.0
     policy = CONFORM[spec.conform] if spec else CONFORM[DEFAULT_CONFORM]
     if cam_prim is not None:
-        raw = cam.fold_clipping_planes(cam.read_camera(cam_prim, tc), info.warn)
+        raw = cam.fold_depth_of_field(cam.fold_clipping_planes(cam.read_camera(cam_prim, tc), info.warn), info.warn)
         info.width, info.height = cam.image_size(raw, width, height, par)
         r.b.camera = cam.to_tracer(raw, info.width, info.height, policy, par)
         info.camera = str(cam_prim.GetPath())
@@ -360,6 +372,11 @@ def _usable(m: np.ndarray) -> np.ndarray:
     a = np.where(finite[..., None, None], m, 0.0)[..., :3, :3]
     size = np.abs(a).max(axis=(-2, -1))
     return finite & (np.abs(np.linalg.det(a)) > 1e-12 * size ** 3)
+
+
+#: Subdivision meshes refined per batch ahead of the prim loop: bounds the refined meshes held at once (memory)
+#: while each batch still refines each of its topologies once.
+PREFETCH_MESHES = 400
 
 
 def _read_prims(r: _Reader, stage, tc, purposes, info: StageInfo) -> None:
