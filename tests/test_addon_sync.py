@@ -124,6 +124,33 @@ def test_each_blender_edit_becomes_only_its_session_edit():
         d.close()
 
 
+def test_an_update_reads_again_only_what_it_names(monkeypatch):
+    """Cycles' sync_recalc: a material edit reads that material's node tree only and walks no instance (issue #22:
+    every update once re-read every node tree and walked every instance); a pass-index edit walks the objects and
+    reads no material."""
+    from addon import model
+
+    red = _scene()
+    bpy.data.objects["B"].data.materials.append(bs.principled_material("green", **{"Base Color": (0.1, 0.8, 0.1)}))
+    d = _Driver()
+    read, walked = [], []
+    real_read, real_walk = model.read_material, export.export_objects
+    monkeypatch.setattr(model, "read_material", lambda mat, *a, **k: read.append(mat.name) or real_read(mat, *a, **k))
+    monkeypatch.setattr(export, "export_objects", lambda *a, **k: walked.append(1) or real_walk(*a, **k))
+    try:
+        assert d.step(lambda: bs.principled_node(red).inputs["Base Color"].__setattr__(
+            "default_value", (0.1, 0.1, 0.9, 1))) == ["materials"]
+        assert read == ["red"] and walked == []
+        assert _close(d.session.render(SETTINGS).rgba, _fresh())
+        read.clear()
+        a = bpy.data.objects["A"]
+        d.step(lambda: setattr(a, "pass_index", 5))
+        oid = d.session.scene.object_names.index("A")
+        assert walked and read == [] and d.sync.pass_indices[oid] == 5
+    finally:
+        d.close()
+
+
 def test_the_viewport_sync_leaves_the_camera_to_the_view():
     _scene()
     d = _Driver(track_camera=False)
