@@ -28,7 +28,7 @@ def build(objects: int, triangles: int):
     import numpy as np
     import trimesh
 
-    from tests import blender_support as bs
+    from blender_kit import scene as bs
 
     bs.reset(size=(320, 180))
     count = max(4, int(round(np.sqrt(max(20, triangles // objects) / 4.0))))

@@ -123,7 +123,7 @@ def render_both(out_dir, width=480, height=270, cycles_samples=128):
 
     sys.path.insert(0, ROOT)
     import addon
-    from tests import blender_support as bs
+    from blender_kit import scene as bs
 
     addon.register()
     try:
