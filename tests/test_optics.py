@@ -128,3 +128,34 @@ def test_fresnel_matches_the_angle_form_of_fresnels_equations(angle):
     assert fresnel_dielectric(np.cos(ti), 1.0, 1.5) == pytest.approx((r_s + r_p) / 2, abs=1e-6)
     if angle == 56.31:
         assert r_p < 1e-8
+
+
+def test_valid_reflection_normal_lifts_grazing_reflections_to_the_threshold():
+    """Cycles' rule for glossy lobes on smooth-shaded meshes: a shading normal whose mirror direction would go
+    below the true surface is tilted towards the geometric normal until r·ng = min(0.9·(wi·ng), 0.01) exactly,
+    staying in the plane of n and ng; a normal whose reflection is already above the surface is kept."""
+    from tracer.optics import valid_reflection_normal
+
+    rng = np.random.default_rng(7)
+    ng = (0.0, 0.0, 1.0)
+    bent = 0
+    for _ in range(400):
+        wi = rng.normal(size=3)
+        wi[2] = abs(wi[2]) * rng.uniform(0.02, 1.0)
+        wi /= np.linalg.norm(wi)
+        n = rng.normal(size=3)
+        n[2] = abs(n[2]) + 0.05
+        n /= np.linalg.norm(n)
+        d = tuple(-wi)
+        r = reflect(np.array(d), n)
+        got = np.array(valid_reflection_normal(d, tuple(n), ng))
+        t = min(0.9 * wi[2], 0.01)
+        assert np.linalg.norm(got) == pytest.approx(1.0, abs=1e-9)
+        if r[2] >= t:
+            np.testing.assert_allclose(got, n, atol=0)
+            continue
+        bent += 1
+        assert reflect(np.array(d), got)[2] == pytest.approx(t, abs=1e-7)
+        assert abs(np.dot(np.cross(n, ng), got)) < 1e-9  # in the plane of n and ng
+        assert got[2] > n[2]  # towards ng
+    assert bent > 50

@@ -134,3 +134,78 @@ def test_nan_area_light_size_is_rejected():
     with pytest.raises(ValueError, match="size"):
         AreaLight(position=(0, 0, 1), u_axis=(1, 0, 0), v_axis=(0, 1, 0), normal=(0, 0, -1), size=(np.nan, 1.0),
                   radiance=(1, 1, 1))
+
+
+def _big_soup(n=150_000, seed=3):
+    """n random triangles (more rows than one thread takes: the validation passes split them across cores),
+    with known degenerate ones, unusable normals and infinite UVs planted; one unreferenced far vertex."""
+    rng = np.random.default_rng(seed)
+    v = rng.uniform(-1, 1, (3 * n + 1, 3)).astype(np.float32)
+    v[-1] = (500, 500, 500)  # referenced by no triangle: not in the bounds
+    t = np.arange(3 * n, dtype=np.int32).reshape(n, 3)
+    flat = rng.choice(n, 900, replace=False)
+    v[t[flat[:300], 2]] = v[t[flat[:300], 0]]  # a repeated point
+    v[t[flat[300:600], 2]] = 2 * v[t[flat[300:600], 1]] - v[t[flat[300:600], 0]]  # collinear: p2 = p1 + (p1 - p0)
+    t[flat[600:], 1] = t[flat[600:], 0]  # a repeated index
+    nr = rng.normal(size=(n, 3, 3)).astype(np.float32) * rng.uniform(0.1, 10, (n, 3, 1)).astype(np.float32)
+    nr[7, 1] = 0
+    nr[8, 2] = (np.nan, 1, 0)
+    uv = rng.random((n, 3, 2)).astype(np.float32)
+    uv[9, 0, 1] = np.inf
+    return v, t, nr, uv, flat
+
+
+def test_validation_passes_on_many_triangles_match_closed_forms():
+    """Scene.validate's per-triangle passes (numba, split across threads) against the definitions in float64
+    numpy: exactly the planted zero-area triangles dropped (collinear ones in float32 may be off by rounding: their
+    area is tested against 1e-14 of the diagonal², as numpy says), normals of unit length (zero where unusable),
+    infinite UVs as NaN, bounds of the referenced vertices only; the caller's arrays untouched."""
+    v, t, nr, uv, flat = _big_soup()
+    nr_in, uv_in = nr.copy(), uv.copy()
+    tri = v[t].astype(np.float64)
+    area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    used = v[np.unique(t)].astype(np.float64)  # the diagonal: of what the triangles reference
+    diag = np.linalg.norm(used.max(0) - used.min(0))
+    keep = area2 > 1e-14 * diag**2
+    assert (~keep).sum() >= 600 and not keep[flat[:300]].any() and not keep[flat[600:]].any()
+    with pytest.warns(UserWarning, match="degenerate"):
+        s = scene(vertices=v, triangles=t, normals=nr, uvs=uv)
+    np.testing.assert_array_equal(nr, nr_in)  # validation copied what it was handed, did not write over it
+    np.testing.assert_array_equal(uv, uv_in)
+    np.testing.assert_array_equal(s.triangles, t[keep])
+    assert s.skipped_triangles == (~keep).sum()
+    drawn = v[np.unique(t[keep])].astype(np.float64)
+    np.testing.assert_array_equal(s.bounds, [drawn.min(0), drawn.max(0)])
+    want = nr_in.astype(np.float64)
+    length = np.linalg.norm(want, axis=-1, keepdims=True)
+    ok = np.isfinite(length) & (length > 0)
+    want = np.where(ok, want / np.where(ok, length, 1), 0)[keep]
+    np.testing.assert_allclose(s.normals, want, atol=1e-6)
+    assert (s.normals[np.searchsorted(np.flatnonzero(keep), 7), 1] == 0).all()
+    kept_uv = uv_in[keep]
+    assert np.isnan(s.uvs[np.searchsorted(np.flatnonzero(keep), 9), 0, 1])
+    np.testing.assert_array_equal(np.isnan(s.uvs), np.isinf(kept_uv))
+
+
+def test_builder_builds_twice_and_hands_its_arrays_over():
+    """SceneBuilder.build joins its pieces (freeing them) and keeps the joined arrays: a second build() gives the
+    same scene, meshes added after it come on top; the normals the builder hands over are normalised in place
+    without touching the caller's arrays."""
+    b = SceneBuilder()
+    m = b.add_material("m")
+    n1 = np.tile(np.array([[0.0, 0.0, 3.0]]), (3, 1))
+    b.add_mesh(TRI, [[0, 1, 2]], material=m, normals=n1, uvs=np.zeros((3, 2)))
+    b.add_mesh(TRI + 2, [[0, 1, 2]], material=m, colors=np.ones((3, 3)) * 0.5)
+    b.camera = Camera()
+    first, second = b.build(), b.build()
+    assert n1[0, 2] == 3.0
+    for name in ("vertices", "triangles", "normals", "colors", "material_ids", "object_ids"):
+        np.testing.assert_array_equal(getattr(first, name), getattr(second, name), err_msg=name)
+    np.testing.assert_array_equal(first.uvs, second.uvs)
+    np.testing.assert_allclose(first.normals[0], [[0, 0, 1]] * 3)
+    assert np.isnan(first.uvs[1]).all() and (first.colors[0] == 1).all() and (first.colors[1] == 0.5).all()
+    b.add_mesh(TRI + 4, [[0, 1, 2]], material=m, uvs=np.ones((3, 2)))
+    third = b.build()
+    assert len(third.triangles) == 3 and third.triangles[2].min() == 6
+    np.testing.assert_array_equal(third.uvs[:2], first.uvs, strict=False)
+    assert (third.uvs[2] == 1).all() and (third.normals[2] == 0).all()

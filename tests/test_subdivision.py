@@ -713,3 +713,59 @@ def test_cli_complexity(tmp_path):
     assert build_parser().parse_args(["render", path, "-o", "x.png", "-c", "veryhigh"]).complexity == "veryhigh"
     assert main(["render", path, "-o", str(tmp_path / "x.png"), "--complexity", "ultra"]) == 2
     assert not (tmp_path / "x.png").exists()
+
+
+def _batch_cases():
+    """Meshes as a production stage has them: one topology dressed several times with its points bent
+    (face-varying UVs unindexed and indexed, vertex primvars), one of those with UVs cut along other seams,
+    meshes of a topology of their own, a creased one, and non-manifold ones (warnings that must name their own
+    mesh), at levels 1 and 2, with and without the limit surface."""
+    rng = np.random.default_rng(5)
+    cases = []
+    cube_f = np.array(CUBE_F)
+    corner_uv = CUBE_V[cube_f.ravel()][:, :2]  # per corner: cut wherever a point's corners project differently
+    for k in range(4):
+        v = CUBE_V * rng.uniform(0.5, 2.0, 3) + 0.2 * rng.normal(size=CUBE_V.shape)
+        uv = corner_uv + k if k < 3 else np.arange(24)[:, None] * [0.1, 0.2]  # the last: every corner its own
+        cases.append(dict(points=v, counts=[4] * 6, indices=cube_f.ravel(), face_varying=(uv,),
+                          vertex_data=v[:, :2] * 3))
+    g, f = _grid(4)
+    g_counts, g_idx = [4] * len(f), np.ravel(f)
+    for k in range(3):
+        vals = rng.random((7, 2))
+        cases.append(dict(points=g + rng.normal(0, 0.1, g.shape), counts=g_counts, indices=g_idx,
+                          face_varying=((vals, np.arange(len(g_idx)) % 7),), vertex_data=g[:, :2]))
+    for name in ("mixed", "fan"):
+        v, f = CAGES[name]
+        cases.append(dict(points=v, counts=[len(x) for x in f], indices=np.concatenate(f)))
+    cases.append(dict(points=CUBE_V, counts=[4] * 6, indices=cube_f.ravel(),
+                      creases=([0, 1, 3, 2], [4], [2.5]), corners=([7], [3.0])))
+    v = np.array([[0, 0, 0], [0, 0, 1], [1, 0, 0], [1, 0, 1], [-1, 0, 0], [-1, 0, 1], [0, 1, 0], [0, 1, 1]], float)
+    fin = [[0, 2, 3, 1], [0, 1, 5, 4], [0, 6, 7, 1]]
+    for k in range(2):
+        cases.append(dict(points=v + k, counts=[4, 4, 4], indices=np.ravel(fin)))
+    return cases
+
+
+@pytest.mark.parametrize("level,limit", [(1, False), (2, False), (2, True)])
+def test_refine_batch_is_refine_mesh_by_mesh(level, limit):
+    """refine_batch (meshes of one topology refined once as columns of one refinement, the rest joined into one
+    mesh) gives every mesh exactly the arrays refine gives it alone (which the tests above check against
+    OpenSubdiv through Blender and closed forms), and each mesh its own warnings."""
+    from tracer.subdivision import refine_batch
+
+    cases = [dict(c, levels=level, limit=limit) for c in _batch_cases()]
+    batch = refine_batch(cases)
+    assert len(batch) == len(cases)
+    for case, got in zip(cases, batch):
+        want = refine(**case)
+        for name in ("points", "faces", "face", "normals", "vertex_data", "varying_data"):
+            a, b = getattr(want, name), getattr(got, name)
+            assert (a is None) == (b is None), name
+            if a is not None:
+                np.testing.assert_array_equal(b, a, err_msg=name)
+        assert len(got.face_varying) == len(want.face_varying)
+        for a, b in zip(want.face_varying, got.face_varying):
+            np.testing.assert_array_equal(b, a)
+        assert got.warnings == want.warnings
+    assert any(r.warnings for r in batch) and not all(r.warnings for r in batch)

@@ -72,13 +72,15 @@ def test_camera_projects_points_where_usd_does(projection, ho, vo):
     np.testing.assert_allclose([xs.mean() + 0.5, ys.mean() + 0.5], want[0], atol=0.75)
 
 
-def test_conform_keeps_vertical_aperture_like_usdrecord():
+def test_conform_expands_the_aperture_like_usdrender():
+    """UsdRender's fallback policy expandAperture (Arnold's): a 3.6 × 2.4 aperture at a square image keeps its width
+    and grows its height (usdrecord's MatchVertically would crop it to 2.4 × 2.4)."""
     s = new_stage()
     add_camera(s, h=3.6, v=2.4)
     UsdGeom.Sphere.Define(s, "/Ball")
     scene, info = load_stage(s, width=100, height=100)
-    assert scene.camera.vertical_aperture == pytest.approx(2.4)
-    assert scene.camera.horizontal_aperture == pytest.approx(2.4)
+    assert scene.camera.vertical_aperture == pytest.approx(3.6)
+    assert scene.camera.horizontal_aperture == pytest.approx(3.6)
     scene, info = load_stage(s, height=50)
     assert (info.width, info.height) == (75, 50)
 

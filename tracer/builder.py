@@ -17,8 +17,9 @@ from typing import NamedTuple
 import numpy as np
 
 from .camera import Camera
+from .jit import kernel
 from .materials import Materials
-from .scene import Instances, Scene
+from .scene import Instances, Scene, handed_over
 from .texture import as_texture
 
 
@@ -112,7 +113,8 @@ class SceneBuilder:
                                           n_tri // instances))
         self._normals.append(mesh.normals)
         self._uvs.append(mesh.uvs)
-        mirrored = bool(np.linalg.det(mesh.transform[:3, :3]) < 0)
+        a = mesh.transform[:3, :3]
+        mirrored = bool(float(a[0] @ _cofactors(a)[0]) < 0)
         self._extra.append(_corner_extras(label, uv_sets, colors, mesh.uvs, len(mesh.vertices), mesh.triangles,
                                           mirrored))
         return object_id
@@ -171,48 +173,61 @@ class SceneBuilder:
         return sum(len(t) for t in self._triangles)
 
     def build(self) -> Scene:
+        """The :class:`Scene` of everything added. The per-mesh pieces are joined into one array per field and
+        freed as they are copied (the peak holds each field once plus the piece being copied); the builder keeps
+        the joined arrays (as one mesh of everything), so a second build() copies nothing, and hands the shading
+        arrays to the Scene, whose validation then normalises them in place instead of copying them."""
         if self.camera is None:
             raise ValueError("SceneBuilder.build: no camera set")
         n = self.triangle_count
+        sizes = [len(t) for t in self._triangles]
 
         def cat(parts, tail, dtype):
-            return np.concatenate(parts).astype(dtype) if parts else np.zeros((0,) + tail, dtype)
-
-        def corners(parts, fill_shape, fill):
-            if all(p is None for p in parts):
-                return None
-            filled = []
-            for p, tris in zip(parts, self._triangles):
-                filled.append(p if p is not None else np.full((len(tris),) + fill_shape, fill, np.float32))
-            return np.concatenate(filled) if filled else None
+            if not parts:
+                return np.zeros((0,) + tail, dtype)
+            out = (parts[0] if len(parts) == 1 else np.concatenate(parts)).astype(dtype, copy=False)
+            parts[:] = [out]
+            return out
 
         # Meshes without normals get zero normals: the integrator uses the geometric normal for those.
-        normals = corners(self._normals, (3, 3), 0.0)
+        normals = _joined(self._normals, sizes, 0.0)
         # Meshes without a UV set have no coordinates in it (NaN: textures read their fallback there).
         n_sets = max([1 if u is not None else 0 for u in self._uvs]
                      + [max(e["uv_sets"], default=-1) + 1 for e in self._extra], default=0)
-        uv_sets = [corners([e["uv_sets"].get(k) for e in self._extra], (3, 2), np.nan) for k in range(n_sets)]
-        colors = corners([e["colors"] for e in self._extra], (3, 3), 1.0)
-        return Scene(
-            vertices=cat(self._vertices, (3,), np.float32),
-            triangles=cat(self._triangles, (3,), np.int32),
-            material_ids=cat(self._material_ids, (), np.int32) if n else np.zeros(0, np.int32),
-            object_ids=cat(self._object_ids, (), np.int32) if n else np.zeros(0, np.int32),
-            normals=normals,
-            uv_sets=uv_sets,
-            colors=colors,
-            materials=Materials.from_list(self.materials),
-            camera=self.camera,
-            lights=list(self.lights),
-            textures=list(self.textures),
-            background=self.background,
-            ambient=self.ambient,
-            environment=self.environment,
-            object_names=list(self.object_names),
-            object_pass_indices=self.object_pass_indices,
-            object_transforms=self._object_transforms(),
-            instances=self._instance_table(),
-        )
+        had_uvs = any(u is not None for u in self._uvs)
+        self._uvs[:] = [None] * len(self._uvs)  # set 0 of the extras: the same arrays
+        uv_sets = [_joined([e["uv_sets"].pop(k, None) for e in self._extra], sizes, np.nan) for k in range(n_sets)]
+        colors = _joined([e.pop("colors", None) for e in self._extra], sizes, 1.0)
+        vertices = cat(self._vertices, (3,), np.float32)
+        triangles = cat(self._triangles, (3,), np.int32)
+        material_ids = cat(self._material_ids, (), np.int32) if n else np.zeros(0, np.int32)
+        object_ids = cat(self._object_ids, (), np.int32) if n else np.zeros(0, np.int32)
+        if sizes:  # from now on one mesh of everything
+            self._normals[:] = [normals]
+            self._uvs[:] = [uv_sets[0] if had_uvs and uv_sets else None]
+            self._extra[:] = [{"uv_sets": {k: uv for k, uv in enumerate(uv_sets) if uv is not None},
+                               "colors": colors}]
+        with handed_over(normals, colors, *uv_sets):
+            return Scene(
+                vertices=vertices,
+                triangles=triangles,
+                material_ids=material_ids,
+                object_ids=object_ids,
+                normals=normals,
+                uv_sets=uv_sets,
+                colors=colors,
+                materials=Materials.from_list(self.materials),
+                camera=self.camera,
+                lights=list(self.lights),
+                textures=list(self.textures),
+                background=self.background,
+                ambient=self.ambient,
+                environment=self.environment,
+                object_names=list(self.object_names),
+                object_pass_indices=self.object_pass_indices,
+                object_transforms=self._object_transforms(),
+                instances=self._instance_table(),
+            )
 
     def _instance_table(self) -> Instances | None:
         if not self._instances:
@@ -237,6 +252,21 @@ class SceneBuilder:
         for _p, m, ids, _mat in self._instances:
             out[ids] = m
         return out
+
+
+def _joined(parts: list, sizes: list, fill) -> np.ndarray | None:
+    """Per-mesh per-corner float32 arrays (None: ``fill`` for that mesh's ``sizes[i]`` rows) as one array, or None
+    when no mesh has any. Each piece is dropped from ``parts`` once copied."""
+    first = next((p for p in parts if p is not None), None)
+    if first is None:
+        return None
+    out = np.empty((sum(sizes),) + first.shape[1:], np.float32)
+    at = 0
+    for i, size in enumerate(sizes):
+        out[at:at + size] = fill if parts[i] is None else parts[i]
+        parts[i] = None
+        at += size
+    return out
 
 
 class PlacedMesh(NamedTuple):
@@ -268,10 +298,14 @@ def place_mesh(vertices, triangles, material=0, *, transform=None, normals=None,
         m = np.asarray(transform, dtype=np.float64)
         if m.shape != (4, 4) or not np.all(np.isfinite(m)):
             raise ValueError(f"mesh {label!r}: transform must be a finite 4x4 matrix")
-        det = np.linalg.det(m[:3, :3])
-        if abs(det) <= 1e-12 * max(np.abs(m[:3, :3]).max(), 1e-300) ** 3:
+        a = m[:3, :3]
+        inv_t = _inverse_transpose(a)
+        det = float(a[0] @ _cofactors(a)[0])
+        if abs(det) <= 1e-12 * max(np.abs(a).max(), 1e-300) ** 3:
             raise ValueError(f"mesh {label!r}: transform is singular (zero scale); skip the object instead")
-        v = v @ m[:3, :3].T + m[:3, 3]
+        world = np.empty((len(v), 3), np.float32)
+        _affine_rows(np.ascontiguousarray(v), np.ascontiguousarray(a), np.ascontiguousarray(m[:3, 3]), world)
+        v = world
         mirrored = det < 0
     n_tri = len(t)
     mat = np.asarray(material, dtype=np.int32)
@@ -283,19 +317,24 @@ def place_mesh(vertices, triangles, material=0, *, transform=None, normals=None,
 
     corner_normals = None
     if normals is not None:
-        nr = np.asarray(normals, dtype=np.float64)
+        nr = np.asarray(normals)
+        if nr.dtype != np.float32:
+            nr = nr.astype(np.float64, copy=False)
         if nr.shape == (len(v), 3):
             nr = nr[t]
         if nr.shape != (n_tri, 3, 3):
             raise ValueError(f"mesh {label!r}: normals must be per vertex ({len(v)}, 3) "
                              f"or per corner ({n_tri}, 3, 3), got {nr.shape}")
-        if transform is not None:
-            nm = np.linalg.inv(m[:3, :3]).T
-            nr = nr @ nm.T
-        corner_normals = nr.astype(np.float32)
+        if transform is not None:  # by the inverse transpose, in float64, stored as float32
+            corner_normals = np.empty((n_tri, 3, 3), np.float32)
+            _linear_rows(np.ascontiguousarray(nr, np.float64).reshape(-1, 3), inv_t, corner_normals.reshape(-1, 3))
+        else:
+            corner_normals = nr.astype(np.float32)
     corner_uvs = None
     if uvs is not None:
-        uv = np.asarray(uvs, dtype=np.float64)
+        uv = np.asarray(uvs)
+        if uv.dtype != np.float32:  # float32 as it is (a float64 round trip changes nothing)
+            uv = uv.astype(np.float64, copy=False)
         if uv.shape == (len(v), 2):
             uv = uv[t]
         if uv.shape != (n_tri, 3, 2):
@@ -311,6 +350,40 @@ def place_mesh(vertices, triangles, material=0, *, transform=None, normals=None,
         corner_uvs = None if corner_uvs is None else corner_uvs[:, [0, 2, 1]]
     return PlacedMesh(np.ascontiguousarray(v, np.float32), np.ascontiguousarray(t, np.int32), mat,
                       corner_normals, corner_uvs, m)
+
+
+def _cofactors(a: np.ndarray) -> np.ndarray:
+    """The cofactor matrix of a 3×3 matrix (rows: cross products of the other two rows), in plain floats: numpy's
+    cross, det and inv go through moveaxis or LAPACK (OpenBLAS's threads: 80 µs a call idle, milliseconds on a
+    busy machine), once per mesh."""
+    (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = a.tolist()
+    return np.array([[b1 * c2 - b2 * c1, b2 * c0 - b0 * c2, b0 * c1 - b1 * c0],
+                     [c1 * a2 - c2 * a1, c2 * a0 - c0 * a2, c0 * a1 - c1 * a0],
+                     [a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0]])
+
+
+def _inverse_transpose(a: np.ndarray) -> np.ndarray:
+    """inv(a).T of a 3×3 matrix: its cofactors over its determinant."""
+    cof = _cofactors(a)
+    return cof / float(a[0] @ cof[0])
+
+
+@kernel
+def _affine_rows(src, a, b, out):
+    """out[i] = a @ src[i] + b (float64 arithmetic, float32 result): a mesh's points into the world."""
+    for i in range(len(src)):
+        x, y, z = src[i, 0], src[i, 1], src[i, 2]
+        for k in range(3):
+            out[i, k] = a[k, 0] * x + a[k, 1] * y + a[k, 2] * z + b[k]
+
+
+@kernel
+def _linear_rows(src, a, out):
+    """out[i] = a @ src[i] (float64 arithmetic, float32 result): normals by the inverse transpose."""
+    for i in range(len(src)):
+        x, y, z = src[i, 0], src[i, 1], src[i, 2]
+        for k in range(3):
+            out[i, k] = a[k, 0] * x + a[k, 1] * y + a[k, 2] * z
 
 
 def _corner_extras(label, uv_sets, colors, corner_uvs, n_vertices, t, mirrored) -> dict:

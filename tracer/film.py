@@ -76,6 +76,13 @@ def heat_map(values: np.ndarray, vmax: float | None = None) -> np.ndarray:
     return srgb_to_linear(srgb).astype(np.float32)
 
 
+#: PNG encoding (docs/benchmarks.md, "PNG writes"): zlib level 1 with libpng's "none" row filter (PNG_FILTER_NONE =
+#: 8): a 1920×1080 render encodes in about half the CPU time of the default (level 6, adaptive filters) for files
+#: about a third larger; the pixels are the same (PNG is lossless).
+PNG_COMPRESSION_LEVEL = 1
+PNG_FILTER_NONE = 8
+
+
 def write_image(path: str, pixels: np.ndarray, channel_names=None, float32: bool = False) -> None:
     """Write (H, W, C) float pixels: linear for EXR/HDR, sRGB 8-bit otherwise. Atomic (temp file + rename).
     EXR is half float unless ``float32`` (AOVs: object ids and depths beyond half's exact range)."""
@@ -100,6 +107,9 @@ def write_image(path: str, pixels: np.ndarray, channel_names=None, float32: bool
             data = np.round(np.clip(pixels, 0, 1) * 255).astype(np.uint8)
         fmt = oiio.UINT8
     spec = oiio.ImageSpec(w, h, c, fmt)
+    if ext == ".png":  # fast zlib, no per-row filter search: half the encode time of libpng's default (6, adaptive)
+        spec.attribute("png:compressionLevel", PNG_COMPRESSION_LEVEL)
+        spec.attribute("png:filter", PNG_FILTER_NONE)
     if channel_names:
         spec.channelnames = tuple(channel_names)
     directory = os.path.dirname(os.path.abspath(path))

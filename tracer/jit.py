@@ -35,10 +35,9 @@ def _cache_dir() -> str | None:
         return None
     here = os.path.dirname(os.path.abspath(__file__))
     h = hashlib.sha1()
-    for name in sorted(os.listdir(here)):
-        if name.endswith(".py"):
-            with open(os.path.join(here, name), "rb") as f:
-                h.update(name.encode() + b"\0" + f.read())
+    for name in sorted(_sources(here)):  # subpackages too: the VM inlines tracer.procedural's functions
+        with open(os.path.join(here, name), "rb") as f:
+            h.update(name.encode() + b"\0" + f.read())
     leaf = f"kernels-{h.hexdigest()[:16]}"
     _prune(os.path.join(here, "__pycache__"), leaf)
     for base in (os.path.join(here, "__pycache__"),
@@ -50,6 +49,15 @@ def _cache_dir() -> str | None:
         except OSError:
             continue
     return None
+
+
+def _sources(here: str) -> list:
+    """Every .py file under ``here`` (relative paths), subpackages included."""
+    out = []
+    for root, dirs, files in os.walk(here):
+        dirs[:] = [d for d in dirs if d != "__pycache__"]
+        out += [os.path.relpath(os.path.join(root, f), here) for f in files if f.endswith(".py")]
+    return out
 
 
 def _prune(base: str, keep: str, versions: int = 3) -> None:

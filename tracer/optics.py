@@ -25,6 +25,39 @@ def reflect_dir(d, n):
 
 
 @kernel(inline=True)
+def valid_reflection_normal(d, n, ng):
+    """The shading normal n, tilted towards the geometric normal ng just enough that the mirror direction of d
+    about it leaves the surface (Cycles' ``ensure_valid_specular_reflection``, which its glossy lobes use).
+
+    An interpolated normal near a silhouette can send r = d − 2(d·n)n below the true surface (r·ng < 0). Write
+    wi = −d, z = wi·ng (> 0 on the incident side) and t = min(0.9·z, 0.01), the least r·ng allowed (a reflection may
+    be as grazing as the incoming ray). If r·ng ≥ t, n is kept. Otherwise n' = x·X + s·ng in the plane of ng and
+    X = normalize(n − (n·ng)ng), with s² solving r'·ng = t, i.e. 2(wi·n')s − z = t; squared, with a = (wi·X)² + z²,
+    b = 2(a + z·t), c = (z + t)²:  4a·s⁴ − 2b·s² + c = 0, s² = (b ± √(b² − 4ac))/(4a), the root that keeps
+    wi·X and t + z(1 − 2s²) of one sign (the sign lost in squaring): + when wi·X < 0, − otherwise."""
+    wi = vec.scale(d, -1.0)
+    z = vec.dot(wi, ng)
+    if z <= 0.0:
+        return n
+    t = min(0.9 * z, 0.01)
+    if vec.dot(reflect_dir(d, n), ng) >= t:
+        return n
+    x = vec.madd(n, ng, -vec.dot(n, ng))
+    lx = vec.length(x)
+    if lx <= 1e-12:
+        return ng
+    x = vec.scale(x, 1.0 / lx)
+    ix = vec.dot(wi, x)
+    a = ix * ix + z * z
+    b = 2.0 * (a + z * t)
+    c = (z + t) * (z + t)
+    root = math.sqrt(max(b * b - 4.0 * a * c, 0.0))
+    s2 = 0.25 * (b + root) / a if ix < 0.0 else 0.25 * (b - root) / a
+    s2 = min(max(s2, 0.0), 1.0)
+    return vec.normalize(vec.madd(vec.scale(x, math.sqrt(1.0 - s2)), ng, math.sqrt(s2)))
+
+
+@kernel(inline=True)
 def refract_dir(d, n, eta_i, eta_r):
     """Transmitted direction by Snell's law, η_r sin θ_r = η_i sin θ_i (the notes' ray type 4).
 

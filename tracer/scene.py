@@ -6,11 +6,14 @@ Build one directly or with :class:`tracer.builder.SceneBuilder`.
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import scene_kernels
 from .camera import Camera
 from .environment import Environment
 from .lights import AreaLight, DistantLight, PointLight, SpotLight
@@ -28,20 +31,36 @@ DEGENERATE_AREA = 1e-14
 PER_TRIANGLE = {"material_ids": 0, "object_ids": 0, "normals": 0.0, "uv_sets": np.nan, "colors": 1.0}
 
 
+#: ids of arrays a caller handed over to the Scene being built (see :func:`handed_over`).
+_HANDED_OVER: contextvars.ContextVar[frozenset] = contextvars.ContextVar("handed_over", default=frozenset())
+
+
+@contextlib.contextmanager
+def handed_over(*arrays):
+    """Scenes validated inside this block may fix these arrays (float32, contiguous) in place rather than copy
+    them: the caller (SceneBuilder.build) made them for the scene and keeps no other use for them."""
+    token = _HANDED_OVER.set(frozenset(id(a) for a in arrays if a is not None))
+    try:
+        yield
+    finally:
+        _HANDED_OVER.reset(token)
+
+
+def _own(a) -> bool:
+    return (id(a) in _HANDED_OVER.get() and isinstance(a, np.ndarray) and a.dtype == np.float32
+            and a.flags.c_contiguous and a.flags.writeable)
+
+
 def unit_normals(normals: np.ndarray) -> np.ndarray:
-    """Per-corner shading normals scaled to unit length; unusable ones (zero, NaN) become zeros, which the
-    renderer replaces by the face normal."""
-    nr = np.asarray(normals, dtype=np.float32)
-    ln = np.linalg.norm(nr, axis=-1, keepdims=True)
-    ok = np.isfinite(ln) & (ln > 0)
-    return np.ascontiguousarray(np.where(ok, nr / np.where(ok, ln, 1), 0), dtype=np.float32)
+    """Per-corner shading normals scaled to unit length (float32); unusable ones (zero, NaN) become zeros, which
+    the renderer replaces by the face normal. A numba pass on every core (tracer.scene_kernels)."""
+    return scene_kernels.unit_normals(normals)
 
 
 def non_degenerate(vertices: np.ndarray, triangles: np.ndarray, diagonal: float) -> np.ndarray:
-    """Mask of the triangles whose area is more than DEGENERATE_AREA × diagonal² (the others are skipped)."""
-    tri = vertices[triangles].astype(np.float64)
-    area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    return area2 > DEGENERATE_AREA * max(diagonal**2, 1e-30)
+    """Mask of the triangles whose area is more than DEGENERATE_AREA × diagonal² (the others are skipped): twice
+    the area in float64 from the float32 points, a numba pass on every core."""
+    return scene_kernels.non_degenerate(vertices, triangles, DEGENERATE_AREA * max(diagonal**2, 1e-30))
 
 
 @dataclass
@@ -228,7 +247,7 @@ class Scene:
             nr = np.asarray(self.normals, dtype=np.float32)
             if nr.shape != (n, 3, 3):
                 raise ValueError(f"scene.normals must have shape ({n}, 3, 3) (per-corner), got {nr.shape}")
-            self.normals = unit_normals(nr)
+            self.normals = scene_kernels.unit_normals(nr, in_place=_own(self.normals))
         self._validate_uv_sets(n)
         if self.colors is not None:
             col = np.asarray(self.colors, dtype=np.float32)
@@ -309,7 +328,7 @@ class Scene:
             a = np.asarray(uv, dtype=np.float32)
             if a.shape != (n, 3, 2):
                 raise ValueError(f"scene.uv_sets[{i}] must have shape ({n}, 3, 2) (per-corner), got {a.shape}")
-            sets[i] = np.ascontiguousarray(np.where(np.isinf(a), np.float32(np.nan), a))
+            sets[i] = scene_kernels.inf_to_nan(a, in_place=_own(uv))
         self.uv_sets = sets
         self.uvs = sets[0] if sets else None
         self._uvs_validated = self.uvs
@@ -365,13 +384,13 @@ class Scene:
             return np.zeros((2, 3), np.float64)
         if getattr(self, "_bounds", None) is None:  # cached until the next validate()
             proto = self.prototype_rows()
-            world = self.triangles if not proto.any() else self.triangles[~proto]
             lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
-            if len(world):
-                used = np.zeros(len(self.vertices), bool)
-                used[world.ravel()] = True
-                v = self.vertices if used.all() else self.vertices[used]
-                lo, hi = v.min(axis=0).astype(np.float64), v.max(axis=0).astype(np.float64)
+            rows = np.flatnonzero(~proto) if proto.any() else np.zeros(0, np.int64)
+            if len(rows) or not proto.any():  # the referenced vertices of world-space triangles (numba)
+                box = np.empty((2, 3), np.float64)
+                scene_kernels.used_bounds(np.ascontiguousarray(self.vertices, np.float32),
+                                           np.ascontiguousarray(self.triangles, np.int32), rows, box)
+                lo, hi = box
             if proto.any():
                 for p in np.unique(self.instances.prototypes):
                     pv = self.vertices[np.unique(self.triangles[self.object_ids == p])]

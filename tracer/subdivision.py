@@ -139,16 +139,29 @@ def refine(points, counts, indices, levels: int = 1, scheme: str = "catmullClark
     if len(idx) and (idx.min() < 0 or idx.max() >= len(p)):
         raise ValueError(f"subdivision: faceVertexIndices reference points outside the {len(p)} points")
     levels = max(0, int(levels))
-    warnings: list[str] = []
     n_v = len(p)
-    k_vertex = 0
-    data = p
-    if vertex_data is not None:
-        vd = np.asarray(vertex_data, np.float64).reshape(n_v, -1)
-        k_vertex = vd.shape[1]
-        data = np.concatenate([p, vd], axis=1)
+    vd = None if vertex_data is None else np.asarray(vertex_data, np.float64).reshape(n_v, -1)
     varying = None if varying_data is None else np.asarray(varying_data, np.float64).reshape(n_v, -1)
     channels = [_channel_input(ch, len(idx)) for ch in face_varying]
+    return _refine_stack(p[:, None], counts, idx, levels, scheme, boundary, face_varying_interpolation,
+                         triangle_rule, crease_method, creases, corners, holes,
+                         None if vd is None else vd[:, None], None if varying is None else varying[:, None],
+                         channels, normals, limit)[0]
+
+
+def _refine_stack(p, counts, idx, levels, scheme, boundary, face_varying_interpolation, triangle_rule,
+                  crease_method, creases, corners, holes, vd, varying, channels, normals, limit) -> list[Refined]:
+    """:func:`refine` of K meshes of one topology at once: ``p`` (V, K, 3) their points, ``vd`` / ``varying``
+    (V, K, k) or None, ``channels`` [(values (M, K·w), value index per corner or None)] (K = 1: any channel;
+    K > 1: indexed ones). The topology (levels, edges, sharpness, sectors) is built once; every mesh's points and
+    primvars are columns of one array through the same masks (the masks are linear per column), and the limit
+    normals are computed for all K meshes in one pass. Returns K :class:`Refined` (views of shared arrays)."""
+    warnings: list[str] = []
+    n_v, K = p.shape[0], p.shape[1]
+    k_vertex = 0 if vd is None else vd.shape[2]
+    data = (p if vd is None else np.concatenate([p, vd], axis=2)).reshape(n_v, -1)
+    k_var = 0 if varying is None else varying.shape[2]
+    varying = None if varying is None else varying.reshape(n_v, -1)
 
     face_of = np.arange(len(counts))
     if scheme == "loop" and len(counts) and counts.max() > 3:
@@ -202,20 +215,223 @@ def refine(points, counts, indices, levels: int = 1, scheme: str = "catmullClark
         if len(lvl.counts) and lvl.counts.min() != n_corner:
             raise ValueError("subdivision: levels=0 of a mixed mesh has no fixed face size; refine at least once")
     faces = lvl.idx.reshape(-1, n_corner)
+    d3 = data.reshape(len(data), K, -1)
     nrm = None
     if normals and len(faces):
         if masks == "linear" or levels == 0:
-            nrm = _corner_normals_flat(data[:, :3], faces)
+            nrm = _corner_normals_flat(d3[..., :3], faces)
         else:
-            nrm = lvl.limit_normals(data[:, :3], masks).reshape(-1, n_corner, 3)
+            nrm = lvl.limit_normals(d3[..., :3], masks).reshape(-1, n_corner, K, 3)
     if limit and levels > 0 and masks != "linear":
         data = lvl.limit_positions(data, masks)
+        d3 = data.reshape(len(data), K, -1)
     keep = ~hole
-    fvars = [fdata[fl.idx].reshape(-1, n_corner, fdata.shape[1])[keep] for fl, fdata in fv_levels]
-    return Refined(points=data[:, :3], faces=faces[keep], face=face_of[keep],
-                   normals=None if nrm is None else nrm[keep],
-                   vertex_data=data[:, 3:3 + k_vertex] if k_vertex else None, varying_data=varying,
-                   face_varying=fvars, warnings=warnings)
+    fvars = [fdata[fl.idx].reshape(-1, n_corner, K, fdata.shape[1] // K)[keep] for fl, fdata in fv_levels]
+    faces, face_of = faces[keep], face_of[keep]
+    nrm = None if nrm is None else nrm[keep]
+    var3 = None if varying is None else varying.reshape(len(varying), K, k_var)
+    return [Refined(points=d3[:, k, :3], faces=faces, face=face_of,
+                    normals=None if nrm is None else nrm[:, :, k],
+                    vertex_data=d3[:, k, 3:3 + k_vertex] if k_vertex else None,
+                    varying_data=None if var3 is None else var3[:, k],
+                    face_varying=[fv[:, :, k] for fv in fvars], warnings=list(warnings)) for k in range(K)]
+
+
+def refine_batch(meshes: list[dict]) -> list[Refined]:
+    """:func:`refine` of many meshes in few calls: ``meshes`` holds one dict of :func:`refine`'s arguments per
+    mesh (``points``, ``counts``, ``indices`` and any keyword); returns what :func:`refine` gives each, the same
+    arrays (they may be views of arrays shared by several results).
+
+    - Meshes of one *topology* (the same faceVertexCounts, faceVertexIndices, holes, options and face-varying
+      layout; e.g. one asset dressed many times with its points deformed) are refined once: the levels, edges,
+      sharpness and normal sectors are built for the first, and every mesh's points and primvars ride through
+      them as columns of one array (:func:`_refine_stack`).
+    - The remaining meshes with the same options are joined into one mesh of disjoint pieces, refined in one call
+      and split again (no rule looks beyond a point's own faces, and points, edges and faces keep their relative
+      order, so each piece comes out as it would alone; only the threshold below which a limit normal counts as
+      degenerate is then relative to the median over the group rather than the mesh).
+    - Creased meshes, loop meshes and groups whose refinement reports anything (non-manifold input, bad input)
+      are refined mesh by mesh, so each warning or error names its own mesh."""
+    out: list = [None] * len(meshes)
+    groups: dict = {}
+    for i, m in enumerate(meshes):
+        key = _batch_key(m)
+        if key is None:
+            out[i] = refine(**m)
+        else:
+            groups.setdefault((key, _topology_key(m)), []).append(i)
+    singles: dict = {}
+    for (key, _topo), members in groups.items():
+        shared = _shared_refine([meshes[i] for i in members]) if len(members) > 1 else None
+        if shared is None:
+            singles.setdefault(key, []).extend(members)
+        else:
+            for i, r in zip(members, shared):
+                out[i] = r
+    for members in singles.values():
+        joined = _joined_refine([meshes[i] for i in members]) if len(members) > 1 else None
+        if joined is None:
+            for i in members:
+                out[i] = refine(**meshes[i])
+        else:
+            for i, r in zip(members, joined):
+                out[i] = r
+    return out
+
+
+def _topology_key(m: dict):
+    return (len(np.asarray(m["points"]).reshape(-1, 3)), np.asarray(m["counts"], np.int64).tobytes(),
+            np.asarray(m["indices"], np.int64).tobytes(), np.asarray(m.get("holes", ()), np.int64).tobytes())
+
+
+def _shared_refine(meshes: list[dict]) -> list[Refined] | None:
+    """Meshes of one topology (:func:`_topology_key`, :func:`_batch_key`) refined as columns of one mesh; None
+    where that cannot be done (input refine would reject, face-varying values shared differently, warnings)."""
+    m0 = meshes[0]
+    opts = {k: m0.get(k, _REFINE_DEFAULTS[k]) for k in _BATCH_OPTIONS}
+    for name, allowed in (("scheme", SCHEMES), ("boundary", BOUNDARIES),
+                          ("face_varying_interpolation", FACE_VARYING), ("triangle_rule", TRIANGLE_RULES),
+                          ("crease_method", CREASE_METHODS)):
+        if opts[name] not in allowed:
+            return None
+    K = len(meshes)
+    p = np.stack([np.asarray(m["points"], np.float64).reshape(-1, 3) for m in meshes], axis=1)
+    counts = np.asarray(m0["counts"], np.int64).reshape(-1)
+    idx = np.asarray(m0["indices"], np.int64).reshape(-1)
+    n_v, n_c = len(p), len(idx)
+    if counts.sum() != n_c or (len(counts) and counts.min() < 3) or (n_c and (idx.min() < 0 or idx.max() >= n_v)):
+        return None
+
+    def stacked(name):
+        if m0.get(name) is None:
+            return None
+        return np.stack([np.asarray(m[name], np.float64).reshape(n_v, -1) for m in meshes], axis=1)
+
+    channels = []
+    for j in range(len(m0.get("face_varying", ()))):
+        ins = [_channel_input(m["face_varying"][j], n_c) for m in meshes]
+        if ins[0][1] is not None:  # indexed: the same indices and value count in every mesh
+            vi = ins[0][1]
+            if any(len(v) != len(ins[0][0]) or not np.array_equal(i, vi) for v, i in ins):
+                return None
+            vals = np.stack([v for v, _ in ins], axis=1)
+        else:  # unindexed: which corners share a value, per mesh, in one sort; it must agree across meshes
+            w = ins[0][0].shape[1]
+            rows = np.concatenate([np.repeat(np.arange(K, dtype=np.float64), n_c)[:, None],
+                                   np.tile(idx.astype(np.float64), K)[:, None],
+                                   np.concatenate([v for v, _ in ins])], axis=1)
+            _, first, inv = np.unique(rows, axis=0, return_index=True, return_inverse=True)
+            inv = inv.reshape(K, n_c)
+            u_start = np.searchsorted(rows[first, 0], np.arange(K + 1))
+            ranks = inv - u_start[:K, None]
+            if not (ranks == ranks[0]).all():
+                return None
+            vi = ranks[0]
+            n_u = u_start[1] - u_start[0]
+            if (np.diff(u_start) != n_u).any():
+                return None
+            flat = rows[:, 2:]
+            vals = np.stack([flat[first[u_start[k]:u_start[k + 1]]] for k in range(K)], axis=1)
+            vals = vals.reshape(n_u, K, w)
+        channels.append((vals.reshape(len(vals), -1), vi))
+    res = _refine_stack(p, counts, idx, max(0, int(opts["levels"])), opts["scheme"], opts["boundary"],
+                        opts["face_varying_interpolation"], opts["triangle_rule"], opts["crease_method"],
+                        None, None, m0.get("holes", ()), stacked("vertex_data"), stacked("varying_data"), channels,
+                        opts["normals"], opts["limit"])
+    return None if res[0].warnings else res
+
+
+_BATCH_OPTIONS = ("levels", "scheme", "boundary", "face_varying_interpolation", "triangle_rule", "crease_method",
+                  "normals", "limit")
+_REFINE_DEFAULTS = dict(levels=1, scheme="catmullClark", boundary="edgeAndCorner",
+                        face_varying_interpolation="cornersPlus1", triangle_rule="catmullClark",
+                        crease_method="uniform", normals=True, limit=False)
+
+
+def _batch_key(m: dict):
+    """What meshes must share to be refined together (None: refine this one alone)."""
+    opts = tuple(m.get(k, _REFINE_DEFAULTS[k]) for k in _BATCH_OPTIONS)
+    if int(opts[0]) < 1 or m.get("scheme", "catmullClark") == "loop":  # loop may fan-triangulate first
+        return None
+    if m.get("creases") is not None or m.get("corners") is not None:
+        return None  # creased meshes are refined one by one (their arrays are checked per mesh)
+    widths = []
+    for name in ("vertex_data", "varying_data"):
+        v = m.get(name)
+        widths.append(None if v is None else int(np.asarray(v).reshape(len(np.asarray(m["points"]).reshape(-1, 3)),
+                                                                       -1).shape[1]))
+    for ch in m.get("face_varying", ()):
+        if isinstance(ch, tuple) and len(ch) == 2:
+            widths.append(("indexed", int(np.asarray(ch[0]).reshape(len(ch[0]), -1).shape[1])))
+        else:
+            widths.append(("corner", int(np.asarray(ch).reshape(len(ch), -1).shape[1])))
+    return opts + tuple(widths)
+
+
+def _joined_refine(meshes: list[dict]) -> list[Refined] | None:
+    """Refine meshes (same options) as one mesh of disjoint pieces and split the result; None if it warned."""
+    pts = [np.asarray(m["points"], np.float64).reshape(-1, 3) for m in meshes]
+    cnt = [np.asarray(m["counts"], np.int64).reshape(-1) for m in meshes]
+    idx = [np.asarray(m["indices"], np.int64).reshape(-1) for m in meshes]
+    for p, c, i in zip(pts, cnt, idx):  # each piece must be valid on its own (refine's own checks)
+        if c.sum() != len(i) or (len(c) and c.min() < 3) or (len(i) and (i.min() < 0 or i.max() >= len(p))):
+            return None
+    n_pts = np.array([len(p) for p in pts])
+    n_faces = np.array([len(c) for c in cnt])
+    p_off = np.concatenate([[0], np.cumsum(n_pts)])
+    f_off = np.concatenate([[0], np.cumsum(n_faces)])
+    first = meshes[0]
+    kw = {k: first[k] for k in _BATCH_OPTIONS if k in first}
+    holes = [np.asarray(m.get("holes", ()), np.int64).reshape(-1) for m in meshes]
+    holes = [h[(h >= 0) & (h < n)] + o for h, n, o in zip(holes, n_faces, f_off)]
+    if first.get("vertex_data") is not None:
+        kw["vertex_data"] = np.concatenate([np.asarray(m["vertex_data"], np.float64).reshape(n, -1)
+                                            for m, n in zip(meshes, n_pts)])
+    piece = np.repeat(np.arange(len(meshes), dtype=np.float64), n_pts)[:, None]  # which piece a point is of
+    k_var = 0
+    if first.get("varying_data") is not None:
+        var = np.concatenate([np.asarray(m["varying_data"], np.float64).reshape(n, -1) for m, n in zip(meshes, n_pts)])
+        k_var = var.shape[1]
+        piece = np.concatenate([var, piece], axis=1)
+    channels = []
+    for j in range(len(first.get("face_varying", ()))):
+        chs = [m["face_varying"][j] for m in meshes]
+        if isinstance(chs[0], tuple) and len(chs[0]) == 2:
+            vals = [np.asarray(c[0], np.float64).reshape(len(c[0]), -1) for c in chs]
+            vis = [np.asarray(c[1], np.int64).reshape(-1) for c in chs]
+            v_off = np.concatenate([[0], np.cumsum([len(v) for v in vals])])
+            if any(len(vi) != len(i) or (len(vi) and (vi.min() < 0 or vi.max() >= len(v)))
+                   for vi, i, v in zip(vis, idx, vals)):
+                return None
+            channels.append((np.concatenate(vals), np.concatenate([vi + o for vi, o in zip(vis, v_off)])))
+        else:
+            channels.append(np.concatenate([np.asarray(c, np.float64).reshape(len(c), -1) for c in chs]))
+    r = refine(np.concatenate(pts), np.concatenate(cnt), np.concatenate([i + o for i, o in zip(idx, p_off)]),
+               holes=np.concatenate(holes), varying_data=piece, face_varying=channels, **kw)
+    if r.warnings:
+        return None
+    # split: faces are in cage-face order (so in piece order); points by the piece column, stably
+    owner = np.rint(r.varying_data[:, -1]).astype(np.int64)
+    order = np.argsort(owner, kind="stable")
+    new_index = np.empty(len(order), np.int64)
+    new_index[order] = np.arange(len(order))
+    pt_start = np.searchsorted(owner[order], np.arange(len(meshes) + 1))
+    face_piece = np.searchsorted(f_off, r.face, side="right") - 1
+    fc_start = np.searchsorted(face_piece, np.arange(len(meshes) + 1))
+    points = r.points[order]
+    faces = new_index[r.faces]
+    vdata = None if r.vertex_data is None else r.vertex_data[order]
+    vary = None if not k_var else r.varying_data[order][:, :k_var]
+    out = []
+    for k in range(len(meshes)):
+        a, b = pt_start[k], pt_start[k + 1]
+        fa, fb = fc_start[k], fc_start[k + 1]
+        out.append(Refined(points=points[a:b], faces=faces[fa:fb] - a, face=r.face[fa:fb] - f_off[k],
+                           normals=None if r.normals is None else r.normals[fa:fb],
+                           vertex_data=None if vdata is None else vdata[a:b],
+                           varying_data=None if vary is None else vary[a:b],
+                           face_varying=[fv[fa:fb] for fv in r.face_varying], warnings=[]))
+    return out
 
 
 def catmull_clark(points, counts, indices, levels: int = 1, fvar=None, vertex_data=None, **options) -> Refined:
@@ -236,6 +452,9 @@ def _scatter(index, values, n):
     values = np.asarray(values, np.float64)
     if values.ndim == 1:
         return np.bincount(index, values, minlength=n)
+    if values.ndim > 2:
+        cols = int(np.prod(values.shape[1:]))
+        return _scatter(index, values.reshape(len(values), cols), n).reshape((n,) + values.shape[1:])
     return np.stack([np.bincount(index, values[:, j], minlength=n) for j in range(values.shape[1])], axis=1)
 
 
@@ -291,7 +510,7 @@ def _unit(v):
 
 def _corner_normals_flat(p, faces):
     """Per-corner normals of each face at each corner ((next − v) × (prev − v)); the face's mean where that
-    vanishes."""
+    vanishes. ``p`` (V, K, 3): (F, n, K, 3)."""
     nxt = np.roll(faces, -1, axis=1)
     prv = np.roll(faces, 1, axis=1)
     n = _cross(p[nxt] - p[faces], p[prv] - p[faces])
@@ -723,7 +942,8 @@ class _Level:
         return np.where((self.v_nf == 0)[:, None], p, out)
 
     def limit_normals(self, p, masks):
-        """Unit limit-surface normals per corner (C, 3) by OpenSubdiv's limit tangent masks: around smooth points
+        """Unit limit-surface normals per corner (C, K, 3) of K meshes of this topology, points ``p`` (V, K, 3),
+        by OpenSubdiv's limit tangent masks: around smooth points
         over the whole ring, around crease and corner points per sector of faces between sharp edges (so each
         side of a crease gets its own normal). Corners are walked around their point counter-clockwise with
         ``successors`` (corner i of a ring: its outgoing edge is the ring's edge i, its face the ring's face i)."""
@@ -732,6 +952,8 @@ class _Level:
         rule = self.rules(sharp, self.v_sharp)
         idx, nxt, prv = self.idx, self.nxt, self.prv
         cc = masks == "catmullClark"
+
+        K = p.shape[1]
 
         def corner_normal(c):  # the face's own normal at corner c (fallback and orientation check)
             v = p[idx[c]]
@@ -743,7 +965,7 @@ class _Level:
         smooth_v[idx[succ < 0]] = False  # the ring must close
         start = np.full(self.n_v, -1, np.int64)
         start[idx] = np.arange(self.n_c)
-        vnormal, ln = np.zeros((self.n_v, 3)), np.zeros(self.n_v)
+        vnormal, ln = np.zeros((self.n_v, K, 3)), np.zeros((self.n_v, K))
         e_of = idx[nxt]  # per corner: the far point of its outgoing edge, and (quads) its far corner
         f_of = idx[nxt[nxt]] if cc else None
         for n in np.unique(self.v_nf[smooth_v]):  # walk every ring of n faces at once, from any corner
@@ -757,8 +979,8 @@ class _Level:
                 we2, wf2 = np.roll(we1, 1), np.roll(wf1, 1)  # tan2 is tan1 turned by one edge
             else:
                 we1, we2 = np.cos(j * theta), np.sin(j * theta)
-            t1 = np.zeros((len(verts), 3))
-            t2 = np.zeros((len(verts), 3))
+            t1 = np.zeros((len(verts), K, 3))
+            t2 = np.zeros((len(verts), K, 3))
             for k in range(n):
                 e = np.take(p, np.take(e_of, c), axis=0)
                 t1 += we1[k] * e
@@ -770,11 +992,15 @@ class _Level:
                 c = np.take(succ, c)
             vnormal[verts], ln[verts] = _unit(_cross(t1, t2))
         out = vnormal[idx]
-        weak = smooth_v & ~(ln > 1e-9 * np.median(ln[smooth_v])) if smooth_v.any() else smooth_v
-        if weak.any():  # a degenerate ring: the mean of its faces' normals
-            wc = np.flatnonzero(weak[idx])
-            rough = _scatter(idx[wc], corner_normal(wc), self.n_v)
-            out[wc] = _unit(rough[idx[wc]])[0]
+        weak = smooth_v[:, None] & ~(ln > 1e-9 * np.median(ln[smooth_v], axis=0)) if smooth_v.any() else \
+            np.zeros((self.n_v, K), bool)
+        if weak.any():  # a degenerate ring: the mean of its faces' normals (per mesh: the median is per mesh)
+            wc, wk = np.nonzero(weak[idx])
+            v = p[idx[wc], wk]
+            wn = _cross(p[idx[nxt[wc]], wk] - v, p[idx[prv[wc]], wk] - v)
+            key = idx[wc] * K + wk
+            rough = _scatter(key, wn, self.n_v * K)
+            out[wc, wk] = _unit(rough[key])[0]
 
         # --- darts, crease and corner points: per sector of faces between sharp edges (a dart's one sector is its
         # whole ring, from its sharp edge round to it), by the exact eigen-tangents of the sector's subdivision
@@ -807,17 +1033,17 @@ class _Level:
             local[members] = np.arange(len(members))
             sel = local[s_of] >= 0
             cs, li, ps = in_sec[sel], local[s_of[sel]], pos[sel]
-            ring_e = np.zeros((len(members), len(we1), 3))
+            ring_e = np.zeros((len(members), len(we1), K, 3))
             ring_e[li, ps] = p[idx[nxt[cs]]]
             if gk != 0:
                 ring_e[:, gn] = trail[members]
-            t1 = wv1 * v[members] + np.einsum("i,sij->sj", we1, ring_e)
-            t2 = wv2 * v[members] + np.einsum("i,sij->sj", we2, ring_e)
+            t1 = wv1 * v[members] + np.einsum("i,sikj->skj", we1, ring_e)
+            t2 = wv2 * v[members] + np.einsum("i,sikj->skj", we2, ring_e)
             if cc:
-                ring_f = np.zeros((len(members), gn, 3))
+                ring_f = np.zeros((len(members), gn, K, 3))
                 ring_f[li, ps] = p[idx[nxt[nxt[cs]]]]
-                t1 += np.einsum("i,sij->sj", wf1, ring_f)
-                t2 += np.einsum("i,sij->sj", wf2, ring_f)
+                t1 += np.einsum("i,sikj->skj", wf1, ring_f)
+                t2 += np.einsum("i,sikj->skj", wf2, ring_f)
             nrm[members] = _cross(t1, t2)
         rough = _scatter(s_of, corner_normal(in_sec), n_s)
         out[in_sec] = _checked(nrm, rough)[s_of]
@@ -907,13 +1133,14 @@ def _walk(succ, starts, n):
 
 
 def _checked(nrm, rough):
-    """Unit normals, flipped to agree with the rough (area-weighted) normal, the rough one where degenerate."""
+    """Unit normals (S, K, 3), flipped to agree with the rough (area-weighted) normal, the rough one where
+    degenerate (against the median length over each mesh's sectors)."""
     un, ln = _unit(nrm)
     ur, _ = _unit(rough)
-    bad = ~(ln > 1e-9 * np.median(ln)) if len(ln) else ln > 0
-    flip = (un * ur).sum(axis=1) < 0
-    un = np.where(flip[:, None], -un, un)
-    return np.where(bad[:, None], ur, un)
+    bad = ~(ln > 1e-9 * np.median(ln, axis=0)) if len(ln) else ln > 0
+    flip = (un * ur).sum(axis=-1) < 0
+    un = np.where(flip[..., None], -un, un)
+    return np.where(bad[..., None], ur, un)
 
 
 def _chain_labels(succ, longest):

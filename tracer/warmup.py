@@ -30,7 +30,9 @@ def compile_kernels() -> None:
     uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float64)
     b.add_mesh(quad_v, quad_f, material=plain, normals=np.tile([0.0, 0.0, 1.0], (4, 1)), uvs=uv)
     b.add_mesh(quad_v * 0.3 + [0, 0, 0.5], quad_f, material=glass)
-    b.add_mesh(quad_v * 0.2 + [0.5, 0, 0.8], quad_f, material=mirror)
+    placed = np.diag([0.2, 0.2, 0.2, 1.0])
+    placed[:3, 3] = (0.5, 0, 0.8)  # a transform and normals: the builder's placement kernels
+    b.add_mesh(quad_v, quad_f, material=mirror, transform=placed, normals=np.tile([0.0, 0.0, 1.0], (4, 1)))
     b.add_light(PointLight(position=(0, 0, 3), intensity=(1, 1, 1)))
     b.add_light(PointLight(position=(1, 0, 3), intensity=(1, 1, 1), radius=0.1))
     b.add_light(SpotLight(position=(0, 1, 3), intensity=(1, 1, 1), direction=(0, 0, -1)))

@@ -4,8 +4,9 @@ Units. USD gives focalLength and apertures in tenths of a stage unit (the "mm" c
 camera only their ratio matters, so they pass through unchanged. Orthographic apertures and offsets are the view's
 size in tenths of a stage unit, so they are multiplied by 0.1 to get the tracer's world units.
 
-Conform policy: like usdrecord (UsdImagingGL's default window policy, ``CameraUtilMatchVertically``): the vertical
-aperture is kept and the horizontal one follows the image aspect. The image height defaults to
+Conform policy: UsdRender's (``aspectRatioConformPolicy`` of the stage's RenderSettings, usd_io.render_settings),
+and without RenderSettings its fallback, expandAperture, as Arnold renders a stage camera (usdrecord's
+MatchVertically crops a 16:9 aperture rendered at 4:3 to a 1.33x zoom). The image height defaults to
 ``width / (horizontalAperture / verticalAperture)``, so nothing is conformed unless both width and height are given.
 """
 
@@ -19,8 +20,9 @@ from tracer import ORTHOGRAPHIC, PERSPECTIVE, Camera, fit_apertures
 from .stage import UsdInputError
 from .xform import to_numpy
 
-#: usdrecord's policy (CameraUtilMatchVertically): keep the vertical aperture.
-CONFORM_POLICY = "vertical"
+#: UsdRender's fallback aspectRatioConformPolicy (expandAperture), as Arnold renders a stage camera: the
+#: aperture's short side grows until it has the image's aspect (usd_io.render_settings has all five policies).
+CONFORM_POLICY = "expand"
 DEFAULT_WIDTH = 960
 #: USD's default apertures (35 mm academy, in tenths of a unit) and focal length, for the framing camera.
 DEFAULT_APERTURE = (20.955, 15.2908)
@@ -56,12 +58,34 @@ def read_camera(prim, time):
         vertical_aperture_offset=float(gf.verticalApertureOffset),
         near=float(gf.clippingRange.min),
         far=float(gf.clippingRange.max),
+        clipping_planes=[tuple(float(x) for x in p) for p in (cam.GetClippingPlanesAttr().Get(time) or [])],
     )
 
 
-def image_size(raw: dict, width=None, height=None) -> tuple[int, int]:
-    """Resolve the image size: missing sides follow the aperture aspect; the default width is 960."""
-    aspect = raw["horizontal_aperture"] / raw["vertical_aperture"]
+def fold_clipping_planes(raw: dict, warn) -> dict:
+    """``clippingPlanes`` (a, b, c, d) in camera space keep the points where a·x + b·y + c·z + d >= 0 (UsdGeomCamera).
+    A plane parallel to the image plane (a = b = 0) is a depth bound on depth = −z: c < 0 keeps depth >= d/c (it
+    raises ``near``), c > 0 keeps depth <= d/c (it lowers ``far``) — what the tracer's near/far planes do. Oblique
+    planes are not supported (one warning naming the camera)."""
+    out = dict(raw)
+    oblique = 0
+    for a, b, c, d in raw.get("clipping_planes", ()):
+        if abs(a) > 1e-9 * abs(c) or abs(b) > 1e-9 * abs(c) or c == 0:
+            oblique += 1
+        elif c < 0:  # c·z >= −d, z <= −d/c: depth >= d/c
+            out["near"] = max(out["near"], d / c)
+        else:  # z >= −d/c: depth <= d/c
+            out["far"] = min(out["far"], d / c)
+    if oblique:
+        warn(f"{raw['path']}: {oblique} clipping plane(s) not parallel to the image plane are not supported "
+             "(ignored); planes parallel to it are honoured as near/far")
+    return out
+
+
+def image_size(raw: dict, width=None, height=None, pixel_aspect: float = 1.0) -> tuple[int, int]:
+    """Resolve the image size: missing sides follow the aperture aspect (pixels ``pixel_aspect`` wide per unit of
+    height); the default width is 960."""
+    aspect = raw["horizontal_aperture"] / raw["vertical_aperture"] / pixel_aspect
     if width is None and height is None:
         width = DEFAULT_WIDTH
     if width is None:
@@ -71,8 +95,12 @@ def image_size(raw: dict, width=None, height=None) -> tuple[int, int]:
     return int(width), int(height)
 
 
-def to_tracer(raw: dict, width: int, height: int, policy: str = CONFORM_POLICY) -> Camera:
-    h, v = fit_apertures(raw["horizontal_aperture"], raw["vertical_aperture"], width, height, policy)
+def to_tracer(raw: dict, width: int, height: int, policy: str = CONFORM_POLICY, pixel_aspect: float = 1.0) -> Camera:
+    """The tracer's camera for an image of width × height pixels, each ``pixel_aspect`` wide per unit of height:
+    the aperture conformed to the image aspect by ``policy`` (tracer.fit_apertures; "none" leaves it, so the
+    pixels stretch)."""
+    h, v = fit_apertures(raw["horizontal_aperture"], raw["vertical_aperture"], width * pixel_aspect, height,
+                         policy)
     ho, vo = raw["horizontal_aperture_offset"], raw["vertical_aperture_offset"]
     scale = 0.1 if raw["projection"] == ORTHOGRAPHIC else 1.0
     near = max(0.0, raw["near"])
@@ -92,23 +120,57 @@ def framing_distance(bounds: np.ndarray, up_axis: str, half_fov: float) -> float
     return radius / np.tan(half_fov) + depth / 2
 
 
-def framing_camera(bounds: np.ndarray, up_axis: str, width: int, height: int) -> Camera:
-    """usdrecord's default camera (a stage without one): a 50 mm perspective camera on the front axis, looking
-    at the bounds' centre along −Z (Y-up; along +Y with Z up for a Z-up stage), backed off to frame the front face
-    of the bounds (:func:`framing_distance`). usdrecord divides by the horizontal FOV and crops tall scenes; this
-    uses the narrower of the image's two FOVs, so nothing is cut off."""
+#: Below this share of the bounds' largest axis-aligned projected area, the front view is edge-on.
+EDGE_ON_FRACTION = 0.03
+
+
+def framing_view(bounds: np.ndarray, up_axis: str):
+    """(direction from the bounds' centre to the eye, up vector, name, front share): the view the default camera
+    takes. usdrecord's front view (−Z with Y up, +Y with Z up) unless the front face of the bounds covers less than
+    :data:`EDGE_ON_FRACTION` of the largest of the three axis-aligned faces (a ground plane, a wall seen from its
+    side): then the documented oblique view from front-right-above, the direction (right + up + back)/√3
+    (azimuth 45°, elevation 35.3°, the isometric angle), which sees every face of the box."""
+    lo, hi = np.asarray(bounds, dtype=np.float64)
+    dim = np.maximum(hi - lo, 0.0)
+    if up_axis == "Z":
+        up, back, right = np.array([0.0, 0.0, 1.0]), np.array([0.0, -1.0, 0.0]), np.array([1.0, 0.0, 0.0])
+        front = dim[0] * dim[2]
+    else:
+        up, back, right = np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])
+        front = dim[0] * dim[1]
+    largest = max(dim[0] * dim[1], dim[1] * dim[2], dim[0] * dim[2])
+    share = 1.0 if largest <= 0 else float(front / largest)
+    if share >= EDGE_ON_FRACTION:
+        return back, up, "the front", share
+    return (right + up + back) / np.sqrt(3.0), up, "front-right-above (isometric)", share
+
+
+def framing_camera(bounds: np.ndarray, up_axis: str, width: int, height: int):
+    """(camera, note): the default camera of a stage without one, and a line saying which view it took.
+
+    The view is :func:`framing_view`'s. From the front it is usdrecord's (UsdAppUtils FrameRecorder): a 50 mm
+    perspective camera looking at the bounds' centre, backed off to frame the front face
+    (:func:`framing_distance`; usdrecord divides by the horizontal FOV and crops tall scenes; this uses the
+    narrower of the image's two FOVs, so nothing is cut off). From the oblique view it backs off to frame the
+    bounding sphere. ``render``, ``explain`` and the farm all get their default camera here (through
+    ``load_stage``)."""
     lo, hi = np.asarray(bounds, dtype=np.float64)
     center = (lo + hi) / 2
-    if up_axis == "Z":
-        up, back = np.array([0.0, 0.0, 1.0]), np.array([0.0, -1.0, 0.0])
-    else:
-        up, back = np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    direction, up, name, share = framing_view(bounds, up_axis)
     hv, vv = fit_apertures(*DEFAULT_APERTURE, width, height, "expand")
     half_fov = float(np.arctan(min(hv, vv) / 2 / DEFAULT_FOCAL))
-    dist = framing_distance(bounds, up_axis, half_fov)
-    eye = center + back * dist
-    return Camera.look_at(eye, center, up=up, focal_length=DEFAULT_FOCAL, horizontal_aperture=hv,
-                          vertical_aperture=vv, near=dist * 1e-4, far=np.inf)
+    if name == "the front":
+        dist = framing_distance(bounds, up_axis, half_fov)
+        note = "framed from the front (usdrecord's view)"
+    else:
+        radius = max(float(np.linalg.norm(hi - lo)) / 2, 1e-3)
+        dist = radius / np.sin(half_fov)
+        note = (f"framed from {name}: the front view would see the stage edge-on ({100 * share:.1f} % of its "
+                "largest side)")
+    eye = center + direction * dist
+    camera = Camera.look_at(eye, center, up=up, focal_length=DEFAULT_FOCAL, horizontal_aperture=hv,
+                            vertical_aperture=vv, near=dist * 1e-4, far=np.inf)
+    return camera, note
 
 
 def find_camera(stage, path=None, prims=None):

@@ -4,6 +4,7 @@
                    [--exposure EV] [--quiet] [--scheduler ADDRESS [--worker-writes] [--ship-assets]]
     whitted explain SCENE --pixel X Y [--json OUT.json] [--usd OUT.usda] [--png OUT.png] [STAGE FLAGS] [SETTINGS FLAGS]
     whitted info SCENE [STAGE FLAGS]
+    whitted warmup    (compile the tracer's kernels once, e.g. at install time)
     whitted --version
 
 STAGE FLAGS are the fields of :class:`usd_io.request.StageRequest` (--time/--frame, --camera, --purposes,
@@ -45,7 +46,12 @@ EXIT_OK, EXIT_FAULT, EXIT_BAD_INPUT = 0, 1, 2
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # argparse's own errors are bad input too: one line, exit 2
-        raise BadInput(f"{self.prog}: {message}")
+        m = re.match(r"argument command: invalid choice: '([^']*)' \(choose from (.*)\)", message)
+        if m:
+            raise BadInput(f"unknown command {m.group(1)!r}: choose from {m.group(2).replace(chr(39), '')}")
+        if "required: command" in message:
+            raise BadInput("a command is required: whitted render SCENE -o OUT.png | whitted info SCENE")
+        raise BadInput(message if self.prog == "whitted" else f"{self.prog}: {message}")
 
 
 def parse_frames(text: str) -> list[float]:
@@ -132,6 +138,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_render_command(sub.add_parser("render", help="render USD stages to PNG/EXR/JPEG/TIFF"))
     _add_explain_command(sub.add_parser("explain", help="the ray tree of one pixel: every ray that made it "
                                                         "(tree, JSON, USD, PNG)"))
+    sub.add_parser("warmup", help="compile the tracer's kernels now (once per install; renders then start at once)")
     i = sub.add_parser("info", help="list cameras, lights, meshes and materials of a USD stage")
     i.add_argument("scene")
     add_request_flags(i)
@@ -213,6 +220,9 @@ def render_file(request: StageRequest, settings, output: str, frames, outputs: O
             s = image.stats
             print(f"{out}: {info.width}x{info.height}, {len(scene.triangles):,} triangles, "
                   f"{s['rays']['total']:,} rays in {s['seconds']:.2f} s", file=sys.stderr)
+    if info.nothing_drawn:  # gprims that gave no triangle: written, but not a success (usd_io.reader)
+        print(f"whitted: error: {scene_path}: {info.nothing_drawn}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     return EXIT_OK
 
 
@@ -297,7 +307,22 @@ def cmd_explain(args) -> int:
     return run(args)
 
 
-_COMMANDS = {"render": cmd_render, "info": cmd_info, "explain": cmd_explain}
+def cmd_warmup(args) -> int:
+    """``whitted warmup``: compile (or load) every tracer kernel into the on-disk cache, as the first render on a
+    machine would; run it after installing so that no render pays the compile."""
+    import time
+
+    from tracer.jit import kernels_cached
+
+    start = time.perf_counter()
+    was = kernels_cached()
+    _compile_kernels(quiet=True)
+    print(f"whitted: kernels {'were already compiled' if was else 'compiled'} "
+          f"({time.perf_counter() - start:.1f} s)", file=sys.stderr)
+    return 0
+
+
+_COMMANDS = {"render": cmd_render, "info": cmd_info, "explain": cmd_explain, "warmup": cmd_warmup}
 
 
 def main(argv=None) -> int:

@@ -46,7 +46,23 @@ def read_points(prim, time) -> MeshData | None:
     tris = (faces[None] + (np.arange(len(p)) * nv)[:, None, None]).reshape(-1, 3)
     normals = np.broadcast_to(unit[None], (len(p), nv, 3)).reshape(-1, 3).copy()
     keep = np.repeat(radius > 0, len(faces))
-    return MeshData(verts, tris[keep], np.zeros(int(keep.sum()), np.int64), 1, normals=normals)
+    point_of_tri = np.repeat(np.arange(len(p)), len(faces))[keep]  # primvars: one "face" per point
+    return MeshData(verts, tris[keep], point_of_tri, len(p), normals=normals,
+                    source_points=np.repeat(np.arange(len(p)), nv))
+
+
+def curve_widths(schema, time, n_points, n_curves, label):
+    """Control-point widths (P,) of a curves prim: per point as authored (vertex/varying with one value per point),
+    per curve repeated over its points, else the first value everywhere; None when unauthored."""
+    w = _widths(schema, time, n_points, label, "curve")
+    if w is None:
+        return None
+    if len(w) == n_points:
+        return w
+    counts = np.asarray(schema.GetCurveVertexCountsAttr().Get(time), np.int64)
+    if len(w) == n_curves and len(counts) == n_curves:
+        return np.repeat(w, counts)
+    return np.full(n_points, w[0])
 
 
 def read_curves(prim, time) -> MeshData | None:
@@ -65,6 +81,16 @@ def read_curves(prim, time) -> MeshData | None:
         warnings.append(f"{label}: cubic {curves.GetBasisAttr().Get(time)} curves drawn as tubes along their "
                         "control polygon")
     periodic = curves.GetWrapAttr().Get(time) == UsdGeom.Tokens.periodic
+    data = tube_mesh(p, counts, curve_widths(curves, time, len(p), len(counts), label), periodic)
+    if data is not None:
+        data.warnings = warnings
+    return data
+
+
+def tube_mesh(p: np.ndarray, counts: np.ndarray, widths, periodic: bool) -> MeshData | None:
+    """Polylines (points ``p`` (P, 3), ``counts`` points per curve) as TUBE_SIDES-sided tubes whose diameter at each
+    point is ``widths`` (P,) (None: 1 unit); a segment's radius is the mean of its ends'. ``periodic`` closes each
+    curve. No Python loop over segments."""
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
     curve_of_point = np.repeat(np.arange(len(counts)), counts)
     a = np.arange(len(p))
@@ -79,20 +105,15 @@ def read_curves(prim, time) -> MeshData | None:
         seg = np.stack([a, nxt], 1)[~is_last]
     if not len(seg):
         return None
-    w = _widths(curves, time, len(p), label, "curve")
-    if w is None:
+    if widths is None:
         r = np.full(len(seg), 0.5)
-    elif len(w) == len(p):
-        r = (w[seg[:, 0]] + w[seg[:, 1]]) / 4
-    elif len(w) == len(counts):
-        r = w[curve_of_point[seg[:, 0]]] / 2
     else:
-        r = np.full(len(seg), w[0] / 2)
+        r = (widths[seg[:, 0]] + widths[seg[:, 1]]) / 4
     p0, p1 = p[seg[:, 0]], p[seg[:, 1]]
     d = p1 - p0
     length = np.linalg.norm(d, axis=1)
     ok = (length > 0) & (r > 0)
-    p0, p1, d, r, length = p0[ok], p1[ok], d[ok], r[ok], length[ok]
+    p0, p1, d, r, length, seg = p0[ok], p1[ok], d[ok], r[ok], length[ok], seg[ok]
     if not len(p0):
         return None
     d = d / length[:, None]
@@ -109,5 +130,8 @@ def read_curves(prim, time) -> MeshData | None:
     quad = np.concatenate([np.stack([k, k1, TUBE_SIDES + k1], 1), np.stack([k, TUBE_SIDES + k1, TUBE_SIDES + k], 1)])
     n_seg = len(p0)
     tris = (quad[None] + (np.arange(n_seg) * 2 * TUBE_SIDES)[:, None, None]).reshape(-1, 3)
-    return MeshData(verts.reshape(-1, 3), tris, np.zeros(len(tris), np.int64), 1,
-                    normals=normals.reshape(-1, 3), warnings=warnings)
+    # primvars: a triangle's face is its curve (uniform), a vertex's source point the end of its segment it rings
+    faces = np.repeat(curve_of_point[seg[:, 0]], len(quad))
+    source = np.concatenate([np.repeat(seg[:, :1], TUBE_SIDES, 1), np.repeat(seg[:, 1:], TUBE_SIDES, 1)], 1)
+    return MeshData(verts.reshape(-1, 3), tris, faces, len(counts), normals=normals.reshape(-1, 3),
+                    source_points=source.reshape(-1))

@@ -86,7 +86,10 @@ def _axis_scales(m):
 
 def blender_authored(stage) -> bool:
     """Whether the stage's root layer was written by Blender's USD exporter (``doc = "Blender v…"``)."""
-    return str(stage.GetRootLayer().documentation).startswith("Blender v")
+    from .exporters import detect
+
+    w = detect(stage)
+    return w is not None and w.units.startswith("blender")
 
 
 def sun_irradiance(rgb, angle_deg: float, normalize: bool, blender: bool):
@@ -100,12 +103,22 @@ def sun_irradiance(rgb, angle_deg: float, normalize: bool, blender: bool):
     return rgb * omega, diameter
 
 
-def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False):
-    """(kind, tracer light or None, world dict or None) for one UsdLux prim; ``blender``: the stage was written by
-    Blender (its sun units, see :func:`blender_authored`)."""
+def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, units: str | None = None):
+    """(kind, tracer light or None, world dict or None) for one UsdLux prim in ``units`` (usd_io.exporters.UNITS:
+    the writer's light units; None: "blender" when ``blender`` else "spec")."""
+    units = units or ("blender" if blender else "spec")
+    blender = units == "blender"
     t = prim.GetTypeName()
     name = str(prim.GetPath())
     rgb = light_colour(prim, time)
+    if units == "kit":
+        from .exporters import KIT_EV
+
+        rgb = rgb * 2.0 ** KIT_EV
+    if units in ("blender-legacy", "blender-nits"):
+        got = _old_blender(t, prim, world, time, rgb, units, warn)
+        if got is not None:
+            return got
     pos = world[:3, 3]
     down = -world[:3, 2]  # the light's −Z
     if t == "SphereLight":
@@ -172,17 +185,70 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False):
         return "area", AreaLight(position=pos, u_axis=world[:3, 0], v_axis=world[:3, 1], normal=down,
                                  size=size, radiance=radiance, shape=shape, name=name), None
     if t in ("DomeLight", "DomeLight_1"):
-        diffuse = float(_get(UsdLux.LightAPI(prim).GetDiffuseAttr(), time, 1.0))
-        image, rotation, average = dome_texture(prim, world, time, rgb, warn)  # usd_io/dome.py
-        colour = rgb if average is None else average
-        env = None
-        if image is not None:
-            env = dict(image=image, rotation=rotation)
-            if diffuse != 1.0:
-                warn(f"{name}: inputs:diffuse = {diffuse} is not supported with a dome texture (1 used)")
-        return "dome", None, dict(background=colour, ambient=colour * diffuse, environment=env)
+        return _dome(prim, world, time, rgb, warn)
     warn(f"{name}: light type {t} is not supported (skipped)")
     return "unsupported", None, None
+
+
+def _old_blender(t, prim, world, time, rgb, units, warn):
+    """Lights of Blender 2.83–3.1 (I = P/100, no normalize) and 3.2–3.6 (nits), converted to the tracer's units
+    from the power P (W) or strength S (W/m²) the Blender scene had (usd_io.exporters documents both exporters).
+    None for types these exporters never wrote (read as the spec says)."""
+    from .exporters import NITS_TO_W_PER_M2 as K
+
+    name = str(prim.GetPath())
+    pos, down = world[:3, 3], -world[:3, 2]
+    legacy = units == "blender-legacy"
+    if t == "SphereLight":
+        r = _finite(_get(UsdLux.SphereLight(prim).GetRadiusAttr(), time, 0.5), "radius")
+        power = 100.0 * rgb if legacy else rgb * K * 4 * np.pi * r * r
+        radius = r * float(np.mean(_axis_scales(world)))
+        shaping = UsdLux.ShapingAPI(prim)
+        cone = shaping.GetShapingConeAngleAttr() if prim.HasAPI(UsdLux.ShapingAPI) else None
+        if cone and cone.HasAuthoredValue() and 0 < float(cone.Get(time)) < 180:
+            if not legacy:  # the nits exporter divided a spot by its cone's solid angle share, 2πr²(1 − cos θ)
+                theta = np.radians(float(cone.Get(time)))
+                power = rgb * K * 2 * np.pi * r * r * (1 - np.cos(theta))
+            soft = float(_get(shaping.GetShapingConeSoftnessAttr(), time, 0.0))
+            return "spot", SpotLight(position=pos, intensity=power / (4 * np.pi), radius=radius, direction=down,
+                                     cone_angle=np.radians(float(cone.Get(time))), blend=float(np.clip(soft, 0, 1)),
+                                     name=name), None
+        return "point", PointLight(position=pos, intensity=power / (4 * np.pi), radius=radius, name=name), None
+    if t in ("RectLight", "DiskLight"):
+        sx, sy, _ = _axis_scales(world)
+        if t == "RectLight":
+            lux = UsdLux.RectLight(prim)
+            w, h = float(_get(lux.GetWidthAttr(), time, 1.0)), float(_get(lux.GetHeightAttr(), time, 1.0))
+            size, shape, area, written_area = (w * sx, h * sy), "rect", w * h, w * h
+        else:
+            r = float(_get(UsdLux.DiskLight(prim).GetRadiusAttr(), time, 0.5))
+            size, shape, area, written_area = (2 * r * sx, 2 * r * sy), "disk", np.pi * r * r, 2 * np.pi * r * r
+        if not (np.all(np.isfinite(size)) and min(size) > 0):
+            return None
+        power = 100.0 * rgb if legacy else rgb * K * written_area
+        return "area", AreaLight(position=pos, u_axis=world[:3, 0], v_axis=world[:3, 1], normal=down, size=size,
+                                 radiance=power / (np.pi * area), shape=shape, name=name), None
+    if t == "DistantLight":
+        angle = _finite(_get(UsdLux.DistantLight(prim).GetAngleAttr(), time, 0.0), "angle")
+        diameter = float(np.clip(angle if legacy else np.radians(angle), 0, np.pi - 1e-6))  # legacy: radians
+        irradiance = rgb if legacy else rgb * K
+        return "distant", DistantLight(direction=down, irradiance=irradiance, angle=diameter, name=name), None
+    if t in ("DomeLight", "DomeLight_1") and not legacy:  # the world's strength S written as S · 683
+        return _dome(prim, world, time, rgb * K, warn)
+    return None
+
+
+def _dome(prim, world, time, rgb, warn):
+    name = str(prim.GetPath())
+    diffuse = float(_get(UsdLux.LightAPI(prim).GetDiffuseAttr(), time, 1.0))
+    image, rotation, average = dome_texture(prim, world, time, rgb, warn)  # usd_io/dome.py
+    colour = rgb if average is None else average
+    env = None
+    if image is not None:
+        env = dict(image=image, rotation=rotation)
+        if diffuse != 1.0:
+            warn(f"{name}: inputs:diffuse = {diffuse} is not supported with a dome texture (1 used)")
+    return "dome", None, dict(background=colour, ambient=colour * diffuse, environment=env)
 
 
 #: The default lighting of a stage without lights, as usdview/usdrecord light one: a headlight along the camera's

@@ -47,7 +47,10 @@ import numpy as np
 from pxr import UsdGeom, UsdShade
 
 from . import shade_network as net
-from .material_primvars import mesh_primvars
+from .material_primvars import find_primvar, mesh_primvars
+from .preview_ranges import clamp_preview_inputs
+from .surfaces import other_surface
+from .texture_assets import open_texture
 from .texture_files import TextureCache, resolve_wrap
 from .tracer_model import ModelWriter, TextureSpec
 
@@ -170,8 +173,8 @@ class MaterialTable:
     # ------------------------------------------------------------------ displayColor
     def display_color(self, prim):
         """Unbound geometry: displayColor as a vertex colour (any interpolation), on a plain diffuse surface."""
-        pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayColor")
-        if not (pv and pv.HasValue()):
+        pv = find_primvar(prim, "displayColor")  # inherited from ancestors as UsdGeomPrimvarsAPI says
+        if pv is None:
             return self._plain("displayColor(none)", DEFAULT_DISPLAY), MeshNeeds()
         op = UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayOpacity")
         if op and op.HasValue():
@@ -211,13 +214,10 @@ class MaterialTable:
             preview, mtlx = mtlx, None  # MaterialX's UsdPreviewSurface node: the same inputs, the same reading
         if preview and is_preview_surface(preview):
             fields, needs = self.preview_surface(preview, label)
-        elif preview and not mtlx:
-            self.warn(f"{label}: surface shader {net.shader_id(preview)!r} is not supported; using grey")
-            fields = self.model(base_color=FALLBACK_DIFFUSE)
         if mtlx:
             fields = self.materialx(mtlx, fields, label, needs)
-        if not fields:
-            fields = self.model(base_color=FALLBACK_DIFFUSE)
+        if not fields:  # Arnold, MDL OmniPBR, or nothing understood (displayColor + a warning): usd_io.surfaces
+            fields = other_surface(self, mat, preview, label, needs)
         return fields, needs
 
     # ------------------------------------------------------------------ UsdPreviewSurface
@@ -226,6 +226,7 @@ class MaterialTable:
         t = self.model()
         needs = MeshNeeds()
         src = {name: net.source(s, name, default, self.time) for name, default in PREVIEW_DEFAULTS.items()}
+        src = clamp_preview_inputs(src, label, self.warn)  # the spec's ranges (usd_io.preview_ranges)
 
         # diffuseColor -> base colour
         d = src["diffuseColor"]
@@ -382,21 +383,14 @@ class MaterialTable:
         if asset is None or not asset.path:
             self.warn(f"{label}: {name} texture {lk.node!r} has no file; its fallback {lk.fallback} is used")
             return None, lk.fallback
-        if "<UDIM>" in asset.path:
-            self.warn(f"{label}: UDIM texture {asset.path!r} is not supported; {name} uses the fallback "
-                      f"{lk.fallback}")
-            return None, lk.fallback
-        if not asset.resolvedPath:
-            self.warn(f"{label}: texture {asset.path!r} not found; {name} uses the fallback {lk.fallback}")
-            return None, lk.fallback
         cs = lk.colorspace if lk.colorspace in ("sRGB", "raw") else "auto"
         if lk.colorspace not in ("sRGB", "raw", "auto"):
             self.warn(f"{lk.node}: unknown sourceColorSpace {lk.colorspace!r} (auto used)")
-        try:
-            f = self.files.get(asset.resolvedPath, cs, asset.path)
-        except ValueError as exc:
-            self.warn(f"{label}: {exc}; {name} uses the fallback {lk.fallback}")
+        got = open_texture(lk, cs, self.files, self.warn, label, name)  # UDIM sets, backslashes: texture_assets
+        if got is None:
             return None, lk.fallback
+        f, udim_m = got
+        lk.transform = udim_m @ lk.transform
         wrap_s = resolve_wrap(lk.wrap_s, f.wrap_meta[0], lk.node, self.warn)
         wrap_t = resolve_wrap(lk.wrap_t, f.wrap_meta[1], lk.node, self.warn)
         uv_set = self.uv_set_index(lk.uv)
@@ -414,12 +408,12 @@ class MaterialTable:
         return dict(fields)
 
     # ------------------------------------------------------------------ MaterialX
-    def materialx(self, s: UsdShade.Shader, fields: dict, label: str, needs: MeshNeeds) -> dict:
+    def materialx(self, s: UsdShade.Shader, fields: dict, label: str, needs: MeshNeeds, family=None) -> dict:
         """OpenPBR / Standard Surface. Without a UsdPreviewSurface (``fields`` empty) base colour (× its weight),
         metalness, specular roughness and the normal come from it, each a constant or a MaterialX image
         (:func:`usd_io.shade_network.mx_image_lookup`); transmission, its colour and the ior always do."""
         sid = net.shader_id(s)
-        family = next((f for f in MX_SURFACES if f in sid), None)
+        family = family or next((f for f in MX_SURFACES if f in sid), None)
         if family is None:
             if not fields:
                 self.warn(f"{label}: MaterialX shader {sid!r} is not supported")
@@ -439,7 +433,17 @@ class MaterialTable:
                 base = net.Const(tuple(weight * c for c in net.floats(base.value, 3, names["base_default"])))
             elif isinstance(base, net.TextureLookup):
                 base.scale = tuple(weight * c for c in base.scale[:3]) + (base.scale[3],)
-            self._colour_input(t, "base_color", base, names["base_default"], label, names["base"], needs)
+            if isinstance(base, net.PrimvarLookup):  # a primvar read (Arnold's user_data_rgb): vertex colour
+                needs.color = (base.name, net.floats(base.fallback, 3, names["base_default"]))
+                t.update(base_color=(weight, weight, weight), vertex_color=True)
+            else:
+                self._colour_input(t, "base_color", base, names["base_default"], label, names["base"], needs)
+            if "spec" in names:  # the specular weight scales the Principled level (0.5 at weight 1)
+                t["specular"] = 0.5 * float(np.clip(num(names["spec"], 1.0), 0.0, 2.0))
+            if "emission" in names:  # Standard Surface: emission weight x emission_color
+                self._colour_input(t, "emission", _weighted(net.source(s, names["emission_color"], (1.0, 1.0, 1.0),
+                                                                       self.time), num(names["emission"], 0.0)),
+                                   (0.0, 0.0, 0.0), label, names["emission_color"], needs)
             self._scalar_input(t, "metallic", net.source(s, names["metal"], 0.0, self.time), 0.0, label,
                                names["metal"], needs)
             self._scalar_input(t, "roughness", net.source(s, names["rough"], names["rough_default"], self.time),
@@ -468,12 +472,13 @@ MX_SURFACES = {
     "open_pbr_surface": dict(weight="base_weight", weight_default=1.0, base="base_color",
                              base_default=(0.8, 0.8, 0.8), metal="base_metalness", rough="specular_roughness",
                              rough_default=0.3, normal="geometry_normal", trans="transmission_weight",
-                             ior="specular_ior", tint="transmission_color",
+                             ior="specular_ior", tint="transmission_color", spec="specular_weight",
                              dropped=("coat_weight", "emission_luminance", "subsurface_weight", "fuzz_weight")),
     "standard_surface": dict(weight="base", weight_default=0.8, base="base_color", base_default=(1.0, 1.0, 1.0),
                              metal="metalness", rough="specular_roughness", rough_default=0.2, normal="normal",
                              trans="transmission", ior="specular_IOR", tint="transmission_color",
-                             dropped=("coat", "emission", "subsurface", "sheen")),
+                             emission="emission", emission_color="emission_color", spec="specular",
+                             dropped=("coat", "subsurface", "sheen")),
 }
 
 
@@ -484,6 +489,15 @@ PREVIEW_SURFACE_IDS = ("UsdPreviewSurface", "ND_UsdPreviewSurface_surfaceshader"
 
 def is_preview_surface(shader) -> bool:
     return net.shader_id(shader) in PREVIEW_SURFACE_IDS
+
+
+def _weighted(src, w: float):
+    """A colour source scaled by ``w`` (a constant's value, a texture's scale)."""
+    if isinstance(src, net.Const):
+        return net.Const(tuple(w * c for c in net.floats(src.value, 3, (1.0, 1.0, 1.0))))
+    if isinstance(src, net.TextureLookup):
+        src.scale = tuple(w * c for c in src.scale[:3]) + (src.scale[3],)
+    return src
 
 
 def _is_default(src, default) -> bool:

@@ -53,8 +53,8 @@ def default_uv_name(prim, warn=None) -> str | None:
 
 def corner_values(prim, name: str, tri, n_points: int, n_face_vertices: int, time, width: int):
     """A primvar of any interpolation as per-corner (T, 3, width) float32, or (None, reason)."""
-    pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar(name)
-    if not pv or not pv.HasValue():
+    pv = find_primvar(prim, name)
+    if pv is None:
         return None, None
     vals = pv.ComputeFlattened(time)
     if vals is None or len(vals) == 0:
@@ -67,6 +67,43 @@ def corner_values(prim, name: str, tri, n_points: int, n_face_vertices: int, tim
     return (None if out is None else out.astype(np.float32)), why
 
 
+def find_primvar(prim, name):
+    """``primvars:name`` of the prim, or a constant one inherited from an ancestor (UsdGeomPrimvarsAPI's
+    inheritance: displayColor authored on an Xform colours the gprims below it); None without a value."""
+    pv = UsdGeom.PrimvarsAPI(prim).FindPrimvarWithInheritance(name)
+    return pv if pv and pv.HasValue() else None
+
+
+def gprim_colors(prim, data, name, fallback, time, warn):
+    """Per-corner (T, 3, 3) colours of a gprim that is not a Mesh: constant everywhere; on Points and curves, per
+    point (vertex, varying; on Points every non-constant interpolation is per point) through the vertices' source
+    points and per curve (uniform) through the triangles' faces; on implicit shapes, non-constant values are averaged
+    (one warning)."""
+    pv = find_primvar(prim, name)
+    vals = pv.ComputeFlattened(time) if pv is not None else None
+    n_tri = len(data.triangles)
+    if vals is None or not len(vals):
+        return np.broadcast_to(np.asarray(fallback, np.float32), (n_tri, 3, 3)).copy()
+    v = np.asarray(vals, np.float64).reshape(len(vals), -1)
+    v = np.concatenate([v, np.repeat(v[:, -1:], max(0, 3 - v.shape[1]), axis=1)], axis=1)[:, :3]
+    interp = pv.GetInterpolation()
+    source = getattr(data, "source_points", None)
+    n_points = None if source is None or not len(source) else int(source.max()) + 1
+    if len(v) == 1 or interp == UsdGeom.Tokens.constant:
+        out = np.broadcast_to(v[0], (n_tri, 3, 3))
+    elif source is not None and len(v) == n_points and (interp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying)
+                                                         or prim.IsA(UsdGeom.Points)):
+        out = v[source[data.triangles]]
+    elif interp == UsdGeom.Tokens.uniform and len(v) == data.n_faces and source is not None:
+        out = np.repeat(v[data.faces][:, None], 3, axis=1)
+    else:
+        if np.ptp(v, axis=0).max() > 0:
+            warn(f"{prim.GetPath()}: primvars:{name} with {interp} interpolation ({len(v)} values) on a "
+                 f"{prim.GetTypeName()} is averaged")
+        out = np.broadcast_to(v.mean(axis=0), (n_tri, 3, 3))
+    return np.ascontiguousarray(out, np.float32)
+
+
 def mesh_primvars(prim, data, needs, uv_set_names: list, time, warn):
     """(uv_sets {set index: (T, 3, 2)}, colors (T, 3, 3) or None): the per-corner primvars a mesh's materials read
     (set 0, the mesh's default set, always). Gprims (no primvars) give a constant colour fallback only."""
@@ -77,18 +114,8 @@ def mesh_primvars(prim, data, needs, uv_set_names: list, time, warn):
     if refined is not None:  # a refined subdivision surface: its primvars came through the refinement (mesh.py)
         return _refined_primvars(prim, refined, len(data.triangles), needs, uv_set_names, warn)
     if not prim.IsA(UsdGeom.Mesh) or getattr(data, "corners", None) is None:
-        if needs.color is not None:  # a tessellated gprim: one colour (non-constant ones averaged)
-            name, fallback = needs.color
-            pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar(name)
-            vals = pv.ComputeFlattened(time) if pv and pv.HasValue() else None
-            c = np.asarray(fallback, np.float64)
-            if vals is not None and len(vals):
-                v = np.asarray(vals, np.float64).reshape(len(vals), -1)[:, :3]
-                if len(v) > 1 and np.ptp(v, axis=0).max() > 0:
-                    warn(f"{prim.GetPath()}: primvars:{name} with {pv.GetInterpolation()} interpolation on a "
-                         f"{prim.GetTypeName()} is averaged")
-                c = v.mean(axis=0)
-            colors = np.broadcast_to(np.asarray(c, np.float32), (len(data.triangles), 3, 3)).copy()
+        if needs.color is not None:
+            colors = gprim_colors(prim, data, *needs.color, time, warn)
         # a refined subdivision surface carries its st through the refinement (usd_io/mesh.py): that is set 0
         sets = {} if getattr(data, "uvs", None) is None else {0: np.asarray(data.uvs, np.float32)}
         return sets, colors
@@ -133,8 +160,11 @@ def _refined_primvars(prim, refined: dict, n_triangles: int, needs, uv_set_names
             c = refined[name]
             colors = np.concatenate([c, np.repeat(c[..., -1:], max(0, 3 - c.shape[-1]), axis=-1)], axis=-1)[..., :3]
             colors = np.ascontiguousarray(colors, np.float32)
-        else:
-            colors = np.broadcast_to(np.asarray(fallback, np.float32), (n_triangles, 3, 3)).copy()
+        else:  # not refined: absent, or a constant one inherited from an ancestor
+            pv = find_primvar(prim, name)
+            vals = pv.ComputeFlattened() if pv is not None and pv.GetInterpolation() == "constant" else None
+            c = fallback if vals is None or not len(vals) else (tuple(np.ravel(vals[0])) * 3)[:3]
+            colors = np.broadcast_to(np.asarray(c, np.float32), (n_triangles, 3, 3)).copy()
     return sets, colors
 
 

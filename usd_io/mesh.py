@@ -116,6 +116,7 @@ class MeshData:
     corners: np.ndarray | None = None  # (T, 3) face-vertex positions, to expand further primvars (materials)
     n_face_vertices: int = 0
     primvars: dict | None = None  # refined subdivision surfaces: {name: (T, 3, k) per corner} (no corners then)
+    source_points: np.ndarray | None = None  # points and curves: (V,) the authored point each vertex stands for
 
 
 def _primvar(prim, name):
@@ -143,6 +144,63 @@ SUBDIVIDED = (UsdGeom.Tokens.catmullClark, UsdGeom.Tokens.loop, UsdGeom.Tokens.b
 def read_mesh(prim, time, uv_name="st", subdivision_level: int = COMPLEXITY[DEFAULT_COMPLEXITY],
               points=None) -> MeshData | None:
     """The mesh at ``time``; ``points`` replaces the authored points (a skinned cage posed before refinement)."""
+    cage = _read_cage(prim, time, points)
+    if cage is None:
+        return None
+    mesh, label, points, counts, indices, left, holes, scheme = cage
+    if scheme in SUBDIVIDED and subdivision_level > 0:
+        from tracer.subdivision import refine
+
+        job = _subdivision_job(prim, mesh, points, counts, indices, holes, left, scheme, subdivision_level, time,
+                               uv_name, label)
+        return None if job is None else job[1](refine(**job[0]))
+    return _polygons(prim, mesh, label, points, counts, indices, left, holes, time, uv_name)
+
+
+def read_subdivided(prims, time, uv_name="st", subdivision_level: int = COMPLEXITY[DEFAULT_COMPLEXITY]) -> dict:
+    """:func:`read_mesh` of many subdivision surfaces with one :func:`tracer.subdivision.refine_batch` (meshes of
+    one topology refined once): {prim path: MeshData, None, or the ValueError read_mesh would raise}. Prims that
+    are not subdivided at this level are left out (read them with read_mesh)."""
+    from tracer.subdivision import refine, refine_batch
+
+    out, jobs = {}, []
+    if subdivision_level <= 0:
+        return out
+    for prim in prims:
+        key = str(prim.GetPath())
+        try:
+            cage = _read_cage(prim, time, None)
+            if cage is None:
+                out[key] = None
+                continue
+            mesh, label, points, counts, indices, left, holes, scheme = cage
+            if scheme not in SUBDIVIDED:
+                continue
+            job = _subdivision_job(prim, mesh, points, counts, indices, holes, left, scheme, subdivision_level,
+                                   time, uv_name, label)
+        except ValueError as exc:
+            out[key] = exc
+            continue
+        if job is None:
+            out[key] = None
+        else:
+            jobs.append((key, job))
+    try:
+        refined = refine_batch([request for _, (request, _finish) in jobs])
+    except ValueError:  # one bad mesh: each on its own, so the error belongs to that mesh
+        refined = []
+        for _, (request, _finish) in jobs:
+            try:
+                refined.append(refine(**request))
+            except ValueError as exc:
+                refined.append(exc)
+    for (key, (_request, finish)), r in zip(jobs, refined):
+        out[key] = r if isinstance(r, ValueError) else finish(r)
+    return out
+
+
+def _read_cage(prim, time, points):
+    """(mesh, label, points, counts, indices, left-handed, holes, scheme) of a mesh prim, None when empty."""
     mesh = UsdGeom.Mesh(prim)
     label = str(prim.GetPath())
     points = mesh.GetPointsAttr().Get(time) if points is None else points
@@ -161,9 +219,11 @@ def read_mesh(prim, time, uv_name="st", subdivision_level: int = COMPLEXITY[DEFA
     left = mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded
     holes = mesh.GetHoleIndicesAttr().Get(time) or ()
     scheme = mesh.GetSubdivisionSchemeAttr().Get(time) or UsdGeom.Tokens.catmullClark
-    if scheme in SUBDIVIDED and subdivision_level > 0:
-        return _subdivided(prim, mesh, points, counts, indices, holes, left, scheme, subdivision_level, time,
-                           uv_name, label)
+    return mesh, label, points, counts, indices, left, holes, scheme
+
+
+def _polygons(prim, mesh, label, points, counts, indices, left, holes, time, uv_name) -> MeshData:
+    """A polygon mesh (not refined): fan-triangulated, its authored or smooth normals, its UVs."""
     tri = triangulate(counts, indices, len(points), holes, left, label)
     n_fv = len(indices)
     data = MeshData(points, tri.triangles, tri.faces, tri.n_faces, warnings=list(tri.warnings),
@@ -225,13 +285,13 @@ def _subdivision_primvar(prim, name, n_points, n_faces, n_fv, time, label, warni
     return interp, v, ind
 
 
-def _subdivided(prim, mesh, points, counts, indices, holes, left, scheme, level, time, uv_name, label):
-    """A subdivision surface refined ``level`` times by :func:`tracer.subdivision.refine` with the mesh's own
+def _subdivision_job(prim, mesh, points, counts, indices, holes, left, scheme, level, time, uv_name, label):
+    """(refine's arguments, finish(refined) -> MeshData) of a subdivision surface, or None when it has no faces.
+    A subdivision surface refined ``level`` times by :func:`tracer.subdivision.refine` with the mesh's own
     subdivision attributes (interpolateBoundary, faceVaryingLinearInterpolation, triangleSubdivisionRule, creases,
     corners, holes); the UV primvar carried through by its interpolation (faceVarying by face-varying rules with
     its indices, vertex like the points, varying linearly); per-corner limit-surface normals. Authored normals are
     ignored, as the USD spec says of subdivision surfaces (one warning per stage)."""
-    from tracer.subdivision import refine
 
     warnings = []
     counts = np.asarray(counts, np.int64).reshape(-1)
@@ -304,9 +364,19 @@ def _subdivided(prim, mesh, points, counts, indices, holes, left, scheme, level,
         else:
             constant[name] = flat[0]
 
-    r = refine(points, counts, indices, level, str(scheme), creases=creases, corners=corners, holes=hole_set,
-               face_varying=face_varying, vertex_data=np.concatenate(vertex_parts, axis=1) if vertex_parts else None,
-               varying_data=np.concatenate(varying_parts, axis=1) if varying_parts else None, **options)
+    request = dict(points=points, counts=counts, indices=indices, levels=level, scheme=str(scheme), creases=creases,
+                   corners=corners, holes=hole_set, face_varying=face_varying,
+                   vertex_data=np.concatenate(vertex_parts, axis=1) if vertex_parts else None,
+                   varying_data=np.concatenate(varying_parts, axis=1) if varying_parts else None, **options)
+    authored_normals = _has_authored_normals(prim, mesh)
+    return request, lambda r: _refined_mesh(r, warnings, label, left, fvar_names, vertex_cols, varying_cols,
+                                            per_face, constant, uv_name, authored_normals, face_ids, n_faces_in)
+
+
+def _refined_mesh(r, warnings, label, left, fvar_names, vertex_cols, varying_cols, per_face, constant, uv_name,
+                  authored_normals, face_ids, n_faces_in) -> MeshData:
+    """The MeshData of a refined subdivision surface: quads split along their shorter diagonal, per-corner limit
+    normals and primvars."""
     warnings += [f"{label}: {w}" for w in r.warnings]
     q = r.faces
     n = q.shape[1]
@@ -341,7 +411,7 @@ def _subdivided(prim, mesh, points, counts, indices, holes, left, scheme, level,
         warnings.append(f"{label} primvars:{uv_name}: fewer than 2 components (ignored)")
         uvs = None
     uvs = None if uvs is None else uvs[..., :2]
-    if _has_authored_normals(prim, mesh):
+    if authored_normals:
         warnings.append(AUTHORED_NORMALS_IGNORED)
     return MeshData(r.points, triangles, face_ids[face_of], n_faces_in, normals=normals, uvs=uvs, warnings=warnings,
                     primvars=primvars)

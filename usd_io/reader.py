@@ -22,9 +22,14 @@ from .curves import read_curves, read_points
 from .gprims import DEFAULT_SEGMENTS, GPRIM_TYPES, read_gprim
 from .instancing import instance_matrices
 from .dome import environment
-from .lights import blender_authored, convert_light, default_lights
+from .layer_metadata import meters_per_unit
+from .diagnostics import summarize
+from .exporters import light_units as exporter_light_units
+from .lights import convert_light, default_lights
 from .material import MaterialTable
-from .mesh import COMPLEXITY, DEFAULT_COMPLEXITY, SUBDIVIDED, MeshData, read_mesh
+from .render_settings import CONFORM, DEFAULT_CONFORM, crop_to_data_window, read_render_settings
+from .nurbs import read_nurbs_curves, read_nurbs_patch, read_tet_mesh
+from .mesh import COMPLEXITY, DEFAULT_COMPLEXITY, SUBDIVIDED, MeshData, read_mesh, read_subdivided
 from .skel import Skinning
 from .stage import (DEFAULT_PURPOSES, _first_reason, captured_stderr, UsdInputError, check_purposes, composition_warnings, open_stage,
                     renderable_prims, stage_messages, stage_time)
@@ -49,6 +54,8 @@ class StageInfo:
     default_lighting: bool = False
     up_axis: str = "Y"
     meters_per_unit: float = 0.01
+    render_settings: object = None  # usd_io.render_settings.RenderSpec of the RenderSettings used, or None
+    nothing_drawn: str | None = None  # why a stage with visible gprims drew no triangle (the CLI exits 2)
 
     def warn(self, message: str) -> None:
         if message not in self.warnings:
@@ -56,9 +63,11 @@ class StageInfo:
 
 
 class _Reader:
-    def __init__(self, stage, time, purposes, segments, info: StageInfo):
+    def __init__(self, stage, time, purposes, segments, info: StageInfo, light_units: str = "auto"):
         self.stage, self.time, self.purposes, self.segments, self.info = stage, time, purposes, segments, info
-        self.blender = blender_authored(stage)
+        self.light_units, note = exporter_light_units(stage, light_units)  # usd_io.exporters
+        if note:
+            info.notes.append(note)
         self.b = SceneBuilder()
         self.xf = Transforms(time)
         self.mats = MaterialTable(self.b, time, info.warn)
@@ -69,6 +78,23 @@ class _Reader:
         self._grey = None
         self.skinning = Skinning(time, self.xf.world)
         self.subdivision_level = COMPLEXITY[DEFAULT_COMPLEXITY]
+        self._refined: dict = {}  # prim path -> MeshData refined ahead (prefetch_subdivided)
+
+    def prefetch_subdivided(self, prims) -> None:
+        """Refine the subdivision meshes among ``prims`` in one batch (usd_io.mesh.read_subdivided: meshes of
+        one topology refined once) before they are added one by one; geometry() takes them from here. Skinned
+        meshes (posed before refinement) and all but one proxy of each instance prototype are left out."""
+        seen, todo = set(), []
+        for prim in prims:
+            if not prim.IsA(UsdGeom.Mesh) or Skinning.is_skinned(prim):
+                continue
+            if prim.IsInstanceProxy():
+                key = str(prim.GetPrimInPrototype().GetPath())
+                if key in seen:
+                    continue
+                seen.add(key)
+            todo.append(prim)
+        self._refined = read_subdivided(todo, self.time, "st", self.subdivision_level)
 
     # ------------------------------------------------------------------ geometry
     def geometry(self, prim, uv_name="st") -> MeshData | None:
@@ -76,11 +102,21 @@ class _Reader:
         try:
             if prim.IsA(UsdGeom.Mesh):
                 skinned = Skinning.is_skinned(prim)  # skinned: the cage now, refined once posed (add_gprim)
-                data = read_mesh(prim, self.time, uv_name, 0 if skinned else self.subdivision_level)
+                data = self._refined.pop(str(prim.GetPath()), self) if uv_name == "st" and not skinned else self
+                if isinstance(data, ValueError):
+                    raise data
+                if data is self:  # not refined ahead by prefetch_subdivided
+                    data = read_mesh(prim, self.time, uv_name, 0 if skinned else self.subdivision_level)
             elif prim.IsA(UsdGeom.Points):
                 data = read_points(prim, self.time)
             elif prim.IsA(UsdGeom.BasisCurves):
                 data = read_curves(prim, self.time)
+            elif prim.IsA(UsdGeom.NurbsCurves):
+                data = read_nurbs_curves(prim, self.time)
+            elif prim.IsA(UsdGeom.NurbsPatch):
+                data = read_nurbs_patch(prim, self.time)
+            elif prim.IsA(UsdGeom.TetMesh):
+                data = read_tet_mesh(prim, self.time)
             else:
                 data = read_gprim(prim, self.time, self.segments)
         except ValueError as exc:
@@ -208,28 +244,75 @@ class _Reader:
     # ------------------------------------------------------------------ lights
     def add_light(self, prim):
         try:
-            kind, light, world = convert_light(prim, self.xf.world(prim), self.time, self.info.warn, self.blender)
+            kind, light, world = convert_light(prim, self.xf.world(prim), self.time, self.info.warn,
+                                               units=self.light_units)
         except ValueError as exc:  # the tracer's light validation (NaN/Inf intensity, zero-length axes, ...)
             self.info.warn(f"{prim.GetPath()}: {exc} (light skipped)")
             return
         if light is not None:
             self.b.add_light(light)
             self.info.lights.append((str(prim.GetPath()), kind, light))
-        elif world is not None and world.get("environment") is not None:  # a lat-long dome texture
+        elif world is not None:  # `whitted info` shows what the dome is: no "environment" key without a texture
+            self._add_world(prim, kind, world)
+
+    def _add_world(self, prim, kind, world):
+        if world.get("environment") is not None:  # a lat-long dome texture
             if getattr(self.b, "environment", None) is not None:
                 self.info.warn(f"{prim.GetPath()}: a second textured DomeLight is not supported (skipped)")
                 return
             self.b.environment = environment(world["environment"])
             self.info.lights.append((str(prim.GetPath()), kind, world))
-        elif world is not None:
+        else:
             self.b.background = self.b.background + np.asarray(world["background"], np.float32)
             self.b.ambient = self.b.ambient + np.asarray(world["ambient"], np.float32)
-            self.info.lights.append((str(prim.GetPath()), kind, world))
+            self.info.lights.append((str(prim.GetPath()), kind, {k: v for k, v in world.items() if v is not None}))
 
     def bounds(self):
         if not np.all(np.isfinite(self.lo)):
             return np.array([[-1.0, -1.0, -1.0], [1.0, 1.0, 1.0]])
         return np.stack([self.lo, self.hi])
+
+
+def _camera(stage, r, info, tc, camera, width, height, render_settings) -> None:
+    """The render camera and image size (info.width/height/camera, r.b.camera): the stage camera (``camera``, the
+    RenderSettings' camera, the first found) conformed by the RenderSettings' policy (expandAperture without one)
+    and cropped to its data window, or the default framing camera."""
+    spec = read_render_settings(stage, render_settings, tc, info.warn)
+    info.render_settings = spec
+    if spec is not None and width is None and height is None and spec.resolution is not None:
+        width, height = spec.resolution
+    cam_prim = cam.find_camera(stage, camera or (spec.camera if spec else None), r.prims)
+    par = spec.pixel_aspect if spec else 1.0
+    policy = CONFORM[spec.conform] if spec else CONFORM[DEFAULT_CONFORM]
+    if cam_prim is not None:
+        raw = cam.fold_clipping_planes(cam.read_camera(cam_prim, tc), info.warn)
+        info.width, info.height = cam.image_size(raw, width, height, par)
+        r.b.camera = cam.to_tracer(raw, info.width, info.height, policy, par)
+        info.camera = str(cam_prim.GetPath())
+    else:
+        aspect = cam.DEFAULT_APERTURE[0] / cam.DEFAULT_APERTURE[1]
+        info.width, info.height = cam.image_size(dict(horizontal_aperture=aspect, vertical_aperture=1.0),
+                                                 width, height)
+        r.b.camera, view = cam.framing_camera(r.bounds(), info.up_axis, info.width, info.height)
+        info.warn(f"no camera in the stage: a default camera frames the scene's bounds, {view}")
+    if spec is not None:
+        r.b.camera, info.width, info.height = crop_to_data_window(r.b.camera, info.width, info.height,
+                                                                  spec.data_window)
+
+
+def _say_if_empty(r, info) -> None:
+    """0 triangles: one warning; ``info.nothing_drawn`` names the gprims that gave none (the CLI exits 2 then),
+    and stays None when the stage has no visible gprims at all (an empty stage renders its empty frame)."""
+    if sum(n for _p, n in info.meshes):
+        return
+    gprims = [p for p in r.prims if p.IsA(UsdGeom.Gprim) or p.IsA(UsdGeom.PointInstancer)]
+    if not gprims:
+        info.warn("the stage has no visible gprims: the frame shows only the background")
+        return
+    kinds = sorted({p.GetTypeName() for p in gprims})
+    info.nothing_drawn = (f"{len(gprims)} visible gprim(s) ({', '.join(kinds)}) gave 0 triangles (see the warnings "
+                          "above): nothing is drawn")
+    info.warn(info.nothing_drawn)
 
 
 def select_variant(stage, prim_path: str, vset: str, value: str) -> None:
@@ -255,7 +338,12 @@ def select_variant(stage, prim_path: str, vset: str, value: str) -> None:
 
 
 def _is_points_or_curves(prim) -> bool:
-    return prim.IsA(UsdGeom.Points) or prim.IsA(UsdGeom.BasisCurves)
+    """Gprims drawn through a reader of their own (points, curves, NURBS, tetrahedral meshes)."""
+    return any(prim.IsA(t) for t in OTHER_GPRIMS)
+
+
+#: Gprim schemas besides Mesh and the implicit shapes of usd_io.gprims, each with its reader in geometry().
+OTHER_GPRIMS = (UsdGeom.Points, UsdGeom.BasisCurves, UsdGeom.NurbsCurves, UsdGeom.NurbsPatch, UsdGeom.TetMesh)
 
 
 def _usable(m: np.ndarray) -> np.ndarray:
@@ -268,6 +356,7 @@ def _usable(m: np.ndarray) -> np.ndarray:
 
 def _read_prims(r: _Reader, stage, tc, purposes, info: StageInfo) -> None:
     r.prims = list(renderable_prims(stage, tc, purposes))
+    r.prefetch_subdivided(r.prims)
     for prim in r.prims:
         t = prim.GetTypeName()
         if prim.IsA(UsdGeom.PointInstancer):
@@ -294,7 +383,8 @@ def stage_up_axis(stage, warn) -> str:
 
 def load_stage(path_or_stage, time=None, camera: str | None = None, width: int | None = None,
                height: int | None = None, purposes=DEFAULT_PURPOSES, segments: int = DEFAULT_SEGMENTS,
-               default_light: bool = True, variants=(), complexity: str = DEFAULT_COMPLEXITY):
+               default_light: bool = True, variants=(), complexity: str = DEFAULT_COMPLEXITY,
+               render_settings: str | None = None, light_units: str = "auto"):
     """Read a USD stage (a path or an open ``Usd.Stage``) into a render-ready :class:`tracer.Scene`.
 
     time      time code (None: the earliest time, i.e. default values or the first time sample)
@@ -307,6 +397,11 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     variants  ``(prim path, variant set, variant)`` selections applied (on the session layer) before reading
     complexity  refinement of subdivision surfaces, as usdrecord's: low (the control cage), medium (one level of
               Catmull-Clark, the default), high (2), veryhigh (3)
+    render_settings  a UsdRender RenderSettings prim path (None: the stage's renderSettingsPrimPath, if any):
+              its resolution, camera, pixel aspect, conform policy and data window apply where the arguments
+              above are None; ``info.render_settings`` keeps its products and AOVs (usd_io.render_settings)
+    light_units  "auto": lights in the units of the application that wrote the stage (usd_io.exporters; a note
+              names it); "spec": as UsdLux says; or one of usd_io.exporters.UNITS
 
     Returns ``(scene, info)``; ``info.warnings`` lists what was skipped or approximated (each message once).
     Raises :class:`UsdInputError` (a ``ValueError``) for input the user can fix.
@@ -323,7 +418,7 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     warnings_first: list[str] = []
     info = StageInfo(path=label, time=None if time is None or tc.IsDefault() else tc.GetValue(),
                      up_axis=stage_up_axis(stage, lambda m: warnings_first.append(m)),
-                     meters_per_unit=float(UsdGeom.GetStageMetersPerUnit(stage)))
+                     meters_per_unit=meters_per_unit(stage, lambda m: warnings_first.append(m)))
     for w in warnings_first:
         info.warn(w)
     for w in composition_warnings(stage):
@@ -332,30 +427,20 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
         info.warn(f"usd: {w}")
     if complexity not in COMPLEXITY:
         raise UsdInputError(f"complexity {complexity!r}: choose from {', '.join(COMPLEXITY)}")
-    r = _Reader(stage, tc, purposes, segments, info)
+    try:
+        r = _Reader(stage, tc, purposes, segments, info, light_units)
+    except ValueError as exc:  # an unknown --light-units value
+        raise UsdInputError(f"{label}: {exc}") from None
     r.subdivision_level = COMPLEXITY[complexity]
     with captured_stderr() as said:  # USD's own diagnostics while reading: warnings of ours, not raw lines
         _read_prims(r, stage, tc, purposes, info)
-    for line in "".join(said).splitlines():
-        reason = _first_reason(line)
-        if reason:
-            info.warn(f"usd: {reason}")
-    prims = r.prims
+    for line in summarize("".join(said)):  # usd_io.diagnostics: one line per kind, not pxr's raw lines
+        info.warn(f"usd: {line}")
     info.materials = dict(r.mats.summary)
+    _say_if_empty(r, info)
 
 
-    cam_prim = cam.find_camera(stage, camera, prims)
-    if cam_prim is not None:
-        raw = cam.read_camera(cam_prim, tc)
-        info.width, info.height = cam.image_size(raw, width, height)
-        r.b.camera = cam.to_tracer(raw, info.width, info.height)
-        info.camera = str(cam_prim.GetPath())
-    else:
-        aspect = cam.DEFAULT_APERTURE[0] / cam.DEFAULT_APERTURE[1]
-        info.width, info.height = cam.image_size(dict(horizontal_aperture=aspect, vertical_aperture=1.0),
-                                                 width, height)
-        r.b.camera = cam.framing_camera(r.bounds(), info.up_axis, info.width, info.height)
-        info.warn("no camera in the stage: framing the scene's bounds with a default camera")
+    _camera(stage, r, info, tc, camera, width, height, render_settings)
     if default_light and not info.lights:
         sun, dome = default_lights(r.b.camera)
         r.b.add_light(sun)

@@ -56,6 +56,7 @@ class TextureLookup:
     wrap_t: str
     colorspace: str  # sourceColorSpace token: "auto", "sRGB" or "raw"
     notes: list = field(default_factory=list)  # things on the st chain that were not understood
+    layer: object = None  # the Sdf.Layer that authored the file path (anchors UDIM tiles and backslash paths)
 
 
 @dataclass
@@ -133,6 +134,12 @@ def source(shader: UsdShade.Shader, name: str, fallback, time=None):
         return mx_image_lookup(node, time)
     if sid.startswith("ND_normalmap"):
         return mx_normal_map(node, fallback, time)
+    if sid.startswith("arnold:"):  # Arnold's image and user-data nodes (usd_io.arnold)
+        from .arnold import upstream
+
+        got = upstream(node, out_name, fallback, time)
+        if got is not None:
+            return got
     return Unsupported(str(node.GetPath()), sid or a.GetPrim().GetTypeName(), value(node, "fallback", fallback, time))
 
 
@@ -164,7 +171,8 @@ def mx_image_lookup(node: UsdShade.Shader, time=None) -> TextureLookup:
     return TextureLookup(node=str(node.GetPath()), asset=asset if isinstance(asset, Sdf.AssetPath) else None,
                          channel=0 if kind == "float" else -1, uv=uv, transform=m, scale=(1.0, 1.0, 1.0, 1.0),
                          bias=(0.0, 0.0, 0.0, 0.0), fallback=fallback, wrap_s=wrap[0], wrap_t=wrap[1],
-                         colorspace="sRGB" if space == "srgb_texture" else "raw", notes=notes)
+                         colorspace="sRGB" if space == "srgb_texture" else "raw", notes=notes,
+                         layer=file_layer(node, time))
 
 
 def mx_normal_map(node: UsdShade.Shader, fallback, time=None):
@@ -201,6 +209,14 @@ def _varname(node, time) -> str:
     return str(v) if v else ""
 
 
+def file_layer(node, time, name="file"):
+    """The layer that authored a texture node's ``file`` (through interface connections)."""
+    from .texture_assets import authoring_layer
+
+    a, is_out = _producer(node, name)
+    return None if a is None or is_out else authoring_layer(a)
+
+
 def texture_lookup(node: UsdShade.Shader, output: str, time=None) -> TextureLookup:
     d = UV_TEXTURE_DEFAULTS
     asset = value(node, "file", None, time)
@@ -216,7 +232,8 @@ def texture_lookup(node: UsdShade.Shader, output: str, time=None) -> TextureLook
         bias=floats(value(node, "bias", d["bias"], time), 4, d["bias"]),
         fallback=floats(value(node, "fallback", d["fallback"], time), 4, d["fallback"]),
         wrap_s=str(value(node, "wrapS", d["wrapS"], time)), wrap_t=str(value(node, "wrapT", d["wrapT"], time)),
-        colorspace=str(value(node, "sourceColorSpace", d["sourceColorSpace"], time)), notes=notes)
+        colorspace=str(value(node, "sourceColorSpace", d["sourceColorSpace"], time)), notes=notes,
+        layer=file_layer(node, time))
 
 
 def transform2d_matrix(scale=(1.0, 1.0), rotation=0.0, translation=(0.0, 0.0)) -> np.ndarray:

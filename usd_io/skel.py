@@ -30,7 +30,11 @@ class Skinning:
                                                         or UsdSkel.Root.Find(prim))
 
     def pose(self, prim, data, warn):
-        """(posed MeshData, world matrix) or None (the caller keeps the rest pose; a warning was given)."""
+        """(posed MeshData, world matrix) or None (the caller keeps the rest pose; a warning was given).
+
+        Blend shapes first (UsdSkel's order: shapes on the rest points, then skinning), then linear-blend skinning
+        where the binding has joint influences; a binding with blend shapes and no influences keeps the mesh's own
+        place (its world matrix)."""
         label = str(prim.GetPath())
         root = UsdSkel.Root.Find(prim)
         if not root:
@@ -46,19 +50,72 @@ class Skinning:
             warn(f"{label}: no skeleton bound: rest pose rendered")
             return None
         skel_query = self.cache.GetSkelQuery(skel)
+        points = np.ascontiguousarray(data.points, np.float64)
+        shaped = False
+        if query.HasBlendShapes():
+            got = apply_blend_shapes(prim, query, skel_query, points, self.time, warn)
+            if got is not None:
+                points, shaped = got, True
+        if not query.HasJointInfluences():
+            if not shaped:
+                return None
+            return replace(data, points=points, normals=smooth_normals(points, data.triangles)), self.world(prim)
         xforms = skel_query.ComputeSkinningTransforms(self.time) if skel_query else None
         if xforms is None:
             warn(f"{label}: skeleton {skel.GetPath()} cannot be posed: rest pose rendered")
             return None
         from pxr import Vt
 
-        points = Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(data.points, np.float32))
-        if not query.ComputeSkinnedPoints(xforms, points, self.time):
+        vt_points = Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(points, np.float32))
+        try:
+            ok = query.ComputeSkinnedPoints(xforms, vt_points, self.time)
+        except Exception as exc:  # pxr's Tf.ErrorException: influences it cannot read
+            warn(f"{label}: skinning failed ({_first_line(exc)}): rest pose rendered")
+            return None
+        if not ok:
             warn(f"{label}: skinning failed: rest pose rendered")
             return None
-        posed = np.asarray(points, np.float64)
+        posed = np.asarray(vt_points, np.float64)
         if not np.all(np.isfinite(posed)):
             warn(f"{label}: skinning gave non-finite points: rest pose rendered")
             return None
         posed_data = replace(data, points=posed, normals=smooth_normals(posed, data.triangles))
         return posed_data, self.world(skel.GetPrim())
+
+
+def apply_blend_shapes(prim, query, skel_query, points: np.ndarray, time, warn):
+    """The rest points with the mesh's blend shapes applied at ``time`` (UsdSkelBlendShapeQuery: weights from the
+    skeleton's animation, remapped to the mesh's ``skel:blendShapes`` order; inbetweens by their weights), or None
+    (a warning) when the shapes cannot be read."""
+    label = str(prim.GetPath())
+    anim = skel_query.GetAnimQuery() if skel_query else None
+    if not anim:
+        return None  # no animation: every weight 0, the rest shape
+    weights = anim.ComputeBlendShapeWeights(time)
+    if weights is None or len(weights) == 0:
+        return None
+    by_name = dict(zip((str(n) for n in anim.GetBlendShapeOrder()), np.asarray(weights, np.float32)))
+    order = query.GetBlendShapeOrder() or []
+    from pxr import Vt
+
+    weights = Vt.FloatArray([float(by_name.get(str(n), 0.0)) for n in order])  # anim order -> the mesh's order
+    bsq = UsdSkel.BlendShapeQuery(UsdSkel.BindingAPI(prim))
+    try:
+        sub_w, bs_idx, sub_idx = bsq.ComputeSubShapeWeights(weights)
+        vt_points = Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(points, np.float32))
+        ok = bsq.ComputeDeformedPoints(sub_w, bs_idx, sub_idx, bsq.ComputeBlendShapePointIndices(),
+                                       bsq.ComputeSubShapePointOffsets(), vt_points)
+    except Exception as exc:  # pxr's Tf.ErrorException on malformed shapes
+        warn(f"{label}: blend shapes could not be applied ({_first_line(exc)}): rest shape rendered")
+        return None
+    if not ok:
+        warn(f"{label}: blend shapes could not be applied: rest shape rendered")
+        return None
+    out = np.asarray(vt_points, np.float64)
+    return out if np.all(np.isfinite(out)) else None
+
+
+def _first_line(exc) -> str:
+    lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+    text = lines[-1] if lines else type(exc).__name__
+    return text.split(" : ", 1)[-1].strip("'")[:160]

@@ -65,9 +65,11 @@ def open_stage(path_or_stage) -> Usd.Stage:
         detail = detail or _first_reason("".join(text))
         raise UsdInputError(f"{path}: not a readable USD file" + (f" ({detail})" if detail else ""))
     # Composition problems are reported by composition_warnings(); anything else USD said is kept for the reader.
-    other = [ln.strip() for ln in "".join(text).splitlines()
+    other = [ln for ln in "".join(text).splitlines()
              if ln.strip() and "_ReportErrors" not in ln and "Could not open asset" not in ln]
-    stage_messages[id(stage)] = other[:20]
+    from .diagnostics import summarize
+
+    stage_messages[id(stage)] = summarize("\n".join(other))  # a few lines, as the reader's (usd_io.diagnostics)
     return stage
 
 
@@ -120,9 +122,12 @@ def renderable_prims(stage: Usd.Stage, time: Usd.TimeCode, purposes=DEFAULT_PURP
     """Yield prims (of the stage, or of the subtree at ``root``, root included) to convert: active, defined, non-abstract, visible at ``time``, of a wanted purpose.
 
     Subtrees are pruned at the first invisible prim, at prims of an unwanted purpose and below PointInstancers
-    (their prototypes are drawn only through the instancer). Instance proxies are included.
+    (their prototypes are drawn only through the instancer). Instance proxies are included. Under a ``root`` (a
+    PointInstancer's prototype) a ``def`` counts even when an ancestor is an ``over``: prototypes kept under an
+    ``over`` so that they do not render on their own are drawn through their instancer, as Hydra draws them.
     """
-    predicate = Usd.TraverseInstanceProxies(Usd.PrimIsActive & Usd.PrimIsDefined & ~Usd.PrimIsAbstract)
+    defined = Usd.PrimIsDefined if root is None else Usd.PrimHasDefiningSpecifier
+    predicate = Usd.TraverseInstanceProxies(Usd.PrimIsActive & defined & ~Usd.PrimIsAbstract)
     it = iter(Usd.PrimRange(root if root is not None else stage.GetPseudoRoot(), predicate))
     if root is None:
         next(it)  # the pseudo-root

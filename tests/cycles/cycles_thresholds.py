@@ -35,8 +35,16 @@ INHERENT = {
 LOBE_PSNR_MIN = 40.0
 
 
+#: Scenes held to more than the shared bar, because a known defect still passes it. gold_coarse_sphere: mirror
+#: rays off interpolated normals near the rim went below the surface and fell back to the flat face normal: 43.2 dB;
+#: bending the normal as Cycles does (tracer.optics.valid_reflection_normal) gives 47.7 dB (addon).
+STRICT = {"gold_coarse_sphere": dict(psnr=46.0, mae=MAE_MAX)}
+
+
 def image_bar(name: str) -> dict:
     """{"psnr": minimum dB, "mae": maximum linear MAE} for a scene."""
+    if name in STRICT:
+        return STRICT[name]
     if name.startswith("lobe_"):
         return dict(psnr=LOBE_PSNR_MIN, mae=MAE_MAX)
     return INHERENT.get(name, dict(psnr=PSNR_MIN, mae=MAE_MAX))

@@ -1,0 +1,596 @@
+"""USD as pipelines write it (issue #21): stages that crashed, were refused, or lost geometry silently. Each stage is
+built in tests/usd_pipeline_stages.py; each test checks the picture or the geometry against a closed form."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pxr import Gf, Sdf, UsdGeom, UsdLux, UsdShade
+
+from tracer import RenderSettings, read_image, render
+from usd_io import load_stage
+
+import usd_pipeline_stages as st
+from test_cli import whitted
+from test_usd_reader import usd_pixel
+from usd_pipeline_stages import (add_camera, bind, blend_shape_stage, float_meters_per_unit_usdc, new_stage,
+                                 preview_material, quad)
+
+
+# ---------------------------------------------------------------- crashes and refusals
+def test_float_meters_per_unit_renders(tmp_path):
+    """pxr raises on a float metersPerUnit; the layer's value is read as authored and the ball is drawn."""
+    path = float_meters_per_unit_usdc(tmp_path / "f.usdc", 0.5)
+    scene, info = load_stage(str(path), width=24, height=16)
+    assert info.meters_per_unit == 0.5
+    img = render(scene, RenderSettings(width=24, height=16, samples=1)).rgb
+    assert img[8, 12].mean() > 0.2 and img[0, 0].mean() < img[8, 12].mean()  # the ball, centred, lit
+    out = tmp_path / "f.png"
+    res = whitted("info", path)
+    assert res.returncode == 0 and "Traceback" not in res.stderr and "metersPerUnit: 0.5" in res.stdout
+    res = whitted("render", path, "-o", out, "--width", 24, "--quiet")
+    assert res.returncode == 0 and "Traceback" not in res.stderr, res.stderr
+
+
+def _lifted(scene):
+    """z of the quad's two far corners (y = +1) and two near ones, from the scene's vertices."""
+    v = np.unique(np.round(scene.vertices, 5), axis=0)
+    return v[v[:, 1] > 0][:, 2], v[v[:, 1] < 0][:, 2]
+
+
+@pytest.mark.parametrize("time,want", [(0.0, 0.0), (0.5, 0.5), (1.0, 1.0)])
+def test_blend_shape_without_joint_influences(time, want):
+    """No traceback from ComputeJointInfluences: the blend shape alone deforms the quad by weight × offset."""
+    scene, info = load_stage(blend_shape_stage(), time=time, width=8, height=8, complexity="low")
+    far, near = _lifted(scene)
+    np.testing.assert_allclose(far, want, atol=1e-5)
+    np.testing.assert_allclose(near, 0.0, atol=1e-5)
+    assert not any("rest" in w for w in info.warnings), info.warnings
+
+
+def test_blend_shape_inbetween_and_skinning_compose():
+    """Inbetween at 0.5 lifts by its own 0.8 (UsdSkel's piecewise-linear sub-shapes); with a joint that moves
+    (0, 3, 0) the shape is applied first, then the skinning."""
+    scene, _ = load_stage(blend_shape_stage(inbetween=True), time=0.5, width=8, height=8, complexity="low")
+    far, _near = _lifted(scene)
+    np.testing.assert_allclose(far, 0.8, atol=1e-5)
+    scene, info = load_stage(blend_shape_stage(with_joints=True), time=1.0, width=8, height=8, complexity="low")
+    v = np.unique(np.round(scene.vertices, 5), axis=0)
+    want = np.array([(-1, -1, 0), (1, -1, 0), (1, 1, 1), (-1, 1, 1)], float) + [0, 3, 0]
+    np.testing.assert_allclose(v, np.unique(want, axis=0), atol=1e-5)
+
+
+def test_blend_shape_frames_differ_in_the_picture():
+    """The camera looks along +y at the quad edge-on: lifted at frame 1 it turns towards the camera and covers
+    rows of the picture it did not."""
+    cover = []
+    for t in (0.0, 1.0):
+        scene, _ = load_stage(blend_shape_stage(), time=t, width=32, height=24, complexity="low")
+        img = render(scene, RenderSettings(width=32, height=24, samples=1)).rgb
+        cover.append(int((np.abs(img - img[0, 0]).max(axis=2) > 0.02).sum()))
+    assert cover[1] > cover[0] + 60, cover
+
+
+def _lit_quad(**inputs):
+    s = new_stage()
+    add_camera(s, eye=(0, 0, 10))
+    sun = UsdLux.DistantLight.Define(s, "/Sun")
+    sun.CreateIntensityAttr(2.0)
+    sun.CreateNormalizeAttr(True)  # irradiance = intensity
+    q = quad(s, "/Q", half=3.0)
+    bind(q, preview_material(s, "/M", diffuseColor=(0.8, 0.4, 0.2), **inputs))
+    return s
+
+
+def test_preview_surface_out_of_range_is_clamped_not_refused():
+    """roughness 1.05 and metallic -0.2 render as 1 and 0, one warning per material and input."""
+    scene, info = load_stage(_lit_quad(roughness=1.05, metallic=-0.2), width=16, height=12)
+    ref, _ = load_stage(_lit_quad(roughness=1.0, metallic=0.0), width=16, height=12)
+    got = [w for w in info.warnings if "outside the UsdPreviewSurface range" in w]
+    assert len(got) == 2 and any("roughness 1.05" in w for w in got) and any("metallic -0.2" in w for w in got)
+    a = render(scene, RenderSettings(width=16, height=12, samples=1)).rgb
+    b = render(ref, RenderSettings(width=16, height=12, samples=1)).rgb
+    assert a[6, 8].max() > 0.1
+    np.testing.assert_array_equal(a, b)
+
+
+# ---------------------------------------------------------------- instancing, every combination
+def _cube_centres(scene):
+    from tracer.instances import flatten
+
+    f = flatten(scene)
+    c = f.vertices[f.triangles].reshape(-1, 36, 3).mean(axis=1)  # 12 triangles per cube
+    return sorted(map(tuple, np.round(c, 4).tolist()))
+
+
+def test_prototypes_under_an_over_are_drawn_through_the_instancer():
+    s = st.instancer_under_over()
+    add_camera(s, eye=(1.5, 0, 12))
+    scene, info = load_stage(s, width=48, height=32)
+    assert _cube_centres(scene) == [(0, 0, 0), (3, 0, 0)]
+    img = render(scene, RenderSettings(width=48, height=32, samples=1)).rgb
+    cam = s.GetPrimAtPath("/Cam")
+    for x in (0.0, 3.0):  # both cubes are in the picture where pxr's frustum puts them
+        px, py = np.round(usd_pixel(cam, (x, 0, 0.5), 48, 32)).astype(int)
+        assert np.abs(img[py, px] - img[0, 0]).max() > 0.05
+
+
+def test_instancer_of_instancers():
+    scene, _ = load_stage(st.nested_instancers(), width=16)
+    want = [(x, y, 1.0) for x in (0, 2, 4) for y in (0, 5)]
+    assert _cube_centres(scene) == sorted(want)
+
+
+def test_native_instances_holding_an_instancer():
+    scene, _ = load_stage(st.native_instance_of_instancer(), width=16)
+    assert _cube_centres(scene) == sorted((x, y, 0.0) for x in (0, 2) for y in (0, 4))
+
+
+@pytest.mark.parametrize("time,far", [(0.0, 20), (1.0, 30)])
+def test_deep_mixed_instancing_with_ids_invisible_ids_and_time_samples(time, far):
+    scene, info = load_stage(st.deep_mixed_instancing(), width=16, time=time)
+    want = [(ox + x, y, 0.0) for ox in (0, far) for x in (0, 4) for y in (0, 10)]  # id 8 (x = 2) invisible
+    assert _cube_centres(scene) == sorted(want)
+
+
+# ---------------------------------------------------------------- NURBS, tetrahedra
+def _centre_pixel_hits(stage, w=40, h=30):
+    scene, info = load_stage(stage, width=w, height=h)
+    img = render(scene, RenderSettings(width=w, height=h, samples=1)).rgb
+    return np.abs(img[h // 2, w // 2] - img[0, 0]).max() > 0.05, scene, info
+
+
+def _looking_at_the_arc(stage):
+    add_camera(stage, eye=(6, 6, 1.5), rotate_z=135.0, rotate_x=90.0)  # looks along (−1, −1, 0) at (√2, √2, 1.5)
+    return stage
+
+
+def test_rational_nurbs_patch_is_an_exact_circular_arc_and_is_drawn():
+    s = _looking_at_the_arc(st.nurbs_patch_stage(weights=(1, 0.5 ** 0.5, 1)))
+    hit, scene, info = _centre_pixel_hits(s)
+    r = np.hypot(scene.vertices[:, 0], scene.vertices[:, 1])
+    np.testing.assert_allclose(r, 2.0, atol=1e-9)  # rational quadratic: exactly the circle (non-rational bulges)
+    assert scene.vertices[:, 2].min() == 0 and scene.vertices[:, 2].max() == 3
+    assert hit and not any("not supported" in w for w in info.warnings), info.warnings
+
+
+def test_nurbs_patch_trim_loop_cuts_a_hole():
+    """An inner trim loop (0.25..0.75)² removes the middle: the centre ray passes through the hole."""
+    s = _looking_at_the_arc(st.nurbs_patch_stage(weights=(1, 0.5 ** 0.5, 1), trim_hole=True))
+    hit, scene, _ = _centre_pixel_hits(s)
+    assert not hit
+    full, _ = load_stage(st.nurbs_patch_stage(weights=(1, 0.5 ** 0.5, 1)), width=8)
+    assert 0.7 < len(scene.triangles) / len(full.triangles) < 0.8  # a quarter of the square (grid-cell precision)
+
+
+def test_nurbs_curve_is_a_tube_of_its_width():
+    s = st.nurbs_curve_stage(width=0.4)
+    add_camera(s, eye=(3, 0, 10))
+    scene, info = load_stage(s, width=60, height=40)
+    lo, hi = scene.vertices.min(axis=0), scene.vertices.max(axis=0)
+    np.testing.assert_allclose([lo, hi], [[0, -0.2, -0.2], [6, 0.2, 0.2]], atol=1e-9)
+    img = render(scene, RenderSettings(width=60, height=40, samples=1)).rgb
+    cam = s.GetPrimAtPath("/Cam")
+    on = np.round(usd_pixel(cam, (3, 0, 0.2), 60, 40)).astype(int)
+    off = np.round(usd_pixel(cam, (3, 0.6, 0), 60, 40)).astype(int)
+    assert np.abs(img[on[1], on[0]] - img[0, 0]).max() > 0.05
+    assert np.abs(img[off[1], off[0]] - img[0, 0]).max() < 1e-3
+
+
+def test_tet_mesh_renders_its_surface_faces():
+    s = st.tet_stage()
+    add_camera(s, eye=(0.4, 0.4, 8))
+    hit, scene, _ = _centre_pixel_hits(s)
+    assert hit and len(scene.triangles) == 6  # the shared face is inside
+
+
+# ---------------------------------------------------------------- texture paths
+def _emission_image(path, w=32, h=32):
+    scene, info = load_stage(path, width=w, height=h, default_light=False)
+    return render(scene, RenderSettings(width=w, height=h, samples=1)).rgb, info
+
+
+def test_udim_tiles_land_where_their_numbers_say(tmp_path):
+    """uv spans [0, 2] × [0, 2]: tiles 1001 (red, lower left), 1002 (green, lower right), 1011 (blue, upper left);
+    1012 is missing and reads the fallback (black)."""
+    path = st.emissive_texture_quad(str(tmp_path), "./tex/paint.<UDIM>.png", ((0, 0), (2, 0), (2, 2), (0, 2)),
+                                    {"tex/paint.1001.png": (255, 0, 0), "tex/paint.1002.png": (0, 255, 0),
+                                     "tex/paint.1011.png": (0, 0, 255)})
+    img, info = _emission_image(path)
+    assert not any("UDIM" in w for w in info.warnings), info.warnings
+    quarters = {"lower left": img[24, 8], "lower right": img[24, 24], "upper left": img[8, 8], "upper right": img[8, 24]}
+    np.testing.assert_allclose(quarters["lower left"], (1, 0, 0), atol=1e-3)
+    np.testing.assert_allclose(quarters["lower right"], (0, 1, 0), atol=1e-3)
+    np.testing.assert_allclose(quarters["upper left"], (0, 0, 1), atol=1e-3)
+    np.testing.assert_allclose(quarters["upper right"], (0, 0, 0), atol=1e-3)
+
+
+def test_windows_backslash_texture_path_is_found(tmp_path):
+    path = st.emissive_texture_quad(str(tmp_path), "textures\\green.png", ((0, 0), (1, 0), (1, 1), (0, 1)),
+                                    {"textures/green.png": (0, 255, 0)})
+    img, info = _emission_image(path)
+    np.testing.assert_allclose(img[16, 16], (0, 1, 0), atol=1e-3)
+    assert any("backslash" in w for w in info.warnings)
+
+
+# ---------------------------------------------------------------- primvars: inheritance, interpolation
+@pytest.mark.parametrize("subdivided", [False, True])
+def test_display_color_on_an_ancestor_is_inherited(subdivided):
+    s = st.inherited_display_color(subdivided)
+    scene, info = load_stage(s, width=60, height=40)
+    img = render(scene, RenderSettings(width=60, height=40, samples=1)).rgb
+    cam = s.GetPrimAtPath("/Cam")
+    for p in ((0, 0, 0), (2.5, 0, 0.5)):  # the quad's centre, the ball's top
+        x, y = np.round(usd_pixel(cam, p, 60, 40)).astype(int)
+        c = img[y, x]
+        assert c[0] > 3 * c[1] and c[0] > 3 * c[2], (p, c)  # red-orange, not Hydra's grey
+
+
+def test_points_keep_their_per_point_colours():
+    """Not averaged to grey: each sphere shows its own point's colour, in the picture."""
+    for interpolation in ("vertex", "varying", "uniform"):
+        s = st.coloured_points(interpolation)
+        scene, info = load_stage(s, width=60, height=40)
+        assert not any("averaged" in w for w in info.warnings)
+        img = render(scene, RenderSettings(width=60, height=40, samples=1)).rgb
+        cam = s.GetPrimAtPath("/Cam")
+        for x_world, channel in ((-2, 0), (0, 1), (2, 2)):
+            x, y = np.round(usd_pixel(cam, (x_world, 0, 0.5), 60, 40)).astype(int)
+            c = img[y, x]
+            assert c[channel] > 0.1 and c[channel] > 5 * np.delete(c, channel).max(), (interpolation, x_world, c)
+
+
+@pytest.mark.parametrize("interpolation", ["vertex", "uniform"])
+def test_curves_keep_per_vertex_and_per_curve_colours(interpolation):
+    s = st.coloured_curves(interpolation)
+    scene, info = load_stage(s, width=60, height=40)
+    assert not any("averaged" in w for w in info.warnings)
+    # vertex: the tube's ring at a control point has that point's colour; uniform: each curve its own
+    want = {"vertex": {(-2, 0, 0): (1, 0, 0), (2, 2, 0): (0, 0, 1)},
+            "uniform": {(0, 0, 0): (1, 0, 0), (0, 2, 0): (0, 0, 1)}}[interpolation]
+    for p, c in want.items():
+        v = np.linalg.norm(scene.vertices - np.asarray(p, float), axis=1)
+        corner = np.isin(scene.triangles, np.flatnonzero(v < 0.3))
+        got = scene.colors[corner]
+        assert len(got) and np.allclose(got, c, atol=1e-6), (p, got[:2])
+
+
+def test_camera_clipping_plane_parallel_to_the_image_cuts_the_near_quad():
+    """Two quads facing the camera at depths 4 (red) and 8 (blue); a clipping plane (0, 0, −1, −6) keeps depth >= 6:
+    the centre pixel sees blue through where red was. An oblique plane warns."""
+    s = new_stage()
+    cam = add_camera(s, eye=(0, 0, 10))
+    for path, z, rgb in (("/Near", 6.0, (1, 0, 0)), ("/Far", 2.0, (0, 0, 1))):
+        q = quad(s, path, z=z, half=3.0)
+        q.CreateDisplayColorAttr([rgb])
+    scene, _ = load_stage(s, width=20, height=14)
+    before = render(scene, RenderSettings(width=20, height=14, samples=1)).rgb[7, 10]
+    cam.CreateClippingPlanesAttr([Gf.Vec4f(0, 0, -1, -6), Gf.Vec4f(0.5, 0, -1, -1)])
+    scene, info = load_stage(s, width=20, height=14)
+    after = render(scene, RenderSettings(width=20, height=14, samples=1)).rgb[7, 10]
+    assert before[0] > 5 * before[2] and after[2] > 5 * after[0], (before, after)
+    assert any("1 clipping plane(s) not parallel" in w for w in info.warnings)
+
+
+# ---------------------------------------------------------------- Arnold, OmniPBR, unknown surfaces (#20, USD side)
+F, C3, A, B, I, F2 = (Sdf.ValueTypeNames.Float, Sdf.ValueTypeNames.Color3f, Sdf.ValueTypeNames.Asset,
+                      Sdf.ValueTypeNames.Bool, Sdf.ValueTypeNames.Int, Sdf.ValueTypeNames.Float2)
+
+
+def _centre(stage, w=24, h=16):
+    scene, info = load_stage(stage, width=w, height=h)
+    return render(scene, RenderSettings(width=w, height=h, samples=1)).rgb[h // 2, w // 2], info
+
+
+def test_arnold_lambert_is_lambertian_with_kd_times_colour():
+    """Closed form: irradiance 2 head-on on albedo Kd·Kd_color gives radiance albedo·2/π."""
+    c = (0.2, 0.4, 0.8)
+    px, info = _centre(st.lit_quad_with("arnold:lambert", {"Kd": (F, 0.5), "Kd_color": (C3, Gf.Vec3f(*c))},
+                                        output="arnold:surface"))
+    np.testing.assert_allclose(px, 0.5 * np.asarray(c) * 2 / np.pi, rtol=0.02)
+    assert not any("not supported" in w for w in info.warnings), info.warnings
+
+
+def test_arnold_standard_surface_reads_as_materialx_standard_surface():
+    c = (0.1, 0.3, 0.9)
+    s = st.lit_quad_with("arnold:standard_surface", {"base": (F, 1.0), "base_color": (C3, Gf.Vec3f(*c)),
+                                                     "specular_roughness": (F, 0.6), "metalness": (F, 0.0)},
+                         output="arnold:surface")
+    px, info = _centre(s)
+    fields = info.materials["/M"]
+    assert fields["base_color"] == c and fields["roughness"] == 0.6
+    assert px[2] > 2 * px[0] and px[2] > 1.5 * px[1]  # blue, not 18 % grey
+    assert not any("not supported" in w for w in info.warnings), info.warnings
+
+
+def test_arnold_user_data_rgb_reads_the_primvar():
+    s = st.lit_quad_with("arnold:standard_surface", {"base": (F, 1.0), "specular": (F, 0.0),
+                                                     "specular_roughness": (F, 1.0)},
+                         output="arnold:surface", display_color=(0.9, 0.1, 0.1))
+    ud = UsdShade.Shader.Define(s, "/M/UD")
+    ud.CreateIdAttr("arnold:user_data_rgb")
+    ud.CreateInput("attribute", Sdf.ValueTypeNames.String).Set("displayColor")
+    UsdShade.Shader(s.GetPrimAtPath("/M/S")).CreateInput("base_color", C3).ConnectToSource(ud.ConnectableAPI(), "out")
+    px, _ = _centre(s)
+    np.testing.assert_allclose(px, np.asarray((0.9, 0.1, 0.1)) * 2 / np.pi, rtol=0.03)
+
+
+def test_omnipbr_constant_inputs_without_the_mdl_file():
+    """diffuse_color_constant · albedo_brightness · diffuse_tint, specular_level 0: Lambert's closed form."""
+    s = st.lit_quad_with(None, {"diffuse_color_constant": (C3, Gf.Vec3f(0.8, 0.4, 0.2)),
+                                "albedo_brightness": (F, 0.5), "diffuse_tint": (C3, Gf.Vec3f(1, 1, 0.5)),
+                                "specular_level": (F, 0.0), "reflection_roughness_constant": (F, 0.7)},
+                         output="mdl:surface", mdl="OmniPBR")
+    px, info = _centre(s)
+    np.testing.assert_allclose(px, np.asarray((0.4, 0.2, 0.05)) * 2 / np.pi, rtol=0.02)
+    assert info.materials["/M"]["roughness"] == 0.7
+    assert not any("not supported" in w for w in info.warnings), info.warnings
+
+
+def test_omnipbr_emission_in_kit_units():
+    s = st.lit_quad_with(None, {"diffuse_color_constant": (C3, Gf.Vec3f(0, 0, 0)), "enable_emission": (B, True),
+                                "emissive_color": (C3, Gf.Vec3f(0.5, 1.0, 0.25)), "emissive_intensity": (F, 512.0),
+                                "specular_level": (F, 0.0)}, output="mdl:surface", mdl="OmniPBR")
+    px, _ = _centre(s)
+    np.testing.assert_allclose(px, (0.5, 1.0, 0.25), rtol=0.02)  # 512 · 2^−9 = 1
+
+
+def test_omnipbr_diffuse_texture_with_texture_scale(tmp_path):
+    """A texture red on its left half, green on its right, with texture_scale (2, 1): across the quad red, green,
+    red, green."""
+    import usd_material_stages as ms
+
+    rg = np.zeros((4, 64, 3), np.uint8)
+    rg[:, :32, 0] = rg[:, 32:, 1] = 255
+    ms.write_png(str(tmp_path / "rg.png"), rg)
+    s = st.lit_quad_with(None, {"diffuse_texture": (A, Sdf.AssetPath(str(tmp_path / "rg.png"))),
+                                "texture_scale": (F2, Gf.Vec2f(2, 1)), "specular_level": (F, 0.0)},
+                         output="mdl:surface", mdl="OmniPBR")
+    UsdGeom.PrimvarsAPI(s.GetPrimAtPath("/Q")).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                                              UsdGeom.Tokens.vertex).Set([(0, 0), (1, 0), (1, 1), (0, 1)])
+    s.GetPrimAtPath("/Cam").GetAttribute("horizontalAperture").Set(8.0)  # sees the quad's whole width
+    scene, info = load_stage(s, width=64, height=16)
+    img = render(scene, RenderSettings(width=64, height=16, samples=1)).rgb
+    cam = s.GetPrimAtPath("/Cam")
+    for x_world, channel in ((-2.25, 0), (-0.75, 1), (0.75, 0), (2.25, 1)):
+        x, y = np.round(usd_pixel(cam, (x_world, 0, 0), 64, 16)).astype(int)
+        c = img[y, x]
+        assert c[channel] > 5 * c[1 - channel], (x_world, c)
+
+
+def test_unknown_surface_warns_once_and_shows_display_color():
+    s = st.lit_quad_with("PxrSurface", {"diffuseColor": (C3, Gf.Vec3f(0, 1, 0))}, output="ri:surface",
+                         display_color=(0.9, 0.1, 0.1))
+    px, info = _centre(s)
+    got = [w for w in info.warnings if "/M" in w and "not supported" in w]
+    assert len(got) == 1 and "PxrSurface" in got[0] and "displayColor" in got[0], info.warnings
+    assert px[0] > 5 * px[1]  # the prim's red displayColor, not 18 % grey
+
+
+# ---------------------------------------------------------------- the first frame
+@pytest.mark.parametrize("up", ["Y", "Z"])
+def test_flat_stage_without_camera_is_framed_obliquely_not_edge_on(up):
+    """A ground plane (the plane through the up axis's normal) seen from usdrecord's front view is a line: the
+    default camera takes the oblique view and the plane fills the middle of the picture."""
+    s = new_stage(up)
+    ground = quad(s, "/Ground", half=2.0)
+    if up == "Y":
+        ground.AddRotateXOp().Set(-90.0)  # the quad in the XZ plane, facing +Y
+    ground.CreateDisplayColorAttr([(0.8, 0.6, 0.2)])
+    scene, info = load_stage(s, width=48, height=32)
+    img = render(scene, RenderSettings(width=48, height=32, samples=1)).rgb
+    hit = np.abs(img - img[0, 0]).max(axis=2) > 0.05
+    assert hit[16, 24] and hit.mean() > 0.15, hit.mean()
+    assert any("front-right-above" in w for w in info.warnings), info.warnings
+
+
+def test_solid_stage_without_camera_keeps_usdrecords_front_view():
+    s = new_stage("Y")
+    UsdGeom.Cube.Define(s, "/Box")
+    scene, info = load_stage(s, width=32, height=24)
+    assert any("framed from the front" in w for w in info.warnings), info.warnings
+    eye = scene.camera.camera_to_world[:3, 3]
+    np.testing.assert_allclose(eye[:2], 0.0, atol=1e-9)  # on the +Z axis through the centre
+    assert eye[2] > 1
+
+
+# ---------------------------------------------------------------- UsdRender
+def _render_settings_stage(policy=None, resolution=(100, 100), window=None, par=None, products=("beauty.exr",),
+                           var_sources=("color", "depth", "fancyLobe")):
+    from pxr import UsdRender
+
+    s = new_stage()
+    add_camera(s, "/CamA", eye=(0, 0, 5))
+    add_camera(s, "/CamB", eye=(0, 0, 20), h=3.6, v=2.4)
+    ball = UsdGeom.Sphere.Define(s, "/Ball")
+    ball.CreateRadiusAttr(0.5)
+    ball.AddTranslateOp().Set(Gf.Vec3d(0.8, 0.4, 0))
+    rs = UsdRender.Settings.Define(s, "/Render/Settings")
+    rs.CreateResolutionAttr(Gf.Vec2i(*resolution))
+    rs.CreateCameraRel().SetTargets(["/CamB"])
+    if policy:
+        rs.CreateAspectRatioConformPolicyAttr(policy)
+    if window:
+        rs.CreateDataWindowNDCAttr(Gf.Vec4f(*window))
+    if par:
+        rs.CreatePixelAspectRatioAttr(par)
+    targets = []
+    for i, name in enumerate(products):
+        p = UsdRender.Product.Define(s, f"/Render/P{i}")
+        p.CreateProductNameAttr(name)
+        vars_ = []
+        for j, src in enumerate(var_sources):
+            v = UsdRender.Var.Define(s, f"/Render/P{i}/V{j}")
+            v.CreateSourceNameAttr(src)
+            vars_.append(v.GetPath())
+        p.CreateOrderedVarsRel().SetTargets(vars_)
+        targets.append(p.GetPath())
+    rs.CreateProductsRel().SetTargets(targets)
+    s.SetMetadata("renderSettingsPrimPath", "/Render/Settings")
+    return s
+
+
+@pytest.mark.parametrize("policy,want", [("expandAperture", (3.6, 3.6)), ("cropAperture", (2.4, 2.4)),
+                                         ("adjustApertureWidth", (2.4, 2.4)), ("adjustApertureHeight", (3.6, 3.6)),
+                                         ("adjustPixelAspectRatio", (3.6, 2.4))])
+def test_render_settings_conform_policies(policy, want):
+    """Resolution 100 × 100 and CamB (3.6 × 2.4) from the RenderSettings; the conformed aperture as the UsdRender
+    spec defines each policy (expand grows the short side, crop shrinks the long one, adjustApertureWidth keeps the
+    height, adjustApertureHeight the width, adjustPixelAspectRatio neither)."""
+    scene, info = load_stage(_render_settings_stage(policy))
+    assert (info.width, info.height, info.camera) == (100, 100, "/CamB")
+    np.testing.assert_allclose([scene.camera.horizontal_aperture, scene.camera.vertical_aperture], want,
+                               rtol=1e-6)
+
+
+def test_render_settings_pixel_aspect_ratio():
+    """pixelAspectRatio 2 at 100 × 100: the image is 2:1 wide, so expandAperture grows the width: 4.8 × 2.4
+    (each pixel 0.048 wide, 0.024 high)."""
+    scene, info = load_stage(_render_settings_stage(par=2.0))
+    np.testing.assert_allclose([scene.camera.horizontal_aperture, scene.camera.vertical_aperture], (4.8, 2.4),
+                               rtol=1e-6)
+
+
+def test_render_settings_products_vars_and_flags_win():
+    scene, info = load_stage(_render_settings_stage(), width=30, camera="/CamA")
+    assert info.camera == "/CamA" and info.width == 30
+    spec = info.render_settings
+    assert spec.products == ["beauty.exr"] and spec.aovs == ["depth"]
+    assert any("fancyLobe" in w for w in info.warnings)
+
+
+def test_render_settings_data_window_renders_that_part():
+    """dataWindowNDC (0.5, 0.5, 1, 1): the upper-right quarter of the full frame, as its own 50 × 50 image."""
+    full_scene, _ = load_stage(_render_settings_stage())
+    part_scene, info = load_stage(_render_settings_stage(window=(0.5, 0.5, 1.0, 1.0)))
+    assert (info.width, info.height) == (50, 50)
+    full = render(full_scene, RenderSettings(width=100, height=100, samples=2)).rgb
+    part = render(part_scene, RenderSettings(width=50, height=50, samples=2)).rgb
+    assert np.abs(full[:50, 50:] - part).mean() < 0.01 and part.max() > 0.2  # the ball is up and right
+
+
+def test_camera_without_render_settings_expands_its_aperture():
+    """A 16:9 aperture rendered at 4:3 keeps its whole width (Arnold's expandAperture), not a 1.33x zoom."""
+    s = new_stage()
+    add_camera(s, h=3.2, v=1.8)
+    UsdGeom.Sphere.Define(s, "/Ball")
+    scene, _ = load_stage(s, width=80, height=60)
+    np.testing.assert_allclose([scene.camera.horizontal_aperture, scene.camera.vertical_aperture], [3.2, 2.4],
+                               rtol=1e-6)
+
+
+# ---------------------------------------------------------------- light units of known exporters
+def _exporter_stage(doc=None, custom=None, light="sphere", intensity=10.0, radius=0.1, normalize=None):
+    s = new_stage()
+    if doc:
+        s.GetRootLayer().documentation = doc
+    if custom:
+        s.GetRootLayer().customLayerData = custom
+    add_camera(s, eye=(0, 0, 10))
+    q = quad(s, "/Floor", half=3.0)
+    q.CreateDisplayColorAttr([(0.5, 0.5, 0.5)])
+    if light == "sphere":
+        lt = UsdLux.SphereLight.Define(s, "/Lamp")
+        lt.CreateRadiusAttr(radius)
+        lt.AddTranslateOp().Set(Gf.Vec3d(0, 0, 2))
+    else:
+        lt = UsdLux.DomeLight.Define(s, "/Dome")
+    lt.CreateIntensityAttr(intensity)
+    if normalize is not None:
+        lt.CreateNormalizeAttr(normalize)
+    return s
+
+
+def _first_light(info):
+    return info.lights[0][2]
+
+
+def test_blender_31_sphere_light_is_power_over_100():
+    """Blender 2.83–3.1 wrote intensity = P/100: 10 is a 1000 W point light, 1000/4π W/sr (the spec would read a
+    radiance of 10 over r = 0.1: 0.31 W/sr, a near-black frame). The floor under it: radiance albedo·E/π with
+    E = I/d², d = 2."""
+    s = _exporter_stage("Blender v3.1.2")
+    scene, info = load_stage(s, width=40, height=30)
+    np.testing.assert_allclose(_first_light(info).intensity, 1000 / (4 * np.pi), rtol=1e-6)
+    assert any("Blender 3.1.2" in n for n in info.notes), info.notes
+    img = render(scene, RenderSettings(width=40, height=30, samples=4)).rgb
+    np.testing.assert_allclose(img[15, 20], 0.5 * (1000 / (4 * np.pi)) / 4 / np.pi, rtol=0.03)
+    spec, info = load_stage(s, width=40, height=30, light_units="spec")
+    np.testing.assert_allclose(_first_light(info).intensity, 10 * np.pi * 0.01, rtol=1e-6)
+    assert not any("exporter" in n for n in info.notes)
+
+
+def test_blender_34_dome_light_683_is_strength_one():
+    s = _exporter_stage("Blender v3.4.1", light="dome", intensity=683.0)
+    scene, info = load_stage(s, width=20, height=16)
+    np.testing.assert_allclose(scene.background, 683 * 0.0014641, rtol=1e-5)
+
+
+def test_omniverse_kit_lights_are_minus_nine_ev():
+    s = _exporter_stage(custom={"omni_layer": {"name": "root"}}, intensity=512.0, normalize=True)
+    scene, info = load_stage(s, width=20, height=16)
+    np.testing.assert_allclose(_first_light(info).intensity, 512 * 2 ** -9 / 4, rtol=1e-6)
+    assert any("Omniverse Kit" in n for n in info.notes)
+
+
+def test_current_blender_and_unknown_writers_keep_the_spec():
+    for doc in ("Blender v5.0.1", None, "written by hand"):
+        scene, info = load_stage(_exporter_stage(doc, normalize=True), width=20, height=16)
+        np.testing.assert_allclose(_first_light(info).intensity, 10 / 4, rtol=1e-6)
+
+
+# ---------------------------------------------------------------- smaller defects
+def test_info_shows_a_textureless_dome_without_nan(tmp_path):
+    s = new_stage()
+    UsdLux.DomeLight.Define(s, "/Dome").CreateIntensityAttr(0.5)
+    UsdGeom.Sphere.Define(s, "/Ball")
+    path = str(tmp_path / "dome.usda")
+    s.GetRootLayer().Export(path)
+    res = whitted("info", path)
+    assert res.returncode == 0 and "nan" not in res.stdout and "background=[0.5, 0.5, 0.5]" in res.stdout
+
+
+@pytest.mark.parametrize("argv,want", [(["rendr", "x.usda"], "unknown command 'rendr': choose from render"),
+                                       (["-q"], "a command is required")])
+def test_command_errors_are_one_plain_line(argv, want):
+    res = whitted(*argv)
+    lines = res.stderr.strip().splitlines()
+    assert res.returncode == 2 and len(lines) == 1 and want in lines[0], res.stderr
+    assert "whitted: error: whitted:" not in res.stderr
+
+
+def test_zero_triangles_warns_and_fails_only_when_there_were_gprims(tmp_path):
+    bad = new_stage()
+    m = UsdGeom.Mesh.Define(bad, "/Lines")
+    m.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (1, 1, 0)])
+    m.CreateFaceVertexCountsAttr([2])
+    m.CreateFaceVertexIndicesAttr([0, 1])
+    empty = new_stage()
+    UsdGeom.Xform.Define(empty, "/Nothing")
+    codes = {}
+    for name, stage in (("bad", bad), ("empty", empty)):
+        path = str(tmp_path / f"{name}.usda")
+        stage.GetRootLayer().Export(path)
+        res = whitted("render", path, "-o", tmp_path / f"{name}.png", "--width", 16, "--quiet")
+        codes[name] = res
+    assert codes["bad"].returncode == 2 and "1 visible gprim(s) (Mesh) gave 0 triangles" in codes["bad"].stderr
+    assert [ln for ln in codes["bad"].stderr.splitlines() if ln.startswith("whitted: error")].__len__() == 1
+    assert codes["empty"].returncode == 0 and "no visible gprims" in codes["empty"].stderr
+
+
+def test_usd_diagnostics_are_summarised_alike_in_info_and_render(tmp_path):
+    """A primvar with 40 out-of-range indices: pxr prints a line per index; we print one line."""
+    s = new_stage()
+    add_camera(s)
+    q = quad(s, "/Q")
+    pv = UsdGeom.PrimvarsAPI(q).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying)
+    pv.Set([(0, 0)] * 4)
+    pv.SetIndices([0, 1, 2, 3])
+    pv.SetIndices([9] * 4)
+    q.CreateDisplayColorAttr([(1, 0, 0)])
+    path = str(tmp_path / "d.usda")
+    s.GetRootLayer().Export(path)
+    info = [ln for ln in whitted("info", path).stderr.splitlines() if "usd:" in ln]
+    rend = [ln for ln in whitted("render", path, "-o", tmp_path / "d.png", "--width", 8, "--quiet").stderr.splitlines()
+            if "usd:" in ln]
+    assert info == rend and 1 <= len(info) <= 5, (info, rend)
