@@ -138,3 +138,36 @@ def test_png_write_errors_name_the_file(tmp_path):
     with pytest.raises(ValueError, match="d.png: cannot write"):
         write_image(tmp_path / "d.png", np.zeros((2, 2, 4), np.float32))
     assert not [p for p in os.listdir(tmp_path) if p.startswith(".whitted-")]
+
+
+def test_fast_png_compression_keeps_every_pixel(tmp_path):
+    """PNGs are written at zlib's fastest level without row filters (tracer.film): still lossless. The 8-bit
+    values read back (by OpenImageIO and, independently, by zlib + the PNG layout) are the sRGB encoding of the
+    pixels, by the standard's closed form, to the code value (an opaque render: OpenImageIO un-premultiplies
+    colours where alpha < 1)."""
+    import struct
+    import zlib
+
+    from tracer import write_image
+
+    rng = np.random.default_rng(1)
+    h, w = 90, 160
+    rgba = np.concatenate([rng.random((h, w, 3)) ** 2.2, np.ones((h, w, 1))], -1).astype(np.float32)  # opaque
+    rgba[10:40, 20:90, :3] = 0.18  # flat areas (what compression works on) next to noise
+    path = tmp_path / "x.png"
+    write_image(path, rgba)
+    c = rgba[..., :3].astype(np.float64)
+    srgb = np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
+    want = np.round(np.concatenate([srgb, rgba[..., 3:]], -1) * 255)
+    raw = path.read_bytes()
+    chunks, at = {}, 8
+    while at < len(raw):
+        n, kind = struct.unpack(">I4s", raw[at:at + 8])
+        chunks.setdefault(kind, b"")
+        chunks[kind] += raw[at + 8:at + 8 + n]
+        at += 12 + n
+    assert struct.unpack(">IIBB", chunks[b"IHDR"][:10]) == (w, h, 8, 6)  # 8-bit RGBA
+    rows = np.frombuffer(zlib.decompress(chunks[b"IDAT"]), np.uint8).reshape(h, 1 + 4 * w)
+    assert (rows[:, 0] == 0).all()  # no row filter: the bytes are the pixels
+    got = rows[:, 1:].reshape(h, w, 4).astype(np.float64)
+    assert np.abs(got - want).max() <= 1 and (got[..., 3] == want[..., 3]).all()

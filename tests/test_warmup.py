@@ -73,7 +73,13 @@ def check_in_this_process():
     sphere = b.build()
     sky = lit_sphere_on_floor().build()
     sky.environment = tracer.Environment(np.linspace(0.1, 2.0, 16 * 32 * 3, dtype=np.float32).reshape(16, 32, 3))
+    placed = lit_sphere_on_floor()  # a mesh placed by a matrix, with normals: the builder's placement kernels
+    move = np.eye(4)
+    move[:3, 3] = (0.3, -0.2, 0.1)
+    placed.add_mesh(np.array([[0, 0, 1], [1, 0, 1], [0, 1, 1.5]], float), np.array([[0, 1, 2]]), transform=move,
+                    normals=np.array([[0, 0, 1.0]] * 3))
     for scene, settings in ((sphere, RenderSettings(width=24, height=16, samples=2, light_samples=4)),
+                            (placed.build(), RenderSettings(width=16, height=12)),
                             (_flat_scene_without_normals(), RenderSettings(width=16, height=16, sky_samples=4,
                                                                             threads=2, aovs=("normal",))),
                             (sky, RenderSettings(width=16, height=12, samples=1, sky_samples=4))):
@@ -81,3 +87,19 @@ def check_in_this_process():
         assert image.rgba[..., :3].max() > 0  # the scenes are lit
     after = {name: len(k.signatures) for name, k in _kernels().items()}
     return before, after
+
+
+def test_whitted_warmup_compiles_the_kernels():
+    """``whitted warmup`` (what a user runs at install time) leaves the render's kernels compiled or loaded, in a
+    fresh process (where no render has loaded any yet), and says so on stderr with exit code 0."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    code = ("import json, sys; sys.path[:0] = [%r, %r]; import test_warmup as t; from usd_io.cli import main; "
+            "code = main(['warmup']); print(json.dumps([code, {k: len(d.signatures) for k, d in t._kernels().items()}]))"
+            % (os.path.dirname(here), here))
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-2000:]
+    exit_code, signatures = json.loads(r.stdout.strip().splitlines()[-1])
+    assert exit_code == 0 and "whitted: kernels" in r.stderr
+    for hot in ("integrator._surfaces", "render._tile_eye_rays", "scene_kernels.non_degenerate_rows",
+                "builder._affine_rows"):
+        assert signatures[hot] > 0, f"whitted warmup left {hot} unprepared"

@@ -31,6 +31,7 @@ from typing import NamedTuple
 import numpy as np
 
 from . import embree
+from .heap import trim
 from .scene import Scene
 
 #: "No hit" in ``prim``.
@@ -69,6 +70,7 @@ class Accelerator:
         if quality not in embree.BUILD_QUALITY or quality == "refit":
             raise ValueError(f"quality must be 'low', 'medium' or 'high', got {quality!r}")
         start = time.perf_counter()
+        trim()  # what loading freed goes back to the OS before Embree's build allocates
         self.seconds = 0.0
         self.record = record
         self.batches: list = []

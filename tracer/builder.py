@@ -17,6 +17,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .camera import Camera
+from .heap import trim
 from .jit import kernel
 from .materials import Materials
 from .scene import Instances, Scene, handed_over
@@ -207,6 +208,7 @@ class SceneBuilder:
             self._uvs[:] = [uv_sets[0] if had_uvs and uv_sets else None]
             self._extra[:] = [{"uv_sets": {k: uv for k, uv in enumerate(uv_sets) if uv is not None},
                                "colors": colors}]
+        trim()  # the per-mesh pieces just freed
         with handed_over(normals, colors, *uv_sets):
             return Scene(
                 vertices=vertices,

@@ -117,6 +117,7 @@ class MeshData:
     n_face_vertices: int = 0
     primvars: dict | None = None  # refined subdivision surfaces: {name: (T, 3, k) per corner} (no corners then)
     source_points: np.ndarray | None = None  # points and curves: (V,) the authored point each vertex stands for
+    point_weights: np.ndarray | None = None  # NURBS patches: (V, P) each vertex as a combination of the CVs
 
 
 def _primvar(prim, name):
@@ -161,6 +162,7 @@ def read_subdivided(prims, time, uv_name="st", subdivision_level: int = COMPLEXI
     """:func:`read_mesh` of many subdivision surfaces with one :func:`tracer.subdivision.refine_batch` (meshes of
     one topology refined once): {prim path: MeshData, None, or the ValueError read_mesh would raise}. Prims that
     are not subdivided at this level are left out (read them with read_mesh)."""
+    from tracer.heap import trim
     from tracer.subdivision import refine, refine_batch
 
     out, jobs = {}, []
@@ -194,8 +196,11 @@ def read_subdivided(prims, time, uv_name="st", subdivision_level: int = COMPLEXI
                 refined.append(refine(**request))
             except ValueError as exc:
                 refined.append(exc)
-    for (key, (_request, finish)), r in zip(jobs, refined):
+    for i, ((key, (_request, finish)), r) in enumerate(zip(jobs, refined)):
         out[key] = r if isinstance(r, ValueError) else finish(r)
+        refined[i] = None  # the refinement's shared arrays go once the last mesh of a topology is done
+    del refined, jobs
+    trim()  # the refinement's temporaries, back to the OS
     return out
 
 
@@ -216,6 +221,8 @@ def _read_cage(prim, time, points):
     points = np.asarray(points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"{label}: points are not 3-vectors (shape {points.shape})")
+    if not np.all(np.isfinite(points)):  # before refinement, which would spread the NaN (and warn about it)
+        raise ValueError(f"{label}: points with NaN or infinite coordinates")
     left = mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded
     holes = mesh.GetHoleIndicesAttr().Get(time) or ()
     scheme = mesh.GetSubdivisionSchemeAttr().Get(time) or UsdGeom.Tokens.catmullClark
@@ -305,8 +312,8 @@ def _subdivision_job(prim, mesh, points, counts, indices, holes, left, scheme, l
     if (~keep).any():
         warnings.append(f"{label}: skipped {int((~keep).sum())} face(s) with fewer than 3 vertices")
         indices, counts = indices[fv_keep], counts[keep]
-    if not len(counts):
-        return None
+    if not len(counts):  # malformed, not empty: the reader warns and counts it (usd_io.reader._say_if_empty)
+        raise ValueError(f"{label}: all {n_faces_in} face(s) have fewer than 3 vertices")
 
     def attr(get, default=None):
         a = get()

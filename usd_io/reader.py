@@ -76,14 +76,17 @@ class _Reader:
         self._proto_cache: dict[str, MeshData | None] = {}
         self._proto_ids: dict[tuple, int] = {}  # (prototype prim path, material rows) -> tracer prototype object id
         self._grey = None
+        self.empty: set = set()  # gprims whose geometry is absent or has no faces at this time
         self.skinning = Skinning(time, self.xf.world)
         self.subdivision_level = COMPLEXITY[DEFAULT_COMPLEXITY]
         self._refined: dict = {}  # prim path -> MeshData refined ahead (prefetch_subdivided)
+        self._todo, self._todo_at = [], {}  # meshes to refine ahead, and the position of each
 
     def prefetch_subdivided(self, prims) -> None:
-        """Refine the subdivision meshes among ``prims`` in one batch (usd_io.mesh.read_subdivided: meshes of
-        one topology refined once) before they are added one by one; geometry() takes them from here. Skinned
-        meshes (posed before refinement) and all but one proxy of each instance prototype are left out."""
+        """Refine the subdivision meshes among ``prims`` in batches of PREFETCH_MESHES (usd_io.mesh.read_subdivided:
+        the meshes of one topology in a batch refined once) ahead of adding them one by one: geometry() takes them
+        from here, refining the next batch when it reaches a mesh not yet refined. Skinned meshes (posed before
+        refinement) and all but one proxy of each instance prototype are left out."""
         seen, todo = set(), []
         for prim in prims:
             if not prim.IsA(UsdGeom.Mesh) or Skinning.is_skinned(prim):
@@ -94,7 +97,17 @@ class _Reader:
                     continue
                 seen.add(key)
             todo.append(prim)
-        self._refined = read_subdivided(todo, self.time, "st", self.subdivision_level)
+        self._todo, self._todo_at = todo, {str(p.GetPath()): i for i, p in enumerate(todo)}
+
+    def _prefetched(self, prim):
+        """The MeshData refined ahead for ``prim`` (its batch refined now if need be), or self if there is none."""
+        key = str(prim.GetPath())
+        if key not in self._refined and key in self._todo_at:
+            batch = self._todo[self._todo_at[key]:][:PREFETCH_MESHES]
+            for p in batch:
+                self._todo_at.pop(str(p.GetPath()), None)
+            self._refined.update(read_subdivided(batch, self.time, "st", self.subdivision_level))
+        return self._refined.pop(key, self)
 
     # ------------------------------------------------------------------ geometry
     def geometry(self, prim, uv_name="st") -> MeshData | None:
@@ -102,7 +115,7 @@ class _Reader:
         try:
             if prim.IsA(UsdGeom.Mesh):
                 skinned = Skinning.is_skinned(prim)  # skinned: the cage now, refined once posed (add_gprim)
-                data = self._refined.pop(str(prim.GetPath()), self) if uv_name == "st" and not skinned else self
+                data = self._prefetched(prim) if uv_name == "st" and not skinned else self
                 if isinstance(data, ValueError):
                     raise data
                 if data is self:  # not refined ahead by prefetch_subdivided
@@ -122,6 +135,8 @@ class _Reader:
         except ValueError as exc:
             self.info.warn(f"{exc} (skipped)")
             return None
+        if data is None:
+            self.empty.add(str(prim.GetPath()))  # no points or no faces authored at this time: _say_if_empty
         if data is not None and not np.all(np.isfinite(data.points)):
             self.info.warn(f"{prim.GetPath()}: points with NaN or infinite coordinates (skipped)")
             return None
@@ -208,6 +223,9 @@ class _Reader:
                     continue
                 if (piece.GetTypeName() not in GPRIM_TYPES and not piece.IsA(UsdGeom.Mesh)
                         and not _is_points_or_curves(piece)):
+                    if piece.IsA(UsdGeom.Gprim):
+                        self.info.warn(f"{piece.GetPath()}: {piece.GetTypeName()} is not supported (a prototype of "
+                                       f"{prim.GetPath()}; skipped)")
                     continue
                 data = self.geometry(piece)
                 if data is None or not len(data.triangles):
@@ -305,9 +323,11 @@ def _say_if_empty(r, info) -> None:
     and stays None when the stage has no visible gprims at all (an empty stage renders its empty frame)."""
     if sum(n for _p, n in info.meshes):
         return
-    gprims = [p for p in r.prims if p.IsA(UsdGeom.Gprim) or p.IsA(UsdGeom.PointInstancer)]
+    gprims = [p for p in r.prims if (p.IsA(UsdGeom.Gprim) or p.IsA(UsdGeom.PointInstancer))
+              and str(p.GetPath()) not in r.empty]
     if not gprims:
-        info.warn("the stage has no visible gprims: the frame shows only the background")
+        empty = f" ({len(r.empty)} gprim(s) without points or faces at this time)" if r.empty else ""
+        info.warn(f"the stage has no visible gprims with geometry{empty}: the frame shows only the background")
         return
     kinds = sorted({p.GetTypeName() for p in gprims})
     info.nothing_drawn = (f"{len(gprims)} visible gprim(s) ({', '.join(kinds)}) gave 0 triangles (see the warnings "
@@ -352,6 +372,11 @@ def _usable(m: np.ndarray) -> np.ndarray:
     a = np.where(finite[..., None, None], m, 0.0)[..., :3, :3]
     size = np.abs(a).max(axis=(-2, -1))
     return finite & (np.abs(np.linalg.det(a)) > 1e-12 * size ** 3)
+
+
+#: Subdivision meshes refined per batch ahead of the prim loop: bounds the refined meshes held at once (memory)
+#: while each batch still refines each of its topologies once.
+PREFETCH_MESHES = 400
 
 
 def _read_prims(r: _Reader, stage, tc, purposes, info: StageInfo) -> None:

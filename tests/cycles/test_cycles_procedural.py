@@ -8,7 +8,7 @@ whatever sub-pixel position Cycles' one sample lands on (filter width 0.01 px), 
 bricks, checkers, white noise) are compared on both sides of every edge. Cycles renders the grid once into a linear
 EXR, cached by the content hash of this file's scene code and the variant table (tests/cycles/cycles_harness.py's
 ``content_hash`` and cache folder); each test then compares one tile with the numpy form of the tracer's function
-evaluated at the same coordinates. Bar: PSNR ≥ 40 dB on linear values (peak max(1, the tile's range)).
+evaluated at the same coordinates. Bar: PSNR ≥ 60 dB on linear values (peak max(1, the tile's range)).
 """
 
 from __future__ import annotations
@@ -32,7 +32,9 @@ pytestmark = pytest.mark.cycles
 TILE = 64  # pixels per tile side
 PER_UNIT = TILE // 2  # pixels per unit of object space (planes are 2 × 2)
 COLS = 16
-MIN_PSNR = 40.0
+#: The issue asks ≥ 40 dB; every variant measures ≥ 85 dB (float32 vs float64 rounding), and 40 dB would let a 1 %
+#: error in a noise constant through (0.982 -> 0.972 measured 48-62 dB), so the bar is 60 dB.
+MIN_PSNR = 60.0
 
 
 # ---------------------------------------------------------------------------------------------------- coordinates
@@ -200,6 +202,9 @@ VARIANTS["mix_linear_light_clamped"] = graph("mix", blend="LINEAR_LIGHT", fac=0.
                                              clamp_result=True)
 VARIANTS["mix_add_factor_unclamped"] = graph("mix", blend="ADD", fac=1.6, clamp_factor=False, clamp_result=False)
 VARIANTS["mix_burn_constant"] = graph("mix", blend="BURN", fac=0.9, clamp_factor=True, clamp_result=False)
+VARIANTS["mix_float"] = graph("mix_float", clamp_factor=True)
+VARIANTS["mix_vector"] = graph("mix_vector", non_uniform=False, clamp_factor=True)
+VARIANTS["mix_vector_non_uniform"] = graph("mix_vector", non_uniform=True, clamp_factor=False)
 VARIANTS["hue_saturation_value"] = graph("hsv", hue=0.3, saturation=1.5, value=0.8, fac=0.9, hue_linked=False)
 VARIANTS["hue_saturation_value_linked"] = graph("hsv", hue=0.0, saturation=0.6, value=1.3, fac=1.0, hue_linked=True)
 for _mode in ("HSV", "HSL"):
@@ -249,6 +254,12 @@ def ours_graph(spec, vec, w):
         fac = _noise_fac(vec) if p["fac"] is None else p["fac"]
         return color.mix_color_array(p["blend"], fac, _magic(vec), _noise_color(vec), p["clamp_factor"],
                                      p["clamp_result"])
+    if kind == "mix_float":
+        return _grey(color.mix_float_array(_noise_fac(vec) * f(3.0) + f(-1.0), _noise_fac(vec), vec[..., 0],
+                                           p["clamp_factor"]))
+    if kind == "mix_vector":
+        fac = (_noise_color(vec) * f(3.0) + f(-1.0)) if p["non_uniform"] else _noise_fac(vec)
+        return color.mix_vector_array(fac, vec, _magic(vec), p["clamp_factor"])
     if kind == "hsv":
         hue = _noise_fac(vec) if p["hue_linked"] else p["hue"]
         return color.hue_saturation_value_array(_magic(vec), hue, p["saturation"], p["value"], p["fac"])
@@ -419,6 +430,31 @@ def build_graph(nt, spec, vec, w):
         nt.links.new(a, ins["A_Color"])
         nt.links.new(b, ins["B_Color"])
         return next(o for o in n.outputs if o.identifier == "Result_Color")
+    if kind in ("mix_float", "mix_vector"):
+        n = nt.nodes.new("ShaderNodeMix")
+        n.data_type = "FLOAT" if kind == "mix_float" else "VECTOR"
+        n.clamp_factor = p["clamp_factor"]
+        ins = {i.identifier: i for i in n.inputs}
+        if kind == "mix_float":
+            sep = nt.nodes.new("ShaderNodeSeparateXYZ")
+            nt.links.new(vec, sep.inputs[0])
+            nt.links.new(_math(nt, "ADD", _math(nt, "MULTIPLY", fac, 3.0), -1.0), ins["Factor_Float"])
+            nt.links.new(fac, ins["A_Float"])
+            nt.links.new(sep.outputs["X"], ins["B_Float"])
+            return next(o for o in n.outputs if o.identifier == "Result_Float")
+        if p["non_uniform"]:
+            n.factor_mode = "NON_UNIFORM"
+            vm = nt.nodes.new("ShaderNodeVectorMath")
+            vm.operation = "MULTIPLY_ADD"
+            nt.links.new(b, vm.inputs[0])
+            vm.inputs[1].default_value = (3.0, 3.0, 3.0)
+            vm.inputs[2].default_value = (-1.0, -1.0, -1.0)
+            nt.links.new(vm.outputs[0], ins["Factor_Vector"])
+        else:
+            nt.links.new(fac, ins["Factor_Float"])
+        nt.links.new(vec, ins["A_Vector"])
+        nt.links.new(a, ins["B_Vector"])
+        return next(o for o in n.outputs if o.identifier == "Result_Vector")
     if kind == "hsv":
         n = nt.nodes.new("ShaderNodeHueSaturation")
         n.inputs["Hue"].default_value = p["hue"]
@@ -509,7 +545,8 @@ def build_scene(variants: dict):
     scene = bs.reset(size=(COLS * TILE, rows * TILE))
     for i, (name, spec) in enumerate(variants.items()):
         mat = bpy.data.materials.new(name)
-        mat.use_nodes = True
+        if mat.node_tree is None:  # (Blender 5 gives new materials a node tree; use_nodes is deprecated)
+            mat.use_nodes = True
         nt = mat.node_tree
         nt.nodes.clear()
         vec, w = coordinate_sockets(nt)
