@@ -303,12 +303,11 @@ def export_objects(depsgraph, writer: MaterialWriter, warnings: list, lights: li
             continue
         mw = inst.matrix_world
         world = np.array(mw, dtype=np.float64)
-        # mathutils' C calls: numpy's det and max cost ~10 µs per instance. Singular: |det| tiny against the
-        # product of the axis lengths (its bound, Hadamard's inequality).
+        # mathutils' C calls (numpy's det and max cost ~10 µs per instance) into the tracer's one rule, scaled by the
+        # longest axis.
         m3 = mw.to_3x3()
         det = m3.determinant()
-        sx, sy, sz = m3.to_scale()
-        if not math.isfinite(det) or abs(det) <= 1e-12 * sx * sy * sz:
+        if tracer.scene.singular(det, max(m3.to_scale())):
             warnings.append(f"object {obj.name!r}: zero scale (nothing to render); skipped")
             continue
         slots = tuple(writer.row(s.material) for s in obj.material_slots)
