@@ -8,15 +8,12 @@ The picture is the program's value at each pixel, so agreement is that of the ar
 
 from __future__ import annotations
 
-import math
-import os
-
 import numpy as np
 import pytest
 
 import cycles_harness as H
 
-from tests import blender_support as bs
+from blender_kit import scene as bs
 
 pytestmark = pytest.mark.cycles
 
@@ -188,19 +185,17 @@ def test_op_matches_cycles(bpy_module, tmp_path, name):
 
     import tracer
     from addon import export
-    from bench.cycles import whitted_cycles_settings
-    from tracer.shader_compile import compile_graph, BoundGraph
+    from blender_kit.cycles import whitted_cycles_settings
+    from tracer.shader_compile import BoundGraph, compile_graph
 
     nodes, output = CASES[name]
-    key = H.content_hash(name, repr(CASES[name]), SIZE)
-    path = os.path.join(H.CACHE_DIR, f"op-{name}-{key}.exr")
     scene = _scene(nodes, output)
-    if not os.path.exists(path):
+
+    def render(tmp):
         whitted_cycles_settings(scene, depth=0, samples=16)
-        os.makedirs(H.CACHE_DIR, exist_ok=True)
-        tmp = path + f".{os.getpid()}.tmp.exr"
         bs.render_exr(scene, tmp)
-        os.replace(tmp, path)
+
+    path, _, _ = H.cached_exr(f"op-{name}-{H.content_hash(name, repr(CASES[name]), SIZE)}", render, (name, "beauty"))
     ref = bs.read_exr(path)["rgba"][..., :3]
     ts, _warnings = export.scene_from_depsgraph(bpy.context.evaluated_depsgraph_get())
     g = _ir_graph(nodes, output)
