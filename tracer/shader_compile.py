@@ -876,10 +876,20 @@ class Compiler:
         kind = pn.NOISE_TYPES[str(node.param("noise_type")).upper()]
         if self.estimate:
             return {"Fac": 0.5, "Color": (0.5, 0.5, 0.5)}
-        r = self._proc(vm.OP_NOISE, node, var, ["W", "Scale", "Detail", "Roughness", "Lacunarity", "Offset", "Gain",
-                                                "Distortion"], dim | kind << 4 | int(bool(node.param("normalize"))) << 8
-                       | 1 << 12, 4)
-        return {"Fac": Reg(r.r, 1), "Color": Reg(r.r + 1, 3)}
+        names = ["W", "Scale", "Detail", "Roughness", "Lacunarity", "Offset", "Gain", "Distortion"]
+        imm = dim | kind << 4 | int(bool(node.param("normalize"))) << 8
+        made = {}
+
+        def colour():  # the full node (three times the work of Fac alone: Cycles' noise_value vs noise_texture)
+            if "c" not in made:
+                made["c"] = self._proc(vm.OP_NOISE, node, var, names, imm | 1 << 12, 4)
+            return made["c"]
+
+        def fac():
+            if "c" in made:
+                return Reg(made["c"].r, 1)
+            return Reg(self._proc(vm.OP_NOISE, node, var, names, imm, 1).r, 1)
+        return _Lazy({"Fac": fac, "Color": lambda: Reg(colour().r + 1, 3)})
 
     def _n_voronoi_texture(self, node, var):
         from .procedural import voronoi as pv
