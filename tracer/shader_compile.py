@@ -332,7 +332,8 @@ class Compiler:
             if _is_const(b) and _vec(b) == (1.0, 1.0, 1.0):
                 return a, 0.0
             img, k = (a, b) if _is_const(b) else (b, a) if _is_const(a) else (None, None)
-            if isinstance(img, Reg) and img.src is not None:  # texture × constant: one lookup, scaled
+            if isinstance(img, Reg) and img.src is not None and img.src[0].image is not None:
+                # an image × a constant: one lookup, its scale and bias scaled (a scene texture keeps its own)
                 use, coord = img.src
                 k = _vec(k) + (1.0,)
                 use = use._replace(scale=tuple(s * x for s, x in zip(use.scale, k)),
