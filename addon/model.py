@@ -88,6 +88,8 @@ class MaterialWriter:
         return self._rows[material.name]
 
     def _add(self, name: str, f) -> int:
+        if isinstance(f, dict) and "graph" in f:  # what self.fields keeps of a graph (addon/sync.py hands it back)
+            f = f["graph"]
         graph = f if isinstance(f, Graph) else graph_from_fields(name, self._principled(f), self._texture_node)
         row = add_graph(self.b, graph, self.warn, self.uv_index, name=name)
         self.fields.setdefault(row, (name, f if not isinstance(f, Graph) else {"graph": f}))

@@ -313,3 +313,21 @@ def test_wave_magic_and_brick_factors():
                                                        wave_profile="TRI", scale=2.0, distortion=1.5), atol=1e-5)
     np.testing.assert_allclose(img[..., 1], magic_array(p, turbulence_depth=3, scale=2.0).mean(-1), atol=1e-5)
     np.testing.assert_allclose(img[..., 2], brick_array(p, scale=3.0, mortar_size=0.05, offset=0.3)[1], atol=1e-5)
+
+
+def test_a_texture_column_multiplies_its_constant():
+    """A row of the table API (``diffuse`` × ``diffuse_texture``) runs as a program: the picture is constant ×
+    texel (red halved, a grey texel per pixel)."""
+    from tracer import Texture
+
+    b = SceneBuilder()
+    tex = np.random.default_rng(3).uniform(0.2, 1.0, (N, N, 3)).astype(np.float32)
+    t = b.add_texture(Texture(tex))
+    m = b.add_material("row", diffuse=(0.5, 1.0, 0.25), diffuse_texture=t, specular=0.0)
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], np.float32)
+    b.add_mesh(v, [[0, 1, 2], [0, 2, 3]], material=m, uvs=v[:, :2], name="quad")
+    b.camera = Camera.look_at((0.5, 0.5, 5), (0.5, 0.5, 0), up=(0, 1, 0), projection="orthographic",
+                              horizontal_aperture=1.0, vertical_aperture=1.0)
+    b.ambient = np.ones(3, np.float32)
+    img = render(b.build(), RenderSettings(width=N, height=N, samples=1, max_depth=0)).rgb
+    np.testing.assert_allclose(img, tex * np.array([0.5, 1.0, 0.25], np.float32), atol=1e-5)

@@ -488,10 +488,11 @@ def _object_bounds(scene) -> np.ndarray:
     n = int(oid.max()) + 1 if len(oid) else 1
     lo = np.full((n, 3), np.inf)
     hi = np.full((n, 3), -np.inf)
-    if len(oid):
+    if len(oid):  # per run of equal ids (meshes are stored one after the other), then per id
         tv = np.asarray(scene.vertices, np.float64)[scene.triangles]
-        np.minimum.at(lo, oid, tv.min(axis=1))
-        np.maximum.at(hi, oid, tv.max(axis=1))
+        starts = np.concatenate([[0], np.flatnonzero(np.diff(oid)) + 1])
+        np.minimum.at(lo, oid[starts], np.minimum.reduceat(tv.min(axis=1), starts, axis=0))
+        np.maximum.at(hi, oid[starts], np.maximum.reduceat(tv.max(axis=1), starts, axis=0))
     bad = ~np.isfinite(lo).all(axis=1)
     lo[bad], hi[bad] = 0.0, 0.0
     return np.ascontiguousarray(np.stack([lo, hi], axis=1))

@@ -332,7 +332,8 @@ class Compiler:
             if _is_const(b) and _vec(b) == (1.0, 1.0, 1.0):
                 return a, 0.0
             img, k = (a, b) if _is_const(b) else (b, a) if _is_const(a) else (None, None)
-            if isinstance(img, Reg) and img.src is not None:  # texture × constant: one lookup, scaled
+            if isinstance(img, Reg) and img.src is not None and img.src[0].image is not None:
+                # an image × a constant: one lookup, its scale and bias scaled (a scene texture keeps its own)
                 use, coord = img.src
                 k = _vec(k) + (1.0,)
                 use = use._replace(scale=tuple(s * x for s, x in zip(use.scale, k)),
@@ -876,10 +877,20 @@ class Compiler:
         kind = pn.NOISE_TYPES[str(node.param("noise_type")).upper()]
         if self.estimate:
             return {"Fac": 0.5, "Color": (0.5, 0.5, 0.5)}
-        r = self._proc(vm.OP_NOISE, node, var, ["W", "Scale", "Detail", "Roughness", "Lacunarity", "Offset", "Gain",
-                                                "Distortion"], dim | kind << 4 | int(bool(node.param("normalize"))) << 8
-                       | 1 << 12, 4)
-        return {"Fac": Reg(r.r, 1), "Color": Reg(r.r + 1, 3)}
+        names = ["W", "Scale", "Detail", "Roughness", "Lacunarity", "Offset", "Gain", "Distortion"]
+        imm = dim | kind << 4 | int(bool(node.param("normalize"))) << 8
+        made = {}
+
+        def colour():  # the full node (three times the work of Fac alone: Cycles' noise_value vs noise_texture)
+            if "c" not in made:
+                made["c"] = self._proc(vm.OP_NOISE, node, var, names, imm | 1 << 12, 4)
+            return made["c"]
+
+        def fac():
+            if "c" in made:
+                return Reg(made["c"].r, 1)
+            return Reg(self._proc(vm.OP_NOISE, node, var, names, imm, 1).r, 1)
+        return _Lazy({"Fac": fac, "Color": lambda: Reg(colour().r + 1, 3)})
 
     def _n_voronoi_texture(self, node, var):
         from .procedural import voronoi as pv
@@ -1245,16 +1256,19 @@ _SLOT_WIDTH = {"base": 3, "roughness": 1, "metallic": 1, "specular": 1, "alpha":
                "transmission": 1}
 
 
-def compile_graph(graph: Graph, warn=None, uv_index=None, scene_textures=None) -> Compiled:
+def compile_graph(graph: Graph, warn=None, uv_index=None, scene_textures=None, row: bool = True) -> Compiled:
     """Compile ``graph`` (module docstring). ``uv_index(name)`` -> UV set index (None: unknown); ``warn``: one
-    call per problem, naming the material and node."""
-    est = Compiler(graph, None, uv_index, estimate=True)
-    est.scene_textures = scene_textures
-    est_vals, _ = est.outputs()
+    call per problem, naming the material and node. ``row=False``: the program only (no estimate of the row's
+    constants, which reads every image's mean)."""
     c = Compiler(graph, warn, uv_index)
     c.scene_textures = scene_textures
     vals, extras = c.outputs()
-    row = _row(est_vals, extras)
+    if row:
+        est = Compiler(graph, None, uv_index, estimate=True)
+        est.scene_textures = scene_textures
+        row = _row(est.outputs()[0], extras)
+    else:
+        row = {}
     outs = np.full(len(vm.OUT_SLOTS), -1, np.int32)
     live = []
     for k, slot in enumerate(vm.OUT_SLOTS):
@@ -1397,10 +1411,27 @@ def row_graph(m, i: int, textures: list) -> Graph:
 
 def pack_programs(m, textures: list) -> tuple[ProgramTable, list]:
     """(the :class:`ProgramTable` of a Materials table, the textures its image ops read: ``textures`` followed by
-    those the graphs' ImageRefs add)."""
-    from .texture import Texture, as_texture
+    those the graphs' ImageRefs add). Kept on the table while its graphs, texture columns and the constants
+    they multiply are the same (a session renders again without compiling again)."""
+    from .texture import as_texture
 
     textures = [as_texture(t) for t in textures]
+    tex_slots, ch = m.texture_slots()
+    key = (tuple(id(t) for t in textures), tuple(id(p) for p in (getattr(m, "programs", None) or ())),
+           tex_slots.tobytes(), ch.tobytes(), *(np.asarray(getattr(m, k)).tobytes() for k in (
+               "diffuse", "roughness", "metallic", "specular", "alpha", "emission", "normal_strength",
+               "vertex_color")))
+    cached = m.__dict__.get("_program_cache")
+    if cached is not None and cached[0] == key:
+        return cached[1], list(cached[2])
+    table, out = _pack_programs(m, textures)
+    m.__dict__["_program_cache"] = (key, table, out)
+    return table, list(out)
+
+
+def _pack_programs(m, textures: list) -> tuple[ProgramTable, list]:
+    from .texture import Texture
+
     n = len(m)
     tex_slots, _ = m.texture_slots()
     programs = getattr(m, "programs", None) or [None] * n
@@ -1416,10 +1447,10 @@ def pack_programs(m, textures: list) -> tuple[ProgramTable, list]:
         pstart[i] = n_code
         bound = programs[i]
         if bound is not None:
-            prog = compile_graph(bound.graph, None, bound.uv_index, textures).program
+            prog = compile_graph(bound.graph, None, bound.uv_index, textures, row=False).program
         elif (tex_slots[i] >= 0).any():
             prog = compile_graph(row_graph(m, i, textures), None, lambda name: name if isinstance(name, int) else 0,
-                                 textures).program
+                                 textures, row=False).program
         else:
             prog = None
         if prog is None:

@@ -89,6 +89,7 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
     tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye = hit
     uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, bounds, linear, mirrored, inst_ids = geo
     tdata, tparams = tex
+    k_read, uv_area, world_area = -1, 0.0, 0.0  # the UV set whose areas were last read (lookups mostly share one)
     for pc in range(pc0, pc1):
         op = code[pc, 0]
         o = base + code[pc, 1]
@@ -154,7 +155,9 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
             lod = 0.0
             k_fp = code[pc, 4]
             if k_fp >= 0 and footprint > 0.0:
-                uv_area, world_area = areas_at(uv_sets, vertices, triangles, k_fp, tri)
+                if k_fp != k_read:
+                    uv_area, world_area = areas_at(uv_sets, vertices, triangles, k_fp, tri)
+                    k_read = k_fp
                 texels = footprint * texel_density(tparams, ti, uv_area, world_area)
                 lod = math.log2(texels) if texels > 1.0 else 0.0
             x0, x1, x2, x3 = lookup_at(tdata, tparams, ti, s_, t_, ok, lod)
@@ -308,7 +311,7 @@ def _procedural(R, op, o, a, b, imm):
         R[o], R[o + 1], R[o + 2] = pcolor.wavelength(R[a])
 
 
-@kernel(refcounts=False)
+@kernel(inline=True)
 def _input(R, o, what, arg, variant, setup, hit, geo):
     """An ``OP_INPUT``: a value of the hit into R[o…] (``hit``, ``geo``: :func:`execute`'s)."""
     tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye = hit

@@ -16,15 +16,13 @@ from __future__ import annotations
 import inspect
 import json
 import math
-import os
-import time
 
 import numpy as np
 import pytest
 
 import cycles_harness as H
 
-from tests import blender_support as bs
+from blender_kit import scene as bs
 from tracer.procedural import color, noise, patterns, voronoi
 
 pytestmark = pytest.mark.cycles
@@ -588,15 +586,8 @@ def cycles_grid(variants: dict) -> dict:
     scene_code = [inspect.getsource(f) for f in (build_scene, coordinate_sockets, _math, add_texture, build_graph,
                                                  _sources, _texture, setup_curves)]
     key = H.content_hash("procedural", scene_code, TILE, COLS, RAMP_STOPS, _spec_key(variants))
-    path = os.path.join(H.CACHE_DIR, f"procedural-{key}.exr")
-    if not os.path.exists(path):
-        os.makedirs(H.CACHE_DIR, exist_ok=True)
-        scene = build_scene(variants)
-        tmp = path + f".{os.getpid()}.tmp.exr"
-        t0 = time.perf_counter()
-        bs.render_exr(scene, tmp)
-        H.CYCLES_LOG.append(("procedural", "grid", time.perf_counter() - t0, False))
-        os.replace(tmp, path)
+    path, _, _ = H.cached_exr(f"procedural-{key}", lambda tmp: bs.render_exr(build_scene(variants), tmp),
+                              ("procedural", "grid"))
     rgb = bs.read_exr(path)["rgba"][..., :3]
     tiles = {}
     for i, name in enumerate(variants):

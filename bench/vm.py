@@ -1,0 +1,90 @@
+"""What the shader VM costs per hit and per op: a lit plane seen head-on (every eye ray hits it), rendered with an
+untextured material and with a dozen-node procedural material (tracer.shader_graph), warm, CPU time, best of runs.
+
+    python -m bench.vm [--size 384] [--runs 5]
+
+ns per op = (procedural − untextured) / (hits × the program's ops); the untextured render's own time per hit is the
+"shading time of an untextured hit" the issue compares against (it includes the light sample and its shadow ray).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+
+def material(g, noise: bool):
+    """Noise (or a sine pattern) -> ramp -> base colour; height -> bump -> normal: about a dozen nodes."""
+    p = g.add("texture_coordinate")["Object"]
+    if noise:
+        n = g.add("noise_texture", {"Vector": p, "Scale": 4.0, "Detail": 2.0})
+        f, h = n["Fac"], n["Fac"]
+    else:
+        p = g.add("mapping", {"Vector": p, "Scale": (4.0, 4.0, 4.0)})["Vector"]
+        w = g.add("vector_math", {"Vector": p}, operation="SINE")["Vector"]
+        xyz = g.add("separate_xyz", {"Vector": w})
+        f = g.add("math", {"Value": xyz["X"], "Value_001": xyz["Y"]}, operation="ADD")["Value"]
+        h = g.add("math", {"Value": xyz["Z"], "Value_001": xyz["Y"]}, operation="MULTIPLY")["Value"]
+    f = g.add("math", {"Value": f, "Value_001": 0.5, "Value_002": 0.25}, operation="MULTIPLY_ADD")["Value"]
+    ramp = g.add("rgb_ramp", {"Fac": f}, ramp=[(0.2, (0.3, 0.2, 0.1, 1)), (0.8, (0.9, 0.8, 0.6, 1))])["Color"]
+    tint = g.add("mix_color", {"Factor": f, "A": ramp, "B": (0.5, 0.5, 0.9)}, blend_type="OVERLAY")["Result"]
+    rough = g.add("map_range", {"Value": f, "To Min": 0.3, "To Max": 0.7})["Result"]
+    nrm = g.add("bump", {"Height": h, "Strength": 0.3, "Distance": 0.05})["Normal"]
+    return g.add("principled_bsdf", {"Base Color": tint, "Roughness": rough, "Normal": nrm})["BSDF"]
+
+
+def scene(kind: str):
+    import tracer
+    from tracer.shader_compile import add_graph
+    from tracer.shader_graph import Graph
+
+    b = tracer.SceneBuilder()
+    if kind == "plain":
+        m = b.add_material("plain", base_color=(0.6, 0.5, 0.4), roughness=0.5, specular=0.5)
+    else:
+        g = Graph(kind)
+        g.output(material(g, kind == "noise"))
+        m = add_graph(b, g)
+    v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], np.float32)
+    b.add_mesh(v, [[0, 1, 2], [0, 2, 3]], material=m, uvs=(v[:, :2] + 1) / 2, name="plane")
+    b.camera = tracer.Camera.look_at((0, 0, 3), (0, 0, 0), up=(0, 1, 0), projection="orthographic",
+                                     horizontal_aperture=1.8, vertical_aperture=1.8)
+    b.add_light(tracer.PointLight((1.0, 1.0, 3.0), (20.0, 20.0, 20.0)))
+    return b.build()
+
+
+def main(argv=None) -> None:
+    import tracer
+    from tracer.shader_compile import compile_graph
+    from tracer.shader_graph import Graph
+
+    ap = argparse.ArgumentParser(prog="python -m bench.vm", description=__doc__.splitlines()[0])
+    ap.add_argument("--size", type=int, default=384)
+    ap.add_argument("--runs", type=int, default=5)
+    a = ap.parse_args(argv)
+    settings = tracer.RenderSettings(width=a.size, height=a.size, samples=1, max_depth=0, threads=1)
+    hits = a.size * a.size
+    best = {}
+    for kind in ("plain", "sine", "noise"):
+        s = scene(kind)
+        tracer.render(s, settings)  # warm: kernels, the program table
+        times = []
+        for _ in range(a.runs):
+            t0 = time.process_time()
+            tracer.render(s, settings)
+            times.append(time.process_time() - t0)
+        best[kind] = min(times)
+    print(f"untextured: {best['plain'] * 1e9 / hits:.0f} ns per hit (whole render, {a.size}² hits)")
+    for kind in ("sine", "noise"):
+        g = Graph(kind)
+        g.output(material(g, kind == "noise"))
+        ops = compile_graph(g).program.n_ops
+        extra = (best[kind] - best["plain"]) * 1e9 / hits
+        print(f"{kind}: {ops} ops, {best[kind] / best['plain']:.2f}x the untextured render, +{extra:.0f} ns per hit, "
+              f"{extra / ops:.1f} ns per op")
+
+
+if __name__ == "__main__":
+    main()
