@@ -12,16 +12,13 @@ plumbing is part of the emission grid. Cycles references are cached by a hash of
 from __future__ import annotations
 
 import inspect
-import math
-import os
-import time
 
 import numpy as np
 import pytest
 
 import cycles_harness as H
 
-from tests import blender_support as bs
+from blender_kit import scene as bs
 
 pytestmark = pytest.mark.cycles
 
@@ -727,25 +724,9 @@ def scene_source() -> str:
 
 
 def cycles_image(name: str) -> np.ndarray:
-    """The Cycles render of scene ``name`` (cycles_harness's cache: content hash of this file's builders)."""
-    import bpy
-
-    from bench.cycles import whitted_cycles_settings
-
+    """The Cycles render of scene ``name`` (cycles_harness's cache, keyed by this file's builders)."""
     build, params = SCENES[name]
-    key = H.content_hash(name, scene_source(), params)
-    path = os.path.join(H.CACHE_DIR, f"{name}-{key}.exr")
-    if not os.path.exists(path):
-        scene = build()
-        whitted_cycles_settings(scene, depth=params["depth"], samples=params["samples"])
-        os.makedirs(H.CACHE_DIR, exist_ok=True)
-        tmp = path + f".{os.getpid()}.tmp.exr"
-        t0 = time.perf_counter()
-        bs.render_exr(scene, tmp)
-        H.CYCLES_LOG.append((name, "beauty", time.perf_counter() - t0, False))
-        os.replace(tmp, path)
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    return bs.read_exr(path)["rgba"][..., :3]
+    return H.cycles_render(name, build, scene_source(), params)
 
 
 def ours_image(name: str):
