@@ -19,8 +19,8 @@ particles are included):
   power P -> radiance P/(π·A)·colour (A in world units, emitting along the light's -Z). ``2^exposure`` multiplies.
 - World: :func:`addon.world.world_from_blender` (Background colour × strength, an Environment Texture as
   ``tracer.Environment``, anything else baked to a lat-long image by Cycles).
-- Materials: node trees read by :mod:`addon.nodes` (one function per node type) into the Principled description,
-  written into the tracer's model by :mod:`addon.model` (the supported-node table is in docs/addon.md).
+- Materials: node trees translated by :mod:`addon.shader_tree` into the tracer's shader graph, compiled into rows
+  by :mod:`addon.model` (the node table is in docs/addon.md).
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
-"""The materials :mod:`addon.nodes` reads, written as the tracer's shader graphs (tracer.shader_graph, the IR of
-docs/materials-api.md) and compiled into rows (tracer.shader_compile.add_graph).
+"""The materials :mod:`addon.shader_tree` translates, written as the tracer's shader graphs (tracer.shader_graph, the
+IR of docs/materials-api.md) and compiled into rows (tracer.shader_compile.add_graph).
 
-The reader gives either a graph (written as it is) or the Principled fields of a surface, which
+A material is a graph (written as it is); the default surface is Principled fields, which
 :func:`tracer.shader_fields.graph_from_fields` turns into one ``principled_bsdf`` graph:
 
     every parameter       its constant and, where a texture feeds it, a ``tracer.Texture`` (pixels shared by every

@@ -135,8 +135,8 @@ def test_an_update_reads_again_only_what_it_names(monkeypatch):
     bpy.data.objects["B"].data.materials.append(bs.principled_material("green", **{"Base Color": (0.1, 0.8, 0.1)}))
     d = _Driver()
     read, walked = [], []
-    real_read, real_walk = model.read_material, export.export_objects
-    monkeypatch.setattr(model, "read_material", lambda mat, *a, **k: read.append(mat.name) or real_read(mat, *a, **k))
+    real_read, real_walk = model.material_graph, export.export_objects
+    monkeypatch.setattr(model, "material_graph", lambda mat, *a, **k: read.append(mat.name) or real_read(mat, *a, **k))
     monkeypatch.setattr(export, "export_objects", lambda *a, **k: walked.append(1) or real_walk(*a, **k))
     try:
         assert d.step(lambda: bs.principled_node(red).inputs["Base Color"].__setattr__(
