@@ -377,8 +377,8 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     ``cancelled()`` (e.g. the render engine's ``test_break``) is polled during the export: True raises
     :class:`ExportCancelled`. ``objects``, a list, receives the :class:`ExportedObject` of each tracer object id
     in order (addon/sync.py keeps them); ``materials``, a dict, receives each Blender material's Principled fields
-    by name (addon/sync.py re-reads only the materials an update names). The returned scene carries ``scene.object_pass_indices`` (int32 per
-    tracer object id: Blender's ``Object.pass_index``).
+    by name (addon/sync.py re-reads only the materials an update names). The returned scene carries
+    ``scene.object_pass_indices`` (int32 per tracer object id: Blender's ``Object.pass_index``).
     """
     bpy_scene = depsgraph.scene_eval if hasattr(depsgraph, "scene_eval") else depsgraph.scene
     warnings: list[str] = []
