@@ -65,8 +65,8 @@ def test_blend_shape_frames_differ_in_the_picture():
     rows of the picture it did not."""
     cover = []
     for t in (0.0, 1.0):
-        scene, _ = load_stage(blend_shape_stage(), time=t, width=32, height=24, complexity="low")
-        img = render(scene, RenderSettings(width=32, height=24, samples=1)).rgb
+        scene, _ = load_stage(blend_shape_stage(), time=t, width=36, height=24, complexity="low")  # 3:2 aperture
+        img = render(scene, RenderSettings(width=36, height=24, samples=1)).rgb
         cover.append(int((np.abs(img - img[0, 0]).max(axis=2) > 0.02).sum()))
     assert cover[1] > cover[0] + 60, cover
 

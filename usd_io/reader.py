@@ -291,11 +291,11 @@ class _Reader:
         return np.stack([self.lo, self.hi])
 
 
-def _camera(stage, r, info, tc, camera, width, height, render_settings) -> None:
+def _camera(stage, r, info, tc, camera, width, height, settings_prim) -> None:
     """The render camera and image size (info.width/height/camera, r.b.camera): the stage camera (``camera``, the
     RenderSettings' camera, the first found) conformed by the RenderSettings' policy (expandAperture without one)
     and cropped to its data window, or the default framing camera."""
-    spec = read_render_settings(stage, render_settings, tc, info.warn)
+    spec = read_render_settings(stage, settings_prim, tc, info.warn)
     info.render_settings = spec
     if spec is not None and width is None and height is None and spec.resolution is not None:
         width, height = spec.resolution
@@ -303,7 +303,7 @@ def _camera(stage, r, info, tc, camera, width, height, render_settings) -> None:
     par = spec.pixel_aspect if spec else 1.0
     policy = CONFORM[spec.conform] if spec else CONFORM[DEFAULT_CONFORM]
     if cam_prim is not None:
-        raw = cam.fold_clipping_planes(cam.read_camera(cam_prim, tc), info.warn)
+        raw = cam.fold_depth_of_field(cam.fold_clipping_planes(cam.read_camera(cam_prim, tc), info.warn), info.warn)
         info.width, info.height = cam.image_size(raw, width, height, par)
         r.b.camera = cam.to_tracer(raw, info.width, info.height, policy, par)
         info.camera = str(cam_prim.GetPath())
@@ -409,7 +409,7 @@ def stage_up_axis(stage, warn) -> str:
 def load_stage(path_or_stage, time=None, camera: str | None = None, width: int | None = None,
                height: int | None = None, purposes=DEFAULT_PURPOSES, segments: int = DEFAULT_SEGMENTS,
                default_light: bool = True, variants=(), complexity: str = DEFAULT_COMPLEXITY,
-               render_settings: str | None = None, light_units: str = "auto"):
+               render_settings_prim: str | None = None, light_units: str = "auto"):
     """Read a USD stage (a path or an open ``Usd.Stage``) into a render-ready :class:`tracer.Scene`.
 
     time      time code (None: the earliest time, i.e. default values or the first time sample)
@@ -422,7 +422,7 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     variants  ``(prim path, variant set, variant)`` selections applied (on the session layer) before reading
     complexity  refinement of subdivision surfaces, as usdrecord's: low (the control cage), medium (one level of
               Catmull-Clark, the default), high (2), veryhigh (3)
-    render_settings  a UsdRender RenderSettings prim path (None: the stage's renderSettingsPrimPath, if any):
+    render_settings_prim  a UsdRender RenderSettings prim path (None: the stage's renderSettingsPrimPath):
               its resolution, camera, pixel aspect, conform policy and data window apply where the arguments
               above are None; ``info.render_settings`` keeps its products and AOVs (usd_io.render_settings)
     light_units  "auto": lights in the units of the application that wrote the stage (usd_io.exporters; a note
@@ -465,7 +465,7 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     _say_if_empty(r, info)
 
 
-    _camera(stage, r, info, tc, camera, width, height, render_settings)
+    _camera(stage, r, info, tc, camera, width, height, render_settings_prim)
     if default_light and not info.lights:
         sun, dome = default_lights(r.b.camera)
         r.b.add_light(sun)

@@ -131,6 +131,16 @@ def build_bpy(desc: dict):
     co.matrix_world = Matrix(c["matrix"])
     sc.collection.objects.link(co)
     sc.camera = co
+    if c.get("dof"):  # depth of field: f-stop, focus object (by name) or distance, blades, rotation, ratio
+        d = c["dof"]
+        cd.dof.use_dof = True
+        cd.dof.aperture_fstop = d["fstop"]
+        cd.dof.focus_distance = d.get("distance", 10.0)
+        if d.get("object"):
+            cd.dof.focus_object = b.data.objects[d["object"]]
+        cd.dof.aperture_blades = d.get("blades", 0)
+        cd.dof.aperture_rotation = d.get("rotation", 0.0)
+        cd.dof.aperture_ratio = d.get("ratio", 1.0)
     w = b.data.worlds.new("World")
     if w.node_tree is None:
         w.use_nodes = True
