@@ -710,3 +710,18 @@ def test_cli_render_settings_and_light_units_flags(tmp_path):
         assert whitted("render", lpath, "-o", o, "--width", 32, "--light-units", units, "--quiet").returncode == 0
         means.append(float(read_image(str(o))[..., :3].mean()))
     assert means[0] > 50 * means[1], means
+
+
+def test_cli_without_output_writes_the_render_product(tmp_path):
+    """No -o: the picture goes to the RenderProduct's productName (relative to the working directory)."""
+    s = _render_settings_stage(products=("product_beauty.png",))
+    path = str(tmp_path / "p.usda")
+    s.GetRootLayer().Export(path)
+    res = whitted("render", path, "--quiet", cwd=tmp_path)
+    assert res.returncode == 0 and (tmp_path / "product_beauty.png").exists(), res.stderr
+    lone = new_stage()
+    UsdGeom.Sphere.Define(lone, "/Ball")
+    lpath = str(tmp_path / "lone.usda")
+    lone.GetRootLayer().Export(lpath)
+    res = whitted("render", lpath, "--quiet", cwd=tmp_path)
+    assert res.returncode == 2 and "-o OUT is required" in res.stderr
