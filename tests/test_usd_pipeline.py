@@ -725,3 +725,27 @@ def test_cli_without_output_writes_the_render_product(tmp_path):
     lone.GetRootLayer().Export(lpath)
     res = whitted("render", lpath, "--quiet", cwd=tmp_path)
     assert res.returncode == 2 and "-o OUT is required" in res.stderr
+
+
+@pytest.mark.parametrize("basis", ["bezier", "bspline", "catmullRom"])
+def test_cubic_basis_curves_follow_the_curve_not_the_hull(basis):
+    """One cubic curve with control points (0,0) (1,2) (2,2) (3,0) (and for bspline/catmullRom the same four): its
+    tube's centre line is the basis's curve: the bezier's top is at y = 1.5 (the hull's at 2); bspline's and
+    catmullRom's single segment runs between the points the basis says."""
+    s = new_stage()
+    c = UsdGeom.BasisCurves.Define(s, "/C")
+    c.CreateTypeAttr("cubic")
+    c.CreateBasisAttr(basis)
+    ctrl = np.array([(0, 0, 0), (1, 2, 0), (2, 2, 0), (3, 0, 0)], float)
+    c.CreatePointsAttr([Gf.Vec3f(*q) for q in ctrl])
+    c.CreateCurveVertexCountsAttr([4])
+    c.CreateWidthsAttr([0.02])
+    c.SetWidthsInterpolation("constant")
+    scene, info = load_stage(s, width=16)
+    assert not any("control polygon" in w for w in info.warnings)
+    top = scene.vertices[:, 1].max() - 0.01
+    m = {"bezier": [[-1, 3, -3, 1], [3, -6, 3, 0], [-3, 3, 0, 0], [1, 0, 0, 0]],
+         "bspline": np.array([[-1, 3, -3, 1], [3, -6, 3, 0], [-3, 0, 3, 0], [1, 4, 1, 0]]) / 6,
+         "catmullRom": np.array([[-1, 3, -3, 1], [2, -5, 4, -1], [-1, 0, 1, 0], [0, 2, 0, 0]]) / 2}[basis]
+    want = (np.array([1 / 8, 1 / 4, 1 / 2, 1]) @ np.asarray(m, float) @ ctrl)[1]  # y at t = 1/2 (symmetric top)
+    assert abs(top - want) < 0.01, (basis, top, want)
