@@ -749,3 +749,17 @@ def test_cubic_basis_curves_follow_the_curve_not_the_hull(basis):
          "catmullRom": np.array([[-1, 3, -3, 1], [2, -5, 4, -1], [-1, 0, 1, 0], [0, 2, 0, 0]]) / 2}[basis]
     want = (np.array([1 / 8, 1 / 4, 1 / 2, 1]) @ np.asarray(m, float) @ ctrl)[1]  # y at t = 1/2 (symmetric top)
     assert abs(top - want) < 0.01, (basis, top, want)
+
+
+@pytest.mark.parametrize("basis", ["bezier", "bspline", "catmullRom"])
+def test_open_cubic_curves_vectorised_equal_curve_by_curve(basis):
+    """The all-at-once evaluation of open curves (hair) equals the curve-by-curve one, curves of 2 to 9 points."""
+    from usd_io import cubic_curves as cc
+
+    rng = np.random.default_rng(7)
+    counts = rng.integers(2, 10, 300)
+    p, w = rng.random((counts.sum(), 3)), rng.random(counts.sum())
+    a = cc._open_polylines(p, counts, basis, w)
+    b = cc._curve_by_curve(p, counts, basis, "nonperiodic", w)
+    for x, y in zip(a, b):
+        np.testing.assert_allclose(x, y, atol=1e-12)
