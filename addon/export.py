@@ -323,12 +323,11 @@ def export_objects(depsgraph, writer: MaterialWriter, warnings: list, lights: li
             continue
         mw = inst.matrix_world
         world = np.array(mw, dtype=np.float64)
-        # mathutils' C calls: numpy's det and max cost ~10 µs per instance. Singular: |det| tiny against the
-        # product of the axis lengths (its bound, Hadamard's inequality).
+        # mathutils' C calls (numpy's det and max cost ~10 µs per instance) into the tracer's one rule, scaled by the
+        # longest axis.
         m3 = mw.to_3x3()
         det = m3.determinant()
-        sx, sy, sz = m3.to_scale()
-        if not math.isfinite(det) or abs(det) <= 1e-12 * sx * sy * sz:
+        if tracer.scene.singular(det, max(m3.to_scale())):
             warnings.append(f"object {obj.name!r}: zero scale (nothing to render); skipped")
             continue
         slots = tuple(writer.row(s.material) for s in obj.material_slots)
@@ -387,7 +386,8 @@ BATCH_MIN = 8
 
 def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | None = None,
                          camera: "tracer.Camera | None" = None, geometry_cache: dict | None = None,
-                         cancelled=None, objects: list | None = None) -> tuple["tracer.Scene", list[str]]:
+                         cancelled=None, objects: list | None = None,
+                         materials: dict | None = None) -> tuple["tracer.Scene", list[str]]:
     """Build a :class:`tracer.Scene` from an evaluated depsgraph; returns it and a list of warnings.
 
     width/height default to the scene's render size (resolution × percentage) and matter only for the camera's
@@ -396,7 +396,8 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     entries of changed objects with :func:`forget_geometry` (the viewport does, from ``depsgraph.updates``).
     ``cancelled()`` (e.g. the render engine's ``test_break``) is polled during the export: True raises
     :class:`ExportCancelled`. ``objects``, a list, receives the :class:`ExportedObject` of each tracer object id
-    in order (addon/sync.py keeps them). The returned scene carries ``scene.object_pass_indices`` (int32 per
+    in order (addon/sync.py keeps them); ``materials``, a dict, receives each Blender material's Principled fields
+    by name (addon/sync.py re-reads only the materials an update names). The returned scene carries ``scene.object_pass_indices`` (int32 per
     tracer object id: Blender's ``Object.pass_index``).
     """
     bpy_scene = depsgraph.scene_eval if hasattr(depsgraph, "scene_eval") else depsgraph.scene
@@ -410,6 +411,8 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     add_objects(b, exported)
     if objects is not None:
         objects.extend(exported)
+    if materials is not None:
+        materials.update({name: f for name, f in writer.fields.values()})
     if cancelled is not None and cancelled():
         raise ExportCancelled("export cancelled")
 

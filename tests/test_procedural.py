@@ -114,3 +114,24 @@ def test_voronoi_without_randomness_is_the_distance_to_the_lattice(dim):
     f2 = voronoi.voronoi_texture_array(p, w, dimensions=dim, feature="F2", scale=1.0)["Distance"]
     sm = voronoi.voronoi_texture_array(p, w, dimensions=dim, feature="SMOOTH_F1", scale=1.0)["Distance"]
     assert np.all(f2 >= f1) and np.all(sm <= f1 + 1e-6)
+
+
+def test_float32_registers_give_the_float64_values():
+    """A VM with a float32 register file passes float32 arguments: the fractal loops (which reassign the point)
+    must still compile, and give the float64 result of the same float32 inputs to float32 precision."""
+    from tracer.jit import kernel
+
+    @kernel
+    def run(regs, out):
+        for i in range(regs.shape[0]):
+            p = (regs[i, 0], regs[i, 1], regs[i, 2], regs[i, 3])
+            out[i, 0] = noise.noise_value(p, 4, noise.HYBRID_MULTIFRACTAL, regs[i, 4], regs[i, 5], regs[i, 6],
+                                          regs[i, 7], regs[i, 6], regs[i, 5], regs[i, 4], True)
+            out[i, 1] = voronoi.voronoi_texture(p, 3, voronoi.F2, voronoi.MANHATTAN, regs[i, 4], regs[i, 5],
+                                                regs[i, 6], regs[i, 7], regs[i, 6], regs[i, 5], regs[i, 6], True)[0]
+
+    regs = RNG.uniform(0.1, 3.0, (40, 8)).astype(np.float32)
+    out32, out64 = np.empty((40, 2)), np.empty((40, 2))
+    run(regs, out32)
+    run(regs.astype(np.float64), out64)
+    np.testing.assert_allclose(out32, out64, rtol=1e-5, atol=1e-6)

@@ -316,8 +316,10 @@ def _offset_point(p, dim, seed):
 
 @kernel
 def _distorted_point(p, dim, scale, distortion):
-    """p scaled, then displaced by ``distortion`` · snoise at the seed offsets 0..dim−1 (Cycles' distortion)."""
-    p = _scale4(p, scale)
+    """p scaled, then displaced by ``distortion`` · snoise at the seed offsets 0..dim−1 (Cycles' distortion).
+    (float64 from here on, whatever the caller's register type: the fractal loops reassign the point.)"""
+    p = (float(p[0]) * float(scale), float(p[1]) * float(scale), float(p[2]) * float(scale),
+         float(p[3]) * float(scale))
     if distortion == 0.0:
         return p
     if dim == 1:
