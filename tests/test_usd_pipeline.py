@@ -141,7 +141,7 @@ def _centre_pixel_hits(stage, w=40, h=30):
 
 
 def _looking_at_the_arc(stage):
-    add_camera(stage, eye=(6, 6, 1.5), rotate_z=135.0, rotate_x=90.0)  # looks along (−1, −1, 0) at (√2, √2, 1.5)
+    add_camera(stage, eye=(6, 6, 1.5), rotate_z=135.0, rotate_x=90.0)  # looking along (−1, −1, 0)
     return stage
 
 
@@ -198,7 +198,8 @@ def test_udim_tiles_land_where_their_numbers_say(tmp_path):
                                      "tex/paint.1011.png": (0, 0, 255)})
     img, info = _emission_image(path)
     assert not any("UDIM" in w for w in info.warnings), info.warnings
-    quarters = {"lower left": img[24, 8], "lower right": img[24, 24], "upper left": img[8, 8], "upper right": img[8, 24]}
+    quarters = {"lower left": img[24, 8], "lower right": img[24, 24], "upper left": img[8, 8],
+                "upper right": img[8, 24]}
     np.testing.assert_allclose(quarters["lower left"], (1, 0, 0), atol=1e-3)
     np.testing.assert_allclose(quarters["lower right"], (0, 1, 0), atol=1e-3)
     np.testing.assert_allclose(quarters["upper left"], (0, 0, 1), atol=1e-3)
@@ -346,8 +347,9 @@ def test_omnipbr_diffuse_texture_with_texture_scale(tmp_path):
     s = st.lit_quad_with(None, {"diffuse_texture": (A, Sdf.AssetPath(str(tmp_path / "rg.png"))),
                                 "texture_scale": (F2, Gf.Vec2f(2, 1)), "specular_level": (F, 0.0)},
                          output="mdl:surface", mdl="OmniPBR")
-    UsdGeom.PrimvarsAPI(s.GetPrimAtPath("/Q")).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
-                                                              UsdGeom.Tokens.vertex).Set([(0, 0), (1, 0), (1, 1), (0, 1)])
+    st_pv = UsdGeom.PrimvarsAPI(s.GetPrimAtPath("/Q")).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                                                      UsdGeom.Tokens.vertex)
+    st_pv.Set([(0, 0), (1, 0), (1, 1), (0, 1)])
     s.GetPrimAtPath("/Cam").GetAttribute("horizontalAperture").Set(8.0)  # sees the quad's whole width
     scene, info = load_stage(s, width=64, height=16)
     img = render(scene, RenderSettings(width=64, height=16, samples=1)).rgb

@@ -4,8 +4,8 @@ Points: an icosphere (80 triangles) of diameter ``widths`` per point (constant o
 Storm's fallback). BasisCurves: each curve's control points joined by 8-sided tubes of diameter ``widths``
 (constant, per curve, or per vertex/varying averaged per segment; unauthored: 1 unit). Linear curves are exact;
 cubic curves (bezier, bspline, catmullRom) are evaluated into polylines of 8 pieces per segment first
-(usd_io.cubic_curves); other bases follow their control polygon with one warning. ``wrap = periodic`` closes the loop. Normals are exact (sphere radial, tube
-radial). No Python loop over points or segments.
+(usd_io.cubic_curves); other bases follow their control polygon with one warning. ``wrap = periodic`` closes
+the loop. Normals are exact (sphere radial, tube radial). No Python loop over points or segments.
 """
 
 from __future__ import annotations
