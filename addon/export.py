@@ -133,7 +133,25 @@ def camera_from_blender(cam_obj, width: int, height: int, pixel_aspect: float = 
     m = np.array(cam_obj.matrix_world, dtype=np.float64)
     m[:3, :3] /= np.linalg.norm(m[:3, :3], axis=0, keepdims=True)  # Blender ignores the camera's scale
     return window_camera(m, ortho, f, (w_ap, h_ap), (cam.shift_x * e, cam.shift_y * e), cam.clip_start,
-                         cam.clip_end)
+                         cam.clip_end, lens=depth_of_field(cam, m))
+
+
+def depth_of_field(cam, m: np.ndarray) -> dict:
+    """The thin lens of a Blender camera with Depth of Field on (``tracer.Camera`` fields; {} when off), as Cycles
+    reads it: radius from the f-stop and the lens in metres (scene units of 1 m; orthographic: focal length 1),
+    focus distance along the view axis to the focus object's origin, else the Focus Distance; blades, rotation
+    and ratio as they are."""
+    dof = cam.dof
+    if not dof.use_dof:
+        return {}
+    f = 1.0 if cam.type == "ORTHO" else cam.lens * 1e-3
+    focus = float(dof.focus_distance)
+    if dof.focus_object is not None:
+        target = np.array(dof.focus_object.matrix_world, dtype=np.float64)[:3, 3]
+        focus = abs(float(np.dot(m[:3, 3] - target, m[:3, 2])))
+    return dict(lens_radius=tracer.lens_radius(f, max(float(dof.aperture_fstop), 1e-5)),
+                focus_distance=max(focus, 1e-6), aperture_blades=int(dof.aperture_blades),
+                aperture_rotation=float(dof.aperture_rotation), aperture_ratio=float(dof.aperture_ratio))
 
 
 def viewport_camera(rv3d) -> "tracer.Camera":
@@ -148,14 +166,16 @@ def viewport_camera(rv3d) -> "tracer.Camera":
                          (shift[0] / proj[0, 0], shift[1] / proj[1, 1]))
 
 
-def window_camera(camera_to_world, ortho: bool, f: float, window, shift, near=None, far=None) -> "tracer.Camera":
+def window_camera(camera_to_world, ortho: bool, f: float, window, shift, near=None, far=None,
+                  lens=None) -> "tracer.Camera":
     """The one place a Blender camera becomes a ``tracer.Camera``: a film ``window`` (W, H) and its ``shift`` in
-    units of the focal length ``f`` (1 for orthographic), i.e. apertures W·f, H·f and offsets shift·f."""
+    units of the focal length ``f`` (1 for orthographic), i.e. apertures W·f, H·f and offsets shift·f; ``lens``
+    the thin lens's fields (:func:`depth_of_field`)."""
     clip = {} if near is None else {"near": near, "far": far}
     return tracer.Camera(camera_to_world=camera_to_world, projection=tracer.ORTHOGRAPHIC if ortho else
                          tracer.PERSPECTIVE, focal_length=f, horizontal_aperture=window[0] * f,
                          vertical_aperture=window[1] * f, horizontal_aperture_offset=shift[0] * f,
-                         vertical_aperture_offset=shift[1] * f, **clip)
+                         vertical_aperture_offset=shift[1] * f, **clip, **(lens or {}))
 
 
 # ---------------------------------------------------------------------------------------------------- lights
@@ -303,12 +323,11 @@ def export_objects(depsgraph, writer: MaterialWriter, warnings: list, lights: li
             continue
         mw = inst.matrix_world
         world = np.array(mw, dtype=np.float64)
-        # mathutils' C calls: numpy's det and max cost ~10 µs per instance. Singular: |det| tiny against the
-        # product of the axis lengths (its bound, Hadamard's inequality).
+        # mathutils' C calls (numpy's det and max cost ~10 µs per instance) into the tracer's one rule, scaled by the
+        # longest axis.
         m3 = mw.to_3x3()
         det = m3.determinant()
-        sx, sy, sz = m3.to_scale()
-        if not math.isfinite(det) or abs(det) <= 1e-12 * sx * sy * sz:
+        if tracer.scene.singular(det, max(m3.to_scale())):
             warnings.append(f"object {obj.name!r}: zero scale (nothing to render); skipped")
             continue
         slots = tuple(writer.row(s.material) for s in obj.material_slots)
@@ -367,7 +386,8 @@ BATCH_MIN = 8
 
 def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | None = None,
                          camera: "tracer.Camera | None" = None, geometry_cache: dict | None = None,
-                         cancelled=None, objects: list | None = None) -> tuple["tracer.Scene", list[str]]:
+                         cancelled=None, objects: list | None = None,
+                         materials: dict | None = None) -> tuple["tracer.Scene", list[str]]:
     """Build a :class:`tracer.Scene` from an evaluated depsgraph; returns it and a list of warnings.
 
     width/height default to the scene's render size (resolution × percentage) and matter only for the camera's
@@ -376,7 +396,8 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     entries of changed objects with :func:`forget_geometry` (the viewport does, from ``depsgraph.updates``).
     ``cancelled()`` (e.g. the render engine's ``test_break``) is polled during the export: True raises
     :class:`ExportCancelled`. ``objects``, a list, receives the :class:`ExportedObject` of each tracer object id
-    in order (addon/sync.py keeps them). The returned scene carries ``scene.object_pass_indices`` (int32 per
+    in order (addon/sync.py keeps them); ``materials``, a dict, receives each Blender material's Principled fields
+    by name (addon/sync.py re-reads only the materials an update names). The returned scene carries ``scene.object_pass_indices`` (int32 per
     tracer object id: Blender's ``Object.pass_index``).
     """
     bpy_scene = depsgraph.scene_eval if hasattr(depsgraph, "scene_eval") else depsgraph.scene
@@ -390,6 +411,8 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     add_objects(b, exported)
     if objects is not None:
         objects.extend(exported)
+    if materials is not None:
+        materials.update({name: f for name, f in writer.fields.values()})
     if cancelled is not None and cancelled():
         raise ExportCancelled("export cancelled")
 

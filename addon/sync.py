@@ -21,13 +21,17 @@ the scene camera (F12)                  ``update_camera``
 anything it cannot map                  one ``rebuild``: a fresh export and a new Session
 =====================================  =====================================================================
 
-How: ``depsgraph.updates`` first drops the cached triangle arrays of objects whose geometry changed
-(:func:`addon.export.forget_geometry`); then the depsgraph's instances are walked again with that cache
-(:func:`addon.export.export_objects`: no mesh is read twice, material rows and UVs once per mesh) and compared
-with the last export, object by object, by a key that is stable across evaluations (object name, instancing
-parent, ``persistent_id``): the same triangle arrays with another matrix is a transform, other arrays a mesh
-edit, a new key an added object, a missing key a removed one. Materials, lights and world are compared by value,
-and only re-read when ``depsgraph.updates`` names a material, node tree, image, light or world.
+How (Cycles' ``sync_recalc``): :func:`changes` reads ``depsgraph.updates`` into what must be read again —
+the materials it names (all of them after a node group, image or texture update: any material may use those;
+:data:`MATERIAL_TYPES`), the world (:data:`WORLD_TYPES`), and whether any object may have moved, changed,
+appeared or gone (anything but a material-only or world-only update). Unchanged materials keep the Principled
+fields read last time (no node tree is walked again). Only when objects may have changed are the depsgraph's
+instances walked again, after dropping the cached triangle arrays of objects whose geometry changed
+(:func:`addon.export.forget_geometry`), with that cache (:func:`addon.export.export_objects`: no mesh is read
+twice, material rows and UVs once per mesh), and compared with the last export, object by object, by a key that
+is stable across evaluations (object name, instancing parent, ``persistent_id``): the same triangle arrays with
+another matrix is a transform, other arrays a mesh edit, a new key an added object, a missing key a removed one.
+Materials, lights and world are compared by value before an edit is made.
 """
 
 from __future__ import annotations
@@ -53,6 +57,20 @@ class Edit(NamedTuple):
 EDIT_KINDS = ("rebuild", "remove", "materials", "mesh", "add", "transform", "lights", "world", "camera")
 
 
+class _KnownMaterials(export.MaterialWriter):
+    """A material writer that takes the Principled fields of the materials in ``known`` (unchanged since they were
+    last read) instead of reading their node trees again."""
+
+    def __init__(self, builder, warnings: list, known: dict):
+        super().__init__(builder, warnings)
+        self.known = known
+
+    def row(self, material) -> int:
+        if material is not None and material.name in self.known and material.name not in self._rows:
+            self._rows[material.name] = self._add(material.name, self.known[material.name])
+        return super().row(material)
+
+
 class _Entry(NamedTuple):
     object_id: int
     obj: "export.ExportedObject"
@@ -61,10 +79,53 @@ class _Entry(NamedTuple):
     offset: np.ndarray
 
 
-#: depsgraph.updates ID types after which materials are read again.
-MATERIAL_TYPES = {"Material", "ShaderNodeTree", "Image", "NodeTree", "Texture"}
+#: depsgraph.updates ID types after which every material is read again (a material names only itself; node
+#: groups, images and textures may feed any material). A material's or world's own node tree is embedded data
+#: and names nothing more than its owner.
+MATERIAL_TYPES = {"ShaderNodeTree", "NodeTree", "Image", "Texture"}
 #: ... after which the world is read again.
 WORLD_TYPES = {"World", "Image"}
+#: ... that leave every object as it was when each object update is shading-only (a material's or world's edit:
+#: Blender tags the objects using a material for shading too).
+SHADING_ONLY_TYPES = {"Material", "ShaderNodeTree", "NodeTree", "Image", "Texture", "World"}
+
+#: ``Changes.materials`` when every material must be read again.
+ALL = None
+
+
+class Changes(NamedTuple):
+    """What an update needs read again (:func:`changes`)."""
+
+    #: Names of the materials to read again, or :data:`ALL`.
+    materials: "set | None"
+    world: bool
+    #: Objects may have moved, changed, appeared, gone or been hidden: walk the depsgraph's instances.
+    objects: bool
+    images: bool
+
+
+def changes(updates) -> Changes:
+    """``depsgraph.updates`` -> :class:`Changes` (see the module docstring)."""
+    materials: "set | None" = set()
+    world = images = objects = False
+    shading_objects = False
+    for u in updates:
+        id_ = getattr(u.id, "original", u.id)
+        kind = type(id_).__name__
+        if kind == "Material":
+            if materials is not ALL:
+                materials.add(id_.name)
+        elif kind in MATERIAL_TYPES and not (kind.endswith("NodeTree") and getattr(id_, "is_embedded_data", False)):
+            materials = ALL
+        images |= kind == "Image"
+        world |= kind in WORLD_TYPES or kind == "Scene"
+        if kind in ("Object", "Mesh") and not (u.is_updated_transform or u.is_updated_geometry):
+            shading_objects = True  # a material's users, or an object's own shading (pass index, colour)
+        elif kind not in SHADING_ONLY_TYPES:
+            objects = True
+    # Objects tagged for shading alone without a material update changed themselves (pass index, ...).
+    objects |= shading_objects and not (materials is ALL or materials)
+    return Changes(materials, world, objects, images)
 
 
 class SceneSync:
@@ -85,6 +146,7 @@ class SceneSync:
         self._order: list[tuple] = []
         self._materials = None
         self._material_names: list[str] = []
+        self._fields: dict = {}  # material name -> its Principled fields as last read
         self._textures: list = []
         self._lights: list = []
         self._world = None
@@ -113,7 +175,7 @@ class SceneSync:
         objects: list = []
         scene, warnings = export.scene_from_depsgraph(depsgraph, width=width, height=height, camera=camera,
                                                       geometry_cache=self.geometry_cache, cancelled=cancelled,
-                                                      objects=objects)
+                                                      objects=objects, materials=self._fields)
         placed = _placements(scene, objects)
         for oid, (o, offset) in enumerate(zip(objects, placed)):
             self._entries[o.key] = _Entry(oid, o, offset)
@@ -145,21 +207,24 @@ class SceneSync:
             return self.full(depsgraph, width=width, height=height, camera=camera, cancelled=cancelled)
         start = time.perf_counter()
         updates = list(depsgraph.updates)
-        kinds = {type(getattr(u.id, "original", u.id)).__name__ for u in updates}
-        changed = geometry_changes(updates)
-        if changed:
-            export.forget_geometry(self.geometry_cache, changed)
-        if "Image" in kinds:
+        what = changes(updates)
+        if what.objects:
+            changed = geometry_changes(updates)
+            if changed:
+                export.forget_geometry(self.geometry_cache, changed)
+        if what.images:
             self.images.clear()
         bpy_scene = depsgraph.scene_eval if hasattr(depsgraph, "scene_eval") else depsgraph.scene
-        warnings: list[str] = []
+        warnings: list[str] = [] if what.objects else list(self.warnings)
         b = tracer.SceneBuilder()
-        writer = export.MaterialWriter(b, warnings)
+        known = {} if what.materials is ALL else {k: v for k, v in self._fields.items() if k not in what.materials}
+        writer = _KnownMaterials(b, warnings, known)
         writer.images = self.images
         self._keep_material_rows(writer, depsgraph)
         lights: list = []
         objects = list(export.export_objects(depsgraph, writer, warnings, lights,
-                                             geometry_cache=self.geometry_cache, cancelled=cancelled))
+                                             geometry_cache=self.geometry_cache, cancelled=cancelled)) \
+            if what.objects else None
         edits: list[Edit] = []
 
         materials = tracer.Materials.from_list(b.materials)
@@ -169,10 +234,11 @@ class SceneSync:
             edits.append(Edit("materials", (materials, list(b.textures))))
             self._materials, self._textures = materials, list(b.textures)
             self._material_names = list(materials.names)
-        if not same(lights, self._lights):
+        self._fields = {name: f for name, f in writer.fields.values()}
+        if objects is not None and not same(lights, self._lights):
             edits.append(Edit("lights", (lights,)))
             self._lights = lights
-        if kinds & WORLD_TYPES or "Scene" in kinds:
+        if what.world:
             world = export.world_from_blender(bpy_scene.world, warnings, writer.images)
             if not same(world, self._world):
                 edits.append(Edit("world", world))
@@ -185,11 +251,29 @@ class SceneSync:
                 edits.append(Edit("camera", (camera,)))
                 self._camera = camera
 
+        if objects is not None:
+            diffed = self._diff_objects(objects)
+            if diffed is None:  # two instances under one key: give up diffing
+                return self.full(depsgraph, width=width, height=height, camera=camera, cancelled=cancelled)
+            edits.extend(diffed)
+        self.warnings = list(dict.fromkeys(warnings))
+        edits.sort(key=lambda e: EDIT_KINDS.index(e.kind))
+        counts: dict = {}
+        for e in edits:
+            counts[e.kind] = counts.get(e.kind, 0) + 1
+        self.stats = {"export": time.perf_counter() - start, "edits": counts}
+        return edits
+
+    # ---------------------------------------------------------------------------------------------- internals
+    def _diff_objects(self, objects) -> "list[Edit] | None":
+        """Edits of the objects (add, mesh, transform, remove) from the last export to ``objects``; None where two
+        instances share a key (no diff possible)."""
+        edits: list[Edit] = []
         seen = set()
         reshaped = []  # (old entry, new object) whose mesh changed
         for o in objects:
-            if o.key in seen:  # two instances under one key: give up diffing
-                return self.full(depsgraph, width=width, height=height, camera=camera, cancelled=cancelled)
+            if o.key in seen:  # two instances under one key: no diff
+                return None
             seen.add(o.key)
             old = self._entries.get(o.key)
             if old is None:
@@ -215,15 +299,8 @@ class SceneSync:
             edits.append(Edit("remove", (oid,)))
             self._leave_prototype(oid)
         self._order = [o.key for o in objects]
-        self.warnings = warnings
-        edits.sort(key=lambda e: EDIT_KINDS.index(e.kind))
-        counts: dict = {}
-        for e in edits:
-            counts[e.kind] = counts.get(e.kind, 0) + 1
-        self.stats = {"export": time.perf_counter() - start, "edits": counts}
         return edits
 
-    # ---------------------------------------------------------------------------------------------- internals
     def _mesh_edits(self, reshaped) -> list[Edit]:
         """``mesh`` edits for objects whose mesh changed. Where every instance of a shared mesh (a prototype) got
         the same new mesh (a Geometry-Nodes instance mesh edited), that is one edit of the prototype — its one

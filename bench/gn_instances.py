@@ -24,36 +24,13 @@ NX, NY = 200, 100
 def build_scene(width, height):
     import bpy
 
-    from tests import blender_support as bs
+    from blender_kit import scatter
+    from blender_kit import scene as bs
 
     bs.reset(size=(width, height))
-    ng = bpy.data.node_groups.new("Scatter", "GeometryNodeTree")
-    ng.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
-    ng.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
-    nodes, links = ng.nodes, ng.links
-    out = nodes.new("NodeGroupOutput")
-    grid = nodes.new("GeometryNodeMeshGrid")
-    grid.inputs["Size X"].default_value, grid.inputs["Size Y"].default_value = 60.0, 30.0
-    grid.inputs["Vertices X"].default_value, grid.inputs["Vertices Y"].default_value = NX, NY
-    ico = nodes.new("GeometryNodeMeshIcoSphere")
-    ico.inputs["Radius"].default_value, ico.inputs["Subdivisions"].default_value = 0.12, 3
-    mat = nodes.new("GeometryNodeSetMaterial")
-    mat.inputs["Material"].default_value = bs.principled_material("paint", **{"Base Color": (0.2, 0.5, 0.8)})
-    rot = nodes.new("FunctionNodeRandomValue")
-    rot.data_type = "FLOAT_VECTOR"
-    rot.inputs["Max"].default_value = (3.0, 3.0, 3.0)
-    scale = nodes.new("FunctionNodeRandomValue")
-    scale.data_type = "FLOAT_VECTOR"
-    scale.inputs["Min"].default_value, scale.inputs["Max"].default_value = (0.6, 0.6, 0.6), (1.4, 1.2, 1.0)
-    iop = nodes.new("GeometryNodeInstanceOnPoints")
-    links.new(grid.outputs["Mesh"], iop.inputs["Points"])
-    links.new(ico.outputs["Mesh"], mat.inputs["Geometry"])
-    links.new(mat.outputs["Geometry"], iop.inputs["Instance"])
-    links.new(rot.outputs["Value"], iop.inputs["Rotation"])
-    links.new(scale.outputs["Value"], iop.inputs["Scale"])
-    links.new(iop.outputs["Instances"], out.inputs[0])
-    host = bs.add_plane((0, 0, 0.2), 1.0, name="Host")
-    host.modifiers.new("Scatter", "NODES").node_group = ng
+    paint = bs.principled_material("paint", **{"Base Color": (0.2, 0.5, 0.8)})
+    scatter.add(scatter.graph(size=(60.0, 30.0), points=(NX, NY), radius=0.12, subdivisions=3, material=paint,
+                              scale=((0.6, 0.6, 0.6), (1.4, 1.2, 1.0))), (0, 0, 0.2))
     bs.add_plane((0, 0, 0), 80.0, name="Floor")
     bs.add_camera((0, -30, 18), (0, 0, 0))
     bs.add_point_light((5, -10, 20), power=20000)
@@ -94,7 +71,7 @@ def measure(renderer, width, height, threads):
         out["export_s"] = engine.WhittedRenderEngine.last_render.stats["export_seconds"]
         out["trace_s"] = engine.WhittedRenderEngine.last_render.stats["seconds"]
     else:
-        from bench.cycles import whitted_cycles_settings
+        from blender_kit.cycles import whitted_cycles_settings
 
         whitted_cycles_settings(sc, depth=8, samples=1)
         sc.render.threads_mode = "FIXED"

@@ -123,7 +123,7 @@ def render_both(out_dir, width=480, height=270, cycles_samples=128):
 
     sys.path.insert(0, ROOT)
     import addon
-    from tests import blender_support as bs
+    from blender_kit import scene as bs
 
     addon.register()
     try:
@@ -142,7 +142,7 @@ def render_both(out_dir, width=480, height=270, cycles_samples=128):
             paths[engine] = os.path.join(out_dir, f"whitted_1980_blender_{engine.lower()}.png")
             scene.render.filepath = paths[engine]
             bpy.ops.render.render(write_still=True)
-        stats = addon.engine.LAST_STATS
+        stats = addon.engine.WhittedRenderEngine.last_render.stats
         print(f"Whitted: {stats['rays']} in {stats['seconds']:.2f} s")
         return paths
     finally:

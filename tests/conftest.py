@@ -1,4 +1,4 @@
-"""Shared pytest fixtures. Blender-specific helpers live in tests/blender_support.py (bpy is imported lazily)."""
+"""Shared pytest fixtures. Blender-specific helpers live in blender_kit/scene.py (bpy is imported lazily)."""
 
 from __future__ import annotations
 

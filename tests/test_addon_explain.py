@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests import blender_support as bs
+from blender_kit import scene as bs
 
 import bpy  # noqa: E402
 

@@ -16,7 +16,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from tests import blender_support as bs
+from blender_kit import scatter
+from blender_kit import scene as bs
 
 import bpy  # noqa: E402
 
@@ -124,6 +125,33 @@ def test_each_blender_edit_becomes_only_its_session_edit():
         d.close()
 
 
+def test_an_update_reads_again_only_what_it_names(monkeypatch):
+    """Cycles' sync_recalc: a material edit reads that material's node tree only and walks no instance (issue #22:
+    every update once re-read every node tree and walked every instance); a pass-index edit walks the objects and
+    reads no material."""
+    from addon import model
+
+    red = _scene()
+    bpy.data.objects["B"].data.materials.append(bs.principled_material("green", **{"Base Color": (0.1, 0.8, 0.1)}))
+    d = _Driver()
+    read, walked = [], []
+    real_read, real_walk = model.read_material, export.export_objects
+    monkeypatch.setattr(model, "read_material", lambda mat, *a, **k: read.append(mat.name) or real_read(mat, *a, **k))
+    monkeypatch.setattr(export, "export_objects", lambda *a, **k: walked.append(1) or real_walk(*a, **k))
+    try:
+        assert d.step(lambda: bs.principled_node(red).inputs["Base Color"].__setattr__(
+            "default_value", (0.1, 0.1, 0.9, 1))) == ["materials"]
+        assert read == ["red"] and walked == []
+        assert _close(d.session.render(SETTINGS).rgba, _fresh())
+        read.clear()
+        a = bpy.data.objects["A"]
+        d.step(lambda: setattr(a, "pass_index", 5))
+        oid = d.session.scene.object_names.index("A")
+        assert walked and read == [] and d.sync.pass_indices[oid] == 5
+    finally:
+        d.close()
+
+
 def test_the_viewport_sync_leaves_the_camera_to_the_view():
     _scene()
     d = _Driver(track_camera=False)
@@ -135,34 +163,8 @@ def test_the_viewport_sync_leaves_the_camera_to_the_view():
 
 def _scatter(nx=6, ny=5, name="Scatter"):
     """A plane whose Geometry Nodes put a rotated, scaled icosphere (a material set on it) on each grid point."""
-    ng = bpy.data.node_groups.new(name, "GeometryNodeTree")
-    ng.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
-    ng.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
-    nodes, links = ng.nodes, ng.links
-    out = nodes.new("NodeGroupOutput")
-    grid = nodes.new("GeometryNodeMeshGrid")
-    grid.inputs["Size X"].default_value, grid.inputs["Size Y"].default_value = 6.0, 4.0
-    grid.inputs["Vertices X"].default_value, grid.inputs["Vertices Y"].default_value = nx, ny
-    ico = nodes.new("GeometryNodeMeshIcoSphere")
-    ico.inputs["Radius"].default_value, ico.inputs["Subdivisions"].default_value = 0.35, 2
-    mat = nodes.new("GeometryNodeSetMaterial")
-    mat.inputs["Material"].default_value = bs.principled_material("paint", **{"Base Color": (0.2, 0.5, 0.8)})
-    rot = nodes.new("FunctionNodeRandomValue")
-    rot.data_type = "FLOAT_VECTOR"
-    rot.inputs["Max"].default_value = (3.0, 3.0, 3.0)
-    scale = nodes.new("FunctionNodeRandomValue")
-    scale.data_type = "FLOAT_VECTOR"
-    scale.inputs["Min"].default_value, scale.inputs["Max"].default_value = (0.5, 0.5, 0.5), (1.2, 1.0, 0.8)
-    iop = nodes.new("GeometryNodeInstanceOnPoints")
-    links.new(grid.outputs["Mesh"], iop.inputs["Points"])
-    links.new(ico.outputs["Mesh"], mat.inputs["Geometry"])
-    links.new(mat.outputs["Geometry"], iop.inputs["Instance"])
-    links.new(rot.outputs["Value"], iop.inputs["Rotation"])
-    links.new(scale.outputs["Value"], iop.inputs["Scale"])
-    links.new(iop.outputs["Instances"], out.inputs[0])
-    host = bs.add_plane((0, 0, 1), 1.0, name="Host")
-    host.modifiers.new("Scatter", "NODES").node_group = ng
-    return host
+    paint = bs.principled_material("paint", **{"Base Color": (0.2, 0.5, 0.8)})
+    return scatter.add(scatter.graph(name, size=(6.0, 4.0), points=(nx, ny), material=paint), (0, 0, 1))
 
 
 def test_geometry_nodes_instances_batched_equal_one_by_one_and_move_as_transforms(monkeypatch):

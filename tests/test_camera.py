@@ -134,3 +134,100 @@ def test_render_tile_rays_are_the_public_eye_rays(name, cam):
     if cam.projection == "perspective":  # rays start on the near plane: camera-space z = −near
         pc = (o.astype(np.float64) - cam.position) @ cam.camera_to_world[:3, :3]
         np.testing.assert_allclose(pc[:, 2], -0.25, atol=1e-5)
+
+
+# ---------------------------------------------------------------------------------------------- depth of field
+def _lens_camera(**kw):
+    from tracer import Camera
+
+    args = dict(focal_length=50.0, horizontal_aperture=36.0, vertical_aperture=24.0, lens_radius=0.05,
+                focus_distance=10.0)
+    args.update(kw)
+    return Camera.look_at((0, -10, 0), (0, 0, 0), up=(0, 0, 1), **args)
+
+
+def test_thin_lens_rays_meet_the_pinhole_ray_on_the_plane_of_focus():
+    """Every lens sample of a film point reaches the plane of focus (10 units ahead, along the view axis) where the
+    pinhole ray through that film point does, and starts on the aperture disk around the eye (radius R)."""
+    cam = _lens_camera()
+    rng = np.random.default_rng(3)
+    a, b = rng.random(4000), rng.random(4000)
+    u, v = np.full(4000, 0.3), np.full(4000, 0.65)
+    o, d = cam.generate_rays(u, v, lens=(a, b))
+    po, pd = cam.generate_rays(u[:1], v[:1])
+    focus = po[0] + pd[0] * (10.0 / pd[0, 1])  # the pinhole ray at y = 0
+    hit = o + d * ((0.0 - o[:, 1]) / d[:, 1])[:, None]
+    np.testing.assert_allclose(hit, np.broadcast_to(focus, hit.shape), atol=2e-4)
+    r = np.hypot(o[:, 0], o[:, 2])  # origins on the lens (the plane y = -10 through the eye)
+    np.testing.assert_allclose(o[:, 1], -10.0, atol=1e-5)
+    assert r.max() <= 0.05 + 1e-6
+    assert np.mean(r**2) == pytest.approx(0.05**2 / 2, rel=0.05)  # uniform in area: E[r²] = R²/2
+
+
+def test_polygonal_aperture_is_the_regular_polygon_cycles_draws():
+    """Blades: a regular polygon, corners on the unit circle at rotation + (2k ± 1)·π/N (Cycles'
+    regular_polygon_sample); every point inside it, the corners reached, uniform in area (mean at the centre)."""
+    from tracer.camera import aperture_point
+
+    n, rot = 6, 0.3
+    rng = np.random.default_rng(5)
+    pts = np.array([aperture_point(n, rot, 1.0, x, y) for x, y in rng.random((6000, 2))])
+    corners = rot + (2 * np.arange(n) + 1) * np.pi / n
+    apothem = np.cos(np.pi / n)
+    for k in range(n):  # inside every edge: the edge between corners k and k+1 has its normal at rot + 2(k+1)π/N
+        normal_angle = rot + (2 * k + 2) * np.pi / n
+        proj = pts @ np.array([np.cos(normal_angle), np.sin(normal_angle)])
+        assert proj.max() <= apothem + 1e-9
+        assert proj.max() > apothem - 0.02
+    r = np.hypot(pts[:, 0], pts[:, 1])
+    ang = np.arctan2(pts[:, 1], pts[:, 0])
+    near_corner = r > 0.97
+    assert np.all(np.min(np.abs(np.angle(np.exp(1j * (ang[near_corner, None] - corners[None, :])))), axis=1) < 0.05)
+    np.testing.assert_allclose(pts.mean(axis=0), 0.0, atol=0.02)
+    squeezed = np.array([aperture_point(0, 0.0, 0.5, x, y) for x, y in rng.random((2000, 2))])
+    assert np.abs(squeezed[:, 0]).max() == pytest.approx(0.5, abs=0.02)  # anamorphic: x / ratio (ratio 2)
+    assert np.abs(squeezed[:, 1]).max() == pytest.approx(1.0, abs=0.02)
+
+
+def test_lens_radius_and_camera_validation():
+    from tracer import lens_radius
+
+    assert lens_radius(0.05, 2.0) == pytest.approx(0.0125)  # 50 mm at f/2: a 25 mm aperture
+    assert lens_radius(0.05, 0.0) == 0.0  # USD's fStop 0: a pinhole
+    with pytest.raises(ValueError, match="focus_distance"):
+        _lens_camera(focus_distance=0.0)
+    with pytest.raises(ValueError, match="lens_radius"):
+        _lens_camera(lens_radius=-1.0)
+    assert _lens_camera(aperture_blades=2).aperture_blades == 0  # fewer than 3 blades: round, as Cycles
+
+
+def test_defocus_blur_of_an_edge_has_the_thin_lens_width():
+    """An out-of-focus edge (a white half-plane 5 units away, focus at 10) is smeared over the circle of confusion:
+    on the plane of focus the lens disk of radius R maps to a disk of radius R·|1 − F/z|, on the film (× f/F) c =
+    2R·|1 − F/z|·f/F wide. The rendered ramp's extent across the edge, in pixels, must match it (±1.5 px: pixel
+    footprint and sampling)."""
+    import tracer
+    from tracer import Camera, RenderSettings, SceneBuilder
+
+    R, F, z, f, ap, W = 0.1, 10.0, 5.0, 50.0, 36.0, 200
+    b = SceneBuilder()
+    white = b.add_material("white", diffuse=(0, 0, 0), emission=(1.0, 1.0, 1.0))
+    b.add_mesh(np.array([[0.0, z - 10, -50], [50, z - 10, -50], [50, z - 10, 50], [0.0, z - 10, 50]]),
+               np.array([[0, 1, 2], [0, 2, 3]]), material=white, name="half")
+    b.camera = Camera.look_at((0, -10, 0), (0, 0, 0), up=(0, 0, 1), focal_length=f, horizontal_aperture=ap,
+                              vertical_aperture=ap / 4, lens_radius=R, focus_distance=F)
+    img = tracer.render(b.build(), RenderSettings(width=W, height=W // 4, samples=16, max_depth=0, threads=2))
+    row = img.rgba[W // 8, :, 0]
+    blurred = np.flatnonzero((row > 0.02) & (row < 0.98))
+    c_px = 2 * R * abs(1 - F / z) * f / F / ap * W
+    assert blurred.size == pytest.approx(c_px, abs=1.5), (blurred.size, c_px)
+    pinhole = tracer.render(_with_pinhole(b), RenderSettings(
+        width=W, height=W // 4, samples=16, max_depth=0, threads=2)).rgba[W // 8, :, 0]
+    assert np.count_nonzero((pinhole > 0.02) & (pinhole < 0.98)) <= 1  # the pinhole's edge is one pixel
+
+
+def _with_pinhole(builder):
+    import dataclasses
+
+    builder.camera = dataclasses.replace(builder.camera, lens_radius=0.0)
+    return builder.build()

@@ -21,16 +21,21 @@ FRAMES = "1:8"
 
 def _stage(path, frames=8):
     s = Usd.Stage.CreateNew(str(path))
+    ball = UsdGeom.Sphere.Define(s, "/Ball")
+    op = ball.AddTranslateOp()
+    op.Set(Gf.Vec3d(-2, 0, 0), 1.0)
+    op.Set(Gf.Vec3d(2, 0, 0), float(frames))
+    return _set(s)
+
+
+def _set(s):
+    """A camera looking down at a floor, a sphere light; the stage saved, its path returned."""
     UsdGeom.SetStageUpAxis(s, "Z")
     cam = UsdGeom.Camera.Define(s, "/Cam")
     cam.CreateHorizontalApertureAttr(4.0)
     cam.CreateVerticalApertureAttr(3.0)
     cam.CreateFocalLengthAttr(5.0)
     cam.AddTranslateOp().Set(Gf.Vec3d(0, 0, 8))
-    ball = UsdGeom.Sphere.Define(s, "/Ball")
-    op = ball.AddTranslateOp()
-    op.Set(Gf.Vec3d(-2, 0, 0), 1.0)
-    op.Set(Gf.Vec3d(2, 0, 0), float(frames))
     floor = UsdGeom.Cube.Define(s, "/Floor")
     floor.AddTranslateOp().Set(Gf.Vec3d(0, 0, -2))
     floor.AddScaleOp().Set(Gf.Vec3f(6, 6, 0.5))
@@ -38,7 +43,7 @@ def _stage(path, frames=8):
     light.CreateIntensityAttr(300.0)
     light.AddTranslateOp().Set(Gf.Vec3d(2, 2, 6))
     s.GetRootLayer().Save()
-    return str(path)
+    return s.GetRootLayer().identifier
 
 
 @pytest.fixture(scope="module")
@@ -179,12 +184,6 @@ def test_a_worker_killed_mid_run_still_completes_every_frame(tmp_path):
 def _switch_stage(path):
     """A stage whose picture depends on a variant (the ball left or right) and on the proxy purpose (a cube)."""
     s = Usd.Stage.CreateNew(str(path))
-    UsdGeom.SetStageUpAxis(s, "Z")
-    cam = UsdGeom.Camera.Define(s, "/Cam")
-    cam.CreateHorizontalApertureAttr(4.0)
-    cam.CreateVerticalApertureAttr(3.0)
-    cam.CreateFocalLengthAttr(5.0)
-    cam.AddTranslateOp().Set(Gf.Vec3d(0, 0, 8))
     sw = UsdGeom.Xform.Define(s, "/Sw").GetPrim()
     looks = sw.GetVariantSets().AddVariantSet("look")
     for name, x in (("left", -2.0), ("right", 2.0)):
@@ -196,14 +195,7 @@ def _switch_stage(path):
     proxy = UsdGeom.Cube.Define(s, "/Proxy")
     proxy.CreatePurposeAttr(UsdGeom.Tokens.proxy)
     proxy.AddTranslateOp().Set(Gf.Vec3d(0, 2, 0))
-    floor = UsdGeom.Cube.Define(s, "/Floor")
-    floor.AddTranslateOp().Set(Gf.Vec3d(0, 0, -2))
-    floor.AddScaleOp().Set(Gf.Vec3f(6, 6, 0.5))
-    light = UsdLux.SphereLight.Define(s, "/Light")
-    light.CreateIntensityAttr(300.0)
-    light.AddTranslateOp().Set(Gf.Vec3d(2, 2, 6))
-    s.GetRootLayer().Save()
-    return str(path)
+    return _set(s)
 
 
 def test_the_farm_takes_every_flag_a_local_render_takes(tmp_path, client):

@@ -53,7 +53,7 @@ def test_each_flag_reaches_render_explain_and_the_farm(name):
     for args in (render_args, explain_args):
         assert getattr(settings_from_args(args), name) == value, args.command
     source = UsdSource.of(StageRequest.from_args(render_args, "x.usda"), settings_from_args(render_args))
-    assert getattr(source.render_settings(), name) == value
+    assert getattr(source.tracer_settings(), name) == value
     if name in ("width", "height"):  # the size asked for: the stage's camera decides the missing side
         assert getattr(source, name) == value
 
@@ -105,3 +105,23 @@ def test_every_blender_property_reaches_f12_settings(bpy_module):
         assert dataclasses.asdict(export.settings_from_scene(scene)) == dataclasses.asdict(defaults)
     finally:
         addon.unregister()
+
+
+def test_every_request_field_reaches_load_stage_on_a_worker_too(monkeypatch):
+    """StageRequest is built once and handed on whole: each field (given a marker value) reaches load_stage from
+    a local read and from the farm's UsdSource, whose own names never shadow a field."""
+    import usd_io.reader
+    from usd_io import farm
+    from usd_io.request import StageRequest
+
+    names = [f.name for f in dataclasses.fields(StageRequest) if f.name != "path"]
+    methods = {n for n, v in vars(farm.UsdSource).items() if callable(v) or isinstance(v, (property, classmethod))}
+    assert not methods & set(names), methods & set(names)
+    marked = StageRequest(path="x.usda", **{n: f"<{n}>" for n in names})
+    seen = []
+    monkeypatch.setattr(usd_io.reader, "load_stage", lambda stage, **kw: seen.append(kw) or (None, None))
+    monkeypatch.setattr(farm, "_open", lambda path: path)
+    marked.read()
+    farm.UsdSource.of(marked, RenderSettings()).at("<time>").read()
+    for kw in seen:
+        assert kw == {n: f"<{n}>" for n in names}

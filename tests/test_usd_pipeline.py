@@ -65,8 +65,8 @@ def test_blend_shape_frames_differ_in_the_picture():
     rows of the picture it did not."""
     cover = []
     for t in (0.0, 1.0):
-        scene, _ = load_stage(blend_shape_stage(), time=t, width=32, height=24, complexity="low")
-        img = render(scene, RenderSettings(width=32, height=24, samples=1)).rgb
+        scene, _ = load_stage(blend_shape_stage(), time=t, width=36, height=24, complexity="low")  # 3:2 aperture
+        img = render(scene, RenderSettings(width=36, height=24, samples=1)).rgb
         cover.append(int((np.abs(img - img[0, 0]).max(axis=2) > 0.02).sum()))
     assert cover[1] > cover[0] + 60, cover
 
@@ -594,3 +594,119 @@ def test_usd_diagnostics_are_summarised_alike_in_info_and_render(tmp_path):
     rend = [ln for ln in whitted("render", path, "-o", tmp_path / "d.png", "--width", 8, "--quiet").stderr.splitlines()
             if "usd:" in ln]
     assert info == rend and 1 <= len(info) <= 5, (info, rend)
+
+
+def test_instancer_with_velocities_at_the_earliest_time_is_placed_not_nan():
+    """Positions and velocities sampled from frame 1001 only (a particle cache): at the default (earliest) time the
+    instances stand at the first sample's positions; velocity × (EarliestTime − 1001) used to make them NaN."""
+    s = new_stage()
+    st.cube(s, "/Protos/Box")
+    pi = st.point_instancer(s, "/PI", ["/Protos/Box"], [(0, 0, 0), (3, 0, 0)])
+    pi.GetPositionsAttr().Clear()
+    pi.GetPositionsAttr().Set([Gf.Vec3f(0, 0, 0), Gf.Vec3f(3, 0, 0)], 1001.0)
+    pi.CreateVelocitiesAttr().Set([Gf.Vec3f(1, 0, 0), Gf.Vec3f(1, 0, 0)], 1001.0)
+    s.GetPrimAtPath("/Protos").SetSpecifier(Sdf.SpecifierOver)
+    scene, info = load_stage(s, width=16)
+    assert _cube_centres(scene) == [(0, 0, 0), (3, 0, 0)]
+    assert not any("singular" in w or "not finite" in w for w in info.warnings), info.warnings
+
+
+def test_gprims_without_points_are_an_empty_stage_not_a_failure(tmp_path):
+    s = new_stage()
+    UsdGeom.Mesh.Define(s, "/NoPoints")
+    path = str(tmp_path / "e.usda")
+    s.GetRootLayer().Export(path)
+    res = whitted("render", path, "-o", tmp_path / "e.png", "--width", 16, "--quiet")
+    assert res.returncode == 0 and "1 gprim(s) without points or faces" in res.stderr, res.stderr
+
+
+def test_cylinder_1_is_a_truncated_cone():
+    """UsdGeom Cylinder_1 (radiusBottom 1, radiusTop 0.5, height 2, axis Z): every side point at height z has
+    radius 0.75 − z/4; its silhouette seen from above is the bottom disk."""
+    s = new_stage()
+    c = UsdGeom.Cylinder_1.Define(s, "/C")
+    c.CreateRadiusBottomAttr(1.0)
+    c.CreateRadiusTopAttr(0.5)
+    c.CreateHeightAttr(2.0)
+    c.CreateAxisAttr("Z")
+    add_camera(s, eye=(0, 0, 10))
+    scene, info = load_stage(s, width=40, height=30)
+    v = scene.vertices
+    r = np.hypot(v[:, 0], v[:, 1])
+    rim = r > 1e-9
+    on_side = rim & (np.abs(r - (0.75 - v[:, 2] / 4)) < 1e-9)
+    assert on_side.sum() >= 0.5 * rim.sum() and not any("not supported" in w for w in info.warnings)
+    hit, _, _ = _centre_pixel_hits(s)
+    assert hit
+
+
+def test_explain_and_the_farm_frame_a_flat_stage_as_render_does(tmp_path):
+    """One framing rule (usd_io.camera.framing_view, through load_stage): the farm's UsdSource gets the same
+    oblique camera as a local render."""
+    from usd_io.farm import UsdSource
+
+    s = new_stage("Z")
+    quad(s, "/Ground", half=2.0).CreateDisplayColorAttr([(0.8, 0.6, 0.2)])
+    path = str(tmp_path / "flat.usda")
+    s.GetRootLayer().Export(path)
+    local, _ = load_stage(path, width=32, height=24)
+    farm, settings = UsdSource(path, width=32, height=24).load(None)
+    np.testing.assert_allclose(farm.camera.camera_to_world, local.camera.camera_to_world)
+    assert local.camera.camera_to_world[2, 3] > 1  # above the ground, not edge-on
+
+
+def test_nurbs_patch_vertex_colours_blend_like_the_points():
+    """displayColor per control point: red on the z = 0 row, blue on the z = 3 row; v is linear (order 2), so the
+    colour at height z is red·(1 − z/3) + blue·z/3 exactly."""
+    s = st.nurbs_patch_stage(weights=(1, 0.5 ** 0.5, 1))
+    pv = UsdGeom.PrimvarsAPI(s.GetPrimAtPath("/Patch")).CreatePrimvar(
+        "displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex)
+    pv.Set([Gf.Vec3f(1, 0, 0)] * 3 + [Gf.Vec3f(0, 0, 1)] * 3)
+    scene, info = load_stage(s, width=16)
+    z = scene.vertices[scene.triangles][..., 2]  # (T, 3)
+    c = scene.colors
+    np.testing.assert_allclose(c[..., 0], 1 - z / 3, atol=1e-6)
+    np.testing.assert_allclose(c[..., 2], z / 3, atol=1e-6)
+    assert not any("averaged" in w for w in info.warnings)
+
+
+def test_nurbs_curve_without_knots_uses_open_uniform_knots():
+    """As Storm draws it: an order-2 curve without knots is its control polyline (x 0 → 6 along a right angle)."""
+    s = new_stage()
+    nc = UsdGeom.NurbsCurves.Define(s, "/C")
+    nc.CreatePointsAttr([(0, 0, 0), (3, 0, 0), (3, 3, 0)])
+    nc.CreateCurveVertexCountsAttr([3])
+    nc.CreateOrderAttr([2])
+    nc.CreateWidthsAttr([0.2])
+    scene, info = load_stage(s, width=16)
+    lo, hi = scene.vertices.min(axis=0), scene.vertices.max(axis=0)
+    np.testing.assert_allclose([lo[:2], hi[:2]], [[0.0, -0.1], [3.1, 3.0]], atol=0.02)  # tube ends are open
+    assert any("open uniform knots" in w for w in info.warnings)
+
+
+def test_cli_render_settings_and_light_units_flags(tmp_path):
+    """--render-settings picks the prim (its 100 × 100 resolution and CamB), its RenderVar depth is written as an
+    AOV; info lists the products; --light-units spec reads a Blender 3.1 lamp as the spec says (darker)."""
+    import OpenImageIO as oiio
+
+    s = _render_settings_stage()
+    s.SetMetadata("renderSettingsPrimPath", "")
+    path = str(tmp_path / "rs.usda")
+    s.GetRootLayer().Export(path)
+    out = tmp_path / "rs.png"
+    res = whitted("render", path, "-o", out, "--render-settings", "/Render/Settings", "--quiet")
+    assert res.returncode == 0, res.stderr
+    assert oiio.ImageInput.open(str(out)).spec().width == 100 and (tmp_path / "rs.depth.exr").exists()
+    info = whitted("info", path, "--render-settings", "/Render/Settings")
+    assert "products beauty.exr, AOVs depth" in info.stdout
+    bad = whitted("render", path, "-o", out, "--render-settings", "/Nope", "--quiet")
+    assert bad.returncode == 2 and "/Render/Settings" in bad.stderr and "Traceback" not in bad.stderr
+    lamp = _exporter_stage("Blender v3.1.2")
+    lpath = str(tmp_path / "lamp.usda")
+    lamp.GetRootLayer().Export(lpath)
+    means = []
+    for units in ("auto", "spec"):
+        o = tmp_path / f"lamp_{units}.exr"
+        assert whitted("render", lpath, "-o", o, "--width", 32, "--light-units", units, "--quiet").returncode == 0
+        means.append(float(read_image(str(o))[..., :3].mean()))
+    assert means[0] > 50 * means[1], means

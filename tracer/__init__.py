@@ -19,6 +19,7 @@ import types
 _EXPORTS = {
     "SceneBuilder": "builder",
     "ORTHOGRAPHIC": "camera", "PERSPECTIVE": "camera", "Camera": "camera", "fit_apertures": "camera",
+    "lens_radius": "camera",
     "Environment": "environment",
     "explain_pixel": "explain",
     "Image": "film", "read_image": "film", "write_image": "film",

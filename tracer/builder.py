@@ -20,7 +20,7 @@ from .camera import Camera
 from .heap import trim
 from .jit import kernel
 from .materials import Materials
-from .scene import Instances, Scene, handed_over
+from .scene import Instances, Scene, handed_over, singular
 from .texture import as_texture
 
 
@@ -303,7 +303,7 @@ def place_mesh(vertices, triangles, material=0, *, transform=None, normals=None,
         a = m[:3, :3]
         inv_t = _inverse_transpose(a)
         det = float(a[0] @ _cofactors(a)[0])
-        if abs(det) <= 1e-12 * max(np.abs(a).max(), 1e-300) ** 3:
+        if singular(det, np.abs(a).max()):
             raise ValueError(f"mesh {label!r}: transform is singular (zero scale); skip the object instead")
         world = np.empty((len(v), 3), np.float32)
         _affine_rows(np.ascontiguousarray(v), np.ascontiguousarray(a), np.ascontiguousarray(m[:3, 3]), world)

@@ -7,10 +7,18 @@ apertures and offsets are the view's width, height and shift in world units.
 
 Image coordinates: pixel (i, j) has its top-left corner at column i, row j; a film position (u, v) in [0, 1]² has
 u growing right and v growing up, so row j spans v in [1 − (j+1)/H, 1 − j/H].
+
+Depth of field (a thin lens, Cook 1984, as Cycles models it): with ``lens_radius`` > 0 an eye ray starts at a point
+of the aperture (a disk, or a regular polygon of ``aperture_blades`` corners turned by ``aperture_rotation``; x
+divided by ``aperture_ratio`` for anamorphic bokeh) and goes through the point where the pinhole ray meets the plane
+of focus, ``focus_distance`` in front of the camera along its view axis; points on that plane stay sharp. The
+radius comes from an f-number through :func:`lens_radius` (the one conversion; front ends give it the focal length
+in scene units). ``lens_radius`` 0 is the pinhole camera of the notes.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from typing import NamedTuple
@@ -35,6 +43,16 @@ class Camera:
     vertical_aperture_offset: float = 0.0
     near: float = 0.0
     far: float = np.inf
+    #: Radius of the thin lens's aperture in scene units (:func:`lens_radius`); 0 = pinhole (no depth of field).
+    lens_radius: float = 0.0
+    #: Distance of the plane of focus from the camera along its view axis, in scene units (used with a lens).
+    focus_distance: float = 0.0
+    #: Corners of a polygonal aperture (Blender's Blades; fewer than 3 = round, as Cycles).
+    aperture_blades: int = 0
+    #: Rotation of the polygonal aperture, radians.
+    aperture_rotation: float = 0.0
+    #: Anamorphic squeeze: the aperture's x is divided by it (Blender's Ratio; 1 = round bokeh).
+    aperture_ratio: float = 1.0
 
     def __post_init__(self):
         m = np.asarray(self.camera_to_world, dtype=np.float64)
@@ -61,6 +79,19 @@ class Camera:
         self.far = float(self.far)
         if self.near < 0 or not self.far > self.near:
             raise ValueError(f"camera clipping range must satisfy 0 <= near < far, got ({self.near}, {self.far})")
+        for name in ("lens_radius", "focus_distance", "aperture_rotation", "aperture_ratio"):
+            v = float(getattr(self, name))
+            if not np.isfinite(v):
+                raise ValueError(f"camera {name} must be finite, got {v}")
+            setattr(self, name, v)
+        if self.lens_radius < 0:
+            raise ValueError(f"camera lens_radius must be >= 0 (0 = pinhole), got {self.lens_radius}")
+        if self.lens_radius > 0 and self.focus_distance <= 0:
+            raise ValueError(f"camera focus_distance must be > 0 with a lens (lens_radius {self.lens_radius}), got "
+                             f"{self.focus_distance}")
+        if self.aperture_ratio <= 0:
+            raise ValueError(f"camera aperture_ratio must be > 0, got {self.aperture_ratio}")
+        self.aperture_blades = int(self.aperture_blades) if self.aperture_blades >= 3 else 0  # < 3: round, as Cycles
 
     @property
     def position(self) -> np.ndarray:
@@ -80,7 +111,10 @@ class Camera:
                            focal_length=float(self.focal_length), aperture=(self.horizontal_aperture,
                                                                             self.vertical_aperture),
                            offset=(self.horizontal_aperture_offset, self.vertical_aperture_offset),
-                           near=float(self.near), perspective=self.projection == PERSPECTIVE)
+                           near=float(self.near), perspective=self.projection == PERSPECTIVE,
+                           lens_radius=float(self.lens_radius), focus_distance=float(self.focus_distance),
+                           blades=int(self.aperture_blades), blade_rotation=float(self.aperture_rotation),
+                           inv_ratio=1.0 / float(self.aperture_ratio))
 
     def sample_footprint(self, width: int, samples: int = 1) -> tuple:
         """(eye, spread, flat): the width in world units that one of ``samples``×``samples`` eye samples of a pixel
@@ -92,14 +126,21 @@ class Camera:
             return eye, self.horizontal_aperture / self.focal_length / across, 0.0
         return eye, 0.0, self.horizontal_aperture / across
 
-    def generate_rays(self, u: np.ndarray, v: np.ndarray):
+    def generate_rays(self, u: np.ndarray, v: np.ndarray, lens: tuple | None = None):
         """World-space eye rays (origins (N, 3), unit directions (N, 3), float32) through film positions u, v
-        (array form of :func:`eye_ray`)."""
+        (array form of :func:`eye_ray`), for lens samples ``lens`` = (a, b) arrays in [0, 1)²; None: the chief rays
+        through the lens's centre (the pinhole's rays)."""
         u = np.ascontiguousarray(np.asarray(u, np.float64).reshape(-1))
         v = np.ascontiguousarray(np.broadcast_to(np.asarray(v, np.float64).reshape(-1), u.shape))
+        cam = self.packed()
+        if lens is None:
+            cam, a, b = cam._replace(lens_radius=0.0), np.zeros_like(u), np.zeros_like(u)
+        else:
+            a = np.ascontiguousarray(np.broadcast_to(np.asarray(lens[0], np.float64).reshape(-1), u.shape))
+            b = np.ascontiguousarray(np.broadcast_to(np.asarray(lens[1], np.float64).reshape(-1), u.shape))
         o = np.empty((len(u), 3), np.float32)
         d = np.empty((len(u), 3), np.float32)
-        _eye_rays(self.packed(), u, v, o, d)
+        _eye_rays(cam, u, v, a, b, o, d)
         return o, d
 
     def project(self, points: np.ndarray, width: int, height: int) -> np.ndarray:
@@ -147,20 +188,83 @@ class CameraTable(NamedTuple):
     offset: tuple
     near: float
     perspective: bool
+    lens_radius: float
+    focus_distance: float
+    blades: int
+    blade_rotation: float
+    inv_ratio: float
+
+
+def lens_radius(focal_length: float, f_stop: float) -> float:
+    """The thin lens's aperture radius f / (2·N) for focal length f (in scene units) and f-number N; N ≤ 0 (USD's
+    ``fStop`` 0) or no focal length: 0, a pinhole. Blender: f = lens mm × 10⁻³ (scene units of 1 m, as Cycles);
+    USD: f = ``focalLength`` / 10 (tenths of a scene unit). Orthographic cameras (Cycles): f = 1."""
+    if not (f_stop > 0 and focal_length > 0):
+        return 0.0
+    return float(focal_length) / (2.0 * float(f_stop))
 
 
 @kernel(inline=True)
-def eye_ray(cam, u, v):
-    """The eye ray (origin, unit direction) through film position (u, v) of a :meth:`Camera.packed` camera.
+def aperture_point(blades, rotation, inv_ratio, a, b):
+    """A point of the unit aperture for a uniform sample (a, b) in [0, 1)², uniform in area: the unit disk by
+    Shirley and Chiu's concentric map (strata stay compact), or a regular polygon of ``blades`` corners on the unit
+    circle turned by ``rotation`` (a picks the corner triangle, its remainder and b a uniform point in it); x is
+    then scaled by 1/ratio (anamorphic bokeh)."""
+    if blades < 3:
+        sx, sy = 2.0 * a - 1.0, 2.0 * b - 1.0
+        if sx == 0.0 and sy == 0.0:
+            return 0.0, 0.0
+        if abs(sx) > abs(sy):
+            r, phi = sx, 0.25 * math.pi * (sy / sx)
+        else:
+            r, phi = sy, 0.5 * math.pi - 0.25 * math.pi * (sx / sy)
+        return r * math.cos(phi) * inv_ratio, r * math.sin(phi)
+    k = math.floor(a * blades)
+    w = math.sqrt(a * blades - k)  # the triangle (centre, two adjacent corners): a uniform point in it
+    half = math.pi / blades
+    px, py = w * math.cos(half), w * math.sin(half) * (2.0 * b - 1.0)
+    turn = rotation + 2.0 * k * half  # corners at rotation + (2k ± 1)·π/blades, as Cycles draws them
+    c, s_ = math.cos(turn), math.sin(turn)
+    return (c * px - s_ * py) * inv_ratio, s_ * px + c * py
+
+
+@kernel(inline=True)
+def eye_ray(cam, u, v, lens_a, lens_b):
+    """The eye ray (origin, unit direction) through film position (u, v) of a :meth:`Camera.packed` camera, for
+    the lens sample (lens_a, lens_b) in [0, 1)² (unused by a pinhole camera).
 
     The film point is (x, y) = ((u − ½)·aperture_h + offset_h, (v − ½)·aperture_v + offset_v).
     Perspective: every ray starts at the eye e and goes through the film point (x, y, −f): ray(e, u, 0, ∞).
     Orthographic (the seed's question): every ray has the view direction −Z and starts at the film point itself.
     Rays start at the near clipping plane (camera-space z = −near).
+    With a lens (``lens_radius`` > 0), in camera space: the pinhole ray meets the plane of focus z = −F at P; the
+    ray starts at the aperture point L = R·:func:`aperture_point` (z = 0, around the eye or the film point) and goes
+    through P, starting where it crosses z = −near.
     """
     x = (u - 0.5) * cam.aperture[0] + cam.offset[0]
     y = (v - 0.5) * cam.aperture[1] + cam.offset[1]
     r = cam.rotation
+    if cam.lens_radius > 0.0:
+        lx, ly = aperture_point(cam.blades, cam.blade_rotation, cam.inv_ratio, lens_a, lens_b)
+        lx, ly = lx * cam.lens_radius, ly * cam.lens_radius
+        fd = cam.focus_distance
+        if cam.perspective:  # film point (x/f, y/f, −1) scaled to z = −F; the lens around the eye
+            ox, oy = lx, ly
+            dx, dy = x / cam.focal_length * fd - lx, y / cam.focal_length * fd - ly
+        else:  # parallel rays through the film point; the lens around it
+            ox, oy = x + lx, y + ly
+            dx, dy = -lx, -ly
+        # camera-space origin at z = −near along the ray (direction (dx, dy, −fd), z-step 1 per unit of t·fd)
+        t = cam.near / fd
+        c = (ox + dx * t, oy + dy * t, -cam.near)
+        w = (dx, dy, -fd)
+        o = (cam.eye[0] + r[0, 0] * c[0] + r[0, 1] * c[1] + r[0, 2] * c[2],
+             cam.eye[1] + r[1, 0] * c[0] + r[1, 1] * c[1] + r[1, 2] * c[2],
+             cam.eye[2] + r[2, 0] * c[0] + r[2, 1] * c[1] + r[2, 2] * c[2])
+        wd = (r[0, 0] * w[0] + r[0, 1] * w[1] + r[0, 2] * w[2],
+              r[1, 0] * w[0] + r[1, 1] * w[1] + r[1, 2] * w[2],
+              r[2, 0] * w[0] + r[2, 1] * w[1] + r[2, 2] * w[2])
+        return o, vec.normalize(wd)
     if cam.perspective:
         c = (x / cam.focal_length, y / cam.focal_length, -1.0)  # the film point; z = −1 so ·near lands on the plane
         w = (r[0, 0] * c[0] + r[0, 1] * c[1] + r[0, 2] * c[2],
@@ -175,9 +279,9 @@ def eye_ray(cam, u, v):
 
 
 @kernel
-def _eye_rays(cam, u, v, o, d):
+def _eye_rays(cam, u, v, a, b, o, d):
     for i in range(u.shape[0]):
-        oi, di = eye_ray(cam, u[i], v[i])
+        oi, di = eye_ray(cam, u[i], v[i], a[i], b[i])
         o[i, 0], o[i, 1], o[i, 2] = oi
         d[i, 0], d[i, 1], d[i, 2] = di
 

@@ -481,6 +481,21 @@ def spawn_ray(p, ng, direction, eps):
 
 
 @kernel(inline=True)
+def shadow_ray(p, ng, l, dist, eps):
+    """The shadow ray from surface point p towards a light sample at distance ``dist`` along l (inf: a direction):
+    (origin, unit direction, length). It leaves through :func:`spawn_ray` and aims at the sample from there, stopping
+    ε short of it: aimed along l from the lifted origin instead, a ray that meets an emitting surface at a grazing
+    angle would pass ε·(ng·l)-ish beyond the sample's plane and hit the emitter itself (a floor far from an emissive
+    panel went black)."""
+    o = spawn_ray(p, ng, l, eps)
+    if not math.isfinite(dist):
+        return o, l, dist
+    to = vec.sub(vec.madd(p, l, dist), o)
+    length = vec.length(to)
+    return o, vec.scale(to, 1.0 / max(length, 1e-30)), length - eps
+
+
+@kernel(inline=True)
 def _scalar_param(value, ti, ch, tex, geom, tri, u, v):
     """A scalar material parameter: the constant × its texture lookup (channel ``ch``; -1 = luminance)."""
     if ti < 0:
@@ -822,9 +837,9 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
                 if n_l <= 0.0 or vec.dot(ng, l) <= 0.0:
                     continue
                 c = vec.mul(wo, vec.mul(bsdf.evaluate(cl, n, wi, l, n_l, spec_scale), e))
-                if shadows:  # the shadow ray (p, l, ε, dist): counts only if nothing is in between
-                    _put(q_o, q_d, q_t, q_s, q_c, q_l, n_shadow, spawn_ray(p, ng, l, eps), l, dist - 2.0 * eps, s,
-                         c, j)
+                if shadows:  # the shadow ray from p to the light sample: counts only if nothing is in between
+                    so, sd, st = shadow_ray(p, ng, l, dist, eps)
+                    _put(q_o, q_d, q_t, q_s, q_c, q_l, n_shadow, so, sd, st, s, c, j)
                     n_shadow += 1
                     n_new += 1
                 else:

@@ -57,6 +57,16 @@ def unit_normals(normals: np.ndarray) -> np.ndarray:
     return scene_kernels.unit_normals(normals)
 
 
+def singular(det, size):
+    """The one invertibility rule of placement matrices (scene instances, SceneBuilder.add_mesh, Session edits, the
+    add-on's export): a 3×3 linear part is singular (zero scale) when its determinant is not finite or
+    |det| <= 1e-12·size³, ``size`` its scale (largest |entry| or longest axis: the bound is relative). Scalars
+    give a bool, arrays a bool array."""
+    if np.ndim(det) == 0 and np.ndim(size) == 0:  # one matrix (the add-on's export calls this per instance)
+        return not (abs(det) > 1e-12 * max(float(size), 1e-300) ** 3)  # NaN compares False: singular
+    return ~(np.abs(det) > 1e-12 * np.maximum(size, 1e-300) ** 3)
+
+
 def non_degenerate(vertices: np.ndarray, triangles: np.ndarray, diagonal: float) -> np.ndarray:
     """Mask of the triangles whose area is more than DEGENERATE_AREA × diagonal² (the others are skipped): twice
     the area in float64 from the float32 points, a numba pass on every core."""
@@ -107,10 +117,9 @@ class Instances:
             raise ValueError(f"scene.instances.transforms: instance {int(np.argmin(finite))} has a NaN or "
                              "infinite entry")
         lin = m[:, :3, :3]
-        size = np.abs(lin).max(axis=(1, 2)) if k else np.zeros(0)
-        singular = np.abs(np.linalg.det(lin)) <= 1e-12 * np.maximum(size, 1e-300) ** 3 if k else np.zeros(0, bool)
-        if singular.any():
-            raise ValueError(f"scene.instances.transforms: instance {int(np.argmax(singular))} is singular "
+        bad = singular(np.linalg.det(lin), np.abs(lin).max(axis=(1, 2))) if k else np.zeros(0, bool)
+        if bad.any():
+            raise ValueError(f"scene.instances.transforms: instance {int(np.argmax(bad))} is singular "
                              "(zero scale); leave it out instead")
         self.transforms = np.ascontiguousarray(m)
         ids = np.asarray(self.object_ids)

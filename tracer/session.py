@@ -53,7 +53,7 @@ from .environment import Environment
 from .film import Image
 from .lights import AreaLight, DistantLight, PointLight, SpotLight
 from .materials import Materials
-from .scene import PER_TRIANGLE, Instances, Scene, non_degenerate, unit_normals
+from .scene import PER_TRIANGLE, Instances, Scene, non_degenerate, singular, unit_normals
 from .settings import RenderSettings, integrator_key
 from .tiles import RenderCancelled, render_session
 
@@ -651,7 +651,6 @@ def _matrix(m, what):
     a = np.asarray(m, dtype=np.float64)
     if a.shape != (4, 4) or not np.all(np.isfinite(a)):
         raise ValueError(f"{what}: the transform must be a finite 4x4 matrix")
-    det = np.linalg.det(a[:3, :3])
-    if abs(det) <= 1e-12 * max(np.abs(a[:3, :3]).max(), 1e-300) ** 3:
+    if singular(np.linalg.det(a[:3, :3]), np.abs(a[:3, :3]).max()):
         raise ValueError(f"{what}: the transform is singular (zero scale); remove the object instead")
     return a

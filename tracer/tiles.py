@@ -8,6 +8,7 @@ session for one render. This module never imports the session (it takes one), so
 
 from __future__ import annotations
 
+import math
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -18,7 +19,7 @@ from .camera import eye_ray
 from .film import Image, box_filter, majority
 from .integrator import PATH_TYPES, RayCounts
 from .jit import kernel
-from .sampling import uniform2_1
+from .sampling import multijitter, uniform2_1
 from .scene import Scene
 from .settings import RAY_TYPE_AOVS, RenderSettings
 
@@ -55,6 +56,25 @@ def pixel_sample(px, py, s, n, width, height, seed):
     return (px + jx) / width, 1.0 - (py + jy) / height, key
 
 
+#: Sample stream of the lens positions (pixel_sample uses stream 0 for the film jitter).
+_STREAM_LENS = 61
+
+
+@kernel(inline=True)
+def lens_sample(px, py, s, n, width, seed, key):
+    """Lens position (a, b) in [0, 1)² of sample s of pixel (px, py): the pixel's N² samples take the N² cells of a
+    multi-jittered pattern, turned per pixel (Cranley-Patterson), in an order decorrelated from their film strata
+    (cell (s·k) mod N², k coprime to N²); one sample per pixel takes the sample's own random pair."""
+    nn = n * n
+    if nn == 1:
+        return uniform2_1(key, _STREAM_LENS, seed)
+    r0, r1 = uniform2_1((py * width + px) & 0xFFFFFFFF, _STREAM_LENS, seed)
+    k = (nn * 5) // 8 + 1  # about nn/φ: neighbouring film strata land far apart on the lens
+    while math.gcd(k, nn) != 1:
+        k += 1
+    return multijitter((s * k) % nn, n, r0, r1)
+
+
 @kernel
 def _tile_samples(x0, y0, x1, y1, n, width, height, seed, u, v, keys):
     i = 0
@@ -71,8 +91,12 @@ def _tile_eye_rays(cam, x0, y0, x1, y1, n, width, height, seed, o, d, keys):
     for py in range(y0, y1):
         for px in range(x0, x1):
             for s in range(n * n):
-                u, v, keys[i] = pixel_sample(px, py, s, n, width, height, seed)
-                oi, di = eye_ray(cam, u, v)
+                u, v, key = pixel_sample(px, py, s, n, width, height, seed)
+                keys[i] = key
+                a, b = 0.0, 0.0
+                if cam.lens_radius > 0.0:
+                    a, b = lens_sample(px, py, s, n, width, seed, key)
+                oi, di = eye_ray(cam, u, v, a, b)
                 o[i, 0], o[i, 1], o[i, 2] = oi
                 d[i, 0], d[i, 1], d[i, 2] = di
                 i += 1

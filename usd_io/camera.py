@@ -16,6 +16,7 @@ import numpy as np
 from pxr import Sdf, UsdGeom
 
 from tracer import ORTHOGRAPHIC, PERSPECTIVE, Camera, fit_apertures
+from tracer.camera import lens_radius
 
 from .stage import UsdInputError
 from .xform import to_numpy
@@ -59,7 +60,28 @@ def read_camera(prim, time):
         near=float(gf.clippingRange.min),
         far=float(gf.clippingRange.max),
         clipping_planes=[tuple(float(x) for x in p) for p in (cam.GetClippingPlanesAttr().Get(time) or [])],
+        f_stop=float(gf.fStop),
+        focus_distance=float(gf.focusDistance),
     )
+
+
+def fold_depth_of_field(raw: dict, warn) -> dict:
+    """UsdGeomCamera's depth of field: ``fStop`` 0 (the default) is a pinhole; with fStop > 0 the plane of focus is
+    ``focusDistance`` stage units away. A positive fStop with no focus distance is ignored with one warning."""
+    out = dict(raw)
+    if out.get("f_stop", 0.0) > 0 and not out.get("focus_distance", 0.0) > 0:
+        warn(f"{raw['path']}: fStop {out['f_stop']:g} without a positive focusDistance: depth of field ignored")
+        out["f_stop"] = 0.0
+    return out
+
+
+def lens_of(raw: dict) -> dict:
+    """The thin lens's ``tracer.Camera`` fields of a camera read by :func:`read_camera` (none for a pinhole): the
+    radius from ``fStop`` and the focal length in stage units (``focalLength`` is in tenths of one)."""
+    radius = lens_radius(raw["focal_length"] * 0.1, raw.get("f_stop", 0.0))
+    if radius <= 0 or not raw.get("focus_distance", 0.0) > 0:
+        return {}
+    return dict(lens_radius=radius, focus_distance=raw["focus_distance"])
 
 
 def fold_clipping_planes(raw: dict, warn) -> dict:
@@ -107,7 +129,8 @@ def to_tracer(raw: dict, width: int, height: int, policy: str = CONFORM_POLICY, 
     far = raw["far"] if raw["far"] > near else np.inf
     return Camera(camera_to_world=raw["camera_to_world"], projection=raw["projection"],
                   focal_length=raw["focal_length"], horizontal_aperture=h * scale, vertical_aperture=v * scale,
-                  horizontal_aperture_offset=ho * scale, vertical_aperture_offset=vo * scale, near=near, far=far)
+                  horizontal_aperture_offset=ho * scale, vertical_aperture_offset=vo * scale, near=near, far=far,
+                  **lens_of(raw))
 
 
 def framing_distance(bounds: np.ndarray, up_axis: str, half_fov: float) -> float:

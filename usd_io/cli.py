@@ -211,6 +211,7 @@ def render_file(request: StageRequest, settings, output: str, frames, outputs: O
         scene, info = request.at(frame).read(stage)
         if frame == frames[0]:
             print_warnings(info)
+            settings, outputs = _render_vars(info, settings, outputs)
         _prepare_kernels(args.quiet)
         image = render(scene, settings.with_(width=info.width, height=info.height))
         _warn_not_finite(image.rgba, request.path)
@@ -221,9 +222,19 @@ def render_file(request: StageRequest, settings, output: str, frames, outputs: O
             print(f"{out}: {info.width}x{info.height}, {len(scene.triangles):,} triangles, "
                   f"{s['rays']['total']:,} rays in {s['seconds']:.2f} s", file=sys.stderr)
     if info.nothing_drawn:  # gprims that gave no triangle: written, but not a success (usd_io.reader)
-        print(f"whitted: error: {scene_path}: {info.nothing_drawn}", file=sys.stderr)
+        print(f"whitted: error: {request.path}: {info.nothing_drawn}", file=sys.stderr)
         return EXIT_BAD_INPUT
     return EXIT_OK
+
+
+def _render_vars(info, settings, outputs):
+    """The stage's UsdRender RenderVars as AOVs when ``--aov`` asked for none (usd_io.render_settings)."""
+    spec = info.render_settings
+    if spec is None or not spec.aovs or settings.aovs:
+        return settings, outputs
+    import dataclasses
+
+    return settings.with_(aovs=tuple(spec.aovs)), dataclasses.replace(outputs, aovs=tuple(spec.aovs))
 
 
 def _prepare_kernels(quiet: bool) -> None:
@@ -271,6 +282,10 @@ def cmd_info(args) -> int:
         print(f"  {c}{'  (default)' if c == info.camera else ''}", file=out)
     if info.camera is None:
         print("  (none: a default camera frames the bounds)", file=out)
+    rs = info.render_settings
+    if rs is not None:  # UsdRender (usd_io.render_settings)
+        print(f"render settings: {rs.path}: {info.width}x{info.height}, {rs.conform}, products "
+              f"{', '.join(rs.products) or 'none'}, AOVs {', '.join(rs.aovs) or 'none'}", file=out)
     print(f"lights ({len(info.lights)}):", file=out)
     for path, kind, light in info.lights:
         print(f"  {path}: {kind} -> {_describe_light(light)}", file=out)

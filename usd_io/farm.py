@@ -45,7 +45,7 @@ class UsdSource(StageRequest):
         values["path"] = os.path.abspath(request.path)
         return cls(**values, settings=settings)
 
-    def render_settings(self):
+    def tracer_settings(self):
         """``settings`` as :class:`tracer.RenderSettings` (the stage decides the image size at ``load``)."""
         from tracer import RenderSettings
 
@@ -53,7 +53,7 @@ class UsdSource(StageRequest):
 
     def load(self, frame):
         scene, info = self.at(frame).read(_open(self.path))
-        return scene, self.render_settings().with_(width=info.width, height=info.height)
+        return scene, self.tracer_settings().with_(width=info.width, height=info.height)
 
     def unpacked(self, assets: bytes) -> "UsdSource":
         """This source reading the package ``assets`` (written once per worker to a temporary file)."""

@@ -1,4 +1,6 @@
-"""Implicit gprims (Sphere, Cube, Cylinder, Cone, Capsule, Plane) tessellated to triangles with exact normals.
+"""Implicit gprims (Sphere, Cube, Cylinder, Cone, Capsule, Plane, and the 2024 schemas Cylinder_1 — a truncated
+cone of radiusBottom/radiusTop — and Capsule_1, drawn with the mean of its two radii) tessellated to triangles with
+exact normals.
 
 ``segments`` sets the resolution (around the axis; half as many along it). The shapes follow the UsdGeom
 definitions: centred at the origin, ``axis`` X, Y or Z, Cone apex at +height/2, Capsule height without its caps,
@@ -13,7 +15,7 @@ from pxr import UsdGeom
 from .mesh import MeshData
 
 DEFAULT_SEGMENTS = 48
-GPRIM_TYPES = ("Sphere", "Cube", "Cylinder", "Cone", "Capsule", "Plane")
+GPRIM_TYPES = ("Sphere", "Cube", "Cylinder", "Cone", "Capsule", "Plane", "Cylinder_1", "Capsule_1")
 
 
 def _axis_matrix(axis: str) -> np.ndarray:
@@ -112,6 +114,19 @@ def cone(radius, height, segments=DEFAULT_SEGMENTS):
     return _merge([side, _cap(radius, -h, False, segments)])
 
 
+def frustum(r_bottom, r_top, height, segments=DEFAULT_SEGMENTS):
+    """UsdGeom's Cylinder_1: a truncated cone from radius ``r_bottom`` at −height/2 to ``r_top`` at +height/2, with
+    caps where the radius is not 0 (equal radii: a cylinder; a zero radius: a cone)."""
+    h = height / 2
+    slant = np.hypot(r_bottom - r_top, height)
+    parts = [_lathe(r_bottom, -h, r_top, h, (height / slant, (r_bottom - r_top) / slant), segments)]
+    if r_top > 0:
+        parts.append(_cap(r_top, h, True, segments))
+    if r_bottom > 0:
+        parts.append(_cap(r_bottom, -h, False, segments))
+    return _merge(parts)
+
+
 def capsule(radius, height, segments=DEFAULT_SEGMENTS):
     side = _lathe(radius, -height / 2, radius, height / 2, (1.0, 0.0), segments)
     rows = max(segments // 4, 3)
@@ -151,6 +166,20 @@ def read_gprim(prim, time, segments=DEFAULT_SEGMENTS) -> MeshData | None:
     elif t == "Capsule":
         p, tri, n = capsule(g(UsdGeom.Capsule, "Radius"), g(UsdGeom.Capsule, "Height"), segments)
         axis = g(UsdGeom.Capsule, "Axis")
+    elif t == "Cylinder_1":
+        c1 = UsdGeom.Cylinder_1(prim)
+        rb, rt = (float(a.Get(time)) for a in (c1.GetRadiusBottomAttr(), c1.GetRadiusTopAttr()))
+        if not (np.isfinite(rb) and np.isfinite(rt) and rb >= 0 and rt >= 0 and rb + rt > 0):
+            raise ValueError(f"{prim.GetPath()}: Cylinder_1 radii must be >= 0 and not both 0, got {rb}, {rt}")
+        p, tri, n = frustum(rb, rt, g(UsdGeom.Cylinder_1, "Height"), segments)
+        axis = g(UsdGeom.Cylinder_1, "Axis")
+    elif t == "Capsule_1":  # radiusTop != radiusBottom: drawn with their mean radius (a warning)
+        c1 = UsdGeom.Capsule_1(prim)
+        rb, rt = (float(a.Get(time)) for a in (c1.GetRadiusBottomAttr(), c1.GetRadiusTopAttr()))
+        if not (np.isfinite(rb) and np.isfinite(rt) and rb > 0 and rt > 0):
+            raise ValueError(f"{prim.GetPath()}: Capsule_1 radii must be positive, got {rb}, {rt}")
+        p, tri, n = capsule((rb + rt) / 2, g(UsdGeom.Capsule_1, "Height"), segments)
+        axis = g(UsdGeom.Capsule_1, "Axis")
     elif t == "Plane":
         p, tri, n = plane(g(UsdGeom.Plane, "Width"), g(UsdGeom.Plane, "Length"))
         axis = g(UsdGeom.Plane, "Axis")

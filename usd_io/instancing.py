@@ -12,13 +12,16 @@ it (reader.py).
 from __future__ import annotations
 
 import numpy as np
-from pxr import UsdGeom
+from pxr import Usd, UsdGeom
 
 
 def instance_matrices(prim, time) -> tuple[np.ndarray, np.ndarray, list]:
     """(K, 4, 4) column-vector instance matrices (without prototype xforms), (K,) proto indices with masked
     instances set to −1, and the prototype paths."""
     pi = UsdGeom.PointInstancer(prim)
+    if time.IsEarliestTime():  # velocities × (EarliestTime − the sample's time) would be infinite: NaN matrices
+        samples = pi.GetPositionsAttr().GetTimeSamples()
+        time = Usd.TimeCode(samples[0]) if samples else Usd.TimeCode.Default()
     xforms = pi.ComputeInstanceTransformsAtTime(time, time, UsdGeom.PointInstancer.ExcludeProtoXform,
                                                 UsdGeom.PointInstancer.IgnoreMask)
     mats = np.asarray(xforms, dtype=np.float64).reshape(-1, 4, 4).transpose(0, 2, 1)

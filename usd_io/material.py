@@ -32,11 +32,14 @@ A MaterialX OpenPBR (``ND_open_pbr_surface_surfaceshader``) or Standard Surface 
 ``specular_ior``/``specular_IOR`` (-> ior) and ``transmission_color`` (-> transmission_tint): the only way a
 Blender glass survives its USD export. Without a UsdPreviewSurface, base colour (× its weight), metalness, specular
 roughness and the normal come from it as well, each a constant or a MaterialX ``image``/``tiledimage`` (normal:
-through ``normalmap``); coat, sheen/fuzz, subsurface and emission warn. MaterialX's own UsdPreviewSurface node
+through ``normalmap``), Standard Surface's emission × emission_color and either's specular weight; coat,
+sheen/fuzz, subsurface and OpenPBR's emission warn. MaterialX's own UsdPreviewSurface node
 (``ND_UsdPreviewSurface_surfaceshader``) is a UsdPreviewSurface. ``.mtlx`` documents referenced from USD are
 translated by :mod:`usd_io.mtlx` before any of this sees them.
 
-Everything dropped or approximated prints one warning naming the material and the input or node.
+Any other surface (Arnold's, NVIDIA's OmniPBR, or one nothing reads) goes to :mod:`usd_io.surfaces`; an unread one
+shows the prim's displayColor with a warning, never a silent 18 % grey. Everything dropped or approximated prints
+one warning naming the material and the input or node.
 """
 
 from __future__ import annotations

@@ -89,8 +89,12 @@ def gprim_colors(prim, data, name, fallback, time, warn):
     interp = pv.GetInterpolation()
     source = getattr(data, "source_points", None)
     n_points = None if source is None or not len(source) else int(source.max()) + 1
+    weights = getattr(data, "point_weights", None)
     if len(v) == 1 or interp == UsdGeom.Tokens.constant:
         out = np.broadcast_to(v[0], (n_tri, 3, 3))
+    elif weights is not None and len(v) == weights.shape[1] and interp in (UsdGeom.Tokens.vertex,
+                                                                            UsdGeom.Tokens.varying):
+        out = (weights @ v)[data.triangles]  # a NURBS patch: the values blended like the points
     elif source is not None and len(v) == n_points and (interp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying)
                                                          or prim.IsA(UsdGeom.Points)):
         out = v[source[data.triangles]]

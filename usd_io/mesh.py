@@ -117,6 +117,7 @@ class MeshData:
     n_face_vertices: int = 0
     primvars: dict | None = None  # refined subdivision surfaces: {name: (T, 3, k) per corner} (no corners then)
     source_points: np.ndarray | None = None  # points and curves: (V,) the authored point each vertex stands for
+    point_weights: np.ndarray | None = None  # NURBS patches: (V, P) each vertex as a combination of the CVs
 
 
 def _primvar(prim, name):
@@ -220,6 +221,8 @@ def _read_cage(prim, time, points):
     points = np.asarray(points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"{label}: points are not 3-vectors (shape {points.shape})")
+    if not np.all(np.isfinite(points)):  # before refinement, which would spread the NaN (and warn about it)
+        raise ValueError(f"{label}: points with NaN or infinite coordinates")
     left = mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded
     holes = mesh.GetHoleIndicesAttr().Get(time) or ()
     scheme = mesh.GetSubdivisionSchemeAttr().Get(time) or UsdGeom.Tokens.catmullClark
@@ -309,8 +312,8 @@ def _subdivision_job(prim, mesh, points, counts, indices, holes, left, scheme, l
     if (~keep).any():
         warnings.append(f"{label}: skipped {int((~keep).sum())} face(s) with fewer than 3 vertices")
         indices, counts = indices[fv_keep], counts[keep]
-    if not len(counts):
-        return None
+    if not len(counts):  # malformed, not empty: the reader warns and counts it (usd_io.reader._say_if_empty)
+        raise ValueError(f"{label}: all {n_faces_in} face(s) have fewer than 3 vertices")
 
     def attr(get, default=None):
         a = get()

@@ -7,6 +7,9 @@ tensor product, ``S(u, v) = Σ_ij N_i(u) N_j(v) w_ij P_ij / Σ_ij N_i(u) N_j(v) 
 ``order − 1`` points, come out closed); parameters run over ``uRange``/``vRange`` (``ranges`` per curve), or the
 knots' valid span ``[k[order−1], k[n]]`` when unauthored.
 
+Primvars of vertex/varying interpolation (one value per control point, e.g. displayColor) are evaluated at every
+sample with the same rational basis as the points (``MeshData.point_weights``).
+
 Sampling: :data:`SAMPLES_PER_SPAN` samples per non-empty knot span (at least :data:`MIN_SAMPLES` over a patch
 direction), a grid of quads split in two. Normals: area-weighted from the grid (smooth; the patch's own
 orientation attribute turns the winding as for meshes).
@@ -127,8 +130,13 @@ def read_nurbs_patch(prim, time) -> MeshData | None:
         return None
     uv = np.stack(np.meshgrid((u - u[0]) / max(u[-1] - u[0], 1e-30), (v - v[0]) / max(v[-1] - v[0], 1e-30),
                               indexing="xy"), axis=-1).reshape(-1, 2)
-    return MeshData(points, tris, np.zeros(len(tris), np.int64), 1, normals=smooth_normals(points, tris),
+    data = MeshData(points, tris, np.zeros(len(tris), np.int64), 1, normals=smooth_normals(points, tris),
                     uvs=uv[tris], warnings=warnings)
+    # vertex/varying primvars follow the surface: each sample is the same rational combination of the control
+    # points' values as of their positions (usd_io.material_primvars.gprim_colors reads it)
+    wgt = np.einsum("ai,bj,ji->baji", Nu, Nv, w.reshape(nv, nu)).reshape(len(v) * len(u), nv * nu)
+    data.point_weights = wgt / wgt.sum(axis=1, keepdims=True)
+    return data
 
 
 def _trim_mask(patch, time, u, v, tris, label) -> np.ndarray:
@@ -197,6 +205,10 @@ def nurbs_curve_polylines(prim, time):
     if len(orders) != len(counts):
         raise ValueError(f"{label}: {len(orders)} orders for {len(counts)} curves")
     knots = np.asarray(nc.GetKnotsAttr().Get(time) or [], np.float64)
+    warnings = []
+    if not len(knots):  # Storm draws such curves too: open uniform knots (the curve ends at its end points)
+        knots = np.concatenate([_open_uniform(int(n), int(o)) for n, o in zip(counts, orders)])
+        warnings.append(f"{label}: NurbsCurves without knots: open uniform knots used")
     if len(knots) != int((counts + orders).sum()):
         raise ValueError(f"{label}: {len(knots)} knots; the curves need {int((counts + orders).sum())}")
     w = nc.GetPointWeightsAttr().Get(time)
@@ -220,7 +232,13 @@ def nurbs_curve_polylines(prim, time):
             out_w.append(B @ per_point_w[pi:pi + n])
         pi, ki = pi + n, ki + n + o
     return (np.concatenate(out_p), np.asarray(out_c, np.int64),
-            np.concatenate(out_w) if out_w else None)
+            np.concatenate(out_w) if out_w else None, warnings)
+
+
+def _open_uniform(n: int, order: int) -> np.ndarray:
+    """The clamped uniform knot vector of n points of ``order`` (order equal knots at each end)."""
+    inner = np.linspace(0.0, 1.0, max(n - order + 2, 2))
+    return np.concatenate([np.zeros(order - 1), inner, np.ones(order - 1)])[: n + order]
 
 
 def read_nurbs_curves(prim, time) -> MeshData | None:
@@ -229,8 +247,11 @@ def read_nurbs_curves(prim, time) -> MeshData | None:
     got = nurbs_curve_polylines(prim, time)
     if got is None:
         return None
-    points, counts, widths = got
-    return tube_mesh(points, counts, widths, periodic=False)
+    points, counts, widths, warnings = got
+    data = tube_mesh(points, counts, widths, periodic=False)
+    if data is not None:
+        data.warnings = warnings
+    return data
 
 
 def read_tet_mesh(prim, time) -> MeshData | None:

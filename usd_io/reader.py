@@ -76,6 +76,7 @@ class _Reader:
         self._proto_cache: dict[str, MeshData | None] = {}
         self._proto_ids: dict[tuple, int] = {}  # (prototype prim path, material rows) -> tracer prototype object id
         self._grey = None
+        self.empty: set = set()  # gprims whose geometry is absent or has no faces at this time
         self.skinning = Skinning(time, self.xf.world)
         self.subdivision_level = COMPLEXITY[DEFAULT_COMPLEXITY]
         self._refined: dict = {}  # prim path -> MeshData refined ahead (prefetch_subdivided)
@@ -134,6 +135,8 @@ class _Reader:
         except ValueError as exc:
             self.info.warn(f"{exc} (skipped)")
             return None
+        if data is None:
+            self.empty.add(str(prim.GetPath()))  # no points or no faces authored at this time: _say_if_empty
         if data is not None and not np.all(np.isfinite(data.points)):
             self.info.warn(f"{prim.GetPath()}: points with NaN or infinite coordinates (skipped)")
             return None
@@ -220,6 +223,9 @@ class _Reader:
                     continue
                 if (piece.GetTypeName() not in GPRIM_TYPES and not piece.IsA(UsdGeom.Mesh)
                         and not _is_points_or_curves(piece)):
+                    if piece.IsA(UsdGeom.Gprim):
+                        self.info.warn(f"{piece.GetPath()}: {piece.GetTypeName()} is not supported (a prototype of "
+                                       f"{prim.GetPath()}; skipped)")
                     continue
                 data = self.geometry(piece)
                 if data is None or not len(data.triangles):
@@ -285,11 +291,11 @@ class _Reader:
         return np.stack([self.lo, self.hi])
 
 
-def _camera(stage, r, info, tc, camera, width, height, render_settings) -> None:
+def _camera(stage, r, info, tc, camera, width, height, settings_prim) -> None:
     """The render camera and image size (info.width/height/camera, r.b.camera): the stage camera (``camera``, the
     RenderSettings' camera, the first found) conformed by the RenderSettings' policy (expandAperture without one)
     and cropped to its data window, or the default framing camera."""
-    spec = read_render_settings(stage, render_settings, tc, info.warn)
+    spec = read_render_settings(stage, settings_prim, tc, info.warn)
     info.render_settings = spec
     if spec is not None and width is None and height is None and spec.resolution is not None:
         width, height = spec.resolution
@@ -297,7 +303,7 @@ def _camera(stage, r, info, tc, camera, width, height, render_settings) -> None:
     par = spec.pixel_aspect if spec else 1.0
     policy = CONFORM[spec.conform] if spec else CONFORM[DEFAULT_CONFORM]
     if cam_prim is not None:
-        raw = cam.fold_clipping_planes(cam.read_camera(cam_prim, tc), info.warn)
+        raw = cam.fold_depth_of_field(cam.fold_clipping_planes(cam.read_camera(cam_prim, tc), info.warn), info.warn)
         info.width, info.height = cam.image_size(raw, width, height, par)
         r.b.camera = cam.to_tracer(raw, info.width, info.height, policy, par)
         info.camera = str(cam_prim.GetPath())
@@ -317,9 +323,11 @@ def _say_if_empty(r, info) -> None:
     and stays None when the stage has no visible gprims at all (an empty stage renders its empty frame)."""
     if sum(n for _p, n in info.meshes):
         return
-    gprims = [p for p in r.prims if p.IsA(UsdGeom.Gprim) or p.IsA(UsdGeom.PointInstancer)]
+    gprims = [p for p in r.prims if (p.IsA(UsdGeom.Gprim) or p.IsA(UsdGeom.PointInstancer))
+              and str(p.GetPath()) not in r.empty]
     if not gprims:
-        info.warn("the stage has no visible gprims: the frame shows only the background")
+        empty = f" ({len(r.empty)} gprim(s) without points or faces at this time)" if r.empty else ""
+        info.warn(f"the stage has no visible gprims with geometry{empty}: the frame shows only the background")
         return
     kinds = sorted({p.GetTypeName() for p in gprims})
     info.nothing_drawn = (f"{len(gprims)} visible gprim(s) ({', '.join(kinds)}) gave 0 triangles (see the warnings "
@@ -401,7 +409,7 @@ def stage_up_axis(stage, warn) -> str:
 def load_stage(path_or_stage, time=None, camera: str | None = None, width: int | None = None,
                height: int | None = None, purposes=DEFAULT_PURPOSES, segments: int = DEFAULT_SEGMENTS,
                default_light: bool = True, variants=(), complexity: str = DEFAULT_COMPLEXITY,
-               render_settings: str | None = None, light_units: str = "auto"):
+               render_settings_prim: str | None = None, light_units: str = "auto"):
     """Read a USD stage (a path or an open ``Usd.Stage``) into a render-ready :class:`tracer.Scene`.
 
     time      time code (None: the earliest time, i.e. default values or the first time sample)
@@ -414,7 +422,7 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     variants  ``(prim path, variant set, variant)`` selections applied (on the session layer) before reading
     complexity  refinement of subdivision surfaces, as usdrecord's: low (the control cage), medium (one level of
               Catmull-Clark, the default), high (2), veryhigh (3)
-    render_settings  a UsdRender RenderSettings prim path (None: the stage's renderSettingsPrimPath, if any):
+    render_settings_prim  a UsdRender RenderSettings prim path (None: the stage's renderSettingsPrimPath):
               its resolution, camera, pixel aspect, conform policy and data window apply where the arguments
               above are None; ``info.render_settings`` keeps its products and AOVs (usd_io.render_settings)
     light_units  "auto": lights in the units of the application that wrote the stage (usd_io.exporters; a note
@@ -457,7 +465,7 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     _say_if_empty(r, info)
 
 
-    _camera(stage, r, info, tc, camera, width, height, render_settings)
+    _camera(stage, r, info, tc, camera, width, height, render_settings_prim)
     if default_light and not info.lights:
         sun, dome = default_lights(r.b.camera)
         r.b.add_light(sun)

@@ -12,7 +12,7 @@ Adding a request field is a one-place change: a field of :class:`StageRequest` w
 makes the flag for every command, :meth:`StageRequest.from_args` reads it, :meth:`StageRequest.read` passes it to
 :func:`usd_io.load_stage` under the field's name (which the reader must then take). For example::
 
-    render_settings: str | None = request_field(None, "--render-settings", metavar="PRIM",
+    render_settings_prim: str | None = request_field(None, "--render-settings", metavar="PRIM",
                                                 help="the UsdRender.Settings prim to render with")
 
 A field with ``flags=()`` takes the flag of the RenderSettings field of the same name (width, height: the size
@@ -74,6 +74,16 @@ class StageRequest:
     default_light: bool = request_field(True, "--no-default-light", "--disableCameraLight", action="store_false",
                                         help="leave a stage without lights unlit (default: a camera headlight "
                                         "and a dim dome, as usdview)")
+    render_settings_prim: str | None = request_field(None, "--render-settings", metavar="PRIM",
+                                                     help="the UsdRender RenderSettings prim to render with "
+                                                     "(default: the stage's renderSettingsPrimPath): resolution, "
+                                                     "camera, pixel aspect, conform policy, data window, RenderVars "
+                                                     "as AOVs")
+    light_units: str = request_field("auto", "--light-units", choices=["auto", "spec", "blender", "blender-nits",
+                                                                      "blender-legacy", "kit"],
+                                     help="auto (default): lights in the units of the application that wrote the "
+                                     "stage (Blender by version, Omniverse Kit; a note says which); spec: as "
+                                     "UsdLux says (docs/usd.md, \"Two readings\")")
 
     @classmethod
     def from_args(cls, args, path: str | None = None) -> "StageRequest":

@@ -21,6 +21,7 @@ import json
 import math
 import os
 import time
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -39,7 +40,7 @@ CYCLES_LOG: list = []
 
 
 # ====================================================================== Blender side
-from bench.cycles import whitted_cycles_settings  # noqa: E402  (one definition, shared with the benchmarks)
+from blender_kit.cycles import whitted_cycles_settings  # noqa: E402  (shared with the benchmarks)
 
 
 def bpy():
@@ -130,6 +131,16 @@ def build_bpy(desc: dict):
     co.matrix_world = Matrix(c["matrix"])
     sc.collection.objects.link(co)
     sc.camera = co
+    if c.get("dof"):  # depth of field: f-stop, focus object (by name) or distance, blades, rotation, ratio
+        d = c["dof"]
+        cd.dof.use_dof = True
+        cd.dof.aperture_fstop = d["fstop"]
+        cd.dof.focus_distance = d.get("distance", 10.0)
+        if d.get("object"):
+            cd.dof.focus_object = b.data.objects[d["object"]]
+        cd.dof.aperture_blades = d.get("blades", 0)
+        cd.dof.aperture_rotation = d.get("rotation", 0.0)
+        cd.dof.aperture_ratio = d.get("ratio", 1.0)
     w = b.data.worlds.new("World")
     if w.node_tree is None:
         w.use_nodes = True
@@ -203,6 +214,49 @@ def _channel(chans: dict, suffix: str) -> np.ndarray:
     return chans[hits[0]]
 
 
+def cached_exr(stem: str, render, log: tuple) -> tuple[str, float, bool]:
+    """The one cache of Cycles references: ``CACHE_DIR/{stem}.exr`` (``stem`` ends in a content hash), made by
+    ``render(tmp_path)`` when it is missing (written under a temporary name, renamed once complete). ``log`` (name,
+    kind) goes to :data:`CYCLES_LOG`. Returns (path, seconds rendering, whether it was cached)."""
+    os.makedirs(CACHE_DIR, exist_ok=True)
+    path = os.path.join(CACHE_DIR, f"{stem}.exr")
+    cached = os.path.exists(path)
+    seconds = 0.0
+    if not cached:
+        tmp = path + f".{os.getpid()}.tmp.exr"
+        t0 = time.perf_counter()
+        render(tmp)
+        seconds = time.perf_counter() - t0
+        os.replace(tmp, path)
+    CYCLES_LOG.append((*log, seconds, cached))
+    return path, seconds, cached
+
+
+def render_multilayer(sc, path: str) -> None:
+    """F12 of ``sc`` into a 32-bit multilayer OpenEXR at ``path``."""
+    sc.render.image_settings.media_type = "MULTI_LAYER_IMAGE"  # Blender 5: multilayer OpenEXR
+    sc.render.image_settings.file_format = "OPEN_EXR_MULTILAYER"
+    sc.render.image_settings.color_depth = "32"
+    sc.render.filepath = path
+    bpy().ops.render.render(write_still=True)
+
+
+def cycles_render(name: str, build, source: str, params: dict) -> np.ndarray:
+    """Cycles' render (H, W, 3 linear) of the Blender scene ``build()`` makes, with the Whitted settings at
+    ``params``' depth and samples, cached by ``name``, the builder's ``source`` and ``params``; Blender is reset
+    to an empty scene afterwards (the add-on scenes' references)."""
+    from blender_kit import scene as bs
+
+    def render(tmp):
+        scene = build()
+        whitted_cycles_settings(scene, depth=params["depth"], samples=params["samples"])
+        bs.render_exr(scene, tmp)
+
+    path, _, _ = cached_exr(f"{name}-{content_hash(name, source, params)}", render, (name, "beauty"))
+    bpy().ops.wm.read_factory_settings(use_empty=True)
+    return bs.read_exr(path)["rgba"][..., :3]
+
+
 def cycles_reference(desc: dict, *, kind: str = "beauty") -> dict:
     """The Cycles render of ``desc``, from the cache or rendered now.
 
@@ -212,26 +266,16 @@ def cycles_reference(desc: dict, *, kind: str = "beauty") -> dict:
     """
     if kind not in ("beauty", "ids"):
         raise ValueError(f"unknown reference kind {kind!r}")
-    key = content_hash(desc, kind)
-    os.makedirs(CACHE_DIR, exist_ok=True)
-    path = os.path.join(CACHE_DIR, f"{desc['name']}-{kind}-{key}.exr")
-    cached = os.path.exists(path)
-    seconds = 0.0
-    if not cached:
+
+    def render(tmp):
         sc = build_bpy(desc)
         if kind == "ids":
             sc.cycles.samples = 1
             sc.cycles.filter_width = 0.01
-        sc.render.image_settings.media_type = "MULTI_LAYER_IMAGE"  # Blender 5: multilayer OpenEXR
-        sc.render.image_settings.file_format = "OPEN_EXR_MULTILAYER"
-        sc.render.image_settings.color_depth = "32"
-        tmp = path + f".{os.getpid()}.tmp.exr"
-        sc.render.filepath = tmp
-        t0 = time.perf_counter()
-        bpy().ops.render.render(write_still=True)
-        seconds = time.perf_counter() - t0
-        os.replace(tmp, path)
-    CYCLES_LOG.append((desc["name"], kind, seconds, cached))
+        render_multilayer(sc, tmp)
+
+    path, seconds, cached = cached_exr(f"{desc['name']}-{kind}-{content_hash(desc, kind)}", render,
+                                       (desc["name"], kind))
     chans = _read_exr_channels(path)
     out = {"rgb": np.stack([_channel(chans, f"Combined.{c}") for c in "RGB"], axis=-1), "seconds": seconds,
            "cached": cached, "path": path}
@@ -251,24 +295,36 @@ def tracer_material(p: dict) -> dict:
 
 
 def camera_from_description(c: dict, width: int, height: int) -> tracer.Camera:
-    """Blender's camera model (DESIGN.md, checked against world_to_camera_view): E = sensor/lens (perspective) or
-    ortho_scale; the fitted side gets E, the other E·aspect or E/aspect; shift moves by shift·E."""
-    aspect = width / height
-    fit = c["sensor_fit"]
-    if c["type"] == "ORTHO":
-        e = c["ortho_scale"]
-    else:
-        e = (c["sensor_height"] if fit == "VERTICAL" else c["sensor_width"]) / c["lens"]
-    fit_width = fit == "HORIZONTAL" or (fit == "AUTO" and width >= height)
-    w, h = (e, e / aspect) if fit_width else (e * aspect, e)
-    return tracer.Camera(camera_to_world=np.asarray(c["matrix"]),
-                         projection="orthographic" if c["type"] == "ORTHO" else "perspective",
-                         focal_length=1.0, horizontal_aperture=w, vertical_aperture=h,
-                         horizontal_aperture_offset=c["shift_x"] * e, vertical_aperture_offset=c["shift_y"] * e)
+    """The description's camera through the add-on's own conversion (addon.export.camera_from_blender, on an
+    object shaped like Blender's: the clip range build_bpy gives the Blender camera)."""
+    from addon.export import camera_from_blender
+
+    data = SimpleNamespace(clip_start=1e-3, clip_end=1e4, **{k: c[k] for k in (
+        "type", "lens", "sensor_width", "sensor_height", "sensor_fit", "shift_x", "shift_y", "ortho_scale")})
+    return camera_from_blender(SimpleNamespace(data=data, matrix_world=c["matrix"], name="Camera"), width, height)
+
+
+def light_from_description(li: dict):
+    """The description's light through the add-on's own conversion (addon.export.light_from_blender, on an object
+    shaped like Blender's, with build_bpy's values and Blender's defaults)."""
+    from addon.export import light_from_blender
+
+    data = SimpleNamespace(type=li["type"], energy=li["energy"], color=li["color"],
+                           shadow_soft_size=li.get("radius", 0.0), spot_size=li.get("spot_size", 0.0),
+                           spot_blend=li.get("spot_blend", 0.0), angle=li.get("angle", 0.0),
+                           shape=li.get("shape", "SQUARE"), size=li.get("size", (1.0, 1.0))[0],
+                           size_y=li.get("size", (1.0, 1.0))[1], exposure=li.get("exposure", 0.0),
+                           normalize=li.get("normalize", True), use_soft_falloff=True)
+    warnings: list = []
+    light = light_from_blender(SimpleNamespace(data=data, matrix_world=li["matrix"], name=li["name"]), warnings)
+    if light is None:
+        raise ValueError(f"light {li['name']}: {warnings}")
+    return light
 
 
 def build_direct(desc: dict) -> tracer.Scene:
-    """The description straight into a tracer.Scene, with the unit conversions of docs/units.md."""
+    """The description straight into a tracer.Scene: meshes and materials as numbers, the camera and lights through
+    the add-on's conversions (docs/units.md) without a Blender scene."""
     b = tracer.SceneBuilder()
     mat_index = {name: b.add_material(name, **tracer_material(p)) for name, p in desc["materials"].items()}
     for o in desc["objects"]:
@@ -281,21 +337,7 @@ def build_direct(desc: dict) -> tracer.Scene:
         b.add_mesh(verts, tris, material=slots[face_mat[owner]], name=o["name"], transform=np.asarray(o["matrix"]),
                    normals=normals)
     for li in desc["lights"]:
-        m = np.asarray(li["matrix"])
-        color = np.asarray(li["color"], np.float64)
-        if li["type"] in ("POINT", "SPOT"):
-            kw = dict(position=m[:3, 3], intensity=color * li["energy"] / (4 * math.pi), radius=li.get("radius", 0.0),
-                      name=li["name"])
-            if li["type"] == "SPOT":
-                b.add_light(tracer.SpotLight(**kw, direction=-m[:3, 2], cone_angle=li["spot_size"] / 2,
-                                             blend=li["spot_blend"]))
-            else:
-                b.add_light(tracer.PointLight(**kw))
-        elif li["type"] == "SUN":
-            b.add_light(tracer.DistantLight(direction=-m[:3, 2], irradiance=color * li["energy"],
-                                            angle=li.get("angle", 0.0), name=li["name"]))
-        else:
-            raise ValueError(f"light type {li['type']} not supported by the comparison scenes")
+        b.add_light(light_from_description(li))
     b.camera = camera_from_description(desc["camera"], desc["width"], desc["height"])
     world = np.asarray(desc["world"]["color"], np.float32) * desc["world"]["strength"]
     b.background = world

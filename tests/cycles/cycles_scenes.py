@@ -123,6 +123,17 @@ def _emission_light():
         note="an emissive panel is the only light: mesh emission lights the floor and casts soft shadows")
 
 
+def _emission_grazing():
+    """A floor lit by an emissive panel out to the horizon: far from the panel, shadow rays reach it at grazing
+    angles (they once overshot the panel's plane by their own ε offset and were blocked by the emitter itself)."""
+    mats = dict(BASE_MATS, glow=emissive((1.0, 1.0, 1.0), strength=4.0))
+    return scene("emission_grazing", camera=camera((0.0, -9.0, 1.5), (0.0, 4.0, 0.3)), materials=mats, objects=[
+        floor(size=40.0, pass_index=1),
+        obj("Panel", "plane", "glow", matrix=trs((0.0, 0.0, 2.0), (math.pi, 0, 0)), params=dict(size=(2.0, 2.0)),
+            pass_index=5)],
+        depth=0, samples=128, note="an emissive panel facing down lights a 40 m floor: grazing shadow rays")
+
+
 def _environment():
     """A lat-long world seen directly (sky, landmarks) and in a mirror ball (turned and flipped in the mirror)."""
     mats = dict(BASE_MATS, mirror=mirror((0.9, 0.9, 0.9)))
@@ -326,7 +337,7 @@ def _lobe(name):
 
 
 def image_scenes() -> dict:
-    scenes = [_emissive_flat(), _emission_light(), _environment(), _point_shadow(), _sun(), _spot(), _several_lights(), _world(), _mirror(),
+    scenes = [_emissive_flat(), _emission_light(), _emission_grazing(), _environment(), _point_shadow(), _sun(), _spot(), _several_lights(), _world(), _mirror(),
               _metallic_half(), _metallic_half_dielectric(), _gold_coarse_sphere(), _glass_sphere(), _water_sphere(), _glass_slab(),
               _tir_prism()] + [_interreflection(d) for d in (1, 2, 4, 8)] + [
         _interreflection(1, world=(0.35, 0.5, 0.8), name="interreflection_sky_d1"), _orthographic(), _whitted_1980()] + [

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-import time
 
 import numpy as np
 
@@ -59,22 +58,10 @@ def import_into_blender(stage_path: str, width: int, height: int, samples: int, 
 def cycles_reference_usd(stage_path: str, name: str, width: int, height: int, samples: int, depth: int = 0) -> dict:
     """{"rgb": (H, W, 3) linear, "path", "cached"} of Cycles rendering Blender's import of ``stage_path``."""
     key = H.content_hash("usd-import", name, _files_hash(stage_path), width, height, samples, depth)
-    os.makedirs(H.CACHE_DIR, exist_ok=True)
-    path = os.path.join(H.CACHE_DIR, f"usdimport-{name}-{key}.exr")
-    cached = os.path.exists(path)
-    seconds = 0.0
-    if not cached:
-        sc = import_into_blender(stage_path, width, height, samples, depth)
-        sc.render.image_settings.media_type = "MULTI_LAYER_IMAGE"
-        sc.render.image_settings.file_format = "OPEN_EXR_MULTILAYER"
-        sc.render.image_settings.color_depth = "32"
-        tmp = path + f".{os.getpid()}.tmp.exr"
-        sc.render.filepath = tmp
-        t0 = time.perf_counter()
-        H.bpy().ops.render.render(write_still=True)
-        seconds = time.perf_counter() - t0
-        os.replace(tmp, path)
-    H.CYCLES_LOG.append((name, "usd-import", seconds, cached))
+    path, seconds, cached = H.cached_exr(
+        f"usdimport-{name}-{key}",
+        lambda tmp: H.render_multilayer(import_into_blender(stage_path, width, height, samples, depth), tmp),
+        (name, "usd-import"))
     chans = H._read_exr_channels(path)
     rgb = np.stack([H._channel(chans, f"Combined.{c}") for c in "RGB"], axis=-1)
     return {"rgb": rgb, "path": path, "cached": cached, "seconds": seconds}

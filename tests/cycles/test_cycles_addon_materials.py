@@ -11,7 +11,6 @@ from __future__ import annotations
 import inspect
 import math
 import os
-import time
 
 import numpy as np
 import pytest
@@ -19,7 +18,7 @@ import pytest
 import cycles_harness as H
 from cycles_thresholds import MAE_MAX, PSNR_MIN
 
-from tests import blender_support as bs
+from blender_kit import scene as bs
 
 pytestmark = pytest.mark.cycles
 
@@ -344,23 +343,7 @@ def scene_source() -> str:
 def cycles_render(name: str, build, params: dict) -> np.ndarray:
     """Build the scene (always: ours reads the same depsgraph) and the Cycles reference, cached by the hash of the
     builder's source and parameters."""
-    import bpy
-
-    from bench.cycles import whitted_cycles_settings
-
-    key = H.content_hash(name, scene_source(), params)
-    path = os.path.join(H.CACHE_DIR, f"{name}-{key}.exr")
-    if not os.path.exists(path):
-        scene = build()
-        whitted_cycles_settings(scene, depth=params["depth"], samples=params["samples"])
-        os.makedirs(H.CACHE_DIR, exist_ok=True)
-        tmp = path + f".{os.getpid()}.tmp.exr"
-        t0 = time.perf_counter()
-        bs.render_exr(scene, tmp)
-        H.CYCLES_LOG.append((name, "beauty", time.perf_counter() - t0, False))
-        os.replace(tmp, path)
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    return bs.read_exr(path)["rgba"][..., :3]
+    return H.cycles_render(name, build, scene_source(), params)
 
 
 def ours_render(build, params: dict):

@@ -8,7 +8,7 @@ whatever sub-pixel position Cycles' one sample lands on (filter width 0.01 px), 
 bricks, checkers, white noise) are compared on both sides of every edge. Cycles renders the grid once into a linear
 EXR, cached by the content hash of this file's scene code and the variant table (tests/cycles/cycles_harness.py's
 ``content_hash`` and cache folder); each test then compares one tile with the numpy form of the tracer's function
-evaluated at the same coordinates. Bar: PSNR ≥ 40 dB on linear values (peak max(1, the tile's range)).
+evaluated at the same coordinates. Bar: PSNR ≥ 60 dB on linear values (peak max(1, the tile's range)).
 """
 
 from __future__ import annotations
@@ -16,15 +16,13 @@ from __future__ import annotations
 import inspect
 import json
 import math
-import os
-import time
 
 import numpy as np
 import pytest
 
 import cycles_harness as H
 
-from tests import blender_support as bs
+from blender_kit import scene as bs
 from tracer.procedural import color, noise, patterns, voronoi
 
 pytestmark = pytest.mark.cycles
@@ -32,7 +30,10 @@ pytestmark = pytest.mark.cycles
 TILE = 64  # pixels per tile side
 PER_UNIT = TILE // 2  # pixels per unit of object space (planes are 2 × 2)
 COLS = 16
-MIN_PSNR = 40.0
+#: The issue asks ≥ 40 dB; every variant measures ≥ 70 dB (noise at detail 15, where float32 runs out of digits;
+#: the others ≥ 85 dB), and 40 dB would let a 1 % error in a noise constant through (0.982 -> 0.972 measured
+#: 48-62 dB), so the bar is 60 dB.
+MIN_PSNR = 60.0
 
 
 # ---------------------------------------------------------------------------------------------------- coordinates
@@ -149,6 +150,14 @@ VARIANTS["voronoi_fractal_f1_2d_position"] = voronoi_variant(2, output="Position
 VARIANTS["voronoi_fractal_edge_1d"] = voronoi_variant(1, "DISTANCE_TO_EDGE", normalize=True, **_FRACTAL)
 VARIANTS["voronoi_fractal_f1_4d"] = voronoi_variant(4, normalize=True, **{**_FRACTAL, "Detail": 1.3})
 VARIANTS["voronoi_fractal_f1_1d_lacunarity"] = voronoi_variant(1, **{**_FRACTAL, "Lacunarity": 2.7})
+# edge cases: Cycles' special paths (zero roughness = one octave, smoothness 0 = F1, detail at its clamp)
+VARIANTS["voronoi_fractal_f1_3d_lacunarity_color"] = voronoi_variant(3, output="Color", Detail=3.7, Roughness=0.7,
+                                                                     Lacunarity=2.7, normalize=True)
+VARIANTS["voronoi_fractal_roughness0"] = voronoi_variant(2, Detail=3.0, Roughness=0.0)
+VARIANTS["voronoi_smooth_f1_smoothness0"] = voronoi_variant(3, "SMOOTH_F1", output="Color", Smoothness=0.0)
+VARIANTS["voronoi_randomness0_edge"] = voronoi_variant(2, "DISTANCE_TO_EDGE", Randomness=0.0)
+VARIANTS["noise_fbm_3d_detail15"] = noise_variant(3, "FBM", Detail=15.0, Roughness=0.6)
+VARIANTS["noise_ridged_3d_roughness0"] = noise_variant(3, "RIDGED_MULTIFRACTAL", Roughness=0.0, Detail=4.0)
 
 
 def tex(node, output, props=None, **inputs):
@@ -170,6 +179,7 @@ VARIANTS["wave_rings_distorted"] = tex("ShaderNodeTexWave", "Factor", {
 for _depth in (0, 1, 2, 4, 7, 10):
     VARIANTS[f"magic_depth{_depth}"] = tex("ShaderNodeTexMagic", "Color", {"turbulence_depth": _depth},
                                            Scale=1.7, Distortion=1.4)
+VARIANTS["magic_undistorted"] = tex("ShaderNodeTexMagic", "Color", {"turbulence_depth": 4}, Scale=1.7, Distortion=0.0)
 VARIANTS["magic_fac"] = tex("ShaderNodeTexMagic", "Factor", {"turbulence_depth": 3}, Scale=2.5, Distortion=0.6)
 for _g in patterns.GRADIENT_TYPES:
     VARIANTS[f"gradient_{_g.lower()}"] = tex("ShaderNodeTexGradient", "Factor", {"gradient_type": _g})
@@ -181,6 +191,8 @@ VARIANTS["brick_offset_squash"] = tex("ShaderNodeTexBrick", "Color", {
     **_BRICK, **{"Mortar Size": 0.05, "Mortar Smooth": 0.7, "Brick Width": 0.7, "Row Height": 0.3})
 VARIANTS["brick_sharp_mortar"] = tex("ShaderNodeTexBrick", "Color", None, Scale=1.5, Bias=-0.4,
                                      **_BRICK, **{"Mortar Size": 0.06, "Mortar Smooth": 0.0})
+VARIANTS["brick_every_row"] = tex("ShaderNodeTexBrick", "Color", {"offset_frequency": 1, "squash_frequency": 3,
+                                                                  "squash": 0.5}, Scale=2.5, **_BRICK)
 VARIANTS["checker"] = tex("ShaderNodeTexChecker", "Color", None, Scale=3.0, Color1=(0.9, 0.2, 0.1, 1.0),
                           Color2=(0.1, 0.3, 0.7, 1.0))
 VARIANTS["checker_fac"] = tex("ShaderNodeTexChecker", "Factor", None, Scale=5.5)
@@ -200,6 +212,9 @@ VARIANTS["mix_linear_light_clamped"] = graph("mix", blend="LINEAR_LIGHT", fac=0.
                                              clamp_result=True)
 VARIANTS["mix_add_factor_unclamped"] = graph("mix", blend="ADD", fac=1.6, clamp_factor=False, clamp_result=False)
 VARIANTS["mix_burn_constant"] = graph("mix", blend="BURN", fac=0.9, clamp_factor=True, clamp_result=False)
+VARIANTS["mix_float"] = graph("mix_float", clamp_factor=True)
+VARIANTS["mix_vector"] = graph("mix_vector", non_uniform=False, clamp_factor=True)
+VARIANTS["mix_vector_non_uniform"] = graph("mix_vector", non_uniform=True, clamp_factor=False)
 VARIANTS["hue_saturation_value"] = graph("hsv", hue=0.3, saturation=1.5, value=0.8, fac=0.9, hue_linked=False)
 VARIANTS["hue_saturation_value_linked"] = graph("hsv", hue=0.0, saturation=0.6, value=1.3, fac=1.0, hue_linked=True)
 for _mode in ("HSV", "HSL"):
@@ -249,6 +264,12 @@ def ours_graph(spec, vec, w):
         fac = _noise_fac(vec) if p["fac"] is None else p["fac"]
         return color.mix_color_array(p["blend"], fac, _magic(vec), _noise_color(vec), p["clamp_factor"],
                                      p["clamp_result"])
+    if kind == "mix_float":
+        return _grey(color.mix_float_array(_noise_fac(vec) * f(3.0) + f(-1.0), _noise_fac(vec), vec[..., 0],
+                                           p["clamp_factor"]))
+    if kind == "mix_vector":
+        fac = (_noise_color(vec) * f(3.0) + f(-1.0)) if p["non_uniform"] else _noise_fac(vec)
+        return color.mix_vector_array(fac, vec, _magic(vec), p["clamp_factor"])
     if kind == "hsv":
         hue = _noise_fac(vec) if p["hue_linked"] else p["hue"]
         return color.hue_saturation_value_array(_magic(vec), hue, p["saturation"], p["value"], p["fac"])
@@ -419,6 +440,31 @@ def build_graph(nt, spec, vec, w):
         nt.links.new(a, ins["A_Color"])
         nt.links.new(b, ins["B_Color"])
         return next(o for o in n.outputs if o.identifier == "Result_Color")
+    if kind in ("mix_float", "mix_vector"):
+        n = nt.nodes.new("ShaderNodeMix")
+        n.data_type = "FLOAT" if kind == "mix_float" else "VECTOR"
+        n.clamp_factor = p["clamp_factor"]
+        ins = {i.identifier: i for i in n.inputs}
+        if kind == "mix_float":
+            sep = nt.nodes.new("ShaderNodeSeparateXYZ")
+            nt.links.new(vec, sep.inputs[0])
+            nt.links.new(_math(nt, "ADD", _math(nt, "MULTIPLY", fac, 3.0), -1.0), ins["Factor_Float"])
+            nt.links.new(fac, ins["A_Float"])
+            nt.links.new(sep.outputs["X"], ins["B_Float"])
+            return next(o for o in n.outputs if o.identifier == "Result_Float")
+        if p["non_uniform"]:
+            n.factor_mode = "NON_UNIFORM"
+            vm = nt.nodes.new("ShaderNodeVectorMath")
+            vm.operation = "MULTIPLY_ADD"
+            nt.links.new(b, vm.inputs[0])
+            vm.inputs[1].default_value = (3.0, 3.0, 3.0)
+            vm.inputs[2].default_value = (-1.0, -1.0, -1.0)
+            nt.links.new(vm.outputs[0], ins["Factor_Vector"])
+        else:
+            nt.links.new(fac, ins["Factor_Float"])
+        nt.links.new(vec, ins["A_Vector"])
+        nt.links.new(a, ins["B_Vector"])
+        return next(o for o in n.outputs if o.identifier == "Result_Vector")
     if kind == "hsv":
         n = nt.nodes.new("ShaderNodeHueSaturation")
         n.inputs["Hue"].default_value = p["hue"]
@@ -509,7 +555,8 @@ def build_scene(variants: dict):
     scene = bs.reset(size=(COLS * TILE, rows * TILE))
     for i, (name, spec) in enumerate(variants.items()):
         mat = bpy.data.materials.new(name)
-        mat.use_nodes = True
+        if mat.node_tree is None:  # (Blender 5 gives new materials a node tree; use_nodes is deprecated)
+            mat.use_nodes = True
         nt = mat.node_tree
         nt.nodes.clear()
         vec, w = coordinate_sockets(nt)
@@ -539,15 +586,8 @@ def cycles_grid(variants: dict) -> dict:
     scene_code = [inspect.getsource(f) for f in (build_scene, coordinate_sockets, _math, add_texture, build_graph,
                                                  _sources, _texture, setup_curves)]
     key = H.content_hash("procedural", scene_code, TILE, COLS, RAMP_STOPS, _spec_key(variants))
-    path = os.path.join(H.CACHE_DIR, f"procedural-{key}.exr")
-    if not os.path.exists(path):
-        os.makedirs(H.CACHE_DIR, exist_ok=True)
-        scene = build_scene(variants)
-        tmp = path + f".{os.getpid()}.tmp.exr"
-        t0 = time.perf_counter()
-        bs.render_exr(scene, tmp)
-        H.CYCLES_LOG.append(("procedural", "grid", time.perf_counter() - t0, False))
-        os.replace(tmp, path)
+    path, _, _ = H.cached_exr(f"procedural-{key}", lambda tmp: bs.render_exr(build_scene(variants), tmp),
+                              ("procedural", "grid"))
     rgb = bs.read_exr(path)["rgba"][..., :3]
     tiles = {}
     for i, name in enumerate(variants):

@@ -367,6 +367,22 @@ def mix_color(blend, fac, a, b, clamp_factor, clamp_result):
     return c
 
 
+@kernel
+def mix_float(fac, a, b, clamp_factor):
+    """The Mix node in Float mode (svm_node_mix_float): a·(1 − t) + b·t, t clamped to [0, 1] if asked."""
+    t = min(max(fac, 0.0), 1.0) if clamp_factor else fac
+    return a * (1.0 - t) + b * t
+
+
+@kernel
+def mix_vector(fac, a, b, clamp_factor):
+    """The Mix node in Vector mode; ``fac`` a 3-tuple (Non-Uniform factor; pass (t, t, t) for Uniform)."""
+    t0, t1, t2 = fac
+    if clamp_factor:
+        t0, t1, t2 = min(max(t0, 0.0), 1.0), min(max(t1, 0.0), 1.0), min(max(t2, 0.0), 1.0)
+    return (a[0] * (1.0 - t0) + b[0] * t0, a[1] * (1.0 - t1) + b[1] * t1, a[2] * (1.0 - t2) + b[2] * t2)
+
+
 # ---------------------------------------------------------------------------------------------- Color Ramp
 CONSTANT, LINEAR_I, EASE, CARDINAL, B_SPLINE = 0, 1, 2, 3, 4
 RAMP_INTERPOLATIONS = {"CONSTANT": CONSTANT, "LINEAR": LINEAR_I, "EASE": EASE, "CARDINAL": CARDINAL,
@@ -681,6 +697,34 @@ def mix_color_array(blend_type, fac, a, b, clamp_factor=True, clamp_result=False
     out = np.empty_like(aa)
     _mix_rows(BLEND_TYPES[blend_type], ff, aa, bb, bool(clamp_factor), bool(clamp_result), out)
     return out.reshape(shape + (3,)).astype(np.float32)
+
+
+@kernel
+def _mix_vector_rows(fac, a, b, clamp_factor, out):
+    for i in range(a.shape[0]):
+        out[i, 0], out[i, 1], out[i, 2] = mix_vector((fac[i, 0], fac[i, 1], fac[i, 2]), (a[i, 0], a[i, 1], a[i, 2]),
+                                                     (b[i, 0], b[i, 1], b[i, 2]), clamp_factor)
+
+
+def mix_vector_array(fac, a, b, clamp_factor=True):
+    """The Mix node (Vector) over arrays: fac (...) uniform or (..., 3) non-uniform; a, b (..., 3)."""
+    fac = np.asarray(fac, np.float64)
+    if fac.ndim < np.ndim(a):
+        fac = fac[..., None]
+    shape = np.broadcast_shapes(np.shape(a)[:-1], np.shape(b)[:-1], fac.shape[:-1])
+    ff, aa, bb = (np.ascontiguousarray(np.broadcast_to(np.asarray(x, np.float64)[..., :3] if x is not fac else
+                                                       np.broadcast_to(fac, fac.shape[:-1] + (3,)), shape + (3,))
+                                       .reshape(-1, 3)) for x in (fac, a, b))
+    out = np.empty_like(aa)
+    _mix_vector_rows(ff, aa, bb, bool(clamp_factor), out)
+    return out.reshape(shape + (3,)).astype(np.float32)
+
+
+def mix_float_array(fac, a, b, clamp_factor=True):
+    """The Mix node (Float) over arrays (numpy; the formula is :func:`mix_float`'s)."""
+    t = np.asarray(fac, np.float64)
+    t = np.clip(t, 0.0, 1.0) if clamp_factor else t
+    return (np.asarray(a, np.float64) * (1.0 - t) + np.asarray(b, np.float64) * t).astype(np.float32)
 
 
 @kernel

@@ -12,9 +12,9 @@ Noise Texture page.
 - Fractals take ``detail`` octaves (``int(detail)`` whole ones plus a fraction), ``roughness`` the amplitude ratio,
   ``lacunarity`` the frequency ratio; fBM optionally normalised to [0, 1].
 
-The VM calls the scalar functions (dimension fixed at compile time): :func:`noise_texture_1d` ... ``_4d`` return
-``(value, (r, g, b))``; :func:`snoise1` ... :func:`snoise4` and :func:`fractal1` ... :func:`fractal4` are the
-building blocks. :func:`noise_texture` is the numpy form over arrays of coordinates.
+The VM calls :func:`noise_texture` (returns ``(value, (r, g, b))``) or :func:`noise_value` (the value alone, a
+third of the work) with the dimension and type as arguments; :func:`snoise1` ... :func:`snoise4` and
+:func:`fractal` are the building blocks. :func:`noise_texture_array` is the numpy form over arrays of coordinates.
 """
 
 from __future__ import annotations
@@ -315,29 +315,48 @@ def _offset_point(p, dim, seed):
 
 
 @kernel
+def _distorted_point(p, dim, scale, distortion):
+    """p scaled, then displaced by ``distortion`` · snoise at the seed offsets 0..dim−1 (Cycles' distortion).
+    (float64 from here on, whatever the caller's register type: the fractal loops reassign the point.)"""
+    p = (float(p[0]) * float(scale), float(p[1]) * float(scale), float(p[2]) * float(scale),
+         float(p[3]) * float(scale))
+    if distortion == 0.0:
+        return p
+    if dim == 1:
+        return (p[0] + snoise(_offset_point(p, 1, 0.0), 1) * distortion, p[1], p[2], p[3])
+    d0 = snoise(_offset_point(p, dim, 0.0), dim) * distortion
+    d1 = snoise(_offset_point(p, dim, 1.0), dim) * distortion
+    d2 = snoise(_offset_point(p, dim, 2.0), dim) * distortion if dim >= 3 else 0.0
+    d3 = snoise(_offset_point(p, dim, 3.0), dim) * distortion if dim >= 4 else 0.0
+    return (p[0] + d0, p[1] + d1, p[2] + d2, p[3] + d3)
+
+
+@kernel
+def noise_value(p, dim, kind, scale, detail, roughness, lacunarity, offset, gain, distortion, normalize):
+    """The Noise Texture's Fac alone (what Cycles computes when the Color output is not linked: a third of the
+    work of :func:`noise_texture`)."""
+    detail = min(max(detail, 0.0), 15.0)
+    roughness = max(roughness, 0.0)
+    q = _distorted_point(p, dim, scale, distortion)
+    return fractal(q, dim, kind, detail, roughness, lacunarity, offset, gain, normalize)
+
+
+@kernel
 def noise_texture(p, dim, kind, scale, detail, roughness, lacunarity, offset, gain, distortion, normalize):
     """Cycles' Noise Texture node on p = (x, y, z, w) (the 1D texture reads p[0] = W; 2D x, y; 3D x, y, z; 4D all),
-    ``dim`` 1-4, ``kind`` one of FBM ... HETERO_TERRAIN. Returns (Fac, (r, g, b)).
+    ``dim`` 1-4, ``kind`` one of FBM ... HETERO_TERRAIN. Returns (Fac, (r, g, b)); use :func:`noise_value` when only
+    Fac is needed.
 
     As ``svm_node_tex_noise``: p is scaled by ``scale``, detail clamped to [0, 15], roughness to ≥ 0; distortion
     displaces p by ``distortion`` · snoise at seed offsets 0..dim−1; the colour's green and blue are the same fractal
     at the offsets of the next two seeds (dim and dim + 1; for 1D, seeds 1 and 2)."""
     detail = min(max(detail, 0.0), 15.0)
     roughness = max(roughness, 0.0)
-    p = _scale4(p, scale)
-    if distortion != 0.0:
-        if dim == 1:
-            p = (p[0] + snoise(_offset_point(p, 1, 0.0), 1) * distortion, p[1], p[2], p[3])
-        else:
-            d0 = snoise(_offset_point(p, dim, 0.0), dim) * distortion
-            d1 = snoise(_offset_point(p, dim, 1.0), dim) * distortion
-            d2 = snoise(_offset_point(p, dim, 2.0), dim) * distortion if dim >= 3 else 0.0
-            d3 = snoise(_offset_point(p, dim, 3.0), dim) * distortion if dim >= 4 else 0.0
-            p = (p[0] + d0, p[1] + d1, p[2] + d2, p[3] + d3)
-    value = fractal(p, dim, kind, detail, roughness, lacunarity, offset, gain, normalize)
+    q = _distorted_point(p, dim, scale, distortion)
+    value = fractal(q, dim, kind, detail, roughness, lacunarity, offset, gain, normalize)
     s1 = 1.0 if dim == 1 else float(dim)
-    g = fractal(_offset_point(p, dim, s1), dim, kind, detail, roughness, lacunarity, offset, gain, normalize)
-    b = fractal(_offset_point(p, dim, s1 + 1.0), dim, kind, detail, roughness, lacunarity, offset, gain, normalize)
+    g = fractal(_offset_point(q, dim, s1), dim, kind, detail, roughness, lacunarity, offset, gain, normalize)
+    b = fractal(_offset_point(q, dim, s1 + 1.0), dim, kind, detail, roughness, lacunarity, offset, gain, normalize)
     return value, (value, g, b)
 
 

@@ -1,9 +1,9 @@
 """Cycles' Voronoi Texture (Worley noise): every feature, metric and dimension, with Blender 4's fractal octaves.
 
 Followed: ``intern/cycles/kernel/svm/voronoi.h`` (Blender 5.0) and the manual's Voronoi Texture page. The space is
-cut into unit cells; each cell holds one point at cell + randomness · hash(cell) (the ``hash_float{n}_to_float{n}``
-of a 1D cell, the PCG hash ``hash_int{n}_to_float{n}`` of an n-D cell's integer coordinates since Blender 4.2,
-:mod:`.hash`), its colour another hash of the cell. Features:
+cut into unit cells; each cell holds one point at cell + randomness · hash(cell): ``hash_float_to_float`` of a 1D
+cell, the PCG hash ``hash_int{n}_to_float{n}`` of an n-D cell's integer coordinates (Blender 5.0; older Cycles hashed
+float cells), see :mod:`.hash`; its colour is another hash of the cell. Features:
 
 - F1 / F2: the distance to the nearest / second-nearest point, that point's cell colour and position (3×3×… cells);
 - Smooth F1: Inigo Quilez' smooth minimum over the 5×5×… cells, smoothness/2 as its width;
@@ -88,7 +88,7 @@ def distance(a, b, dim, metric, exponent):
 @kernel
 def cell_point(cell, dim):
     """The cell's random point offset in [0, 1]^dim: 1D hash_float_to_float of the cell, n-D the PCG hash
-    hash_int{n}_to_float{n} of its integer coordinates (Blender ≥ 4.2)."""
+    hash_int{n}_to_float{n} of its integer coordinates (Blender 5.0)."""
     if dim == 1:
         return (hash_float_to_float(cell[0]), 0.0, 0.0, 0.0)
     if dim == 2:
@@ -370,7 +370,8 @@ def voronoi_texture(p, dim, feature, metric, scale, detail, roughness, lacunarit
     roughness = min(max(roughness, 0.0), 1.0)
     randomness = min(max(randomness, 0.0), 1.0)
     smoothness = min(max(smoothness / 2.0, 0.0), 0.5)
-    coord = _scale(p, scale)
+    scale = float(scale)
+    coord = (float(p[0]) * scale, float(p[1]) * scale, float(p[2]) * scale, float(p[3]) * scale)
     if dim < 4:  # the components a dimension does not read are exactly zero
         coord = (coord[0], coord[1] if dim >= 2 else 0.0, coord[2] if dim >= 3 else 0.0, 0.0)
     zero3 = (0.0, 0.0, 0.0)

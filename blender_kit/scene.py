@@ -5,7 +5,7 @@ bpy is imported lazily inside each function, so importing this module never need
 Blender's world (Z up, metres); colours are scene-linear RGB triples; angles in radians; every ``add_*`` returns
 the new object and links it into the active scene.
 
-    from tests import blender_support as bs
+    from blender_kit import scene as bs
     scene = bs.reset()
     bs.add_camera((0, -6, 2), target=(0, 0, 0.5), lens=50)
     bs.add_point_light((3, -3, 5), power=1000)
@@ -239,11 +239,11 @@ def set_world(color=(0.05, 0.05, 0.05), strength: float = 1.0):
 
 # ---------------------------------------------------------------------------------------------------- Cycles
 def set_cycles_whitted(scene=None, samples: int = 64, max_depth: int = 8, *, seed: int = 0):
-    """Tell Cycles to render what a Whitted tracer renders: :func:`bench.cycles.whitted_cycles_settings` (every
+    """Tell Cycles to render what a Whitted tracer renders: :func:`blender_kit.cycles.whitted_cycles_settings` (every
     setting explained there), plus point-light radius 0 and sun angle 0 on the lights now in the scene."""
     import bpy
 
-    from bench.cycles import whitted_cycles_settings
+    from blender_kit.cycles import whitted_cycles_settings
 
     scene = scene or bpy.context.scene
     whitted_cycles_settings(scene, depth=max_depth, samples=samples, seed=seed)

@@ -1,0 +1,277 @@
+"""Survey: read and render every USD stage under some directories, in-process, and count what goes wrong.
+
+    python tools/usd_survey.py DIR [DIR ...] [--out /tmp/usd_survey] [--per-dir 4] [--width 64]
+                               [--sheet sheet.png] [--compare OTHER/results.json] [--timeout 600]
+
+Nothing is downloaded: DIRs are checkouts the user made (e.g. OpenUSD's testenv stages, arnold-usd's testsuite,
+tinyusdz's tests, usd-wg/assets). Every ``.usd/.usda/.usdc/.usdz`` file is a candidate; at most ``--per-dir`` per
+directory (sorted; layers referenced by a test's stage sit beside it). A worker process runs
+``usd_io.load_stage`` and ``tracer.render`` on each file and records, per file (``OUT/results.jsonl``):
+
+    unreadable  pxr itself cannot open the file (not counted against us)
+    traceback   any exception other than UsdInputError (a crash)
+    refusal     UsdInputError on a file pxr opens
+    blank       every pixel the same colour although the stage has visible gprims with points or a size
+    empty       0 triangles although it has such gprims
+    grey        a material no reader understood, drawn in a fallback grey (18 % or 50 %) with no warning naming it
+
+Workers are restarted (and the file counted as ``hang``) when one file takes longer than ``--timeout`` seconds in
+total for the chunk. The summary prints the counts; ``--compare`` prints them beside another run's. The contact
+sheet (``--sheet``, a PNG) shows the renders of flagged files first, labelled, for a person to look at.
+
+The same tool, pointed at main's checkout on PYTHONPATH, gives the "before" numbers.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+USD_EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
+FLAGS = ("traceback", "refusal", "blank", "empty", "grey", "hang")
+
+
+def stage_files(dirs, per_dir: int) -> list[str]:
+    out = []
+    for d in dirs:
+        for dirpath, dirnames, names in os.walk(d):
+            dirnames.sort()
+            picked = sorted(n for n in names if n.lower().endswith(USD_EXTENSIONS))[:per_dir]
+            out += [os.path.join(dirpath, n) for n in picked]
+    return out
+
+
+# ---------------------------------------------------------------------------------------------------- worker
+def has_gprims(stage) -> bool:
+    """Whether the stage has a gprim a renderer should draw: active, defined, visible at the earliest time, of
+    purpose default or render, with points (point-based gprims) or a size (implicit ones)."""
+    from pxr import Usd, UsdGeom
+
+    t = Usd.TimeCode.EarliestTime()
+    for prim in stage.Traverse(Usd.TraverseInstanceProxies()):
+        if not prim.IsA(UsdGeom.Gprim):
+            continue
+        img = UsdGeom.Imageable(prim)
+        if img.ComputeVisibility(t) == UsdGeom.Tokens.invisible or img.ComputePurpose() not in ("default", "render"):
+            continue
+        if prim.IsA(UsdGeom.PointBased):
+            pts = UsdGeom.PointBased(prim).GetPointsAttr().Get(t)
+            if pts is None or len(pts) == 0:
+                continue
+        return True
+    return False
+
+
+def silently_grey(info, stage) -> list[str]:
+    """Materials no reader understood and no warning names, drawn in a fallback grey: their fields are only a grey
+    ``base_color`` (what the reader wrote for a surface it could not read; a UsdPreviewSurface left at its 0.18
+    fallback has roughness, ior, … as well, and is the spec's grey, not a silent one)."""
+    greys = []
+    for name, fields in info.materials.items():
+        bc = fields.get("base_color")
+        if set(fields) != {"base_color"} or not (isinstance(bc, tuple) and len(bc) == 3):
+            continue
+        if not (np.allclose(bc, 0.18, atol=1e-4) or np.allclose(bc, 0.5)) or name.startswith("displayColor"):
+            continue
+        if not any(name in w for w in info.warnings):
+            greys.append(name)
+    return greys
+
+
+def examine(path: str, width: int, png: str | None) -> dict:
+    from pxr import Usd
+
+    from tracer import RenderSettings, render
+    from usd_io import UsdInputError, load_stage
+
+    rec = dict(file=path, flags=[], warnings=0)
+    try:
+        with open(os.devnull, "w") as devnull:  # pxr's own diagnostics on fd 2 are not ours
+            saved = os.dup(2)
+            os.dup2(devnull.fileno(), 2)
+            try:
+                stage = Usd.Stage.Open(path)
+            finally:
+                os.dup2(saved, 2)
+                os.close(saved)
+    except Exception:
+        stage = None
+    if stage is None:
+        rec["flags"].append("unreadable")
+        return rec
+    gprims = has_gprims(stage)  # visible gprims with geometry: only then is a blank frame or 0 triangles wrong
+    rec["gprims"] = gprims
+    try:
+        scene, info = load_stage(path, width=width)
+        image = render(scene, RenderSettings(width=info.width, height=info.height, samples=1, threads=1)).rgb
+    except UsdInputError as exc:
+        rec["flags"].append("refusal")
+        rec["error"] = str(exc)[:300]
+        return rec
+    except Exception as exc:  # noqa: BLE001  (the survey counts crashes)
+        import traceback
+
+        rec["flags"].append("traceback")
+        rec["error"] = "".join(traceback.format_exception_only(type(exc), exc)).strip()[:300]
+        return rec
+    rec["warnings"] = len(info.warnings)
+    rec["notes"] = [n for n in info.notes][:3]
+    rec["triangles"] = int(sum(n for _p, n in info.meshes))
+    if gprims and rec["triangles"] == 0:
+        rec["flags"].append("empty")
+    if gprims and float(np.ptp(image.reshape(-1, 3), axis=0).max()) < 1 / 255:
+        rec["flags"].append("blank")
+    grey = silently_grey(info, stage)
+    if grey:
+        rec["flags"].append("grey")
+        rec["grey"] = grey[:5]
+    if png:
+        from tracer import Image
+
+        Image(np.concatenate([image, np.ones(image.shape[:2] + (1,), np.float32)], axis=2)).save(png)
+        rec["png"] = png
+    return rec
+
+
+def worker(list_file: str, out_jsonl: str, width: int, png_dir: str) -> None:
+    files = [ln.rstrip("\n") for ln in open(list_file) if ln.strip()]
+    for i, path in enumerate(files):
+        png = os.path.join(png_dir, f"{abs(hash(path)) % 10**10:010d}.png") if png_dir else None
+        t0 = time.monotonic()
+        rec = examine(path, width, png)
+        rec["seconds"] = round(time.monotonic() - t0, 2)
+        with open(out_jsonl, "a") as f:
+            f.write(json.dumps(rec) + "\n")
+
+
+# ---------------------------------------------------------------------------------------------------- driver
+def run(files: list[str], out: str, width: int, timeout: float) -> list[dict]:
+    os.makedirs(os.path.join(out, "renders"), exist_ok=True)
+    jsonl = os.path.join(out, "results.jsonl")
+    done = {}
+    if os.path.exists(jsonl):
+        for ln in open(jsonl):
+            r = json.loads(ln)
+            done[r["file"]] = r
+    todo = [f for f in files if f not in done]
+    while todo:
+        lst = os.path.join(out, "todo.txt")
+        open(lst, "w").write("\n".join(todo) + "\n")
+        cmd = [sys.executable, os.path.abspath(__file__), "--worker", lst, jsonl, str(width),
+               os.path.join(out, "renders")]
+        last = len(done)
+        p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        t_last = time.monotonic()
+        while p.poll() is None:
+            time.sleep(0.5)
+            n = sum(1 for _ in open(jsonl)) if os.path.exists(jsonl) else 0
+            if n != last:
+                last, t_last = n, time.monotonic()
+                print(f"\r{n}/{len(files)}", end="", file=sys.stderr, flush=True)
+            elif time.monotonic() - t_last > timeout:
+                p.kill()
+                p.wait()
+                break
+        done = {}
+        for ln in open(jsonl) if os.path.exists(jsonl) else ():
+            r = json.loads(ln)
+            done[r["file"]] = r
+        todo = [f for f in files if f not in done]
+        if todo and p.returncode not in (0, None):  # the worker died or hung on todo[0]
+            with open(jsonl, "a") as f:
+                f.write(json.dumps(dict(file=todo[0], flags=["hang" if p.returncode < 0 else "traceback"],
+                                        error=f"worker exit {p.returncode}")) + "\n")
+            done[todo[0]] = True
+            todo = todo[1:]
+    print(file=sys.stderr)
+    return [json.loads(ln) for ln in open(jsonl) if json.loads(ln)["file"] in set(files)]
+
+
+def counts(results: list[dict]) -> dict:
+    c = {k: 0 for k in ("files", "unreadable") + FLAGS}
+    c["files"] = len(results)
+    for r in results:
+        for f in r["flags"]:
+            c[f] = c.get(f, 0) + 1
+    return c
+
+
+def summary(results: list[dict], root: str, compare: list[dict] | None = None) -> str:
+    rows = []
+    for r in results:
+        bad = [f for f in r["flags"] if f != "unreadable"]
+        if bad:
+            rows.append(f"{','.join(bad):<18} {os.path.relpath(r['file'], root)}  {r.get('error', '')[:120]}"
+                        f"{' grey: ' + ', '.join(r['grey']) if r.get('grey') else ''}")
+    c = counts(results)
+    rows.append("")
+    if compare is not None:
+        b = counts(compare)
+        rows.append(f"{'':<12} {'before':>7} {'after':>7}")
+        rows += [f"{k:<12} {b.get(k, 0):>7} {c.get(k, 0):>7}" for k in c]
+    else:
+        rows.append(", ".join(f"{k} {v}" for k, v in c.items()))
+    return "\n".join(rows)
+
+
+def contact_sheet(results: list[dict], root: str, path: str, tile: int = 64, columns: int = 12) -> None:
+    """Flagged renders first, then the rest, each labelled; as a PNG."""
+    import OpenImageIO as oiio
+
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    from usdwg_survey import fit_tile, label_strip, read_rgb
+
+    ordered = sorted((r for r in results if r.get("png") and os.path.exists(r["png"])),
+                     key=lambda r: (not [f for f in r["flags"] if f != "unreadable"], r["file"]))
+    cells = []
+    for r in ordered[: columns * 16]:
+        rgb = read_rgb(r["png"])
+        t = fit_tile(rgb, tile) if rgb is not None else np.zeros((tile, tile, 3), np.float32)
+        label = ("!" if [f for f in r["flags"] if f != "unreadable"] else "") + os.path.basename(r["file"])[:18]
+        cells.append(np.concatenate([t, label_strip(label, tile, 11)], axis=0))
+    if not cells:
+        return
+    rows = -(-len(cells) // columns)
+    h, w = cells[0].shape[:2]
+    sheet = np.zeros((rows * (h + 2), columns * (w + 2), 3), np.float32)
+    for i, cell in enumerate(cells):
+        y, x = (i // columns) * (h + 2), (i % columns) * (w + 2)
+        sheet[y:y + h, x:x + w] = cell
+    oiio.ImageBuf(np.ascontiguousarray(sheet, np.float32)).write(path, oiio.UINT8)  # PNG display values already
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["--worker"]:
+        worker(argv[1], argv[2], int(argv[3]), argv[4])
+        return 0
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("dirs", nargs="+")
+    ap.add_argument("--out", default="/tmp/usd_survey")
+    ap.add_argument("--per-dir", type=int, default=4)
+    ap.add_argument("--width", type=int, default=64)
+    ap.add_argument("--timeout", type=float, default=300.0)
+    ap.add_argument("--sheet", help="contact sheet PNG")
+    ap.add_argument("--compare", help="another run's results.jsonl: counts side by side")
+    args = ap.parse_args(argv)
+    files = stage_files(args.dirs, args.per_dir)
+    results = run(files, args.out, args.width, args.timeout)
+    compare = None
+    if args.compare:
+        compare = [json.loads(ln) for ln in open(args.compare)]
+    root = os.path.commonpath([os.path.abspath(d) for d in args.dirs])
+    print(summary(results, root, compare))
+    if args.sheet:
+        contact_sheet(results, root, args.sheet)
+        print(f"contact sheet -> {args.sheet}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
