@@ -141,8 +141,8 @@ def depth_of_field(cam, m: np.ndarray) -> dict:
     reads it: radius from the f-stop and the lens in metres (scene units of 1 m; orthographic: focal length 1),
     focus distance along the view axis to the focus object's origin, else the Focus Distance; blades, rotation
     and ratio as they are."""
-    dof = cam.dof
-    if not dof.use_dof:
+    dof = getattr(cam, "dof", None)  # (camera-shaped stand-ins without one: no depth of field)
+    if dof is None or not dof.use_dof:
         return {}
     f = 1.0 if cam.type == "ORTHO" else cam.lens * 1e-3
     focus = float(dof.focus_distance)
