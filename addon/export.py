@@ -141,8 +141,8 @@ def depth_of_field(cam, m: np.ndarray) -> dict:
     reads it: radius from the f-stop and the lens in metres (scene units of 1 m; orthographic: focal length 1),
     focus distance along the view axis to the focus object's origin, else the Focus Distance; blades, rotation
     and ratio as they are."""
-    dof = cam.dof
-    if not dof.use_dof:
+    dof = getattr(cam, "dof", None)  # (camera-shaped stand-ins without one: no depth of field)
+    if dof is None or not dof.use_dof:
         return {}
     f = 1.0 if cam.type == "ORTHO" else cam.lens * 1e-3
     focus = float(dof.focus_distance)
@@ -397,8 +397,8 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     ``cancelled()`` (e.g. the render engine's ``test_break``) is polled during the export: True raises
     :class:`ExportCancelled`. ``objects``, a list, receives the :class:`ExportedObject` of each tracer object id
     in order (addon/sync.py keeps them); ``materials``, a dict, receives each Blender material's Principled fields
-    by name (addon/sync.py re-reads only the materials an update names). The returned scene carries ``scene.object_pass_indices`` (int32 per
-    tracer object id: Blender's ``Object.pass_index``).
+    by name (addon/sync.py re-reads only the materials an update names). The returned scene carries
+    ``scene.object_pass_indices`` (int32 per tracer object id: Blender's ``Object.pass_index``).
     """
     bpy_scene = depsgraph.scene_eval if hasattr(depsgraph, "scene_eval") else depsgraph.scene
     warnings: list[str] = []

@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import bpy
 
+from .bundled import tracer
+
 ENGINE = "WHITTED"
+SETTINGS = tracer.settings.SETTINGS
 
 #: Standard panels that make sense for a Whitted render: output and format, colour management, camera, light,
 #: material and world surfaces (the EEVEE ones draw the node inputs, so users edit the Principled BSDF as usual).
@@ -35,8 +38,17 @@ def compat_panels():
     return out
 
 
-class WHITTED_PT_render(bpy.types.Panel):
-    bl_label = "Whitted"
+def draw_settings(layout, props, panel: str) -> None:
+    """Every ``scene.whitted`` property whose setting is drawn under ``panel`` (``Setting.panel``,
+    tracer/settings.py), in field order: a new setting shows up by itself."""
+    for name, s in SETTINGS.items():
+        if s.blender is not None and s.panel == panel:
+            layout.prop(props, name)
+
+
+class _Panel:
+    """What every Whitted panel shares: Render Properties, shown for the Whitted engine, property split."""
+
     bl_space_type = "PROPERTIES"
     bl_region_type = "WINDOW"
     bl_context = "render"
@@ -47,22 +59,18 @@ class WHITTED_PT_render(bpy.types.Panel):
         return context.engine in cls.COMPAT_ENGINES
 
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
+        self.layout.use_property_split = True
+        self.layout.use_property_decorate = False
+        self.draw_content(context, self.layout)
+
+
+class WHITTED_PT_render(_Panel, bpy.types.Panel):
+    bl_label = "Whitted"
+
+    def draw_content(self, context, layout):
         props = context.scene.whitted
-        col = layout.column(heading="Sampling")
-        col.prop(props, "samples", text="Samples (N×N)")
-        col.prop(props, "light_samples")
-        col.prop(props, "sky_samples")
-        col.prop(props, "terminal_rays")
-        col = layout.column(heading="Rays")
-        col.prop(props, "max_depth")
-        col.prop(props, "max_transparent")
-        col.prop(props, "shading")
-        col.prop(props, "epsilon")
-        col.prop(props, "fresnel")
-        col.prop(props, "shadows")
+        for heading in ("Sampling", "Rays"):
+            draw_settings(layout.column(heading=heading), props, heading)
         col = layout.column(heading="Film")
         col.prop(context.scene.render, "film_transparent", text="Transparent")
         col = layout.column(heading="Passes")
@@ -73,48 +81,29 @@ class WHITTED_PT_render(bpy.types.Panel):
         col.prop(props, "ray_type_passes")
 
 
-class WHITTED_PT_performance(bpy.types.Panel):
+class WHITTED_PT_performance(_Panel, bpy.types.Panel):
     """Render Properties → Performance, laid out as Cycles' (Threads; Final Render → Persistent Data)."""
 
     bl_label = "Performance"
-    bl_space_type = "PROPERTIES"
-    bl_region_type = "WINDOW"
-    bl_context = "render"
     bl_options = {"DEFAULT_CLOSED"}
-    COMPAT_ENGINES = {ENGINE}
 
-    @classmethod
-    def poll(cls, context):
-        return context.engine in cls.COMPAT_ENGINES
-
-    def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-        layout.prop(context.scene.whitted, "threads")
+    def draw_content(self, context, layout):
+        draw_settings(layout, context.scene.whitted, "Performance")
 
 
-class WHITTED_PT_performance_final_render(bpy.types.Panel):
+class WHITTED_PT_performance_final_render(_Panel, bpy.types.Panel):
     """Persistent Data (``RenderSettings.use_persistent_data``, Blender's own setting, as Cycles shows it): keep
     the prepared scene between F12 renders and sync only what changed (addon/sync.py)."""
 
     bl_label = "Final Render"
-    bl_space_type = "PROPERTIES"
-    bl_region_type = "WINDOW"
-    bl_context = "render"
     bl_parent_id = "WHITTED_PT_performance"
-    COMPAT_ENGINES = {ENGINE}
 
-    @classmethod
-    def poll(cls, context):
-        return context.engine in cls.COMPAT_ENGINES
-
-    def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
+    def draw_content(self, context, layout):
         layout.column().prop(context.scene.render, "use_persistent_data", text="Persistent Data")
 
+
+#: The headings of the panels above, where each Blender setting must be drawn.
+HEADINGS = ("Sampling", "Rays", "Performance")
 
 PANELS = (WHITTED_PT_render, WHITTED_PT_performance, WHITTED_PT_performance_final_render)
 _added: list = []

@@ -101,6 +101,12 @@ def test_fit_apertures(policy, expected):
     assert fit_apertures(36.0, 24.0, 100, 100, policy) == pytest.approx(expected)
 
 
+def test_fit_larger_keeps_the_long_image_side_as_blenders_sensor_fit_auto():
+    """Blender's Auto sensor fit: the sensor width spans the image's longer side (the add-on's cameras use it)."""
+    assert fit_apertures(36.0, 36.0, 200, 100, "larger") == pytest.approx((36.0, 18.0))
+    assert fit_apertures(36.0, 36.0, 100, 200, "larger") == pytest.approx((18.0, 36.0))
+
+
 def test_camera_rejects_bad_values():
     with pytest.raises(ValueError, match="focal_length"):
         Camera(focal_length=0)

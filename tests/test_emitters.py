@@ -32,7 +32,10 @@ def _scene(light="mesh", blocker=False):
                               size=(2 * A_HALF, 2 * A_HALF), radiance=(LE,) * 3))
     if blocker:
         black = b.add_material("black", diffuse=(0, 0, 0))
-        quad(b, (0.6, 0, 0.75), 0.8, black, "blocker")
+        # halfway up, a blocker wider than half the panel (1.4 > 2/2) leaves a true umbra below it (a 0.8 one
+        # left none: every floor point still saw part of the panel; only grazing shadow rays that struck the panel
+        # itself, fixed since, once darkened it below the test's 0.2)
+        quad(b, (0.6, 0, 0.75), 1.4, black, "blocker")
     b.camera = Camera.look_at((4, 0.0, 0.6), (0, 0, 0), up=(0, 0, 1), focal_length=50.0)
     return b.build()
 

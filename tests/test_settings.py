@@ -125,3 +125,14 @@ def test_every_request_field_reaches_load_stage_on_a_worker_too(monkeypatch):
     farm.UsdSource.of(marked, RenderSettings()).at("<time>").read()
     for kw in seen:
         assert kw == {n: f"<{n}>" for n in names}
+
+
+def test_every_blender_setting_is_drawn_in_a_panel():
+    """A setting with a Blender property names the panel heading addon/ui.py draws it under (else it would exist
+    but never show)."""
+    pytest.importorskip("bpy")
+    from addon import ui
+
+    for name, s in SETTINGS.items():
+        if s.blender:
+            assert s.panel in ui.HEADINGS, name

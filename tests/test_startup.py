@@ -56,7 +56,7 @@ def test_run_and_main_give_the_same_image_messages_and_exit_code(ball, tmp_path)
 @pytest.mark.parametrize("args, says", [
     (["render", "{missing}", "-o", "{out}"], "no such file"),
     (["render", "{bad}", "-o", "{out}"], "{bad}"),
-    (["render", "{ball}", "-o", "{out}", "--width", "0"], "width must be positive"),
+    (["render", "{ball}", "-o", "{out}", "--width", "0"], "--width must be an integer >= 1"),
     (["render", "{ball}", "-o", "{tmp}/no/such/dir/x.png"], "does not exist"),
     (["render"], "the following arguments are required"),
 ])

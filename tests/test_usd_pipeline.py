@@ -141,7 +141,7 @@ def _centre_pixel_hits(stage, w=40, h=30):
 
 
 def _looking_at_the_arc(stage):
-    add_camera(stage, eye=(6, 6, 1.5), rotate_z=135.0, rotate_x=90.0)  # looks along (−1, −1, 0) at (√2, √2, 1.5)
+    add_camera(stage, eye=(6, 6, 1.5), rotate_z=135.0, rotate_x=90.0)  # looking along (−1, −1, 0)
     return stage
 
 
@@ -198,7 +198,8 @@ def test_udim_tiles_land_where_their_numbers_say(tmp_path):
                                      "tex/paint.1011.png": (0, 0, 255)})
     img, info = _emission_image(path)
     assert not any("UDIM" in w for w in info.warnings), info.warnings
-    quarters = {"lower left": img[24, 8], "lower right": img[24, 24], "upper left": img[8, 8], "upper right": img[8, 24]}
+    quarters = {"lower left": img[24, 8], "lower right": img[24, 24], "upper left": img[8, 8],
+                "upper right": img[8, 24]}
     np.testing.assert_allclose(quarters["lower left"], (1, 0, 0), atol=1e-3)
     np.testing.assert_allclose(quarters["lower right"], (0, 1, 0), atol=1e-3)
     np.testing.assert_allclose(quarters["upper left"], (0, 0, 1), atol=1e-3)
@@ -346,8 +347,9 @@ def test_omnipbr_diffuse_texture_with_texture_scale(tmp_path):
     s = st.lit_quad_with(None, {"diffuse_texture": (A, Sdf.AssetPath(str(tmp_path / "rg.png"))),
                                 "texture_scale": (F2, Gf.Vec2f(2, 1)), "specular_level": (F, 0.0)},
                          output="mdl:surface", mdl="OmniPBR")
-    UsdGeom.PrimvarsAPI(s.GetPrimAtPath("/Q")).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
-                                                              UsdGeom.Tokens.vertex).Set([(0, 0), (1, 0), (1, 1), (0, 1)])
+    st_pv = UsdGeom.PrimvarsAPI(s.GetPrimAtPath("/Q")).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                                                      UsdGeom.Tokens.vertex)
+    st_pv.Set([(0, 0), (1, 0), (1, 1), (0, 1)])
     s.GetPrimAtPath("/Cam").GetAttribute("horizontalAperture").Set(8.0)  # sees the quad's whole width
     scene, info = load_stage(s, width=64, height=16)
     img = render(scene, RenderSettings(width=64, height=16, samples=1)).rgb
@@ -710,3 +712,56 @@ def test_cli_render_settings_and_light_units_flags(tmp_path):
         assert whitted("render", lpath, "-o", o, "--width", 32, "--light-units", units, "--quiet").returncode == 0
         means.append(float(read_image(str(o))[..., :3].mean()))
     assert means[0] > 50 * means[1], means
+
+
+def test_cli_without_output_writes_the_render_product(tmp_path):
+    """No -o: the picture goes to the RenderProduct's productName (relative to the working directory)."""
+    s = _render_settings_stage(products=("product_beauty.png",))
+    path = str(tmp_path / "p.usda")
+    s.GetRootLayer().Export(path)
+    res = whitted("render", path, "--quiet", cwd=tmp_path)
+    assert res.returncode == 0 and (tmp_path / "product_beauty.png").exists(), res.stderr
+    lone = new_stage()
+    UsdGeom.Sphere.Define(lone, "/Ball")
+    lpath = str(tmp_path / "lone.usda")
+    lone.GetRootLayer().Export(lpath)
+    res = whitted("render", lpath, "--quiet", cwd=tmp_path)
+    assert res.returncode == 2 and "-o OUT is required" in res.stderr
+
+
+@pytest.mark.parametrize("basis", ["bezier", "bspline", "catmullRom"])
+def test_cubic_basis_curves_follow_the_curve_not_the_hull(basis):
+    """One cubic curve with control points (0,0) (1,2) (2,2) (3,0) (and for bspline/catmullRom the same four): its
+    tube's centre line is the basis's curve: the bezier's top is at y = 1.5 (the hull's at 2); bspline's and
+    catmullRom's single segment runs between the points the basis says."""
+    s = new_stage()
+    c = UsdGeom.BasisCurves.Define(s, "/C")
+    c.CreateTypeAttr("cubic")
+    c.CreateBasisAttr(basis)
+    ctrl = np.array([(0, 0, 0), (1, 2, 0), (2, 2, 0), (3, 0, 0)], float)
+    c.CreatePointsAttr([Gf.Vec3f(*q) for q in ctrl])
+    c.CreateCurveVertexCountsAttr([4])
+    c.CreateWidthsAttr([0.02])
+    c.SetWidthsInterpolation("constant")
+    scene, info = load_stage(s, width=16)
+    assert not any("control polygon" in w for w in info.warnings)
+    top = scene.vertices[:, 1].max() - 0.01
+    m = {"bezier": [[-1, 3, -3, 1], [3, -6, 3, 0], [-3, 3, 0, 0], [1, 0, 0, 0]],
+         "bspline": np.array([[-1, 3, -3, 1], [3, -6, 3, 0], [-3, 0, 3, 0], [1, 4, 1, 0]]) / 6,
+         "catmullRom": np.array([[-1, 3, -3, 1], [2, -5, 4, -1], [-1, 0, 1, 0], [0, 2, 0, 0]]) / 2}[basis]
+    want = (np.array([1 / 8, 1 / 4, 1 / 2, 1]) @ np.asarray(m, float) @ ctrl)[1]  # y at t = 1/2 (symmetric top)
+    assert abs(top - want) < 0.01, (basis, top, want)
+
+
+@pytest.mark.parametrize("basis", ["bezier", "bspline", "catmullRom"])
+def test_open_cubic_curves_vectorised_equal_curve_by_curve(basis):
+    """The all-at-once evaluation of open curves (hair) equals the curve-by-curve one, curves of 2 to 9 points."""
+    from usd_io import cubic_curves as cc
+
+    rng = np.random.default_rng(7)
+    counts = rng.integers(2, 10, 300)
+    p, w = rng.random((counts.sum(), 3)), rng.random(counts.sum())
+    a = cc._open_polylines(p, counts, basis, w)
+    b = cc._curve_by_curve(p, counts, basis, "nonperiodic", w)
+    for x, y in zip(a, b):
+        np.testing.assert_allclose(x, y, atol=1e-12)

@@ -56,7 +56,7 @@ def test_compile_kernels_covers_the_kernels_a_render_uses():
     assert r.returncode == 0, r.stderr[-2000:]
     before, after = json.loads(r.stdout.strip().splitlines()[-1])
     for hot in ("integrator._surfaces", "integrator._direct_light", "integrator._spawn_secondary",
-                "integrator._add_unoccluded", "render._tile_eye_rays"):
+                "integrator._add_unoccluded", "tiles._tile_eye_rays"):
         assert before[hot] > 0, f"compile_kernels left {hot} uncompiled: {before}"
     grew = {k: (before[k], n) for k, n in after.items() if n != before.get(k, 0)}
     assert not grew, f"renders after compile_kernels compiled new kernel specialisations: {grew}"
@@ -100,6 +100,6 @@ def test_whitted_warmup_compiles_the_kernels():
     assert r.returncode == 0, r.stderr[-2000:]
     exit_code, signatures = json.loads(r.stdout.strip().splitlines()[-1])
     assert exit_code == 0 and "whitted: kernels" in r.stderr
-    for hot in ("integrator._surfaces", "render._tile_eye_rays", "scene_kernels.non_degenerate_rows",
+    for hot in ("integrator._surfaces", "tiles._tile_eye_rays", "scene_kernels.non_degenerate_rows",
                 "builder._affine_rows"):
         assert signatures[hot] > 0, f"whitted warmup left {hot} unprepared"

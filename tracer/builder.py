@@ -301,10 +301,11 @@ def place_mesh(vertices, triangles, material=0, *, transform=None, normals=None,
         if m.shape != (4, 4) or not np.all(np.isfinite(m)):
             raise ValueError(f"mesh {label!r}: transform must be a finite 4x4 matrix")
         a = m[:3, :3]
-        inv_t = _inverse_transpose(a)
-        det = float(a[0] @ _cofactors(a)[0])
+        cof = _cofactors(a)
+        det = float(a[0] @ cof[0])
         if singular(det, np.abs(a).max()):
             raise ValueError(f"mesh {label!r}: transform is singular (zero scale); skip the object instead")
+        inv_t = cof / det  # inv(a).T
         world = np.empty((len(v), 3), np.float32)
         _affine_rows(np.ascontiguousarray(v), np.ascontiguousarray(a), np.ascontiguousarray(m[:3, 3]), world)
         v = world
@@ -362,12 +363,6 @@ def _cofactors(a: np.ndarray) -> np.ndarray:
     return np.array([[b1 * c2 - b2 * c1, b2 * c0 - b0 * c2, b0 * c1 - b1 * c0],
                      [c1 * a2 - c2 * a1, c2 * a0 - c0 * a2, c0 * a1 - c1 * a0],
                      [a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0]])
-
-
-def _inverse_transpose(a: np.ndarray) -> np.ndarray:
-    """inv(a).T of a 3×3 matrix: its cofactors over its determinant."""
-    cof = _cofactors(a)
-    return cof / float(a[0] @ cof[0])
 
 
 @kernel

@@ -35,12 +35,13 @@ DEFAULT_AA = 2
 class Setting:
     """What one :class:`RenderSettings` field means and where it appears (the field's ``metadata["setting"]``).
 
-    ``lo``/``hi``: the valid range (None: unbounded; ``lo_open``/``hi_open``: the bound itself is not valid); ``choices``: the
-    valid values (for a tuple field: of each item). ``flag``: the command line's flag (``aliases`` too; a bool
-    becomes ``--flag/--no-flag``); None: not a flag, and ``cli_from`` says where the CLI takes it from.
-    ``blender``: the Blender property's label (``ui``: its extra options, ``soft_max``, ``precision``,
-    ``subtype``; ``none_as``: the value a property stores for None, e.g. 0 = automatic); None: not a property,
-    and ``blender_from`` says where the add-on takes it from. ``rebuilds_integrator``: the session's packed tables
+    ``lo``/``hi``: the valid range (None: unbounded; ``lo_open``/``hi_open``: the bound itself is not valid);
+    ``choices``: the valid values (for a tuple field: of each item). ``flag``: the command line's flag
+    (``aliases`` too; a bool becomes ``--flag/--no-flag``); None: not a flag, and ``cli_from`` says where the CLI
+    takes it from. ``blender``: the Blender property's label (``panel``: the heading it is drawn under in Render
+    Properties, addon/ui.py; ``ui``: its extra options, ``soft_max``, ``precision``, ``subtype``; ``none_as``: the
+    value a property stores for None, e.g. 0 = automatic); None: not a property, and ``blender_from`` says where
+    the add-on takes it from. ``rebuilds_integrator``: the session's packed tables
     (the Integrator's ``Options``, its light table) depend on it, so a change makes a new Integrator; any other
     setting is read per render."""
 
@@ -56,6 +57,7 @@ class Setting:
     metavar: str | None = None
     cli_from: str = ""
     blender: str | None = None
+    panel: str = ""
     ui: tuple = ()
     none_as: object = None
     blender_from: str = ""
@@ -77,37 +79,39 @@ class RenderSettings:
     height: int = setting(480, "image height", unit="px", lo=1, flag="--height", metavar="H",
                           blender_from="the render resolution × percentage")
     samples: int = setting(DEFAULT_AA, "anti-aliasing: N×N stratified samples per pixel (box filter); 1 = one ray "
-                           "through each pixel centre", unit="N", lo=1, flag="--aa", metavar="N", blender="Samples",
-                           ui=(("soft_max", 8), ("max", 64)))
+                           "through each pixel centre", unit="N", lo=1, flag="--aa", metavar="N",
+                           blender="Samples", panel="Sampling", ui=(("soft_max", 8), ("max", 64)))
     max_depth: int = setting(8, "maximum recursion depth of reflection/transmission rays (0 = eye and shadow rays "
-                             "only)", lo=0, flag="--max-depth", metavar="D", blender="Max Depth", ui=(("max", 64),),
-                             rebuilds_integrator=True)
+                             "only)", lo=0, flag="--max-depth", metavar="D", rebuilds_integrator=True,
+                             blender="Max Depth", panel="Rays", ui=(("max", 64),))
     epsilon: float | None = setting(None, "offset of spawned rays; unset = automatic (tracer.Scene.default_epsilon: "
-                                    "5e-5 of the scene size)", unit="scene units", lo=0, lo_open=True, flag="--epsilon",
-                                    blender="Epsilon", none_as=0.0, rebuilds_integrator=True,
-                                    ui=(("soft_max", 0.01), ("precision", 6), ("subtype", "DISTANCE")))
+                                    "5e-5 of the scene size)", unit="scene units", lo=0, lo_open=True,
+                                    flag="--epsilon", rebuilds_integrator=True, blender="Epsilon", panel="Rays",
+                                    none_as=0.0, ui=(("soft_max", 0.01), ("precision", 6), ("subtype", "DISTANCE")))
     fresnel: bool = setting(True, "dielectric Fresnel weighting of glass (as Cycles); off = the notes' fixed "
-                            "weights", flag="--fresnel", blender="Fresnel", rebuilds_integrator=True)
+                            "weights", flag="--fresnel", rebuilds_integrator=True, blender="Fresnel", panel="Rays")
     shadows: bool = setting(True, "cast shadow rays towards the lights; off lights every surface as if nothing "
-                            "were in the way", flag="--shadows", blender="Shadows", rebuilds_integrator=True)
+                            "were in the way", flag="--shadows", rebuilds_integrator=True, blender="Shadows",
+                            panel="Rays")
     light_samples: int = setting(16, "samples per light with an extent (point radius, sun angle, area lights); "
                                  "rounded to N×N", lo=1, flag="--light-samples", metavar="N",
-                                 blender="Light Samples", ui=(("max", 1024),), rebuilds_integrator=True)
+                                 rebuilds_integrator=True, blender="Light Samples", panel="Sampling",
+                                 ui=(("max", 1024),))
     sky_samples: int = setting(0, "hemisphere shadow rays per shading point weighting the world (ambient) light by "
                                "sky visibility, as Cycles does (e.g. 64); 0 = the classic unoccluded ambient term",
-                               lo=0, flag="--sky-samples", metavar="N", blender="Sky Visibility Samples",
-                               ui=(("max", 1024),), rebuilds_integrator=True)
+                               lo=0, flag="--sky-samples", metavar="N", rebuilds_integrator=True,
+                               blender="Sky Visibility Samples", panel="Sampling", ui=(("max", 1024),))
     terminal_rays: bool = setting(False, "one more reflection/transmission bounce past the max depth that collects "
                                   "only background and emission (Cycles' last bounce); off = the notes' hard "
-                                  "cut-off", flag="--terminal-rays", blender="Terminal Bounce",
-                                  rebuilds_integrator=True)
+                                  "cut-off", flag="--terminal-rays", rebuilds_integrator=True,
+                                  blender="Terminal Bounce", panel="Sampling")
     shading: str = setting("principled", "local model: principled (Cycles' Principled BSDF: diffuse + GGX) or "
                            "classic (the notes' Lambert + Blinn-Phong)", choices=SHADING_MODELS, flag="--shading",
-                           blender="Shading", rebuilds_integrator=True)
+                           rebuilds_integrator=True, blender="Shading", panel="Rays")
     max_transparent: int = setting(8, "surfaces with alpha < 1 (or cut-outs) one ray may pass through (Cycles' "
                                    "Transparent Max Bounces); not counted in the max depth", lo=0,
                                    flag="--max-transparent", metavar="N", blender="Transparent Max Bounces",
-                                   ui=(("max", 1024),))
+                                   panel="Rays", ui=(("max", 1024),))
     min_weight: float = setting(1e-3, "paths whose accumulated weight falls below this stop (deterministic "
                                 "cut-off)", lo=0, hi=1, hi_open=True, flag="--min-weight", rebuilds_integrator=True,
                                 blender_from="the default (not in the add-on's panel)")
@@ -117,8 +121,8 @@ class RenderSettings:
     tile_size: int = setting(128, "pixel tile edge; memory is bounded by tile size × samples", unit="px", lo=4,
                              flag="--tile-size", metavar="PX", blender_from="the default (Blender shows no tiles)")
     threads: int | None = setting(None, "worker threads; unset = all cores (images are identical for any count)",
-                                  lo=1, flag="--threads", metavar="N", blender="Threads", none_as=0,
-                                  ui=(("max", 1024),))
+                                  lo=1, flag="--threads", metavar="N", blender="Threads", panel="Performance",
+                                  none_as=0, ui=(("max", 1024),))
     aovs: tuple = setting((), "extra outputs (float32 EXR next to the image): depth, normal, albedo, objectid, and "
                           "direct, reflection, transmission (the beauty by the path's first secondary ray; they "
                           "sum to it), raydepth (deepest ray per pixel: EXR + heat-map PNG)", choices=AOV_NAMES,

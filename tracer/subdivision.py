@@ -4,6 +4,9 @@
 :class:`Refined` mesh: points, faces (quads, or triangles for Loop), the cage face of every refined face, smooth
 per-corner normals of the limit surface, and the primvars carried through. Everything is vectorised over faces,
 edges and corners (no Python loop per face, edge or vertex: only short loops over levels, valences and columns).
+``refine_batch(meshes)`` refines many meshes in a few calls: the meshes of one topology once, as columns of one
+refinement (``_refine_stack``), the rest joined into one mesh of disjoint pieces; each gets exactly what
+``refine`` gives it alone (a stage's meshes: usd_io.mesh.read_subdivided).
 
 Schemes (``scheme``, USD's ``subdivisionScheme``):
 

@@ -85,7 +85,8 @@ def lens_of(raw: dict) -> dict:
 
 
 def fold_clipping_planes(raw: dict, warn) -> dict:
-    """``clippingPlanes`` (a, b, c, d) in camera space keep the points where a·x + b·y + c·z + d >= 0 (UsdGeomCamera).
+    """``clippingPlanes`` (a, b, c, d) in camera space keep the points where a·x + b·y + c·z + d >= 0
+    (UsdGeomCamera).
     A plane parallel to the image plane (a = b = 0) is a depth bound on depth = −z: c < 0 keeps depth >= d/c (it
     raises ``near``), c > 0 keeps depth <= d/c (it lowers ``far``) — what the tracer's near/far planes do. Oblique
     planes are not supported (one warning naming the camera)."""

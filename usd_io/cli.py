@@ -107,9 +107,10 @@ def add_render_flags(p) -> None:
 
 def _add_render_command(r) -> None:
     r.add_argument("scenes", nargs="+", metavar="SCENE", help="USD file(s) (.usd, .usda, .usdc, .usdz)")
-    r.add_argument("-o", "--output", required=True,
+    r.add_argument("-o", "--output",
                    help="output image (.png/.jpg/.tif sRGB 8-bit, .exr linear half); several scenes need {stem} "
-                        "(or {name}) in it, e.g. thumbs/{stem}.png")
+                        "(or {name}) in it, e.g. thumbs/{stem}.png; default: the stage's RenderProduct "
+                        "productName")
     r.add_argument("--frames", "-f", help="time codes A:B or A:BxS; output pattern out.####.png")
     add_render_flags(r)
     r.add_argument("--scheduler", help="render on a Dask cluster: tcp://HOST:PORT, tls://HOST:PORT, a scheduler "
@@ -151,7 +152,7 @@ def _check_args(args) -> None:
             raise BadInput(f"--{flag.replace('_', '-')} needs --scheduler")
     if args.frames and args.time is not None:
         raise BadInput("--frames and --time are exclusive")
-    if len(args.scenes) > 1 and not re.search(r"\{(stem|name)\}", args.output):
+    if len(args.scenes) > 1 and not re.search(r"\{(stem|name)\}", args.output or ""):
         raise BadInput(f"{len(args.scenes)} scenes need {{stem}} or {{name}} in the output name, "
                        f"e.g. thumbs/{{stem}}.png (got {args.output})")
 
@@ -166,8 +167,8 @@ def cmd_render(args) -> int:
     frames = parse_frames(args.frames) if args.frames else [args.time]
     failed = 0
     for scene_path in args.scenes:
-        out = output_for(args.output, scene_path)
         try:
+            out = output_for(args.output, scene_path) if args.output else _product_output(args, scene_path)
             check_output(out)
             if render_file(StageRequest.from_args(args, scene_path), settings, out, frames, outputs, args) != EXIT_OK:
                 failed += 1
@@ -225,6 +226,19 @@ def render_file(request: StageRequest, settings, output: str, frames, outputs: O
         print(f"whitted: error: {request.path}: {info.nothing_drawn}", file=sys.stderr)
         return EXIT_BAD_INPUT
     return EXIT_OK
+
+
+def _product_output(args, scene_path: str) -> str:
+    """Without ``-o``: the first productName of the stage's RenderSettings (usd_io.render_settings)."""
+    from .render_settings import product_names
+    from .stage import open_stage
+
+    names = product_names(open_stage(scene_path), getattr(args, "render_settings_prim", None))
+    if not names:
+        raise BadInput(f"{scene_path}: -o OUT is required (the stage has no RenderProduct with a productName)")
+    if len(names) > 1:
+        warn(f"{scene_path}: {len(names)} RenderProducts: the picture is written to the first, {names[0]}")
+    return names[0]
 
 
 def _render_vars(info, settings, outputs):

@@ -3,9 +3,9 @@
 Points: an icosphere (80 triangles) of diameter ``widths`` per point (constant or per point; unauthored: 1 unit,
 Storm's fallback). BasisCurves: each curve's control points joined by 8-sided tubes of diameter ``widths``
 (constant, per curve, or per vertex/varying averaged per segment; unauthored: 1 unit). Linear curves are exact;
-cubic curves (bezier, bspline, catmullRom) are drawn through their control polygon with one warning — the hull
-passes near the curve but is not it. ``wrap = periodic`` closes the loop. Normals are exact (sphere radial, tube
-radial). No Python loop over points or segments.
+cubic curves (bezier, bspline, catmullRom) are evaluated into polylines of 8 pieces per segment first
+(usd_io.cubic_curves); other bases follow their control polygon with one warning. ``wrap = periodic`` closes
+the loop. Normals are exact (sphere radial, tube radial). No Python loop over points or segments.
 """
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 from pxr import UsdGeom
 
+from .cubic_curves import BASES, cubic_polylines
 from .mesh import MeshData
 
 TUBE_SIDES = 8
@@ -77,14 +78,22 @@ def read_curves(prim, time) -> MeshData | None:
     if np.any(counts < 1) or counts.sum() != len(p):
         raise ValueError(f"{label}: curveVertexCounts sum to {counts.sum()}, not the {len(p)} points")
     warnings = []
+    wrap = str(curves.GetWrapAttr().Get(time) or "nonperiodic")
+    widths = curve_widths(curves, time, len(p), len(counts), label)
     if curves.GetTypeAttr().Get(time) == UsdGeom.Tokens.cubic:
-        warnings.append(f"{label}: cubic {curves.GetBasisAttr().Get(time)} curves drawn as tubes along their "
-                        "control polygon")
-    periodic = curves.GetWrapAttr().Get(time) == UsdGeom.Tokens.periodic
-    data = tube_mesh(p, counts, curve_widths(curves, time, len(p), len(counts), label), periodic)
+        basis = str(curves.GetBasisAttr().Get(time) or "bezier")
+        if basis in BASES:  # the curve itself (usd_io.cubic_curves), not its control polygon
+            p2, counts2, widths2, source = cubic_polylines(p, counts, basis, wrap, widths)
+            data = tube_mesh(p2, counts2, widths2, periodic=False)
+            if data is not None:  # faces are already the curves (one polyline each); colours: nearest point
+                data.source_points = source[data.source_points]
+            return data
+        warnings.append(f"{label}: cubic {basis} curves drawn as tubes along their control polygon")
+    data = tube_mesh(p, counts, widths, wrap == UsdGeom.Tokens.periodic)
     if data is not None:
         data.warnings = warnings
     return data
+
 
 
 def tube_mesh(p: np.ndarray, counts: np.ndarray, widths, periodic: bool) -> MeshData | None:

@@ -47,7 +47,7 @@ IGNORED = ("project_uvw", "world_or_object", "enable_clearcoat", "detail_texture
 
 
 def mdl_subidentifier(shader) -> str:
-    """'OmniPBR', 'OmniGlass', … for an MDL shader (sourceAsset's subIdentifier, else the asset's file stem), or ''."""
+    """'OmniPBR', 'OmniGlass', … of an MDL shader (its sourceAsset subIdentifier, else the file stem), or ''."""
     prim = shader.GetPrim()
     if str(prim.GetAttribute("info:implementationSource").Get() or "") != "sourceAsset":
         return ""

@@ -31,7 +31,7 @@ from .render_settings import CONFORM, DEFAULT_CONFORM, crop_to_data_window, read
 from .nurbs import read_nurbs_curves, read_nurbs_patch, read_tet_mesh
 from .mesh import COMPLEXITY, DEFAULT_COMPLEXITY, SUBDIVIDED, MeshData, read_mesh, read_subdivided
 from .skel import Skinning
-from .stage import (DEFAULT_PURPOSES, _first_reason, captured_stderr, UsdInputError, check_purposes, composition_warnings, open_stage,
+from .stage import (DEFAULT_PURPOSES, captured_stderr, UsdInputError, check_purposes, composition_warnings, open_stage,
                     renderable_prims, stage_messages, stage_time)
 from .xform import Transforms, transform_points
 
@@ -216,8 +216,9 @@ class _Reader:
             for piece in renderable_prims(self.stage, self.time, self.purposes, root=root):
                 rel = self.xf.relative(piece, root.GetParent())
                 if piece.IsA(UsdGeom.PointInstancer):
-                    if depth >= 8:
-                        self.info.warn(f"{piece.GetPath()}: PointInstancers nested more than 8 deep (skipped)")
+                    if depth >= MAX_INSTANCER_DEPTH:  # a guard against prototype cycles
+                        self.info.warn(f"{piece.GetPath()}: PointInstancers nested more than "
+                                       f"{MAX_INSTANCER_DEPTH} deep (a prototype cycle?) (skipped)")
                     else:
                         total += self.add_instancer(piece, base @ rel[None], depth + 1)
                     continue
@@ -373,6 +374,9 @@ def _usable(m: np.ndarray) -> np.ndarray:
     size = np.abs(a).max(axis=(-2, -1))
     return finite & (np.abs(np.linalg.det(a)) > 1e-12 * size ** 3)
 
+
+#: PointInstancers nest to any depth a real stage has; this only stops a prototype that instances itself.
+MAX_INSTANCER_DEPTH = 32
 
 #: Subdivision meshes refined per batch ahead of the prim loop: bounds the refined meshes held at once (memory)
 #: while each batch still refines each of its topologies once.

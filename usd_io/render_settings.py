@@ -141,6 +141,16 @@ def _read_base(base, spec: RenderSpec, time, authored_only: bool) -> None:
         spec.data_window = tuple(float(x) for x in dw)
 
 
+def product_names(stage, path=None) -> list[str]:
+    """The productName of every RenderProduct of the RenderSettings ``path`` (or the stage's), in order; the CLI
+    writes the picture to the first when ``-o`` is not given. Relative names are relative to the working
+    directory, as usdrecord and the renderers' own command lines take them."""
+    from pxr import Usd
+
+    spec = read_render_settings(stage, path, Usd.TimeCode.EarliestTime(), lambda _m: None)
+    return [] if spec is None else list(spec.products)
+
+
 def crop_to_data_window(camera, width: int, height: int, window):
     """(camera, width, height) rendering only ``window`` (NDC xmin, ymin, xmax, ymax; y up) of the full image:
     the apertures shrink to the window and the offsets move to its centre; the image is the window's pixels."""

@@ -167,10 +167,10 @@ def settings_from_args(args, **overrides):
     kw.update(overrides)
     try:
         return RenderSettings(**kw).validate()
-    except ValueError as exc:
-        name = next((n for n in SETTINGS if re.search(rf"\bsettings\.{n}\b", str(exc))), None)
-        flag = SETTINGS[name].flag if name is not None else None
-        raise UsdInputError(f"{flag}: {exc}" if flag else str(exc)) from None
+    except ValueError as exc:  # "settings.max_depth must be ..." -> "--max-depth must be ..."
+        message = re.sub(r"\bsettings\.(\w+)", lambda m: SETTINGS[m.group(1)].flag or m.group(0)
+                         if m.group(1) in SETTINGS else m.group(0), str(exc))
+        raise UsdInputError(message) from None
 
 
 def _number(flag: str, name: str):
