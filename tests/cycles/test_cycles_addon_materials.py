@@ -1,4 +1,4 @@
-"""Blender shader node trees through the add-on, against Cycles: one small scene per feature of addon/nodes.py.
+"""Blender shader node trees through the add-on, against Cycles: one small scene per feature of the node translation (addon/shader_tree.py).
 
 Each scene is built in Blender by a function here (node trees, UV maps, colour attributes the description-based
 harness does not carry), rendered once by Cycles at Whitted-equivalent settings (bench.cycles) and cached by a hash
@@ -381,7 +381,7 @@ def gallery_lines(gdir: str, write_jpg) -> list[str]:
     """docs/gallery.md's section for these scenes (make_gallery.py calls this): ours | Cycles | |diff| × 4."""
     lines = ["## Blender node trees through the add-on", "",
              "Scenes built from shader and world node trees in `tests/cycles/test_cycles_addon_materials.py` "
-             f"({SIZE[0]}×{SIZE[1]}), each feature of `addon/nodes.py` against Cycles.", "",
+             f"({SIZE[0]}×{SIZE[1]}), each feature of the add-on's node translation (`addon/shader_tree.py`) against Cycles.", "",
              "| scene | PSNR (dB) | MAE | what it isolates |", "|---|---|---|---|"]
     shots = []
     for name, (build, params) in SCENES.items():
