@@ -26,14 +26,11 @@ from typing import NamedTuple
 from .nodes import TextureRef
 from .shader_tree import material_graph
 
-try:  # inside the installed extension the tracer is bundled next to this module
-    from .tracer.shader_compile import add_graph
-    from .tracer.shader_fields import graph_from_fields
-    from .tracer.shader_graph import Graph, ImageRef
-except ImportError:  # the repository's ``addon`` package uses the top-level tracer
-    from tracer.shader_compile import add_graph
-    from tracer.shader_fields import graph_from_fields
-    from tracer.shader_graph import Graph, ImageRef
+from .bundled import tracer_module
+
+add_graph = tracer_module("shader_compile").add_graph
+graph_from_fields = tracer_module("shader_fields").graph_from_fields
+Graph, ImageRef = tracer_module("shader_graph").Graph, tracer_module("shader_graph").ImageRef
 
 #: Blender's default surface (no material): 0.8 grey, Principled defaults.
 DEFAULT_FIELDS = {"base_color": (0.8, 0.8, 0.8), "roughness": 0.5, "specular": 0.5, "ior": 1.5}

@@ -16,10 +16,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-try:  # inside the installed extension the tracer is bundled next to this module
-    from .tracer.texture import srgb_to_linear
-except ImportError:  # the repository's ``addon`` package uses the top-level tracer
-    from tracer.texture import srgb_to_linear
+from .bundled import tracer_module
+
+srgb_to_linear = tracer_module("texture").srgb_to_linear
 
 #: Blender's Extension (Image Texture) -> the tracer's wrap mode.
 WRAP = {"REPEAT": "repeat", "EXTEND": "clamp", "CLIP": "black", "MIRROR": "mirror"}

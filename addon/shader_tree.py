@@ -28,12 +28,11 @@ from __future__ import annotations
 
 import numpy as np
 
-try:  # inside the installed extension the tracer is bundled next to this module
-    from .tracer.shader_graph import (CLOSURE, COLOR, FLOAT, NODE_TYPES, VECTOR, Graph, ImageRef, Out,
-                                      constant_material)
-except ImportError:  # the repository's ``addon`` package uses the top-level tracer
-    from tracer.shader_graph import (CLOSURE, COLOR, FLOAT, NODE_TYPES, VECTOR, Graph, ImageRef, Out,
-                                     constant_material)
+from .bundled import tracer_module
+
+_ir = tracer_module("shader_graph")
+CLOSURE, COLOR, FLOAT, NODE_TYPES, VECTOR = _ir.CLOSURE, _ir.COLOR, _ir.FLOAT, _ir.NODE_TYPES, _ir.VECTOR
+Graph, ImageRef, Out, constant_material = _ir.Graph, _ir.ImageRef, _ir.Out, _ir.constant_material
 
 #: Blender socket type -> IR kind (None: a socket type no shader program carries).
 KIND = {"VALUE": FLOAT, "INT": FLOAT, "BOOLEAN": FLOAT, "VECTOR": VECTOR, "RGBA": COLOR, "SHADER": CLOSURE}

@@ -180,7 +180,7 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
         if not (np.all(np.isfinite(size)) and min(size) > 0):
             warn(f"{name}: {t} of zero or non-finite size {size} skipped")
             return "area", None, None
-        area = size[0] * size[1] if shape == "rect" else np.pi / 4 * size[0] * size[1]
+        area = AreaLight.area_of(size, shape)
         radiance = rgb / area if _normalized(prim, time) else rgb
         return "area", AreaLight(position=pos, u_axis=world[:3, 0], v_axis=world[:3, 1], normal=down,
                                  size=size, radiance=radiance, shape=shape, name=name), None
