@@ -34,7 +34,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import bsdf, optics, shading, vec
+from . import bsdf, linking, optics, shading, vec
 from .accel import Accelerator
 from .environment import env_radiance, env_sample, pack_environment
 from .jit import kernel
@@ -182,6 +182,7 @@ class RayQueue(NamedTuple):
     weight: np.ndarray
     sample: np.ndarray
     t_max: np.ndarray | None
+    mask: np.ndarray | None = None  # Embree ray masks (tracer.linking), None: the rays see every object
 
 
 class SurfaceQueue(NamedTuple):
@@ -313,6 +314,8 @@ class Integrator:
         # instanced prototypes' emitting triangles placed per instance (tracer/instances.py)
         emitters = world_emitters(scene, m.emission * m.alpha[:, None])
         self.lights = pack_lights(scene.lights, settings.light_samples, emitters)
+        #: light and shadow linking, ray visibility (tracer.linking); inactive tables when the scene has none
+        self.links = linking.pack(scene, len(self.lights.kind))
         self.light_samples = int(np.sum(self.lights.side ** 2))  # shadow rays per shading point, at most
         self.env = pack_environment(scene.environment)
         ambient = scene.ambient
@@ -363,8 +366,9 @@ class Integrator:
             _first_hits(surf, t, prim, inst, self.instances, t0, sample, self.geometry, out)
         _emitted(d, surf, sample, weight, depth, self.options, self.env, out)
         shadow = ShadowQueue.empty(n * (self.light_samples + self.sky_side ** 2))
+        recv = linking.receiver_bits(self.links, prim, inst, self.geometry.object_ids, it.object_ids)
         n_shadow = _direct_light(surf, d, sample, weight, keys, depth, spawn, self.materials, self.lights,
-                                 self.options, out, shadow, 0, counts)
+                                 self.options, out, shadow, 0, counts, self.links, recv)
         if self.sky_side:
             n_shadow = _sky(surf, d, sample, weight, keys, depth, spawn, self.materials, self.env, self.options,
                             out, shadow, n_shadow, counts)
@@ -380,7 +384,8 @@ class Integrator:
         transmissions; empty past the last depth). Rays that pass through alpha < 1 surfaces are traced again
         within the step (up to ``max_transparent`` surfaces deep)."""
         n = len(rays.o)
-        hits = self.accel.closest_hits(rays.o, rays.d, rays.t_max)
+        mask = rays.mask if depth else linking.ray_masks(self.links, 0, n, 0)
+        hits = self.accel.closest_hits(rays.o, rays.d, rays.t_max, mask=mask)
         spawn = depth < self.last_depth
         shadows, refl, tran = [], [], []
         o, d, w, smp, t0, h = rays.o, rays.d, rays.weight, rays.sample, np.zeros(n, np.float32), hits
@@ -398,21 +403,23 @@ class Integrator:
             tm = None
             if rays.t_max is not None:  # eye rays stop at the far plane: what is left of their length
                 tm = np.maximum(rays.t_max[0] - t0, 0).astype(np.float32)
-            h = self.accel.closest_hits(o, d, tm)
+            h = self.accel.closest_hits(o, d, tm, mask=linking.through_mask(self.links, depth))
         shadow = shadows[0] if len(shadows) == 1 else ShadowQueue(*(np.concatenate(c) for c in zip(*shadows)))
         blocked = np.zeros(0, bool)
         if len(shadow.o):
-            blocked = self.accel.occluded(shadow.o, shadow.d, shadow.t_max)
+            blocked = self.accel.occluded(shadow.o, shadow.d, shadow.t_max,
+                                          mask=linking.shadow_masks(self.links, shadow.light))
             if self.see_through and blocked.any():
                 blocked = self._through_shadows(shadow, blocked)
             _add_unoccluded(out.color, shadow.sample, shadow.color, blocked)
         parts = refl + tran
         cat = lambda get: np.concatenate([get(q)[s] for q, s in parts])  # noqa: E731
+        n_reflected = sum(s.stop - s.start for _, s in refl)
         nxt = RayQueue(o=cat(lambda q: q.o), d=cat(lambda q: q.d), weight=cat(lambda q: q.weight),
                        sample=cat(lambda q: q.sample), t_max=None)
+        nxt = nxt._replace(mask=linking.ray_masks(self.links, depth + 1, len(nxt.o), n_reflected))
         spawned = SpawnRecord(light=shadow.light[:0], normal=cat(lambda q: q.spawned.normal),
                               eta=cat(lambda q: q.spawned.eta), tir=cat(lambda q: q.spawned.tir))
-        n_reflected = sum(s.stop - s.start for _, s in refl)
         return Step(hits=hits, shadow=shadow, blocked=blocked, next=nxt, spawned=spawned, n_reflected=n_reflected)
 
     def _through_shadows(self, shadow: "ShadowQueue", blocked: np.ndarray) -> np.ndarray:
@@ -422,11 +429,13 @@ class Integrator:
         o, d = shadow.o[idx].copy(), shadow.d[idx]
         t_max, color = shadow.t_max[idx].copy(), shadow.color  # colour scaled in place
         pending = np.ones(len(idx), np.bool_)
+        masks = linking.shadow_masks(self.links, shadow.light[idx])
         for _ in range(self.settings.max_transparent + 1):
             sel = np.flatnonzero(pending)
             if not len(sel):
                 break
-            t, prim, u, v, inst = self.accel.closest_hits(o[sel], d[sel], t_max[sel])
+            t, prim, u, v, inst = self.accel.closest_hits(o[sel], d[sel], t_max[sel],
+                                                          mask=None if masks is None else masks[sel])
             g, pt, x, it = self.geometry, self.programs, self.textures, self.instances
             _pass_shadow(sel, idx, t, prim, inst, it.materials, it.normal_matrix, u, v, g.material_ids,
                          g.face_normals, self.materials.alpha, self.materials.alpha_threshold, o, d, t_max, color,
@@ -698,10 +707,13 @@ def _emitted(d, surf, sample, weight, depth, opt, env, out):
 
 
 @kernel(refcounts=False)
-def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt, out, shadow, n_shadow, counts):
+def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt, out, shadow, n_shadow, counts,
+                  links, recv):
     """Direct-light stage: per hit, every light sample's colour (local model × irradiance), written with its shadow
     ray (p, l, ε, dist) to the shadow queue; and the ambient term where the sky is not sampled. Returns the
-    shadow queue's new length. Past max_depth (terminal rays) nothing is lit. (Compiled without reference counting,
+    shadow queue's new length. Past max_depth (terminal rays) nothing is lit. Light linking (tracer.linking): light j
+    skips a hit whose receiver bits ``recv`` (empty: no linking) lack its set, and gives only the diffuse / glossy
+    light it is visible to. (Compiled without reference counting,
     ``kernel(refcounts=False)``: with it, numba's atomic counts on the arrays of the NamedTuples read and handed on
     per ray and per light sample cost 40 % of this stage.)"""
     if depth > opt.max_depth:
@@ -715,6 +727,8 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
     o_color = out.color
     s_mirror = surf.mirror
     n_lights = l_kind.shape[0]
+    linked = recv.shape[0] > 0
+    l_recv, l_diffuse, l_glossy = links.recv_set, links.diffuse, links.glossy
     amb = (opt.ambient[0], opt.ambient[1], opt.ambient[2])
     add_ambient = (amb[0] > 0.0 or amb[1] > 0.0 or amb[2] > 0.0) and sky_side == 0
     n_new = 0
@@ -742,14 +756,19 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
         if needs_random:
             r0, r1 = uniform2_1(keys[s], _STREAM_LIGHT + depth, seed)
         for j in range(n_lights):
+            if linked and not linking.lights_receiver(l_recv[j], recv[i]):
+                continue
             # a light the mirror ray can see (emissive triangles) gives the mirror share of the lobes to that ray
-            spec_scale = 1.0 - g if l_kind[j] == MESH else 1.0
+            spec_scale = (1.0 - g if l_kind[j] == MESH else 1.0) * l_glossy[j]
             for k in range(l_side[j] * l_side[j]):
                 l, dist, e = sample_light(lights, j, k, p, r0, r1)
                 n_l = vec.dot(n, l)
                 if n_l <= 0.0 or vec.dot(ng, l) <= 0.0:
                     continue
-                c = vec.mul(wo, vec.mul(bsdf.evaluate(cl, n, wi, l, n_l, spec_scale), e))
+                f = bsdf.evaluate(cl, n, wi, l, n_l, spec_scale)
+                if l_diffuse[j] < 1.0:  # the light gives no diffuse light: only the lobes (spec_scale 0 = diffuse)
+                    f = vec.sub(f, vec.scale(bsdf.evaluate(cl, n, wi, l, n_l, 0.0), 1.0 - l_diffuse[j]))
+                c = vec.mul(wo, vec.mul(f, e))
                 if shadows:  # the shadow ray from p to the light sample: counts only if nothing is in between
                     so, sd, st = shadow_ray(p, ng, l, dist, eps)
                     _put(q_o, q_d, q_t, q_s, q_c, q_l, n_shadow, so, sd, st, s, c, j)

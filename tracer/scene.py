@@ -209,6 +209,12 @@ class Scene:
     object_transforms: np.ndarray | None = None
     #: Optional shared-mesh instances (see :class:`Instances`); None: a triangle soup in world space.
     instances: Instances | None = None
+    #: Optional (O,) uint8 per object id: the ray types that see it (tracer.linking: CAMERA | GLOSSY |
+    #: TRANSMISSION | SHADOW); None = every object seen by every ray.
+    object_visibility: np.ndarray | None = None
+    #: One tracer.linking.LightLink per light of ``lights`` (receivers, blockers, cast shadow, diffuse / glossy),
+    #: or empty: no light is linked.
+    light_links: list = field(default_factory=list)
 
     def __post_init__(self):
         self.validate()
