@@ -766,7 +766,7 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
                 if n_l <= 0.0 or vec.dot(ng, l) <= 0.0:
                     continue
                 f = bsdf.evaluate(cl, n, wi, l, n_l, spec_scale)
-                if l_diffuse[j] < 1.0:  # the light gives no diffuse light: only the lobes (spec_scale 0 = diffuse)
+                if l_diffuse[j] != 1.0:  # the light's diffuse factor (the BSDF at spec_scale 0 is its diffuse part)
                     f = vec.sub(f, vec.scale(bsdf.evaluate(cl, n, wi, l, n_l, 0.0), 1.0 - l_diffuse[j]))
                 c = vec.mul(wo, vec.mul(f, e))
                 if shadows:  # the shadow ray from p to the light sample: counts only if nothing is in between

@@ -58,17 +58,18 @@ MASK_ALL = 0xFFFFFFFF
 class LightLink:
     """Linking of one light. ``receivers``: object ids it lights (None: all); ``blockers``: object ids whose shadows
     it casts (None: every object that casts shadows); ``cast_shadow``: False = its shadow rays are never blocked;
-    ``diffuse`` / ``glossy``: False = it gives no diffuse / no glossy (specular) light."""
+    ``diffuse`` / ``glossy``: factors of its diffuse / glossy (specular) light (Blender's visibility: 1 or 0;
+    UsdLux ``inputs:diffuse`` / ``inputs:specular``)."""
 
     receivers: np.ndarray | None = None
     blockers: np.ndarray | None = None
     cast_shadow: bool = True
-    diffuse: bool = True
-    glossy: bool = True
+    diffuse: float = 1.0
+    glossy: float = 1.0
 
     def is_default(self) -> bool:
-        return (self.receivers is None and self.blockers is None and self.cast_shadow and self.diffuse
-                and self.glossy)
+        return (self.receivers is None and self.blockers is None and self.cast_shadow and self.diffuse == 1.0
+                and self.glossy == 1.0)
 
 
 class Links(NamedTuple):
