@@ -117,3 +117,70 @@ def test_linked_floor_against_the_inverse_square_law(links, card, share):
     full = _centre(_floor())
     assert full > 0.1
     assert _centre(_floor(links, card)) == pytest.approx(share * full, rel=1e-4, abs=1e-6)
+
+
+# ------------------------------------------------------------------------------------------ USD, `whitted render`
+def _usd_stage(path, linked: bool, card: bool):
+    """The lit floor as a USD stage: two SphereLights of radius 0 on one line from the floor's centre, A at
+    (2, 0, 2) and B at (4, 0, 4) with intensities 10 and 20 (E ∝ I/r²: 1.25 and 0.625, so A gives 2/3), and a card
+    on that line at (1, 0, 1), out of the top-down orthographic camera's view. ``linked``: A's shadowLink excludes
+    the card, B's lightLink includes only the card (it lights no floor)."""
+    from pxr import Gf, Usd, UsdGeom, UsdLux
+
+    s = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(s, "Z")
+    cam = UsdGeom.Camera.Define(s, "/Cam")
+    cam.CreateProjectionAttr("orthographic")
+    cam.CreateHorizontalApertureAttr(0.2)
+    cam.CreateVerticalApertureAttr(0.2)
+    cam.AddTranslateOp().Set(Gf.Vec3d(0, 0, 6))
+
+    def quad(name, half, z, x=0.0):
+        m = UsdGeom.Mesh.Define(s, name)
+        m.CreatePointsAttr([(x - half, -half, z), (x + half, -half, z), (x + half, half, z), (x - half, half, z)])
+        m.CreateFaceVertexCountsAttr([4])
+        m.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
+        return m
+
+    quad("/Floor", 3.0, 0.0)
+    if card:
+        quad("/Card", 0.2, 1.0, x=1.0)
+    lights = []
+    for name, pos, intensity in (("/A", (2, 0, 2), 10.0), ("/B", (4, 0, 4), 20.0)):
+        light = UsdLux.SphereLight.Define(s, name)
+        light.CreateRadiusAttr(0.0)
+        light.CreateIntensityAttr(intensity)
+        light.AddTranslateOp().Set(Gf.Vec3d(*pos))
+        lights.append(UsdLux.LightAPI(light.GetPrim()))
+    if linked:
+        lights[0].GetShadowLinkCollectionAPI().ExcludePath("/Card")
+        receivers = lights[1].GetLightLinkCollectionAPI()
+        receivers.CreateIncludeRootAttr().Set(False)
+        receivers.IncludePath("/Card")
+    s.Save()
+
+
+def test_usd_links_through_whitted_render(tmp_path):
+    """`whitted render` of a stage whose light A ignores the card's shadow and whose light B lights only the card:
+    the floor's centre gets A's light alone, 2/3 of the unlinked card-free floor (rendered through load_stage)."""
+    import os
+    import subprocess
+    import sys
+
+    from tracer import read_image
+    from usd_io import load_stage
+
+    _usd_stage(tmp_path / "linked.usda", linked=True, card=True)
+    _usd_stage(tmp_path / "free.usda", linked=False, card=False)
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env = dict(os.environ, PYTHONPATH=root + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    out = tmp_path / "linked.exr"
+    res = subprocess.run([sys.executable, "-c", "from usd_io.cli import run; run()", "render",
+                          str(tmp_path / "linked.usda"), "-o", str(out), "--width", "4", "--height", "4", "--aa",
+                          "1", "--quiet"], capture_output=True, text=True, cwd=root, env=env, timeout=300)
+    assert res.returncode == 0, res.stderr
+    linked = float(read_image(str(out))[..., :3].mean())
+    scene, _ = load_stage(str(tmp_path / "free.usda"), width=4, height=4)
+    free = float(render(scene, RenderSettings(width=4, height=4, samples=1)).rgb.mean())
+    assert free > 0.01
+    assert linked == pytest.approx(free * 2.0 / 3.0, rel=2e-3)
