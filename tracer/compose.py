@@ -82,7 +82,7 @@ def holdout_weights(materials) -> np.ndarray:
     for i, bound in enumerate(getattr(materials, "programs", None) or ()):
         if bound is not None:
             g = bound.graph
-            node = g.output_node()
+            node = g.output_node
             if node is not None:
                 out[i] = min(_holdout_of(g, g.input_value(node, "Surface")), 1.0)
     return out

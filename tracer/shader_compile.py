@@ -1315,7 +1315,7 @@ def add_graph(builder, graph: Graph, warn=None, uv_index=None, name: str | None 
     row index."""
     compiled = compile_graph(graph, warn, uv_index)
     fields = dict(compiled.row)
-    if compiled.program is not None:
+    if compiled.program is not None or any(n.type == "holdout" for n in graph.nodes.values()):  # tracer.compose
         fields["program"] = BoundGraph(graph, _uv_table(compiled.uv_maps, uv_index))
     return builder.add_material(name or graph.name, **fields)
 
