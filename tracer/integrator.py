@@ -34,7 +34,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import bsdf, linking, optics, shading, vec
+from . import bsdf, compose, linking, optics, shading, vec
 from .accel import Accelerator
 from .environment import env_radiance, env_sample, pack_environment
 from .jit import kernel
@@ -99,6 +99,8 @@ class TileResult:
     counts: RayCounts = field(default_factory=RayCounts)
     by_type: np.ndarray | None = None  # (S, 3, 3) colour per PATH_TYPES (with ray_types)
     deepest: np.ndarray | None = None  # (S,) depth of the deepest ray (0 = the eye ray only) (with ray_types)
+    compose: np.ndarray | None = None  # (S, compose.COLUMNS) shadow-catcher sums (scenes with a catcher)
+    compose_mode: tuple = (False, True)  # (transparent film, approximate shadow catcher) for tracer.compose
 
 
 class MaterialArrays(NamedTuple):
@@ -206,6 +208,7 @@ class SurfaceQueue(NamedTuple):
     mirror: np.ndarray  # (N, 3) float32: the Principled lobes' share of the mirror ray, g(r)·(their albedo at the
     #                     view angle), written by the direct-light stage from its closure for the spawn stage
     transmission: np.ndarray  # (N,) float32 glass weight of the non-metal part
+    holdout: np.ndarray  # (N,) float32 the closure's Holdout weight per hit (tracer.compose; 0 = none)
 
     @classmethod
     def empty(cls, n: int) -> "SurfaceQueue":
@@ -213,7 +216,7 @@ class SurfaceQueue(NamedTuple):
         f1 = lambda: np.empty(n, np.float32)  # noqa: E731
         return cls(np.empty(n, np.bool_), np.empty((n, 3), np.float64), f3(), f3(), np.empty(n, np.bool_),
                    np.empty(n, np.int32), f3(), f1(), f1(), f1(), f1(), f3(), np.empty(n, np.int32),
-                   np.zeros((n, 3), np.float32), f1())
+                   np.zeros((n, 3), np.float32), f1(), np.zeros(n, np.float32))
 
 
 class ShadowQueue(NamedTuple):
@@ -292,6 +295,7 @@ class Tile(NamedTuple):
     normal: np.ndarray
     albedo: np.ndarray
     object_id: np.ndarray
+    compose: np.ndarray = compose.empty(0, False)  # (S, compose.COLUMNS) shadow-catcher sums (scenes with one)
 
 
 class Integrator:
@@ -336,6 +340,8 @@ class Integrator:
         used[self.instances.materials[self.instances.materials >= 0]] = True
         #: Some used material lets light through (alpha < 1 or an alpha texture): shadow rays look through it.
         self.see_through = bool(np.any(used & ((m.alpha < 1) | self.programs.alpha_varies)))
+        #: Holdouts and shadow catchers (tracer.compose)
+        self.compose = compose.pack(scene)
 
     @property
     def last_depth(self) -> int:
@@ -362,10 +368,19 @@ class Integrator:
                            surf.transmission, m.alpha_threshold, g.uv_sets, g.colors, g.has_colors, g.vertices,
                            g.triangles, g.face_normals, g.object_ids, self.bounds, x.data, x.params, it.linear,
                            it.mirrored, it.object_ids, eye, spread, flat)
+        split = None  # the eye samples whose first catcher hit is in this batch (tracer.compose)
+        cp = self.compose
+        if depth == 0 and (cp.has_holdout or cp.has_catcher):
+            weight = weight.copy()  # a holdout passes on only what goes through it
+            split = np.zeros(n, np.bool_)
+            compose.eye_path(surf, prim, inst, self.geometry.object_ids, self.instances.object_ids, d, sample,
+                             weight, cp, self.env, self.options.background, out, out.compose, split)
+            split = sample[split] if split.any() else None
         if depth == 0:
             _first_hits(surf, t, prim, inst, self.instances, t0, sample, self.geometry, out)
         _emitted(d, surf, sample, weight, depth, self.options, self.env, out)
         shadow = ShadowQueue.empty(n * (self.light_samples + self.sky_side ** 2))
+        before = out.color[split] if split is not None else None
         recv = linking.receiver_bits(self.links, prim, inst, self.geometry.object_ids, it.object_ids)
         n_shadow = _direct_light(surf, d, sample, weight, keys, depth, spawn, self.materials, self.lights,
                                  self.options, out, shadow, 0, counts, self.links, recv)
@@ -376,7 +391,28 @@ class Integrator:
         n_refl, n_tran, n_through = _spawn_secondary(surf, d, t, t0, sample, weight, spawn, self.materials,
                                                      self.options, nxt, counts)
         shadow = ShadowQueue(*(a[:n_shadow] for a in shadow))
-        return shadow, nxt, n_refl, n_tran, n_through
+        caught = None  # the shadow rays of split hits (their catcher-only light is added with the occlusion)
+        if split is not None:
+            caught = self._catcher_rays(out, split, before, sample, shadow, nxt, n, n_refl, n_tran, n_through)
+        return shadow, nxt, n_refl, n_tran, n_through, caught
+
+    def _catcher_rays(self, out, split, before, sample, shadow, nxt, n, n_refl, n_tran, n_through):
+        """The catcher-only light of split hits that the stages added directly, and the world along the rays
+        they spawned (tracer.compose); returns the mask of their shadow rays. Each eye sample has one ray per batch
+        at depth 0, so a ray's sample names its hit."""
+        mask = np.zeros(len(out.color), np.bool_)
+        mask[split] = True
+        compose.add_local(out.compose, out.color, before, split)
+        bg = self.options.background
+        for o_, d_, w_, s_, lo, hi in ((nxt.o, nxt.d, nxt.weight, nxt.sample, 0, n_refl),
+                                       (nxt.o, nxt.d, nxt.weight, nxt.sample, n, n + n_tran),
+                                       (nxt.through_o, nxt.through_d, nxt.through_weight, nxt.through_sample, 0,
+                                        n_through)):
+            rows = np.arange(lo, hi, dtype=np.int64)
+            rows = rows[mask[s_[lo:hi]]]
+            if len(rows):
+                compose.add_world(out.compose, s_, w_, d_, rows, self.env, bg)
+        return mask[shadow.sample]
 
     def step(self, depth: int, rays: "RayQueue", keys: np.ndarray, out: "Tile", counts: np.ndarray) -> "Step":
         """One depth of Cast-Ray for a queue of rays: closest hits, shading (adding into ``out`` at each ray's
@@ -387,12 +423,13 @@ class Integrator:
         mask = rays.mask if depth else linking.ray_masks(self.links, 0, n, 0)
         hits = self.accel.closest_hits(rays.o, rays.d, rays.t_max, mask=mask)
         spawn = depth < self.last_depth
-        shadows, refl, tran = [], [], []
+        shadows, refl, tran, caught = [], [], [], []
         o, d, w, smp, t0, h = rays.o, rays.d, rays.weight, rays.sample, np.zeros(n, np.float32), hits
         for layer in range(self.settings.max_transparent + 1):
-            shadow, nxt, n_refl, n_tran, n_through = self._shade(depth, o, d, w, smp, t0, h, keys, out, counts,
-                                                                 spawn)
+            shadow, nxt, n_refl, n_tran, n_through, c = self._shade(depth, o, d, w, smp, t0, h, keys, out, counts,
+                                                                    spawn)
             shadows.append(shadow)
+            caught.append(c if c is not None else np.zeros(len(shadow.o), np.bool_))
             m = len(o)
             refl.append((nxt, slice(0, n_refl)))
             tran.append((nxt, slice(m, m + n_tran)))
@@ -409,6 +446,8 @@ class Integrator:
         if len(shadow.o):
             blocked = self.accel.occluded(shadow.o, shadow.d, shadow.t_max,
                                           mask=linking.shadow_masks(self.links, shadow.light))
+            if self.compose.has_catcher:
+                self._catcher_light(out, shadow, np.concatenate(caught), blocked)
             if self.see_through and blocked.any():
                 blocked = self._through_shadows(shadow, blocked)
             _add_unoccluded(out.color, shadow.sample, shadow.color, blocked)
@@ -421,6 +460,21 @@ class Integrator:
         spawned = SpawnRecord(light=shadow.light[:0], normal=cat(lambda q: q.spawned.normal),
                               eta=cat(lambda q: q.spawned.eta), tir=cat(lambda q: q.spawned.tir))
         return Step(hits=hits, shadow=shadow, blocked=blocked, next=nxt, spawned=spawned, n_reflected=n_reflected)
+
+    def _catcher_light(self, out, shadow: "ShadowQueue", caught: np.ndarray, blocked: np.ndarray) -> None:
+        """The catcher-only light of the split hits' shadow rays: each counts unless a catcher blocks it (before
+        transparent shadows scale the colours)."""
+        rows = np.flatnonzero(caught)
+        if not len(rows):
+            return
+        hit = blocked[rows].copy()
+        if hit.any():
+            b = rows[hit]
+            hit[hit] = compose.catcher_blocked(self.accel, shadow.o[b], shadow.d[b], shadow.t_max[b], self.compose,
+                                               self.geometry.object_ids, self.instances.object_ids,
+                                               float(self.eps))
+        free = rows[~hit]
+        np.add.at(out.compose[:, compose.K0:compose.K0 + 3], shadow.sample[free], shadow.color[free])
 
     def _through_shadows(self, shadow: "ShadowQueue", blocked: np.ndarray) -> np.ndarray:
         """Blocked shadow rays whose blockers are alpha < 1 surfaces continue through them, their colour × (1 −
@@ -456,7 +510,8 @@ class Integrator:
         k = len(PATH_TYPES) if ray_types else 1
         out = Tile(color=np.zeros((n_samples * k, 3), np.float32), alpha=np.ones(n_samples * k, np.float32),
                    depth=np.full(n_samples * k, np.inf, np.float32), normal=np.zeros((n_samples * k, 3), np.float32),
-                   albedo=np.zeros((n_samples * k, 3), np.float32), object_id=np.full(n_samples * k, -1, np.int32))
+                   albedo=np.zeros((n_samples * k, 3), np.float32), object_id=np.full(n_samples * k, -1, np.int32),
+                   compose=compose.empty(n_samples * k, self.compose.has_catcher))
         counts = np.zeros(5, np.int64)
         keys = np.ascontiguousarray(np.repeat(keys, k), np.int64)
         deepest = np.full(n_samples, -1, np.int32)
@@ -485,7 +540,9 @@ class Integrator:
         return TileResult(color=by_type.sum(axis=1) if k > 1 else out.color, alpha=out.alpha[::k],
                           depth=out.depth[::k], normal=out.normal[::k], albedo=out.albedo[::k],
                           object_id=out.object_id[::k], counts=rc, by_type=by_type if k > 1 else None,
-                          deepest=deepest if k > 1 else None)
+                          deepest=deepest if k > 1 else None,
+                          compose=out.compose[::k] if self.compose.has_catcher else None,
+                          compose_mode=(bool(self.settings.transparent), "shadow_catcher" not in self.settings.aovs))
 
 
 # ---------------------------------------------------------------------------------------------- helpers
