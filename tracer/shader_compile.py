@@ -465,8 +465,8 @@ class Compiler:
             return {"Color": tuple(float(a) for a in v)}
         return {"Color": self.e.emit(vm.OP_COMB_COLOR, 3, [(x, 1), (y, 1), (z, 1)], imm=mode)}
 
-    def _n_rgb_to_bw(self, node, var):
-        return {"Val": self.inp(node, "Color", FLOAT, var)}
+    def _n_rgb_to_bw(self, node, var):  # whatever feeds it is a colour first (a vector as is), then its luminance
+        return {"Val": self.convert(self.inp(node, "Color", COLOR, var), COLOR, FLOAT)}
 
     def _n_mix_float(self, node, var):
         f, a, b = self.inp(node, "Factor", FLOAT, var), self.inp(node, "A", FLOAT, var), self.inp(node, "B", FLOAT, var)
@@ -816,8 +816,7 @@ class Compiler:
         fac = self.inp(node, fac_name, FLOAT, var)
         if table is None:
             return {out_name: x}
-        rng = node.param("range") if "range" in node.params else (0.0, 1.0)
-        lo, hi = float(rng[0]), float(rng[1])
+        lo, hi = (float(x) for x in node.param("range"))
         size = table.shape[0]
         k = self.e.const((lo, hi, float(table.shape[1])) + tuple(table.T.reshape(-1)))
         n = 1 if kind == 2 else 3

@@ -11,9 +11,9 @@ A vector or colour occupies three consecutive registers; an image lookup writes 
 with its outputs in registers the material's row of ``outs`` names (:data:`OUT_SLOTS`; -1 = the row's constant).
 
 Inputs a program reads at a hit (``OP_INPUT``, ``imm`` one of the ``IN_*`` codes): position, shading and true
-normals, incoming direction, UVs of any set, generated / object coordinates (object-space position within the
-object's bounds), vertex colour, backfacing, the ray's depth and length (Light Path), object info (location,
-random, index). ``b`` = 1 or 2 reads them at the bump offset points set up by ``OP_BUMP_SETUP`` (register ``c``):
+normals, incoming direction, UVs of any set, object coordinates and generated ones (object space, and the position
+within the object's texture space), camera and window coordinates (the spaces of :mod:`tracer.shader_spaces`),
+vertex colour, backfacing, the ray's depth and length (Light Path), object info (location, random, index). ``b`` = 1 or 2 reads them at the bump offset points set up by ``OP_BUMP_SETUP`` (register ``c``):
 the hit moved one footprint along two tangent directions, its barycentrics moved with it, as Cycles' Bump node
 evaluates its height input at P + dPdx and P + dPdy.
 """
@@ -32,6 +32,7 @@ from .procedural import noise as pnoise
 from .procedural import patterns as ppat
 from .procedural import voronoi as pvor
 from .surface import areas_at, tangent_at, uv_at
+from .shader_spaces import CAM_FILM, CAM_LENS, CAM_XF, HI, LO, LOC, XF
 from .texture import lookup_at, texel_density
 
 WIDTH = 9  # op, dst, a, b, c, d, e, f, imm
@@ -69,25 +70,25 @@ def _bary_at(vertices, triangles, tri, u, v):
             w * vertices[a, 2] + u * vertices[b, 2] + v * vertices[c, 2])
 
 
-@kernel
-def _hash01(k):
-    """A float in [0, 1) from an integer (Object Info's Random: a hash of the object id)."""
-    h = (k * 2654435761 + 0x9E3779B9) & 0xFFFFFFFF
-    h ^= h >> 16
-    h = (h * 0x85EBCA6B) & 0xFFFFFFFF
-    h ^= h >> 13
-    return (h & 0xFFFFFF) / 16777216.0
+@kernel(inline=True)
+def _affine(spaces, k, row, x):
+    """The 3×4 matrix at rows row…row+2 of ``spaces[k]`` applied to the point x."""
+    return (spaces[k, row, 0] * x[0] + spaces[k, row, 1] * x[1] + spaces[k, row, 2] * x[2] + spaces[k, row, 3],
+            spaces[k, row + 1, 0] * x[0] + spaces[k, row + 1, 1] * x[1] + spaces[k, row + 1, 2] * x[2]
+            + spaces[k, row + 1, 3],
+            spaces[k, row + 2, 0] * x[0] + spaces[k, row + 2, 1] * x[1] + spaces[k, row + 2, 2] * x[2]
+            + spaces[k, row + 2, 3])
 
 
 @kernel(refcounts=False)
 def execute(code, pc0, pc1, R, base, hit, geo, tex):
     """Run instructions pc0..pc1 of ``code`` for one hit, registers ``R[base + …]``. ``hit`` = (tri, u, v, p, n, ng,
     front, d, ray length, depth, instance, footprint, shadow ray?, eye), ``geo`` = (uv_sets, colors, has_colors,
-    vertices, triangles, face_normals, object_ids, bounds, linear, mirrored, instance object ids), ``tex`` =
+    vertices, triangles, face_normals, object_ids, spaces (tracer.shader_spaces), linear, mirrored, instance object ids), ``tex`` =
     (texel data, texture params). (Tuples: Python passes a call of more than 30 arguments as *args, which numba
     cannot inline; the callers are compiled without reference counting, so the tuples cost nothing.)"""
     tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye = hit
-    uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, bounds, linear, mirrored, inst_ids = geo
+    uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids = geo
     tdata, tparams = tex
     k_read, uv_area, world_area = -1, 0.0, 0.0  # the UV set whose areas were last read (lookups mostly share one)
     for pc in range(pc0, pc1):
@@ -315,7 +316,7 @@ def _procedural(R, op, o, a, b, imm):
 def _input(R, o, what, arg, variant, setup, hit, geo):
     """An ``OP_INPUT``: a value of the hit into R[o…] (``hit``, ``geo``: :func:`execute`'s)."""
     tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye = hit
-    uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, bounds, linear, mirrored, inst_ids = geo
+    uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids = geo
     if variant > 0:  # the bump offset points: barycentrics and world position moved by the setup's offsets
         j = 2 * (variant - 1)
         u = u + R[setup + j]
@@ -334,26 +335,25 @@ def _input(R, o, what, arg, variant, setup, hit, geo):
     elif what == IN_UV:
         s, t, ok = uv_at(uv_sets, arg, tri, u, v)
         x = (s, t, 0.0) if ok else (np.nan, np.nan, 0.0)
-    elif what == IN_GENERATED or what == IN_OBJECT or what == IN_OBJ_LOCATION:
+    elif what == IN_GENERATED or what == IN_OBJECT:  # object space (tracer.shader_spaces); Generated: in its bounds
         po = _bary_at(vertices, triangles, tri, u, v)
         oid = object_ids[tri]
+        x = _affine(spaces, oid, XF, po)
         if what == IN_GENERATED:
-            x = (0.0, 0.0, 0.0)
-            lo = (bounds[oid, 0, 0], bounds[oid, 0, 1], bounds[oid, 0, 2])
-            hi = (bounds[oid, 1, 0], bounds[oid, 1, 1], bounds[oid, 1, 2])
+            lo = (spaces[oid, LO, 0], spaces[oid, LO, 1], spaces[oid, LO, 2])
+            hi = (spaces[oid, HI, 0], spaces[oid, HI, 1], spaces[oid, HI, 2])
             # a flat axis sits in the middle of its texture space (Blender sizes it 1 about the centre)
-            x = ((po[0] - lo[0]) / (hi[0] - lo[0]) if hi[0] > lo[0] else 0.5,
-                 (po[1] - lo[1]) / (hi[1] - lo[1]) if hi[1] > lo[1] else 0.5,
-                 (po[2] - lo[2]) / (hi[2] - lo[2]) if hi[2] > lo[2] else 0.5)
-        elif what == IN_OBJECT:
-            x = po
-        else:  # location: the instance's translation, or the centre of a baked mesh's bounds
-            if k_inst >= 0:
-                m = mat3_apply(linear, k_inst, po)
-                x = (p[0] - m[0], p[1] - m[1], p[2] - m[2])
-            else:
-                x = (0.5 * (bounds[oid, 0, 0] + bounds[oid, 1, 0]), 0.5 * (bounds[oid, 0, 1] + bounds[oid, 1, 1]),
-                     0.5 * (bounds[oid, 0, 2] + bounds[oid, 1, 2]))
+            x = ((x[0] - lo[0]) / (hi[0] - lo[0]) if hi[0] > lo[0] else 0.5,
+                 (x[1] - lo[1]) / (hi[1] - lo[1]) if hi[1] > lo[1] else 0.5,
+                 (x[2] - lo[2]) / (hi[2] - lo[2]) if hi[2] > lo[2] else 0.5)
+    elif what == IN_OBJ_LOCATION:  # the instance's translation, or the object's
+        if k_inst >= 0:
+            po = _bary_at(vertices, triangles, tri, u, v)
+            m = mat3_apply(linear, k_inst, po)
+            x = (p[0] - m[0], p[1] - m[1], p[2] - m[2])
+        else:
+            oid = object_ids[tri]
+            x = (spaces[oid, LOC, 0], spaces[oid, LOC, 1], spaces[oid, LOC, 2])
     elif what == IN_BACKFACING:
         x = (0.0 if front else 1.0, 0.0, 0.0)
     elif what == IN_PARAMETRIC:
@@ -370,7 +370,7 @@ def _input(R, o, what, arg, variant, setup, hit, geo):
         x = (1.0, 0.0, 0.0)
     elif what == IN_OBJ_RANDOM or what == IN_OBJ_INDEX:
         oid = object_ids[tri] if k_inst < 0 else inst_ids[k_inst]
-        x = (_hash01(oid) if what == IN_OBJ_RANDOM else float(oid), 0.0, 0.0)
+        x = (spaces[oid, LOC, 3] if what == IN_OBJ_RANDOM else float(oid), 0.0, 0.0)
     elif what == IN_RAY_DEPTH:
         x = (float(depth), 0.0, 0.0)
     elif what == IN_RAY_LENGTH:
@@ -386,8 +386,14 @@ def _input(R, o, what, arg, variant, setup, hit, geo):
         if k_inst >= 0:
             tg = vec.normalize(mat3_apply(linear, k_inst, tg))
         x = tg
-    elif what == IN_CAMERA:
-        x = (p[0] - eye[0], p[1] - eye[1], p[2] - eye[2])
+    elif what == IN_CAMERA or what == IN_WINDOW:  # Cycles' camera space; Window: the film position, y up
+        cam = spaces.shape[0] - 1
+        x = _affine(spaces, cam, CAM_XF, p)
+        if what == IN_WINDOW:
+            z = x[2] / spaces[cam, CAM_LENS, 0] if spaces[cam, CAM_LENS, 1] > 0.0 else 1.0
+            z = z if z != 0.0 else 1e-30
+            x = ((x[0] / z - spaces[cam, CAM_FILM, 2]) / spaces[cam, CAM_FILM, 0] + 0.5,
+                 (x[1] / z - spaces[cam, CAM_FILM, 3]) / spaces[cam, CAM_FILM, 1] + 0.5, 0.0)
     elif what == IN_REFLECTION:
         dn = vec.dot(d, n)
         x = (d[0] - 2.0 * dn * n[0], d[1] - 2.0 * dn * n[1], d[2] - 2.0 * dn * n[2])
@@ -606,13 +612,13 @@ def _layer_weight(R, o, blend, nrm, d, front):
 @kernel(refcounts=False)
 def shade_programs(rays, prim, u, v, t, inst, d, depth, code, pstart, pbase, outs, R0, R, s_mat, s_p, s_ng, s_n,
                    s_front, s_base, s_rough, s_metal, s_spec, s_cover, s_e, s_tran, threshold, uv_sets, colors,
-                   has_colors, vertices, triangles, face_normals, object_ids, bounds, tdata, tparams, linear,
+                   has_colors, vertices, triangles, face_normals, object_ids, spaces, tdata, tparams, linear,
                    mirrored, inst_ids, eye, spread, flat):
     """The textures stage: for the listed rays (their material has a program), run it and write its outputs over
     the constants the surfaces stage wrote. ``R`` is this call's register file (``R0`` copied in once)."""
     for j in range(R0.shape[0]):
         R[j] = R0[j]
-    geo = (uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, bounds, linear, mirrored,
+    geo = (uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored,
            inst_ids)
     tex = (tdata, tparams)
     for q in range(rays.shape[0]):
