@@ -310,7 +310,7 @@ class Integrator:
         self.materials = MaterialArrays.of(m, self.programs.has)
         self.textures = pack_textures(textures)
         #: the coordinate spaces programs read (tracer.shader_spaces; the camera's entry refreshed per batch)
-        self.spaces = object_spaces(scene) if self.programs.has.any() else np.zeros((2, 6, 4), np.float64)
+        self.spaces = object_spaces(scene) if self.programs.has.any() else np.zeros((2, 9, 4), np.float64)
         self.instances = pack_instances(scene)
         # instanced prototypes' emitting triangles placed per instance (tracer/instances.py)
         emitters = world_emitters(scene, m.emission * m.alpha[:, None])

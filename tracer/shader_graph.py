@@ -286,7 +286,7 @@ class ImageRef:
     pixels       (H, W, 4) float32 scene-linear, straight alpha, row 0 = top (front ends that decode themselves)
     colorspace   "auto" (8/16-bit files sRGB, float files linear) | "srgb" | "raw" — for ``path`` only
     wrap_s, wrap_t   "repeat" | "clamp" | "mirror" | "black" (Blender's REPEAT, EXTEND, MIRROR, CLIP)
-    interpolation    "linear" | "closest" | "cubic" | "smart" (the tracer filters bilinearly with mip levels)
+    interpolation    "linear" | "closest" | "cubic" | "smart" (tracer.texture: Smart reads as Cubic)
     label        for messages
 
     Two references to one file with the same colour space share pixels (a process-wide cache by path)."""
@@ -313,7 +313,7 @@ class ImageRef:
 
     def key(self) -> tuple:
         """Identity for sharing one tracer texture between lookups."""
-        return (id(self.rgba()), self.wrap_s, self.wrap_t)
+        return (id(self.rgba()), self.wrap_s, self.wrap_t, self.interpolation)
 
 
 _PIXELS: dict = {}

@@ -1,7 +1,7 @@
 """The coordinate spaces material programs read (:mod:`tracer.shader_vm`): per object, its texture space and its
 world-to-object matrix, and the camera's; packed once per render into one float64 array the VM indexes.
 
-    spaces = object_spaces(scene)            # (O + 1, 6, 4); entry O is the camera
+    spaces = object_spaces(scene)            # (O + 1, 9, 4); entry O is the camera
     set_camera(spaces, scene.camera)         # refresh the camera entry (a session moves the camera)
 
 Per object id k < O (Cycles' definitions, ``svm_node_tex_coord``):
@@ -12,7 +12,9 @@ Per object id k < O (Cycles' definitions, ``svm_node_tex_coord``):
   space for instanced ones) to object space (the inverse of ``Scene.object_transforms``; Object coordinates);
 - row 5: its location (the translation of its matrix; Object Info Location) and, in column 3, Object Info Random:
   Cycles' ``hash_uint2(hash_string(name), 0) / 0xFFFFFFFF`` of its name (what Cycles gives an object that is not a
-  dupli; a Blender dupli's random comes from its persistent id, which a tracer scene does not hold).
+  dupli; a Blender dupli's random comes from its persistent id, which a tracer scene does not hold);
+- rows 6–8 (3×3): the transpose of its object-to-world matrix, which takes a world normal to an object-space one
+  (up to length; Image Texture's Box projection).
 
 The camera entry O: rows 0–2 the 3×4 world-to-camera matrix of Cycles' camera space (x right, y up, z forward, so
 points in front have z > 0; Camera coordinates), row 3 (horizontal and vertical aperture, their offsets), row 4
@@ -26,7 +28,7 @@ import numpy as np
 from .procedural.hash import hash_uint2
 
 #: rows of an object's entry
-LO, HI, XF, LOC = 0, 1, 2, 5
+LO, HI, XF, LOC, NRM = 0, 1, 2, 5, 6
 #: the camera entry's rows
 CAM_XF, CAM_FILM, CAM_LENS = 0, 3, 4
 
@@ -46,18 +48,19 @@ def object_random(name: str) -> float:
 
 
 def object_spaces(scene) -> np.ndarray:
-    """(O + 1, 6, 4) float64: every object id's spaces and the camera's (module docstring)."""
+    """(O + 1, 9, 4) float64: every object id's spaces and the camera's (module docstring)."""
     ids = [np.asarray(scene.object_ids, np.int64)]
     if scene.instances is not None:
         ids.append(np.asarray(scene.instances.object_ids, np.int64))
     n = max([len(scene.object_names)] + [int(x.max()) + 1 for x in ids if len(x)] + [1])
-    out = np.zeros((n + 1, 6, 4), np.float64)
+    out = np.zeros((n + 1, 9, 4), np.float64)
     xf = np.tile(np.eye(4), (n, 1, 1))
     ot = scene.object_transforms
     if ot is not None:
         k = min(len(ot), n)
         xf[:k] = ot[:k]
     out[:n, LOC, :3] = xf[:, :3, 3]
+    out[:n, NRM:NRM + 3, :3] = np.transpose(xf[:, :3, :3], (0, 2, 1))
     inv = np.linalg.inv(xf)
     if scene.instances is not None:  # an instance's triangles are its prototype's, stored in the prototype's space
         protos = np.unique(scene.instances.prototypes)
@@ -91,8 +94,8 @@ def _texture_spaces(scene, w2o: np.ndarray, n: int, chunk: int = 1 << 18) -> np.
 
 
 def camera_space(camera) -> np.ndarray:
-    """(6, 4): the camera entry (module docstring)."""
-    out = np.zeros((6, 4), np.float64)
+    """(9, 4): the camera entry (module docstring)."""
+    out = np.zeros((9, 4), np.float64)
     w2c = np.linalg.inv(camera.camera_to_world)
     out[CAM_XF:CAM_XF + 3] = np.diag([1.0, 1.0, -1.0]) @ w2c[:3]  # the tracer's camera looks down −z, Cycles' +z
     out[CAM_FILM] = (camera.horizontal_aperture, camera.vertical_aperture, camera.horizontal_aperture_offset,

@@ -25,14 +25,14 @@ import math
 import numpy as np
 
 from . import bsdf, shader_ops as ops, vec
-from .instances import mat3_apply
+from .instances import mat3_apply, mat3_apply_transposed
 from .jit import kernel
 from .procedural import color as pcolor
 from .procedural import noise as pnoise
 from .procedural import patterns as ppat
 from .procedural import voronoi as pvor
 from .surface import areas_at, tangent_at, uv_at
-from .shader_spaces import CAM_FILM, CAM_LENS, CAM_XF, HI, LO, LOC, XF
+from .shader_spaces import CAM_FILM, CAM_LENS, CAM_XF, HI, LO, LOC, NRM, XF
 from .texture import lookup_at, texel_density
 
 WIDTH = 9  # op, dst, a, b, c, d, e, f, imm
@@ -78,6 +78,82 @@ def _affine(spaces, k, row, x):
             + spaces[k, row + 1, 3],
             spaces[k, row + 2, 0] * x[0] + spaces[k, row + 2, 1] * x[1] + spaces[k, row + 2, 2] * x[2]
             + spaces[k, row + 2, 3])
+
+
+@kernel(inline=True)
+def _affine3(spaces, k, row, x):
+    """The 3×3 part at rows row…row+2 of ``spaces[k]`` applied to the direction x."""
+    return (spaces[k, row, 0] * x[0] + spaces[k, row, 1] * x[1] + spaces[k, row, 2] * x[2],
+            spaces[k, row + 1, 0] * x[0] + spaces[k, row + 1, 1] * x[1] + spaces[k, row + 1, 2] * x[2],
+            spaces[k, row + 2, 0] * x[0] + spaces[k, row + 2, 1] * x[1] + spaces[k, row + 2, 2] * x[2])
+
+
+@kernel
+def _project(x, y, z, kind):
+    """Image Texture's Sphere (2) and Tube (3) projections of a point of the [0, 1]³ box (Cycles' ``map_to_sphere``,
+    ``map_to_tube`` after ``texco_remap_square``)."""
+    x, y, z = 2.0 * x - 1.0, 2.0 * y - 1.0, 2.0 * z - 1.0
+    if kind == 2:
+        ln = math.sqrt(x * x + y * y + z * z)
+        if ln <= 0.0:
+            return 0.0, 0.0
+        u = 0.0 if x == 0.0 and y == 0.0 else 0.5 - math.atan2(x, y) / (2.0 * math.pi)
+        return u, 1.0 - math.acos(min(max(z / ln, -1.0), 1.0)) / math.pi
+    ln = math.sqrt(x * x + y * y)
+    if ln <= 0.0:
+        return 0.0, 0.0
+    return (1.0 - math.atan2(x / ln, y / ln) / math.pi) * 0.5, (z + 1.0) * 0.5
+
+
+@kernel
+def _box_lookup(tdata, tparams, ti, co, nrm, blend, lod):
+    """Image Texture's Box projection (Cycles' ``svm_node_tex_image_box``): the three axis-aligned lookups of the
+    point ``co`` weighted by the object-space normal ``nrm``, blended over ``blend``."""
+    ax, ay, az = abs(nrm[0]), abs(nrm[1]), abs(nrm[2])
+    sm = ax + ay + az
+    if sm > 0.0:
+        ax, ay, az = ax / sm, ay / sm, az / sm
+    wx = wy = wz = 0.0
+    limit = 0.5 * (1.0 + blend)
+    if ax > limit * (ax + ay) and ax > limit * (ax + az):
+        wx = 1.0
+    elif ay > limit * (ax + ay) and ay > limit * (ay + az):
+        wy = 1.0
+    elif az > limit * (ax + az) and az > limit * (ay + az):
+        wz = 1.0
+    elif blend > 0.0:
+        if az < (1.0 - limit) * (ay + ax):
+            wx = min(max((ax / (ax + ay) - 0.5 * (1.0 - blend)) / blend, 0.0), 1.0)
+            wy = 1.0 - wx
+        elif ax < (1.0 - limit) * (ay + az):
+            wy = min(max((ay / (ay + az) - 0.5 * (1.0 - blend)) / blend, 0.0), 1.0)
+            wz = 1.0 - wy
+        elif ay < (1.0 - limit) * (ax + az):
+            wx = min(max((ax / (ax + az) - 0.5 * (1.0 - blend)) / blend, 0.0), 1.0)
+            wz = 1.0 - wx
+        else:
+            wx = ((2.0 - limit) * ax + (limit - 1.0)) / (2.0 * limit - 1.0)
+            wy = ((2.0 - limit) * ay + (limit - 1.0)) / (2.0 * limit - 1.0)
+            wz = ((2.0 - limit) * az + (limit - 1.0)) / (2.0 * limit - 1.0)
+    else:
+        wx = 1.0
+    r = g = b = al = 0.0
+    for k in range(3):
+        wk = wx if k == 0 else (wy if k == 1 else wz)
+        if wk <= 0.0:
+            continue
+        if k == 0:
+            s_, t_ = (1.0 - co[1] if nrm[0] < 0.0 else co[1]), co[2]
+        elif k == 1:
+            s_, t_ = (1.0 - co[0] if nrm[1] > 0.0 else co[0]), co[2]
+        else:
+            s_, t_ = (1.0 - co[1] if nrm[2] > 0.0 else co[1]), co[0]
+        c = lookup_at(tdata, tparams, ti, s_, t_, s_ == s_ and t_ == t_, lod)
+        r += wk * c[0]
+        g += wk * c[1]
+        b += wk * c[2]
+        al += wk * c[3]
+    return r, g, b, al
 
 
 @kernel(refcounts=False)
@@ -149,10 +225,8 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
                 R[o + j] = R[src + j]
         elif op == OP_INPUT:
             _input(R, o, imm, code[pc, 2], code[pc, 3], base + code[pc, 4], hit, geo)
-        elif op == OP_IMAGE:
+        elif op == OP_IMAGE:  # imm: projection (0 flat, 1 box: blend in register d, 2 sphere, 3 tube)
             ti = code[pc, 3]
-            s_, t_ = R[a], R[a + 1]
-            ok = s_ == s_ and t_ == t_
             lod = 0.0
             k_fp = code[pc, 4]
             if k_fp >= 0 and footprint > 0.0:
@@ -161,7 +235,16 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
                     k_read = k_fp
                 texels = footprint * texel_density(tparams, ti, uv_area, world_area)
                 lod = math.log2(texels) if texels > 1.0 else 0.0
-            x0, x1, x2, x3 = lookup_at(tdata, tparams, ti, s_, t_, ok, lod)
+            if imm == 1:
+                nb = _affine3(spaces, object_ids[tri], NRM, n) if k_inst < 0 else \
+                    mat3_apply_transposed(linear, k_inst, n)  # the object-space normal (its direction)
+                x0, x1, x2, x3 = _box_lookup(tdata, tparams, ti, (R[a], R[a + 1], R[a + 2]), nb,
+                                             R[base + code[pc, 5]], lod)
+            else:
+                s_, t_ = R[a], R[a + 1]
+                if imm >= 2:
+                    s_, t_ = _project(R[a], R[a + 1], R[a + 2], imm)
+                x0, x1, x2, x3 = lookup_at(tdata, tparams, ti, s_, t_, s_ == s_ and t_ == t_, lod)
             R[o], R[o + 1], R[o + 2], R[o + 3] = x0, x1, x2, x3
         elif op == OP_CHECKER:  # Cycles' svm_checker: Color1 where the cell parities differ
             sc = R[base + code[pc, 5]]

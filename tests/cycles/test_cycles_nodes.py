@@ -773,11 +773,6 @@ EMISSION_MARGIN = int(round((1 - PLANE) / 2 * TILE)) + 1
 #: Variants the tracer's VM does not yet evaluate as Cycles does (measured dB at 64 spp; the translation is checked
 #: by tests/test_addon_shader_tree.py). Strict: a fix in the VM turns these into XPASS failures, to be removed here.
 VM_GAPS = {
-    "image_box": "VM: Box projection read as Flat (11.5 dB)",
-    "image_sphere": "VM: Sphere projection read as Flat (12.5 dB)",
-    "image_tube": "VM: Tube projection read as Flat (12.2 dB)",
-    "image_closest": "VM: Closest interpolation filtered bilinearly (24.4 dB)",
-    "image_cubic": "VM: Cubic interpolation filtered bilinearly (25.1 dB)",
     "vector_transform_object_world": "VM: Vector Transform not evaluated (15.9 dB)",
     "vector_transform_world_camera": "VM: Vector Transform not evaluated (15.3 dB)",
     "normal_map_tangent": "VM: Normal Map output differs from Cycles on a flat UV plane (16.2 dB)",
