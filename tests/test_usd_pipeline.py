@@ -765,3 +765,27 @@ def test_open_cubic_curves_vectorised_equal_curve_by_curve(basis):
     b = cc._curve_by_curve(p, counts, basis, "nonperiodic", w)
     for x, y in zip(a, b):
         np.testing.assert_allclose(x, y, atol=1e-12)
+
+
+def test_cli_without_output_writes_every_render_product(tmp_path):
+    """Two RenderProducts: the first renders with the settings' CamB at 100 × 100; the second has its own camera
+    (CamA, 4× closer), resolution 40 × 20 and RenderVars (color, depth). Both files are written, each at its own
+    size with its own AOVs, and the ball is bigger in the second (before: only the first product was written)."""
+    from pxr import UsdRender
+
+    s = _render_settings_stage(products=("first.png", "second.exr"), var_sources=("color",))
+    p1 = UsdRender.Product(s.GetPrimAtPath("/Render/P1"))
+    p1.CreateResolutionAttr(Gf.Vec2i(40, 20))
+    p1.CreateCameraRel().SetTargets(["/CamA"])
+    v = UsdRender.Var.Define(s, "/Render/P1/Depth")
+    v.CreateSourceNameAttr("depth")
+    p1.GetOrderedVarsRel().AddTarget(v.GetPath())
+    path = str(tmp_path / "two.usda")
+    s.GetRootLayer().Export(path)
+    res = whitted("render", path, "--quiet", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    first, second = read_image(str(tmp_path / "first.png")), read_image(str(tmp_path / "second.exr"))
+    assert first.shape[:2] == (100, 100) and second.shape[:2] == (20, 40)
+    assert (tmp_path / "second.depth.exr").exists() and not (tmp_path / "first.depth.exr").exists()
+    covered = [float((np.abs(im[..., :3] - im[0, 0, :3]).max(axis=-1) > 0.02).mean()) for im in (first, second)]
+    assert covered[1] > 3 * covered[0], covered
