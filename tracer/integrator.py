@@ -442,7 +442,7 @@ class Integrator:
             w, smp, t0 = nxt.through_weight[:n_through], nxt.through_sample[:n_through], nxt.through_t0[:n_through]
             tm = None
             if rays.t_max is not None:  # eye rays stop at the far plane: what is left of their length
-                tm = np.maximum(rays.t_max[0] - t0, 0).astype(np.float32)
+                tm = np.maximum(rays.t_max[np.searchsorted(rays.sample, smp)] - t0, 0).astype(np.float32)
             h = self.accel.closest_hits(o, d, tm, mask=linking.through_mask(self.links, depth))
         shadow = shadows[0] if len(shadows) == 1 else ShadowQueue(*(np.concatenate(c) for c in zip(*shadows)))
         blocked = np.zeros(0, bool)
@@ -502,7 +502,7 @@ class Integrator:
         return blocked
 
     def trace(self, origins: np.ndarray, directions: np.ndarray, keys: np.ndarray,
-              cancelled=lambda: False, ray_types: bool = False) -> TileResult:
+              cancelled=lambda: False, ray_types: bool = False, t_max: np.ndarray | None = None) -> TileResult:
         """Trace eye rays (one per sample) to the maximum depth. ``keys`` are unique per sample (for the
         deterministic random streams). With ``ray_types`` the result also holds each sample's colour split by the
         ray type it arrived through (:data:`PATH_TYPES`) and the depth of its deepest ray."""
@@ -522,7 +522,8 @@ class Integrator:
         rays = RayQueue(o=np.ascontiguousarray(origins, np.float32), d=np.ascontiguousarray(directions, np.float32),
                         weight=np.ones((n_samples, 3), np.float32),
                         sample=np.arange(0, n_samples * k, k, dtype=np.int32),
-                        t_max=(np.full(n_samples, s.camera.far - s.camera.near, np.float32)
+                        t_max=(t_max if t_max is not None else  # per ray: the camera's clipping planes
+                               np.full(n_samples, s.camera.far - s.camera.near, np.float32)
                                if np.isfinite(s.camera.far) else None))
         for depth in range(self.last_depth + 1):
             if not len(rays.o) or cancelled():

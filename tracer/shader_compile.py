@@ -892,6 +892,17 @@ class Compiler:
             return Reg(self._proc(vm.OP_NOISE, node, var, names, imm, 1).r, 1)
         return _Lazy({"Fac": fac, "Color": lambda: Reg(colour().r + 1, 3)})
 
+    def _n_mx_noise(self, node, var):
+        """MaterialX's noise nodes (tracer.procedural.mx_noise); one op, all outputs."""
+        from .procedural import mx_noise as mxn
+        if self.estimate:
+            return {"Value": 0.5, "Vector": (0.5, 0.5, 0.5), "W": 0.5}
+        imm = (mxn.KINDS.index(str(node.param("kind"))) | int(node.param("dimensions")) << 4
+               | int(node.param("width")) << 8 | int(node.param("style")) << 12)
+        r = self._proc(vm.OP_MX_NOISE, node, var, ["Amplitude", "Amplitude W", "Pivot", "Octaves", "Lacunarity",
+                                                   "Diminish", "Jitter"], imm, 4)
+        return {"Value": Reg(r.r, 1), "Vector": Reg(r.r, 3), "W": Reg(r.r + 3, 1)}
+
     def _n_voronoi_texture(self, node, var):
         from .procedural import voronoi as pv
         dim = int(str(node.param("voronoi_dimensions"))[0])

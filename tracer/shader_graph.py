@@ -264,6 +264,12 @@ NODE_TYPES: dict[str, NodeType] = {
     "displacement": _t([_f("Height"), _f("Midlevel", 0.5), _f("Scale", 1.0), _N], [_v("Displacement")],
                        space="OBJECT"),
     # ---------------------------------------------------------------- USD / MaterialX
+    # MaterialX's noise2d/3d, fractal2d/3d, cellnoise2d/3d, worleynoise2d/3d (tracer.procedural.mx_noise): kind
+    # perlin | cell | worley | fractal, dimensions 2 | 3, width 1-4 (float, vector2, vector3/color3, vector4/color4),
+    # style 0 distance | 1 solid (worley). Value = x, Vector = (x, y, z), W = w of the node's result.
+    "mx_noise": _t([_v("Vector", GENERATED), _v("Amplitude", (1, 1, 1)), _f("Amplitude W", 1.0), _f("Pivot"),
+                    _f("Octaves", 3.0), _f("Lacunarity", 2.0), _f("Diminish", 0.5), _f("Jitter", 1.0)],
+                   [_f("Value"), _v("Vector"), _f("W")], kind="perlin", dimensions=3, width=1, style=0),
     # UsdUVTexture: image (an ImageRef, wrap from it), st, scale/bias per channel, fallback where the mesh has no
     # coordinates. Outputs r, g, b, a and rgb as in the spec.
     "usd_uv_texture": _t([_v("st", UV)], [_f("r"), _f("g"), _f("b"), _f("a"), _c("rgb")], image=None,

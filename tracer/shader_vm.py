@@ -28,6 +28,7 @@ from . import bsdf, shader_ops as ops, vec
 from .instances import mat3_apply, mat3_apply_transposed
 from .jit import kernel
 from .procedural import color as pcolor
+from .procedural import mx_noise as pmx
 from .procedural import noise as pnoise
 from .procedural import patterns as ppat
 from .procedural import voronoi as pvor
@@ -48,6 +49,9 @@ OP_NAMES = ("nop", "math", "vmath", "mix_f", "mix_v", "mix_vn", "mix_c", "lum", 
             "invert", "sep_color", "comb_color", "map_range", "clamp", "fresnel", "layer_weight", "vrotate", "copy",
             "affine2", "map_range_v", "select", "normalize_n", "noise", "voronoi", "wave", "magic", "gradient",
             "brick", "white_noise", "blackbody", "wavelength")
+#: MaterialX's noises (tracer.procedural.mx_noise), numbered after everything above.
+OP_MX_NOISE = len(OP_NAMES)
+OP_NAMES += ("mx_noise",)
 
 (IN_POSITION, IN_NORMAL, IN_TRUE_NORMAL, IN_INCOMING, IN_UV, IN_GENERATED, IN_OBJECT, IN_BACKFACING, IN_PARAMETRIC,
  IN_COLOR, IN_COLOR_ALPHA, IN_OBJ_LOCATION, IN_OBJ_RANDOM, IN_OBJ_INDEX, IN_RAY_DEPTH, IN_RAY_LENGTH, IN_IS_CAMERA,
@@ -393,6 +397,11 @@ def _procedural(R, op, o, a, b, imm):
         R[o], R[o + 1], R[o + 2] = pcolor.blackbody(R[a])
     elif op == OP_WAVELENGTH:
         R[o], R[o + 1], R[o + 2] = pcolor.wavelength(R[a])
+    elif op == OP_MX_NOISE:  # block: amplitude (4), pivot, octaves, lacunarity, diminish, jitter; e0 kind,
+        #                      e1 dimensions, e2 output width, e3 style -> x, y, z, w
+        R[o], R[o + 1], R[o + 2], R[o + 3] = pmx.mx_noise(e0, e1, e2, e3, p3[0], p3[1], p3[2], R[b], R[b + 1],
+                                                          R[b + 2], R[b + 3], R[b + 4], R[b + 5], R[b + 6],
+                                                          R[b + 7], R[b + 8])
 
 
 @kernel(inline=True)
