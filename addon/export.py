@@ -430,6 +430,7 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     scene = b.build()
     scene.object_visibility, scene.light_links = links_from_blender(depsgraph, exported, scene.lights,
                                                                     len(b.object_names), warnings)
+    scene.object_holdout, scene.object_shadow_catcher = compose_flags(depsgraph, exported, len(b.object_names))
     return scene, warnings
 
 
@@ -492,6 +493,25 @@ def links_from_blender(depsgraph, exported: list, lights: list, n_objects: int, 
     return visibility, links
 
 
+def compose_flags(depsgraph, exported: list, n: int) -> tuple:
+    """Per tracer object id (None where no object has it): holdout (the object's Holdout or its collection's, as
+    ``Object.holdout_get`` answers for the view layer) and shadow catcher (``Object.is_shadow_catcher``); an
+    instance takes its object's flags (tracer.compose)."""
+    hold, catch = np.zeros(n, bool), np.zeros(n, bool)
+    view_layer = getattr(depsgraph, "view_layer", None)
+    seen: dict = {}
+    for i, o in enumerate(exported):
+        name = o.key[0]
+        if name not in seen:
+            ob = depsgraph.objects.get(name)
+            ob = ob.original if ob is not None else None
+            h = bool(ob is not None and (getattr(ob, "is_holdout", False)
+                                         or (view_layer is not None and ob.holdout_get(view_layer=view_layer))))
+            seen[name] = (h, bool(ob is not None and getattr(ob, "is_shadow_catcher", False)))
+        hold[i], catch[i] = seen[name]
+    return (hold if hold.any() else None), (catch if catch.any() else None)
+
+
 def scene_camera(bpy_scene, width: int, height: int) -> "tracer.Camera":
     """The scene camera as a tracer camera for a width × height image (a clear error when there is none)."""
     cam_obj = bpy_scene.camera
@@ -536,7 +556,7 @@ def settings_from_scene(bpy_scene, view_layer=None) -> "tracer.RenderSettings":
     """Render settings from a Blender scene: ``scene.whitted`` (every property addon/properties.py made from a
     RenderSettings field; the defaults where unregistered), the render size
     (resolution × percentage), the render border as ``region``, Film > Transparent, and the AOVs the view layer
-    asks for (Z -> depth, Normal -> normal, Object Index -> objectid)."""
+    asks for (Z -> depth, Normal -> normal, Object Index -> objectid, Shadow Catcher -> shadow_catcher)."""
     r = bpy_scene.render
     w, h = render_size(bpy_scene)
     props = getattr(bpy_scene, "whitted", None)
@@ -555,10 +575,19 @@ def settings_from_scene(bpy_scene, view_layer=None) -> "tracer.RenderSettings":
             aovs.append("normal")
         if layer.use_pass_object_index:
             aovs.append("objectid")
+        if use_pass_shadow_catcher(layer):
+            aovs.append("shadow_catcher")
     if props is not None and props.ray_type_passes:
         aovs.extend(tracer.settings.RAY_TYPE_AOVS)
     return tracer.RenderSettings(width=w, height=h, transparent=bool(r.film_transparent), region=region,
                                  aovs=tuple(aovs), **kw).validate()
+
+
+def use_pass_shadow_catcher(view_layer) -> bool:
+    """Whether the view layer asks for Cycles' Shadow Catcher pass (its setting lives with Cycles' view-layer
+    properties: the same checkbox for both engines)."""
+    cycles = getattr(view_layer, "cycles", None)
+    return bool(getattr(cycles, "use_pass_shadow_catcher", False))
 
 
 def border_region(bpy_scene) -> tuple[int, int, int, int]:

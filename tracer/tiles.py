@@ -15,7 +15,9 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from . import compose
 from .camera import eye_ray
+from .clip_planes import clip_eye_rays
 from .film import Image, box_filter, majority
 from .integrator import PATH_TYPES, RayCounts
 from .jit import kernel
@@ -146,6 +148,11 @@ def write_tile(image: Image, res, tile, spp: int) -> None:
     th, tw = y1 - y0, x1 - x0
     _write_rgba(image.rgba, res.color, res.alpha, x0, y0, tw, th, spp)
     aovs = image.aovs
+    if res.compose is not None:  # shadow catchers: Cycles' Combined (the matte) and Shadow Catcher pass
+        rgba, catcher = compose.composite(res.color, res.alpha, res.compose, spp, *res.compose_mode)
+        image.rgba[y0:y1, x0:x1] = rgba.reshape(th, tw, 4)
+        if "shadow_catcher" in aovs:
+            aovs["shadow_catcher"][y0:y1, x0:x1] = catcher.reshape(th, tw, 3)
     if "depth" in aovs:
         hit = np.isfinite(res.depth).reshape(-1, spp)
         dsum = np.where(hit, res.depth.reshape(-1, spp), 0).sum(axis=1)
@@ -182,6 +189,8 @@ def empty_aovs(settings: RenderSettings, h: int, w: int) -> dict:
             aovs[name] = np.zeros((h, w, 3), np.float32)
     if "raydepth" in settings.aovs:
         aovs["raydepth"] = np.full((h, w), -1, np.int32)
+    if "shadow_catcher" in settings.aovs:  # 1 where no catcher is seen (tracer.compose)
+        aovs["shadow_catcher"] = np.ones((h, w, 3), np.float32)
     return aovs
 
 
@@ -196,11 +205,15 @@ def trace_tile(session, settings: RenderSettings, tile, cancelled=None):
     integ = session.integrator(settings)
     x0, y0, x1, y1 = tile
     o, d, keys = eye_rays(scene, settings, x0, y0, x1, y1)
-    res = integ.trace(o, d, keys, cancelled or (lambda: False), ray_types=uses_ray_types(settings))
     cam = scene.camera
-    if cam.near > 0:  # depth is measured from the eye (the film plane for orthographic cameras)
-        res.depth += (np.linalg.norm(o - cam.position.astype(np.float32), axis=1)
-                      if cam.projection == "perspective" else np.float32(cam.near))
+    t_max = None
+    if cam.clipping_planes:  # each ray's valid interval (tracer.clip_planes): origin moved to its start
+        o, t_max = clip_eye_rays(cam, o, d, cam.far - cam.near)
+    res = integ.trace(o, d, keys, cancelled or (lambda: False), ray_types=uses_ray_types(settings), t_max=t_max)
+    if cam.near > 0 or cam.clipping_planes:  # depth is measured from the eye (the film plane for orthographic)
+        rel = o - cam.position.astype(np.float32)
+        res.depth += (np.linalg.norm(rel, axis=1) if cam.projection == "perspective"
+                      else rel @ -cam.camera_to_world[:3, 2].astype(np.float32))
     return res
 
 
