@@ -53,6 +53,8 @@ class Camera:
     aperture_rotation: float = 0.0
     #: Anamorphic squeeze: the aperture's x is divided by it (Blender's Ratio; 1 = round bokeh).
     aperture_ratio: float = 1.0
+    #: Extra clipping planes (a, b, c, d) in camera space keeping a·x + b·y + c·z + d >= 0 (tracer.clip_planes).
+    clipping_planes: tuple = ()
 
     def __post_init__(self):
         m = np.asarray(self.camera_to_world, dtype=np.float64)
@@ -92,6 +94,10 @@ class Camera:
         if self.aperture_ratio <= 0:
             raise ValueError(f"camera aperture_ratio must be > 0, got {self.aperture_ratio}")
         self.aperture_blades = int(self.aperture_blades) if self.aperture_blades >= 3 else 0  # < 3: round, as Cycles
+        planes = tuple(tuple(float(x) for x in p) for p in self.clipping_planes)
+        if any(len(p) != 4 or not np.all(np.isfinite(p)) for p in planes):
+            raise ValueError(f"camera clipping_planes must be finite (a, b, c, d) tuples, got {self.clipping_planes}")
+        self.clipping_planes = planes
 
     @property
     def position(self) -> np.ndarray:
