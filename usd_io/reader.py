@@ -26,6 +26,7 @@ from .layer_metadata import meters_per_unit
 from .diagnostics import summarize
 from .exporters import light_units as exporter_light_units
 from .lights import convert_light, default_lights, light_links
+from .holdout import holdout_flags
 from .material import MaterialTable
 from .render_settings import CONFORM, DEFAULT_CONFORM, crop_to_data_window, read_render_settings
 from .nurbs import read_nurbs_curves, read_nurbs_patch, read_tet_mesh
@@ -491,4 +492,5 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     except ValueError as exc:  # the tracer's validation of what was read (e.g. a NaN material input)
         raise UsdInputError(f"{label}: {exc}") from None
     scene.light_links = links
+    scene.object_holdout = holdout_flags(stage, scene.object_names, tc)  # usd_io.holdout: primvars:arnold:matte
     return scene, info
