@@ -30,7 +30,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import embree
+from . import embree, linking
 from .heap import trim
 from .scene import Scene
 
@@ -84,6 +84,10 @@ class Accelerator:
         self._inst_proto = _NO_INSTANCES
         self._inst_xfm = None
         self._cancelled = cancelled
+        # ray visibility and shadow linking (tracer.linking): per-object Embree masks, none when unused
+        links = linking.pack(scene, len(scene.lights))
+        self._masks = links.object_mask if links.masked else None
+        self._array_mask = links.array_mask
         inst = scene.instances
         protos = set(np.unique(inst.prototypes).tolist()) if inst is not None else set()
         self.triangle_count = len(scene.triangles)
@@ -126,8 +130,9 @@ class Accelerator:
         return tuple(self.closest_hits(origins, directions, t_max, t_min)[:4])
 
     def closest_hits(self, origins: np.ndarray, directions: np.ndarray, t_max: np.ndarray | None = None,
-                     t_min: float = 0.0) -> Hits:
-        """Closest hits on [t_min, t_max] as :class:`Hits` (t, prim, u, v, inst)."""
+                     t_min: float = 0.0, mask: np.ndarray | None = None) -> Hits:
+        """Closest hits on [t_min, t_max] as :class:`Hits` (t, prim, u, v, inst). ``mask``: the rays' Embree masks
+        (uint32, one per ray or one for all; None: they see every object), see :mod:`tracer.linking`."""
         n = len(origins)
         t = np.empty(n, np.float32)
         prim = np.empty(n, np.int32)
@@ -142,14 +147,15 @@ class Accelerator:
         tm = _NONE_F32 if t_max is None else np.ascontiguousarray(np.minimum(t_max, T_FAR_MAX), np.float32)
         start = time.perf_counter()
         embree.intersect_rays(self._top.handle, o, d, np.float32(t_min), tm, self._start, self._rows,
-                              self._inst_proto, t, prim, inst, u, v)
+                              self._inst_proto, t, prim, inst, u, v, _ray_masks(mask))
         embree.library().check()
         self._account(start, "INTERSECT", o, d, None if t_max is None else tm)
         return Hits(t, prim, u, v, inst)
 
-    def occluded(self, origins: np.ndarray, directions: np.ndarray, t_max: np.ndarray, t_min: float = 0.0):
+    def occluded(self, origins: np.ndarray, directions: np.ndarray, t_max: np.ndarray, t_min: float = 0.0,
+                 mask: np.ndarray | None = None):
         """Boolean mask: something lies on the segment [origin + t_min·direction, origin + t_max·direction]
-        (shadow rays)."""
+        (shadow rays); ``mask`` as in :meth:`closest_hits`."""
         n = len(origins)
         blocked = np.zeros(n, bool)
         if n == 0 or not (self._objects or self._array is not None):
@@ -158,7 +164,7 @@ class Accelerator:
         d = np.ascontiguousarray(directions, dtype=np.float32)
         tm = np.ascontiguousarray(np.minimum(t_max, T_FAR_MAX), dtype=np.float32)
         start = time.perf_counter()
-        embree.occluded_rays(self._top.handle, o, d, np.float32(t_min), tm, blocked)
+        embree.occluded_rays(self._top.handle, o, d, np.float32(t_min), tm, blocked, _ray_masks(mask))
         embree.library().check()
         self._account(start, "OCCLUDED", o, d, tm)
         return blocked
@@ -171,6 +177,7 @@ class Accelerator:
         if obj.instance is None:
             self._top.detach(_geom_id(object_id))
             self._objects[object_id] = obj = self._instance_of(obj.geometry)
+            self._set_mask(object_id, obj.instance)
             self._top.attach(obj.instance, _geom_id(object_id))
         obj.instance.set_transform(matrix)
         self._top.commit()
@@ -192,6 +199,8 @@ class Accelerator:
             self._inst_xfm = embree.column_major_3x4(transforms)
             self._array = embree.InstanceArrayGeometry([self._prototypes[p].mesh for p in order], index,
                                                        self._inst_xfm)
+            if self._masks is not None:
+                self._array.set_mask(self._array_mask)
             self._top.attach(self._array, embree.ARRAY_GEOM_ID)
             self._inst_proto = prototypes
         if commit:
@@ -258,11 +267,18 @@ class Accelerator:
         geometry = embree.TriangleGeometry(vertices, triangles, self.quality)
         if self.instanced:
             obj = self._instance_of(geometry)
+            self._set_mask(object_id, obj.instance)
             self._top.attach(obj.instance, _geom_id(object_id))
         else:
             obj = _Object(geometry, None, None)
+            self._set_mask(object_id, geometry)
             self._top.attach(geometry, _geom_id(object_id))
         self._objects[object_id] = obj
+
+    def _set_mask(self, object_id, top_level_geometry):
+        """The object's ray-visibility / blocker mask on its top-level geometry (tracer.linking), if any."""
+        if self._masks is not None and object_id < len(self._masks):
+            top_level_geometry.set_mask(int(self._masks[object_id]))
 
     def _scene_of(self, geometry):
         """An Embree scene of its own over ``geometry`` (None: empty), committed."""
@@ -290,6 +306,12 @@ class _Object:
 
     def __init__(self, geometry, mesh, instance):
         self.geometry, self.mesh, self.instance = geometry, mesh, instance
+
+
+def _ray_masks(mask) -> np.ndarray:
+    if mask is None:
+        return embree.ALL_RAYS
+    return np.ascontiguousarray(np.asarray(mask, np.uint32).reshape(-1))
 
 
 def _geom_id(object_id: int) -> int:

@@ -773,25 +773,11 @@ EMISSION_MARGIN = int(round((1 - PLANE) / 2 * TILE)) + 1
 #: Variants the tracer's VM does not yet evaluate as Cycles does (measured dB at 64 spp; the translation is checked
 #: by tests/test_addon_shader_tree.py). Strict: a fix in the VM turns these into XPASS failures, to be removed here.
 VM_GAPS = {
-    "texcoord_object": "VM: Object coordinates read world space (5.9 dB)",
-    "checker_object": "VM: Object coordinates read world space (12.8 dB)",
-    "texcoord_camera": "VM: Camera coordinates differ from Cycles' camera space (4.8 dB)",
-    "texcoord_window": "VM: Window coordinates read 0 (3.1 dB)",
-    "image_box": "VM: Box projection read as Flat (11.5 dB)",
-    "image_sphere": "VM: Sphere projection read as Flat (12.5 dB)",
-    "image_tube": "VM: Tube projection read as Flat (12.2 dB)",
-    "image_closest": "VM: Closest interpolation filtered bilinearly (24.4 dB)",
-    "image_cubic": "VM: Cubic interpolation filtered bilinearly (25.1 dB)",
     "vector_transform_object_world": "VM: Vector Transform not evaluated (15.9 dB)",
     "vector_transform_world_camera": "VM: Vector Transform not evaluated (15.3 dB)",
     "normal_map_tangent": "VM: Normal Map output differs from Cycles on a flat UV plane (16.2 dB)",
-    "object_info_random": "VM: Object Info Random is not Cycles' hash of the object name (19.1 dB)",
-    "rgb_to_bw": "VM: RGB to BW reads a vector linked to its Color as the mean, not the luminance (22.0 dB)",
 }
 LIT_GAPS = {
-    "object_random_a": "VM: Object Info Random is not Cycles' hash (9.0 dB)",
-    "object_random_b": "VM: Object Info Random is not Cycles' hash (31.4 dB)",
-    "wood": "VM: Object coordinates read world space (23.0 dB)",
     "car_paint": "compiler: a Fresnel-weighted mix of a Principled and a Glossy lobe is one blended lobe (26.7 dB)",
 }
 
