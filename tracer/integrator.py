@@ -41,6 +41,7 @@ from .jit import kernel
 from .instances import mat3_apply, mat3_apply_transposed, pack_instances
 from .instances import world_emitters
 from .lights import MESH, pack_lights, sample_light
+from .motion import frames_at_time, pack_motion
 from .sampling import multijitter, stratum, uniform2_1
 from .scene import Scene
 from .settings import RenderSettings
@@ -175,13 +176,15 @@ class Options(NamedTuple):
 
 class RayQueue(NamedTuple):
     """Rays of one depth: origins, unit directions, the weight (throughput) each carries, the eye sample it adds
-    to, and an optional length limit (None = unbounded)."""
+    to, an optional length limit (None = unbounded) and each ray's time across the shutter (its eye sample's;
+    None = no motion blur)."""
 
     o: np.ndarray
     d: np.ndarray
     weight: np.ndarray
     sample: np.ndarray
     t_max: np.ndarray | None
+    time: np.ndarray | None = None
 
 
 class SurfaceQueue(NamedTuple):
@@ -310,6 +313,7 @@ class Integrator:
         self.textures = pack_textures(textures)
         self.bounds = _object_bounds(scene) if self.programs.has.any() else np.zeros((1, 2, 3), np.float64)
         self.instances = pack_instances(scene)
+        self.motion = pack_motion(scene)  # None: nothing moves (tracer/motion.py)
         # instanced prototypes' emitting triangles placed per instance (tracer/instances.py)
         emitters = world_emitters(scene, m.emission * m.alpha[:, None])
         self.lights = pack_lights(scene.lights, settings.light_samples, emitters)
@@ -339,7 +343,8 @@ class Integrator:
         """The deepest step: max_depth, or one more (collecting only background and emission) with terminal rays."""
         return self.settings.max_depth + (1 if self.settings.terminal_rays else 0)
 
-    def _shade(self, depth: int, o, d, weight, sample, t0, hits, keys, out: "Tile", counts, spawn: bool):
+    def _shade(self, depth: int, o, d, weight, sample, t0, hits, keys, out: "Tile", counts, spawn: bool,
+               time=None):
         """The stages for one batch of rays and their hits: returns (ShadowQueue, NextQueue, n_refl, n_tran,
         n_through)."""
         n = len(o)
@@ -348,6 +353,8 @@ class Integrator:
         it = self.instances
         n_textured = _surfaces(o, d, t, prim, inst, it.normal_matrix, it.materials, u, v, self.geometry,
                                self.materials, surf)
+        if self.motion is not None and time is not None:  # what moves is shaded where it is at the ray's time
+            frames_at_time(d, prim, inst, u, v, time, self.geometry, self.motion, surf.ng, surf.n, surf.front)
         if n_textured:  # the textures stage: the materials' programs (tracer.shader_vm)
             g, m, x, pt = self.geometry, self.materials, self.textures, self.programs
             # one eye sample's footprint, for the mip level of lookups and the bump offsets: read now, as a
@@ -380,13 +387,18 @@ class Integrator:
         transmissions; empty past the last depth). Rays that pass through alpha < 1 surfaces are traced again
         within the step (up to ``max_transparent`` surfaces deep)."""
         n = len(rays.o)
-        hits = self.accel.closest_hits(rays.o, rays.d, rays.t_max)
+        time = rays.time
+        hits = self.accel.closest_hits(rays.o, rays.d, rays.t_max, time=time)
+        timed = time is not None
+        if timed:  # every ray keeps its eye sample's time: looked up by sample
+            sample_time = np.zeros(len(out.color), np.float32)
+            sample_time[rays.sample] = time
         spawn = depth < self.last_depth
         shadows, refl, tran = [], [], []
         o, d, w, smp, t0, h = rays.o, rays.d, rays.weight, rays.sample, np.zeros(n, np.float32), hits
         for layer in range(self.settings.max_transparent + 1):
             shadow, nxt, n_refl, n_tran, n_through = self._shade(depth, o, d, w, smp, t0, h, keys, out, counts,
-                                                                 spawn)
+                                                                 spawn, time)
             shadows.append(shadow)
             m = len(o)
             refl.append((nxt, slice(0, n_refl)))
@@ -398,24 +410,28 @@ class Integrator:
             tm = None
             if rays.t_max is not None:  # eye rays stop at the far plane: what is left of their length
                 tm = np.maximum(rays.t_max[0] - t0, 0).astype(np.float32)
-            h = self.accel.closest_hits(o, d, tm)
+            time = sample_time[smp] if timed else None
+            h = self.accel.closest_hits(o, d, tm, time=time)
         shadow = shadows[0] if len(shadows) == 1 else ShadowQueue(*(np.concatenate(c) for c in zip(*shadows)))
         blocked = np.zeros(0, bool)
         if len(shadow.o):
-            blocked = self.accel.occluded(shadow.o, shadow.d, shadow.t_max)
+            shadow_time = sample_time[shadow.sample] if timed else None
+            blocked = self.accel.occluded(shadow.o, shadow.d, shadow.t_max, time=shadow_time)
             if self.see_through and blocked.any():
-                blocked = self._through_shadows(shadow, blocked)
+                blocked = self._through_shadows(shadow, blocked, shadow_time)
             _add_unoccluded(out.color, shadow.sample, shadow.color, blocked)
         parts = refl + tran
         cat = lambda get: np.concatenate([get(q)[s] for q, s in parts])  # noqa: E731
         nxt = RayQueue(o=cat(lambda q: q.o), d=cat(lambda q: q.d), weight=cat(lambda q: q.weight),
                        sample=cat(lambda q: q.sample), t_max=None)
+        if timed:
+            nxt = nxt._replace(time=sample_time[nxt.sample])
         spawned = SpawnRecord(light=shadow.light[:0], normal=cat(lambda q: q.spawned.normal),
                               eta=cat(lambda q: q.spawned.eta), tir=cat(lambda q: q.spawned.tir))
         n_reflected = sum(s.stop - s.start for _, s in refl)
         return Step(hits=hits, shadow=shadow, blocked=blocked, next=nxt, spawned=spawned, n_reflected=n_reflected)
 
-    def _through_shadows(self, shadow: "ShadowQueue", blocked: np.ndarray) -> np.ndarray:
+    def _through_shadows(self, shadow: "ShadowQueue", blocked: np.ndarray, time=None) -> np.ndarray:
         """Blocked shadow rays whose blockers are alpha < 1 surfaces continue through them, their colour × (1 −
         alpha) each time (Cycles' transparent shadows), up to ``max_transparent`` surfaces."""
         idx = np.flatnonzero(blocked)
@@ -426,7 +442,8 @@ class Integrator:
             sel = np.flatnonzero(pending)
             if not len(sel):
                 break
-            t, prim, u, v, inst = self.accel.closest_hits(o[sel], d[sel], t_max[sel])
+            t, prim, u, v, inst = self.accel.closest_hits(o[sel], d[sel], t_max[sel],
+                                                          time=None if time is None else time[idx[sel]])
             g, pt, x, it = self.geometry, self.programs, self.textures, self.instances
             _pass_shadow(sel, idx, t, prim, inst, it.materials, it.normal_matrix, u, v, g.material_ids,
                          g.face_normals, self.materials.alpha, self.materials.alpha_threshold, o, d, t_max, color,
@@ -436,9 +453,10 @@ class Integrator:
         return blocked
 
     def trace(self, origins: np.ndarray, directions: np.ndarray, keys: np.ndarray,
-              cancelled=lambda: False, ray_types: bool = False) -> TileResult:
+              cancelled=lambda: False, ray_types: bool = False, times: np.ndarray | None = None) -> TileResult:
         """Trace eye rays (one per sample) to the maximum depth. ``keys`` are unique per sample (for the
-        deterministic random streams). With ``ray_types`` the result also holds each sample's colour split by the
+        deterministic random streams); ``times`` each eye sample's time across the shutter (motion blur; None:
+        none), kept by every ray of its path. With ``ray_types`` the result also holds each sample's colour split by the
         ray type it arrived through (:data:`PATH_TYPES`) and the depth of its deepest ray."""
         s = self.scene
         n_samples = len(origins)
@@ -456,7 +474,8 @@ class Integrator:
                         weight=np.ones((n_samples, 3), np.float32),
                         sample=np.arange(0, n_samples * k, k, dtype=np.int32),
                         t_max=(np.full(n_samples, s.camera.far - s.camera.near, np.float32)
-                               if np.isfinite(s.camera.far) else None))
+                               if np.isfinite(s.camera.far) else None),
+                        time=None if times is None else np.ascontiguousarray(times, np.float32))
         for depth in range(self.last_depth + 1):
             if not len(rays.o) or cancelled():
                 break
