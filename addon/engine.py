@@ -33,6 +33,8 @@ PASSES = {
     "reflection": ("Whitted Reflection", 3, "RGB", "COLOR"),
     "transmission": ("Whitted Transmission", 3, "RGB", "COLOR"),
     "raydepth": ("Whitted Ray Depth", 1, "X", "VALUE"),
+    # Cycles' name (tracer.compose): the view layer's Shadow Catcher checkbox (Cycles' view-layer setting)
+    "shadow_catcher": ("Shadow Catcher", 3, "RGB", "COLOR"),
 }
 #: Depth Blender writes where nothing was hit.
 NO_DEPTH = 1.0e10
@@ -66,6 +68,8 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
             self.register_pass(scene, renderlayer, *PASSES["normal"])
         if renderlayer.use_pass_object_index:
             self.register_pass(scene, renderlayer, *PASSES["objectid"])
+        if export.use_pass_shadow_catcher(renderlayer):
+            self.register_pass(scene, renderlayer, *PASSES["shadow_catcher"])
         props = getattr(scene, "whitted", None)
         if props is not None and props.ray_type_passes:
             for aov in tracer.settings.RAY_TYPE_AOVS:

@@ -50,6 +50,9 @@ REQUIRED_VERSION = (4, 0)
 LIBRARY_ENV = "WHITTED_EMBREE_LIBRARY"
 
 INVALID_ID = 0xFFFFFFFF  # RTC_INVALID_GEOMETRY_ID
+MASK_ALL = 0xFFFFFFFF  # a geometry / ray mask with every bit set
+#: The ray mask of a batch whose rays see every geometry (the kernels' ``masks`` argument).
+ALL_RAYS = np.full(1, MASK_ALL, np.uint32)
 
 # enum values (rtcore_common.h, rtcore_device.h, rtcore_buffer.h, rtcore_geometry.h, rtcore_scene.h)
 DEVICE_PROPERTY_VERSION = 0
@@ -169,6 +172,7 @@ _SIGNATURES = {  # name: (restype, argtypes)
     "rtcSetGeometryTimeStepCount": (None, [_P, _UI]),
     "rtcSetGeometryTransformQuaternion": (None, [_P, _UI, _P]),
     "rtcGetGeometryTransform": (None, [_P, ctypes.c_float, _I, _P]),
+    "rtcSetGeometryMask": (None, [_P, _UI]),
     "rtcGetSceneBounds": (None, [_P, _P]),
 }
 
@@ -346,6 +350,13 @@ class Geometry:
     def __init__(self, kind: int):
         self._lib = library()
         self.handle = self._lib.call("rtcNewGeometry", self._lib.device, kind)
+        # Embree 4's default geometry mask is 1; all ones lets a ray of any mask (tracer.linking) see it
+        self._lib.call("rtcSetGeometryMask", self.handle, MASK_ALL)
+
+    def set_mask(self, mask: int) -> None:
+        """The rays this geometry is seen by: those whose mask ANDs non-zero with ``mask`` (then commit)."""
+        self._lib.call("rtcSetGeometryMask", self.handle, int(mask) & MASK_ALL)
+        self.commit()
 
     def commit(self) -> None:
         self._lib.call("rtcCommitGeometry", self.handle)
@@ -530,10 +541,11 @@ def _aligned(n, dtype):
 
 
 @kernel(inline=True)
-def _load_packet(f, w, valid, o, d, start, count, tnear, t_max, time):
-    """Lanes 0..count-1 get rays start..start+count-1 (t_max empty: unbounded; time empty: time 0, no motion);
-    the rest are switched off."""
+def _load_packet(f, w, valid, o, d, start, count, tnear, t_max, masks, time):
+    """Lanes 0..count-1 get rays start..start+count-1 (t_max empty: unbounded; ``masks``: one ray mask per ray,
+    or one for all; ``time`` empty: time 0, no motion blur); the rest are switched off."""
     bounded = t_max.shape[0] > 0
+    per_ray = masks.shape[0] > 1
     timed = time.shape[0] > 0
     for k in range(PACKET):
         if k < count:
@@ -544,6 +556,7 @@ def _load_packet(f, w, valid, o, d, start, count, tnear, t_max, time):
             f[_P_TFAR + k] = t_max[i] if bounded else np.inf
             f[_P_TIME + k] = time[i] if timed else 0.0
             w[_P_ID + k] = i
+            w[_P_MASK + k] = masks[i] if per_ray else masks[0]
         else:
             valid[k] = 0
             f[_P_ORG_X + k], f[_P_ORG_Y + k], f[_P_ORG_Z + k] = 0.0, 0.0, 0.0
@@ -551,8 +564,8 @@ def _load_packet(f, w, valid, o, d, start, count, tnear, t_max, time):
             f[_P_TFAR + k] = 0.0
             f[_P_TIME + k] = 0.0
             w[_P_ID + k] = 0
+            w[_P_MASK + k] = 0
         f[_P_TNEAR + k] = tnear
-        w[_P_MASK + k] = 0xFFFFFFFF
         w[_P_FLAGS + k] = 0
 
 
@@ -563,13 +576,13 @@ _P_INST_PRIM = 160
 
 
 @kernel
-def intersect_rays(scene, o, d, tnear, t_max, time, slot_start, slot_rows, inst_proto, t_out, prim_out, inst_out,
-                   u_out, v_out):
-    """Closest hits of rays (o, d) at times ``time`` (empty: 0; the motion-blur time in [0, 1] of each ray) on
+def intersect_rays(scene, o, d, tnear, t_max, slot_start, slot_rows, inst_proto, t_out, prim_out, inst_out,
+                   u_out, v_out, masks, time):
+    """Closest hits of rays (o, d) at times ``time`` (empty: 0; each ray's motion-blur time in [0, 1]) on
     [tnear, t_max[i]] (t_max empty: unbounded) against the top-level scene
     ``scene`` (an RTCScene handle), in packets of :data:`PACKET`. Writes t (inf on a miss), the hit's row, the
     instance index (``inst_out``: k for a hit on instance k of the instance array, else -1) and the barycentrics
-    u, v.
+    u, v. ``masks``: the rays' Embree masks, one per ray or one for all (:data:`ALL_RAYS`: every geometry).
 
     Rows: object i is top-level geometry i + :data:`OBJECT_GEOM_BASE` (a triangle geometry, or an instance of its
     own scene); the instance array is geometry :data:`ARRAY_GEOM_ID`, and its instance k places the mesh of object
@@ -583,7 +596,7 @@ def intersect_rays(scene, o, d, tnear, t_max, time, slot_start, slot_rows, inst_
     n = o.shape[0]
     for start in range(0, n, PACKET):
         count = min(PACKET, n - start)
-        _load_packet(f, w, valid, o, d, start, count, tnear, t_max, time)
+        _load_packet(f, w, valid, o, d, start, count, tnear, t_max, masks, time)
         for k in range(PACKET):
             w[_P_GEOM + k] = INVALID_ID
             w[_P_INST + k] = INVALID_ID
@@ -614,16 +627,16 @@ def intersect_rays(scene, o, d, tnear, t_max, time, slot_start, slot_rows, inst_
 
 
 @kernel
-def occluded_rays(scene, o, d, tnear, t_max, time, blocked):
-    """blocked[i] = something lies on ray i between tnear and t_max[i] at its time (``time`` empty: 0) (shadow
-    rays), in packets of :data:`PACKET`."""
+def occluded_rays(scene, o, d, tnear, t_max, blocked, masks, time):
+    """blocked[i] = something lies on ray i between tnear and t_max[i] at its time (shadow rays), in packets of
+    :data:`PACKET`; ``masks`` and ``time`` as in :func:`intersect_rays`."""
     f = _aligned(RAY8_WORDS, np.float32)
     w = f.view(np.uint32)
     valid = _aligned(PACKET, np.int32)
     n = o.shape[0]
     for start in range(0, n, PACKET):
         count = min(PACKET, n - start)
-        _load_packet(f, w, valid, o, d, start, count, tnear, t_max, time)
+        _load_packet(f, w, valid, o, d, start, count, tnear, t_max, masks, time)
         _rtcOccluded8(valid.ctypes.data, scene, f.ctypes.data, 0)
         for k in range(count):
             blocked[start + k] = f[_P_TFAR + k] < 0.0  # Embree sets tfar to -inf where the ray is occluded

@@ -20,7 +20,7 @@ What the compiler does, in order:
    translucent    as diffuse (one warning: light from behind is not gathered)
    transparent    coverage: the lobe's weight is 1 − alpha; its Color tints nothing (white; a tint warns)
    emission       emission += weight × Color × Strength, reflects nothing
-   holdout        a black, opaque surface (one warning)
+   holdout        a black, opaque surface; its weight cuts the pixel's alpha on the eye path (tracer.compose)
    ============== =====================================================================================
 
    One lobe: its inputs are the outputs (alpha = its Alpha). Several lobes of weights wᵢ: transparency
@@ -1087,8 +1087,7 @@ class Compiler:
         elif t == "emission":
             lb.update(kind="emission", emission=self.scale3(self.inp(node, "Color"), self.inp(node, "Strength")))
         elif t == "holdout":
-            self.warn(node.name, f"Holdout {node.name!r} is rendered as a black surface")
-            lb.update(kind="surface")
+            lb.update(kind="surface")  # black; tracer.compose takes its weight out of the alpha
         else:
             self.warn(node.name, f"shader {node.name!r} ({t}) is not supported; a grey diffuse surface is used")
             lb.update(base=(0.8, 0.8, 0.8), roughness=1.0)
@@ -1316,7 +1315,7 @@ def add_graph(builder, graph: Graph, warn=None, uv_index=None, name: str | None 
     row index."""
     compiled = compile_graph(graph, warn, uv_index)
     fields = dict(compiled.row)
-    if compiled.program is not None:
+    if compiled.program is not None or any(n.type == "holdout" for n in graph.nodes.values()):  # tracer.compose
         fields["program"] = BoundGraph(graph, _uv_table(compiled.uv_maps, uv_index))
     return builder.add_material(name or graph.name, **fields)
 

@@ -15,6 +15,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from . import compose
 from .camera import eye_ray
 from .film import Image, box_filter, majority
 from .integrator import PATH_TYPES, RayCounts
@@ -209,6 +210,11 @@ def write_tile(image: Image, res, tile, spp: int) -> None:
     th, tw = y1 - y0, x1 - x0
     _write_rgba(image.rgba, res.color, res.alpha, x0, y0, tw, th, spp)
     aovs = image.aovs
+    if res.compose is not None:  # shadow catchers: Cycles' Combined (the matte) and Shadow Catcher pass
+        rgba, catcher = compose.composite(res.color, res.alpha, res.compose, spp, *res.compose_mode)
+        image.rgba[y0:y1, x0:x1] = rgba.reshape(th, tw, 4)
+        if "shadow_catcher" in aovs:
+            aovs["shadow_catcher"][y0:y1, x0:x1] = catcher.reshape(th, tw, 3)
     if "depth" in aovs:
         hit = np.isfinite(res.depth).reshape(-1, spp)
         dsum = np.where(hit, res.depth.reshape(-1, spp), 0).sum(axis=1)
@@ -245,6 +251,8 @@ def empty_aovs(settings: RenderSettings, h: int, w: int) -> dict:
             aovs[name] = np.zeros((h, w, 3), np.float32)
     if "raydepth" in settings.aovs:
         aovs["raydepth"] = np.full((h, w), -1, np.int32)
+    if "shadow_catcher" in settings.aovs:  # 1 where no catcher is seen (tracer.compose)
+        aovs["shadow_catcher"] = np.ones((h, w, 3), np.float32)
     return aovs
 
 

@@ -25,7 +25,7 @@ from .dome import environment
 from .layer_metadata import meters_per_unit
 from .diagnostics import summarize
 from .exporters import light_units as exporter_light_units
-from .lights import convert_light, default_lights
+from .lights import convert_light, default_lights, light_links
 from .material import MaterialTable
 from .render_settings import CONFORM, DEFAULT_CONFORM, crop_to_data_window, read_render_settings
 from .nurbs import read_nurbs_curves, read_nurbs_patch, read_tet_mesh
@@ -75,6 +75,7 @@ class _Reader:
         self.hi = np.full(3, -np.inf)
         self._proto_cache: dict[str, MeshData | None] = {}
         self._proto_ids: dict[tuple, int] = {}  # (prototype prim path, material rows) -> tracer prototype object id
+        self.light_prims: list = []  # the UsdLux prim of each tracer light
         self._grey = None
         self.empty: set = set()  # gprims whose geometry is absent or has no faces at this time
         self.skinning = Skinning(time, self.xf.world)
@@ -270,6 +271,7 @@ class _Reader:
             return
         if light is not None:
             self.b.add_light(light)
+            self.light_prims.append(prim)  # its links (usd_io.lights.light_links), in the order of b.lights
             self.info.lights.append((str(prim.GetPath()), kind, light))
         elif world is not None:  # `whitted info` shows what the dome is: no "environment" key without a texture
             self._add_world(prim, kind, world)
@@ -479,10 +481,17 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
         info.notes.append("the stage has no lights: lit by a camera headlight and a dim dome as usdview does "
                           "(--no-default-light turns this off)")
     try:
+        prims = r.light_prims + [None] * (len(r.b.lights) - len(r.light_prims))
+        links = light_links(prims, r.b.object_names, tc)
+    except ValueError as exc:
+        info.warn(f"light linking: {exc} (lights unlinked)")
+        links = []
+    try:
         scene = r.b.build()
         # motion blur across the camera's shutter (usd_io.xform.stage_motion; nothing when it is closed)
         stage_motion(stage, scene, tc, info.camera, info.render_settings.path if info.render_settings else None,
                      r.subdivision_level, info.warn)
     except ValueError as exc:  # the tracer's validation of what was read (e.g. a NaN material input)
         raise UsdInputError(f"{label}: {exc}") from None
+    scene.light_links = links
     return scene, info
