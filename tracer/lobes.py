@@ -107,15 +107,19 @@ def none():
 
 
 @kernel(inline=True)
-def evaluate(lb, n, wi, l, n_l, mesh):
+def evaluate(lb, n, wi, l, n_l, mesh, glossy, diffuse):
     """Σᵢ wᵢ·fᵢ(wi, l)·cos θ_l for the unit light direction l (n·l = ``n_l``): the front lobes for n·l > 0, the
     translucent ones for n·l < 0. ``mesh``: the light is an emitting surface the mirror ray also sees, so each
-    lobe's specular part is scaled by 1 − gᵢ (as :func:`tracer.bsdf.evaluate`'s ``spec_scale``)."""
+    lobe's specular part is scaled by 1 − gᵢ (as :func:`tracer.bsdf.evaluate`'s ``spec_scale``); ``glossy``,
+    ``diffuse``: the light's factors on the specular and diffuse parts (light linking, 1 = all)."""
     c = (0.0, 0.0, 0.0)
     if n_l < 0.0:
-        return vec.scale(lb.translucent, -n_l * bsdf.INV_PI)
+        return vec.scale(lb.translucent, -n_l * bsdf.INV_PI * diffuse)
     for k in range(lb.n):
-        f = bsdf.evaluate(lb.cl[k], n, wi, l, n_l, 1.0 - lb.g[k] if mesh else 1.0)
+        cl = lb.cl[k]
+        f = bsdf.evaluate(cl, n, wi, l, n_l, (1.0 - lb.g[k] if mesh else 1.0) * glossy)
+        if diffuse != 1.0:  # the diffuse part is the BSDF at spec_scale 0
+            f = vec.sub(f, vec.scale(bsdf.evaluate(cl, n, wi, l, n_l, 0.0), 1.0 - diffuse))
         c = vec.add(c, vec.mul(lb.w[k], f))
     return c
 

@@ -14,7 +14,7 @@ lowered to the tracer's closure inputs and, where one closure cannot hold it, to
    translucent    as diffuse, lit from behind                                   (slot TRANSLUCENT)
    transparent    coverage: its weight × Color passes straight through
    emission       emission += weight × Color × Strength, reflects nothing
-   holdout        a black, opaque surface; its weight is the hit's ``holdout``
+   holdout        a black, opaque surface; its weight is the hit's ``holdout`` (tracer.compose: alpha)
    ============== ===================================================================================
 
 3. **The one-closure outputs** (:data:`tracer.shader_vm.OUT_SLOTS`) blend the lobes' parameters: transparency
@@ -133,9 +133,7 @@ class ClosureLowering:
         elif t == "emission":
             lb.update(kind="emission", emission=self.scale3(self.inp(node, "Color"), self.inp(node, "Strength")))
         elif t == "holdout":
-            self.warn(node.name, f"Holdout {node.name!r} is rendered as a black surface (its weight is the hit's "
-                                 "holdout weight)")
-            lb.update(kind="holdout")
+            lb.update(kind="holdout")  # black; its weight is the hit's holdout (tracer.compose cuts the alpha)
         else:
             self.warn(node.name, f"shader {node.name!r} ({t}) is not supported; a grey diffuse surface is used")
             lb.update(base=(0.8, 0.8, 0.8), roughness=1.0, lk=L.DIFFUSE, colour=(0.8, 0.8, 0.8))
