@@ -160,3 +160,89 @@ def test_a_turning_card_is_shaded_where_it_is_at_each_rays_time():
         assert np.allclose(eye.hit.geometric_normal, n, atol=1e-5), (eye.time, eye.hit.geometric_normal, n)
         assert np.allclose(eye.hit.shading_normal, n, atol=1e-5)
     assert np.ptp(times) > 0.8  # the samples cover the shutter
+
+
+# ------------------------------------------------------------------------------------------------ USD
+def _stage(tmp_path, shutter=(-0.25, 0.25), settings=None):
+    """A stage at 24 time codes per second: a camera (with ``shutter``), a cube sliding +x by 1 per time code
+    (time samples), a card whose points move by ``velocities`` (units per second) and a PointInstancer of two
+    cubes with ``velocities`` and ``angularVelocities``."""
+    from pxr import Gf, Sdf, Usd, UsdGeom, UsdRender, Vt
+
+    stage = Usd.Stage.CreateNew(str(tmp_path / "motion.usda"))
+    stage.SetTimeCodesPerSecond(24)
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+    cam = UsdGeom.Camera.Define(stage, "/Cam")
+    UsdGeom.XformCommonAPI(cam).SetTranslate(Gf.Vec3d(0, -10, 0))
+    UsdGeom.XformCommonAPI(cam).SetRotate(Gf.Vec3f(90, 0, 0))
+    if shutter is not None:
+        cam.CreateShutterOpenAttr(shutter[0])
+        cam.CreateShutterCloseAttr(shutter[1])
+    cube = UsdGeom.Cube.Define(stage, "/Slider")
+    op = cube.AddTranslateOp()
+    op.Set(Gf.Vec3d(0, 0, 0), 0.0)
+    op.Set(Gf.Vec3d(2, 0, 0), 2.0)
+    card = UsdGeom.Mesh.Define(stage, "/Card")
+    card.CreatePointsAttr().Set(Vt.Vec3fArray([(3, 0, 0), (4, 0, 0), (4, 0, 1), (3, 0, 1)]), 1.0)
+    card.CreateFaceVertexCountsAttr([4])
+    card.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
+    card.CreateSubdivisionSchemeAttr("none")
+    card.CreateVelocitiesAttr().Set(Vt.Vec3fArray([(0, 0, 24.0)] * 4), 1.0)  # 1 unit per time code, upwards
+    pi = UsdGeom.PointInstancer.Define(stage, "/Inst")
+    UsdGeom.Cube.Define(stage, "/Inst/Protos/Box").CreateSizeAttr(0.5)
+    pi.CreatePrototypesRel().SetTargets([Sdf.Path("/Inst/Protos/Box")])
+    pi.CreateProtoIndicesAttr([0, 0])
+    pi.CreatePositionsAttr().Set(Vt.Vec3fArray([(-3, 0, 0), (-5, 0, 0)]), 1.0)  # velocities need a sample
+    pi.CreateOrientationsAttr().Set(Vt.QuathArray([Gf.Quath(1, 0, 0, 0)] * 2), 1.0)
+    pi.CreateVelocitiesAttr().Set(Vt.Vec3fArray([(0, 0, 48.0), (0, 0, 0)]), 1.0)  # 2 units per time code
+    pi.CreateAngularVelocitiesAttr().Set(Vt.Vec3fArray([(0, 0, 0), (0, 0, 24 * 90.0)]), 1.0)  # 90°/code about z
+    if settings is not None:
+        rs = UsdRender.Settings.Define(stage, "/Render/Settings")
+        rs.CreateCameraRel().SetTargets([Sdf.Path("/Cam")])
+        for name, value in settings.items():
+            rs.GetPrim().CreateAttribute(name, Sdf.ValueTypeNames.Bool).Set(value)
+        stage.SetMetadata("renderSettingsPrimPath", "/Render/Settings")
+    stage.GetRootLayer().Save()
+    return str(tmp_path / "motion.usda")
+
+
+def _load(path):
+    from usd_io.reader import load_stage
+
+    return load_stage(path, time=1, camera="/Cam", width=32, height=32)[0]
+
+
+def test_usd_motion_across_the_camera_shutter(tmp_path):
+    """Shutter [-0.25, 0.25] around time code 1: the slider's steps move it by -0.25, 0, +0.25 (its time samples,
+    relative to where it was placed at the frame), the card's points rise by -0.25, 0, +0.25 (velocities of 24 /s
+    at 24 time codes per second), the instancer's first box rises by -0.5, 0, 0.5 and its second turns by
+    -22.5°, 0, 22.5° about its position (angularVelocities)."""
+    scene = _load(_stage(tmp_path))
+    mo = scene.motion
+    names = scene.object_names
+    slider = names.index("/Slider")
+    row = list(mo.object_ids).index(slider)
+    assert np.allclose(mo.object_motion[row, :, :3, 3], [[-0.25, 0, 0], [0, 0, 0], [0.25, 0, 0]], atol=1e-9)
+    card = names.index("/Card")
+    assert card in mo.deforming.tolist()
+    rows = np.unique(scene.triangles[scene.object_ids == card])
+    lift = mo.vertices[:, rows, 2] - scene.vertices[rows, 2]
+    assert np.allclose(lift, [[-0.25], [0.0], [0.25]], atol=1e-5)
+    inst = scene.instances
+    first = [i for i, o in enumerate(inst.object_ids) if names[o].endswith("[0]")][0]
+    second = [i for i, o in enumerate(inst.object_ids) if names[o].endswith("[1]")][0]
+    im = mo.instance_motion
+    assert np.allclose(im[first, :, 2, 3], [-0.5, 0.0, 0.5], atol=1e-5)
+    angles = np.degrees(np.arctan2(im[second, :, 1, 0], im[second, :, 0, 0]))
+    assert np.allclose(angles, [-22.5, 0.0, 22.5], atol=1e-3)
+    assert np.allclose(im[second, :, :3, 3], [[-5, 0, 0]] * 3, atol=1e-5)
+
+
+@pytest.mark.parametrize("shutter,settings", [(None, None), ((0.0, 0.0), None),
+                                              ((-0.25, 0.25), {"disableMotionBlur": True}),
+                                              ((-0.25, 0.25), {"instantaneousShutter": True})])
+def test_usd_motion_blur_is_off_where_usd_has_it_off(tmp_path, shutter, settings):
+    """USD's defaults (shutter:open = shutter:close = 0) and a RenderSettings that turns motion blur off leave
+    every object still."""
+    scene = _load(_stage(tmp_path, shutter, settings))
+    assert scene.motion is None and scene.camera.motion is None
