@@ -246,3 +246,52 @@ def test_usd_motion_blur_is_off_where_usd_has_it_off(tmp_path, shutter, settings
     every object still."""
     scene = _load(_stage(tmp_path, shutter, settings))
     assert scene.motion is None and scene.camera.motion is None
+
+
+# ------------------------------------------------------------------------------------------------ Blender
+def test_blender_deformation_and_shutter(bpy_module):
+    """A plane whose shape key lifts it by 1 between frames 0 and 2 (linear), at frame 1 with a 1-frame shutter:
+    its vertex steps are lifted by 0.25, 0.5, 0.75 (deformation blur); with Motion Blur off (Blender's default)
+    nothing moves; the START position shifts the steps to 0.5, 0.75, 1."""
+    import bpy
+    from bpy_extras import anim_utils
+
+    from addon.export import scene_from_depsgraph
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    sc = bpy.context.scene
+    me = bpy.data.meshes.new("Sheet")
+    me.from_pydata([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], [], [(0, 1, 2, 3)])
+    ob = bpy.data.objects.new("Sheet", me)
+    sc.collection.objects.link(ob)
+    ob.shape_key_add(name="Basis")
+    up = ob.shape_key_add(name="Up")
+    for v in up.data:
+        v.co.z += 1.0
+    for f, value in ((0, 0.0), (2, 1.0)):
+        up.value = value
+        up.keyframe_insert("value", frame=f)
+    keys = me.shape_keys
+    for fc in anim_utils.action_get_channelbag_for_slot(keys.animation_data.action,
+                                                        keys.animation_data.action_slot).fcurves:
+        for k in fc.keyframe_points:
+            k.interpolation = "LINEAR"
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    cam.location = (0, 0, 10)
+    sc.collection.objects.link(cam)
+    sc.camera = cam
+    sc.frame_set(1)
+
+    def steps():
+        scene, _ = scene_from_depsgraph(bpy.context.evaluated_depsgraph_get(), width=16, height=16)
+        return scene, (None if scene.motion is None else scene.motion.vertices[:, :, 2].mean(axis=1))
+
+    assert steps()[0].motion is None
+    sc.render.use_motion_blur = True
+    sc.render.motion_blur_shutter = 1.0
+    scene, z = steps()
+    assert np.allclose(z, [0.25, 0.5, 0.75], atol=1e-6) and scene.motion.deforming.tolist() == [0]
+    assert np.allclose(scene.vertices[:, 2], 0.5, atol=1e-6)  # the mesh as it is at the frame
+    sc.render.motion_blur_position = "START"
+    assert np.allclose(steps()[1], [0.5, 0.75, 1.0], atol=1e-6)
+    assert sc.frame_current == 1 and sc.frame_subframe == 0.0  # the frame is put back
