@@ -68,7 +68,7 @@ W = 32
 SPAN = 4.0  # the orthographic view's width in world units (pixel = SPAN / W)
 
 
-def _sliding_card(a, v, w, motion="object", samples=32):
+def _sliding_card(a, v, w, motion="object", samples=32, curve=None):
     """An emissive card of width ``w`` (radiance 1, nothing else in view) that slides from x = a to a + v across
     the shutter, seen head-on by an orthographic camera: a pixel's value is the fraction of the shutter × pixel
     area the card covers. ``motion``: how it moves — "object" (its transform), "instance" (an instance of a
@@ -95,6 +95,8 @@ def _sliding_card(a, v, w, motion="object", samples=32):
     elif motion == "deform":
         moved = scene.vertices.astype(np.float64) + [v, 0, 0]
         scene.motion = Motion(steps=2, vertices=np.stack([scene.vertices, moved]), deforming=np.array([oid]))
+    if curve is not None:
+        scene.motion.curve = curve
     scene.validate_motion()
     return render(scene, RenderSettings(width=W, height=2, samples=samples, max_depth=0, shadows=False))
 
@@ -122,6 +124,17 @@ def test_sliding_card_covers_pixels_as_the_closed_form(how):
     assert abs(row.sum() - expect.sum()) < 0.05  # the card's area over time is kept
     still = _sliding_card(a, v, w, motion=None).rgba[0, :, 0]  # the comparison can fail: a still card is far off
     assert np.abs(still - expect).max() > 0.3
+
+
+def test_a_shutter_curve_weights_the_times():
+    """A shutter curve open only in the last tenth of the interval (a table from tracer.motion.curve_table) shows
+    the card where it is then: coverage as the closed form for a card sliding from a + 0.9·v to a + v."""
+    a, v, w = -1.3, 1.7, 0.9
+    weights = (np.linspace(0, 1, 1001) >= 0.9).astype(float)
+    row = _sliding_card(a, v, w, curve=curve_table(weights, 1024)).rgba[0, :, 0]
+    edges = -SPAN / 2 + SPAN / W * np.arange(W + 1)
+    expect = _covered(edges[:-1], edges[1:], a + 0.9 * v, 0.1 * v, w)
+    assert np.abs(row - expect).max() < 0.02, np.round(np.stack([row, expect]), 3)
 
 
 def test_a_turning_card_is_shaded_where_it_is_at_each_rays_time():
