@@ -53,6 +53,8 @@ class Camera:
     aperture_rotation: float = 0.0
     #: Anamorphic squeeze: the aperture's x is divided by it (Blender's Ratio; 1 = round bokeh).
     aperture_ratio: float = 1.0
+    #: Extra clipping planes (a, b, c, d) in camera space keeping a·x + b·y + c·z + d >= 0 (tracer.clip_planes).
+    clipping_planes: tuple = ()
     #: Camera motion (motion blur): (S, 4, 4) camera-to-world matrices at S ≥ 2 evenly spaced times of the shutter,
     #: interpolated as :mod:`tracer.motion` does; None: the camera stands still at ``camera_to_world``.
     motion: np.ndarray | None = None
@@ -95,6 +97,10 @@ class Camera:
         if self.aperture_ratio <= 0:
             raise ValueError(f"camera aperture_ratio must be > 0, got {self.aperture_ratio}")
         self.aperture_blades = int(self.aperture_blades) if self.aperture_blades >= 3 else 0  # < 3: round, as Cycles
+        planes = tuple(tuple(float(x) for x in p) for p in self.clipping_planes)
+        if any(len(p) != 4 or not np.all(np.isfinite(p)) for p in planes):
+            raise ValueError(f"camera clipping_planes must be finite (a, b, c, d) tuples, got {self.clipping_planes}")
+        self.clipping_planes = planes
         if self.motion is not None:
             mo = np.asarray(self.motion, np.float64)
             if mo.ndim != 3 or mo.shape[1:] != (4, 4) or len(mo) < 2 or not np.all(np.isfinite(mo)):

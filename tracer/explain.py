@@ -118,9 +118,14 @@ def explain_pixel(scene: Scene, settings: RenderSettings, x: int, y: int, accel:
     o, d, keys, times = timed_eye_rays(scene, settings, x, y, x + 1, y + 1)
     spp = len(o)
     rays_of = [[] for _ in range(spp)]
+    t_max = (np.full(spp, scene.camera.far - scene.camera.near, np.float32) if np.isfinite(scene.camera.far)
+             else None)
+    if scene.camera.clipping_planes:  # as tracer.tiles.trace_tile does
+        from .clip_planes import clip_eye_rays
+
+        o, t_max = clip_eye_rays(scene.camera, o, d, scene.camera.far - scene.camera.near)
     queue = RayQueue(o=o, d=d, weight=np.ones((spp, 3), np.float32), sample=np.arange(spp, dtype=np.int32),
-                     t_max=(np.full(spp, scene.camera.far - scene.camera.near, np.float32)
-                            if np.isfinite(scene.camera.far) else None), time=times)
+                     t_max=t_max, time=times)
     # Per ray of the queue: its record, and the eye sample it belongs to.
     records = [_ray(rays_of[s], None, "eye", 0, o[s], d[s], queue.t_max[s] if queue.t_max is not None else np.inf,
                     queue.weight[s]) for s in range(spp)]

@@ -46,6 +46,7 @@ from .sampling import multijitter, stratum, uniform2_1
 from .scene import Scene
 from .settings import RenderSettings
 from .shader_compile import pack_programs
+from .shader_spaces import object_spaces, set_camera
 from .shader_vm import cut as _cut
 from .shader_vm import program_alpha, shade_programs
 from .surface import color_at, geometry_of, shading_frame
@@ -316,7 +317,8 @@ class Integrator:
         self.programs, textures = pack_programs(m, scene.textures)
         self.materials = MaterialArrays.of(m, self.programs.has)
         self.textures = pack_textures(textures)
-        self.bounds = _object_bounds(scene) if self.programs.has.any() else np.zeros((1, 2, 3), np.float64)
+        #: the coordinate spaces programs read (tracer.shader_spaces; the camera's entry refreshed per batch)
+        self.spaces = object_spaces(scene) if self.programs.has.any() else np.zeros((2, 9, 4), np.float64)
         self.instances = pack_instances(scene)
         self.motion = pack_motion(scene)  # None: nothing moves (tracer/motion.py)
         # instanced prototypes' emitting triangles placed per instance (tracer/instances.py)
@@ -369,11 +371,12 @@ class Integrator:
             # one eye sample's footprint, for the mip level of lookups and the bump offsets: read now, as a
             # session's camera and settings change between renders without a new Integrator
             eye, spread, flat = self.scene.camera.sample_footprint(self.settings.width, self.settings.samples)
+            set_camera(self.spaces, self.scene.camera)
             shade_programs(surf.textured[:n_textured], prim, u, v, t, inst, d, depth, pt.code, pt.pstart, pt.pbase,
                            pt.outs, pt.R0, np.empty_like(pt.R0), surf.mat, surf.p, surf.ng, surf.n, surf.front,
                            surf.base, surf.roughness, surf.metallic, surf.specular, surf.cover, surf.emission,
                            surf.transmission, m.alpha_threshold, g.uv_sets, g.colors, g.has_colors, g.vertices,
-                           g.triangles, g.face_normals, g.object_ids, self.bounds, x.data, x.params, it.linear,
+                           g.triangles, g.face_normals, g.object_ids, self.spaces, x.data, x.params, it.linear,
                            it.mirrored, it.object_ids, eye, spread, flat)
         split = None  # the eye samples whose first catcher hit is in this batch (tracer.compose)
         cp = self.compose
@@ -451,7 +454,7 @@ class Integrator:
             w, smp, t0 = nxt.through_weight[:n_through], nxt.through_sample[:n_through], nxt.through_t0[:n_through]
             tm = None
             if rays.t_max is not None:  # eye rays stop at the far plane: what is left of their length
-                tm = np.maximum(rays.t_max[0] - t0, 0).astype(np.float32)
+                tm = np.maximum(rays.t_max[np.searchsorted(rays.sample, smp)] - t0, 0).astype(np.float32)
             time = sample_time[smp] if timed else None
             h = self.accel.closest_hits(o, d, tm, mask=linking.through_mask(self.links, depth), time=time)
         shadow = shadows[0] if len(shadows) == 1 else ShadowQueue(*(np.concatenate(c) for c in zip(*shadows)))
@@ -512,11 +515,12 @@ class Integrator:
                          g.face_normals, self.materials.alpha, self.materials.alpha_threshold, o, d, t_max, color,
                          pending, blocked, self.options.eps, pt.code, pt.pstart, pt.pbase, pt.outs, pt.R0,
                          np.empty_like(pt.R0), g.uv_sets, g.colors, g.has_colors, g.vertices, g.triangles,
-                         g.object_ids, self.bounds, x.data, x.params, it.linear, it.mirrored, it.object_ids)
+                         g.object_ids, self.spaces, x.data, x.params, it.linear, it.mirrored, it.object_ids)
         return blocked
 
     def trace(self, origins: np.ndarray, directions: np.ndarray, keys: np.ndarray,
-              cancelled=lambda: False, ray_types: bool = False, times: np.ndarray | None = None) -> TileResult:
+              cancelled=lambda: False, ray_types: bool = False, t_max: np.ndarray | None = None,
+              times: np.ndarray | None = None) -> TileResult:
         """Trace eye rays (one per sample) to the maximum depth. ``keys`` are unique per sample (for the
         deterministic random streams); ``times`` each eye sample's time across the shutter (motion blur; None:
         none), kept by every ray of its path. With ``ray_types`` the result also holds each sample's colour split by the
@@ -537,7 +541,8 @@ class Integrator:
         rays = RayQueue(o=np.ascontiguousarray(origins, np.float32), d=np.ascontiguousarray(directions, np.float32),
                         weight=np.ones((n_samples, 3), np.float32),
                         sample=np.arange(0, n_samples * k, k, dtype=np.int32),
-                        t_max=(np.full(n_samples, s.camera.far - s.camera.near, np.float32)
+                        t_max=(t_max if t_max is not None else  # per ray: the camera's clipping planes
+                               np.full(n_samples, s.camera.far - s.camera.near, np.float32)
                                if np.isfinite(s.camera.far) else None),
                         time=None if times is None else np.ascontiguousarray(times, np.float32))
         for depth in range(self.last_depth + 1):
@@ -565,24 +570,6 @@ class Integrator:
 
 
 # ---------------------------------------------------------------------------------------------- helpers
-def _object_bounds(scene) -> np.ndarray:
-    """(O, 2, 3) float64: each object's bounding box over its triangles (in the space the triangles are stored:
-    world for placed meshes, object space for instance prototypes) — the texture space of Generated
-    coordinates."""
-    oid = np.asarray(scene.object_ids, np.int64)
-    n = int(oid.max()) + 1 if len(oid) else 1
-    lo = np.full((n, 3), np.inf)
-    hi = np.full((n, 3), -np.inf)
-    if len(oid):  # per run of equal ids (meshes are stored one after the other), then per id
-        tv = np.asarray(scene.vertices, np.float64)[scene.triangles]
-        starts = np.concatenate([[0], np.flatnonzero(np.diff(oid)) + 1])
-        np.minimum.at(lo, oid[starts], np.minimum.reduceat(tv.min(axis=1), starts, axis=0))
-        np.maximum.at(hi, oid[starts], np.maximum.reduceat(tv.max(axis=1), starts, axis=0))
-    bad = ~np.isfinite(lo).all(axis=1)
-    lo[bad], hi[bad] = 0.0, 0.0
-    return np.ascontiguousarray(np.stack([lo, hi], axis=1))
-
-
 @kernel(inline=True)
 def spawn_ray(p, ng, direction, eps):
     """The origin of a ray leaving surface point p along ``direction``: p moved ε along the geometric normal ng, to

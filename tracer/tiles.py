@@ -17,6 +17,7 @@ import numpy as np
 
 from . import compose
 from .camera import eye_ray
+from .clip_planes import clip_eye_rays
 from .film import Image, box_filter, majority
 from .integrator import PATH_TYPES, RayCounts
 from .jit import kernel
@@ -267,11 +268,16 @@ def trace_tile(session, settings: RenderSettings, tile, cancelled=None):
     integ = session.integrator(settings)
     x0, y0, x1, y1 = tile
     o, d, keys, times = timed_eye_rays(scene, settings, x0, y0, x1, y1)
-    res = integ.trace(o, d, keys, cancelled or (lambda: False), ray_types=uses_ray_types(settings), times=times)
     cam = scene.camera
-    if cam.near > 0:  # depth is measured from the eye (the film plane for orthographic cameras)
-        res.depth += (np.linalg.norm(o - cam.position.astype(np.float32), axis=1)
-                      if cam.projection == "perspective" else np.float32(cam.near))
+    t_max = None
+    if cam.clipping_planes:  # each ray's valid interval (tracer.clip_planes): origin moved to its start
+        o, t_max = clip_eye_rays(cam, o, d, cam.far - cam.near)
+    res = integ.trace(o, d, keys, cancelled or (lambda: False), ray_types=uses_ray_types(settings), t_max=t_max,
+                      times=times)
+    if cam.near > 0 or cam.clipping_planes:  # depth is measured from the eye (the film plane for orthographic)
+        rel = o - cam.position.astype(np.float32)
+        res.depth += (np.linalg.norm(rel, axis=1) if cam.projection == "perspective"
+                      else rel @ -cam.camera_to_world[:3, 2].astype(np.float32))
     return res
 
 
