@@ -408,7 +408,12 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     """
     bpy_scene = depsgraph.scene_eval if hasattr(depsgraph, "scene_eval") else depsgraph.scene
     warnings: list[str] = []
-    blur = camera is None and getattr(bpy_scene.render, "use_motion_blur", False)  # not in the viewport (a camera)
+    # Motion blur: F12 and Explain Pixel; not the viewport (it passes a camera) nor a synced session (``objects``:
+    # its edits have no motion)
+    blur = getattr(bpy_scene.render, "use_motion_blur", False)
+    if blur and objects is not None and camera is None:
+        warnings.append("motion blur is not rendered with Persistent Data (turn it off for motion blur)")
+    blur = blur and camera is None and objects is None
     rw, rh = render_size(bpy_scene)
     width, height = width or rw, height or rh
     b = tracer.SceneBuilder()
