@@ -5,7 +5,8 @@ value (the picture *is* the program's value: orthographic camera looking straigh
 plane edges on pixel edges), all in one Blender scene and one render; each plane's pixels are compared on their
 own (>= 40 dB). Lit grid: spheres under a sun for what needs light and a view (Bump, Layer Weight / Fresnel mixes,
 Add Shader, Object Info Random) and artist-style materials built as node trees (>= 33 dB). Group / mute / reroute
-plumbing is part of the emission grid. Cycles references are cached by a hash of this file's builders
+plumbing is part of the emission grid; planes that read object space are turned and scaled (:data:`TURNED`). World:
+a world-only view of a procedural world tree, which the add-on evaluates with the VM per direction (>= 40 dB). Cycles references are cached by a hash of this file's builders
 (cycles_harness.content_hash, CACHE_DIR).
 """
 
