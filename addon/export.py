@@ -391,7 +391,7 @@ BATCH_MIN = 8
 def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | None = None,
                          camera: "tracer.Camera | None" = None, geometry_cache: dict | None = None,
                          cancelled=None, objects: list | None = None,
-                         materials: dict | None = None) -> tuple["tracer.Scene", list[str]]:
+                         materials: dict | None = None, frame_set=None) -> tuple["tracer.Scene", list[str]]:
     """Build a :class:`tracer.Scene` from an evaluated depsgraph; returns it and a list of warnings.
 
     width/height default to the scene's render size (resolution × percentage) and matter only for the camera's
@@ -402,10 +402,18 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     :class:`ExportCancelled`. ``objects``, a list, receives the :class:`ExportedObject` of each tracer object id
     in order (addon/sync.py keeps them); ``materials``, a dict, receives each Blender material's Principled fields
     by name (addon/sync.py re-reads only the materials an update names). The returned scene carries
-    ``scene.object_pass_indices`` (int32 per tracer object id: Blender's ``Object.pass_index``).
+    ``scene.object_pass_indices`` (int32 per tracer object id: Blender's ``Object.pass_index``). With Motion Blur
+    on, the scene is evaluated again at the shutter's sub-frames (:mod:`addon.motion`; ``frame_set``: the render
+    engine's ``frame_set``, default the scene's) for ``scene.motion`` and the camera's motion.
     """
     bpy_scene = depsgraph.scene_eval if hasattr(depsgraph, "scene_eval") else depsgraph.scene
     warnings: list[str] = []
+    # Motion blur: F12 and Explain Pixel; not the viewport (it passes a camera) nor a synced session (``objects``:
+    # its edits have no motion)
+    blur = getattr(bpy_scene.render, "use_motion_blur", False)
+    if blur and objects is not None and camera is None:
+        warnings.append("motion blur is not rendered with Persistent Data (turn it off for motion blur)")
+    blur = blur and camera is None and objects is None
     rw, rh = render_size(bpy_scene)
     width, height = width or rw, height or rh
     b = tracer.SceneBuilder()
@@ -431,6 +439,10 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     scene.object_visibility, scene.light_links = links_from_blender(depsgraph, exported, scene.lights,
                                                                     len(b.object_names), warnings)
     scene.object_holdout, scene.object_shadow_catcher = compose_flags(depsgraph, exported, len(b.object_names))
+    if blur:  # last: it evaluates the scene at other sub-frames (and puts the frame back)
+        from .motion import apply_motion, sample_motion
+
+        apply_motion(scene, exported, sample_motion(depsgraph, exported, warnings, frame_set))
     return scene, warnings
 
 

@@ -813,3 +813,21 @@ def test_cli_without_output_writes_every_render_product(tmp_path):
     assert (tmp_path / "second.depth.exr").exists() and not (tmp_path / "first.depth.exr").exists()
     covered = [float((np.abs(im[..., :3] - im[0, 0, :3]).max(axis=-1) > 0.02).mean()) for im in (first, second)]
     assert covered[1] > 3 * covered[0], covered
+
+
+def test_a_stage_of_only_volumes_says_so_in_one_line():
+    """Two Volumes with OpenVDB fields and nothing else (the arnold-usd volume tests): the frame can only be the
+    background, and one warning line says why (before: a line per volume plus "gave 0 triangles")."""
+    from pxr import UsdVol
+
+    s = new_stage()
+    for i in range(2):
+        vol = UsdVol.Volume.Define(s, f"/Vol{i}")
+        field = UsdVol.OpenVDBAsset.Define(s, f"/Vol{i}/density")
+        field.CreateFilePathAttr("./smoke.vdb")
+        field.CreateFieldNameAttr("density")
+        vol.CreateFieldRelationship("density", field.GetPath())
+    _scene, info = load_stage(s, width=16, height=16)
+    lines = [w for w in info.warnings if "Vol" in w or "triangles" in w]
+    assert len(lines) == 1 and "only gprims are 2 Volume" in lines[0], info.warnings
+    assert info.nothing_drawn is None
