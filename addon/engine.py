@@ -107,7 +107,8 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
         job = _Job(self, depsgraph)
         try:
             scene, warnings = export.scene_from_depsgraph(depsgraph, width=job.settings.width,
-                                                          height=job.settings.height, cancelled=job.cancelled)
+                                                          height=job.settings.height, cancelled=job.cancelled,
+                                                          frame_set=self.frame_set)
         except export.ExportCancelled:
             return job.stopped("export")
         except Exception as exc:  # a scene we cannot export: say why, leave an empty result

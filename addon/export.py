@@ -391,7 +391,7 @@ BATCH_MIN = 8
 def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | None = None,
                          camera: "tracer.Camera | None" = None, geometry_cache: dict | None = None,
                          cancelled=None, objects: list | None = None,
-                         materials: dict | None = None) -> tuple["tracer.Scene", list[str]]:
+                         materials: dict | None = None, frame_set=None) -> tuple["tracer.Scene", list[str]]:
     """Build a :class:`tracer.Scene` from an evaluated depsgraph; returns it and a list of warnings.
 
     width/height default to the scene's render size (resolution × percentage) and matter only for the camera's
@@ -402,10 +402,18 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     :class:`ExportCancelled`. ``objects``, a list, receives the :class:`ExportedObject` of each tracer object id
     in order (addon/sync.py keeps them); ``materials``, a dict, receives each Blender material's Principled fields
     by name (addon/sync.py re-reads only the materials an update names). The returned scene carries
-    ``scene.object_pass_indices`` (int32 per tracer object id: Blender's ``Object.pass_index``).
+    ``scene.object_pass_indices`` (int32 per tracer object id: Blender's ``Object.pass_index``). With Motion Blur
+    on, the scene is evaluated again at the shutter's sub-frames (:mod:`addon.motion`; ``frame_set``: the render
+    engine's ``frame_set``, default the scene's) for ``scene.motion`` and the camera's motion.
     """
     bpy_scene = depsgraph.scene_eval if hasattr(depsgraph, "scene_eval") else depsgraph.scene
     warnings: list[str] = []
+    # Motion blur: F12 and Explain Pixel; not the viewport (it passes a camera) nor a synced session (``objects``:
+    # its edits have no motion)
+    blur = getattr(bpy_scene.render, "use_motion_blur", False)
+    if blur and objects is not None and camera is None:
+        warnings.append("motion blur is not rendered with Persistent Data (turn it off for motion blur)")
+    blur = blur and camera is None and objects is None
     rw, rh = render_size(bpy_scene)
     width, height = width or rw, height or rh
     b = tracer.SceneBuilder()
@@ -431,11 +439,11 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     scene.object_visibility, scene.light_links = links_from_blender(depsgraph, exported, scene.lights,
                                                                     len(b.object_names), warnings)
     scene.object_holdout, scene.object_shadow_catcher = compose_flags(depsgraph, exported, len(b.object_names))
+    if blur:  # last: it evaluates the scene at other sub-frames (and puts the frame back)
+        from .motion import apply_motion, sample_motion
+
+        apply_motion(scene, exported, sample_motion(depsgraph, exported, warnings, frame_set))
     return scene, warnings
-
-
-_RAY_VISIBILITY = (("visible_camera", tracer.linking.CAMERA), ("visible_glossy", tracer.linking.GLOSSY),
-                   ("visible_transmission", tracer.linking.TRANSMISSION), ("visible_shadow", tracer.linking.SHADOW))
 
 
 def links_from_blender(depsgraph, exported: list, lights: list, n_objects: int, warnings: list) -> tuple:
@@ -443,16 +451,19 @@ def links_from_blender(depsgraph, exported: list, lights: list, n_objects: int, 
     ``exported[i]``) and lights (matched to their Blender objects by name): Object ▸ Visibility ▸ Ray Visibility
     and Cycles' light / shadow linking (a collection's objects and child collections, each included or excluded:
     only included objects when there are any, minus the excluded; everything but the excluded otherwise)."""
+    linking = tracer.linking  # (here, not at import: it loads the kernel machinery)
+    ray_visibility = (("visible_camera", linking.CAMERA), ("visible_glossy", linking.GLOSSY),
+                      ("visible_transmission", linking.TRANSMISSION), ("visible_shadow", linking.SHADOW))
     by_name = {o.name: o for o in depsgraph.objects}
     ids: dict[str, list[int]] = {}
     for i, o in enumerate(exported):
         ids.setdefault(o.key[0], []).append(i)
-    visibility = np.full(n_objects, tracer.linking.ALL_VISIBLE, np.uint8)
+    visibility = np.full(n_objects, linking.ALL_VISIBLE, np.uint8)
     for name, members in ids.items():
         obj = by_name.get(name)
         if obj is None:
             continue
-        bits = sum(bit for attr, bit in _RAY_VISIBILITY if getattr(obj, attr, True))
+        bits = sum(bit for attr, bit in ray_visibility if getattr(obj, attr, True))
         visibility[members] = bits
         ll = getattr(obj, "light_linking", None)
         if ll is not None and (ll.receiver_collection or ll.blocker_collection):
@@ -477,18 +488,18 @@ def links_from_blender(depsgraph, exported: list, lights: list, n_objects: int, 
     links = []
     for light in lights:
         obj = by_name.get(light.name)
-        link = tracer.linking.LightLink()
+        link = linking.LightLink()
         if obj is not None:
             ll = getattr(obj, "light_linking", None)
             if ll is not None:
                 link.receivers, link.blockers = members(ll.receiver_collection), members(ll.blocker_collection)
             link.cast_shadow = bool(getattr(obj.data, "use_shadow", True))
-            link.diffuse = bool(getattr(obj, "visible_diffuse", True))
-            link.glossy = bool(getattr(obj, "visible_glossy", True))
+            link.diffuse = float(bool(getattr(obj, "visible_diffuse", True)))
+            link.glossy = float(bool(getattr(obj, "visible_glossy", True)))
         links.append(link)
     if all(k.is_default() for k in links):
         links = []
-    if np.all(visibility == tracer.linking.ALL_VISIBLE):
+    if np.all(visibility == linking.ALL_VISIBLE):
         visibility = None
     return visibility, links
 

@@ -41,6 +41,7 @@ from .jit import kernel
 from .instances import mat3_apply, mat3_apply_transposed, pack_instances
 from .instances import world_emitters
 from .lights import MESH, pack_lights, sample_light
+from .motion import frames_at_time, pack_motion
 from .sampling import multijitter, stratum, uniform2_1
 from .scene import Scene
 from .settings import RenderSettings
@@ -178,7 +179,8 @@ class Options(NamedTuple):
 
 class RayQueue(NamedTuple):
     """Rays of one depth: origins, unit directions, the weight (throughput) each carries, the eye sample it adds
-    to, and an optional length limit (None = unbounded)."""
+    to, an optional length limit (None = unbounded) and each ray's time across the shutter (its eye sample's;
+    None = no motion blur)."""
 
     o: np.ndarray
     d: np.ndarray
@@ -186,6 +188,7 @@ class RayQueue(NamedTuple):
     sample: np.ndarray
     t_max: np.ndarray | None
     mask: np.ndarray | None = None  # Embree ray masks (tracer.linking), None: the rays see every object
+    time: np.ndarray | None = None  # each ray's time across the shutter (tracer.motion), None: no motion blur
 
 
 class SurfaceQueue(NamedTuple):
@@ -317,6 +320,7 @@ class Integrator:
         #: the coordinate spaces programs read (tracer.shader_spaces; the camera's entry refreshed per batch)
         self.spaces = object_spaces(scene) if self.programs.has.any() else np.zeros((2, 9, 4), np.float64)
         self.instances = pack_instances(scene)
+        self.motion = pack_motion(scene)  # None: nothing moves (tracer/motion.py)
         # instanced prototypes' emitting triangles placed per instance (tracer/instances.py)
         emitters = world_emitters(scene, m.emission * m.alpha[:, None])
         self.lights = pack_lights(scene.lights, settings.light_samples, emitters)
@@ -350,7 +354,8 @@ class Integrator:
         """The deepest step: max_depth, or one more (collecting only background and emission) with terminal rays."""
         return self.settings.max_depth + (1 if self.settings.terminal_rays else 0)
 
-    def _shade(self, depth: int, o, d, weight, sample, t0, hits, keys, out: "Tile", counts, spawn: bool):
+    def _shade(self, depth: int, o, d, weight, sample, t0, hits, keys, out: "Tile", counts, spawn: bool,
+               time=None):
         """The stages for one batch of rays and their hits: returns (ShadowQueue, NextQueue, n_refl, n_tran,
         n_through)."""
         n = len(o)
@@ -359,6 +364,8 @@ class Integrator:
         it = self.instances
         n_textured = _surfaces(o, d, t, prim, inst, it.normal_matrix, it.materials, u, v, self.geometry,
                                self.materials, surf)
+        if self.motion is not None and time is not None:  # what moves is shaded where it is at the ray's time
+            frames_at_time(d, prim, inst, u, v, time, self.geometry, self.motion, surf.ng, surf.n, surf.front)
         if n_textured:  # the textures stage: the materials' programs (tracer.shader_vm)
             g, m, x, pt = self.geometry, self.materials, self.textures, self.programs
             # one eye sample's footprint, for the mip level of lookups and the bump offsets: read now, as a
@@ -424,15 +431,21 @@ class Integrator:
         within the step (up to ``max_transparent`` surfaces deep)."""
         n = len(rays.o)
         mask = rays.mask if depth else linking.ray_masks(self.links, 0, n, 0)
-        hits = self.accel.closest_hits(rays.o, rays.d, rays.t_max, mask=mask)
+        time = rays.time
+        hits = self.accel.closest_hits(rays.o, rays.d, rays.t_max, mask=mask, time=time)
+        timed = time is not None
+        if timed:  # every ray keeps its eye sample's time: looked up by sample
+            sample_time = np.zeros(len(out.color), np.float32)
+            sample_time[rays.sample] = time
         spawn = depth < self.last_depth
         shadows, refl, tran, caught = [], [], [], []
         o, d, w, smp, t0, h = rays.o, rays.d, rays.weight, rays.sample, np.zeros(n, np.float32), hits
         for layer in range(self.settings.max_transparent + 1):
             shadow, nxt, n_refl, n_tran, n_through, c = self._shade(depth, o, d, w, smp, t0, h, keys, out, counts,
-                                                                    spawn)
+                                                                    spawn, time)
             shadows.append(shadow)
-            caught.append(c if c is not None else np.zeros(len(shadow.o), np.bool_))
+            if self.compose.has_catcher:
+                caught.append(c if c is not None else np.zeros(len(shadow.o), np.bool_))
             m = len(o)
             refl.append((nxt, slice(0, n_refl)))
             tran.append((nxt, slice(m, m + n_tran)))
@@ -443,16 +456,18 @@ class Integrator:
             tm = None
             if rays.t_max is not None:  # eye rays stop at the far plane: what is left of their length
                 tm = np.maximum(rays.t_max[np.searchsorted(rays.sample, smp)] - t0, 0).astype(np.float32)
-            h = self.accel.closest_hits(o, d, tm, mask=linking.through_mask(self.links, depth))
+            time = sample_time[smp] if timed else None
+            h = self.accel.closest_hits(o, d, tm, mask=linking.through_mask(self.links, depth), time=time)
         shadow = shadows[0] if len(shadows) == 1 else ShadowQueue(*(np.concatenate(c) for c in zip(*shadows)))
         blocked = np.zeros(0, bool)
         if len(shadow.o):
+            shadow_time = sample_time[shadow.sample] if timed else None
             blocked = self.accel.occluded(shadow.o, shadow.d, shadow.t_max,
-                                          mask=linking.shadow_masks(self.links, shadow.light))
+                                          mask=linking.shadow_masks(self.links, shadow.light), time=shadow_time)
             if self.compose.has_catcher:
                 self._catcher_light(out, shadow, np.concatenate(caught), blocked)
             if self.see_through and blocked.any():
-                blocked = self._through_shadows(shadow, blocked)
+                blocked = self._through_shadows(shadow, blocked, shadow_time)
             _add_unoccluded(out.color, shadow.sample, shadow.color, blocked)
         parts = refl + tran
         cat = lambda get: np.concatenate([get(q)[s] for q, s in parts])  # noqa: E731
@@ -460,6 +475,8 @@ class Integrator:
         nxt = RayQueue(o=cat(lambda q: q.o), d=cat(lambda q: q.d), weight=cat(lambda q: q.weight),
                        sample=cat(lambda q: q.sample), t_max=None)
         nxt = nxt._replace(mask=linking.ray_masks(self.links, depth + 1, len(nxt.o), n_reflected))
+        if timed:
+            nxt = nxt._replace(time=sample_time[nxt.sample])
         spawned = SpawnRecord(light=shadow.light[:0], normal=cat(lambda q: q.spawned.normal),
                               eta=cat(lambda q: q.spawned.eta), tir=cat(lambda q: q.spawned.tir))
         return Step(hits=hits, shadow=shadow, blocked=blocked, next=nxt, spawned=spawned, n_reflected=n_reflected)
@@ -479,7 +496,7 @@ class Integrator:
         free = rows[~hit]
         np.add.at(out.compose[:, compose.K0:compose.K0 + 3], shadow.sample[free], shadow.color[free])
 
-    def _through_shadows(self, shadow: "ShadowQueue", blocked: np.ndarray) -> np.ndarray:
+    def _through_shadows(self, shadow: "ShadowQueue", blocked: np.ndarray, time=None) -> np.ndarray:
         """Blocked shadow rays whose blockers are alpha < 1 surfaces continue through them, their colour × (1 −
         alpha) each time (Cycles' transparent shadows), up to ``max_transparent`` surfaces."""
         idx = np.flatnonzero(blocked)
@@ -492,7 +509,8 @@ class Integrator:
             if not len(sel):
                 break
             t, prim, u, v, inst = self.accel.closest_hits(o[sel], d[sel], t_max[sel],
-                                                          mask=None if masks is None else masks[sel])
+                                                          mask=None if masks is None else masks[sel],
+                                                          time=None if time is None else time[idx[sel]])
             g, pt, x, it = self.geometry, self.programs, self.textures, self.instances
             _pass_shadow(sel, idx, t, prim, inst, it.materials, it.normal_matrix, u, v, g.material_ids,
                          g.face_normals, self.materials.alpha, self.materials.alpha_threshold, o, d, t_max, color,
@@ -502,9 +520,11 @@ class Integrator:
         return blocked
 
     def trace(self, origins: np.ndarray, directions: np.ndarray, keys: np.ndarray,
-              cancelled=lambda: False, ray_types: bool = False, t_max: np.ndarray | None = None) -> TileResult:
+              cancelled=lambda: False, ray_types: bool = False, t_max: np.ndarray | None = None,
+              times: np.ndarray | None = None) -> TileResult:
         """Trace eye rays (one per sample) to the maximum depth. ``keys`` are unique per sample (for the
-        deterministic random streams). With ``ray_types`` the result also holds each sample's colour split by the
+        deterministic random streams); ``times`` each eye sample's time across the shutter (motion blur; None:
+        none), kept by every ray of its path. With ``ray_types`` the result also holds each sample's colour split by the
         ray type it arrived through (:data:`PATH_TYPES`) and the depth of its deepest ray."""
         s = self.scene
         n_samples = len(origins)
@@ -524,7 +544,8 @@ class Integrator:
                         sample=np.arange(0, n_samples * k, k, dtype=np.int32),
                         t_max=(t_max if t_max is not None else  # per ray: the camera's clipping planes
                                np.full(n_samples, s.camera.far - s.camera.near, np.float32)
-                               if np.isfinite(s.camera.far) else None))
+                               if np.isfinite(s.camera.far) else None),
+                        time=None if times is None else np.ascontiguousarray(times, np.float32))
         for depth in range(self.last_depth + 1):
             if not len(rays.o) or cancelled():
                 break

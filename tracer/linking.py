@@ -136,8 +136,10 @@ def pack(scene, n_lights: int) -> Links:
     lights, then the emissive-mesh light if any: never linked)."""
     n_obj = _object_count(scene)
     links = list(getattr(scene, "light_links", None) or [])
-    if links and len(links) != len(scene.lights):
-        raise ValueError(f"scene.light_links has {len(links)} entries for {len(scene.lights)} lights")
+    if links and len(links) != len(scene.lights):  # e.g. a Session's update_lights: the links were for other lights
+        warnings.warn(f"light linking: scene.light_links has {len(links)} entries for {len(scene.lights)} lights; "
+                      "the lights are rendered unlinked", stacklevel=2)
+        links = []
     for j, link in enumerate(links):
         if not isinstance(link, LightLink):
             raise ValueError(f"scene.light_links[{j}] is not a tracer.linking.LightLink")

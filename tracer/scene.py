@@ -209,6 +209,8 @@ class Scene:
     object_transforms: np.ndarray | None = None
     #: Optional shared-mesh instances (see :class:`Instances`); None: a triangle soup in world space.
     instances: Instances | None = None
+    #: Optional :class:`tracer.motion.Motion`: what moves across the shutter (motion blur); None: nothing moves.
+    motion: object | None = None
     #: Optional (O,) uint8 per object id: the ray types that see it (tracer.linking: CAMERA | GLOSSY |
     #: TRANSMISSION | SHADOW); None = every object seen by every ray.
     object_visibility: np.ndarray | None = None
@@ -336,7 +338,21 @@ class Scene:
             if not len(self.instances):
                 self.instances = None
 
+        self.validate_motion()
         self._drop_degenerate()
+
+    def validate_motion(self) -> None:
+        """Check ``motion`` against the vertices and instances (a front end that sets it after building the
+        scene calls this); an empty one becomes None."""
+        if self.motion is None:
+            return
+        from .motion import Motion
+
+        if not isinstance(self.motion, Motion):
+            raise ValueError("scene.motion must be a tracer.motion.Motion or None")
+        self.motion.validate(len(self.vertices), len(self.instances) if self.instances is not None else 0)
+        if self.motion.empty:
+            self.motion = None
 
     def _validate_uv_sets(self, n):
         """``uv_sets`` and ``uvs`` are one list (set 0 = ``uvs``): fill one from the other, check shapes. Infinite

@@ -577,6 +577,16 @@ class Compiler:
             return {"Vector": self._fold(r, 3)}
         return {"Vector": r}
 
+    def _n_vector_transform(self, node, var):
+        kind = _enum("vector_transform.vector_type", node.param("vector_type"))
+        src, dst = _enum("space", node.param("convert_from")), _enum("space", node.param("convert_to"))
+        v = self.inp(node, "Vector", VECTOR, var)
+        if src == dst:
+            return {"Vector": v}
+        if self.estimate:
+            return {"Vector": v if _is_const(v) else (0.0, 0.0, 0.0)}
+        return {"Vector": self.e.emit(vm.OP_VTRANSFORM, 3, [(v, 3)], imm=kind | src << 2 | dst << 4)}
+
     def _n_vector_rotate(self, node, var):
         kind = _enum("vector_rotate.rotation_type", node.param("rotation_type"))
         xs = [self.inp(node, k, None, var) for k in ("Vector", "Center", "Axis", "Angle", "Rotation")]
@@ -731,6 +741,17 @@ class Compiler:
         proj = ("FLAT", "BOX", "SPHERE", "TUBE").index(str(node.param("projection") or "FLAT").upper())
         c, a = self._rgba_out(self.image(TextureUse(img, -1), coord, node.name, proj,
                                          float(node.param("projection_blend") or 0.0)))
+        return {"Color": c, "Alpha": a}
+
+    def _n_environment_texture(self, node, var):  # a world's: the equirectangular map of the direction
+        img = node.param("image")
+        if img is None or str(node.param("projection")).upper() != "EQUIRECTANGULAR":
+            self.warn(node.name, f"Environment Texture {node.name!r}: "
+                                 f"{'no image' if img is None else 'Mirror Ball projection is not evaluated'}; "
+                                 "black is used")
+            return {"Color": (0.0, 0.0, 0.0), "Alpha": 0.0}
+        coord = self.inp(node, "Vector", VECTOR, var)
+        c, a = self._rgba_out(self.image(TextureUse(img, -1), coord, node.name, 4))
         return {"Color": c, "Alpha": a}
 
     def _n_usd_uv_texture(self, node, var):
@@ -981,22 +1002,21 @@ class Compiler:
 
     # ------------------------------------------------------------------ normals
     def _n_normal_map(self, node, var):
-        space = node.param("space") or "TANGENT"
+        space = _enum("normal_map.space", node.param("space"))
         strength, col = self.inp(node, "Strength", FLOAT, var), self.inp(node, "Color", COLOR, var)
         if self.estimate:
             return {"Normal": (0.0, 0.0, 1.0)}
-        if space != "TANGENT":
-            self.warn(node.name, f"Normal Map {node.name!r}: {space} space is not supported (shading normal kept)")
+        if space == 0 and _is_const(col) and np.allclose(_vec(col), (0.5, 0.5, 1.0)):
             return {"Normal": self.hit(vm.IN_NORMAL)}
-        if _is_const(col) and np.allclose(_vec(col), (0.5, 0.5, 1.0)):
-            return {"Normal": self.hit(vm.IN_NORMAL)}
-        uv_map = node.param("uv_map")
-        k = uv_map if isinstance(uv_map, (int, np.integer)) else self.uv_index(uv_map or "")
-        if k is None:
-            self.warn(node.name + "uv", f"Normal Map {node.name!r}: UV map {uv_map!r} is not known; the default "
-                                        "one is used")
-            k = 0
-        return {"Normal": self.e.emit(vm.OP_NORMAL_MAP, 3, [(col, 3), (strength, 1), int(k)])}
+        k = -1
+        if space == 0:
+            uv_map = node.param("uv_map")
+            k = uv_map if isinstance(uv_map, (int, np.integer)) else self.uv_index(uv_map or "")
+            if k is None:
+                self.warn(node.name + "uv", f"Normal Map {node.name!r}: UV map {uv_map!r} is not known; the default "
+                                            "one is used")
+                k = 0
+        return {"Normal": self.e.emit(vm.OP_NORMAL_MAP, 3, [(col, 3), (strength, 1), int(k)], imm=space)}
 
     def _n_bump(self, node, var):
         nrm = self.inp(node, "Normal", VECTOR, var)

@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from . import bsdf, shader_ops as ops, vec
+from . import shader_ops as ops, vec
 from .instances import mat3_apply, mat3_apply_transposed
 from .jit import kernel
 from .procedural import color as pcolor
@@ -42,13 +42,13 @@ WIDTH = 9  # op, dst, a, b, c, d, e, f, imm
  OP_IMAGE, OP_CHECKER, OP_NORMAL_MAP, OP_BUMP_SETUP, OP_BUMP, OP_RAMP, OP_CURVE, OP_MAPPING, OP_HSV, OP_GAMMA,
  OP_BRIGHT, OP_INVERT, OP_SEP_COLOR, OP_COMB_COLOR, OP_MAP_RANGE, OP_CLAMP, OP_FRESNEL, OP_LAYER_WEIGHT,
  OP_VROTATE, OP_COPY, OP_AFFINE2, OP_MAP_RANGE_V, OP_SELECT, OP_NORMALIZE_N, OP_NOISE, OP_VORONOI, OP_WAVE,
- OP_MAGIC, OP_GRADIENT, OP_BRICK, OP_WHITE_NOISE, OP_BLACKBODY, OP_WAVELENGTH) = range(44)
+ OP_MAGIC, OP_GRADIENT, OP_BRICK, OP_WHITE_NOISE, OP_BLACKBODY, OP_WAVELENGTH, OP_VTRANSFORM) = range(45)
 
 OP_NAMES = ("nop", "math", "vmath", "mix_f", "mix_v", "mix_vn", "mix_c", "lum", "avg", "combine", "input", "image",
             "checker", "normal_map", "bump_setup", "bump", "ramp", "curve", "mapping", "hsv", "gamma", "bright",
             "invert", "sep_color", "comb_color", "map_range", "clamp", "fresnel", "layer_weight", "vrotate", "copy",
             "affine2", "map_range_v", "select", "normalize_n", "noise", "voronoi", "wave", "magic", "gradient",
-            "brick", "white_noise", "blackbody", "wavelength")
+            "brick", "white_noise", "blackbody", "wavelength", "vtransform")
 #: MaterialX's noises (tracer.procedural.mx_noise), numbered after everything above.
 OP_MX_NOISE = len(OP_NAMES)
 OP_NAMES += ("mx_noise",)
@@ -95,7 +95,12 @@ def _affine3(spaces, k, row, x):
 @kernel
 def _project(x, y, z, kind):
     """Image Texture's Sphere (2) and Tube (3) projections of a point of the [0, 1]³ box (Cycles' ``map_to_sphere``,
-    ``map_to_tube`` after ``texco_remap_square``)."""
+    ``map_to_tube`` after ``texco_remap_square``); Environment Texture's equirectangular map of a direction (4,
+    Cycles' ``direction_to_equirectangular``)."""
+    if kind == 4:
+        if x == 0.0 and y == 0.0 and z == 0.0:
+            return 0.5, 0.5
+        return -math.atan2(y, x) / (2.0 * math.pi) + 0.5, math.atan2(z, math.hypot(x, y)) / math.pi + 0.5
     x, y, z = 2.0 * x - 1.0, 2.0 * y - 1.0, 2.0 * z - 1.0
     if kind == 2:
         ln = math.sqrt(x * x + y * y + z * z)
@@ -229,7 +234,8 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
                 R[o + j] = R[src + j]
         elif op == OP_INPUT:
             _input(R, o, imm, code[pc, 2], code[pc, 3], base + code[pc, 4], hit, geo)
-        elif op == OP_IMAGE:  # imm: projection (0 flat, 1 box: blend in register d, 2 sphere, 3 tube)
+        elif op == OP_IMAGE:  # imm: projection (0 flat, 1 box: blend in register d, 2 sphere, 3 tube,
+            #                   4 equirectangular of a direction: Environment Texture)
             ti = code[pc, 3]
             lod = 0.0
             k_fp = code[pc, 4]
@@ -260,19 +266,8 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
             src = b if first else c
             R[o], R[o + 1], R[o + 2] = R[src], R[src + 1], R[src + 2]
             R[o + 3] = 1.0 if first else 0.0
-        elif op == OP_NORMAL_MAP:
-            k_uv = code[pc, 4]
-            nn = n
-            if k_uv >= 0:
-                tg, sign = tangent_at(uv_sets, vertices, triangles, k_uv, tri, vec.row(face_normals, tri))
-                if k_inst >= 0:
-                    tg = mat3_apply(linear, k_inst, tg)
-                    if mirrored[k_inst]:
-                        sign = -sign
-                if tg[0] != 0.0 or tg[1] != 0.0 or tg[2] != 0.0:
-                    tv = (2.0 * R[a] - 1.0, 2.0 * R[a + 1] - 1.0, 2.0 * R[a + 2] - 1.0)
-                    nn = bsdf.perturb_normal(tv, tg, sign, R[b], n, ng, front)
-            R[o], R[o + 1], R[o + 2] = nn
+        elif op == OP_NORMAL_MAP:  # imm: space (0 tangent: UV set c; object, world, Blender object / world)
+            R[o], R[o + 1], R[o + 2] = _normal_map((R[a], R[a + 1], R[a + 2]), R[b], imm, code[pc, 4], hit, geo)
         elif op == OP_BUMP_SETUP:
             _bump_setup(R, o, tri, u, v, ng, footprint, k_inst, vertices, triangles, linear)
         elif op == OP_BUMP:
@@ -336,6 +331,8 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
             R[o] = R[b] * s_ + R[b + 1] * t_ + R[b + 2]
             R[o + 1] = R[b + 3] * s_ + R[b + 4] * t_ + R[b + 5]
             R[o + 2] = R[a + 2]
+        elif op == OP_VTRANSFORM:
+            R[o], R[o + 1], R[o + 2] = _vtransform((R[a], R[a + 1], R[a + 2]), imm, hit, geo)
         elif op >= OP_NOISE:  # procedural textures (tracer.procedural): a = vector, b = parameter block
             _procedural(R, op, o, a, b, imm)
         elif op == OP_NORMALIZE_N:  # a normal output: unit, on the incident side (else the shading normal)
@@ -416,6 +413,17 @@ def _input(R, o, what, arg, variant, setup, hit, geo):
         q = 4 + 3 * (variant - 1)
         p = (p[0] + R[setup + q], p[1] + R[setup + q + 1], p[2] + R[setup + q + 2])
     x = (0.0, 0.0, 0.0)
+    if tri < 0:  # the world (shade_directions): P is the direction, as Cycles' background; no surface inputs
+        if what == IN_POSITION or what == IN_GENERATED or what == IN_OBJECT:
+            x = p
+        elif what == IN_NORMAL or what == IN_TRUE_NORMAL:
+            x = n
+        elif what == IN_INCOMING:
+            x = (-d[0], -d[1], -d[2])
+        elif what == IN_IS_CAMERA:
+            x = (1.0, 0.0, 0.0)
+        R[o], R[o + 1], R[o + 2] = x
+        return
     if what == IN_POSITION:
         x = p
     elif what == IN_NORMAL:
@@ -490,6 +498,139 @@ def _input(R, o, what, arg, variant, setup, hit, geo):
         dn = vec.dot(d, n)
         x = (d[0] - 2.0 * dn * n[0], d[1] - 2.0 * dn * n[1], d[2] - 2.0 * dn * n[2])
     R[o], R[o + 1], R[o + 2] = x
+
+
+@kernel
+def _inverse3(m):
+    """The inverse of a 3×3 matrix (rows as tuples; 0 if singular)."""
+    a, b, c = m
+    c0 = vec.cross(b, c)
+    c1 = vec.cross(c, a)
+    c2 = vec.cross(a, b)
+    det = vec.dot(a, c0)
+    inv = 1.0 / det if det != 0.0 else 0.0
+    return ((c0[0] * inv, c1[0] * inv, c2[0] * inv), (c0[1] * inv, c1[1] * inv, c2[1] * inv),
+            (c0[2] * inv, c1[2] * inv, c2[2] * inv))
+
+
+@kernel
+def _rows(spaces, k, row):
+    return ((spaces[k, row, 0], spaces[k, row, 1], spaces[k, row, 2]),
+            (spaces[k, row + 1, 0], spaces[k, row + 1, 1], spaces[k, row + 1, 2]),
+            (spaces[k, row + 2, 0], spaces[k, row + 2, 1], spaces[k, row + 2, 2]))
+
+
+@kernel
+def _cols(spaces, k, row):
+    return ((spaces[k, row, 0], spaces[k, row + 1, 0], spaces[k, row + 2, 0]),
+            (spaces[k, row, 1], spaces[k, row + 1, 1], spaces[k, row + 2, 1]),
+            (spaces[k, row, 2], spaces[k, row + 1, 2], spaces[k, row + 2, 2]))
+
+
+@kernel
+def _object_matrices(hit, geo):
+    """The hit object's matrix M (object to world, rows), its inverse and its translation."""
+    tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye = hit
+    uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids = geo
+    if k_inst >= 0:
+        m = ((linear[k_inst, 0, 0], linear[k_inst, 0, 1], linear[k_inst, 0, 2]),
+             (linear[k_inst, 1, 0], linear[k_inst, 1, 1], linear[k_inst, 1, 2]),
+             (linear[k_inst, 2, 0], linear[k_inst, 2, 1], linear[k_inst, 2, 2]))
+        po = _bary_at(vertices, triangles, tri, u, v)
+        return m, _inverse3(m), vec.sub(p, _rot(m, po))
+    oid = object_ids[tri]
+    return (_cols(spaces, oid, NRM), _rows(spaces, oid, XF),  # NRM's rows hold Mᵀ, XF's M⁻¹
+            (spaces[oid, LOC, 0], spaces[oid, LOC, 1], spaces[oid, LOC, 2]))
+
+
+@kernel
+def _normal_map(col, strength, space, k_uv, hit, geo):
+    """Blender's Normal Map node (Cycles' ``svm_node_normal_map``): the colour as 2·c − 1 in tangent space (x along
+    the UV tangent, y along sign·(N × T), z along the front-face shading normal, all in object space, then to world
+    by the normal matrix), object space (by the normal matrix), world space, or Blender's object / world convention
+    (y and z negated); flipped for a back face; Strength blends from the shading normal. The value itself, as Cycles gives it: a normal facing away from the viewer is
+    left to the closure input (OP_NORMALIZE_N)."""
+    tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye = hit
+    uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids = geo
+    c = (2.0 * col[0] - 1.0, 2.0 * col[1] - 1.0, 2.0 * col[2] - 1.0)
+    side = 1.0 if front else -1.0
+    if space == 0:  # in object space, as Cycles (its tangents and normals are object-space attributes)
+        if k_uv < 0:
+            return n
+        tg, sign = tangent_at(uv_sets, vertices, triangles, k_uv, tri, vec.row(face_normals, tri))
+        m, mi, t = _object_matrices(hit, geo)
+        if k_inst < 0:  # a placed mesh's triangles are in world space: its tangent and handedness to object space
+            tg = _rot(mi, tg)
+            if vec.dot(mi[0], vec.cross(mi[1], mi[2])) < 0.0:
+                sign = -sign
+        no = _rot_t(m, vec.scale(n, side))
+        no = vec.scale(no, 1.0 / max(math.sqrt(vec.dot(no, no)), 1e-30))
+        tg = vec.sub(tg, vec.scale(no, vec.dot(no, tg)))
+        if vec.dot(tg, tg) < 1e-24:
+            return n
+        tg = vec.normalize(tg)
+        b = vec.scale(vec.cross(no, tg), sign)
+        # not normalised before Strength blends it (Blender 5.0's Cycles, measured: tests/cycles/test_cycles_nodes.py)
+        x = _rot_t(mi, vec.madd(vec.madd(vec.scale(tg, c[0]), b, c[1]), no, c[2]))
+        x = vec.scale(x, side)
+    else:
+        if space >= 3:
+            c = (c[0], -c[1], -c[2])
+        x = c
+        if space == 1 or space == 3:
+            m, mi, t = _object_matrices(hit, geo)
+            x = _rot_t(mi, c)
+        ln = math.sqrt(vec.dot(x, x))
+        if ln == 0.0:
+            return n
+        x = vec.scale(x, side / ln)
+    if strength != 1.0:
+        x = vec.madd(n, vec.sub(x, n), max(strength, 0.0))
+    ln = math.sqrt(vec.dot(x, x))
+    return vec.scale(x, 1.0 / ln) if ln > 0.0 else n
+
+
+@kernel
+def _vtransform(x, imm, hit, geo):
+    """Blender's Vector Transform (Cycles' ``svm_node_vector_transform``): imm = type (0 vector, 1 point, 2 normal)
+    + 4·from + 16·to (0 world, 1 object, 2 camera). Points move by the full matrix, vectors by its 3×3 part, normals
+    by its inverse transpose (normalised)."""
+    tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye = hit
+    uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids = geo
+    kind, src, dst = imm & 3, (imm >> 2) & 3, (imm >> 4) & 3
+    if src == dst:
+        return x
+    m, mi, t = _object_matrices(hit, geo)
+    cam = spaces.shape[0] - 1
+    c = _rows(spaces, cam, CAM_XF)  # world to camera (rotation rows)
+    ct = (spaces[cam, CAM_XF, 3], spaces[cam, CAM_XF + 1, 3], spaces[cam, CAM_XF + 2, 3])
+    # to world
+    if src == 1:
+        if kind == 0:
+            x = _rot(m, x)
+        elif kind == 1:
+            x = vec.add(_rot(m, x), t)
+        else:
+            x = _rot_t(mi, x)
+    elif src == 2:
+        x = _rot_t(c, vec.sub(x, ct) if kind == 1 else x)
+    # from world
+    if dst == 1:
+        if kind == 0:
+            x = _rot(mi, x)
+        elif kind == 1:
+            x = _rot(mi, vec.sub(x, t))
+        else:
+            x = _rot_t(m, x)
+    elif dst == 2:
+        x = _rot(c, x)
+        if kind == 1:
+            x = vec.add(x, ct)
+    if kind == 2:
+        ln = math.sqrt(vec.dot(x, x))
+        if ln > 0.0:
+            x = vec.scale(x, 1.0 / ln)
+    return x
 
 
 @kernel(refcounts=False)
@@ -775,3 +916,23 @@ def program_alpha(code, pstart, pbase, outs, R, mat, tri, u, v, p, ng, front, d,
     hit = (tri, u, v, p, ng, ng, front, d, t_len, 1, k_inst, 0.0, True, p)
     execute(code, pstart[mat], pstart[mat + 1], R, rb, hit, geo, tex)
     return R[rb + outs[mat, OUT_ALPHA]]
+
+
+@kernel(refcounts=False)
+def shade_directions(code, pstart, pbase, outs, R0, R, mat, dirs, out, tdata, tparams, uv_sets, colors, vertices,
+                     triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids):
+    """A world's program (material ``mat``) for every direction of ``dirs`` (N, 3): its emission into ``out``
+    (N, 3) (the world's Background colour × strength; the surface inputs read as Cycles' background: P = Generated =
+    Object = the direction, N = −direction)."""
+    for j in range(R0.shape[0]):
+        R[j] = R0[j]
+    geo = (uv_sets, colors, False, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids)
+    tex = (tdata, tparams)
+    rb = pbase[mat]
+    r = outs[mat, OUT_EMIT]
+    for i in range(dirs.shape[0]):
+        di = (dirs[i, 0], dirs[i, 1], dirs[i, 2])
+        nb = (-di[0], -di[1], -di[2])
+        hit = (-1, 0.0, 0.0, di, nb, nb, True, di, np.inf, 0, -1, 0.0, False, di)
+        execute(code, pstart[mat], pstart[mat + 1], R, rb, hit, geo, tex)
+        out[i, 0], out[i, 1], out[i, 2] = R[rb + r], R[rb + r + 1], R[rb + r + 2]

@@ -219,10 +219,17 @@ def render_file(request: StageRequest, settings, output: str, frames, outputs: O
             print_warnings(info)
             settings, outputs = _render_vars(info, settings, outputs)
         _prepare_kernels(args.quiet)
-        image = render(scene, settings.with_(width=info.width, height=info.height))
-        _warn_not_finite(image.rgba, request.path)
         out = frame_path(output, frame, many)
-        outputs.write(image, out)
+        stream = outputs.stream(out, info.width, info.height)  # a PNG is encoded while the tiles are traced
+        try:
+            image = render(scene, settings.with_(width=info.width, height=info.height),
+                           on_tile=stream.on_tile if stream is not None else None)
+        except BaseException:
+            if stream is not None:
+                stream.abort()
+            raise
+        _warn_not_finite(image.rgba, request.path)
+        outputs.write(image, out, stream)
         if not args.quiet:
             s = image.stats
             print(f"{out}: {info.width}x{info.height}, {len(scene.triangles):,} triangles, "
@@ -297,6 +304,9 @@ def _compile_kernels(quiet: bool) -> None:
         notice.start()
     try:
         compile_kernels()
+        from tracer.png_stream import to_display_fast
+
+        to_display_fast(np.zeros((1, 1, 4), np.float32))  # the PNG stream's kernel (usd_io.outputs.Outputs.stream)
     finally:
         notice.cancel()
 

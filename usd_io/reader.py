@@ -26,6 +26,7 @@ from .layer_metadata import meters_per_unit
 from .diagnostics import summarize
 from .exporters import light_units as exporter_light_units
 from .lights import convert_light, default_lights, light_links
+from .holdout import holdout_flags
 from .material import MaterialTable
 from .render_settings import CONFORM, DEFAULT_CONFORM, crop_to_data_window, read_render_settings
 from .nurbs import read_nurbs_curves, read_nurbs_patch, read_tet_mesh
@@ -33,7 +34,7 @@ from .mesh import COMPLEXITY, DEFAULT_COMPLEXITY, SUBDIVIDED, MeshData, read_mes
 from .skel import Skinning
 from .stage import (DEFAULT_PURPOSES, captured_stderr, UsdInputError, check_purposes, composition_warnings, open_stage,
                     renderable_prims, stage_messages, stage_time)
-from .xform import Transforms, transform_points
+from .xform import Transforms, transform_points, stage_motion
 
 
 @dataclass
@@ -507,7 +508,11 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
         links = []
     try:
         scene = r.b.build()
+        # motion blur across the camera's shutter (usd_io.xform.stage_motion; nothing when it is closed)
+        stage_motion(stage, scene, tc, info.camera, info.render_settings.path if info.render_settings else None,
+                     r.subdivision_level, info.warn)
     except ValueError as exc:  # the tracer's validation of what was read (e.g. a NaN material input)
         raise UsdInputError(f"{label}: {exc}") from None
     scene.light_links = links
+    scene.object_holdout = holdout_flags(stage, scene.object_names, tc)  # usd_io.holdout: primvars:arnold:matte
     return scene, info

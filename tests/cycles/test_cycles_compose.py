@@ -1,6 +1,7 @@
 """Compositing against Cycles through the add-on: a shadow catcher plane under a ball (Combined with a transparent
 and an opaque film, and the Shadow Catcher pass) and a holdout card in front of a lit ball (object holdout,
-collection holdout and the Holdout shader): colour and alpha (tracer.compose)."""
+collection holdout, the Holdout shader and a Mix Shader of Holdout and the card's BSDF): colour and alpha
+(tracer.compose)."""
 
 import math
 
@@ -25,7 +26,7 @@ def _catcher(name, transparent, catcher_pass):
     d = scene(name, camera=CAM, materials=MATS, objects=[
         floor(size=12.0, pass_index=1), sphere("Ball", (0.3, 0.4, 0.8), 0.8, "red", 2)],
         lights=[point("Key", (2.5, -2.0, 5.0), 1500.0)], world=(0.2, 0.3, 0.5), depth=1, width=64, height=48,
-        samples=256, ours_samples=4, sky_samples=64, note="shadow catcher floor under a ball")
+        samples=128, ours_samples=4, sky_samples=64, note="shadow catcher floor under a ball")
     d["compose"] = dict(catcher=["Floor"], transparent=transparent, catcher_pass=catcher_pass)
     return d
 
@@ -45,7 +46,8 @@ def _holdout(name, how):
 SCENES = {d["name"]: d for d in (
     _catcher("catcher_transparent", True, False), _catcher("catcher_pass", True, True),
     _catcher("catcher_opaque", False, False), _holdout("holdout_object", "object"),
-    _holdout("holdout_collection", "collection"), _holdout("holdout_shader", "shader"))}
+    _holdout("holdout_collection", "collection"), _holdout("holdout_shader", "shader"),
+    _holdout("holdout_mix", "mix"))}
 
 
 def _bpy_scene(desc):
@@ -67,11 +69,18 @@ def _bpy_scene(desc):
         sc.collection.objects.unlink(card)
         coll.objects.link(card)
         b.context.view_layer.layer_collection.children["Holdouts"].holdout = True
-    elif how == "shader":
+    elif how in ("shader", "mix"):
         m = b.data.materials["card"]
         nodes, links = m.node_tree.nodes, m.node_tree.links
         hold = nodes.new("ShaderNodeHoldout")
-        links.new(hold.outputs["Holdout"], nodes["Material Output"].inputs["Surface"])
+        out = hold.outputs["Holdout"]
+        if how == "mix":  # 40 % holdout, 60 % the card's BSDF
+            mix = nodes.new("ShaderNodeMixShader")
+            mix.inputs["Fac"].default_value = 0.4
+            links.new(nodes["Principled BSDF"].outputs["BSDF"], mix.inputs[1])
+            links.new(out, mix.inputs[2])
+            out = mix.outputs["Shader"]
+        links.new(out, nodes["Material Output"].inputs["Surface"])
     return sc
 
 
