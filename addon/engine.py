@@ -33,6 +33,8 @@ PASSES = {
     "reflection": ("Whitted Reflection", 3, "RGB", "COLOR"),
     "transmission": ("Whitted Transmission", 3, "RGB", "COLOR"),
     "raydepth": ("Whitted Ray Depth", 1, "X", "VALUE"),
+    # Cycles' name (tracer.compose): the view layer's Shadow Catcher checkbox (Cycles' view-layer setting)
+    "shadow_catcher": ("Shadow Catcher", 3, "RGB", "COLOR"),
 }
 #: Depth Blender writes where nothing was hit.
 NO_DEPTH = 1.0e10
@@ -66,6 +68,8 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
             self.register_pass(scene, renderlayer, *PASSES["normal"])
         if renderlayer.use_pass_object_index:
             self.register_pass(scene, renderlayer, *PASSES["objectid"])
+        if export.use_pass_shadow_catcher(renderlayer):
+            self.register_pass(scene, renderlayer, *PASSES["shadow_catcher"])
         props = getattr(scene, "whitted", None)
         if props is not None and props.ray_type_passes:
             for aov in tracer.settings.RAY_TYPE_AOVS:
@@ -103,7 +107,8 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
         job = _Job(self, depsgraph)
         try:
             scene, warnings = export.scene_from_depsgraph(depsgraph, width=job.settings.width,
-                                                          height=job.settings.height, cancelled=job.cancelled)
+                                                          height=job.settings.height, cancelled=job.cancelled,
+                                                          frame_set=self.frame_set)
         except export.ExportCancelled:
             return job.stopped("export")
         except Exception as exc:  # a scene we cannot export: say why, leave an empty result

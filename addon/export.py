@@ -17,6 +17,10 @@ particles are included):
 - Lights, in Blender's units: point P W -> intensity P/(4π)·colour, radius = ``shadow_soft_size``; spot: the same
   with cone half-angle ``spot_size/2`` and ``spot_blend``; sun strength S -> irradiance S·colour, ``angle``; area
   power P -> radiance P/(π·A)·colour (A in world units, emitting along the light's -Z). ``2^exposure`` multiplies.
+- Ray visibility and linking (:func:`links_from_blender`): each object's ``visible_camera`` / ``visible_glossy`` /
+  ``visible_transmission`` / ``visible_shadow`` as ``scene.object_visibility``; each light's
+  ``light_linking.receiver_collection`` / ``blocker_collection`` (include / exclude states), ``use_shadow`` and
+  ``visible_diffuse`` / ``visible_glossy`` as ``scene.light_links`` (tracer/linking.py).
 - World: :func:`addon.world.world_from_blender` (Background colour × strength, an Environment Texture as
   ``tracer.Environment``, anything else baked to a lat-long image by Cycles).
 - Materials: node trees translated by :mod:`addon.shader_tree` into the tracer's shader graph, compiled into rows
@@ -387,7 +391,7 @@ BATCH_MIN = 8
 def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | None = None,
                          camera: "tracer.Camera | None" = None, geometry_cache: dict | None = None,
                          cancelled=None, objects: list | None = None,
-                         materials: dict | None = None) -> tuple["tracer.Scene", list[str]]:
+                         materials: dict | None = None, frame_set=None) -> tuple["tracer.Scene", list[str]]:
     """Build a :class:`tracer.Scene` from an evaluated depsgraph; returns it and a list of warnings.
 
     width/height default to the scene's render size (resolution × percentage) and matter only for the camera's
@@ -398,10 +402,13 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     :class:`ExportCancelled`. ``objects``, a list, receives the :class:`ExportedObject` of each tracer object id
     in order (addon/sync.py keeps them); ``materials``, a dict, receives each Blender material's Principled fields
     by name (addon/sync.py re-reads only the materials an update names). The returned scene carries
-    ``scene.object_pass_indices`` (int32 per tracer object id: Blender's ``Object.pass_index``).
+    ``scene.object_pass_indices`` (int32 per tracer object id: Blender's ``Object.pass_index``). With Motion Blur
+    on, the scene is evaluated again at the shutter's sub-frames (:mod:`addon.motion`; ``frame_set``: the render
+    engine's ``frame_set``, default the scene's) for ``scene.motion`` and the camera's motion.
     """
     bpy_scene = depsgraph.scene_eval if hasattr(depsgraph, "scene_eval") else depsgraph.scene
     warnings: list[str] = []
+    blur = camera is None and getattr(bpy_scene.render, "use_motion_blur", False)  # not in the viewport (a camera)
     rw, rh = render_size(bpy_scene)
     width, height = width or rw, height or rh
     b = tracer.SceneBuilder()
@@ -423,7 +430,93 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     pass_indices = np.zeros(len(b.object_names), np.int32)  # prototypes (ids after the objects'): 0
     pass_indices[:len(exported)] = [o.pass_index for o in exported]
     b.object_pass_indices = pass_indices
-    return b.build(), warnings
+    scene = b.build()
+    scene.object_visibility, scene.light_links = links_from_blender(depsgraph, exported, scene.lights,
+                                                                    len(b.object_names), warnings)
+    scene.object_holdout, scene.object_shadow_catcher = compose_flags(depsgraph, exported, len(b.object_names))
+    if blur:  # last: it evaluates the scene at other sub-frames (and puts the frame back)
+        from .motion import apply_motion, sample_motion
+
+        apply_motion(scene, exported, sample_motion(depsgraph, exported, warnings, frame_set))
+    return scene, warnings
+
+
+_RAY_VISIBILITY = (("visible_camera", tracer.linking.CAMERA), ("visible_glossy", tracer.linking.GLOSSY),
+                   ("visible_transmission", tracer.linking.TRANSMISSION), ("visible_shadow", tracer.linking.SHADOW))
+
+
+def links_from_blender(depsgraph, exported: list, lights: list, n_objects: int, warnings: list) -> tuple:
+    """(``scene.object_visibility`` or None, ``scene.light_links``) for the exported objects (object id i =
+    ``exported[i]``) and lights (matched to their Blender objects by name): Object ▸ Visibility ▸ Ray Visibility
+    and Cycles' light / shadow linking (a collection's objects and child collections, each included or excluded:
+    only included objects when there are any, minus the excluded; everything but the excluded otherwise)."""
+    by_name = {o.name: o for o in depsgraph.objects}
+    ids: dict[str, list[int]] = {}
+    for i, o in enumerate(exported):
+        ids.setdefault(o.key[0], []).append(i)
+    visibility = np.full(n_objects, tracer.linking.ALL_VISIBLE, np.uint8)
+    for name, members in ids.items():
+        obj = by_name.get(name)
+        if obj is None:
+            continue
+        bits = sum(bit for attr, bit in _RAY_VISIBILITY if getattr(obj, attr, True))
+        visibility[members] = bits
+        ll = getattr(obj, "light_linking", None)
+        if ll is not None and (ll.receiver_collection or ll.blocker_collection):
+            warnings.append(f"object {name!r}: light linking of emissive meshes is not supported; it lights and "
+                            "shadows as if unlinked")
+
+    def members(collection):
+        if collection is None:
+            return None
+        include, exclude = set(), set()
+        # collection_objects[i] / collection_children[i] hold the state of objects[i] / children[i]
+        for entry, objects in [(e, (o,)) for e, o in zip(collection.collection_objects, collection.objects)] + \
+                [(e, c.all_objects) for e, c in zip(collection.collection_children, collection.children)]:
+            target = exclude if entry.light_linking.link_state == "EXCLUDE" else include
+            for obj in objects:
+                target.update(ids.get(obj.name, ()))
+        if not include and not exclude:
+            return None
+        chosen = include if include else set(range(len(exported)))
+        return np.array(sorted(chosen - exclude), np.int64)
+
+    links = []
+    for light in lights:
+        obj = by_name.get(light.name)
+        link = tracer.linking.LightLink()
+        if obj is not None:
+            ll = getattr(obj, "light_linking", None)
+            if ll is not None:
+                link.receivers, link.blockers = members(ll.receiver_collection), members(ll.blocker_collection)
+            link.cast_shadow = bool(getattr(obj.data, "use_shadow", True))
+            link.diffuse = bool(getattr(obj, "visible_diffuse", True))
+            link.glossy = bool(getattr(obj, "visible_glossy", True))
+        links.append(link)
+    if all(k.is_default() for k in links):
+        links = []
+    if np.all(visibility == tracer.linking.ALL_VISIBLE):
+        visibility = None
+    return visibility, links
+
+
+def compose_flags(depsgraph, exported: list, n: int) -> tuple:
+    """Per tracer object id (None where no object has it): holdout (the object's Holdout or its collection's, as
+    ``Object.holdout_get`` answers for the view layer) and shadow catcher (``Object.is_shadow_catcher``); an
+    instance takes its object's flags (tracer.compose)."""
+    hold, catch = np.zeros(n, bool), np.zeros(n, bool)
+    view_layer = getattr(depsgraph, "view_layer", None)
+    seen: dict = {}
+    for i, o in enumerate(exported):
+        name = o.key[0]
+        if name not in seen:
+            ob = depsgraph.objects.get(name)
+            ob = ob.original if ob is not None else None
+            h = bool(ob is not None and (getattr(ob, "is_holdout", False)
+                                         or (view_layer is not None and ob.holdout_get(view_layer=view_layer))))
+            seen[name] = (h, bool(ob is not None and getattr(ob, "is_shadow_catcher", False)))
+        hold[i], catch[i] = seen[name]
+    return (hold if hold.any() else None), (catch if catch.any() else None)
 
 
 def scene_camera(bpy_scene, width: int, height: int) -> "tracer.Camera":
@@ -470,7 +563,7 @@ def settings_from_scene(bpy_scene, view_layer=None) -> "tracer.RenderSettings":
     """Render settings from a Blender scene: ``scene.whitted`` (every property addon/properties.py made from a
     RenderSettings field; the defaults where unregistered), the render size
     (resolution × percentage), the render border as ``region``, Film > Transparent, and the AOVs the view layer
-    asks for (Z -> depth, Normal -> normal, Object Index -> objectid)."""
+    asks for (Z -> depth, Normal -> normal, Object Index -> objectid, Shadow Catcher -> shadow_catcher)."""
     r = bpy_scene.render
     w, h = render_size(bpy_scene)
     props = getattr(bpy_scene, "whitted", None)
@@ -489,10 +582,19 @@ def settings_from_scene(bpy_scene, view_layer=None) -> "tracer.RenderSettings":
             aovs.append("normal")
         if layer.use_pass_object_index:
             aovs.append("objectid")
+        if use_pass_shadow_catcher(layer):
+            aovs.append("shadow_catcher")
     if props is not None and props.ray_type_passes:
         aovs.extend(tracer.settings.RAY_TYPE_AOVS)
     return tracer.RenderSettings(width=w, height=h, transparent=bool(r.film_transparent), region=region,
                                  aovs=tuple(aovs), **kw).validate()
+
+
+def use_pass_shadow_catcher(view_layer) -> bool:
+    """Whether the view layer asks for Cycles' Shadow Catcher pass (its setting lives with Cycles' view-layer
+    properties: the same checkbox for both engines)."""
+    cycles = getattr(view_layer, "cycles", None)
+    return bool(getattr(cycles, "use_pass_shadow_catcher", False))
 
 
 def border_region(bpy_scene) -> tuple[int, int, int, int]:

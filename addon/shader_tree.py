@@ -520,9 +520,7 @@ def curve_table(mapping, curves: int, *, combined: bool = False) -> tuple[np.nda
 def _curves(ir_type, curves, combined=False):
     def handler(t: Translator, node, ctx):
         table, rng = curve_table(node.mapping, curves, combined=combined)
-        res = t.add(node, ctx, ir_type, curves=table)
-        t.g.nodes[next(iter(res.values())).v.node].params["range"] = rng  # the table's x range (VM reads it)
-        return res
+        return t.add(node, ctx, ir_type, curves=table, range=rng)  # range: the table's x range
     return handler
 
 

@@ -144,12 +144,13 @@ def replay(scene, batches, threads: int, runs: int = 3) -> dict:
                 q, o, d, t = b
                 n = len(o)
                 if q == "OCCLUDED":
-                    embree.occluded_rays(handle, o, d, np.float32(0), t, np.empty(n, np.bool_))
+                    embree.occluded_rays(handle, o, d, np.float32(0), t, np.empty(n, np.bool_), embree.ALL_RAYS,
+                                         np.zeros(0, np.float32))
                 else:
                     embree.intersect_rays(handle, o, d, np.float32(0), np.zeros(0, np.float32) if t is None else t,
                                           ZERO_START, NO_ROWS, NO_INSTANCES, np.empty(n, np.float32),
                                           np.empty(n, np.int32), np.empty(n, np.int32), np.empty(n, np.float32),
-                                          np.empty(n, np.float32))
+                                          np.empty(n, np.float32), embree.ALL_RAYS, np.zeros(0, np.float32))
 
             c1 = time.process_time()
             work = prepared()

@@ -258,7 +258,7 @@ def test_curves_keep_per_vertex_and_per_curve_colours(interpolation):
 
 def test_camera_clipping_plane_parallel_to_the_image_cuts_the_near_quad():
     """Two quads facing the camera at depths 4 (red) and 8 (blue); a clipping plane (0, 0, −1, −6) keeps depth >= 6:
-    the centre pixel sees blue through where red was. An oblique plane warns."""
+    the centre pixel sees blue through where red was. (The oblique plane cuts elsewhere: next test.)"""
     s = new_stage()
     cam = add_camera(s, eye=(0, 0, 10))
     for path, z, rgb in (("/Near", 6.0, (1, 0, 0)), ("/Far", 2.0, (0, 0, 1))):
@@ -270,7 +270,31 @@ def test_camera_clipping_plane_parallel_to_the_image_cuts_the_near_quad():
     scene, info = load_stage(s, width=20, height=14)
     after = render(scene, RenderSettings(width=20, height=14, samples=1)).rgb[7, 10]
     assert before[0] > 5 * before[2] and after[2] > 5 * after[0], (before, after)
-    assert any("1 clipping plane(s) not parallel" in w for w in info.warnings)
+    assert not any("clipping plane" in w for w in info.warnings)
+
+
+def test_camera_oblique_clipping_plane_clips_each_eye_ray():
+    """The same quads (red at depth 4, blue at depth 8, both |x| <= 3) and the oblique plane (1, 0, −½, −1): it
+    keeps x − ½z − 1 >= 0 in camera space, i.e. x >= −1 at depth 4 and x >= −3 at depth 8. A ray whose red hit has
+    x_r in [−1.5, −1) is cut there and meets blue at x = 2·x_r (kept); below −1.5 it leaves blue's edge (background);
+    from −1 on it sees red. The planes clip eye rays only: the headlight's shadow rays still meet the red quad, so
+    blue shows by the dome's light alone. Before: the plane was ignored (one warning) and the row was red
+    throughout."""
+    s = new_stage()
+    cam = add_camera(s, eye=(0, 0, 10))
+    for path, z, rgb in (("/Near", 6.0, (1, 0, 0)), ("/Far", 2.0, (0, 0, 1))):
+        q = quad(s, path, z=z, half=3.0)
+        q.CreateDisplayColorAttr([rgb])
+    cam.CreateClippingPlanesAttr([Gf.Vec4f(1, 0, -0.5, -1)])
+    w, h = 120, 40
+    scene, info = load_stage(s, width=w, height=h)
+    row = render(scene, RenderSettings(width=w, height=h, samples=1)).rgb[h // 2]
+    o, d = scene.camera.generate_rays((np.arange(w) + 0.5) / w, np.full(w, 0.5))
+    x_r = o[:, 0] + (6.0 - o[:, 2]) / d[:, 2] * d[:, 0]  # where each column's ray meets the red quad's plane
+    red, blue, bg = row[x_r > -0.95], row[(x_r > -1.45) & (x_r < -1.05)], row[x_r < -1.55]
+    assert len(red) and len(blue) and len(bg), x_r[[0, -1]]
+    assert np.all(red[:, 0] > 5 * red[:, 2]) and np.all(blue[:, 2] > 5 * blue[:, 0]), (red[:2], blue[:2])
+    assert np.allclose(bg[:, 0], bg[:, 2], atol=1e-3), bg[:2]  # the grey dome: neither quad
 
 
 # ---------------------------------------------------------------- Arnold, OmniPBR, unknown surfaces (#20, USD side)
@@ -765,3 +789,45 @@ def test_open_cubic_curves_vectorised_equal_curve_by_curve(basis):
     b = cc._curve_by_curve(p, counts, basis, "nonperiodic", w)
     for x, y in zip(a, b):
         np.testing.assert_allclose(x, y, atol=1e-12)
+
+
+def test_cli_without_output_writes_every_render_product(tmp_path):
+    """Two RenderProducts: the first renders with the settings' CamB at 100 × 100; the second has its own camera
+    (CamA, 4× closer), resolution 40 × 20 and RenderVars (color, depth). Both files are written, each at its own
+    size with its own AOVs, and the ball is bigger in the second (before: only the first product was written)."""
+    from pxr import UsdRender
+
+    s = _render_settings_stage(products=("first.png", "second.exr"), var_sources=("color",))
+    p1 = UsdRender.Product(s.GetPrimAtPath("/Render/P1"))
+    p1.CreateResolutionAttr(Gf.Vec2i(40, 20))
+    p1.CreateCameraRel().SetTargets(["/CamA"])
+    v = UsdRender.Var.Define(s, "/Render/P1/Depth")
+    v.CreateSourceNameAttr("depth")
+    p1.GetOrderedVarsRel().AddTarget(v.GetPath())
+    path = str(tmp_path / "two.usda")
+    s.GetRootLayer().Export(path)
+    res = whitted("render", path, "--quiet", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    first, second = read_image(str(tmp_path / "first.png")), read_image(str(tmp_path / "second.exr"))
+    assert first.shape[:2] == (100, 100) and second.shape[:2] == (20, 40)
+    assert (tmp_path / "second.depth.exr").exists() and not (tmp_path / "first.depth.exr").exists()
+    covered = [float((np.abs(im[..., :3] - im[0, 0, :3]).max(axis=-1) > 0.02).mean()) for im in (first, second)]
+    assert covered[1] > 3 * covered[0], covered
+
+
+def test_a_stage_of_only_volumes_says_so_in_one_line():
+    """Two Volumes with OpenVDB fields and nothing else (the arnold-usd volume tests): the frame can only be the
+    background, and one warning line says why (before: a line per volume plus "gave 0 triangles")."""
+    from pxr import UsdVol
+
+    s = new_stage()
+    for i in range(2):
+        vol = UsdVol.Volume.Define(s, f"/Vol{i}")
+        field = UsdVol.OpenVDBAsset.Define(s, f"/Vol{i}/density")
+        field.CreateFilePathAttr("./smoke.vdb")
+        field.CreateFieldNameAttr("density")
+        vol.CreateFieldRelationship("density", field.GetPath())
+    _scene, info = load_stage(s, width=16, height=16)
+    lines = [w for w in info.warnings if "Vol" in w or "triangles" in w]
+    assert len(lines) == 1 and "only gprims are 2 Volume" in lines[0], info.warnings
+    assert info.nothing_drawn is None

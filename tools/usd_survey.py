@@ -14,6 +14,8 @@ directory (sorted; layers referenced by a test's stage sit beside it). A worker 
     blank       every pixel the same colour although the stage has visible gprims with points or a size
     empty       0 triangles although it has such gprims
     grey        a material no reader understood, drawn in a fallback grey (18 % or 50 %) with no warning naming it
+    volumes     (not a fault) the stage's only gprims are volumes or particle fields, which the tracer does not
+                render; counted apart, and a fault (``silent``) unless one warning line says so
 
 Workers are restarted (and the file counted as ``hang``) when one file takes longer than ``--timeout`` seconds in
 total for the chunk. The summary prints the counts; ``--compare`` prints them beside another run's. The contact
@@ -34,7 +36,9 @@ import time
 import numpy as np
 
 USD_EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
-FLAGS = ("traceback", "refusal", "blank", "empty", "grey", "hang")
+FLAGS = ("traceback", "refusal", "blank", "empty", "grey", "silent", "hang", "volumes")
+#: Gprim types the tracer documents as not rendered (usd_io.reader: one warning line when they are all a stage has).
+NOT_DRAWN = ("Volume", "ParticleField3DGaussianSplat", "ParticleField")
 
 
 def stage_files(dirs, per_dir: int) -> list[str]:
@@ -55,7 +59,7 @@ def has_gprims(stage) -> bool:
 
     t = Usd.TimeCode.EarliestTime()
     for prim in stage.Traverse(Usd.TraverseInstanceProxies()):
-        if not prim.IsA(UsdGeom.Gprim):
+        if not prim.IsA(UsdGeom.Gprim) or prim.GetTypeName() in NOT_DRAWN:
             continue
         img = UsdGeom.Imageable(prim)
         if img.ComputeVisibility(t) == UsdGeom.Tokens.invisible or img.ComputePurpose() not in ("default", "render"):
@@ -107,6 +111,7 @@ def examine(path: str, width: int, png: str | None) -> dict:
         return rec
     gprims = has_gprims(stage)  # visible gprims with geometry: only then is a blank frame or 0 triangles wrong
     rec["gprims"] = gprims
+    only_volumes = not gprims and any(p.GetTypeName() in NOT_DRAWN for p in stage.Traverse())
     try:
         scene, info = load_stage(path, width=width)
         image = render(scene, RenderSettings(width=info.width, height=info.height, samples=1, threads=1)).rgb
@@ -123,6 +128,10 @@ def examine(path: str, width: int, png: str | None) -> dict:
     rec["warnings"] = len(info.warnings)
     rec["notes"] = [n for n in info.notes][:3]
     rec["triangles"] = int(sum(n for _p, n in info.meshes))
+    if only_volumes:
+        rec["flags"].append("volumes")
+        if not any("only gprims are" in w for w in info.warnings):
+            rec["flags"].append("silent")
     if gprims and rec["triangles"] == 0:
         rec["flags"].append("empty")
     if gprims and float(np.ptp(image.reshape(-1, 3), axis=0).max()) < 1 / 255:

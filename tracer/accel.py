@@ -25,13 +25,14 @@ buffer and commits the top level (a BVH over K boxes), no mesh BVH is touched.
 from __future__ import annotations
 
 import threading
-import time
+import time as clock
 from typing import NamedTuple
 
 import numpy as np
 
-from . import embree
+from . import embree, linking
 from .heap import trim
+from .motion import decompose
 from .scene import Scene
 
 #: "No hit" in ``prim``.
@@ -69,7 +70,7 @@ class Accelerator:
                  cancelled=None):
         if quality not in embree.BUILD_QUALITY or quality == "refit":
             raise ValueError(f"quality must be 'low', 'medium' or 'high', got {quality!r}")
-        start = time.perf_counter()
+        start = clock.perf_counter()
         trim()  # what loading freed goes back to the OS before Embree's build allocates
         self.seconds = 0.0
         self.record = record
@@ -84,6 +85,11 @@ class Accelerator:
         self._inst_proto = _NO_INSTANCES
         self._inst_xfm = None
         self._cancelled = cancelled
+        self._motion = _embree_motion(scene)
+        # ray visibility and shadow linking (tracer.linking): per-object Embree masks, none when unused
+        links = linking.pack(scene, len(scene.lights))
+        self._masks = links.object_mask if links.masked else None
+        self._array_mask = links.array_mask
         inst = scene.instances
         protos = set(np.unique(inst.prototypes).tolist()) if inst is not None else set()
         self.triangle_count = len(scene.triangles)
@@ -110,10 +116,12 @@ class Accelerator:
             if cancelled is not None and cancelled():
                 raise embree.BuildCancelled("Embree set-up cancelled")
             self.set_instances(inst.prototypes, inst.transforms, commit=False)
+            if self._motion is not None and self._motion.instances is not None:
+                self._array.set_motion(self._motion.instances)
         self.set_rows(scene.object_ids, commit=False)
         self._top.commit(cancelled)
         self._cancelled = None  # only the set-up is cancellable: edits are short
-        self.build_seconds = time.perf_counter() - start
+        self.build_seconds = clock.perf_counter() - start
 
     # ---------------------------------------------------------------------------------------------- queries
     def intersect(self, origins: np.ndarray, directions: np.ndarray, t_max: np.ndarray | None = None,
@@ -126,8 +134,10 @@ class Accelerator:
         return tuple(self.closest_hits(origins, directions, t_max, t_min)[:4])
 
     def closest_hits(self, origins: np.ndarray, directions: np.ndarray, t_max: np.ndarray | None = None,
-                     t_min: float = 0.0) -> Hits:
-        """Closest hits on [t_min, t_max] as :class:`Hits` (t, prim, u, v, inst)."""
+                     t_min: float = 0.0, mask: np.ndarray | None = None, time: np.ndarray | None = None) -> Hits:
+        """Closest hits on [t_min, t_max] as :class:`Hits` (t, prim, u, v, inst). ``mask``: the rays' Embree masks
+        (uint32, one per ray or one for all; None: they see every object), see :mod:`tracer.linking`; ``time``:
+        each ray's time in [0, 1] across the shutter (motion blur; None: time 0)."""
         n = len(origins)
         t = np.empty(n, np.float32)
         prim = np.empty(n, np.int32)
@@ -140,16 +150,17 @@ class Accelerator:
         o = np.ascontiguousarray(origins, dtype=np.float32)
         d = np.ascontiguousarray(directions, dtype=np.float32)
         tm = _NONE_F32 if t_max is None else np.ascontiguousarray(np.minimum(t_max, T_FAR_MAX), np.float32)
-        start = time.perf_counter()
+        start = clock.perf_counter()
         embree.intersect_rays(self._top.handle, o, d, np.float32(t_min), tm, self._start, self._rows,
-                              self._inst_proto, t, prim, inst, u, v)
+                              self._inst_proto, t, prim, inst, u, v, _ray_masks(mask), _times(time))
         embree.library().check()
         self._account(start, "INTERSECT", o, d, None if t_max is None else tm)
         return Hits(t, prim, u, v, inst)
 
-    def occluded(self, origins: np.ndarray, directions: np.ndarray, t_max: np.ndarray, t_min: float = 0.0):
+    def occluded(self, origins: np.ndarray, directions: np.ndarray, t_max: np.ndarray, t_min: float = 0.0,
+                 mask: np.ndarray | None = None, time: np.ndarray | None = None):
         """Boolean mask: something lies on the segment [origin + t_min·direction, origin + t_max·direction]
-        (shadow rays)."""
+        (shadow rays); ``mask`` as in :meth:`closest_hits`, ``time`` each ray's time (None: 0)."""
         n = len(origins)
         blocked = np.zeros(n, bool)
         if n == 0 or not (self._objects or self._array is not None):
@@ -157,8 +168,9 @@ class Accelerator:
         o = np.ascontiguousarray(origins, dtype=np.float32)
         d = np.ascontiguousarray(directions, dtype=np.float32)
         tm = np.ascontiguousarray(np.minimum(t_max, T_FAR_MAX), dtype=np.float32)
-        start = time.perf_counter()
-        embree.occluded_rays(self._top.handle, o, d, np.float32(t_min), tm, blocked)
+        start = clock.perf_counter()
+        embree.occluded_rays(self._top.handle, o, d, np.float32(t_min), tm, blocked, _ray_masks(mask),
+                             _times(time))
         embree.library().check()
         self._account(start, "OCCLUDED", o, d, tm)
         return blocked
@@ -171,6 +183,7 @@ class Accelerator:
         if obj.instance is None:
             self._top.detach(_geom_id(object_id))
             self._objects[object_id] = obj = self._instance_of(obj.geometry)
+            self._set_mask(object_id, obj.instance)
             self._top.attach(obj.instance, _geom_id(object_id))
         obj.instance.set_transform(matrix)
         self._top.commit()
@@ -192,6 +205,8 @@ class Accelerator:
             self._inst_xfm = embree.column_major_3x4(transforms)
             self._array = embree.InstanceArrayGeometry([self._prototypes[p].mesh for p in order], index,
                                                        self._inst_xfm)
+            if self._masks is not None:
+                self._array.set_mask(self._array_mask)
             self._top.attach(self._array, embree.ARRAY_GEOM_ID)
             self._inst_proto = prototypes
         if commit:
@@ -256,13 +271,28 @@ class Accelerator:
     # ---------------------------------------------------------------------------------------------- internals
     def _add(self, object_id, vertices, triangles):
         geometry = embree.TriangleGeometry(vertices, triangles, self.quality)
-        if self.instanced:
+        mo = self._motion
+        if mo is not None and object_id in mo.deforming and vertices is getattr(self, "_vertices", None):
+            geometry.set_vertex_steps(mo.vertex_steps)  # the same rows of each step's vertex buffer
+        if mo is not None and object_id in mo.objects:  # a moving object: an instance with its time steps
             obj = self._instance_of(geometry)
+            obj.instance.set_motion(mo.objects[object_id])
+            self._set_mask(object_id, obj.instance)
+            self._top.attach(obj.instance, _geom_id(object_id))
+        elif self.instanced:
+            obj = self._instance_of(geometry)
+            self._set_mask(object_id, obj.instance)
             self._top.attach(obj.instance, _geom_id(object_id))
         else:
             obj = _Object(geometry, None, None)
+            self._set_mask(object_id, geometry)
             self._top.attach(geometry, _geom_id(object_id))
         self._objects[object_id] = obj
+
+    def _set_mask(self, object_id, top_level_geometry):
+        """The object's ray-visibility / blocker mask on its top-level geometry (tracer.linking), if any."""
+        if self._masks is not None and object_id < len(self._masks):
+            top_level_geometry.set_mask(int(self._masks[object_id]))
 
     def _scene_of(self, geometry):
         """An Embree scene of its own over ``geometry`` (None: empty), committed."""
@@ -278,7 +308,7 @@ class Accelerator:
         return obj
 
     def _account(self, start, query, o, d, t_max):
-        elapsed = time.perf_counter() - start
+        elapsed = clock.perf_counter() - start
         with self._lock:
             self.seconds += elapsed
             if self.record:
@@ -290,6 +320,38 @@ class _Object:
 
     def __init__(self, geometry, mesh, instance):
         self.geometry, self.mesh, self.instance = geometry, mesh, instance
+
+
+class _EmbreeMotion(NamedTuple):
+    """``scene.motion`` as Embree takes it: per moving object id its (S, 16) decomposed steps, the instances'
+    (K, S, 16) (or None), the deforming object ids and the padded vertex buffers of every step."""
+
+    objects: dict
+    instances: np.ndarray | None
+    deforming: frozenset
+    vertex_steps: list
+
+
+def _embree_motion(scene) -> _EmbreeMotion | None:
+    mo = getattr(scene, "motion", None)
+    if mo is None or not mo.moves:
+        return None
+    dec = decompose(mo.object_motion) if len(mo.object_ids) else np.zeros((0, mo.steps, 16))
+    steps = [embree.padded(v, np.float32) for v in mo.vertices] if mo.vertices is not None else []
+    return _EmbreeMotion(objects={int(o): dec[i] for i, o in enumerate(mo.object_ids.tolist())},
+                         instances=None if mo.instance_motion is None else decompose(mo.instance_motion),
+                         deforming=frozenset(mo.deforming.tolist()), vertex_steps=steps)
+
+
+def _times(time) -> np.ndarray:
+    """The rays' times as the kernels take them (float32; empty = no motion, time 0)."""
+    return _NONE_F32 if time is None else np.ascontiguousarray(time, np.float32)
+
+
+def _ray_masks(mask) -> np.ndarray:
+    if mask is None:
+        return embree.ALL_RAYS
+    return np.ascontiguousarray(np.asarray(mask, np.uint32).reshape(-1))
 
 
 def _geom_id(object_id: int) -> int:

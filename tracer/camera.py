@@ -53,6 +53,11 @@ class Camera:
     aperture_rotation: float = 0.0
     #: Anamorphic squeeze: the aperture's x is divided by it (Blender's Ratio; 1 = round bokeh).
     aperture_ratio: float = 1.0
+    #: Extra clipping planes (a, b, c, d) in camera space keeping a·x + b·y + c·z + d >= 0 (tracer.clip_planes).
+    clipping_planes: tuple = ()
+    #: Camera motion (motion blur): (S, 4, 4) camera-to-world matrices at S ≥ 2 evenly spaced times of the shutter,
+    #: interpolated as :mod:`tracer.motion` does; None: the camera stands still at ``camera_to_world``.
+    motion: np.ndarray | None = None
 
     def __post_init__(self):
         m = np.asarray(self.camera_to_world, dtype=np.float64)
@@ -92,6 +97,17 @@ class Camera:
         if self.aperture_ratio <= 0:
             raise ValueError(f"camera aperture_ratio must be > 0, got {self.aperture_ratio}")
         self.aperture_blades = int(self.aperture_blades) if self.aperture_blades >= 3 else 0  # < 3: round, as Cycles
+        planes = tuple(tuple(float(x) for x in p) for p in self.clipping_planes)
+        if any(len(p) != 4 or not np.all(np.isfinite(p)) for p in planes):
+            raise ValueError(f"camera clipping_planes must be finite (a, b, c, d) tuples, got {self.clipping_planes}")
+        self.clipping_planes = planes
+        if self.motion is not None:
+            mo = np.asarray(self.motion, np.float64)
+            if mo.ndim != 3 or mo.shape[1:] != (4, 4) or len(mo) < 2 or not np.all(np.isfinite(mo)):
+                raise ValueError(f"camera motion must be finite (S >= 2, 4, 4) matrices, got shape {mo.shape}")
+            if np.any(np.abs(np.linalg.det(mo[:, :3, :3])) < 1e-12):
+                raise ValueError("camera motion: a step is singular (zero scale?)")
+            self.motion = np.ascontiguousarray(mo)
 
     @property
     def position(self) -> np.ndarray:

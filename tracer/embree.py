@@ -50,6 +50,9 @@ REQUIRED_VERSION = (4, 0)
 LIBRARY_ENV = "WHITTED_EMBREE_LIBRARY"
 
 INVALID_ID = 0xFFFFFFFF  # RTC_INVALID_GEOMETRY_ID
+MASK_ALL = 0xFFFFFFFF  # a geometry / ray mask with every bit set
+#: The ray mask of a batch whose rays see every geometry (the kernels' ``masks`` argument).
+ALL_RAYS = np.full(1, MASK_ALL, np.uint32)
 
 # enum values (rtcore_common.h, rtcore_device.h, rtcore_buffer.h, rtcore_geometry.h, rtcore_scene.h)
 DEVICE_PROPERTY_VERSION = 0
@@ -60,6 +63,7 @@ FORMAT_UINT = 0x5001
 FORMAT_UINT3 = 0x5003
 FORMAT_FLOAT3 = 0x9003
 FORMAT_FLOAT3X4_COLUMN_MAJOR = 0x9234
+FORMAT_QUATERNION_DECOMPOSITION = 0xB001  # RTCQuaternionDecomposition records (16 floats, 64 bytes)
 BUFFER_TYPE_INDEX = 0
 BUFFER_TYPE_VERTEX = 1
 BUFFER_TYPE_TRANSFORM = 23
@@ -165,6 +169,10 @@ _SIGNATURES = {  # name: (restype, argtypes)
     "rtcSetGeometryInstancedScene": (None, [_P, _P]),
     "rtcSetGeometryInstancedScenes": (None, [_P, _P, _S]),
     "rtcSetGeometryTransform": (None, [_P, _UI, _I, _P]),
+    "rtcSetGeometryTimeStepCount": (None, [_P, _UI]),
+    "rtcSetGeometryTransformQuaternion": (None, [_P, _UI, _P]),
+    "rtcGetGeometryTransform": (None, [_P, ctypes.c_float, _I, _P]),
+    "rtcSetGeometryMask": (None, [_P, _UI]),
     "rtcGetSceneBounds": (None, [_P, _P]),
 }
 
@@ -342,6 +350,13 @@ class Geometry:
     def __init__(self, kind: int):
         self._lib = library()
         self.handle = self._lib.call("rtcNewGeometry", self._lib.device, kind)
+        # Embree 4's default geometry mask is 1; all ones lets a ray of any mask (tracer.linking) see it
+        self._lib.call("rtcSetGeometryMask", self.handle, MASK_ALL)
+
+    def set_mask(self, mask: int) -> None:
+        """The rays this geometry is seen by: those whose mask ANDs non-zero with ``mask`` (then commit)."""
+        self._lib.call("rtcSetGeometryMask", self.handle, int(mask) & MASK_ALL)
+        self.commit()
 
     def commit(self) -> None:
         self._lib.call("rtcCommitGeometry", self.handle)
@@ -380,6 +395,19 @@ class TriangleGeometry(Geometry):
         self._lib.call("rtcSetSharedGeometryBuffer", self.handle, BUFFER_TYPE_INDEX, 0, FORMAT_UINT3,
                        triangles.ctypes.data, 0, 12, len(triangles))
 
+    def set_vertex_steps(self, steps: list) -> None:
+        """Motion blur: the mesh's vertices at S ≥ 2 evenly spaced times of the shutter (each a :func:`padded`
+        (V, 3) float32 buffer, the same rows as ``vertices``), one vertex buffer slot per time step; Embree
+        interpolates linearly between them by the ray's time. Commits the geometry."""
+        self.vertex_steps = list(steps)  # kept alive with the geometry
+        self._lib.call("rtcSetGeometryTimeStepCount", self.handle, len(self.vertex_steps))
+        for k, v in enumerate(self.vertex_steps):
+            self._lib.call("rtcSetSharedGeometryBuffer", self.handle, BUFFER_TYPE_VERTEX, k, FORMAT_FLOAT3,
+                           v.ctypes.data, 0, 12, len(v))
+        self._lib.call("rtcSetSharedGeometryBuffer", self.handle, BUFFER_TYPE_INDEX, 0, FORMAT_UINT3,
+                       self.triangles.ctypes.data, 0, 12, len(self.triangles))
+        self.commit()
+
     def vertices_changed(self) -> None:
         """The vertex buffer's contents were changed in place: refit/rebuild this mesh at the next commit."""
         self._lib.call("rtcUpdateGeometryBuffer", self.handle, BUFFER_TYPE_VERTEX, 0)
@@ -400,6 +428,25 @@ class InstanceGeometry(Geometry):
         xfm = np.ascontiguousarray(m[:3, :4].T, np.float32)  # 3x4 column-major: four columns of 3
         self._lib.call("rtcSetGeometryTransform", self.handle, 0, FORMAT_FLOAT3X4_COLUMN_MAJOR, xfm.ctypes.data)
         self.commit()
+
+    def set_motion(self, decomposed: np.ndarray) -> None:
+        """Motion blur: S ≥ 2 transforms at evenly spaced times of the shutter, as (S, 16) quaternion
+        decompositions (:func:`tracer.motion.decompose`); Embree interpolates them by the ray's time (T and S
+        linearly, the rotation by slerp). Commits the geometry."""
+        dec = padded(np.asarray(decomposed, np.float64).reshape(-1, 16), np.float32)
+        self._lib.call("rtcSetGeometryTimeStepCount", self.handle, len(dec))
+        for k in range(len(dec)):
+            self._lib.call("rtcSetGeometryTransformQuaternion", self.handle, k, dec[k].ctypes.data)
+        self.commit()
+
+    def transform_at(self, time: float) -> np.ndarray:
+        """The 4×4 matrix Embree places this instance with at ``time`` (``rtcGetGeometryTransform``)."""
+        xfm = np.zeros(12, np.float32)
+        self._lib.call("rtcGetGeometryTransform", self.handle, float(time), FORMAT_FLOAT3X4_COLUMN_MAJOR,
+                       xfm.ctypes.data)
+        m = np.eye(4)
+        m[:3, :4] = xfm.reshape(4, 3).T
+        return m
 
 
 def column_major_3x4(matrices) -> np.ndarray:
@@ -443,6 +490,21 @@ class InstanceArrayGeometry(Geometry):
         self._lib.call("rtcSetSharedGeometryBuffer", self.handle, BUFFER_TYPE_TRANSFORM, 0,
                        FORMAT_FLOAT3X4_COLUMN_MAJOR, transforms.ctypes.data, 0, 48, k)
 
+    def set_motion(self, decomposed: np.ndarray) -> None:
+        """Motion blur: every instance's S ≥ 2 transforms at evenly spaced times of the shutter, (K, S, 16)
+        quaternion decompositions (:func:`tracer.motion.decompose`), one shared transform buffer slot per time
+        step (``RTC_FORMAT_QUATERNION_DECOMPOSITION``). Commits the geometry."""
+        dec = np.asarray(decomposed, np.float64)
+        k, s = dec.shape[:2]
+        self.motion_steps = [padded(dec[:, j], np.float32) for j in range(s)]  # kept alive with the array
+        self._lib.call("rtcSetGeometryTimeStepCount", self.handle, s)
+        for j, buf in enumerate(self.motion_steps):
+            self._lib.call("rtcSetSharedGeometryBuffer", self.handle, BUFFER_TYPE_TRANSFORM, j,
+                           FORMAT_QUATERNION_DECOMPOSITION, buf.ctypes.data, 0, 64, k)
+        self._lib.call("rtcSetSharedGeometryBuffer", self.handle, BUFFER_TYPE_INDEX, 0, FORMAT_UINT,
+                       self.scene_index.ctypes.data, 0, 4, k)
+        self.commit()
+
     def transforms_changed(self) -> None:
         """Rows of the shared transform buffer were changed in place: the next top-level commit sees them."""
         self._lib.call("rtcUpdateGeometryBuffer", self.handle, BUFFER_TYPE_TRANSFORM, 0)
@@ -479,9 +541,12 @@ def _aligned(n, dtype):
 
 
 @kernel(inline=True)
-def _load_packet(f, w, valid, o, d, start, count, tnear, t_max):
-    """Lanes 0..count-1 get rays start..start+count-1 (t_max empty: unbounded); the rest are switched off."""
+def _load_packet(f, w, valid, o, d, start, count, tnear, t_max, masks, time):
+    """Lanes 0..count-1 get rays start..start+count-1 (t_max empty: unbounded; ``masks``: one ray mask per ray,
+    or one for all; ``time`` empty: time 0, no motion blur); the rest are switched off."""
     bounded = t_max.shape[0] > 0
+    per_ray = masks.shape[0] > 1
+    timed = time.shape[0] > 0
     for k in range(PACKET):
         if k < count:
             i = start + k
@@ -489,16 +554,18 @@ def _load_packet(f, w, valid, o, d, start, count, tnear, t_max):
             f[_P_ORG_X + k], f[_P_ORG_Y + k], f[_P_ORG_Z + k] = o[i, 0], o[i, 1], o[i, 2]
             f[_P_DIR_X + k], f[_P_DIR_Y + k], f[_P_DIR_Z + k] = d[i, 0], d[i, 1], d[i, 2]
             f[_P_TFAR + k] = t_max[i] if bounded else np.inf
+            f[_P_TIME + k] = time[i] if timed else 0.0
             w[_P_ID + k] = i
+            w[_P_MASK + k] = masks[i] if per_ray else masks[0]
         else:
             valid[k] = 0
             f[_P_ORG_X + k], f[_P_ORG_Y + k], f[_P_ORG_Z + k] = 0.0, 0.0, 0.0
             f[_P_DIR_X + k], f[_P_DIR_Y + k], f[_P_DIR_Z + k] = 0.0, 0.0, 1.0
             f[_P_TFAR + k] = 0.0
+            f[_P_TIME + k] = 0.0
             w[_P_ID + k] = 0
+            w[_P_MASK + k] = 0
         f[_P_TNEAR + k] = tnear
-        f[_P_TIME + k] = 0.0
-        w[_P_MASK + k] = 0xFFFFFFFF
         w[_P_FLAGS + k] = 0
 
 
@@ -510,11 +577,12 @@ _P_INST_PRIM = 160
 
 @kernel
 def intersect_rays(scene, o, d, tnear, t_max, slot_start, slot_rows, inst_proto, t_out, prim_out, inst_out,
-                   u_out, v_out):
-    """Closest hits of rays (o, d) on [tnear, t_max[i]] (t_max empty: unbounded) against the top-level scene
+                   u_out, v_out, masks, time):
+    """Closest hits of rays (o, d) at times ``time`` (empty: 0; each ray's motion-blur time in [0, 1]) on
+    [tnear, t_max[i]] (t_max empty: unbounded) against the top-level scene
     ``scene`` (an RTCScene handle), in packets of :data:`PACKET`. Writes t (inf on a miss), the hit's row, the
     instance index (``inst_out``: k for a hit on instance k of the instance array, else -1) and the barycentrics
-    u, v.
+    u, v. ``masks``: the rays' Embree masks, one per ray or one for all (:data:`ALL_RAYS`: every geometry).
 
     Rows: object i is top-level geometry i + :data:`OBJECT_GEOM_BASE` (a triangle geometry, or an instance of its
     own scene); the instance array is geometry :data:`ARRAY_GEOM_ID`, and its instance k places the mesh of object
@@ -528,7 +596,7 @@ def intersect_rays(scene, o, d, tnear, t_max, slot_start, slot_rows, inst_proto,
     n = o.shape[0]
     for start in range(0, n, PACKET):
         count = min(PACKET, n - start)
-        _load_packet(f, w, valid, o, d, start, count, tnear, t_max)
+        _load_packet(f, w, valid, o, d, start, count, tnear, t_max, masks, time)
         for k in range(PACKET):
             w[_P_GEOM + k] = INVALID_ID
             w[_P_INST + k] = INVALID_ID
@@ -559,16 +627,16 @@ def intersect_rays(scene, o, d, tnear, t_max, slot_start, slot_rows, inst_proto,
 
 
 @kernel
-def occluded_rays(scene, o, d, tnear, t_max, blocked):
-    """blocked[i] = something lies on ray i between tnear and t_max[i] (shadow rays), in packets of
-    :data:`PACKET`."""
+def occluded_rays(scene, o, d, tnear, t_max, blocked, masks, time):
+    """blocked[i] = something lies on ray i between tnear and t_max[i] at its time (shadow rays), in packets of
+    :data:`PACKET`; ``masks`` and ``time`` as in :func:`intersect_rays`."""
     f = _aligned(RAY8_WORDS, np.float32)
     w = f.view(np.uint32)
     valid = _aligned(PACKET, np.int32)
     n = o.shape[0]
     for start in range(0, n, PACKET):
         count = min(PACKET, n - start)
-        _load_packet(f, w, valid, o, d, start, count, tnear, t_max)
+        _load_packet(f, w, valid, o, d, start, count, tnear, t_max, masks, time)
         _rtcOccluded8(valid.ctypes.data, scene, f.ctypes.data, 0)
         for k in range(count):
             blocked[start + k] = f[_P_TFAR + k] < 0.0  # Embree sets tfar to -inf where the ray is occluded

@@ -19,6 +19,7 @@ from .jit import kernel
 from .scene import Scene
 from .settings import RenderSettings
 from .instances import world_frame
+from .motion import frames_at_time
 
 RAY_KINDS = ("eye", "shadow", "reflection", "transmission", "sky")
 
@@ -65,6 +66,7 @@ class Ray:
     light_name: str | None = None
     occluded: bool | None = None
     blocker: str | None = None
+    time: float | None = None  # eye rays with motion blur: the sample's time across the shutter (0 open, 1 closed)
     events: list = field(default_factory=list)
 
     def to_json(self) -> dict:
@@ -73,6 +75,10 @@ class Ray:
              "t_max": float(self.t_max) if np.isfinite(self.t_max) else None,
              "weight": _l(self.weight), "contribution": _l(self.contribution),
              "hit": self.hit.to_json() if self.hit is not None else None, "events": list(self.events)}
+        if self.type == "eye":
+            j["lens"] = _l(self.origin)  # the point of the lens (the aperture) the eye ray leaves from
+            if self.time is not None:
+                j["time"] = float(self.time)
         if self.type in ("reflection", "transmission"):
             j["normal"] = _l(self.normal)
             if self.eta_i is not None:
@@ -103,21 +109,29 @@ class Explanation:
 def explain_pixel(scene: Scene, settings: RenderSettings, x: int, y: int, accel: Accelerator | None = None,
                   integrator: Integrator | None = None) -> Explanation:
     """The ray tree of pixel (x, y) (image pixels, origin top-left) under ``settings``."""
-    from .tiles import eye_rays
+    from .tiles import timed_eye_rays
 
     settings = settings.validate()
     if not (0 <= x < settings.width and 0 <= y < settings.height):
         raise ValueError(f"pixel ({x}, {y}) is outside the {settings.width}x{settings.height} image")
     integ = integrator if integrator is not None else Integrator(scene, settings, accel)
-    o, d, keys = eye_rays(scene, settings, x, y, x + 1, y + 1)
+    o, d, keys, times = timed_eye_rays(scene, settings, x, y, x + 1, y + 1)
     spp = len(o)
     rays_of = [[] for _ in range(spp)]
+    t_max = (np.full(spp, scene.camera.far - scene.camera.near, np.float32) if np.isfinite(scene.camera.far)
+             else None)
+    if scene.camera.clipping_planes:  # as tracer.tiles.trace_tile does
+        from .clip_planes import clip_eye_rays
+
+        o, t_max = clip_eye_rays(scene.camera, o, d, scene.camera.far - scene.camera.near)
     queue = RayQueue(o=o, d=d, weight=np.ones((spp, 3), np.float32), sample=np.arange(spp, dtype=np.int32),
-                     t_max=(np.full(spp, scene.camera.far - scene.camera.near, np.float32)
-                            if np.isfinite(scene.camera.far) else None))
+                     t_max=t_max, time=times)
     # Per ray of the queue: its record, and the eye sample it belongs to.
     records = [_ray(rays_of[s], None, "eye", 0, o[s], d[s], queue.t_max[s] if queue.t_max is not None else np.inf,
                     queue.weight[s]) for s in range(spp)]
+    if times is not None:
+        for s, rec in enumerate(records):
+            rec.time = float(times[s])
     root = np.arange(spp)
     counts = np.zeros(5, np.int64)
     for depth in range(integ.last_depth + 1):
@@ -191,6 +205,8 @@ def _record_hits(scene, integ, records, queue, hits):
     n = len(prim)
     ng, ns, front = np.zeros((n, 3), np.float32), np.zeros((n, 3), np.float32), np.zeros(n, np.bool_)
     _frames(integ.geometry, integ.instances, prim, inst, queue.d, u, v, ng, ns, front)
+    if integ.motion is not None and queue.time is not None:  # what moves: its frame at the ray's time
+        frames_at_time(queue.d, prim, inst, u, v, queue.time, integ.geometry, integ.motion, ng, ns, front)
     for i, rec in enumerate(records):
         if prim[i] < 0:
             continue
@@ -298,6 +314,8 @@ def format_tree(ex: Explanation) -> str:
             extra = ""
             if r.type == "transmission" and r.eta_i is not None:
                 extra = f"  η {r.eta_i:g}→{r.eta_r:g}"
+            if r.time is not None:
+                extra = f"  time {r.time:.3f}"
             ev = [e for e in r.events if not (r.type in ("shadow", "sky") and e.startswith("blocked"))
                   and not e.startswith("miss")]
             lines.append(f"{'  ' * indent}{r.type} #{r.id}{extra}: {what}  weight {_fmt(r.weight)}  "

@@ -120,15 +120,15 @@ class _TileRenderer:
     def tile(self, settings: RenderSettings, tile):
         from .accel import Accelerator
         from .integrator import Integrator
-        from .tiles import empty_aovs, eye_rays, uses_ray_types, write_tile
+        from .tiles import empty_aovs, timed_eye_rays, uses_ray_types, write_tile
 
         with self._lock:
             if self._integ is None:
                 self._integ = Integrator(self.scene, settings.validate(), Accelerator(self.scene))
         x0, y0, x1, y1 = tile
         th, tw = y1 - y0, x1 - x0
-        o, d, keys = eye_rays(self.scene, settings, x0, y0, x1, y1)
-        res = self._integ.trace(o, d, keys, ray_types=uses_ray_types(settings))
+        o, d, keys, times = timed_eye_rays(self.scene, settings, x0, y0, x1, y1)
+        res = self._integ.trace(o, d, keys, ray_types=uses_ray_types(settings), times=times)
         cam = self.scene.camera
         if cam.near > 0:  # as tracer.render: depth from the eye (the film plane for orthographic cameras)
             res.depth += (np.linalg.norm(o - cam.position.astype(np.float32), axis=1)

@@ -34,17 +34,19 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import bsdf, optics, shading, sky, vec
+from . import bsdf, compose, linking, optics, shading, sky, vec
 from .accel import Accelerator
 from .environment import env_radiance, pack_environment
 from .jit import kernel
 from .instances import mat3_apply, mat3_apply_transposed, pack_instances
 from .instances import world_emitters
 from .lights import MESH, pack_lights, sample_light
+from .motion import frames_at_time, pack_motion
 from .sampling import rotated_multijitter, uniform2_1
 from .scene import Scene
 from .settings import RenderSettings
 from .shader_compile import pack_programs
+from .shader_spaces import object_spaces, set_camera
 from .shader_vm import cut as _cut
 from .shader_vm import program_alpha, shade_programs
 from .surface import color_at, geometry_of, shading_frame
@@ -99,6 +101,8 @@ class TileResult:
     counts: RayCounts = field(default_factory=RayCounts)
     by_type: np.ndarray | None = None  # (S, 3, 3) colour per PATH_TYPES (with ray_types)
     deepest: np.ndarray | None = None  # (S,) depth of the deepest ray (0 = the eye ray only) (with ray_types)
+    compose: np.ndarray | None = None  # (S, compose.COLUMNS) shadow-catcher sums (scenes with a catcher)
+    compose_mode: tuple = (False, True)  # (transparent film, approximate shadow catcher) for tracer.compose
 
 
 class MaterialArrays(NamedTuple):
@@ -175,13 +179,16 @@ class Options(NamedTuple):
 
 class RayQueue(NamedTuple):
     """Rays of one depth: origins, unit directions, the weight (throughput) each carries, the eye sample it adds
-    to, and an optional length limit (None = unbounded)."""
+    to, an optional length limit (None = unbounded) and each ray's time across the shutter (its eye sample's;
+    None = no motion blur)."""
 
     o: np.ndarray
     d: np.ndarray
     weight: np.ndarray
     sample: np.ndarray
     t_max: np.ndarray | None
+    mask: np.ndarray | None = None  # Embree ray masks (tracer.linking), None: the rays see every object
+    time: np.ndarray | None = None  # each ray's time across the shutter (tracer.motion), None: no motion blur
 
 
 class SurfaceQueue(NamedTuple):
@@ -205,6 +212,7 @@ class SurfaceQueue(NamedTuple):
     mirror: np.ndarray  # (N, 3) float32: the Principled lobes' share of the mirror ray, g(r)·(their albedo at the
     #                     view angle), written by the direct-light stage from its closure for the spawn stage
     transmission: np.ndarray  # (N,) float32 glass weight of the non-metal part
+    holdout: np.ndarray  # (N,) float32 the closure's Holdout weight per hit (tracer.compose; 0 = none)
 
     @classmethod
     def empty(cls, n: int) -> "SurfaceQueue":
@@ -212,7 +220,7 @@ class SurfaceQueue(NamedTuple):
         f1 = lambda: np.empty(n, np.float32)  # noqa: E731
         return cls(np.empty(n, np.bool_), np.empty((n, 3), np.float64), f3(), f3(), np.empty(n, np.bool_),
                    np.empty(n, np.int32), f3(), f1(), f1(), f1(), f1(), f3(), np.empty(n, np.int32),
-                   np.zeros((n, 3), np.float32), f1())
+                   np.zeros((n, 3), np.float32), f1(), np.zeros(n, np.float32))
 
 
 class ShadowQueue(NamedTuple):
@@ -291,6 +299,7 @@ class Tile(NamedTuple):
     normal: np.ndarray
     albedo: np.ndarray
     object_id: np.ndarray
+    compose: np.ndarray = compose.empty(0, False)  # (S, compose.COLUMNS) shadow-catcher sums (scenes with one)
 
 
 class Integrator:
@@ -308,11 +317,15 @@ class Integrator:
         self.programs, textures = pack_programs(m, scene.textures)
         self.materials = MaterialArrays.of(m, self.programs.has)
         self.textures = pack_textures(textures)
-        self.bounds = _object_bounds(scene) if self.programs.has.any() else np.zeros((1, 2, 3), np.float64)
+        #: the coordinate spaces programs read (tracer.shader_spaces; the camera's entry refreshed per batch)
+        self.spaces = object_spaces(scene) if self.programs.has.any() else np.zeros((2, 9, 4), np.float64)
         self.instances = pack_instances(scene)
+        self.motion = pack_motion(scene)  # None: nothing moves (tracer/motion.py)
         # instanced prototypes' emitting triangles placed per instance (tracer/instances.py)
         emitters = world_emitters(scene, m.emission * m.alpha[:, None])
         self.lights = pack_lights(scene.lights, settings.light_samples, emitters)
+        #: light and shadow linking, ray visibility (tracer.linking); inactive tables when the scene has none
+        self.links = linking.pack(scene, len(self.lights.kind))
         self.light_samples = int(np.sum(self.lights.side ** 2))  # shadow rays per shading point, at most
         self.env = pack_environment(scene.environment)
         ambient = scene.ambient
@@ -333,13 +346,16 @@ class Integrator:
         used[self.instances.materials[self.instances.materials >= 0]] = True
         #: Some used material lets light through (alpha < 1 or an alpha texture): shadow rays look through it.
         self.see_through = bool(np.any(used & ((m.alpha < 1) | self.programs.alpha_varies)))
+        #: Holdouts and shadow catchers (tracer.compose)
+        self.compose = compose.pack(scene)
 
     @property
     def last_depth(self) -> int:
         """The deepest step: max_depth, or one more (collecting only background and emission) with terminal rays."""
         return self.settings.max_depth + (1 if self.settings.terminal_rays else 0)
 
-    def _shade(self, depth: int, o, d, weight, sample, t0, hits, keys, out: "Tile", counts, spawn: bool):
+    def _shade(self, depth: int, o, d, weight, sample, t0, hits, keys, out: "Tile", counts, spawn: bool,
+               time=None):
         """The stages for one batch of rays and their hits: returns (ShadowQueue, NextQueue, n_refl, n_tran,
         n_through)."""
         n = len(o)
@@ -348,23 +364,36 @@ class Integrator:
         it = self.instances
         n_textured = _surfaces(o, d, t, prim, inst, it.normal_matrix, it.materials, u, v, self.geometry,
                                self.materials, surf)
+        if self.motion is not None and time is not None:  # what moves is shaded where it is at the ray's time
+            frames_at_time(d, prim, inst, u, v, time, self.geometry, self.motion, surf.ng, surf.n, surf.front)
         if n_textured:  # the textures stage: the materials' programs (tracer.shader_vm)
             g, m, x, pt = self.geometry, self.materials, self.textures, self.programs
             # one eye sample's footprint, for the mip level of lookups and the bump offsets: read now, as a
             # session's camera and settings change between renders without a new Integrator
             eye, spread, flat = self.scene.camera.sample_footprint(self.settings.width, self.settings.samples)
+            set_camera(self.spaces, self.scene.camera)
             shade_programs(surf.textured[:n_textured], prim, u, v, t, inst, d, depth, pt.code, pt.pstart, pt.pbase,
                            pt.outs, pt.R0, np.empty_like(pt.R0), surf.mat, surf.p, surf.ng, surf.n, surf.front,
                            surf.base, surf.roughness, surf.metallic, surf.specular, surf.cover, surf.emission,
                            surf.transmission, m.alpha_threshold, g.uv_sets, g.colors, g.has_colors, g.vertices,
-                           g.triangles, g.face_normals, g.object_ids, self.bounds, x.data, x.params, it.linear,
+                           g.triangles, g.face_normals, g.object_ids, self.spaces, x.data, x.params, it.linear,
                            it.mirrored, it.object_ids, eye, spread, flat)
+        split = None  # the eye samples whose first catcher hit is in this batch (tracer.compose)
+        cp = self.compose
+        if depth == 0 and (cp.has_holdout or cp.has_catcher):
+            weight = weight.copy()  # a holdout passes on only what goes through it
+            split = np.zeros(n, np.bool_)
+            compose.eye_path(surf, prim, inst, self.geometry.object_ids, self.instances.object_ids, d, sample,
+                             weight, cp, self.env, self.options.background, out, out.compose, split)
+            split = sample[split] if split.any() else None
         if depth == 0:
             _first_hits(surf, t, prim, inst, self.instances, t0, sample, self.geometry, out)
         _emitted(d, surf, sample, weight, depth, self.options, self.env, out)
         shadow = ShadowQueue.empty(n * (self.light_samples + self.sky_side ** 2))
+        before = out.color[split] if split is not None else None
+        recv = linking.receiver_bits(self.links, prim, inst, self.geometry.object_ids, it.object_ids)
         n_shadow = _direct_light(surf, d, sample, weight, keys, depth, spawn, self.materials, self.lights,
-                                 self.options, out, shadow, 0, counts)
+                                 self.options, out, shadow, 0, counts, self.links, recv)
         if self.sky_side:
             n_shadow = _sky(surf, d, sample, weight, keys, depth, spawn, self.materials, self.env, self.options,
                             out, shadow, n_shadow, counts)
@@ -372,7 +401,28 @@ class Integrator:
         n_refl, n_tran, n_through = _spawn_secondary(surf, d, t, t0, sample, weight, spawn, self.materials,
                                                      self.options, nxt, counts)
         shadow = ShadowQueue(*(a[:n_shadow] for a in shadow))
-        return shadow, nxt, n_refl, n_tran, n_through
+        caught = None  # the shadow rays of split hits (their catcher-only light is added with the occlusion)
+        if split is not None:
+            caught = self._catcher_rays(out, split, before, sample, shadow, nxt, n, n_refl, n_tran, n_through)
+        return shadow, nxt, n_refl, n_tran, n_through, caught
+
+    def _catcher_rays(self, out, split, before, sample, shadow, nxt, n, n_refl, n_tran, n_through):
+        """The catcher-only light of split hits that the stages added directly, and the world along the rays
+        they spawned (tracer.compose); returns the mask of their shadow rays. Each eye sample has one ray per batch
+        at depth 0, so a ray's sample names its hit."""
+        mask = np.zeros(len(out.color), np.bool_)
+        mask[split] = True
+        compose.add_local(out.compose, out.color, before, split)
+        bg = self.options.background
+        for o_, d_, w_, s_, lo, hi in ((nxt.o, nxt.d, nxt.weight, nxt.sample, 0, n_refl),
+                                       (nxt.o, nxt.d, nxt.weight, nxt.sample, n, n + n_tran),
+                                       (nxt.through_o, nxt.through_d, nxt.through_weight, nxt.through_sample, 0,
+                                        n_through)):
+            rows = np.arange(lo, hi, dtype=np.int64)
+            rows = rows[mask[s_[lo:hi]]]
+            if len(rows):
+                compose.add_world(out.compose, s_, w_, d_, rows, self.env, bg)
+        return mask[shadow.sample]
 
     def step(self, depth: int, rays: "RayQueue", keys: np.ndarray, out: "Tile", counts: np.ndarray) -> "Step":
         """One depth of Cast-Ray for a queue of rays: closest hits, shading (adding into ``out`` at each ray's
@@ -380,14 +430,21 @@ class Integrator:
         transmissions; empty past the last depth). Rays that pass through alpha < 1 surfaces are traced again
         within the step (up to ``max_transparent`` surfaces deep)."""
         n = len(rays.o)
-        hits = self.accel.closest_hits(rays.o, rays.d, rays.t_max)
+        mask = rays.mask if depth else linking.ray_masks(self.links, 0, n, 0)
+        time = rays.time
+        hits = self.accel.closest_hits(rays.o, rays.d, rays.t_max, mask=mask, time=time)
+        timed = time is not None
+        if timed:  # every ray keeps its eye sample's time: looked up by sample
+            sample_time = np.zeros(len(out.color), np.float32)
+            sample_time[rays.sample] = time
         spawn = depth < self.last_depth
-        shadows, refl, tran = [], [], []
+        shadows, refl, tran, caught = [], [], [], []
         o, d, w, smp, t0, h = rays.o, rays.d, rays.weight, rays.sample, np.zeros(n, np.float32), hits
         for layer in range(self.settings.max_transparent + 1):
-            shadow, nxt, n_refl, n_tran, n_through = self._shade(depth, o, d, w, smp, t0, h, keys, out, counts,
-                                                                 spawn)
+            shadow, nxt, n_refl, n_tran, n_through, c = self._shade(depth, o, d, w, smp, t0, h, keys, out, counts,
+                                                                    spawn, time)
             shadows.append(shadow)
+            caught.append(c if c is not None else np.zeros(len(shadow.o), np.bool_))
             m = len(o)
             refl.append((nxt, slice(0, n_refl)))
             tran.append((nxt, slice(m, m + n_tran)))
@@ -397,48 +454,76 @@ class Integrator:
             w, smp, t0 = nxt.through_weight[:n_through], nxt.through_sample[:n_through], nxt.through_t0[:n_through]
             tm = None
             if rays.t_max is not None:  # eye rays stop at the far plane: what is left of their length
-                tm = np.maximum(rays.t_max[0] - t0, 0).astype(np.float32)
-            h = self.accel.closest_hits(o, d, tm)
+                tm = np.maximum(rays.t_max[np.searchsorted(rays.sample, smp)] - t0, 0).astype(np.float32)
+            time = sample_time[smp] if timed else None
+            h = self.accel.closest_hits(o, d, tm, mask=linking.through_mask(self.links, depth), time=time)
         shadow = shadows[0] if len(shadows) == 1 else ShadowQueue(*(np.concatenate(c) for c in zip(*shadows)))
         blocked = np.zeros(0, bool)
         if len(shadow.o):
-            blocked = self.accel.occluded(shadow.o, shadow.d, shadow.t_max)
+            shadow_time = sample_time[shadow.sample] if timed else None
+            blocked = self.accel.occluded(shadow.o, shadow.d, shadow.t_max,
+                                          mask=linking.shadow_masks(self.links, shadow.light), time=shadow_time)
+            if self.compose.has_catcher:
+                self._catcher_light(out, shadow, np.concatenate(caught), blocked)
             if self.see_through and blocked.any():
-                blocked = self._through_shadows(shadow, blocked)
+                blocked = self._through_shadows(shadow, blocked, shadow_time)
             _add_unoccluded(out.color, shadow.sample, shadow.color, blocked)
         parts = refl + tran
         cat = lambda get: np.concatenate([get(q)[s] for q, s in parts])  # noqa: E731
+        n_reflected = sum(s.stop - s.start for _, s in refl)
         nxt = RayQueue(o=cat(lambda q: q.o), d=cat(lambda q: q.d), weight=cat(lambda q: q.weight),
                        sample=cat(lambda q: q.sample), t_max=None)
+        nxt = nxt._replace(mask=linking.ray_masks(self.links, depth + 1, len(nxt.o), n_reflected))
+        if timed:
+            nxt = nxt._replace(time=sample_time[nxt.sample])
         spawned = SpawnRecord(light=shadow.light[:0], normal=cat(lambda q: q.spawned.normal),
                               eta=cat(lambda q: q.spawned.eta), tir=cat(lambda q: q.spawned.tir))
-        n_reflected = sum(s.stop - s.start for _, s in refl)
         return Step(hits=hits, shadow=shadow, blocked=blocked, next=nxt, spawned=spawned, n_reflected=n_reflected)
 
-    def _through_shadows(self, shadow: "ShadowQueue", blocked: np.ndarray) -> np.ndarray:
+    def _catcher_light(self, out, shadow: "ShadowQueue", caught: np.ndarray, blocked: np.ndarray) -> None:
+        """The catcher-only light of the split hits' shadow rays: each counts unless a catcher blocks it (before
+        transparent shadows scale the colours)."""
+        rows = np.flatnonzero(caught)
+        if not len(rows):
+            return
+        hit = blocked[rows].copy()
+        if hit.any():
+            b = rows[hit]
+            hit[hit] = compose.catcher_blocked(self.accel, shadow.o[b], shadow.d[b], shadow.t_max[b], self.compose,
+                                               self.geometry.object_ids, self.instances.object_ids,
+                                               float(self.eps))
+        free = rows[~hit]
+        np.add.at(out.compose[:, compose.K0:compose.K0 + 3], shadow.sample[free], shadow.color[free])
+
+    def _through_shadows(self, shadow: "ShadowQueue", blocked: np.ndarray, time=None) -> np.ndarray:
         """Blocked shadow rays whose blockers are alpha < 1 surfaces continue through them, their colour × (1 −
         alpha) each time (Cycles' transparent shadows), up to ``max_transparent`` surfaces."""
         idx = np.flatnonzero(blocked)
         o, d = shadow.o[idx].copy(), shadow.d[idx]
         t_max, color = shadow.t_max[idx].copy(), shadow.color  # colour scaled in place
         pending = np.ones(len(idx), np.bool_)
+        masks = linking.shadow_masks(self.links, shadow.light[idx])
         for _ in range(self.settings.max_transparent + 1):
             sel = np.flatnonzero(pending)
             if not len(sel):
                 break
-            t, prim, u, v, inst = self.accel.closest_hits(o[sel], d[sel], t_max[sel])
+            t, prim, u, v, inst = self.accel.closest_hits(o[sel], d[sel], t_max[sel],
+                                                          mask=None if masks is None else masks[sel],
+                                                          time=None if time is None else time[idx[sel]])
             g, pt, x, it = self.geometry, self.programs, self.textures, self.instances
             _pass_shadow(sel, idx, t, prim, inst, it.materials, it.normal_matrix, u, v, g.material_ids,
                          g.face_normals, self.materials.alpha, self.materials.alpha_threshold, o, d, t_max, color,
                          pending, blocked, self.options.eps, pt.code, pt.pstart, pt.pbase, pt.outs, pt.R0,
                          np.empty_like(pt.R0), g.uv_sets, g.colors, g.has_colors, g.vertices, g.triangles,
-                         g.object_ids, self.bounds, x.data, x.params, it.linear, it.mirrored, it.object_ids)
+                         g.object_ids, self.spaces, x.data, x.params, it.linear, it.mirrored, it.object_ids)
         return blocked
 
     def trace(self, origins: np.ndarray, directions: np.ndarray, keys: np.ndarray,
-              cancelled=lambda: False, ray_types: bool = False) -> TileResult:
+              cancelled=lambda: False, ray_types: bool = False, t_max: np.ndarray | None = None,
+              times: np.ndarray | None = None) -> TileResult:
         """Trace eye rays (one per sample) to the maximum depth. ``keys`` are unique per sample (for the
-        deterministic random streams). With ``ray_types`` the result also holds each sample's colour split by the
+        deterministic random streams); ``times`` each eye sample's time across the shutter (motion blur; None:
+        none), kept by every ray of its path. With ``ray_types`` the result also holds each sample's colour split by the
         ray type it arrived through (:data:`PATH_TYPES`) and the depth of its deepest ray."""
         s = self.scene
         n_samples = len(origins)
@@ -447,7 +532,8 @@ class Integrator:
         k = len(PATH_TYPES) if ray_types else 1
         out = Tile(color=np.zeros((n_samples * k, 3), np.float32), alpha=np.ones(n_samples * k, np.float32),
                    depth=np.full(n_samples * k, np.inf, np.float32), normal=np.zeros((n_samples * k, 3), np.float32),
-                   albedo=np.zeros((n_samples * k, 3), np.float32), object_id=np.full(n_samples * k, -1, np.int32))
+                   albedo=np.zeros((n_samples * k, 3), np.float32), object_id=np.full(n_samples * k, -1, np.int32),
+                   compose=compose.empty(n_samples * k, self.compose.has_catcher))
         counts = np.zeros(5, np.int64)
         keys = np.ascontiguousarray(np.repeat(keys, k), np.int64)
         deepest = np.full(n_samples, -1, np.int32)
@@ -455,8 +541,10 @@ class Integrator:
         rays = RayQueue(o=np.ascontiguousarray(origins, np.float32), d=np.ascontiguousarray(directions, np.float32),
                         weight=np.ones((n_samples, 3), np.float32),
                         sample=np.arange(0, n_samples * k, k, dtype=np.int32),
-                        t_max=(np.full(n_samples, s.camera.far - s.camera.near, np.float32)
-                               if np.isfinite(s.camera.far) else None))
+                        t_max=(t_max if t_max is not None else  # per ray: the camera's clipping planes
+                               np.full(n_samples, s.camera.far - s.camera.near, np.float32)
+                               if np.isfinite(s.camera.far) else None),
+                        time=None if times is None else np.ascontiguousarray(times, np.float32))
         for depth in range(self.last_depth + 1):
             if not len(rays.o) or cancelled():
                 break
@@ -476,28 +564,12 @@ class Integrator:
         return TileResult(color=by_type.sum(axis=1) if k > 1 else out.color, alpha=out.alpha[::k],
                           depth=out.depth[::k], normal=out.normal[::k], albedo=out.albedo[::k],
                           object_id=out.object_id[::k], counts=rc, by_type=by_type if k > 1 else None,
-                          deepest=deepest if k > 1 else None)
+                          deepest=deepest if k > 1 else None,
+                          compose=out.compose[::k] if self.compose.has_catcher else None,
+                          compose_mode=(bool(self.settings.transparent), "shadow_catcher" not in self.settings.aovs))
 
 
 # ---------------------------------------------------------------------------------------------- helpers
-def _object_bounds(scene) -> np.ndarray:
-    """(O, 2, 3) float64: each object's bounding box over its triangles (in the space the triangles are stored:
-    world for placed meshes, object space for instance prototypes) — the texture space of Generated
-    coordinates."""
-    oid = np.asarray(scene.object_ids, np.int64)
-    n = int(oid.max()) + 1 if len(oid) else 1
-    lo = np.full((n, 3), np.inf)
-    hi = np.full((n, 3), -np.inf)
-    if len(oid):  # per run of equal ids (meshes are stored one after the other), then per id
-        tv = np.asarray(scene.vertices, np.float64)[scene.triangles]
-        starts = np.concatenate([[0], np.flatnonzero(np.diff(oid)) + 1])
-        np.minimum.at(lo, oid[starts], np.minimum.reduceat(tv.min(axis=1), starts, axis=0))
-        np.maximum.at(hi, oid[starts], np.maximum.reduceat(tv.max(axis=1), starts, axis=0))
-    bad = ~np.isfinite(lo).all(axis=1)
-    lo[bad], hi[bad] = 0.0, 0.0
-    return np.ascontiguousarray(np.stack([lo, hi], axis=1))
-
-
 @kernel(inline=True)
 def spawn_ray(p, ng, direction, eps):
     """The origin of a ray leaving surface point p along ``direction``: p moved ε along the geometric normal ng, to
@@ -698,10 +770,13 @@ def _emitted(d, surf, sample, weight, depth, opt, env, out):
 
 
 @kernel(refcounts=False)
-def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt, out, shadow, n_shadow, counts):
+def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt, out, shadow, n_shadow, counts,
+                  links, recv):
     """Direct-light stage: per hit, every light sample's colour (local model × irradiance), written with its shadow
     ray (p, l, ε, dist) to the shadow queue; and the ambient term where the sky is not sampled. Returns the
-    shadow queue's new length. Past max_depth (terminal rays) nothing is lit. (Compiled without reference counting,
+    shadow queue's new length. Past max_depth (terminal rays) nothing is lit. Light linking (tracer.linking): light j
+    skips a hit whose receiver bits ``recv`` (empty: no linking) lack its set, and gives only the diffuse / glossy
+    light it is visible to. (Compiled without reference counting,
     ``kernel(refcounts=False)``: with it, numba's atomic counts on the arrays of the NamedTuples read and handed on
     per ray and per light sample cost 40 % of this stage.)"""
     if depth > opt.max_depth:
@@ -715,6 +790,8 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
     o_color = out.color
     s_mirror = surf.mirror
     n_lights = l_kind.shape[0]
+    linked = recv.shape[0] > 0
+    l_recv, l_diffuse, l_glossy = links.recv_set, links.diffuse, links.glossy
     amb = (opt.ambient[0], opt.ambient[1], opt.ambient[2])
     add_ambient = (amb[0] > 0.0 or amb[1] > 0.0 or amb[2] > 0.0) and sky_side == 0
     n_new = 0
@@ -742,14 +819,19 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
         if needs_random:
             r0, r1 = uniform2_1(keys[s], _STREAM_LIGHT + depth, seed)
         for j in range(n_lights):
+            if linked and not linking.lights_receiver(l_recv[j], recv[i]):
+                continue
             # a light the mirror ray can see (emissive triangles) gives the mirror share of the lobes to that ray
-            spec_scale = 1.0 - g if l_kind[j] == MESH else 1.0
+            spec_scale = (1.0 - g if l_kind[j] == MESH else 1.0) * l_glossy[j]
             for k in range(l_side[j] * l_side[j]):
                 l, dist, e = sample_light(lights, j, k, p, r0, r1)
                 n_l = vec.dot(n, l)
                 if n_l <= 0.0 or vec.dot(ng, l) <= 0.0:
                     continue
-                c = vec.mul(wo, vec.mul(bsdf.evaluate(cl, n, wi, l, n_l, spec_scale), e))
+                f = bsdf.evaluate(cl, n, wi, l, n_l, spec_scale)
+                if l_diffuse[j] != 1.0:  # the light's diffuse factor (the BSDF at spec_scale 0 is its diffuse part)
+                    f = vec.sub(f, vec.scale(bsdf.evaluate(cl, n, wi, l, n_l, 0.0), 1.0 - l_diffuse[j]))
+                c = vec.mul(wo, vec.mul(f, e))
                 if shadows:  # the shadow ray from p to the light sample: counts only if nothing is in between
                     so, sd, st = shadow_ray(p, ng, l, dist, eps)
                     _put(q_o, q_d, q_t, q_s, q_c, q_l, n_shadow, so, sd, st, s, c, j)

@@ -209,6 +209,20 @@ class Scene:
     object_transforms: np.ndarray | None = None
     #: Optional shared-mesh instances (see :class:`Instances`); None: a triangle soup in world space.
     instances: Instances | None = None
+    #: Optional :class:`tracer.motion.Motion`: what moves across the shutter (motion blur); None: nothing moves.
+    motion: object | None = None
+    #: Optional (O,) uint8 per object id: the ray types that see it (tracer.linking: CAMERA | GLOSSY |
+    #: TRANSMISSION | SHADOW); None = every object seen by every ray.
+    object_visibility: np.ndarray | None = None
+    #: One tracer.linking.LightLink per light of ``lights`` (receivers, blockers, cast shadow, diffuse / glossy),
+    #: or empty: no light is linked.
+    light_links: list = field(default_factory=list)
+    #: Optional (O,) bool per object id: the object is a holdout (Cycles' object / collection holdout): where the
+    #: eye path meets it, the pixel is cut out (alpha reduced, colour zero; tracer.compose). Ids past the end: False.
+    object_holdout: np.ndarray | None = None
+    #: Optional (O,) bool per object id: the object is a shadow catcher (Blender's ``is_shadow_catcher``): invisible
+    #: in the beauty except for the shadows other objects cast on it (tracer.compose). Ids past the end: False.
+    object_shadow_catcher: np.ndarray | None = None
 
     def __post_init__(self):
         self.validate()
@@ -298,6 +312,14 @@ class Scene:
                 raise ValueError(f"scene.object_transforms must be finite (O, 4, 4) matrices, got shape {ot.shape}")
             self.object_transforms = ot
 
+        for name in ("object_holdout", "object_shadow_catcher"):
+            flags = getattr(self, name)
+            if flags is not None:
+                fl = np.asarray(flags)
+                if fl.ndim != 1:
+                    raise ValueError(f"scene.{name} must be a 1-D array of flags per object id, got shape {fl.shape}")
+                setattr(self, name, np.ascontiguousarray(fl != 0, dtype=np.bool_))
+
         if self.instances is not None:
             if not isinstance(self.instances, Instances):
                 raise ValueError("scene.instances must be a tracer.Instances table or None")
@@ -316,7 +338,21 @@ class Scene:
             if not len(self.instances):
                 self.instances = None
 
+        self.validate_motion()
         self._drop_degenerate()
+
+    def validate_motion(self) -> None:
+        """Check ``motion`` against the vertices and instances (a front end that sets it after building the
+        scene calls this); an empty one becomes None."""
+        if self.motion is None:
+            return
+        from .motion import Motion
+
+        if not isinstance(self.motion, Motion):
+            raise ValueError("scene.motion must be a tracer.motion.Motion or None")
+        self.motion.validate(len(self.vertices), len(self.instances) if self.instances is not None else 0)
+        if self.motion.empty:
+            self.motion = None
 
     def _validate_uv_sets(self, n):
         """``uv_sets`` and ``uvs`` are one list (set 0 = ``uvs``): fill one from the other, check shapes. Infinite

@@ -20,7 +20,8 @@ from __future__ import annotations
 import math
 from dataclasses import MISSING, dataclass, field, fields, replace
 
-AOV_NAMES = ("depth", "normal", "albedo", "objectid", "direct", "reflection", "transmission", "raydepth")
+AOV_NAMES = ("depth", "normal", "albedo", "objectid", "direct", "reflection", "transmission", "raydepth",
+             "shadow_catcher")
 #: AOVs that split the beauty by the ray type light arrived through (they sum to it), and the deepest ray per pixel.
 RAY_TYPE_AOVS = ("direct", "reflection", "transmission", "raydepth")
 #: Local illumination models (RenderSettings.shading): the Principled BSDF's diffuse + GGX specular evaluated per
@@ -126,7 +127,8 @@ class RenderSettings:
                                   none_as=0, ui=(("max", 1024),))
     aovs: tuple = setting((), "extra outputs (float32 EXR next to the image): depth, normal, albedo, objectid, and "
                           "direct, reflection, transmission (the beauty by the path's first secondary ray; they "
-                          "sum to it), raydepth (deepest ray per pixel: EXR + heat-map PNG)", choices=AOV_NAMES,
+                          "sum to it), raydepth (deepest ray per pixel: EXR + heat-map PNG), shadow_catcher (Cycles' "
+                          "Shadow Catcher pass; with it, Combined leaves the catchers' shadows out)", choices=AOV_NAMES,
                           flag="--aov", metavar="A[,A...]",
                           blender_from="the view layer's passes (Z, Normal, Object Index) and Ray-Type Passes")
     region: tuple | None = setting(None, "render only this pixel rectangle (x0, y0, x1, y1), top-left origin, "

@@ -20,7 +20,7 @@ What the compiler does, in order:
    translucent    as diffuse (one warning: light from behind is not gathered)
    transparent    coverage: the lobe's weight is 1 − alpha; its Color tints nothing (white; a tint warns)
    emission       emission += weight × Color × Strength, reflects nothing
-   holdout        a black, opaque surface (one warning)
+   holdout        a black, opaque surface; its weight cuts the pixel's alpha on the eye path (tracer.compose)
    ============== =====================================================================================
 
    One lobe: its inputs are the outputs (alpha = its Alpha). Several lobes of weights wᵢ: transparency
@@ -61,7 +61,8 @@ class Reg(NamedTuple):
     r: int
     n: int
     uv: int = -1
-    src: object = None  # (TextureUse, coordinates) of an image lookup's colour: a constant scale folds into it
+    src: object = None  # (TextureUse, coordinates, (projection, blend)) of an image lookup's colour: a constant scale
+    #                     folds into it
 
 
 def _is_const(x) -> bool:
@@ -334,13 +335,13 @@ class Compiler:
             img, k = (a, b) if _is_const(b) else (b, a) if _is_const(a) else (None, None)
             if isinstance(img, Reg) and img.src is not None and img.src[0].image is not None:
                 # an image × a constant: one lookup, its scale and bias scaled (a scene texture keeps its own)
-                use, coord = img.src
+                use, coord, proj = img.src
                 k = _vec(k) + (1.0,)
                 use = use._replace(scale=tuple(s * x for s, x in zip(use.scale, k)),
                                    bias=tuple(b_ * x for b_, x in zip(use.bias, k)),
                                    fallback=tuple(f * x for f, x in zip(use.fallback, k)))
-                r = self.image(use, coord, "")
-                return Reg(r.r, 3, src=(use, coord)), 0.0
+                r = self.image(use, coord, "", *proj)
+                return Reg(r.r, 3, src=r.src), 0.0
         if op == ops.V_SCALE and _is_const(s) and float(s) == 1.0:
             return a, 0.0
         r = self.e.emit(vm.OP_VMATH, 4, [(a, 3), (b, 3), (c, 3), (s, 1)], imm=int(op),
@@ -465,8 +466,8 @@ class Compiler:
             return {"Color": tuple(float(a) for a in v)}
         return {"Color": self.e.emit(vm.OP_COMB_COLOR, 3, [(x, 1), (y, 1), (z, 1)], imm=mode)}
 
-    def _n_rgb_to_bw(self, node, var):
-        return {"Val": self.inp(node, "Color", FLOAT, var)}
+    def _n_rgb_to_bw(self, node, var):  # whatever feeds it is a colour first (a vector as is), then its luminance
+        return {"Val": self.convert(self.inp(node, "Color", COLOR, var), COLOR, FLOAT)}
 
     def _n_mix_float(self, node, var):
         f, a, b = self.inp(node, "Factor", FLOAT, var), self.inp(node, "A", FLOAT, var), self.inp(node, "B", FLOAT, var)
@@ -575,6 +576,16 @@ class Compiler:
         if all(_is_const(x) for x in (v, loc, rot, scl)):
             return {"Vector": self._fold(r, 3)}
         return {"Vector": r}
+
+    def _n_vector_transform(self, node, var):
+        kind = _enum("vector_transform.vector_type", node.param("vector_type"))
+        src, dst = _enum("space", node.param("convert_from")), _enum("space", node.param("convert_to"))
+        v = self.inp(node, "Vector", VECTOR, var)
+        if src == dst:
+            return {"Vector": v}
+        if self.estimate:
+            return {"Vector": v if _is_const(v) else (0.0, 0.0, 0.0)}
+        return {"Vector": self.e.emit(vm.OP_VTRANSFORM, 3, [(v, 3)], imm=kind | src << 2 | dst << 4)}
 
     def _n_vector_rotate(self, node, var):
         kind = _enum("vector_rotate.rotation_type", node.param("rotation_type"))
@@ -700,16 +711,17 @@ class Compiler:
             self.textures.append(use)
         return self._tex_index[key]
 
-    def image(self, use: TextureUse, coord, node_name: str):
-        """RGBA Reg (4 wide) of an image lookup at ``coord`` (in estimate mode: the image's mean)."""
+    def image(self, use: TextureUse, coord, node_name: str, projection: int = 0, blend: float = 0.0):
+        """RGBA Reg (4 wide) of an image lookup at ``coord`` (in estimate mode: the image's mean); ``projection``
+        0 flat, 1 box (its ``blend``), 2 sphere, 3 tube (Image Texture's)."""
         if self.estimate:
             return _mean_rgba(use)
         if _is_const(coord):
             self.warn(node_name + "const", f"texture {node_name!r} reads constant coordinates")
         k = self._texture(use)
-        uv = coord.uv if isinstance(coord, Reg) else -1
-        r = self.e.emit(vm.OP_IMAGE, 4, [(coord, 3), k, uv])
-        return Reg(r.r, 4, src=(use, coord))
+        uv = coord.uv if isinstance(coord, Reg) and projection == 0 else -1
+        r = self.e.emit(vm.OP_IMAGE, 4, [(coord, 3), k, uv, (blend, 1)], imm=projection)
+        return Reg(r.r, 4, src=(use, coord, (projection, blend)))
 
     def _rgba_out(self, rgba):
         if _is_const(rgba):
@@ -721,15 +733,14 @@ class Compiler:
         if img is None:
             self.warn(node.name, f"Image Texture {node.name!r} has no image; black is used")
             return {"Color": (0.0, 0.0, 0.0), "Alpha": 0.0}
-        if node.param("projection") not in (None, "FLAT"):
-            self.warn(node.name + "proj", f"Image Texture {node.name!r}: {node.param('projection')} projection is "
-                                          "read as Flat")
         ext = node.param("extension")
         if ext is not None:
             wrap = {"REPEAT": "repeat", "EXTEND": "clamp", "CLIP": "black", "MIRROR": "mirror"}[str(ext).upper()]
             img = _with_wrap(img, wrap)
         coord = self.inp(node, "Vector", VECTOR, var)
-        c, a = self._rgba_out(self.image(TextureUse(img, -1), coord, node.name))
+        proj = ("FLAT", "BOX", "SPHERE", "TUBE").index(str(node.param("projection") or "FLAT").upper())
+        c, a = self._rgba_out(self.image(TextureUse(img, -1), coord, node.name, proj,
+                                         float(node.param("projection_blend") or 0.0)))
         return {"Color": c, "Alpha": a}
 
     def _n_usd_uv_texture(self, node, var):
@@ -816,8 +827,7 @@ class Compiler:
         fac = self.inp(node, fac_name, FLOAT, var)
         if table is None:
             return {out_name: x}
-        rng = node.param("range") if "range" in node.params else (0.0, 1.0)
-        lo, hi = float(rng[0]), float(rng[1])
+        lo, hi = (float(x) for x in node.param("range"))
         size = table.shape[0]
         k = self.e.const((lo, hi, float(table.shape[1])) + tuple(table.T.reshape(-1)))
         n = 1 if kind == 2 else 3
@@ -891,6 +901,17 @@ class Compiler:
                 return Reg(made["c"].r, 1)
             return Reg(self._proc(vm.OP_NOISE, node, var, names, imm, 1).r, 1)
         return _Lazy({"Fac": fac, "Color": lambda: Reg(colour().r + 1, 3)})
+
+    def _n_mx_noise(self, node, var):
+        """MaterialX's noise nodes (tracer.procedural.mx_noise); one op, all outputs."""
+        from .procedural import mx_noise as mxn
+        if self.estimate:
+            return {"Value": 0.5, "Vector": (0.5, 0.5, 0.5), "W": 0.5}
+        imm = (mxn.KINDS.index(str(node.param("kind"))) | int(node.param("dimensions")) << 4
+               | int(node.param("width")) << 8 | int(node.param("style")) << 12)
+        r = self._proc(vm.OP_MX_NOISE, node, var, ["Amplitude", "Amplitude W", "Pivot", "Octaves", "Lacunarity",
+                                                   "Diminish", "Jitter"], imm, 4)
+        return {"Value": Reg(r.r, 1), "Vector": Reg(r.r, 3), "W": Reg(r.r + 3, 1)}
 
     def _n_voronoi_texture(self, node, var):
         from .procedural import voronoi as pv
@@ -970,22 +991,21 @@ class Compiler:
 
     # ------------------------------------------------------------------ normals
     def _n_normal_map(self, node, var):
-        space = node.param("space") or "TANGENT"
+        space = _enum("normal_map.space", node.param("space"))
         strength, col = self.inp(node, "Strength", FLOAT, var), self.inp(node, "Color", COLOR, var)
         if self.estimate:
             return {"Normal": (0.0, 0.0, 1.0)}
-        if space != "TANGENT":
-            self.warn(node.name, f"Normal Map {node.name!r}: {space} space is not supported (shading normal kept)")
+        if space == 0 and _is_const(col) and np.allclose(_vec(col), (0.5, 0.5, 1.0)):
             return {"Normal": self.hit(vm.IN_NORMAL)}
-        if _is_const(col) and np.allclose(_vec(col), (0.5, 0.5, 1.0)):
-            return {"Normal": self.hit(vm.IN_NORMAL)}
-        uv_map = node.param("uv_map")
-        k = uv_map if isinstance(uv_map, (int, np.integer)) else self.uv_index(uv_map or "")
-        if k is None:
-            self.warn(node.name + "uv", f"Normal Map {node.name!r}: UV map {uv_map!r} is not known; the default "
-                                        "one is used")
-            k = 0
-        return {"Normal": self.e.emit(vm.OP_NORMAL_MAP, 3, [(col, 3), (strength, 1), int(k)])}
+        k = -1
+        if space == 0:
+            uv_map = node.param("uv_map")
+            k = uv_map if isinstance(uv_map, (int, np.integer)) else self.uv_index(uv_map or "")
+            if k is None:
+                self.warn(node.name + "uv", f"Normal Map {node.name!r}: UV map {uv_map!r} is not known; the default "
+                                            "one is used")
+                k = 0
+        return {"Normal": self.e.emit(vm.OP_NORMAL_MAP, 3, [(col, 3), (strength, 1), int(k)], imm=space)}
 
     def _n_bump(self, node, var):
         nrm = self.inp(node, "Normal", VECTOR, var)
@@ -1087,8 +1107,7 @@ class Compiler:
         elif t == "emission":
             lb.update(kind="emission", emission=self.scale3(self.inp(node, "Color"), self.inp(node, "Strength")))
         elif t == "holdout":
-            self.warn(node.name, f"Holdout {node.name!r} is rendered as a black surface")
-            lb.update(kind="surface")
+            lb.update(kind="surface")  # black; tracer.compose takes its weight out of the alpha
         else:
             self.warn(node.name, f"shader {node.name!r} ({t}) is not supported; a grey diffuse surface is used")
             lb.update(base=(0.8, 0.8, 0.8), roughness=1.0)
@@ -1316,7 +1335,7 @@ def add_graph(builder, graph: Graph, warn=None, uv_index=None, name: str | None 
     row index."""
     compiled = compile_graph(graph, warn, uv_index)
     fields = dict(compiled.row)
-    if compiled.program is not None:
+    if compiled.program is not None or any(n.type == "holdout" for n in graph.nodes.values()):  # tracer.compose
         fields["program"] = BoundGraph(graph, _uv_table(compiled.uv_maps, uv_index))
     return builder.add_material(name or graph.name, **fields)
 
@@ -1465,7 +1484,7 @@ def _pack_programs(m, textures: list) -> tuple[ProgramTable, list]:
                 added[key] = len(out_textures)
                 out_textures.append(Texture(image=use.image.rgba(), wrap_s=use.image.wrap_s,
                                             wrap_t=use.image.wrap_t, scale=use.scale, bias=use.bias,
-                                            fallback=use.fallback))
+                                            fallback=use.fallback, interpolation=use.image.interpolation))
             index.append(added[key])
         code = prog.code.copy()
         image_ops = code[:, 0] == vm.OP_IMAGE

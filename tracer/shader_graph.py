@@ -228,7 +228,7 @@ NODE_TYPES: dict[str, NodeType] = {
     "brightness_contrast": _t([_c("Color", (1, 1, 1)), _f("Bright"), _f("Contrast")], [_c("Color")]),
     "hsv": _t([_f("Hue", 0.5), _f("Saturation", 1.0), _f("Value", 1.0), _f("Fac", 1.0), _c("Color")],
               [_c("Color")]),
-    "rgb_curves": _t([_f("Fac", 1.0), _c("Color", (1, 1, 1))], [_c("Color")], curves=None),
+    "rgb_curves": _t([_f("Fac", 1.0), _c("Color", (1, 1, 1))], [_c("Color")], curves=None, range=(0.0, 1.0)),
     "rgb_ramp": _t([_f("Fac", 0.5)], [_c("Color"), _f("Alpha")], ramp=None, interpolation="LINEAR",
                    color_mode="RGB", hue_interpolation="NEAR"),
     "blackbody": _t([_f("Temperature", 1500.0)], [_c("Color")]),
@@ -249,8 +249,8 @@ NODE_TYPES: dict[str, NodeType] = {
                             _v("To Max", (1, 1, 1)), _v("Steps", (4, 4, 4))], [_v("Vector")],
                            interpolation_type="LINEAR", clamp=True),
     "clamp": _t([_f("Value", 1.0), _f("Min"), _f("Max", 1.0)], [_f("Result")], clamp_type="MINMAX"),
-    "float_curve": _t([_f("Factor", 1.0), _f("Value", 1.0)], [_f("Value")], curves=None),
-    "vector_curves": _t([_f("Fac", 1.0), _v("Vector")], [_v("Vector")], curves=None),
+    "float_curve": _t([_f("Factor", 1.0), _f("Value", 1.0)], [_f("Value")], curves=None, range=(0.0, 1.0)),
+    "vector_curves": _t([_f("Fac", 1.0), _v("Vector")], [_v("Vector")], curves=None, range=(0.0, 1.0)),
     "mapping": _t([_v("Vector"), _v("Location"), _v("Rotation"), _v("Scale", (1, 1, 1))], [_v("Vector")],
                   vector_type="POINT"),
     "vector_rotate": _t([_v("Vector"), _v("Center"), _v("Axis", (0, 0, 1)), _f("Angle"), _v("Rotation")],
@@ -264,6 +264,12 @@ NODE_TYPES: dict[str, NodeType] = {
     "displacement": _t([_f("Height"), _f("Midlevel", 0.5), _f("Scale", 1.0), _N], [_v("Displacement")],
                        space="OBJECT"),
     # ---------------------------------------------------------------- USD / MaterialX
+    # MaterialX's noise2d/3d, fractal2d/3d, cellnoise2d/3d, worleynoise2d/3d (tracer.procedural.mx_noise): kind
+    # perlin | cell | worley | fractal, dimensions 2 | 3, width 1-4 (float, vector2, vector3/color3, vector4/color4),
+    # style 0 distance | 1 solid (worley). Value = x, Vector = (x, y, z), W = w of the node's result.
+    "mx_noise": _t([_v("Vector", GENERATED), _v("Amplitude", (1, 1, 1)), _f("Amplitude W", 1.0), _f("Pivot"),
+                    _f("Octaves", 3.0), _f("Lacunarity", 2.0), _f("Diminish", 0.5), _f("Jitter", 1.0)],
+                   [_f("Value"), _v("Vector"), _f("W")], kind="perlin", dimensions=3, width=1, style=0),
     # UsdUVTexture: image (an ImageRef, wrap from it), st, scale/bias per channel, fallback where the mesh has no
     # coordinates. Outputs r, g, b, a and rgb as in the spec.
     "usd_uv_texture": _t([_v("st", UV)], [_f("r"), _f("g"), _f("b"), _f("a"), _c("rgb")], image=None,
@@ -286,7 +292,7 @@ class ImageRef:
     pixels       (H, W, 4) float32 scene-linear, straight alpha, row 0 = top (front ends that decode themselves)
     colorspace   "auto" (8/16-bit files sRGB, float files linear) | "srgb" | "raw" — for ``path`` only
     wrap_s, wrap_t   "repeat" | "clamp" | "mirror" | "black" (Blender's REPEAT, EXTEND, MIRROR, CLIP)
-    interpolation    "linear" | "closest" | "cubic" | "smart" (the tracer filters bilinearly with mip levels)
+    interpolation    "linear" | "closest" | "cubic" | "smart" (tracer.texture: Smart reads as Cubic)
     label        for messages
 
     Two references to one file with the same colour space share pixels (a process-wide cache by path)."""
@@ -313,7 +319,7 @@ class ImageRef:
 
     def key(self) -> tuple:
         """Identity for sharing one tracer texture between lookups."""
-        return (id(self.rgba()), self.wrap_s, self.wrap_t)
+        return (id(self.rgba()), self.wrap_s, self.wrap_t, self.interpolation)
 
 
 _PIXELS: dict = {}

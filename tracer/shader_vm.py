@@ -11,9 +11,9 @@ A vector or colour occupies three consecutive registers; an image lookup writes 
 with its outputs in registers the material's row of ``outs`` names (:data:`OUT_SLOTS`; -1 = the row's constant).
 
 Inputs a program reads at a hit (``OP_INPUT``, ``imm`` one of the ``IN_*`` codes): position, shading and true
-normals, incoming direction, UVs of any set, generated / object coordinates (object-space position within the
-object's bounds), vertex colour, backfacing, the ray's depth and length (Light Path), object info (location,
-random, index). ``b`` = 1 or 2 reads them at the bump offset points set up by ``OP_BUMP_SETUP`` (register ``c``):
+normals, incoming direction, UVs of any set, object coordinates and generated ones (object space, and the position
+within the object's texture space), camera and window coordinates (the spaces of :mod:`tracer.shader_spaces`),
+vertex colour, backfacing, the ray's depth and length (Light Path), object info (location, random, index). ``b`` = 1 or 2 reads them at the bump offset points set up by ``OP_BUMP_SETUP`` (register ``c``):
 the hit moved one footprint along two tangent directions, its barycentrics moved with it, as Cycles' Bump node
 evaluates its height input at P + dPdx and P + dPdy.
 """
@@ -24,14 +24,16 @@ import math
 
 import numpy as np
 
-from . import bsdf, shader_ops as ops, vec
-from .instances import mat3_apply
+from . import shader_ops as ops, vec
+from .instances import mat3_apply, mat3_apply_transposed
 from .jit import kernel
 from .procedural import color as pcolor
+from .procedural import mx_noise as pmx
 from .procedural import noise as pnoise
 from .procedural import patterns as ppat
 from .procedural import voronoi as pvor
 from .surface import areas_at, tangent_at, uv_at
+from .shader_spaces import CAM_FILM, CAM_LENS, CAM_XF, HI, LO, LOC, NRM, XF
 from .texture import lookup_at, texel_density
 
 WIDTH = 9  # op, dst, a, b, c, d, e, f, imm
@@ -40,13 +42,16 @@ WIDTH = 9  # op, dst, a, b, c, d, e, f, imm
  OP_IMAGE, OP_CHECKER, OP_NORMAL_MAP, OP_BUMP_SETUP, OP_BUMP, OP_RAMP, OP_CURVE, OP_MAPPING, OP_HSV, OP_GAMMA,
  OP_BRIGHT, OP_INVERT, OP_SEP_COLOR, OP_COMB_COLOR, OP_MAP_RANGE, OP_CLAMP, OP_FRESNEL, OP_LAYER_WEIGHT,
  OP_VROTATE, OP_COPY, OP_AFFINE2, OP_MAP_RANGE_V, OP_SELECT, OP_NORMALIZE_N, OP_NOISE, OP_VORONOI, OP_WAVE,
- OP_MAGIC, OP_GRADIENT, OP_BRICK, OP_WHITE_NOISE, OP_BLACKBODY, OP_WAVELENGTH) = range(44)
+ OP_MAGIC, OP_GRADIENT, OP_BRICK, OP_WHITE_NOISE, OP_BLACKBODY, OP_WAVELENGTH, OP_VTRANSFORM) = range(45)
 
 OP_NAMES = ("nop", "math", "vmath", "mix_f", "mix_v", "mix_vn", "mix_c", "lum", "avg", "combine", "input", "image",
             "checker", "normal_map", "bump_setup", "bump", "ramp", "curve", "mapping", "hsv", "gamma", "bright",
             "invert", "sep_color", "comb_color", "map_range", "clamp", "fresnel", "layer_weight", "vrotate", "copy",
             "affine2", "map_range_v", "select", "normalize_n", "noise", "voronoi", "wave", "magic", "gradient",
-            "brick", "white_noise", "blackbody", "wavelength")
+            "brick", "white_noise", "blackbody", "wavelength", "vtransform")
+#: MaterialX's noises (tracer.procedural.mx_noise), numbered after everything above.
+OP_MX_NOISE = len(OP_NAMES)
+OP_NAMES += ("mx_noise",)
 
 (IN_POSITION, IN_NORMAL, IN_TRUE_NORMAL, IN_INCOMING, IN_UV, IN_GENERATED, IN_OBJECT, IN_BACKFACING, IN_PARAMETRIC,
  IN_COLOR, IN_COLOR_ALPHA, IN_OBJ_LOCATION, IN_OBJ_RANDOM, IN_OBJ_INDEX, IN_RAY_DEPTH, IN_RAY_LENGTH, IN_IS_CAMERA,
@@ -69,25 +74,101 @@ def _bary_at(vertices, triangles, tri, u, v):
             w * vertices[a, 2] + u * vertices[b, 2] + v * vertices[c, 2])
 
 
+@kernel(inline=True)
+def _affine(spaces, k, row, x):
+    """The 3×4 matrix at rows row…row+2 of ``spaces[k]`` applied to the point x."""
+    return (spaces[k, row, 0] * x[0] + spaces[k, row, 1] * x[1] + spaces[k, row, 2] * x[2] + spaces[k, row, 3],
+            spaces[k, row + 1, 0] * x[0] + spaces[k, row + 1, 1] * x[1] + spaces[k, row + 1, 2] * x[2]
+            + spaces[k, row + 1, 3],
+            spaces[k, row + 2, 0] * x[0] + spaces[k, row + 2, 1] * x[1] + spaces[k, row + 2, 2] * x[2]
+            + spaces[k, row + 2, 3])
+
+
+@kernel(inline=True)
+def _affine3(spaces, k, row, x):
+    """The 3×3 part at rows row…row+2 of ``spaces[k]`` applied to the direction x."""
+    return (spaces[k, row, 0] * x[0] + spaces[k, row, 1] * x[1] + spaces[k, row, 2] * x[2],
+            spaces[k, row + 1, 0] * x[0] + spaces[k, row + 1, 1] * x[1] + spaces[k, row + 1, 2] * x[2],
+            spaces[k, row + 2, 0] * x[0] + spaces[k, row + 2, 1] * x[1] + spaces[k, row + 2, 2] * x[2])
+
+
 @kernel
-def _hash01(k):
-    """A float in [0, 1) from an integer (Object Info's Random: a hash of the object id)."""
-    h = (k * 2654435761 + 0x9E3779B9) & 0xFFFFFFFF
-    h ^= h >> 16
-    h = (h * 0x85EBCA6B) & 0xFFFFFFFF
-    h ^= h >> 13
-    return (h & 0xFFFFFF) / 16777216.0
+def _project(x, y, z, kind):
+    """Image Texture's Sphere (2) and Tube (3) projections of a point of the [0, 1]³ box (Cycles' ``map_to_sphere``,
+    ``map_to_tube`` after ``texco_remap_square``)."""
+    x, y, z = 2.0 * x - 1.0, 2.0 * y - 1.0, 2.0 * z - 1.0
+    if kind == 2:
+        ln = math.sqrt(x * x + y * y + z * z)
+        if ln <= 0.0:
+            return 0.0, 0.0
+        u = 0.0 if x == 0.0 and y == 0.0 else 0.5 - math.atan2(x, y) / (2.0 * math.pi)
+        return u, 1.0 - math.acos(min(max(z / ln, -1.0), 1.0)) / math.pi
+    ln = math.sqrt(x * x + y * y)
+    if ln <= 0.0:
+        return 0.0, 0.0
+    return (1.0 - math.atan2(x / ln, y / ln) / math.pi) * 0.5, (z + 1.0) * 0.5
+
+
+@kernel
+def _box_lookup(tdata, tparams, ti, co, nrm, blend, lod):
+    """Image Texture's Box projection (Cycles' ``svm_node_tex_image_box``): the three axis-aligned lookups of the
+    point ``co`` weighted by the object-space normal ``nrm``, blended over ``blend``."""
+    ax, ay, az = abs(nrm[0]), abs(nrm[1]), abs(nrm[2])
+    sm = ax + ay + az
+    if sm > 0.0:
+        ax, ay, az = ax / sm, ay / sm, az / sm
+    wx = wy = wz = 0.0
+    limit = 0.5 * (1.0 + blend)
+    if ax > limit * (ax + ay) and ax > limit * (ax + az):
+        wx = 1.0
+    elif ay > limit * (ax + ay) and ay > limit * (ay + az):
+        wy = 1.0
+    elif az > limit * (ax + az) and az > limit * (ay + az):
+        wz = 1.0
+    elif blend > 0.0:
+        if az < (1.0 - limit) * (ay + ax):
+            wx = min(max((ax / (ax + ay) - 0.5 * (1.0 - blend)) / blend, 0.0), 1.0)
+            wy = 1.0 - wx
+        elif ax < (1.0 - limit) * (ay + az):
+            wy = min(max((ay / (ay + az) - 0.5 * (1.0 - blend)) / blend, 0.0), 1.0)
+            wz = 1.0 - wy
+        elif ay < (1.0 - limit) * (ax + az):
+            wx = min(max((ax / (ax + az) - 0.5 * (1.0 - blend)) / blend, 0.0), 1.0)
+            wz = 1.0 - wx
+        else:
+            wx = ((2.0 - limit) * ax + (limit - 1.0)) / (2.0 * limit - 1.0)
+            wy = ((2.0 - limit) * ay + (limit - 1.0)) / (2.0 * limit - 1.0)
+            wz = ((2.0 - limit) * az + (limit - 1.0)) / (2.0 * limit - 1.0)
+    else:
+        wx = 1.0
+    r = g = b = al = 0.0
+    for k in range(3):
+        wk = wx if k == 0 else (wy if k == 1 else wz)
+        if wk <= 0.0:
+            continue
+        if k == 0:
+            s_, t_ = (1.0 - co[1] if nrm[0] < 0.0 else co[1]), co[2]
+        elif k == 1:
+            s_, t_ = (1.0 - co[0] if nrm[1] > 0.0 else co[0]), co[2]
+        else:
+            s_, t_ = (1.0 - co[1] if nrm[2] > 0.0 else co[1]), co[0]
+        c = lookup_at(tdata, tparams, ti, s_, t_, s_ == s_ and t_ == t_, lod)
+        r += wk * c[0]
+        g += wk * c[1]
+        b += wk * c[2]
+        al += wk * c[3]
+    return r, g, b, al
 
 
 @kernel(refcounts=False)
 def execute(code, pc0, pc1, R, base, hit, geo, tex):
     """Run instructions pc0..pc1 of ``code`` for one hit, registers ``R[base + …]``. ``hit`` = (tri, u, v, p, n, ng,
     front, d, ray length, depth, instance, footprint, shadow ray?, eye), ``geo`` = (uv_sets, colors, has_colors,
-    vertices, triangles, face_normals, object_ids, bounds, linear, mirrored, instance object ids), ``tex`` =
+    vertices, triangles, face_normals, object_ids, spaces (tracer.shader_spaces), linear, mirrored, instance object ids), ``tex`` =
     (texel data, texture params). (Tuples: Python passes a call of more than 30 arguments as *args, which numba
     cannot inline; the callers are compiled without reference counting, so the tuples cost nothing.)"""
     tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye = hit
-    uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, bounds, linear, mirrored, inst_ids = geo
+    uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids = geo
     tdata, tparams = tex
     k_read, uv_area, world_area = -1, 0.0, 0.0  # the UV set whose areas were last read (lookups mostly share one)
     for pc in range(pc0, pc1):
@@ -148,10 +229,8 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
                 R[o + j] = R[src + j]
         elif op == OP_INPUT:
             _input(R, o, imm, code[pc, 2], code[pc, 3], base + code[pc, 4], hit, geo)
-        elif op == OP_IMAGE:
+        elif op == OP_IMAGE:  # imm: projection (0 flat, 1 box: blend in register d, 2 sphere, 3 tube)
             ti = code[pc, 3]
-            s_, t_ = R[a], R[a + 1]
-            ok = s_ == s_ and t_ == t_
             lod = 0.0
             k_fp = code[pc, 4]
             if k_fp >= 0 and footprint > 0.0:
@@ -160,7 +239,16 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
                     k_read = k_fp
                 texels = footprint * texel_density(tparams, ti, uv_area, world_area)
                 lod = math.log2(texels) if texels > 1.0 else 0.0
-            x0, x1, x2, x3 = lookup_at(tdata, tparams, ti, s_, t_, ok, lod)
+            if imm == 1:
+                nb = _affine3(spaces, object_ids[tri], NRM, n) if k_inst < 0 else \
+                    mat3_apply_transposed(linear, k_inst, n)  # the object-space normal (its direction)
+                x0, x1, x2, x3 = _box_lookup(tdata, tparams, ti, (R[a], R[a + 1], R[a + 2]), nb,
+                                             R[base + code[pc, 5]], lod)
+            else:
+                s_, t_ = R[a], R[a + 1]
+                if imm >= 2:
+                    s_, t_ = _project(R[a], R[a + 1], R[a + 2], imm)
+                x0, x1, x2, x3 = lookup_at(tdata, tparams, ti, s_, t_, s_ == s_ and t_ == t_, lod)
             R[o], R[o + 1], R[o + 2], R[o + 3] = x0, x1, x2, x3
         elif op == OP_CHECKER:  # Cycles' svm_checker: Color1 where the cell parities differ
             sc = R[base + code[pc, 5]]
@@ -172,19 +260,8 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
             src = b if first else c
             R[o], R[o + 1], R[o + 2] = R[src], R[src + 1], R[src + 2]
             R[o + 3] = 1.0 if first else 0.0
-        elif op == OP_NORMAL_MAP:
-            k_uv = code[pc, 4]
-            nn = n
-            if k_uv >= 0:
-                tg, sign = tangent_at(uv_sets, vertices, triangles, k_uv, tri, vec.row(face_normals, tri))
-                if k_inst >= 0:
-                    tg = mat3_apply(linear, k_inst, tg)
-                    if mirrored[k_inst]:
-                        sign = -sign
-                if tg[0] != 0.0 or tg[1] != 0.0 or tg[2] != 0.0:
-                    tv = (2.0 * R[a] - 1.0, 2.0 * R[a + 1] - 1.0, 2.0 * R[a + 2] - 1.0)
-                    nn = bsdf.perturb_normal(tv, tg, sign, R[b], n, ng, front)
-            R[o], R[o + 1], R[o + 2] = nn
+        elif op == OP_NORMAL_MAP:  # imm: space (0 tangent: UV set c; object, world, Blender object / world)
+            R[o], R[o + 1], R[o + 2] = _normal_map((R[a], R[a + 1], R[a + 2]), R[b], imm, code[pc, 4], hit, geo)
         elif op == OP_BUMP_SETUP:
             _bump_setup(R, o, tri, u, v, ng, footprint, k_inst, vertices, triangles, linear)
         elif op == OP_BUMP:
@@ -248,6 +325,8 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
             R[o] = R[b] * s_ + R[b + 1] * t_ + R[b + 2]
             R[o + 1] = R[b + 3] * s_ + R[b + 4] * t_ + R[b + 5]
             R[o + 2] = R[a + 2]
+        elif op == OP_VTRANSFORM:
+            R[o], R[o + 1], R[o + 2] = _vtransform((R[a], R[a + 1], R[a + 2]), imm, hit, geo)
         elif op >= OP_NOISE:  # procedural textures (tracer.procedural): a = vector, b = parameter block
             _procedural(R, op, o, a, b, imm)
         elif op == OP_NORMALIZE_N:  # a normal output: unit, on the incident side (else the shading normal)
@@ -309,13 +388,18 @@ def _procedural(R, op, o, a, b, imm):
         R[o], R[o + 1], R[o + 2] = pcolor.blackbody(R[a])
     elif op == OP_WAVELENGTH:
         R[o], R[o + 1], R[o + 2] = pcolor.wavelength(R[a])
+    elif op == OP_MX_NOISE:  # block: amplitude (4), pivot, octaves, lacunarity, diminish, jitter; e0 kind,
+        #                      e1 dimensions, e2 output width, e3 style -> x, y, z, w
+        R[o], R[o + 1], R[o + 2], R[o + 3] = pmx.mx_noise(e0, e1, e2, e3, p3[0], p3[1], p3[2], R[b], R[b + 1],
+                                                          R[b + 2], R[b + 3], R[b + 4], R[b + 5], R[b + 6],
+                                                          R[b + 7], R[b + 8])
 
 
 @kernel(inline=True)
 def _input(R, o, what, arg, variant, setup, hit, geo):
     """An ``OP_INPUT``: a value of the hit into R[o…] (``hit``, ``geo``: :func:`execute`'s)."""
     tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye = hit
-    uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, bounds, linear, mirrored, inst_ids = geo
+    uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids = geo
     if variant > 0:  # the bump offset points: barycentrics and world position moved by the setup's offsets
         j = 2 * (variant - 1)
         u = u + R[setup + j]
@@ -334,26 +418,25 @@ def _input(R, o, what, arg, variant, setup, hit, geo):
     elif what == IN_UV:
         s, t, ok = uv_at(uv_sets, arg, tri, u, v)
         x = (s, t, 0.0) if ok else (np.nan, np.nan, 0.0)
-    elif what == IN_GENERATED or what == IN_OBJECT or what == IN_OBJ_LOCATION:
+    elif what == IN_GENERATED or what == IN_OBJECT:  # object space (tracer.shader_spaces); Generated: in its bounds
         po = _bary_at(vertices, triangles, tri, u, v)
         oid = object_ids[tri]
+        x = _affine(spaces, oid, XF, po)
         if what == IN_GENERATED:
-            x = (0.0, 0.0, 0.0)
-            lo = (bounds[oid, 0, 0], bounds[oid, 0, 1], bounds[oid, 0, 2])
-            hi = (bounds[oid, 1, 0], bounds[oid, 1, 1], bounds[oid, 1, 2])
+            lo = (spaces[oid, LO, 0], spaces[oid, LO, 1], spaces[oid, LO, 2])
+            hi = (spaces[oid, HI, 0], spaces[oid, HI, 1], spaces[oid, HI, 2])
             # a flat axis sits in the middle of its texture space (Blender sizes it 1 about the centre)
-            x = ((po[0] - lo[0]) / (hi[0] - lo[0]) if hi[0] > lo[0] else 0.5,
-                 (po[1] - lo[1]) / (hi[1] - lo[1]) if hi[1] > lo[1] else 0.5,
-                 (po[2] - lo[2]) / (hi[2] - lo[2]) if hi[2] > lo[2] else 0.5)
-        elif what == IN_OBJECT:
-            x = po
-        else:  # location: the instance's translation, or the centre of a baked mesh's bounds
-            if k_inst >= 0:
-                m = mat3_apply(linear, k_inst, po)
-                x = (p[0] - m[0], p[1] - m[1], p[2] - m[2])
-            else:
-                x = (0.5 * (bounds[oid, 0, 0] + bounds[oid, 1, 0]), 0.5 * (bounds[oid, 0, 1] + bounds[oid, 1, 1]),
-                     0.5 * (bounds[oid, 0, 2] + bounds[oid, 1, 2]))
+            x = ((x[0] - lo[0]) / (hi[0] - lo[0]) if hi[0] > lo[0] else 0.5,
+                 (x[1] - lo[1]) / (hi[1] - lo[1]) if hi[1] > lo[1] else 0.5,
+                 (x[2] - lo[2]) / (hi[2] - lo[2]) if hi[2] > lo[2] else 0.5)
+    elif what == IN_OBJ_LOCATION:  # the instance's translation, or the object's
+        if k_inst >= 0:
+            po = _bary_at(vertices, triangles, tri, u, v)
+            m = mat3_apply(linear, k_inst, po)
+            x = (p[0] - m[0], p[1] - m[1], p[2] - m[2])
+        else:
+            oid = object_ids[tri]
+            x = (spaces[oid, LOC, 0], spaces[oid, LOC, 1], spaces[oid, LOC, 2])
     elif what == IN_BACKFACING:
         x = (0.0 if front else 1.0, 0.0, 0.0)
     elif what == IN_PARAMETRIC:
@@ -370,7 +453,7 @@ def _input(R, o, what, arg, variant, setup, hit, geo):
         x = (1.0, 0.0, 0.0)
     elif what == IN_OBJ_RANDOM or what == IN_OBJ_INDEX:
         oid = object_ids[tri] if k_inst < 0 else inst_ids[k_inst]
-        x = (_hash01(oid) if what == IN_OBJ_RANDOM else float(oid), 0.0, 0.0)
+        x = (spaces[oid, LOC, 3] if what == IN_OBJ_RANDOM else float(oid), 0.0, 0.0)
     elif what == IN_RAY_DEPTH:
         x = (float(depth), 0.0, 0.0)
     elif what == IN_RAY_LENGTH:
@@ -386,12 +469,151 @@ def _input(R, o, what, arg, variant, setup, hit, geo):
         if k_inst >= 0:
             tg = vec.normalize(mat3_apply(linear, k_inst, tg))
         x = tg
-    elif what == IN_CAMERA:
-        x = (p[0] - eye[0], p[1] - eye[1], p[2] - eye[2])
+    elif what == IN_CAMERA or what == IN_WINDOW:  # Cycles' camera space; Window: the film position, y up
+        cam = spaces.shape[0] - 1
+        x = _affine(spaces, cam, CAM_XF, p)
+        if what == IN_WINDOW:
+            z = x[2] / spaces[cam, CAM_LENS, 0] if spaces[cam, CAM_LENS, 1] > 0.0 else 1.0
+            z = z if z != 0.0 else 1e-30
+            x = ((x[0] / z - spaces[cam, CAM_FILM, 2]) / spaces[cam, CAM_FILM, 0] + 0.5,
+                 (x[1] / z - spaces[cam, CAM_FILM, 3]) / spaces[cam, CAM_FILM, 1] + 0.5, 0.0)
     elif what == IN_REFLECTION:
         dn = vec.dot(d, n)
         x = (d[0] - 2.0 * dn * n[0], d[1] - 2.0 * dn * n[1], d[2] - 2.0 * dn * n[2])
     R[o], R[o + 1], R[o + 2] = x
+
+
+@kernel
+def _inverse3(m):
+    """The inverse of a 3×3 matrix (rows as tuples; 0 if singular)."""
+    a, b, c = m
+    c0 = vec.cross(b, c)
+    c1 = vec.cross(c, a)
+    c2 = vec.cross(a, b)
+    det = vec.dot(a, c0)
+    inv = 1.0 / det if det != 0.0 else 0.0
+    return ((c0[0] * inv, c1[0] * inv, c2[0] * inv), (c0[1] * inv, c1[1] * inv, c2[1] * inv),
+            (c0[2] * inv, c1[2] * inv, c2[2] * inv))
+
+
+@kernel
+def _rows(spaces, k, row):
+    return ((spaces[k, row, 0], spaces[k, row, 1], spaces[k, row, 2]),
+            (spaces[k, row + 1, 0], spaces[k, row + 1, 1], spaces[k, row + 1, 2]),
+            (spaces[k, row + 2, 0], spaces[k, row + 2, 1], spaces[k, row + 2, 2]))
+
+
+@kernel
+def _cols(spaces, k, row):
+    return ((spaces[k, row, 0], spaces[k, row + 1, 0], spaces[k, row + 2, 0]),
+            (spaces[k, row, 1], spaces[k, row + 1, 1], spaces[k, row + 2, 1]),
+            (spaces[k, row, 2], spaces[k, row + 1, 2], spaces[k, row + 2, 2]))
+
+
+@kernel
+def _object_matrices(hit, geo):
+    """The hit object's matrix M (object to world, rows), its inverse and its translation."""
+    tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye = hit
+    uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids = geo
+    if k_inst >= 0:
+        m = ((linear[k_inst, 0, 0], linear[k_inst, 0, 1], linear[k_inst, 0, 2]),
+             (linear[k_inst, 1, 0], linear[k_inst, 1, 1], linear[k_inst, 1, 2]),
+             (linear[k_inst, 2, 0], linear[k_inst, 2, 1], linear[k_inst, 2, 2]))
+        po = _bary_at(vertices, triangles, tri, u, v)
+        return m, _inverse3(m), vec.sub(p, _rot(m, po))
+    oid = object_ids[tri]
+    return (_cols(spaces, oid, NRM), _rows(spaces, oid, XF),  # NRM's rows hold Mᵀ, XF's M⁻¹
+            (spaces[oid, LOC, 0], spaces[oid, LOC, 1], spaces[oid, LOC, 2]))
+
+
+@kernel
+def _normal_map(col, strength, space, k_uv, hit, geo):
+    """Blender's Normal Map node (Cycles' ``svm_node_normal_map``): the colour as 2·c − 1 in tangent space (x along
+    the UV tangent, y along sign·(N × T), z along the front-face shading normal, all in object space, then to world
+    by the normal matrix), object space (by the normal matrix), world space, or Blender's object / world convention
+    (y and z negated); flipped for a back face; Strength blends from the shading normal. The value itself, as Cycles gives it: a normal facing away from the viewer is
+    left to the closure input (OP_NORMALIZE_N)."""
+    tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye = hit
+    uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids = geo
+    c = (2.0 * col[0] - 1.0, 2.0 * col[1] - 1.0, 2.0 * col[2] - 1.0)
+    side = 1.0 if front else -1.0
+    if space == 0:  # in object space, as Cycles (its tangents and normals are object-space attributes)
+        if k_uv < 0:
+            return n
+        tg, sign = tangent_at(uv_sets, vertices, triangles, k_uv, tri, vec.row(face_normals, tri))
+        m, mi, t = _object_matrices(hit, geo)
+        if k_inst < 0:  # a placed mesh's triangles are in world space: its tangent and handedness to object space
+            tg = _rot(mi, tg)
+            if vec.dot(mi[0], vec.cross(mi[1], mi[2])) < 0.0:
+                sign = -sign
+        no = _rot_t(m, vec.scale(n, side))
+        no = vec.scale(no, 1.0 / max(math.sqrt(vec.dot(no, no)), 1e-30))
+        tg = vec.sub(tg, vec.scale(no, vec.dot(no, tg)))
+        if vec.dot(tg, tg) < 1e-24:
+            return n
+        tg = vec.normalize(tg)
+        b = vec.scale(vec.cross(no, tg), sign)
+        # not normalised before Strength blends it (Blender 5.0's Cycles, measured: tests/cycles/test_cycles_nodes.py)
+        x = _rot_t(mi, vec.madd(vec.madd(vec.scale(tg, c[0]), b, c[1]), no, c[2]))
+        x = vec.scale(x, side)
+    else:
+        if space >= 3:
+            c = (c[0], -c[1], -c[2])
+        x = c
+        if space == 1 or space == 3:
+            m, mi, t = _object_matrices(hit, geo)
+            x = _rot_t(mi, c)
+        ln = math.sqrt(vec.dot(x, x))
+        if ln == 0.0:
+            return n
+        x = vec.scale(x, side / ln)
+    if strength != 1.0:
+        x = vec.madd(n, vec.sub(x, n), max(strength, 0.0))
+    ln = math.sqrt(vec.dot(x, x))
+    return vec.scale(x, 1.0 / ln) if ln > 0.0 else n
+
+
+@kernel
+def _vtransform(x, imm, hit, geo):
+    """Blender's Vector Transform (Cycles' ``svm_node_vector_transform``): imm = type (0 vector, 1 point, 2 normal)
+    + 4·from + 16·to (0 world, 1 object, 2 camera). Points move by the full matrix, vectors by its 3×3 part, normals
+    by its inverse transpose (normalised)."""
+    tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye = hit
+    uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids = geo
+    kind, src, dst = imm & 3, (imm >> 2) & 3, (imm >> 4) & 3
+    if src == dst:
+        return x
+    m, mi, t = _object_matrices(hit, geo)
+    cam = spaces.shape[0] - 1
+    c = _rows(spaces, cam, CAM_XF)  # world to camera (rotation rows)
+    ct = (spaces[cam, CAM_XF, 3], spaces[cam, CAM_XF + 1, 3], spaces[cam, CAM_XF + 2, 3])
+    # to world
+    if src == 1:
+        if kind == 0:
+            x = _rot(m, x)
+        elif kind == 1:
+            x = vec.add(_rot(m, x), t)
+        else:
+            x = _rot_t(mi, x)
+    elif src == 2:
+        x = _rot_t(c, vec.sub(x, ct) if kind == 1 else x)
+    # from world
+    if dst == 1:
+        if kind == 0:
+            x = _rot(mi, x)
+        elif kind == 1:
+            x = _rot(mi, vec.sub(x, t))
+        else:
+            x = _rot_t(m, x)
+    elif dst == 2:
+        x = _rot(c, x)
+        if kind == 1:
+            x = vec.add(x, ct)
+    if kind == 2:
+        ln = math.sqrt(vec.dot(x, x))
+        if ln > 0.0:
+            x = vec.scale(x, 1.0 / ln)
+    return x
 
 
 @kernel(refcounts=False)
@@ -606,13 +828,13 @@ def _layer_weight(R, o, blend, nrm, d, front):
 @kernel(refcounts=False)
 def shade_programs(rays, prim, u, v, t, inst, d, depth, code, pstart, pbase, outs, R0, R, s_mat, s_p, s_ng, s_n,
                    s_front, s_base, s_rough, s_metal, s_spec, s_cover, s_e, s_tran, threshold, uv_sets, colors,
-                   has_colors, vertices, triangles, face_normals, object_ids, bounds, tdata, tparams, linear,
+                   has_colors, vertices, triangles, face_normals, object_ids, spaces, tdata, tparams, linear,
                    mirrored, inst_ids, eye, spread, flat):
     """The textures stage: for the listed rays (their material has a program), run it and write its outputs over
     the constants the surfaces stage wrote. ``R`` is this call's register file (``R0`` copied in once)."""
     for j in range(R0.shape[0]):
         R[j] = R0[j]
-    geo = (uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, bounds, linear, mirrored,
+    geo = (uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored,
            inst_ids)
     tex = (tdata, tparams)
     for q in range(rays.shape[0]):

@@ -1,9 +1,11 @@
 """Image textures: the :class:`Texture` a material parameter reads, loading through OpenImageIO, and the kernels'
-lookup (UV set, affine UV transform, wrap mode per axis, bilinear filter, scale and bias).
+lookup (UV set, affine UV transform, wrap mode per axis, filter, scale and bias).
 
 Orientation (the one convention of the whole tracer, as OpenImageIO reads a file and as Blender and USD address
 it): s runs left to right, t bottom to top; the image's row 0 is its *top* row. A lookup at (s, t) reads the point
-x = s·W − 0.5, y = (1 − t)·H − 0.5 in texel coordinates (texel centres at integers), bilinearly.
+x = s·W − 0.5, y = (1 − t)·H − 0.5 in texel coordinates (texel centres at integers), bilinearly; or, as Cycles'
+other interpolations: "closest" reads texel (⌊s·W⌋, ⌊(1 − t)·H⌋), "cubic" the uniform cubic B-spline of the 4 × 4
+texels around (x, y) (Cycles' CPU ``interp_cubic``; Blender's Smart reads as Cubic).
 
 Channels: a texture holds 1–4 channels and every lookup returns four, r g b a, as UsdUVTexture defines them:
 1 channel -> (x, x, x, 1), 2 -> (x, x, x, y) (luminance + alpha), 3 -> (r, g, b, 1), 4 -> (r, g, b, a).
@@ -25,6 +27,9 @@ from .jit import kernel
 #: every other copy flipped) and black (0 in every channel outside [0, 1]; Blender's Clip).
 WRAP_MODES = ("repeat", "clamp", "mirror", "black")
 _REPEAT, _CLAMP, _MIRROR, _BLACK = 0, 1, 2, 3
+#: Interpolations (module docstring), their kernel codes.
+INTERPOLATIONS = ("linear", "closest", "cubic")
+_LINEAR, _CLOSEST, _CUBIC = 0, 1, 2
 
 
 @dataclass
@@ -40,6 +45,7 @@ class Texture:
     fallback   (4,) the value where a surface has no coordinates in ``uv_set`` (scale and bias not applied); the
                default 1 leaves the parameter at its constant (UsdUVTexture's own default is (0, 0, 0, 1): front ends
                pass the value their file format specifies)
+    interpolation  "linear" | "closest" | "cubic" (module docstring; "smart" is read as "cubic")
     """
 
     image: np.ndarray
@@ -50,6 +56,7 @@ class Texture:
     scale: tuple = (1.0, 1.0, 1.0, 1.0)
     bias: tuple = (0.0, 0.0, 0.0, 0.0)
     fallback: tuple = (1.0, 1.0, 1.0, 1.0)
+    interpolation: str = "linear"
 
     def __post_init__(self):
         self.validate()
@@ -70,6 +77,11 @@ class Texture:
         if isinstance(self.uv_set, bool) or not isinstance(self.uv_set, (int, np.integer)) or self.uv_set < 0:
             raise ValueError(f"{label}: uv_set must be an integer >= 0, got {self.uv_set!r}")
         self.uv_set = int(self.uv_set)
+        interp = "cubic" if str(self.interpolation).lower() == "smart" else str(self.interpolation).lower()
+        if interp not in INTERPOLATIONS:
+            raise ValueError(f"{label}: interpolation must be one of {', '.join(INTERPOLATIONS)}, got "
+                             f"{self.interpolation!r}")
+        self.interpolation = interp
         m = np.asarray(self.transform, np.float64)
         if m.shape != (3, 3) or not np.all(np.isfinite(m)):
             raise ValueError(f"{label}: transform must be a finite 3x3 matrix (affine on (s, t, 1))")
@@ -177,12 +189,13 @@ class TextureTables(NamedTuple):
 
 #: The columns of ``TextureTables.params``: first texel row, height, width, wrap codes (s, t), UV set, whether the
 #: UV transform is the identity, its first two rows (6), scale (4), bias (4), fallback (4), and the number of mip
-#: levels stored after the image (level k is ⌈h/2^k⌉ × ⌈w/2^k⌉ texels, the 2 × 2 box average of level k − 1).
+#: levels stored after the image (level k is ⌈h/2^k⌉ × ⌈w/2^k⌉ texels, the 2 × 2 box average of level k − 1), the
+#: interpolation code.
 PARAM_COLUMNS = ("first", "height", "width", "wrap_s", "wrap_t", "uv_set", "identity",
                  "m00", "m01", "m02", "m10", "m11", "m12") + tuple(f"{k}{c}" for k in ("scale", "bias", "fallback")
-                                                              for c in "rgba") + ("levels",)
+                                                              for c in "rgba") + ("levels", "interpolation")
 _FIRST, _H, _W, _WRAP_S, _WRAP_T, _UV_SET, _IDENTITY, _XFORM = 0, 1, 2, 3, 4, 5, 6, 7
-_SCALE, _BIAS, _FALLBACK, _LEVELS = 13, 17, 21, 25
+_SCALE, _BIAS, _FALLBACK, _LEVELS, _INTERP = 13, 17, 21, 25, 26
 
 
 def mip_chain(rgba: np.ndarray) -> list:
@@ -215,6 +228,7 @@ def pack_textures(textures: list) -> TextureTables:
         params[i, _SCALE:_SCALE + 4], params[i, _BIAS:_BIAS + 4] = t.scale, t.bias
         params[i, _FALLBACK:_FALLBACK + 4] = t.fallback
         params[i, _LEVELS] = len(chain)
+        params[i, _INTERP] = INTERPOLATIONS.index(t.interpolation)
         rows.extend(level.reshape(-1, 4) for level in chain)
         offset += sum(level.shape[0] * level.shape[1] for level in chain)
     data = np.concatenate(rows) if rows else np.zeros((0, 4), np.float32)
@@ -279,14 +293,64 @@ def bilinear4(data, first, h, w, s, t, wrap_s, wrap_t):
 
 
 @kernel(inline=True)
+def closest4(data, first, h, w, s, t, wrap_s, wrap_t):
+    """Cycles' Closest: texel (⌊s·w⌋, ⌊(1 − t)·h⌋) (row 0 = top), wrapped; 0 outside a "black" texture."""
+    x = _wrap(int(math.floor(s * w)), w, wrap_s)
+    y = _wrap(int(math.floor((1.0 - t) * h)), h, wrap_t)
+    if x < 0 or y < 0:
+        return 0.0, 0.0, 0.0, 0.0
+    a = first + y * w + x
+    return data[a, 0], data[a, 1], data[a, 2], data[a, 3]
+
+
+@kernel(inline=True)
+def _spline(f):
+    """The uniform cubic B-spline weights of the 4 texels around a point at fraction f past the second."""
+    return ((((-1.0 / 6.0) * f + 0.5) * f - 0.5) * f + 1.0 / 6.0, ((0.5 * f - 1.0) * f) * f + 2.0 / 3.0,
+            ((-0.5 * f + 0.5) * f + 0.5) * f + 1.0 / 6.0, (1.0 / 6.0) * f * f * f)
+
+
+@kernel
+def bicubic4(data, first, h, w, s, t, wrap_s, wrap_t):
+    """Cycles' Cubic (``interp_cubic``): the B-spline of the 4 × 4 texels around (s·w − ½, (1 − t)·h − ½), texels
+    outside a "black" texture 0."""
+    x = s * w - 0.5
+    y = (1.0 - t) * h - 0.5
+    xf, yf = math.floor(x), math.floor(y)
+    wx, wy = _spline(x - xf), _spline(y - yf)
+    ix, iy = int(xf) - 1, int(yf) - 1
+    r = g = b = a = 0.0
+    for j in range(4):
+        yy = _wrap(iy + j, h, wrap_t)
+        if yy < 0:
+            continue
+        for i in range(4):
+            xx = _wrap(ix + i, w, wrap_s)
+            if xx < 0:
+                continue
+            k = first + yy * w + xx
+            f = wx[i] * wy[j]
+            r += f * data[k, 0]
+            g += f * data[k, 1]
+            b += f * data[k, 2]
+            a += f * data[k, 3]
+    return r, g, b, a
+
+
+@kernel(inline=True)
 def _level(data, params, index, level, s, t):
-    """Bilinear lookup in mip level ``level`` of texture ``index``."""
+    """A lookup in mip level ``level`` of texture ``index``, with its interpolation."""
     p = params
     first, h, w = int(p[index, _FIRST]), int(p[index, _H]), int(p[index, _W])
     for _ in range(level):
         first += h * w
         h, w = (h + 1) // 2, (w + 1) // 2
-    return bilinear4(data, first, h, w, s, t, int(p[index, _WRAP_S]), int(p[index, _WRAP_T]))
+    ws, wt, mode = int(p[index, _WRAP_S]), int(p[index, _WRAP_T]), int(p[index, _INTERP])
+    if mode == _CLOSEST:
+        return closest4(data, first, h, w, s, t, ws, wt)
+    if mode == _CUBIC:
+        return bicubic4(data, first, h, w, s, t, ws, wt)
+    return bilinear4(data, first, h, w, s, t, ws, wt)
 
 
 @kernel(inline=True)

@@ -15,10 +15,13 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from . import compose
 from .camera import eye_ray
+from .clip_planes import clip_eye_rays
 from .film import Image, box_filter, majority
 from .integrator import PATH_TYPES, RayCounts
 from .jit import kernel
+from .motion import affine_at, decompose, time_sample
 from .sampling import multijitter, uniform2_1
 from .scene import Scene
 from .settings import RAY_TYPE_AOVS, RenderSettings
@@ -102,6 +105,39 @@ def _tile_eye_rays(cam, x0, y0, x1, y1, n, width, height, seed, o, d, keys):
                 i += 1
 
 
+@kernel
+def _tile_eye_rays_timed(cam, cam_dec, table, x0, y0, x1, y1, n, width, height, seed, o, d, keys, times):
+    """:func:`_tile_eye_rays` with a time per sample (:func:`tracer.motion.time_sample`); with camera motion
+    (``cam_dec`` (1, S, 16), ``cam`` then the camera in its own space) each ray is placed by the camera's matrix
+    at its time."""
+    moving = cam_dec.shape[0] > 0
+    i = 0
+    for py in range(y0, y1):
+        for px in range(x0, x1):
+            for s in range(n * n):
+                u, v, key = pixel_sample(px, py, s, n, width, height, seed)
+                keys[i] = key
+                a, b = 0.0, 0.0
+                if cam.lens_radius > 0.0:
+                    a, b = lens_sample(px, py, s, n, width, seed, key)
+                tau = time_sample(px, py, s, n, width, seed, key, table)
+                times[i] = tau
+                oi, di = eye_ray(cam, u, v, a, b)
+                if moving:
+                    r0, r1, r2 = affine_at(cam_dec, 0, tau)
+                    oi = (r0[0] * oi[0] + r0[1] * oi[1] + r0[2] * oi[2] + r0[3],
+                          r1[0] * oi[0] + r1[1] * oi[1] + r1[2] * oi[2] + r1[3],
+                          r2[0] * oi[0] + r2[1] * oi[1] + r2[2] * oi[2] + r2[3])
+                    wd = (r0[0] * di[0] + r0[1] * di[1] + r0[2] * di[2],
+                          r1[0] * di[0] + r1[1] * di[1] + r1[2] * di[2],
+                          r2[0] * di[0] + r2[1] * di[1] + r2[2] * di[2])
+                    ln = math.sqrt(wd[0] * wd[0] + wd[1] * wd[1] + wd[2] * wd[2])
+                    di = (wd[0] / ln, wd[1] / ln, wd[2] / ln)
+                o[i, 0], o[i, 1], o[i, 2] = oi
+                d[i, 0], d[i, 1], d[i, 2] = di
+                i += 1
+
+
 def eye_samples(settings: RenderSettings, x0: int, y0: int, x1: int, y1: int):
     """Film positions (u, v) and hash keys of the N×N stratified samples of every pixel in a tile (array form of
     :func:`pixel_sample`). Samples of one pixel are consecutive."""
@@ -119,6 +155,35 @@ def eye_rays(scene: Scene, settings: RenderSettings, x0: int, y0: int, x1: int, 
     _tile_eye_rays(scene.camera.packed(), x0, y0, x1, y1, settings.samples, settings.width, settings.height,
                    settings.seed, o, d, keys)
     return o, d, keys
+
+
+_NO_CURVE = np.zeros(0, np.float32)
+_NO_CAMERA_MOTION = np.zeros((0, 2, 16))
+
+
+def has_motion(scene: Scene) -> bool:
+    """Whether ``scene`` has motion blur: something moves across the shutter (``Scene.motion``) or the camera."""
+    return getattr(scene, "motion", None) is not None or scene.camera.motion is not None
+
+
+def timed_eye_rays(scene: Scene, settings: RenderSettings, x0: int, y0: int, x1: int, y1: int):
+    """:func:`eye_rays` and each sample's time across the shutter: (o, d, keys, times); times is None (and the
+    rays are :func:`eye_rays`') when nothing moves, so a static scene pays nothing for motion blur."""
+    if not has_motion(scene):
+        return (*eye_rays(scene, settings, x0, y0, x1, y1), None)
+    count = (x1 - x0) * (y1 - y0) * settings.samples**2
+    o, d, keys = np.empty((count, 3), np.float32), np.empty((count, 3), np.float32), np.empty(count, np.int64)
+    times = np.empty(count, np.float32)
+    cam = scene.camera
+    cam_dec = _NO_CAMERA_MOTION
+    packed = cam.packed()
+    if cam.motion is not None:  # rays in camera space, then placed by the camera at each ray's time
+        packed = packed._replace(rotation=np.eye(3), eye=(0.0, 0.0, 0.0))
+        cam_dec = np.ascontiguousarray(decompose(cam.motion)[None])
+    table = scene.motion.curve if scene.motion is not None and len(scene.motion.curve) else _NO_CURVE
+    _tile_eye_rays_timed(packed, cam_dec, table, x0, y0, x1, y1, settings.samples, settings.width, settings.height,
+                         settings.seed, o, d, keys, times)
+    return o, d, keys, times
 
 
 @kernel(refcounts=False)
@@ -146,6 +211,11 @@ def write_tile(image: Image, res, tile, spp: int) -> None:
     th, tw = y1 - y0, x1 - x0
     _write_rgba(image.rgba, res.color, res.alpha, x0, y0, tw, th, spp)
     aovs = image.aovs
+    if res.compose is not None:  # shadow catchers: Cycles' Combined (the matte) and Shadow Catcher pass
+        rgba, catcher = compose.composite(res.color, res.alpha, res.compose, spp, *res.compose_mode)
+        image.rgba[y0:y1, x0:x1] = rgba.reshape(th, tw, 4)
+        if "shadow_catcher" in aovs:
+            aovs["shadow_catcher"][y0:y1, x0:x1] = catcher.reshape(th, tw, 3)
     if "depth" in aovs:
         hit = np.isfinite(res.depth).reshape(-1, spp)
         dsum = np.where(hit, res.depth.reshape(-1, spp), 0).sum(axis=1)
@@ -182,6 +252,8 @@ def empty_aovs(settings: RenderSettings, h: int, w: int) -> dict:
             aovs[name] = np.zeros((h, w, 3), np.float32)
     if "raydepth" in settings.aovs:
         aovs["raydepth"] = np.full((h, w), -1, np.int32)
+    if "shadow_catcher" in settings.aovs:  # 1 where no catcher is seen (tracer.compose)
+        aovs["shadow_catcher"] = np.ones((h, w, 3), np.float32)
     return aovs
 
 
@@ -195,12 +267,17 @@ def trace_tile(session, settings: RenderSettings, tile, cancelled=None):
     scene = session.scene
     integ = session.integrator(settings)
     x0, y0, x1, y1 = tile
-    o, d, keys = eye_rays(scene, settings, x0, y0, x1, y1)
-    res = integ.trace(o, d, keys, cancelled or (lambda: False), ray_types=uses_ray_types(settings))
+    o, d, keys, times = timed_eye_rays(scene, settings, x0, y0, x1, y1)
     cam = scene.camera
-    if cam.near > 0:  # depth is measured from the eye (the film plane for orthographic cameras)
-        res.depth += (np.linalg.norm(o - cam.position.astype(np.float32), axis=1)
-                      if cam.projection == "perspective" else np.float32(cam.near))
+    t_max = None
+    if cam.clipping_planes:  # each ray's valid interval (tracer.clip_planes): origin moved to its start
+        o, t_max = clip_eye_rays(cam, o, d, cam.far - cam.near)
+    res = integ.trace(o, d, keys, cancelled or (lambda: False), ray_types=uses_ray_types(settings), t_max=t_max,
+                      times=times)
+    if cam.near > 0 or cam.clipping_planes:  # depth is measured from the eye (the film plane for orthographic)
+        rel = o - cam.position.astype(np.float32)
+        res.depth += (np.linalg.norm(rel, axis=1) if cam.projection == "perspective"
+                      else rel @ -cam.camera_to_world[:3, 2].astype(np.float32))
     return res
 
 

@@ -89,19 +89,20 @@ def fold_clipping_planes(raw: dict, warn) -> dict:
     (UsdGeomCamera).
     A plane parallel to the image plane (a = b = 0) is a depth bound on depth = −z: c < 0 keeps depth >= d/c (it
     raises ``near``), c > 0 keeps depth <= d/c (it lowers ``far``) — what the tracer's near/far planes do. Oblique
-    planes are not supported (one warning naming the camera)."""
+    planes stay planes: the tracer clips each eye ray to the interval they keep (tracer.clip_planes)."""
     out = dict(raw)
-    oblique = 0
+    oblique = []
     for a, b, c, d in raw.get("clipping_planes", ()):
         if abs(a) > 1e-9 * abs(c) or abs(b) > 1e-9 * abs(c) or c == 0:
-            oblique += 1
+            if a or b or c:
+                oblique.append((a, b, c, d))
+            elif d < 0:  # 0·x + d >= 0 keeps nothing
+                warn(f"{raw['path']}: clipping plane {(a, b, c, d)} cuts off everything (ignored)")
         elif c < 0:  # c·z >= −d, z <= −d/c: depth >= d/c
             out["near"] = max(out["near"], d / c)
         else:  # z >= −d/c: depth <= d/c
             out["far"] = min(out["far"], d / c)
-    if oblique:
-        warn(f"{raw['path']}: {oblique} clipping plane(s) not parallel to the image plane are not supported "
-             "(ignored); planes parallel to it are honoured as near/far")
+    out["clipping_planes"] = oblique
     return out
 
 
@@ -131,7 +132,7 @@ def to_tracer(raw: dict, width: int, height: int, policy: str = CONFORM_POLICY, 
     return Camera(camera_to_world=raw["camera_to_world"], projection=raw["projection"],
                   focal_length=raw["focal_length"], horizontal_aperture=h * scale, vertical_aperture=v * scale,
                   horizontal_aperture_offset=ho * scale, vertical_aperture_offset=vo * scale, near=near, far=far,
-                  **lens_of(raw))
+                  clipping_planes=tuple(raw.get("clipping_planes", ())), **lens_of(raw))
 
 
 def framing_distance(bounds: np.ndarray, up_axis: str, half_fov: float) -> float:

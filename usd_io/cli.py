@@ -170,8 +170,13 @@ def cmd_render(args) -> int:
         try:
             out = output_for(args.output, scene_path) if args.output else _product_output(args, scene_path)
             check_output(out)
-            if render_file(StageRequest.from_args(args, scene_path), settings, out, frames, outputs, args) != EXIT_OK:
-                failed += 1
+            request = StageRequest.from_args(args, scene_path)
+            jobs = [(request, out)] + ([] if args.output else _more_products(request))
+            for _r, check_out in jobs[1:]:
+                check_output(check_out)
+            for job_request, job_out in jobs:  # without -o: every RenderProduct (usd_io.render_settings)
+                if render_file(job_request, settings, job_out, frames, outputs, args) != EXIT_OK:
+                    failed += 1
         except ValueError as exc:  # UsdInputError (BadInput) is a ValueError
             if len(args.scenes) == 1:
                 raise
@@ -214,10 +219,17 @@ def render_file(request: StageRequest, settings, output: str, frames, outputs: O
             print_warnings(info)
             settings, outputs = _render_vars(info, settings, outputs)
         _prepare_kernels(args.quiet)
-        image = render(scene, settings.with_(width=info.width, height=info.height))
-        _warn_not_finite(image.rgba, request.path)
         out = frame_path(output, frame, many)
-        outputs.write(image, out)
+        stream = outputs.stream(out, info.width, info.height)  # a PNG is encoded while the tiles are traced
+        try:
+            image = render(scene, settings.with_(width=info.width, height=info.height),
+                           on_tile=stream.on_tile if stream is not None else None)
+        except BaseException:
+            if stream is not None:
+                stream.abort()
+            raise
+        _warn_not_finite(image.rgba, request.path)
+        outputs.write(image, out, stream)
         if not args.quiet:
             s = image.stats
             print(f"{out}: {info.width}x{info.height}, {len(scene.triangles):,} triangles, "
@@ -236,9 +248,19 @@ def _product_output(args, scene_path: str) -> str:
     names = product_names(open_stage(scene_path), getattr(args, "render_settings_prim", None))
     if not names:
         raise BadInput(f"{scene_path}: -o OUT is required (the stage has no RenderProduct with a productName)")
-    if len(names) > 1:
-        warn(f"{scene_path}: {len(names)} RenderProducts: the picture is written to the first, {names[0]}")
     return names[0]
+
+
+def _more_products(request) -> list:
+    """(request, productName) of the RenderProducts after the first: each renders with its own camera, size and
+    RenderVars (``--render-settings`` naming the product prim)."""
+    import dataclasses
+
+    from .render_settings import products
+    from .stage import open_stage
+
+    more = products(open_stage(request.path), request.render_settings_prim)[1:]
+    return [(dataclasses.replace(request, render_settings_prim=prim), name) for name, prim in more]
 
 
 def _render_vars(info, settings, outputs):

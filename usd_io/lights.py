@@ -32,6 +32,14 @@ Blender writes ``enableColorTemperature = 1`` on every light without a temperatu
 6500 K fallback would tint every light by (1.04, 0.98, 1.03). An authored temperature is USD's blackbody colour
 divided by its 6500 K value, so 6500 K is white as in Blender.
 
+Linking (:func:`light_links`, tracer/linking.py): ``collection:lightLink`` (the objects a light lights) and
+``collection:shadowLink`` (the objects that shadow it), UsdCollectionAPI membership as pxr computes it
+(``ComputeMembershipQuery`` / ``IsPathIncluded``: includeRoot, includes, excludes, expansion rule, membership
+expressions) over each object's prim path (a PointInstancer's instances: the instancer's path);
+``inputs:shadow:enable`` (ShadowAPI) = cast shadows; ``inputs:diffuse`` / ``inputs:specular`` multiply the light's
+diffuse / specular (glossy) response. Ray visibility of objects has no renderer-neutral USD form (purpose visibility
+is not ray visibility): it is not read.
+
 Light world transforms scale them: a sphere's radius by the mean axis scale, a rect/disk's size along its axes.
 Lights see the camera-space units of the stage (no metersPerUnit conversion), like the geometry.
 """
@@ -39,9 +47,10 @@ Lights see the camera-space units of the stage (no metersPerUnit conversion), li
 from __future__ import annotations
 
 import numpy as np
-from pxr import UsdLux
+from pxr import Sdf, UsdLux
 
 from tracer import AreaLight, DistantLight, PointLight, SpotLight
+from tracer.linking import LightLink
 
 from .dome import dome_texture
 
@@ -263,3 +272,35 @@ def default_lights(camera) -> tuple:
     sun = DistantLight(direction=forward, irradiance=(DEFAULT_HEADLIGHT_IRRADIANCE,) * 3, angle=0.0,
                        name="default camera light")
     return sun, np.full(3, DEFAULT_DOME, np.float32)
+
+
+def _members(collection, paths: list) -> np.ndarray | None:
+    """Indices of ``paths`` the collection includes; None for a collection of everything (its fallback: includeRoot
+    and nothing else authored), so an unlinked light costs no membership queries."""
+    if not collection:
+        return None
+    authored = (collection.GetIncludesRel().GetTargets() or collection.GetExcludesRel().GetTargets()
+                or collection.GetMembershipExpressionAttr().HasAuthoredValue())
+    if not authored and collection.GetIncludeRootAttr().Get() is not False:
+        return None
+    query = collection.ComputeMembershipQuery()
+    return np.array([i for i, p in enumerate(paths) if query.IsPathIncluded(Sdf.Path(p))], np.int64)
+
+
+def light_links(prims: list, object_names: list, time) -> list:
+    """One :class:`tracer.linking.LightLink` per light prim (None: a light of no prim, e.g. the default light);
+    ``object_names`` are the scene's object names, prim paths (``path[...]`` for a PointInstancer's pieces and
+    instances). Empty when no light is linked."""
+    paths = [str(n).split("[", 1)[0] if str(n).startswith("/") else "/" for n in object_names]
+    links = []
+    for prim in prims:
+        link = LightLink()
+        if prim is not None:
+            lux = UsdLux.LightAPI(prim)
+            link.receivers = _members(lux.GetLightLinkCollectionAPI(), paths)
+            link.blockers = _members(lux.GetShadowLinkCollectionAPI(), paths)
+            link.cast_shadow = bool(_get(UsdLux.ShadowAPI(prim).GetShadowEnableAttr(), time, True))
+            link.diffuse = _finite(float(_get(lux.GetDiffuseAttr(), time, 1.0)), "inputs:diffuse")
+            link.glossy = _finite(float(_get(lux.GetSpecularAttr(), time, 1.0)), "inputs:specular")
+        links.append(link)
+    return [] if all(k.is_default() for k in links) else links

@@ -327,6 +327,8 @@ class MaterialTable:
             idx, _const = self._texture(n, label, name, needs)
             if idx is not None:
                 t["normal_texture"] = idx
+        elif isinstance(n, net.GraphLookup):  # a MaterialX normalmap/bump network: a world-space normal
+            t["normal_graph"] = self._graph(n, label, name, needs)
         elif isinstance(n, net.Const):
             if n.value is not None and not np.allclose(net.floats(n.value, 3, neutral), neutral):
                 self.warn(f"{label}: a constant {name} {tuple(n.value)} is not supported (ignored)")
@@ -358,9 +360,17 @@ class MaterialTable:
         self.warn(f"{label}: {name} driven by {self._what(src)} is not supported (constant {default} used)")
         return default
 
+    def _graph(self, src, label, name, needs):
+        from .mtlx_graph import MxProgram  # a MaterialX network, written into the graph by principled_graph
+
+        return MxProgram(self, src, label, name, needs)
+
     def _scalar_input(self, t, key, src, default, label, name, needs):
         if isinstance(src, net.Const):
             t[key] = float(net.floats(src.value, 1, (default,))[0])
+            return
+        if isinstance(src, net.GraphLookup):
+            t.update({key: 1.0, f"{key}_texture": self._graph(src, label, name, needs), f"{key}_channel": 0})
             return
         if isinstance(src, net.TextureLookup):
             idx, const = self._texture(src, label, name, needs)
@@ -378,6 +388,10 @@ class MaterialTable:
     def _colour_input(self, t, key, src, default, label, name, needs):
         if isinstance(src, net.Const):
             t[key] = net.floats(src.value, 3, default)
+            return
+        if isinstance(src, net.GraphLookup):
+            t.update({key: (1.0, 1.0, 1.0), f"{key}_texture": self._graph(src, label, name, needs),
+                      f"{key}_channel": -1})
             return
         if isinstance(src, net.TextureLookup):
             idx, const = self._texture(src, label, name, needs)
@@ -472,6 +486,8 @@ class MaterialTable:
                 base = net.Const(tuple(weight * c for c in net.floats(base.value, 3, names["base_default"])))
             elif isinstance(base, net.TextureLookup):
                 base.scale = tuple(weight * c for c in base.scale[:3]) + (base.scale[3],)
+            elif isinstance(base, net.GraphLookup):
+                base.scale = weight
             if isinstance(base, net.PrimvarLookup):  # a primvar read (Arnold's user_data_rgb): vertex colour
                 needs.color = (base.name, net.floats(base.fallback, 3, names["base_default"]))
                 t.update(base_color=(weight, weight, weight), vertex_color=True)
@@ -536,6 +552,8 @@ def _weighted(src, w: float):
         return net.Const(tuple(w * c for c in net.floats(src.value, 3, (1.0, 1.0, 1.0))))
     if isinstance(src, net.TextureLookup):
         src.scale = tuple(w * c for c in src.scale[:3]) + (src.scale[3],)
+    if isinstance(src, net.GraphLookup):
+        src.scale = w
     return src
 
 
@@ -553,6 +571,8 @@ def principled_graph(name: str, f: dict, color_primvar: str = "displayColor") ->
     from tracer.shader_fields import graph_from_fields
 
     def texture(g, lk: UVLookup):
+        if hasattr(lk, "write"):  # a MaterialX network (usd_io.mtlx_graph.MxProgram)
+            return lk.write(g)
         st = g.add("uvmap", attribute=lk.uv if lk.uv not in (None, "st") else "")["UV"]
         if not np.allclose(lk.transform, np.eye(3)):
             st = g.add("usd_transform2d", {"in": st}, matrix=np.asarray(lk.transform, np.float64))["result"]
@@ -560,4 +580,8 @@ def principled_graph(name: str, f: dict, color_primvar: str = "displayColor") ->
                      fallback=tuple(lk.fallback), name=lk.label)
         return node, lk.uv if lk.uv not in (None, "st") else ""
 
-    return graph_from_fields(name, f, texture, color_primvar, base_default=FALLBACK_DIFFUSE)
+    g = graph_from_fields(name, f, texture, color_primvar, base_default=FALLBACK_DIFFUSE)
+    if f.get("normal_graph") is not None:  # a MaterialX normal network: the Principled BSDF's Normal
+        bsdf = next(n for n in g.nodes.values() if n.type == "principled_bsdf")
+        g.link(f["normal_graph"].value(g).x, bsdf, "Normal")
+    return g

@@ -1,22 +1,30 @@
-"""MaterialX documents referenced from USD (``references = @looks.mtlx@</MaterialX/Materials>``).
+"""MaterialX documents referenced from USD (``references = @looks.mtlx@</MaterialX/Materials>``), and the node
+definitions every MaterialX network is read against.
 
-usd-core has no ``usdMtlx`` file format plugin, so such a reference does not compose. This module translates a
-``.mtlx`` document into an in-memory USD layer the way usdMtlx lays it out (the subset the reader understands:
-``/MaterialX/Materials/<surfacematerial>`` Material prims whose ``outputs:mtlx:surface`` connects to a child
-Shader ``ND_<category>_surfaceshader``; each node graph the shader reads copied into the Material as a NodeGraph
-of ``ND_<category>_<type>`` Shaders) and points the stage's references at it, in memory — no file is written and
-the stage's own files are not changed on disk.
+usd-core has no ``usdMtlx`` file format plugin, so such a reference does not compose. This module reads a
+``.mtlx`` document with the MaterialX library (``pip install MaterialX``: XIncludes, version upgrades, node
+definitions), translates it into an in-memory USD layer the way usdMtlx lays it out (``/MaterialX/Materials/<m>``
+Material prims whose ``outputs:mtlx:surface`` connects to a child Shader; each node graph the shader reads copied
+into the Material as a NodeGraph of Shaders, its interface inputs as NodeGraph inputs) and points the stage's
+references at it, in memory — no file is written and the stage's own files are not changed on disk.
 
-Values keep their MaterialX types (float, color3, vector2/3/4, filename, ...); ``filename`` inputs become asset
-paths made absolute against the document's folder (and ``fileprefix``); an input's ``colorspace`` becomes the
+Each Shader's ``info:id`` is the name of the node definition MaterialX resolves for the node (``ND_add_color3FA``,
+``ND_noise3d_float``, or a document's own ``<nodedef>``); a node with several outputs gets one ``outputs:<name>``
+each. Values keep their MaterialX types; ``filename`` values are resolved as MaterialX resolves them (the
+``fileprefix`` of the input or of any ancestor element) and made absolute against the file that authored them (an
+XIncluded file's own folder); an input's active colour space (its own or an ancestor's ``colorspace``) becomes the
 attribute's ``colorSpace``. Documents that cannot be parsed stay unresolved (the composition warning names them).
+
+:func:`nodedef` finds a node definition by name among the standard libraries and the definitions of every document
+read so far (their ``<nodedef>`` s and the ``<nodegraph nodedef=...>`` s implementing them):
+:mod:`usd_io.mtlx_graph` reads networks against it.
 """
 
 from __future__ import annotations
 
 import os
-import xml.etree.ElementTree as ET
 
+import MaterialX as mx
 from pxr import Sdf
 
 #: MaterialX type -> Sdf value type.
@@ -24,16 +32,60 @@ TYPES = {"float": Sdf.ValueTypeNames.Float, "integer": Sdf.ValueTypeNames.Int, "
          "color3": Sdf.ValueTypeNames.Color3f, "color4": Sdf.ValueTypeNames.Color4f,
          "vector2": Sdf.ValueTypeNames.Float2, "vector3": Sdf.ValueTypeNames.Float3,
          "vector4": Sdf.ValueTypeNames.Float4, "filename": Sdf.ValueTypeNames.Asset,
-         "string": Sdf.ValueTypeNames.String, "surfaceshader": Sdf.ValueTypeNames.Token}
-NOT_NODES = {"input", "output", "nodegraph", "nodedef", "surfacematerial", "look", "materialassign", "collection",
-             "geominfo", "token", "variant", "variantset", "implementation", "typedef", "backdrop", "propertyset"}
+         "string": Sdf.ValueTypeNames.String, "surfaceshader": Sdf.ValueTypeNames.Token,
+         "matrix33": Sdf.ValueTypeNames.Matrix3d, "matrix44": Sdf.ValueTypeNames.Matrix4d}
 
 #: Translated documents by absolute path (layers must stay alive while stages reference them).
 _LAYERS: dict[str, Sdf.Layer | None] = {}
+_LIB: dict = {}
+
+
+def _library() -> mx.Document:
+    """The standard data libraries (stdlib, pbrlib, bxdf: Standard Surface, OpenPBR, UsdPreviewSurface)."""
+    if "std" not in _LIB:
+        lib = mx.createDocument()
+        mx.loadLibraries(mx.getDefaultDataLibraryFolders(), mx.getDefaultDataSearchPath(), lib)
+        _LIB["std"] = lib
+        _LIB["docs"] = mx.createDocument()  # the documents' own definitions
+        _LIB["docs"].setDataLibrary(lib)
+    return _LIB["std"]
+
+
+def definitions() -> mx.Document:
+    """A document whose nodedef lookups see the libraries and every read document's own definitions."""
+    _library()
+    return _LIB["docs"]
+
+
+def nodedef(name: str):
+    """The node definition called ``name`` (None when neither the libraries nor a read document define it)."""
+    return definitions().getNodeDef(name) or None
+
+
+def _register(doc: mx.Document) -> None:
+    """Copy a document's own node definitions and their node-graph implementations into :func:`definitions`."""
+    defs = definitions()
+    for nd in doc.getNodeDefs():
+        if not defs.getChild(nd.getName()):
+            defs.addNodeDef(nd.getName(), nd.getType(), nd.getNodeString()).copyContentFrom(nd)
+    for ng in doc.getNodeGraphs():
+        if ng.getNodeDefString() and not defs.getChild(ng.getName()):
+            defs.addNodeGraph(ng.getName()).copyContentFrom(ng)
+
+
+def read_document(path: str) -> mx.Document:
+    """A ``.mtlx`` file read with its XIncludes (relative to its folder), upgraded to the library's version and
+    resolved against the standard libraries."""
+    doc = mx.createDocument()
+    mx.readFromXmlFile(doc, path, mx.FileSearchPath(os.path.dirname(path)))
+    doc.setDataLibrary(_library())
+    _register(doc)
+    return doc
 
 
 def _value(mx_type: str, text: str, base_dir: str):
     if mx_type == "filename":
+        text = text.replace("\\", "/") if "\\" in text and not os.path.exists(text) else text
         return Sdf.AssetPath(text if os.path.isabs(text) else os.path.normpath(os.path.join(base_dir, text)))
     if mx_type == "string":
         return text
@@ -45,19 +97,30 @@ def _value(mx_type: str, text: str, base_dir: str):
     return nums[0] if len(nums) == 1 else tuple(nums)
 
 
-def _file_prefix(elem, parents) -> str:
-    for e in [elem, *reversed(parents)]:
-        if e.get("fileprefix"):
-            return e.get("fileprefix")
-    return ""
+def _nodedef_name(node) -> str:
+    nd = node.getNodeDef()
+    return nd.getName() if nd else f"ND_{node.getCategory()}_{node.getType()}"
+
+
+def _outputs(node) -> list:
+    """(name, type) of a node's outputs: its definition's (several for separate3 & co.), else ``out``."""
+    if node.getType() == "surfaceshader":
+        return [("surface", "surfaceshader")]
+    nd = node.getNodeDef()
+    outs = [(o.getName(), o.getType()) for o in nd.getActiveOutputs()] if nd else []
+    return outs if len(outs) > 1 else [("out", node.getType())]
+
+
+def _out_prop(node, output: str) -> str:
+    if node.getType() == "surfaceshader":
+        return "outputs:surface"
+    return f"outputs:{output or 'out'}"
 
 
 class _Writer:
-    def __init__(self, root, base_dir: str):
-        self.root, self.base_dir = root, base_dir
+    def __init__(self, doc, base_dir: str):
+        self.doc, self.base_dir = doc, base_dir
         self.layer = Sdf.Layer.CreateAnonymous(".usda")
-        self.graphs = {g.get("name"): g for g in root.findall("nodegraph")}
-        self.nodes = {n.get("name"): n for n in root if n.tag not in NOT_NODES}
 
     def prim(self, path: Sdf.Path, type_name: str) -> Sdf.PrimSpec:
         Sdf.CreatePrimInLayer(self.layer, path)
@@ -66,78 +129,89 @@ class _Writer:
         spec.typeName = type_name
         return spec
 
-    def attr(self, spec, name, mx_type):
+    @staticmethod
+    def attr(spec, name, mx_type):
         return Sdf.AttributeSpec(spec, name, TYPES.get(mx_type, Sdf.ValueTypeNames.Token))
 
-    def shader(self, parent: Sdf.Path, node, scope: dict, graph_path: Sdf.Path | None, parents) -> Sdf.Path:
-        """One node as a Shader under ``parent``; its upstream nodes (by ``nodename`` in ``scope``) too."""
-        path = parent.AppendChild(node.get("name"))
+    def shader(self, parent: Sdf.Path, node, graph_path: Sdf.Path | None) -> Sdf.Path:
+        """One node as a Shader under ``parent``; its upstream nodes (in the node's own scope) too."""
+        path = parent.AppendChild(node.getName())
         if self.layer.GetPrimAtPath(path):
             return path
         spec = self.prim(path, "Shader")
         ident = Sdf.AttributeSpec(spec, "info:id", Sdf.ValueTypeNames.Token, variability=Sdf.VariabilityUniform)
-        ident.default = f"ND_{node.tag}_{node.get('type')}"
-        self.attr(spec, "outputs:out" if node.get("type") != "surfaceshader" else "outputs:surface",
-                  node.get("type"))
-        for inp in node.findall("input"):
-            self.input(spec, path, inp, scope, graph_path, [*parents, node])
+        ident.default = _nodedef_name(node)
+        for name, mx_type in _outputs(node):
+            self.attr(spec, f"outputs:{name}", mx_type)
+        for inp in node.getInputs():
+            self.input(spec, path, inp, graph_path)
         return path
 
-    def input(self, spec, owner: Sdf.Path, inp, scope: dict, graph_path, parents) -> None:
-        mx_type = inp.get("type", "float")
-        a = self.attr(spec, f"inputs:{inp.get('name')}", mx_type)
-        if inp.get("colorspace"):
-            a.SetInfo("colorSpace", inp.get("colorspace"))
-        if inp.get("nodename") and inp.get("nodename") in scope:
-            up = self.shader(owner.GetParentPath() if graph_path is None else graph_path,
-                             scope[inp.get("nodename")], scope, graph_path, parents)
-            a.connectionPathList.Prepend(up.AppendProperty(_out_name(scope[inp.get("nodename")])))
-        elif inp.get("nodegraph") and inp.get("nodegraph") in self.graphs:
-            g = self.graph(owner.GetParentPath(), self.graphs[inp.get("nodegraph")], parents)
-            a.connectionPathList.Prepend(g.AppendProperty(f"outputs:{inp.get('output') or 'out'}"))
-        elif inp.get("value") is not None:
-            text = inp.get("value")
-            if mx_type == "filename":
-                text = _file_prefix(inp, parents) + text
+    def input(self, spec, owner: Sdf.Path, inp, graph_path) -> None:
+        """One input: a connection to a node of its scope or to a document-level node graph, an interface
+        connection to its node graph's input, or a value."""
+        mx_type = inp.getType() or "float"
+        a = self.attr(spec, f"inputs:{inp.getName()}", mx_type)
+        space = inp.getActiveColorSpace()
+        if space:
+            a.SetInfo("colorSpace", space)
+        scope = inp.getParent().getParent()  # the node's node graph or the document
+        up = scope.getNode(inp.getNodeName()) if inp.getNodeName() else None
+        if up is not None:
+            where = owner.GetParentPath() if graph_path is None else graph_path
+            p = self.shader(where, up, graph_path)
+            a.connectionPathList.Prepend(p.AppendProperty(_out_prop(up, inp.getOutputString())))
+            return
+        if inp.getNodeGraphString():
+            g = self.doc.getNodeGraph(inp.getNodeGraphString())
+            if g is not None:
+                root = owner.GetParentPath() if graph_path is None else graph_path.GetParentPath()
+                gp = self.graph(root, g)
+                a.connectionPathList.Prepend(gp.AppendProperty(f"outputs:{inp.getOutputString() or 'out'}"))
+            return
+        if inp.getInterfaceName() and graph_path is not None:
+            a.connectionPathList.Prepend(graph_path.AppendProperty(f"inputs:{inp.getInterfaceName()}"))
+            return
+        if inp.getValueString():
+            text = inp.getResolvedValueString() if mx_type == "filename" else inp.getValueString()
+            src = inp.getActiveSourceUri()
+            base = os.path.dirname(src) if src and os.path.isabs(src) else self.base_dir
             try:
-                a.default = _value(mx_type, text, self.base_dir)
+                a.default = _value(mx_type, text, base)
             except (ValueError, IndexError):
                 pass
 
-    def graph(self, parent: Sdf.Path, g, parents) -> Sdf.Path:
-        path = parent.AppendChild(g.get("name"))
+    def graph(self, parent: Sdf.Path, g) -> Sdf.Path:
+        path = parent.AppendChild(g.getName())
         if self.layer.GetPrimAtPath(path):
             return path
         spec = self.prim(path, "NodeGraph")
-        scope = {n.get("name"): n for n in g if n.tag not in NOT_NODES}
-        for out in g.findall("output"):
-            a = self.attr(spec, f"outputs:{out.get('name')}", out.get("type", "float"))
-            node = scope.get(out.get("nodename"))
+        for inp in g.getInputs():  # the graph's interface
+            self.input(spec, path, inp, None)
+        for out in g.getOutputs():
+            a = self.attr(spec, f"outputs:{out.getName()}", out.getType() or "float")
+            node = g.getNode(out.getNodeName()) if out.getNodeName() else None
             if node is not None:
-                up = self.shader(path, node, scope, path, [*parents, g])
-                a.connectionPathList.Prepend(up.AppendProperty(_out_name(node)))
+                up = self.shader(path, node, path)
+                a.connectionPathList.Prepend(up.AppendProperty(_out_prop(node, out.getOutputString())))
         return path
 
     def material(self, m) -> None:
-        path = Sdf.Path("/MaterialX/Materials").AppendChild(m.get("name"))
+        path = Sdf.Path("/MaterialX/Materials").AppendChild(m.getName())
         spec = self.prim(path, "Material")
         out = Sdf.AttributeSpec(spec, "outputs:mtlx:surface", Sdf.ValueTypeNames.Token)
-        for inp in m.findall("input"):
-            node = self.nodes.get(inp.get("nodename"))
-            if inp.get("type") == "surfaceshader" and node is not None:
-                sh = self.shader(path, node, self.nodes, None, [m])
+        for inp in m.getInputs():
+            node = inp.getConnectedNode()
+            if inp.getType() == "surfaceshader" and node is not None:
+                sh = self.shader(path, node, None)
                 out.connectionPathList.Prepend(sh.AppendProperty("outputs:surface"))
 
     def translate(self) -> Sdf.Layer:
         self.prim(Sdf.Path("/MaterialX"), "Scope")
         self.prim(Sdf.Path("/MaterialX/Materials"), "Scope")
-        for m in self.root.findall("surfacematerial"):
+        for m in self.doc.getMaterialNodes():
             self.material(m)
         return self.layer
-
-
-def _out_name(node) -> str:
-    return "outputs:surface" if node.get("type") == "surfaceshader" else "outputs:out"
 
 
 def translate(path: str) -> Sdf.Layer | None:
@@ -145,9 +219,8 @@ def translate(path: str) -> Sdf.Layer | None:
     path = os.path.abspath(path)
     if path not in _LAYERS:
         try:
-            root = ET.parse(path).getroot()
-            _LAYERS[path] = _Writer(root, os.path.dirname(path)).translate() if root.tag == "materialx" else None
-        except (OSError, ET.ParseError):
+            _LAYERS[path] = _Writer(read_document(path), os.path.dirname(path)).translate()
+        except (mx.Exception, OSError, ValueError):
             _LAYERS[path] = None
     return _LAYERS[path]
 

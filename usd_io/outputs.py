@@ -46,10 +46,28 @@ class Outputs:
         if self.exposure:
             image.rgba[..., :3] *= np.float32(2.0 ** self.exposure)
 
-    def write(self, image, out: str) -> None:
-        """Expose ``image`` (in place) and write it and its AOVs to ``out`` (atomically, as tracer.film writes)."""
+    def stream(self, out: str, width: int, height: int):
+        """For a PNG ``out``: a :class:`tracer.png_stream.StreamedPNG` to hand to ``tracer.render`` as ``on_tile``
+        (the picture is encoded band by band while the render runs, this exposure applied); None otherwise."""
+        if os.path.splitext(out)[1].lower() != ".png":
+            return None
+        from tracer.png_stream import StreamedPNG
+
+        try:
+            return StreamedPNG(out, width, height, scale=np.float32(2.0 ** self.exposure))
+        except ValueError as exc:
+            raise BadInput(str(exc)) from None
+
+    def write(self, image, out: str, stream=None) -> None:
+        """Expose ``image`` (in place) and write it and its AOVs to ``out`` (atomically, as tracer.film writes);
+        with ``stream`` (:meth:`stream`'s, fed by the render) the picture is what the stream wrote."""
+        if stream is not None:
+            try:
+                stream.finish(image)  # before the exposure below: the stream applies it itself
+            except ValueError as exc:
+                raise BadInput(str(exc)) from None
         self.expose(image)
-        write_outputs(image, out, self.aovs, max_depth=self.max_depth)
+        write_outputs(image, out, self.aovs, max_depth=self.max_depth, picture=stream is None)
 
 
 def warn(message: str) -> None:
@@ -102,10 +120,12 @@ def check_output(path: str, types=OUTPUT_TYPES):
         raise BadInput(f"{path}: output directory {directory} does not exist")
 
 
-def write_outputs(image, out, aovs, max_depth: int | None = None) -> None:
-    """The image and its AOVs (EXR next to it; ``raydepth`` also as a heat-map PNG scaled to ``max_depth``)."""
+def write_outputs(image, out, aovs, max_depth: int | None = None, picture: bool = True) -> None:
+    """The image (unless ``picture`` is False: written already) and its AOVs (EXR next to it; ``raydepth`` also as a
+    heat-map PNG scaled to ``max_depth``)."""
     try:
-        _save(image, out)
+        if picture:
+            _save(image, out)
         for name in aovs:
             a = image.aovs[name]
             a = a[..., None] if a.ndim == 2 else a

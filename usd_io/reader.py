@@ -25,7 +25,8 @@ from .dome import environment
 from .layer_metadata import meters_per_unit
 from .diagnostics import summarize
 from .exporters import light_units as exporter_light_units
-from .lights import convert_light, default_lights
+from .lights import convert_light, default_lights, light_links
+from .holdout import holdout_flags
 from .material import MaterialTable
 from .render_settings import CONFORM, DEFAULT_CONFORM, crop_to_data_window, read_render_settings
 from .nurbs import read_nurbs_curves, read_nurbs_patch, read_tet_mesh
@@ -33,7 +34,7 @@ from .mesh import COMPLEXITY, DEFAULT_COMPLEXITY, SUBDIVIDED, MeshData, read_mes
 from .skel import Skinning
 from .stage import (DEFAULT_PURPOSES, captured_stderr, UsdInputError, check_purposes, composition_warnings, open_stage,
                     renderable_prims, stage_messages, stage_time)
-from .xform import Transforms, transform_points
+from .xform import Transforms, transform_points, stage_motion
 
 
 @dataclass
@@ -75,6 +76,7 @@ class _Reader:
         self.hi = np.full(3, -np.inf)
         self._proto_cache: dict[str, MeshData | None] = {}
         self._proto_ids: dict[tuple, int] = {}  # (prototype prim path, material rows) -> tracer prototype object id
+        self.light_prims: list = []  # the UsdLux prim of each tracer light
         self._grey = None
         self.empty: set = set()  # gprims whose geometry is absent or has no faces at this time
         self.skinning = Skinning(time, self.xf.world)
@@ -270,6 +272,7 @@ class _Reader:
             return
         if light is not None:
             self.b.add_light(light)
+            self.light_prims.append(prim)  # its links (usd_io.lights.light_links), in the order of b.lights
             self.info.lights.append((str(prim.GetPath()), kind, light))
         elif world is not None:  # `whitted info` shows what the dome is: no "environment" key without a texture
             self._add_world(prim, kind, world)
@@ -331,6 +334,14 @@ def _say_if_empty(r, info) -> None:
         info.warn(f"the stage has no visible gprims with geometry{empty}: the frame shows only the background")
         return
     kinds = sorted({p.GetTypeName() for p in gprims})
+    if all(not p.IsA(UsdGeom.PointInstancer) and p.GetTypeName() not in GPRIM_TYPES and not p.IsA(UsdGeom.Mesh)
+           and not _is_points_or_curves(p) for p in gprims):  # only volumes / splats: one line says it all
+        skipped = {f"{p.GetPath()}: {p.GetTypeName()} is not supported (skipped)" for p in gprims}
+        info.warnings[:] = [w for w in info.warnings if w not in skipped]
+        names = ", ".join(str(p.GetPath()) for p in gprims[:3]) + (", ..." if len(gprims) > 3 else "")
+        info.warn(f"the stage's only gprims are {len(gprims)} {'/'.join(kinds)} prim(s) ({names}), which the "
+                  "tracer does not render: the frame shows only the background")
+        return
     info.nothing_drawn = (f"{len(gprims)} visible gprim(s) ({', '.join(kinds)}) gave 0 triangles (see the warnings "
                           "above): nothing is drawn")
     info.warn(info.nothing_drawn)
@@ -479,7 +490,18 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
         info.notes.append("the stage has no lights: lit by a camera headlight and a dim dome as usdview does "
                           "(--no-default-light turns this off)")
     try:
+        prims = r.light_prims + [None] * (len(r.b.lights) - len(r.light_prims))
+        links = light_links(prims, r.b.object_names, tc)
+    except ValueError as exc:
+        info.warn(f"light linking: {exc} (lights unlinked)")
+        links = []
+    try:
         scene = r.b.build()
+        # motion blur across the camera's shutter (usd_io.xform.stage_motion; nothing when it is closed)
+        stage_motion(stage, scene, tc, info.camera, info.render_settings.path if info.render_settings else None,
+                     r.subdivision_level, info.warn)
     except ValueError as exc:  # the tracer's validation of what was read (e.g. a NaN material input)
         raise UsdInputError(f"{label}: {exc}") from None
+    scene.light_links = links
+    scene.object_holdout = holdout_flags(stage, scene.object_names, tc)  # usd_io.holdout: primvars:arnold:matte
     return scene, info

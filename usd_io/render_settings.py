@@ -3,8 +3,10 @@ output files and AOVs.
 
 Which settings: the prim passed (``--render-settings PRIM``, usdrecord's flag), else the stage's
 ``renderSettingsPrimPath`` metadatum, else none. A product's own resolution, camera, pixelAspectRatio,
-aspectRatioConformPolicy and dataWindowNDC override the settings' (UsdRenderSettingsBase), for the first product
-(the picture rendered; the rest of the products are listed as further output files of the same picture).
+aspectRatioConformPolicy and dataWindowNDC override the settings' (UsdRenderSettingsBase). The picture is the first
+product's; ``--render-settings`` may also name a RenderProduct prim, which then renders with its own overrides on
+top of the settings that list it. Without ``-o`` the CLI writes every product: each is rendered with its own
+camera, size and RenderVars and written to its productName (``RenderSpec.product_paths`` lists them).
 
     resolution              image width and height (``--width``/``--height`` win when given)
     camera                  the camera rendered (``--camera`` wins)
@@ -55,17 +57,26 @@ class RenderSpec:
     conform: str = DEFAULT_CONFORM
     data_window: tuple = (0.0, 0.0, 1.0, 1.0)
     products: list = field(default_factory=list)  # productName strings
-    aovs: list = field(default_factory=list)  # tracer AOV names the RenderVars map to
+    aovs: list = field(default_factory=list)  # tracer AOV names the rendered product's RenderVars map to
+    product_paths: list = field(default_factory=list)  # every product's prim path, in order
 
 
 def find_settings(stage, path, warn):
     """The RenderSettings prim: ``path``, else the stage's renderSettingsPrimPath, else None. UsdInputError for a
-    ``path`` that is not a RenderSettings prim."""
+    ``path`` that is neither a RenderSettings nor a RenderProduct prim (for a product: the settings that list it,
+    the stage's first)."""
     label = stage.GetRootLayer().identifier
     if path:
         if not Sdf.Path.IsValidPathString(path) or not Sdf.Path(path).IsAbsolutePath():
             raise UsdInputError(f"{label}: --render-settings {path!r} is not an absolute prim path")
         prim = stage.GetPrimAtPath(path)
+        if prim and prim.IsA(UsdRender.Product):
+            own = [UsdRender.Settings(p) for p in stage.Traverse() if p.IsA(UsdRender.Settings)
+                   and prim.GetPath() in UsdRender.Settings(p).GetProductsRel().GetForwardedTargets()]
+            if not own:
+                raise UsdInputError(f"{label}: --render-settings {path}: no RenderSettings lists this product")
+            default = UsdRender.Settings.GetStageRenderSettings(stage)
+            return next((x for x in own if default and x.GetPath() == default.GetPath()), own[0])
         if not prim or not prim.IsA(UsdRender.Settings):
             found = [str(p.GetPath()) for p in stage.Traverse() if p.IsA(UsdRender.Settings)]
             raise UsdInputError(f"{label}: --render-settings {path}: no RenderSettings prim there "
@@ -86,13 +97,16 @@ def read_render_settings(stage, path, time, warn) -> RenderSpec | None:
         return None
     products = [UsdRender.Product(stage.GetPrimAtPath(p)) for p in settings.GetProductsRel().GetForwardedTargets()]
     products = [p for p in products if p]
-    spec = RenderSpec(path=str(settings.GetPath()))
-    for base in [settings] + products[:1]:  # the first product's own opinions override the settings'
+    spec = RenderSpec(path=str(settings.GetPath()), product_paths=[str(p.GetPath()) for p in products])
+    chosen = next((p for p in products if path and str(p.GetPath()) == path), products[0] if products else None)
+    for base in [settings] + ([chosen] if chosen else []):  # the product's own opinions override the settings'
         _read_base(base, spec, time, authored_only=base is not settings)
     for product in products:
         name = product.GetProductNameAttr().Get(time)
         if name:
             spec.products.append(str(name))
+        if product is not chosen:
+            continue
         for v in product.GetOrderedVarsRel().GetForwardedTargets():
             var = UsdRender.Var(stage.GetPrimAtPath(v))
             if not var:
@@ -103,8 +117,6 @@ def read_render_settings(stage, path, time, warn) -> RenderSpec | None:
                 warn(f"{v}: RenderVar {source!r} has no counterpart in the tracer's AOVs (not written)")
             elif aov and aov not in spec.aovs:
                 spec.aovs.append(aov)
-    if len(products) > 1:
-        warn(f"{spec.path}: {len(products)} RenderProducts: each is written from the first one's camera and size")
     if spec.conform not in CONFORM:
         warn(f"{spec.path}: aspectRatioConformPolicy {spec.conform!r} is not one of UsdRender's "
              f"({', '.join(CONFORM)}): {DEFAULT_CONFORM} used")
@@ -145,10 +157,24 @@ def product_names(stage, path=None) -> list[str]:
     """The productName of every RenderProduct of the RenderSettings ``path`` (or the stage's), in order; the CLI
     writes the picture to the first when ``-o`` is not given. Relative names are relative to the working
     directory, as usdrecord and the renderers' own command lines take them."""
+    return [name for name, _p in products(stage, path)]
+
+
+def products(stage, path=None) -> list[tuple[str, str]]:
+    """(productName, product prim path) of every RenderProduct with a name, in order (see :func:`product_names`):
+    the CLI renders each (its camera, size, RenderVars) when ``-o`` is not given."""
     from pxr import Usd
 
-    spec = read_render_settings(stage, path, Usd.TimeCode.EarliestTime(), lambda _m: None)
-    return [] if spec is None else list(spec.products)
+    tc = Usd.TimeCode.EarliestTime()
+    spec = read_render_settings(stage, path, tc, lambda _m: None)
+    if spec is None:
+        return []
+    out = []
+    for p in spec.product_paths:
+        name = UsdRender.Product(stage.GetPrimAtPath(p)).GetProductNameAttr().Get(tc)
+        if name:
+            out.append((str(name), p))
+    return out
 
 
 def crop_to_data_window(camera, width: int, height: int, window):

@@ -7,6 +7,8 @@ inputs, ``UsdShade.Input.GetValueProducingAttributes``) and returns one of
     TextureLookup(...)                a ``UsdUVTexture`` read through one of its outputs (r, g, b, a or rgb), or a
                                       MaterialX ``image``/``tiledimage`` (a ``normalmap`` over one: scale 2, bias −1)
     PrimvarLookup(name, fallback)     a ``UsdPrimvarReader_float/float2/float3/float4`` (e.g. displayColor)
+    GraphLookup(node, output)         any other MaterialX node with a node definition (noise, ramps, maths...):
+                                      written as IR nodes by :mod:`usd_io.mtlx_graph`
     Unsupported(node id, fallback)    any other node (the caller warns once and uses the fallback)
 
 The texture-coordinate chain of a ``UsdUVTexture`` (its ``st`` input) is folded into the lookup: the primvar name of
@@ -65,6 +67,18 @@ class PrimvarLookup:
     name: str
     fallback: object
     reader: str  # the shader id
+
+
+@dataclass
+class GraphLookup:
+    """A MaterialX network (a node with a node definition) driving an input: :class:`usd_io.mtlx_graph.MxProgram`
+    writes it; ``scale`` multiplies its value (a surface's weight)."""
+
+    node: str
+    shader: object
+    output: str
+    fallback: object
+    scale: float = 1.0
 
 
 @dataclass
@@ -130,10 +144,17 @@ def source(shader: UsdShade.Shader, name: str, fallback, time=None):
         return texture_lookup(node, out_name, time)
     if sid in PRIMVAR_READERS or sid.startswith("ND_UsdPrimvarReader"):
         return PrimvarLookup(str(node.GetPath()), _varname(node, time), value(node, "fallback", None, time), sid)
-    if sid.startswith(MX_IMAGES):
+    if sid.startswith(MX_IMAGES) and _mx_texcoord(node, [], time)[0] != _COMPUTED:
         return mx_image_lookup(node, time)
     if sid.startswith("ND_normalmap"):
-        return mx_normal_map(node, fallback, time)
+        got = mx_normal_map(node, fallback, time)
+        if not isinstance(got, Unsupported):
+            return got
+    if sid.startswith("ND_"):
+        from .mtlx import nodedef
+
+        if nodedef(sid) is not None:
+            return GraphLookup(str(node.GetPath()), node, out_name, fallback)
     if sid.startswith("arnold:"):  # Arnold's image and user-data nodes (usd_io.arnold)
         from .arnold import upstream
 
@@ -160,6 +181,7 @@ def mx_image_lookup(node: UsdShade.Shader, time=None) -> TextureLookup:
     file_input = node.GetInput("file")
     space = file_input.GetAttr().GetColorSpace() if file_input else ""
     uv, m = _mx_texcoord(node, notes, time)
+    uv = None if uv == _COMPUTED else uv
     if sid.startswith("ND_tiledimage_"):
         tiling = floats(value(node, "uvtiling", (1.0, 1.0), time), 2, (1.0, 1.0))
         offset = floats(value(node, "uvoffset", (0.0, 0.0), time), 2, (0.0, 0.0))
@@ -179,7 +201,8 @@ def mx_normal_map(node: UsdShade.Shader, fallback, time=None):
     """A MaterialX ``normalmap`` node over an image: the image as a tangent-space normal map, texel·2 − 1 (its
     ``scale`` on x and y). Anything else upstream is Unsupported."""
     up = source(node, "in", (0.5, 0.5, 1.0), time)
-    if not isinstance(up, TextureLookup):
+    if not isinstance(up, TextureLookup) or str(value(node, "space", "tangent", time)) != "tangent" or \
+            _producer(node, "normal")[0] is not None:
         return Unsupported(str(node.GetPath()), shader_id(node), fallback)
     k = floats(value(node, "scale", 1.0, time), 1, (1.0,))[0]
     up.scale = (2.0 * k, 2.0 * k, 2.0, 1.0)
@@ -201,7 +224,11 @@ def _mx_texcoord(node, notes: list, time):
     if sid in PRIMVAR_READERS or sid.startswith("ND_UsdPrimvarReader"):
         return (_varname(up, time) or None), np.eye(3)
     notes.append(f"texcoord driven by {sid or up.GetPrim().GetTypeName()!r} (the mesh's texture coordinates are used)")
-    return None, np.eye(3)
+    return _COMPUTED, np.eye(3)
+
+
+#: :func:`_mx_texcoord`'s answer for a texcoord computed by a network (the image is then read by usd_io.mtlx_graph).
+_COMPUTED = "<computed>"
 
 
 def _varname(node, time) -> str:
