@@ -823,40 +823,30 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
     amb = (opt.ambient[0], opt.ambient[1], opt.ambient[2])
     add_ambient = (amb[0] > 0.0 or amb[1] > 0.0 or amb[2] > 0.0) and sky_side == 0
     s_nl = surf.lobes
-    no_lobes = lobes.none()
-    black = bsdf.classic((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 1.0)
     n_new = 0
     for i in range(s_hit.shape[0]):
         if not s_hit[i]:
             continue
         s = sample[i]
         n, di = vec.row(s_n, i), vec.row(d, i)
-        nl = s_nl[i] if principled else -1
-        if nl < 0:  # one closure
-            cl, wl, g = _closure_at(surf, mats, i, n, di, principled, spawn)
-            lb = no_lobes
-            if g > 0.0:  # what the spawn stage's mirror ray takes of the lobes (zeros where there is no closure)
-                s_mirror[i, 0], s_mirror[i, 1], s_mirror[i, 2] = vec.scale(bsdf.specular_albedo(cl), g)
-            if wl <= 0.0 or bsdf.is_black(cl):
-                continue
-        else:  # a sum of lobes (tracer.lobes): their weights already hold coverage
-            lb, wl = _lobes_at(surf, mats, i, n, di, spawn)
-            cl, g = black, 0.0
-            s_mirror[i, 0], s_mirror[i, 1], s_mirror[i, 2] = lobes.mirror_weight(lb)
-            if wl <= 0.0 or lobes.is_black(lb):
-                continue
-        back = nl >= 0 and vec.max3(lb.translucent) > 0.0  # lights behind the surface reach its translucent lobes
+        if principled and s_nl[i] >= 0:  # a sum of lobes (tracer.lobes): its own loop, off the one-closure path
+            n_shadow, k_new = _lobe_light(surf, d, i, s, weight, keys, depth, spawn, mats, lights, opt, out, shadow,
+                                          n_shadow, links, recv)
+            n_new += k_new
+            continue
+        cl, wl, g = _closure_at(surf, mats, i, n, di, principled, spawn)
+        if g > 0.0:  # what the spawn stage's mirror ray takes of the lobes (zeros where there is no closure)
+            s_mirror[i, 0], s_mirror[i, 1], s_mirror[i, 2] = vec.scale(bsdf.specular_albedo(cl), g)
+        if wl <= 0.0 or bsdf.is_black(cl):
+            continue
         wo = vec.scale(vec.row(weight, i), wl)
         p = (s_p[i, 0], s_p[i, 1], s_p[i, 2])
         ng = vec.row(s_ng, i)
         wi = vec.scale(di, -1.0)
         if add_ambient:  # the notes' ambient term R_a·L_a (and the lobes' albedo × L_a)
-            if nl >= 0:
-                c = lobes.ambient(lb, amb)
-            else:
-                c = shading.ambient(cl.diffuse, amb)
-                if principled:
-                    c = vec.add(c, vec.scale(vec.mul(bsdf.specular_albedo(cl), amb), 1.0 - g))
+            c = shading.ambient(cl.diffuse, amb)
+            if principled:
+                c = vec.add(c, vec.scale(vec.mul(bsdf.specular_albedo(cl), amb), 1.0 - g))
             for ch in range(3):
                 o_color[s, ch] += wo[ch] * c[ch]
         r0, r1 = 0.0, 0.0
@@ -866,20 +856,15 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
             if linked and not linking.lights_receiver(l_recv[j], recv[i]):
                 continue
             # a light the mirror ray can see (emissive triangles) gives the mirror share of the lobes to that ray
-            mesh = l_kind[j] == MESH
-            spec_scale = (1.0 - g if mesh else 1.0) * l_glossy[j]
+            spec_scale = (1.0 - g if l_kind[j] == MESH else 1.0) * l_glossy[j]
             for k in range(l_side[j] * l_side[j]):
                 l, dist, e = sample_light(lights, j, k, p, r0, r1)
                 n_l = vec.dot(n, l)
                 if n_l <= 0.0 or vec.dot(ng, l) <= 0.0:
-                    if not (back and n_l < 0.0 and vec.dot(ng, l) < 0.0):
-                        continue
-                if nl >= 0:
-                    f = lobes.evaluate(lb, n, wi, l, n_l, mesh, l_glossy[j], l_diffuse[j])
-                else:
-                    f = bsdf.evaluate(cl, n, wi, l, n_l, spec_scale)
-                    if l_diffuse[j] != 1.0:  # the light's diffuse factor (the BSDF at spec_scale 0 is its diffuse part)
-                        f = vec.sub(f, vec.scale(bsdf.evaluate(cl, n, wi, l, n_l, 0.0), 1.0 - l_diffuse[j]))
+                    continue
+                f = bsdf.evaluate(cl, n, wi, l, n_l, spec_scale)
+                if l_diffuse[j] != 1.0:  # the light's diffuse factor (the BSDF at spec_scale 0 is its diffuse part)
+                    f = vec.sub(f, vec.scale(bsdf.evaluate(cl, n, wi, l, n_l, 0.0), 1.0 - l_diffuse[j]))
                 c = vec.mul(wo, vec.mul(f, e))
                 if shadows:  # the shadow ray from p to the light sample: counts only if nothing is in between
                     so, sd, st = shadow_ray(p, ng, l, dist, eps)
@@ -891,6 +876,60 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
                         o_color[s, ch] += c[ch]
     counts[_N_SHADOW] += n_new
     return n_shadow
+
+
+@kernel(refcounts=False)
+def _lobe_light(surf, d, i, s, weight, keys, depth, spawn, mats, lights, opt, out, shadow, n_shadow, links, recv):
+    """:func:`_direct_light` at hit i whose closure is a sum of lobes (``SurfaceQueue.lobes`` ≥ 0): Σ wᵢ·fᵢ per
+    light sample (:func:`tracer.lobes.evaluate`; one shadow ray per sample, lights behind the surface too where it
+    has translucent lobes), the lobes' mirror share for the spawn stage, their ambient term. Returns (the shadow
+    queue's new length, shadow rays added). (Its own kernel, so that the one-closure loop stays as it was.)"""
+    eps = opt.eps
+    amb = (opt.ambient[0], opt.ambient[1], opt.ambient[2])
+    add_ambient = (amb[0] > 0.0 or amb[1] > 0.0 or amb[2] > 0.0) and opt.sky_side == 0
+    q_o, q_d, q_t, q_s, q_c, q_l = shadow.o, shadow.d, shadow.t_max, shadow.sample, shadow.color, shadow.light
+    l_kind, l_side = lights.kind, lights.side
+    l_recv, l_diffuse, l_glossy = links.recv_set, links.diffuse, links.glossy
+    linked = recv.shape[0] > 0
+    o_color, s_mirror = out.color, surf.mirror
+    n, di = vec.row(surf.n, i), vec.row(d, i)
+    lb, wl = _lobes_at(surf, mats, i, n, di, spawn)
+    s_mirror[i, 0], s_mirror[i, 1], s_mirror[i, 2] = lobes.mirror_weight(lb)
+    if wl <= 0.0 or lobes.is_black(lb):
+        return n_shadow, 0
+    back = vec.max3(lb.translucent) > 0.0  # lights behind the surface reach its translucent lobes
+    wo = vec.scale(vec.row(weight, i), wl)
+    p = (surf.p[i, 0], surf.p[i, 1], surf.p[i, 2])
+    ng = vec.row(surf.ng, i)
+    wi = vec.scale(di, -1.0)
+    if add_ambient:
+        c = lobes.ambient(lb, amb)
+        for ch in range(3):
+            o_color[s, ch] += wo[ch] * c[ch]
+    r0, r1 = 0.0, 0.0
+    if opt.needs_light_random:
+        r0, r1 = uniform2_1(keys[s], _STREAM_LIGHT + depth, opt.seed)
+    n_new = 0
+    for j in range(l_kind.shape[0]):
+        if linked and not linking.lights_receiver(l_recv[j], recv[i]):
+            continue
+        mesh = l_kind[j] == MESH
+        for k in range(l_side[j] * l_side[j]):
+            l, dist, e = sample_light(lights, j, k, p, r0, r1)
+            n_l = vec.dot(n, l)
+            n_g = vec.dot(ng, l)
+            if not ((n_l > 0.0 and n_g > 0.0) or (back and n_l < 0.0 and n_g < 0.0)):
+                continue
+            c = vec.mul(wo, vec.mul(lobes.evaluate(lb, n, wi, l, n_l, mesh, l_glossy[j], l_diffuse[j]), e))
+            if opt.shadows:
+                so, sd, st = shadow_ray(p, ng, l, dist, eps)
+                _put(q_o, q_d, q_t, q_s, q_c, q_l, n_shadow, so, sd, st, s, c, j)
+                n_shadow += 1
+                n_new += 1
+            else:
+                for ch in range(3):
+                    o_color[s, ch] += c[ch]
+    return n_shadow, n_new
 
 
 @kernel(refcounts=False)
