@@ -69,6 +69,7 @@ class Closure(NamedTuple):
     lambda_mu: float  # Smith's Λ(μ) of the view direction
     spec_f0r: float  # F0 of spec_eta (the real dielectric curve's own F0)
     spec_rescale: float  # 1 / (1 − spec_f0r): the curve rescaled to run from 0 at normal incidence to 1
+    fixed: bool  # the metal lobe's Fresnel is the constant metal_f0 (Glossy BSDF), not F82
 
 
 # ---------------------------------------------------------------------------------------------- tables
@@ -232,7 +233,34 @@ def principled(base, metallic, roughness, specular, tint, ior, transmission, mu)
     diffuse = vec.scale((max(base[0], 0.0), max(base[1], 0.0), max(base[2], 0.0)), w * layer)
     f0r = f0_from_ior(eta)
     return Closure(True, diffuse, m, f0m, bm, msm, ws, f0s, np.float64(eta), mss, alpha2, np.float64(mu), reflect, zero,
-                   0.0, _lambda(alpha2, mu), np.float64(f0r), 1.0 / max(1.0 - f0r, 1e-6))
+                   0.0, _lambda(alpha2, mu), np.float64(f0r), 1.0 / max(1.0 - f0r, 1e-6), False)
+
+
+@kernel(inline=True)
+def lambertian(color, mu):
+    """The Diffuse BSDF (Lambert, R_d = color; Cycles' Diffuse at roughness 0) as a :class:`Closure`."""
+    zero = (0.0, 0.0, 0.0)
+    d = (max(color[0], 0.0), max(color[1], 0.0), max(color[2], 0.0))
+    return Closure(True, d, 0.0, zero, zero, (1.0, 1.0, 1.0), 0.0, zero, 1.0, zero, 1.0, np.float64(mu), zero, zero,
+                   0.0, 0.0, 0.0, 1.0, False)
+
+
+@kernel(inline=True)
+def glossy(color, roughness, mu):
+    """The Glossy BSDF (multiscatter GGX, Cycles' ``bsdf_microfacet_setup_fresnel_constant``): one GGX lobe whose
+    Fresnel is the constant ``color``, scaled by 1 + F_ms(1 − E)/E with F_ss = color. Its directional albedo
+    (``reflect``) is color·E·(1 + F_ms(1 − E)/E)."""
+    r = min(max(roughness, 0.0), 1.0)
+    alpha = r * r
+    alpha2 = alpha * alpha
+    mu_c = min(max(mu, 0.0), 1.0)
+    e = table2(_E, r, mu_c)
+    f0 = (min(max(color[0], 0.0), 1.0), min(max(color[1], 0.0), 1.0), min(max(color[2], 0.0), 1.0))
+    ms = _multiscatter(f0, e, _table1(_E_AVG, r))
+    reflect = (ms[0] * e * f0[0], ms[1] * e * f0[1], ms[2] * e * f0[2])
+    zero = (0.0, 0.0, 0.0)
+    return Closure(True, zero, 1.0, f0, zero, ms, 0.0, zero, 1.0, zero, alpha2, np.float64(mu), reflect, zero, 0.0,
+                   _lambda(alpha2, mu), 0.0, 1.0, True)
 
 
 @kernel(inline=True)
@@ -240,7 +268,7 @@ def classic(diffuse, spec_color, exponent):
     """The notes' Lambert + Blinn-Phong as a :class:`Closure` (R_d, R_s, e)."""
     zero = (0.0, 0.0, 0.0)
     return Closure(False, diffuse, 0.0, zero, zero, zero, 0.0, zero, 1.0, zero, 0.0, 1.0, zero, spec_color,
-                   np.float64(exponent), 0.0, 0.0, 1.0)
+                   np.float64(exponent), 0.0, 0.0, 1.0, False)
 
 
 # ---------------------------------------------------------------------------------------------- evaluation
@@ -275,7 +303,7 @@ def evaluate(cl, n, wi, l, n_l, spec_scale):
     # D = α²/(π t²) and the height-correlated Smith G₂ = 1/(1 + Λ(μ) + Λ(n·l)) over 4μ, in one division
     common = a2 * spec_scale / (math.pi * t * t * 4.0 * cl.mu * (1.0 + cl.lambda_mu + _lambda(a2, n_l)))
     if cl.metal > 0.0:
-        f = fresnel_f82(cos_hi, cl.metal_f0, cl.metal_b)
+        f = cl.metal_f0 if cl.fixed else fresnel_f82(cos_hi, cl.metal_f0, cl.metal_b)
         c = vec.add(c, vec.scale(vec.mul(f, cl.metal_ms), cl.metal * common))
     if cl.spec > 0.0:
         s = min(max((fresnel_dielectric(cos_hi, cl.spec_eta) - cl.spec_f0r) * cl.spec_rescale, 0.0), 1.0)

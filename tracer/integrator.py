@@ -34,7 +34,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import bsdf, compose, linking, optics, shading, sky, vec
+from . import bsdf, compose, linking, lobes, optics, shading, sky, vec
 from .accel import Accelerator
 from .environment import env_radiance, pack_environment
 from .jit import kernel
@@ -212,15 +212,32 @@ class SurfaceQueue(NamedTuple):
     mirror: np.ndarray  # (N, 3) float32: the Principled lobes' share of the mirror ray, g(r)·(their albedo at the
     #                     view angle), written by the direct-light stage from its closure for the spawn stage
     transmission: np.ndarray  # (N,) float32 glass weight of the non-metal part
-    holdout: np.ndarray  # (N,) float32 the closure's Holdout weight per hit (tracer.compose; 0 = none)
+    # A closure that is a sum of lobes (tracer.lobes; written by the VM, tracer.shader_vm.write_lobes):
+    lobes: np.ndarray  # (N,) int32 lobe slots in use; -1: one closure (the parameters above)
+    lobe_kind: np.ndarray  # (N, MAX_LOBES) int32 tracer.lobes kind
+    lobe_w: np.ndarray  # (N, MAX_LOBES, 3) float32 weight RGB
+    lobe_base: np.ndarray  # (N, MAX_LOBES, 3) float32 colour
+    lobe_param: np.ndarray  # (N, MAX_LOBES, 4) float32 roughness, metallic, specular level, transmission
+    through: np.ndarray  # (N, 3) float32 the colour that passes straight through (lobe hits)
+    holdout: np.ndarray  # (N,) float32 the closure's Holdout weight per hit (tracer.compose reads it; the VM
+    #                      writes it for a sum of lobes, tracer.shader_vm.write_lobes; 0 = none)
 
     @classmethod
     def empty(cls, n: int) -> "SurfaceQueue":
         f3 = lambda: np.empty((n, 3), np.float32)  # noqa: E731
         f1 = lambda: np.empty(n, np.float32)  # noqa: E731
+        k = lobes.MAX_LOBES
         return cls(np.empty(n, np.bool_), np.empty((n, 3), np.float64), f3(), f3(), np.empty(n, np.bool_),
                    np.empty(n, np.int32), f3(), f1(), f1(), f1(), f1(), f3(), np.empty(n, np.int32),
-                   np.zeros((n, 3), np.float32), f1(), np.zeros(n, np.float32))
+                   np.zeros((n, 3), np.float32), f1(), np.full(n, -1, np.int32), np.empty((n, k), np.int32),
+                   np.empty((n, k, 3), np.float32), np.empty((n, k, 3), np.float32), np.empty((n, k, 4), np.float32),
+                   f3(), np.zeros(n, np.float32))
+
+    @property
+    def lobe_arrays(self) -> tuple:
+        """What the VM writes a lobe closure into (its ``lobe_surf``)."""
+        return (self.lobes, self.lobe_kind, self.lobe_w, self.lobe_base, self.lobe_param, self.through,
+                self.holdout)
 
 
 class ShadowQueue(NamedTuple):
@@ -377,7 +394,7 @@ class Integrator:
                            surf.base, surf.roughness, surf.metallic, surf.specular, surf.cover, surf.emission,
                            surf.transmission, m.alpha_threshold, g.uv_sets, g.colors, g.has_colors, g.vertices,
                            g.triangles, g.face_normals, g.object_ids, self.spaces, x.data, x.params, it.linear,
-                           it.mirrored, it.object_ids, eye, spread, flat)
+                           it.mirrored, it.object_ids, eye, spread, flat, pt.lobes, surf.lobe_arrays)
         split = None  # the eye samples whose first catcher hit is in this batch (tracer.compose)
         cp = self.compose
         if depth == 0 and (cp.has_holdout or cp.has_catcher):
@@ -516,7 +533,8 @@ class Integrator:
                          g.face_normals, self.materials.alpha, self.materials.alpha_threshold, o, d, t_max, color,
                          pending, blocked, self.options.eps, pt.code, pt.pstart, pt.pbase, pt.outs, pt.R0,
                          np.empty_like(pt.R0), g.uv_sets, g.colors, g.has_colors, g.vertices, g.triangles,
-                         g.object_ids, self.spaces, x.data, x.params, it.linear, it.mirrored, it.object_ids)
+                         g.object_ids, self.spaces, x.data, x.params, it.linear, it.mirrored, it.object_ids,
+                         pt.lobe_extra)
         return blocked
 
     def trace(self, origins: np.ndarray, directions: np.ndarray, keys: np.ndarray,
@@ -648,6 +666,16 @@ def _local_model(principled, base, m, rough, spec, tint, ior, w_t, k_m, cover, s
 
 
 # ---------------------------------------------------------------------------------------------- stages
+@kernel(inline=True)
+def _lobes_at(surf, mats, i, n, di, spawn):
+    """The lobes (:func:`tracer.lobes.setup`) of hit i of a :class:`SurfaceQueue` whose closure is a sum of lobes,
+    and the weight their light is added with (1 − k_m)."""
+    mat = surf.mat[i]
+    lb = lobes.setup(surf.lobe_kind, surf.lobe_w, surf.lobe_base, surf.lobe_param, i, surf.lobes[i], n, di,
+                     vec.row(mats.specular_tint, mat), float(mats.ior[mat]), spawn)
+    return lb, 1.0 - float(mats.k_m[mat])
+
+
 @kernel(inline=True)
 def _closure_at(surf, mats, i, n, di, principled, spawn):
     """:func:`_local_model` at hit i of a :class:`SurfaceQueue` seen along di, shading normal n (the direct-light and
@@ -795,12 +823,18 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
     l_recv, l_diffuse, l_glossy = links.recv_set, links.diffuse, links.glossy
     amb = (opt.ambient[0], opt.ambient[1], opt.ambient[2])
     add_ambient = (amb[0] > 0.0 or amb[1] > 0.0 or amb[2] > 0.0) and sky_side == 0
+    s_nl = surf.lobes
     n_new = 0
     for i in range(s_hit.shape[0]):
         if not s_hit[i]:
             continue
         s = sample[i]
         n, di = vec.row(s_n, i), vec.row(d, i)
+        if principled and s_nl[i] >= 0:  # a sum of lobes (tracer.lobes): its own loop, off the one-closure path
+            n_shadow, k_new = _lobe_light(surf, d, i, s, weight, keys, depth, spawn, mats, lights, opt, out, shadow,
+                                          n_shadow, links, recv)
+            n_new += k_new
+            continue
         cl, wl, g = _closure_at(surf, mats, i, n, di, principled, spawn)
         if g > 0.0:  # what the spawn stage's mirror ray takes of the lobes (zeros where there is no closure)
             s_mirror[i, 0], s_mirror[i, 1], s_mirror[i, 2] = vec.scale(bsdf.specular_albedo(cl), g)
@@ -843,6 +877,60 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
                         o_color[s, ch] += c[ch]
     counts[_N_SHADOW] += n_new
     return n_shadow
+
+
+@kernel(refcounts=False)
+def _lobe_light(surf, d, i, s, weight, keys, depth, spawn, mats, lights, opt, out, shadow, n_shadow, links, recv):
+    """:func:`_direct_light` at hit i whose closure is a sum of lobes (``SurfaceQueue.lobes`` ≥ 0): Σ wᵢ·fᵢ per
+    light sample (:func:`tracer.lobes.evaluate`; one shadow ray per sample, lights behind the surface too where it
+    has translucent lobes), the lobes' mirror share for the spawn stage, their ambient term. Returns (the shadow
+    queue's new length, shadow rays added). (Its own kernel, so that the one-closure loop stays as it was.)"""
+    eps = opt.eps
+    amb = (opt.ambient[0], opt.ambient[1], opt.ambient[2])
+    add_ambient = (amb[0] > 0.0 or amb[1] > 0.0 or amb[2] > 0.0) and opt.sky_side == 0
+    q_o, q_d, q_t, q_s, q_c, q_l = shadow.o, shadow.d, shadow.t_max, shadow.sample, shadow.color, shadow.light
+    l_kind, l_side = lights.kind, lights.side
+    l_recv, l_diffuse, l_glossy = links.recv_set, links.diffuse, links.glossy
+    linked = recv.shape[0] > 0
+    o_color, s_mirror = out.color, surf.mirror
+    n, di = vec.row(surf.n, i), vec.row(d, i)
+    lb, wl = _lobes_at(surf, mats, i, n, di, spawn)
+    s_mirror[i, 0], s_mirror[i, 1], s_mirror[i, 2] = lobes.mirror_weight(lb)
+    if wl <= 0.0 or lobes.is_black(lb):
+        return n_shadow, 0
+    back = vec.max3(lb.translucent) > 0.0  # lights behind the surface reach its translucent lobes
+    wo = vec.scale(vec.row(weight, i), wl)
+    p = (surf.p[i, 0], surf.p[i, 1], surf.p[i, 2])
+    ng = vec.row(surf.ng, i)
+    wi = vec.scale(di, -1.0)
+    if add_ambient:
+        c = lobes.ambient(lb, amb)
+        for ch in range(3):
+            o_color[s, ch] += wo[ch] * c[ch]
+    r0, r1 = 0.0, 0.0
+    if opt.needs_light_random:
+        r0, r1 = uniform2_1(keys[s], _STREAM_LIGHT + depth, opt.seed)
+    n_new = 0
+    for j in range(l_kind.shape[0]):
+        if linked and not linking.lights_receiver(l_recv[j], recv[i]):
+            continue
+        mesh = l_kind[j] == MESH
+        for k in range(l_side[j] * l_side[j]):
+            l, dist, e = sample_light(lights, j, k, p, r0, r1)
+            n_l = vec.dot(n, l)
+            n_g = vec.dot(ng, l)
+            if not ((n_l > 0.0 and n_g > 0.0) or (back and n_l < 0.0 and n_g < 0.0)):
+                continue
+            c = vec.mul(wo, vec.mul(lobes.evaluate(lb, n, wi, l, n_l, mesh, l_glossy[j], l_diffuse[j]), e))
+            if opt.shadows:
+                so, sd, st = shadow_ray(p, ng, l, dist, eps)
+                _put(q_o, q_d, q_t, q_s, q_c, q_l, n_shadow, so, sd, st, s, c, j)
+                n_shadow += 1
+                n_new += 1
+            else:
+                for ch in range(3):
+                    o_color[s, ch] += c[ch]
+    return n_shadow, n_new
 
 
 @kernel(refcounts=False)
@@ -915,7 +1003,9 @@ def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shado
 def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, counts):
     """Spawn stage: per hit, the reflected ray (k_m·mirror_tint + the Principled lobes' mirror share + glass·F),
     the transmitted ray (glass·(1 − F)) and, where alpha < 1, the ray that passes straight through (weight
-    1 − alpha, same depth). Returns (reflections, transmissions, pass-through rays) written."""
+    1 − alpha, same depth). A sum of lobes (``SurfaceQueue.lobes`` ≥ 0) gives its mirror share, its glass and
+    refraction weights (:func:`tracer.lobes.refraction_weights`) and its pass-through colour instead. Returns
+    (reflections, transmissions, pass-through rays) written."""
     n_rays = surf.hit.shape[0]
     eps = opt.eps
     n_refl = 0
@@ -930,6 +1020,8 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
         surf.front, surf.mirror)
     m_ior, s_tran, m_km, m_mirror, m_ttint = (mats.ior, surf.transmission, mats.k_m, mats.mirror_tint,
                                               mats.transmission_tint)
+    s_nl, s_lk, s_lw, s_lb, s_lp, s_through, m_stint = (surf.lobes, surf.lobe_kind, surf.lobe_w, surf.lobe_base,
+                                                        surf.lobe_param, surf.through, mats.specular_tint)
     principled, fresnel, min_weight = opt.principled, opt.fresnel, opt.min_weight
     n_tir = 0
     for i in range(n_rays):
@@ -941,31 +1033,46 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
         p = (s_p[i, 0], s_p[i, 1], s_p[i, 2])
         ng, n = vec.row(s_ng, i), vec.row(s_n, i)
         a = float(s_cover[i])
-        if a < 1.0:  # alpha: 1 − a of the ray continues unchanged behind the surface
+        nl = s_nl[i] if principled else -1
+        if nl >= 0 and a > 0.0:  # a sum of lobes: their Transparent colours (and Principled 1 − alpha) pass through
+            wt = vec.mul(w, vec.row(s_through, i))  # (coverage 0: all passes, e.g. a holdout object, tracer.compose)
+        else:  # alpha: 1 − a of the ray continues unchanged behind the surface
             wt = vec.scale(w, 1.0 - a)
-            if vec.max3(wt) > min_weight:
-                _put_ray(th_o, th_d, th_w, th_s, n_through, spawn_ray(p, ng, di, eps), di, wt, s)
-                th_t0[n_through] = t0[i] + t[i]
-                n_through += 1
-                counts[_N_TRANSMISSION] += 1
+        if vec.max3(wt) > min_weight:
+            _put_ray(th_o, th_d, th_w, th_s, n_through, spawn_ray(p, ng, di, eps), di, wt, s)
+            th_t0[n_through] = t0[i] + t[i]
+            n_through += 1
+            counts[_N_TRANSMISSION] += 1
         if not spawn or a <= 0.0:
             continue
         mat = s_mat[i]
         k_m = float(m_km[mat])
         w_t = float(s_tran[i])
         mirror = vec.scale(vec.row(m_mirror, mat), k_m)
-        if principled:  # the lobes' mirror share, from the direct-light stage's closure (SurfaceQueue.mirror)
-            glass = (1.0 - k_m) * (1.0 - float(s_metal[i])) * w_t
+        # the dielectric split: the mirror ray takes F·glass_r, the refracted ray (1 − F)·glass_t + glass_t0
+        glass_t0 = (0.0, 0.0, 0.0)
+        if nl >= 0:  # the lobes' mirror share (direct-light stage) and their glass / refraction weights
             mirror = vec.madd(mirror, vec.row(s_mirror, i), 1.0 - k_m)
-        else:  # classic: a smooth metal (Principled input) mirrors its base colour, as the notes' k_m·tint
-            glass = (1.0 - k_m) * w_t
-            m = float(s_metal[i])
-            if m > 0.0:
-                g = bsdf.mirror_share(float(s_rough[i]))
-                mirror = vec.madd(mirror, vec.row(s_base, i), (1.0 - k_m) * m * g)
-        mirror = vec.scale(mirror, a)
-        glass *= a
-        if glass <= 0.0 and vec.max3(mirror) <= 0.0:
+            glass_r, glass_t, glass_t0 = lobes.refraction_weights(s_lk, s_lw, s_lb, s_lp, i, nl,
+                                                                  vec.row(m_stint, mat))
+            glass_r, glass_t = vec.scale(glass_r, 1.0 - k_m), vec.scale(glass_t, 1.0 - k_m)
+            glass_t0 = vec.scale(glass_t0, 1.0 - k_m)
+        else:
+            if principled:  # the lobes' mirror share, from the direct-light stage's closure (SurfaceQueue.mirror)
+                glass = (1.0 - k_m) * (1.0 - float(s_metal[i])) * w_t
+                mirror = vec.madd(mirror, vec.row(s_mirror, i), 1.0 - k_m)
+            else:  # classic: a smooth metal (Principled input) mirrors its base colour, as the notes' k_m·tint
+                glass = (1.0 - k_m) * w_t
+                m = float(s_metal[i])
+                if m > 0.0:
+                    g = bsdf.mirror_share(float(s_rough[i]))
+                    mirror = vec.madd(mirror, vec.row(s_base, i), (1.0 - k_m) * m * g)
+            mirror = vec.scale(mirror, a)
+            glass *= a
+            glass_r = (glass, glass, glass)
+            glass_t = vec.scale(vec.row(m_ttint, mat), glass)
+        has_glass = vec.max3(glass_r) > 0.0 or vec.max3(glass_t) > 0.0 or vec.max3(glass_t0) > 0.0
+        if not has_glass and vec.max3(mirror) <= 0.0:
             continue
         # Secondary rays where a mirror or glass part exists: reflection and transmission.
         # Interpolated normals can tilt a reflection below the surface: the normal is bent towards ng just enough
@@ -974,7 +1081,7 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
         r_dir = optics.reflect_dir(di, r_n)
         eta_i, eta_r, tir = 1.0, 1.0, False
         w_refl = vec.mul(w, mirror)
-        if glass > 0.0:
+        if has_glass:
             ior = float(m_ior[mat])
             eta_i, eta_r = (1.0, ior) if s_front[i] else (ior, 1.0)
             t_dir, tir = optics.refract_dir(di, n, eta_i, eta_r)
@@ -983,12 +1090,12 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
                 fr = optics.fresnel_dielectric_1(-vec.dot(di, n), eta_i, eta_r)
             else:
                 fr = 1.0 if tir else 0.0
-            w_refl = vec.madd(w_refl, w, glass * fr)
+            w_refl = vec.add(w_refl, vec.mul(w, vec.scale(glass_r, fr)))
             if tir:
                 n_tir += 1
                 w_tran = (0.0, 0.0, 0.0)
             else:
-                w_tran = vec.scale(vec.mul(w, vec.row(m_ttint, mat)), glass * (1.0 - fr))
+                w_tran = vec.mul(w, vec.madd(glass_t0, glass_t, 1.0 - fr))
                 if vec.dot(t_dir, ng) >= 0.0:  # the shading normal bent it back out: refract about ng
                     t_dir, tir_ng = optics.refract_dir(di, ng, eta_i, eta_r)
                     t_n = ng
@@ -1015,7 +1122,7 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
 def _pass_shadow(sel, idx, t, prim, inst, overrides, normal_matrix, u, v, material_ids, face_normals, alphas,
                  threshold, o, d, t_max, color, pending, blocked, eps, code, pstart, pbase, outs, R0, R, uv_sets,
                  colors, has_colors, vertices, triangles, object_ids, bounds, tdata, tparams, linear, mirrored,
-                 inst_ids):
+                 inst_ids, lobe_extra):
     """One round of transparent shadows: each pending shadow ray's first blocker either stops it (alpha 1) or lets
     1 − alpha of its colour through, the ray continuing behind it; a ray that reaches its light is unblocked. A
     material whose alpha is a program runs it at the blocker (Light Path: a shadow ray)."""
@@ -1052,8 +1159,14 @@ def _pass_shadow(sel, idx, t, prim, inst, overrides, normal_matrix, u, v, materi
         if a >= 1.0:
             pending[j] = False
             continue
-        for c in range(3):
-            color[r, c] *= 1.0 - a
+        rt = lobe_extra[mat, 0]
+        if rt >= 0:  # a sum of lobes (tracer.lobes): its pass-through colour (Transparent BSDF tints)
+            rt += pbase[mat]
+            for c in range(3):
+                color[r, c] *= max(R[rt + c], 0.0)
+        else:
+            for c in range(3):
+                color[r, c] *= 1.0 - a
         o[j, 0], o[j, 1], o[j, 2] = spawn_ray(p, ng, dj, eps)
         t_max[j] = t_max[j] - t[q]
 

@@ -6,30 +6,11 @@
 
 What the compiler does, in order:
 
-1. **Closures flatten** into a weighted list of lobes: ``mix_closure`` (Fac) gives (1 − Fac)·A + Fac·B, ``add_closure``
-   A + B, to any depth; weights are values like any other (constant or per hit).
-2. **Lobes become the tracer's closure inputs** (:data:`tracer.shader_vm.OUT_SLOTS`: base colour, roughness,
-   metallic, specular level, alpha, emission, normal, transmission). Each lobe is a Principled set:
-
-   ============== =====================================================================================
-   principled     its inputs (emission = Emission Color × Strength; Alpha mixes with transparency)
-   diffuse        base = Color, specular 0, roughness 1
-   glossy         base = Color, metallic 1, roughness (Anisotropic: isotropic, one warning)
-   glass          transmission 1, the transmitted ray tinted by Color, ior, roughness (smooth glass)
-   refraction     as glass (its reflection included; one warning)
-   translucent    as diffuse (one warning: light from behind is not gathered)
-   transparent    coverage: the lobe's weight is 1 − alpha; its Color tints nothing (white; a tint warns)
-   emission       emission += weight × Color × Strength, reflects nothing
-   holdout        a black, opaque surface; its weight cuts the pixel's alpha on the eye path (tracer.compose)
-   ============== =====================================================================================
-
-   One lobe: its inputs are the outputs (alpha = its Alpha). Several lobes of weights wᵢ: transparency
-   T = Σ transparent weights + Σ wᵢ(1 − alphaᵢ); alpha = 1 − T; emission = Σ wᵢ·Eᵢ / alpha (the tracer adds
-   emission × alpha); the reflecting lobes' weights sᵢ = wᵢ·alphaᵢ give base = Σ sᵢ·baseᵢ / alpha, specular level
-   likewise, and roughness, metallic and transmission as sᵢ-weighted means. This is a blend of the lobes'
-   *parameters* into the tracer's one Principled closure, exact for a lobe mixed with transparency or emission and
-   for lobes of one kind, approximate for a mix of lobes of different roughness or metalness (both then read the
-   blended values).
+1. **Closures flatten** into a weighted list of lobes (Mix / Add Shader trees of any depth), which become the tracer's
+   closure inputs (:data:`tracer.shader_vm.OUT_SLOTS`: one blended Principled set) and, where one closure cannot hold
+   the tree (several reflecting lobes, a Glossy, Glass-beside-something, Translucent, Refraction, Holdout or tinted
+   Transparent leaf), lobe slots (:mod:`tracer.lobes`): :mod:`tracer.shader_closures` does both.
+2. **Outputs** are registers: each closure input's (``outs``) and each lobe slot's (``Program.lobes``).
 3. **Constants fold**: every op whose operands are constants is evaluated at compile time by the same numba
    functions the VM runs (:mod:`tracer.shader_ops`), so a graph whose outputs are constants compiles to zero ops
    and its constant row; only what varies per hit is emitted. Identical ops are emitted once (CSE) and ops whose
@@ -51,6 +32,8 @@ import numpy as np
 
 from . import shader_ops as ops
 from . import shader_vm as vm
+from .lobes import MAX_LOBES
+from .shader_closures import ClosureLowering, LobeSlots
 from .shader_graph import (CLOSURE, COLOR, ENUMS, FLOAT, IMPLICIT, NODE_TYPES, VECTOR, Graph, ImageRef, Implicit,
                            Node, Out)
 
@@ -96,6 +79,7 @@ class Program:
     init: np.ndarray
     outs: np.ndarray
     textures: list
+    lobes: LobeSlots | None = None  # the closure's lobe slots (tracer.shader_closures), None: one closure
 
     @property
     def n_ops(self) -> int:
@@ -197,7 +181,7 @@ def _enum(key: str, value, default_first=True) -> int:
 
 
 # ---------------------------------------------------------------------------------------------- the compiler
-class Compiler:
+class Compiler(ClosureLowering):
     """Lowers one graph (see the module docstring). ``estimate``: image lookups read their image's mean and hit
     inputs neutral values, so everything folds (the row's representative constants)."""
 
@@ -1039,201 +1023,6 @@ class Compiler:
         amount = self.math(ops.M_MULTIPLY, self.math(ops.M_SUBTRACT, h, mid), sc)
         return {"Displacement": self.scale3(nrm, amount)}
 
-    # ------------------------------------------------------------------ closures
-    def closure(self, ref, weight=1.0) -> list:
-        """[(weight, lobe node)] of a closure output (a flattened Mix / Add Shader tree)."""
-        if ref is None:
-            return []
-        node = self.g.node(ref)
-        if node.type == "mix_closure":
-            f = self.inp(node, "Fac", FLOAT)
-            if _is_const(f):
-                f = min(max(float(f), 0.0), 1.0)
-            a, b = (self.g.input_value(node, s) for s in ("Shader", "Shader_001"))
-            wa = self.math(ops.M_MULTIPLY, weight, self.math(ops.M_SUBTRACT, 1.0, f))
-            wb = self.math(ops.M_MULTIPLY, weight, f)
-            out = []
-            if not (_is_const(wa) and wa == 0.0):
-                out += self.closure(a, wa)
-            if not (_is_const(wb) and wb == 0.0):
-                out += self.closure(b, wb)
-            return out
-        if node.type == "add_closure":
-            return sum((self.closure(self.g.input_value(node, s), weight) for s in ("Shader", "Shader_001")), [])
-        return [(weight, node)]
-
-    def lobe(self, node: Node) -> dict:
-        """The Principled set of one lobe: base, roughness, metallic, specular, transmission, alpha, emission,
-        normal (values), and constants ior, tint, specular_tint, threshold; ``kind``."""
-        t = node.type
-        zero3 = (0.0, 0.0, 0.0)
-        lb = dict(kind="surface", base=zero3, roughness=0.5, metallic=0.0, specular=0.0, transmission=0.0, alpha=1.0,
-                  emission=zero3, normal=None, ior=1.5, tint=None, specular_tint=(1.0, 1.0, 1.0), threshold=0.0)
-        if t == "principled_bsdf":
-            lb.update(base=self.inp(node, "Base Color"), roughness=self.inp(node, "Roughness"),
-                      metallic=self.inp(node, "Metallic"), specular=self.inp(node, "Specular IOR Level"),
-                      transmission=self.inp(node, "Transmission Weight"), alpha=self.inp(node, "Alpha"),
-                      emission=self.scale3(self.inp(node, "Emission Color"), self.inp(node, "Emission Strength")),
-                      normal=self._normal_in(node), ior=self._const_in(node, "IOR", 1.5),
-                      threshold=self._const_in(node, "Alpha Threshold", 0.0))
-            st = self.g.input_value(node, "Specular Tint")
-            if isinstance(st, Out):
-                self.warn(node.name + "st", f"Principled BSDF {node.name!r}: a linked Specular Tint is read as white")
-            else:
-                lb["specular_tint"] = _vec(st)
-            for name in ("Coat Weight", "Sheen Weight", "Subsurface Weight"):
-                w = self.g.input_value(node, name)
-                if isinstance(w, Out) or float(w) > 0:
-                    self.warn(node.name + name, f"Principled BSDF {node.name!r}: {name} is not supported (ignored)")
-            tint = node.params.get("transmission_tint")
-            if tint is not None:
-                lb["tint"] = _vec(tint)
-        elif t in ("diffuse_bsdf", "translucent_bsdf"):
-            if t == "translucent_bsdf":
-                self.warn(node.name, f"Translucent BSDF {node.name!r} is rendered as a diffuse surface")
-            lb.update(base=self.inp(node, "Color"), roughness=1.0, normal=self._normal_in(node))
-        elif t == "glossy_bsdf":
-            an = self.g.input_value(node, "Anisotropy")
-            if isinstance(an, Out) or float(an) != 0.0:
-                self.warn(node.name + "an", f"Glossy BSDF {node.name!r}: anisotropy is rendered isotropic")
-            lb.update(base=self.inp(node, "Color"), metallic=1.0, roughness=self.inp(node, "Roughness"),
-                      specular=0.5, normal=self._normal_in(node))
-        elif t in ("glass_bsdf", "refraction_bsdf"):
-            if t == "refraction_bsdf":
-                self.warn(node.name, f"Refraction BSDF {node.name!r} is rendered as glass (with its reflection)")
-            r = self.inp(node, "Roughness")
-            if not _is_const(r) or float(r) > 0.05:
-                self.warn(node.name + "r", f"{node.name!r}: rough glass is rendered as smooth glass")
-            col = self.g.input_value(node, "Color")
-            if isinstance(col, Out):
-                self.warn(node.name + "c", f"{node.name!r}: a linked glass colour is read as its constant estimate")
-            colour = _vec(self._estimate_of(node, "Color")) if isinstance(col, Out) else _vec(col)
-            lb.update(base=colour, transmission=1.0, roughness=r, specular=0.5, ior=self._const_in(node, "IOR", 1.5),
-                      tint=colour, normal=self._normal_in(node))
-        elif t == "transparent_bsdf":
-            c = self.g.input_value(node, "Color")
-            if isinstance(c, Out) or np.any(np.abs(np.asarray(_vec(c)) - 1) > 1e-6):
-                self.warn(node.name, f"Transparent BSDF {node.name!r}: a tinted colour is read as fully transparent")
-            lb.update(kind="transparent")
-        elif t == "emission":
-            lb.update(kind="emission", emission=self.scale3(self.inp(node, "Color"), self.inp(node, "Strength")))
-        elif t == "holdout":
-            lb.update(kind="surface")  # black; tracer.compose takes its weight out of the alpha
-        else:
-            self.warn(node.name, f"shader {node.name!r} ({t}) is not supported; a grey diffuse surface is used")
-            lb.update(base=(0.8, 0.8, 0.8), roughness=1.0)
-        return lb
-
-    def _estimate_of(self, node, name):
-        c = Compiler(self.g, None, self.uv_index, estimate=True)
-        return c.inp(node, name)
-
-    def _const_in(self, node, name, default):
-        x = self.g.input_value(node, name)
-        if isinstance(x, Out):
-            self.warn(node.name + name, f"{node.name!r}: a linked {name} is read as its constant estimate")
-            return float(self._estimate_of(node, name))
-        return float(x)
-
-    def _normal_in(self, node):
-        x = self.g.input_value(node, "Normal")
-        if isinstance(x, Out):
-            return self.val(x, VECTOR)
-        return None
-
-    def outputs(self) -> tuple[dict, dict]:
-        """(values per closure input slot, constant row extras)."""
-        out = self.g.output_node
-        surface = self.g.input_value(out, "Surface") if out is not None else None
-        disp = self.g.input_value(out, "Displacement") if out is not None else None
-        lobes = [(w, self.lobe(n)) for w, n in self.closure(surface)]
-        if isinstance(disp, Out):
-            self.warn("displacement", "Displacement is rendered as bump (the surface is not moved)")
-            dnode = Node("bump", {}, {}, "displacement-bump")
-            lobes = [(w, dict(lb, normal=self._displacement_bump(disp, lb["normal"]))) for w, lb in lobes]
-        return self.combine(lobes)
-
-    def _displacement_bump(self, disp: Out, normal):
-        nrm = normal if normal is not None else self.hit(vm.IN_NORMAL)
-        if self.estimate:
-            return nrm
-        hs = []
-        for var in range(3):
-            d = self.val(disp, VECTOR, var)
-            hs.append(self.vmath(ops.V_DOT_PRODUCT, d, self.hit(vm.IN_NORMAL))[1])
-        if all(_is_const(h) for h in hs):
-            return nrm
-        setup = self.bump_setup()
-        return self.e.emit(vm.OP_BUMP, 3, [(hs[0], 1), (hs[1], 1), (hs[2], 1), (1.0, 1), (1.0, 1), (nrm, 3)],
-                           imm=setup.r, raw={"reads": [(setup.r, 10)]})
-
-    def combine(self, lobes: list) -> tuple[dict, dict]:
-        zero3 = (0.0, 0.0, 0.0)
-        extras = dict(ior=1.5, transmission_tint=None, specular_tint=(1.0, 1.0, 1.0), alpha_threshold=0.0)
-        if not lobes:  # nothing connected: black (as Cycles)
-            return dict(base=zero3, roughness=0.5, metallic=0.0, specular=0.0, alpha=1.0, emission=zero3,
-                        normal=None, transmission=0.0), extras
-        surf = [(w, lb) for w, lb in lobes if lb["kind"] == "surface"]
-        for _w, lb in surf:
-            extras["specular_tint"] = lb["specular_tint"]
-            extras["alpha_threshold"] = max(extras["alpha_threshold"], lb["threshold"])
-        glass = [(w, lb) for w, lb in surf if not (_is_const(lb["transmission"]) and lb["transmission"] == 0.0)]
-        if glass:
-            extras["ior"] = glass[0][1]["ior"]
-            tints = [lb["tint"] for _w, lb in glass]
-            extras["transmission_tint"] = tints[0]
-        elif surf:
-            extras["ior"] = surf[0][1]["ior"]
-        normals = [lb["normal"] for _w, lb in surf if lb["normal"] is not None]
-        normal = normals[0] if normals else None
-        if len({id(x) if not _is_const(x) else _vec(x) for x in normals}) > 1:
-            self.warn("normals", "lobes with different normals: the first lobe's normal is used for all")
-        if len(lobes) == 1:
-            w, lb = lobes[0]
-            if lb["kind"] == "transparent":
-                return dict(base=zero3, roughness=0.5, metallic=0.0, specular=0.0, alpha=0.0, emission=zero3,
-                            normal=None, transmission=0.0), extras
-            if lb["kind"] == "emission":
-                return dict(base=zero3, roughness=0.5, metallic=0.0, specular=0.0, alpha=1.0,
-                            emission=self.scale3(lb["emission"], w), normal=None, transmission=0.0), extras
-            if _is_const(w) and float(w) == 1.0:
-                return {k: lb[k] for k in ("base", "roughness", "metallic", "specular", "alpha", "emission",
-                                           "transmission")} | {"normal": normal}, extras
-        # several lobes (or a weighted one): transparency, emission sum, weighted parameters
-        m = self.math
-        transp = 0.0
-        emis = zero3
-        s_w = []
-        for w, lb in lobes:
-            if lb["kind"] == "transparent":
-                transp = m(ops.M_ADD, transp, w)
-                continue
-            emis = self.add3(emis, self.scale3(lb["emission"], w))
-            if lb["kind"] == "emission":
-                continue
-            sw = m(ops.M_MULTIPLY, w, lb["alpha"])
-            transp = m(ops.M_ADD, transp, m(ops.M_MULTIPLY, w, m(ops.M_SUBTRACT, 1.0, lb["alpha"])))
-            s_w.append((sw, lb))
-        alpha = m(ops.M_SUBTRACT, 1.0, transp, clamp=True)
-        inv_alpha = m(ops.M_DIVIDE, 1.0, alpha)
-        total = 0.0
-        for sw, _lb in s_w:
-            total = m(ops.M_ADD, total, sw)
-        inv_total = m(ops.M_DIVIDE, 1.0, total)
-        base, spec, rough, metal, tran = zero3, 0.0, 0.0, 0.0, 0.0
-        for sw, lb in s_w:
-            base = self.add3(base, self.scale3(lb["base"], sw))
-            spec = m(ops.M_ADD, spec, m(ops.M_MULTIPLY, sw, lb["specular"]))
-            rough = m(ops.M_ADD, rough, m(ops.M_MULTIPLY, sw, lb["roughness"]))
-            metal = m(ops.M_ADD, metal, m(ops.M_MULTIPLY, sw, lb["metallic"]))
-            tran = m(ops.M_ADD, tran, m(ops.M_MULTIPLY, sw, lb["transmission"]))
-        if not s_w:
-            rough = 0.5
-        return dict(base=self.scale3(base, inv_alpha), specular=m(ops.M_MULTIPLY, spec, inv_alpha),
-                    roughness=m(ops.M_MULTIPLY, rough, inv_total) if s_w else 0.5,
-                    metallic=m(ops.M_MULTIPLY, metal, inv_total), transmission=m(ops.M_MULTIPLY, tran, inv_total),
-                    alpha=alpha, emission=self.scale3(emis, inv_alpha), normal=normal), extras
-
 
 def transform2d_matrix(scale=(1.0, 1.0), rotation=0.0, translation=(0.0, 0.0)) -> np.ndarray:
     """The (3, 3) matrix of a UsdTransform2d on (s, t, 1): T · R · S (scale, then rotate CCW in degrees, then
@@ -1310,13 +1099,16 @@ def compile_graph(graph: Graph, warn=None, uv_index=None, scene_textures=None, r
             x = c.e.emit(vm.OP_NORMALIZE_N, 3, [(x, 3)])
         outs[k] = x.r
         live.append((x.r, n))
+    slots = c.lobe_slots
+    if slots is not None:
+        live += slots.live
     program = None
     if live:
         code, init = c.e.finish(live)
         images = code[:, 0] == vm.OP_IMAGE  # the textures the kept lookups read, renumbered
         used = sorted(set(code[images, 3].tolist()))
         code[images, 3] = np.searchsorted(np.asarray(used, np.int32), code[images, 3])
-        program = Program(code=code, init=init, outs=outs, textures=[c.textures[k] for k in used])
+        program = Program(code=code, init=init, outs=outs, textures=[c.textures[k] for k in used], lobes=slots)
     return Compiled(row=row, program=program, vertex_colors=c.vertex_colors, uv_maps=c.uv_maps)
 
 
@@ -1378,7 +1170,9 @@ class ProgramTable(NamedTuple):
     """Every material's program as the kernels read them: instructions ``code`` (registers relative to the
     material's base ``pbase``; material m runs code[pstart[m]:pstart[m + 1]]), the initial register file ``R0``
     (all materials' constants), ``outs`` (N, 8) each closure input's register (-1: the row's constant), ``has``
-    (N,) bool: the material has a program."""
+    (N,) bool: the material has a program; its closure's lobe slots (:class:`tracer.shader_closures.LobeSlots`)
+    ``lobe_kind`` (N, MAX_LOBES) (-1: unused), ``lobe_out`` (N, MAX_LOBES, 6) their registers, ``lobe_extra``
+    (N, 2) the pass-through colour's and holdout weight's registers (-1: the material has one closure)."""
 
     code: np.ndarray
     pstart: np.ndarray
@@ -1386,6 +1180,14 @@ class ProgramTable(NamedTuple):
     outs: np.ndarray
     R0: np.ndarray
     has: np.ndarray
+    lobe_kind: np.ndarray
+    lobe_out: np.ndarray
+    lobe_extra: np.ndarray
+
+    @property
+    def lobes(self) -> tuple:
+        """(lobe_kind, lobe_out, lobe_extra): the VM's ``lobe_prog``."""
+        return self.lobe_kind, self.lobe_out, self.lobe_extra
 
     @property
     def alpha_varies(self) -> np.ndarray:
@@ -1472,6 +1274,9 @@ def _pack_programs(m, textures: list) -> tuple[ProgramTable, list]:
     pbase = np.zeros(n, np.int32)
     outs = np.full((n, len(vm.OUT_SLOTS)), -1, np.int32)
     has = np.zeros(n, np.bool_)
+    lobe_kind = np.full((n, MAX_LOBES), -1, np.int32)
+    lobe_out = np.zeros((n, MAX_LOBES, 6), np.int32)
+    lobe_extra = np.full((n, 2), -1, np.int32)
     n_code = n_reg = 0
     for i in range(n):
         pstart[i] = n_code
@@ -1505,10 +1310,12 @@ def _pack_programs(m, textures: list) -> tuple[ProgramTable, list]:
         pbase[i] = n_reg
         outs[i] = prog.outs
         has[i] = True
+        if prog.lobes is not None:
+            lobe_kind[i], lobe_out[i], lobe_extra[i] = prog.lobes.kinds, prog.lobes.regs, prog.lobes.extra
         n_code += len(code)
         n_reg += len(prog.init)
     pstart[n] = n_code
     code = np.concatenate(codes) if codes else np.zeros((0, vm.WIDTH), np.int32)
     R0 = np.concatenate(inits) if inits else np.zeros(1, np.float64)
     return ProgramTable(np.ascontiguousarray(code, np.int32), pstart, pbase, outs, np.ascontiguousarray(R0),
-                        has), out_textures
+                        has, lobe_kind, lobe_out, lobe_extra), out_textures

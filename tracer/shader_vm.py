@@ -846,9 +846,12 @@ def _layer_weight(R, o, blend, nrm, d, front):
 def shade_programs(rays, prim, u, v, t, inst, d, depth, code, pstart, pbase, outs, R0, R, s_mat, s_p, s_ng, s_n,
                    s_front, s_base, s_rough, s_metal, s_spec, s_cover, s_e, s_tran, threshold, uv_sets, colors,
                    has_colors, vertices, triangles, face_normals, object_ids, spaces, tdata, tparams, linear,
-                   mirrored, inst_ids, eye, spread, flat):
+                   mirrored, inst_ids, eye, spread, flat, lobe_prog, lobe_surf):
     """The textures stage: for the listed rays (their material has a program), run it and write its outputs over
-    the constants the surfaces stage wrote. ``R`` is this call's register file (``R0`` copied in once)."""
+    the constants the surfaces stage wrote. ``R`` is this call's register file (``R0`` copied in once).
+    ``lobe_prog`` = (kinds (M, MAX_LOBES), slot registers (M, MAX_LOBES, 6), (through, holdout) registers (M, 2))
+    of the materials whose closure is a sum of lobes (:mod:`tracer.lobes`); ``lobe_surf`` = the SurfaceQueue's
+    (lobes, lobe_kind, lobe_w, lobe_base, lobe_param, through, holdout) they are written to."""
     for j in range(R0.shape[0]):
         R[j] = R0[j]
     geo = (uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored,
@@ -898,6 +901,41 @@ def shade_programs(rays, prim, u, v, t, inst, d, depth, code, pstart, pbase, out
         r = outs[mat, OUT_TRANS]
         if r >= 0:
             s_tran[i] = min(max(R[rb + r], 0.0), 1.0)
+        if lobe_prog[2][mat, 0] >= 0:
+            write_lobes(R, rb, mat, i, lobe_prog, lobe_surf)
+
+
+@kernel(inline=True)
+def write_lobes(R, rb, mat, i, lobe_prog, lobe_surf):
+    """The closure's lobe slots of hit i from material ``mat``'s registers (weights and colours clamped at 0,
+    roughness, metallic and transmission to [0, 1]); ``lobes`` = the number of slots (-1, the surfaces stage's
+    value, marks the one-closure path)."""
+    kinds, slots, extra = lobe_prog
+    s_nl, s_lk, s_lw, s_lb, s_lp, s_through, s_holdout = lobe_surf
+    nl = 0
+    for k in range(kinds.shape[1]):
+        kind = kinds[mat, k]
+        if kind < 0:
+            break
+        s_lk[i, k] = kind
+        rw, rc = rb + slots[mat, k, 0], rb + slots[mat, k, 1]
+        for c in range(3):
+            s_lw[i, k, c] = max(R[rw + c], 0.0)
+            s_lb[i, k, c] = max(R[rc + c], 0.0)
+        s_lp[i, k, 0] = min(max(R[rb + slots[mat, k, 2]], 0.0), 1.0)
+        s_lp[i, k, 1] = min(max(R[rb + slots[mat, k, 3]], 0.0), 1.0)
+        s_lp[i, k, 2] = max(R[rb + slots[mat, k, 4]], 0.0)
+        s_lp[i, k, 3] = min(max(R[rb + slots[mat, k, 5]], 0.0), 1.0)
+        nl += 1
+    s_nl[i] = nl
+    r = extra[mat, 0]
+    if r >= 0:
+        s_through[i, 0], s_through[i, 1], s_through[i, 2] = (max(R[rb + r], 0.0), max(R[rb + r + 1], 0.0),
+                                                             max(R[rb + r + 2], 0.0))
+    else:
+        s_through[i, 0], s_through[i, 1], s_through[i, 2] = 0.0, 0.0, 0.0
+    r = extra[mat, 1]
+    s_holdout[i] = max(R[rb + r], 0.0) if r >= 0 else 0.0
 
 
 @kernel(inline=True)
