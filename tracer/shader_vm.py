@@ -957,20 +957,28 @@ def program_alpha(code, pstart, pbase, outs, R, mat, tri, u, v, p, ng, front, d,
 
 
 @kernel(refcounts=False)
-def shade_directions(code, pstart, pbase, outs, R0, R, mat, dirs, out, tdata, tparams, uv_sets, colors, vertices,
-                     triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids):
-    """A world's program (material ``mat``) for every direction of ``dirs`` (N, 3): its emission into ``out``
-    (N, 3) (the world's Background colour × strength; the surface inputs read as Cycles' background: P = Generated =
-    Object = the direction, N = −direction)."""
+def shade_directions(code, pstart, pbase, outs, R0, R, mat, dirs, out, tdata, tparams, uv_sets, colors, has_colors,
+                     vertices, triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids, depth, front):
+    """A world's program (material ``mat``) for every direction of ``dirs`` (N, 3) float32: its emission into
+    ``out`` (N, 3) (the world's Background colour × strength; the surface inputs read as Cycles' background: P =
+    Generated = Object = the direction, N = −direction). The hit is built with the element types
+    :func:`shade_programs` gives :func:`execute` (int32 triangle and instance, float32 barycentrics, ray length,
+    normals and direction, float64 position), so both share one compiled ``execute`` (a second would cost about 80 s
+    of compilation on a cold kernel cache)."""
     for j in range(R0.shape[0]):
         R[j] = R0[j]
-    geo = (uv_sets, colors, False, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids)
+    geo = (uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored,
+           inst_ids)
     tex = (tdata, tparams)
     rb = pbase[mat]
     r = outs[mat, OUT_EMIT]
+    none = np.int32(-1)
+    zero, far = np.float32(0.0), np.float32(np.inf)  # float32 barycentrics and ray length, as the hits'
+    eye = (0.0, 0.0, 0.0)
     for i in range(dirs.shape[0]):
-        di = (dirs[i, 0], dirs[i, 1], dirs[i, 2])
-        nb = (-di[0], -di[1], -di[2])
-        hit = (-1, 0.0, 0.0, di, nb, nb, True, di, np.inf, 0, -1, 0.0, False, di)
+        di = vec.row(dirs, i)  # float32, as a ray's direction
+        nb = (-di[0], -di[1], -di[2])  # float32, as the surfaces stage's normals
+        p = (np.float64(di[0]), np.float64(di[1]), np.float64(di[2]))  # float64, as its positions
+        hit = (none, zero, zero, p, nb, nb, front, di, far, depth, none, 0.0, False, eye)
         execute(code, pstart[mat], pstart[mat + 1], R, rb, hit, geo, tex)
         out[i, 0], out[i, 1], out[i, 2] = R[rb + r], R[rb + r + 1], R[rb + r + 2]
