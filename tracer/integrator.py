@@ -444,7 +444,8 @@ class Integrator:
             shadow, nxt, n_refl, n_tran, n_through, c = self._shade(depth, o, d, w, smp, t0, h, keys, out, counts,
                                                                     spawn, time)
             shadows.append(shadow)
-            caught.append(c if c is not None else np.zeros(len(shadow.o), np.bool_))
+            if self.compose.has_catcher:
+                caught.append(c if c is not None else np.zeros(len(shadow.o), np.bool_))
             m = len(o)
             refl.append((nxt, slice(0, n_refl)))
             tran.append((nxt, slice(m, m + n_tran)))
