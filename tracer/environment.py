@@ -8,11 +8,12 @@ is first turned into the environment's frame, e = R·d (``rotation``, world -> e
 
 and the image is looked up bilinearly (wrapping around in u). Radiance = image · ``strength``.
 
-As a light (``RenderSettings.sky_samples`` > 0), directions are importance-sampled by the image's luminance
-× each pixel's solid angle: a marginal CDF over rows and a conditional CDF over the columns of each row, then a
-point uniform in solid angle inside the pixel (so the pdf is constant over a pixel), sampled with the same deterministic strata as the other lights, so a sun in an HDRI casts a
-sharp-edged shadow with few samples. Without sky samples the environment lights diffuse surfaces through the notes'
-ambient term, with L_a = the environment's mean radiance (:meth:`Environment.average`).
+As a light (``RenderSettings.sky_samples`` > 0, the default), :func:`env_sample` draws directions by the image's
+luminance × each pixel's solid angle: a marginal CDF over rows and a conditional CDF over the columns of each row,
+then a point uniform in solid angle inside the pixel (so the pdf is constant over a pixel, :func:`env_pdf`), so a sun
+in an HDRI casts a sharp-edged shadow with few samples; the sky stage mixes it with cosine-weighted directions
+(tracer/sky.py). With ``sky_samples`` = 0 the environment lights diffuse surfaces through the notes' ambient term,
+with L_a = the environment's mean radiance (:meth:`Environment.average`).
 """
 
 from __future__ import annotations
