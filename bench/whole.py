@@ -122,7 +122,9 @@ def main(argv=None) -> None:
     usd, sdl = _files(a.work, a.width, a.height, a.max_depth, a.count)
     out = os.path.join(a.work, "whole_whitted.png")
     flags = ["render", usd, "-o", out, "--width", str(a.width), "--height", str(a.height),
-             "--max-depth", str(a.max_depth), "--threads", str(a.threads), "--quiet"]
+             "--max-depth", str(a.max_depth), "--threads", str(a.threads), "--quiet",
+             # like for like: POV-Ray's ambient_light is the notes' flat ambient term, not shadowed sky rays
+             "--sky-samples", "0"]
     env = dict(os.environ, PYTHONPATH=os.path.abspath(a.root))
     env.pop("PYTHONDONTWRITEBYTECODE", None)  # an install has its bytecode; the warm-up run writes it
     ours_cmd = [sys.executable, "-c", ENTRY, *flags]
