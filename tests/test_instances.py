@@ -364,7 +364,9 @@ def _override_scene(instanced: bool):
 
 
 def test_per_instance_material_overrides_shade_and_emit_as_their_own_materials():
-    st = RenderSettings(width=96, height=64, samples=1, light_samples=16, max_depth=2, aovs=("normal", "objectid"))
+    # Points on the glowing ball's triangles land a float's rounding apart in the two layouts, so the floor next to
+    # it (1/r²) differs by sampling noise: 256 light samples keep that under the bar (16 did not, by 0.0006).
+    st = RenderSettings(width=96, height=64, samples=1, light_samples=256, max_depth=2, aovs=("normal", "objectid"))
     inst, flat = _override_scene(True), _override_scene(False)
     assert inst.instances.materials.tolist() == [-1, 1, 2]
     a, b = render(inst, st), render(flat, st)

@@ -8,11 +8,12 @@ is first turned into the environment's frame, e = R·d (``rotation``, world -> e
 
 and the image is looked up bilinearly (wrapping around in u). Radiance = image · ``strength``.
 
-As a light (``RenderSettings.sky_samples`` > 0), directions are importance-sampled by the image's luminance
-× each pixel's solid angle: a marginal CDF over rows and a conditional CDF over the columns of each row, then a
-point uniform in solid angle inside the pixel (so the pdf is constant over a pixel), sampled with the same deterministic strata as the other lights, so a sun in an HDRI casts a
-sharp-edged shadow with few samples. Without sky samples the environment lights diffuse surfaces through the notes'
-ambient term, with L_a = the environment's mean radiance (:meth:`Environment.average`).
+As a light (``RenderSettings.sky_samples`` > 0, the default), :func:`env_sample` draws directions by the image's
+luminance × each pixel's solid angle: a marginal CDF over rows and a conditional CDF over the columns of each row,
+then a point uniform in solid angle inside the pixel (so the pdf is constant over a pixel, :func:`env_pdf`), so a sun
+in an HDRI casts a sharp-edged shadow with few samples; the sky stage mixes it with cosine-weighted directions
+(tracer/sky.py). With ``sky_samples`` = 0 the environment lights diffuse surfaces through the notes' ambient term,
+with L_a = the environment's mean radiance (:meth:`Environment.average`).
 """
 
 from __future__ import annotations
@@ -186,6 +187,23 @@ def env_sample(data, rot, row_cdf, col_cdf, row_pdf, col_pdf, s0, s1):
          r[0, 2] * e[0] + r[1, 2] * e[1] + r[2, 2] * e[2])
     solid = (2.0 * math.pi / w) * max(z_top - z_bottom, 1e-12)  # the pixel's solid angle
     return vec.normalize(d), row_pdf[row] * col_pdf[row, col] / solid
+
+
+@kernel(inline=True)
+def env_pdf(data, rot, row_pdf, col_pdf, d):
+    """The pdf per steradian with which :func:`env_sample` draws the unit world direction d: its pixel's probability
+    / the pixel's solid angle (the same pixel grid as :func:`env_sample`: column ⌊u·W⌋, row ⌊(1 − t)·H⌋)."""
+    e = _to_env(rot, d)
+    h, w = data.shape[0], data.shape[1]
+    u = 0.5 - math.atan2(e[1], e[0]) / (2.0 * math.pi)
+    z = min(max(e[2], -1.0), 1.0)
+    t = 0.5 + math.asin(z) / math.pi
+    col = min(max(int(math.floor(u * w)), 0), w - 1)
+    row = min(max(int(math.floor((1.0 - t) * h)), 0), h - 1)
+    z_top = math.sin((0.5 - row / h) * math.pi)
+    z_bottom = math.sin((0.5 - (row + 1.0) / h) * math.pi)
+    solid = (2.0 * math.pi / w) * max(z_top - z_bottom, 1e-12)
+    return row_pdf[row] * col_pdf[row, col] / solid
 
 
 @kernel

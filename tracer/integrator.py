@@ -34,15 +34,15 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import bsdf, compose, linking, lobes, optics, shading, vec
+from . import bsdf, compose, linking, lobes, optics, shading, sky, vec
 from .accel import Accelerator
-from .environment import env_radiance, env_sample, pack_environment
+from .environment import env_radiance, pack_environment
 from .jit import kernel
 from .instances import mat3_apply, mat3_apply_transposed, pack_instances
 from .instances import world_emitters
 from .lights import MESH, pack_lights, sample_light
 from .motion import frames_at_time, pack_motion
-from .sampling import multijitter, stratum, uniform2_1
+from .sampling import rotated_multijitter, uniform2_1
 from .scene import Scene
 from .settings import RenderSettings
 from .shader_compile import pack_programs
@@ -461,7 +461,8 @@ class Integrator:
             shadow, nxt, n_refl, n_tran, n_through, c = self._shade(depth, o, d, w, smp, t0, h, keys, out, counts,
                                                                     spawn, time)
             shadows.append(shadow)
-            caught.append(c if c is not None else np.zeros(len(shadow.o), np.bool_))
+            if self.compose.has_catcher:
+                caught.append(c if c is not None else np.zeros(len(shadow.o), np.bool_))
             m = len(o)
             refl.append((nxt, slice(0, n_refl)))
             tran.append((nxt, slice(m, m + n_tran)))
@@ -823,40 +824,30 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
     amb = (opt.ambient[0], opt.ambient[1], opt.ambient[2])
     add_ambient = (amb[0] > 0.0 or amb[1] > 0.0 or amb[2] > 0.0) and sky_side == 0
     s_nl = surf.lobes
-    no_lobes = lobes.none()
-    black = bsdf.classic((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 1.0)
     n_new = 0
     for i in range(s_hit.shape[0]):
         if not s_hit[i]:
             continue
         s = sample[i]
         n, di = vec.row(s_n, i), vec.row(d, i)
-        nl = s_nl[i] if principled else -1
-        if nl < 0:  # one closure
-            cl, wl, g = _closure_at(surf, mats, i, n, di, principled, spawn)
-            lb = no_lobes
-            if g > 0.0:  # what the spawn stage's mirror ray takes of the lobes (zeros where there is no closure)
-                s_mirror[i, 0], s_mirror[i, 1], s_mirror[i, 2] = vec.scale(bsdf.specular_albedo(cl), g)
-            if wl <= 0.0 or bsdf.is_black(cl):
-                continue
-        else:  # a sum of lobes (tracer.lobes): their weights already hold coverage
-            lb, wl = _lobes_at(surf, mats, i, n, di, spawn)
-            cl, g = black, 0.0
-            s_mirror[i, 0], s_mirror[i, 1], s_mirror[i, 2] = lobes.mirror_weight(lb)
-            if wl <= 0.0 or lobes.is_black(lb):
-                continue
-        back = nl >= 0 and vec.max3(lb.translucent) > 0.0  # lights behind the surface reach its translucent lobes
+        if principled and s_nl[i] >= 0:  # a sum of lobes (tracer.lobes): its own loop, off the one-closure path
+            n_shadow, k_new = _lobe_light(surf, d, i, s, weight, keys, depth, spawn, mats, lights, opt, out, shadow,
+                                          n_shadow, links, recv)
+            n_new += k_new
+            continue
+        cl, wl, g = _closure_at(surf, mats, i, n, di, principled, spawn)
+        if g > 0.0:  # what the spawn stage's mirror ray takes of the lobes (zeros where there is no closure)
+            s_mirror[i, 0], s_mirror[i, 1], s_mirror[i, 2] = vec.scale(bsdf.specular_albedo(cl), g)
+        if wl <= 0.0 or bsdf.is_black(cl):
+            continue
         wo = vec.scale(vec.row(weight, i), wl)
         p = (s_p[i, 0], s_p[i, 1], s_p[i, 2])
         ng = vec.row(s_ng, i)
         wi = vec.scale(di, -1.0)
         if add_ambient:  # the notes' ambient term R_a·L_a (and the lobes' albedo × L_a)
-            if nl >= 0:
-                c = lobes.ambient(lb, amb)
-            else:
-                c = shading.ambient(cl.diffuse, amb)
-                if principled:
-                    c = vec.add(c, vec.scale(vec.mul(bsdf.specular_albedo(cl), amb), 1.0 - g))
+            c = shading.ambient(cl.diffuse, amb)
+            if principled:
+                c = vec.add(c, vec.scale(vec.mul(bsdf.specular_albedo(cl), amb), 1.0 - g))
             for ch in range(3):
                 o_color[s, ch] += wo[ch] * c[ch]
         r0, r1 = 0.0, 0.0
@@ -866,20 +857,15 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
             if linked and not linking.lights_receiver(l_recv[j], recv[i]):
                 continue
             # a light the mirror ray can see (emissive triangles) gives the mirror share of the lobes to that ray
-            mesh = l_kind[j] == MESH
-            spec_scale = (1.0 - g if mesh else 1.0) * l_glossy[j]
+            spec_scale = (1.0 - g if l_kind[j] == MESH else 1.0) * l_glossy[j]
             for k in range(l_side[j] * l_side[j]):
                 l, dist, e = sample_light(lights, j, k, p, r0, r1)
                 n_l = vec.dot(n, l)
                 if n_l <= 0.0 or vec.dot(ng, l) <= 0.0:
-                    if not (back and n_l < 0.0 and vec.dot(ng, l) < 0.0):
-                        continue
-                if nl >= 0:
-                    f = lobes.evaluate(lb, n, wi, l, n_l, mesh, l_glossy[j], l_diffuse[j])
-                else:
-                    f = bsdf.evaluate(cl, n, wi, l, n_l, spec_scale)
-                    if l_diffuse[j] != 1.0:  # the light's diffuse factor (the BSDF at spec_scale 0 is its diffuse part)
-                        f = vec.sub(f, vec.scale(bsdf.evaluate(cl, n, wi, l, n_l, 0.0), 1.0 - l_diffuse[j]))
+                    continue
+                f = bsdf.evaluate(cl, n, wi, l, n_l, spec_scale)
+                if l_diffuse[j] != 1.0:  # the light's diffuse factor (the BSDF at spec_scale 0 is its diffuse part)
+                    f = vec.sub(f, vec.scale(bsdf.evaluate(cl, n, wi, l, n_l, 0.0), 1.0 - l_diffuse[j]))
                 c = vec.mul(wo, vec.mul(f, e))
                 if shadows:  # the shadow ray from p to the light sample: counts only if nothing is in between
                     so, sd, st = shadow_ray(p, ng, l, dist, eps)
@@ -894,16 +880,70 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
 
 
 @kernel(refcounts=False)
+def _lobe_light(surf, d, i, s, weight, keys, depth, spawn, mats, lights, opt, out, shadow, n_shadow, links, recv):
+    """:func:`_direct_light` at hit i whose closure is a sum of lobes (``SurfaceQueue.lobes`` ≥ 0): Σ wᵢ·fᵢ per
+    light sample (:func:`tracer.lobes.evaluate`; one shadow ray per sample, lights behind the surface too where it
+    has translucent lobes), the lobes' mirror share for the spawn stage, their ambient term. Returns (the shadow
+    queue's new length, shadow rays added). (Its own kernel, so that the one-closure loop stays as it was.)"""
+    eps = opt.eps
+    amb = (opt.ambient[0], opt.ambient[1], opt.ambient[2])
+    add_ambient = (amb[0] > 0.0 or amb[1] > 0.0 or amb[2] > 0.0) and opt.sky_side == 0
+    q_o, q_d, q_t, q_s, q_c, q_l = shadow.o, shadow.d, shadow.t_max, shadow.sample, shadow.color, shadow.light
+    l_kind, l_side = lights.kind, lights.side
+    l_recv, l_diffuse, l_glossy = links.recv_set, links.diffuse, links.glossy
+    linked = recv.shape[0] > 0
+    o_color, s_mirror = out.color, surf.mirror
+    n, di = vec.row(surf.n, i), vec.row(d, i)
+    lb, wl = _lobes_at(surf, mats, i, n, di, spawn)
+    s_mirror[i, 0], s_mirror[i, 1], s_mirror[i, 2] = lobes.mirror_weight(lb)
+    if wl <= 0.0 or lobes.is_black(lb):
+        return n_shadow, 0
+    back = vec.max3(lb.translucent) > 0.0  # lights behind the surface reach its translucent lobes
+    wo = vec.scale(vec.row(weight, i), wl)
+    p = (surf.p[i, 0], surf.p[i, 1], surf.p[i, 2])
+    ng = vec.row(surf.ng, i)
+    wi = vec.scale(di, -1.0)
+    if add_ambient:
+        c = lobes.ambient(lb, amb)
+        for ch in range(3):
+            o_color[s, ch] += wo[ch] * c[ch]
+    r0, r1 = 0.0, 0.0
+    if opt.needs_light_random:
+        r0, r1 = uniform2_1(keys[s], _STREAM_LIGHT + depth, opt.seed)
+    n_new = 0
+    for j in range(l_kind.shape[0]):
+        if linked and not linking.lights_receiver(l_recv[j], recv[i]):
+            continue
+        mesh = l_kind[j] == MESH
+        for k in range(l_side[j] * l_side[j]):
+            l, dist, e = sample_light(lights, j, k, p, r0, r1)
+            n_l = vec.dot(n, l)
+            n_g = vec.dot(ng, l)
+            if not ((n_l > 0.0 and n_g > 0.0) or (back and n_l < 0.0 and n_g < 0.0)):
+                continue
+            c = vec.mul(wo, vec.mul(lobes.evaluate(lb, n, wi, l, n_l, mesh, l_glossy[j], l_diffuse[j]), e))
+            if opt.shadows:
+                so, sd, st = shadow_ray(p, ng, l, dist, eps)
+                _put(q_o, q_d, q_t, q_s, q_c, q_l, n_shadow, so, sd, st, s, c, j)
+                n_shadow += 1
+                n_new += 1
+            else:
+                for ch in range(3):
+                    o_color[s, ch] += c[ch]
+    return n_shadow, n_new
+
+
+@kernel(refcounts=False)
 def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shadow, n_shadow, counts):
-    """Sky stage: the environment as a light (directions importance-sampled by luminance, local model × radiance
-    / pdf), or the ambient term weighted by the visible sky (cosine-weighted hemisphere rays); deferred like shadow
-    rays. Returns the shadow queue's new length."""
+    """Sky stage: the world as a light (tracer/sky.py), deferred like shadow rays — an environment by rays drawn
+    from its luminance CDF and cosine-weighted (one-sample MIS, local model × radiance / mixture pdf), a constant
+    world by cosine-weighted rays that each carry the ambient term; fewer rays at deeper hits that carry less weight.
+    Returns the shadow queue's new length."""
     if depth > opt.max_depth:
         return n_shadow
     eps = opt.eps
     principled, seed = opt.principled, opt.seed
     side = opt.sky_side
-    kk = side * side
     amb = (opt.ambient[0], opt.ambient[1], opt.ambient[2])
     has_amb = amb[0] > 0.0 or amb[1] > 0.0 or amb[2] > 0.0
     s_hit, s_p, s_ng, s_n = surf.hit, surf.p, surf.ng, surf.n
@@ -920,15 +960,19 @@ def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shado
         cl, wl, g = _closure_at(surf, mats, i, n, di, principled, spawn)
         if wl <= 0.0 or bsdf.is_black(cl):
             continue
-        wo = vec.scale(vec.row(weight, i), wl)
+        w_ray = vec.row(weight, i)
+        wo = vec.scale(w_ray, wl)
         p = (s_p[i, 0], s_p[i, 1], s_p[i, 2])
         ng = vec.row(s_ng, i)
         wi = vec.scale(di, -1.0)
         r0, r1 = uniform2_1(keys[s], _STREAM_SKY + depth, seed)
+        sd = sky.side_at(depth, side, vec.max3(w_ray))
+        kk = sd * sd
+        tu, tv = vec.orthonormal_basis(n)
         if env_present:  # the mirror ray sees the environment: its share of the lobes is left to it
             for k in range(kk):
-                s0, s1 = multijitter(k, side, r0, r1)
-                dr, pdf = env_sample(e_data, e_rot, e_rcdf, e_ccdf, e_rpdf, e_cpdf, s0, s1)
+                s0, s1 = rotated_multijitter(k, sd, r0, r1)
+                dr, pdf = sky.env_direction(e_data, e_rot, e_rcdf, e_ccdf, e_rpdf, e_cpdf, n, tu, tv, s0, s1)
                 n_l = vec.dot(n, dr)
                 if n_l <= 0.0 or vec.dot(ng, dr) <= 0.0 or pdf <= 0.0:
                     continue
@@ -945,12 +989,9 @@ def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shado
             for ch in range(3):
                 o_color[s, ch] += wo[ch] * c[ch]
         c = vec.scale(vec.mul(wo, shading.ambient(cl.diffuse, amb)), 1.0 / kk)
-        tu, tv = vec.orthonormal_basis(n)
         for k in range(kk):
-            s0, s1 = stratum(k, side, r0, r1)
-            r = np.sqrt(s0)
-            phi = 2.0 * np.pi * s1
-            dr = vec.madd(vec.madd(vec.scale(n, np.sqrt(max(0.0, 1.0 - s0))), tu, r * np.cos(phi)), tv, r * np.sin(phi))
+            s0, s1 = rotated_multijitter(k, sd, r0, r1)
+            dr = sky.cosine_direction(n, tu, tv, s0, s1)
             _put(q_o, q_d, q_t, q_s, q_c, q_l, n_shadow, spawn_ray(p, ng, dr, eps), dr, np.inf, s, c, -1)
             n_shadow += 1
         n_new += kk

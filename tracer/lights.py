@@ -30,7 +30,7 @@ import numpy as np
 
 from . import vec
 from .jit import kernel
-from .sampling import stratum
+from .sampling import rotated_multijitter, stratum
 
 
 def _vec3(v, name):
@@ -195,6 +195,16 @@ def emitting_triangles(vertices, triangles, material_ids, emission):
     return tri, emission[np.asarray(material_ids)[sel]]
 
 
+def _canonical_order(tri: np.ndarray) -> np.ndarray:
+    """An order of emitting triangles that does not depend on how the scene listed them (flat or instanced, objects
+    in any order): by centroid, quantised to 1e-6 of the emitters' extent so that float rounding of the same
+    triangle placed two ways does not reorder it. The power CDF maps strata to triangles in this order."""
+    c = tri.mean(axis=1)
+    extent = float(np.ptp(c, axis=0).max()) if len(c) > 1 else 0.0
+    q = np.round(c / (extent * 1e-6)).astype(np.int64) if extent > 0 else np.zeros_like(c, np.int64)
+    return np.lexsort((q[:, 2], q[:, 1], q[:, 0]))
+
+
 def pack_lights(lights: list, light_samples: int, emitters=None) -> LightTables:
     """The lights as a :class:`LightTables`, read by :func:`sample_light`. A light with an extent takes side×side
     stratified samples, side = round(√light_samples). ``emitters`` = (tri (N, 3, 3), Le (N, 3)) adds the emissive
@@ -208,6 +218,8 @@ def pack_lights(lights: list, light_samples: int, emitters=None) -> LightTables:
         power = area * tri_le.mean(axis=1)
         keep = power > 0
         tri, tri_le, power = tri[keep], tri_le[keep], power[keep]
+        order = _canonical_order(tri)  # the same emitters listed in another order sample the same points
+        tri, tri_le, power = tri[order], tri_le[order], power[order]
         cdf = np.cumsum(power) / power.sum() if len(power) else cdf
         cdf[-1:] = 1.0
     n = len(lights) + (1 if len(tri) else 0)
@@ -238,8 +250,10 @@ def pack_lights(lights: list, light_samples: int, emitters=None) -> LightTables:
 @kernel(inline=True)
 def _sample_emitters(tri, tri_le, cdf, k, sd, kk, p, r0, r1):
     """Stratum k of the emissive triangles: the first coordinate picks a triangle by the power CDF (its remainder,
-    rescaled, and the second place a uniform point on it), E = Le·|cos θ_l|·A/(p_pick·r²)/K (two-sided)."""
-    s0, s1 = stratum(k, sd, r0, r1)
+    rescaled, and the second place a uniform point on it), E = Le·|cos θ_l|·A/(p_pick·r²)/K (two-sided). The points
+    are multi-jittered (side² distinct values of the first coordinate: each triangle of a small emitter gets its own
+    strata, and a large one well spread points)."""
+    s0, s1 = rotated_multijitter(k, sd, r0, r1)
     lo, hi = 0, cdf.shape[0] - 1
     while lo < hi:  # the first triangle whose cumulative probability exceeds s0
         mid = (lo + hi) // 2
