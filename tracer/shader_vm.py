@@ -176,22 +176,40 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
     uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids = geo
     tdata, tparams = tex
     k_read, uv_area, world_area = -1, 0.0, 0.0  # the UV set whose areas were last read (lookups mostly share one)
-    for pc in range(pc0, pc1):  # the branches in order of how often real programs run them
+    for pc in range(pc0, pc1):
         op = code[pc, 0]
         o = base + code[pc, 1]
         a = base + code[pc, 2]
         b = base + code[pc, 3]
         c = base + code[pc, 4]
         imm = code[pc, 8]
-        if op == OP_INPUT:
-            _input(R, o, imm, code[pc, 2], code[pc, 3], base + code[pc, 4], hit, geo)
-        elif op >= OP_NOISE and op != OP_VTRANSFORM:  # procedural textures: a = vector, b = parameter block
-            _procedural(R, op, o, a, b, imm)
-        elif op == OP_MATH:
+        if op == OP_MATH:
             x = ops.math_op(imm & 255, R[a], R[b], R[c])
             if imm & 256:
                 x = min(max(x, 0.0), 1.0)
             R[o] = x
+        elif op == OP_VMATH:
+            s = R[base + code[pc, 5]]
+            x0, x1, x2, x3 = ops.vmath_op(imm, R[a], R[a + 1], R[a + 2], R[b], R[b + 1], R[b + 2], R[c], R[c + 1],
+                                          R[c + 2], s)
+            R[o], R[o + 1], R[o + 2], R[o + 3] = x0, x1, x2, x3
+        elif op == OP_MIX_F:
+            f = R[a]
+            if imm & 1:
+                f = min(max(f, 0.0), 1.0)
+            R[o] = (1.0 - f) * R[b] + f * R[c]
+        elif op == OP_MIX_V:
+            f = R[a]
+            if imm & 1:
+                f = min(max(f, 0.0), 1.0)
+            for j in range(3):
+                R[o + j] = (1.0 - f) * R[b + j] + f * R[c + j]
+        elif op == OP_MIX_VN:
+            for j in range(3):
+                f = R[a + j]
+                if imm & 1:
+                    f = min(max(f, 0.0), 1.0)
+                R[o + j] = (1.0 - f) * R[b + j] + f * R[c + j]
         elif op == OP_MIX_C:
             f = R[a]
             if imm & 256:
@@ -200,18 +218,22 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
             if imm & 512:
                 x0, x1, x2 = min(max(x0, 0.0), 1.0), min(max(x1, 0.0), 1.0), min(max(x2, 0.0), 1.0)
             R[o], R[o + 1], R[o + 2] = x0, x1, x2
-        elif op == OP_RAMP:
-            _ramp(R, o, R[a], b, code[pc, 4], code[pc, 8])
-        elif op == OP_MAP_RANGE:
-            R[o] = ops.map_range_clamp(imm & 255, R[a], R[b], R[c], R[base + code[pc, 5]], R[base + code[pc, 6]],
-                                       R[base + code[pc, 7]], (imm & 256) != 0)
-        elif op == OP_VMATH:
-            s = R[base + code[pc, 5]]
-            x0, x1, x2, x3 = ops.vmath_op(imm, R[a], R[a + 1], R[a + 2], R[b], R[b + 1], R[b + 2], R[c], R[c + 1],
-                                          R[c + 2], s)
-            R[o], R[o + 1], R[o + 2], R[o + 3] = x0, x1, x2, x3
-        elif op == OP_MAPPING:
-            _mapping(R, o, a, b, c, base + code[pc, 5], imm)
+        elif op == OP_LUM:
+            R[o] = 0.2126 * R[a] + 0.7152 * R[a + 1] + 0.0722 * R[a + 2]
+        elif op == OP_AVG:
+            R[o] = (R[a] + R[a + 1] + R[a + 2]) / 3.0
+        elif op == OP_COMBINE:
+            x0, x1, x2 = R[a], R[b], R[c]
+            R[o], R[o + 1], R[o + 2] = x0, x1, x2
+        elif op == OP_COPY:
+            for j in range(imm):
+                R[o + j] = R[a + j]
+        elif op == OP_SELECT:  # o = a if R[c] > 0.5 else b, width imm
+            src = a if R[c] > 0.5 else b
+            for j in range(imm):
+                R[o + j] = R[src + j]
+        elif op == OP_INPUT:
+            _input(R, o, imm, code[pc, 2], code[pc, 3], base + code[pc, 4], hit, geo)
         elif op == OP_IMAGE:  # imm: projection (0 flat, 1 box: blend in register d, 2 sphere, 3 tube,
             #                   4 equirectangular of a direction: Environment Texture)
             ti = code[pc, 3]
@@ -234,50 +256,6 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
                     s_, t_ = _project(R[a], R[a + 1], R[a + 2], imm)
                 x0, x1, x2, x3 = lookup_at(tdata, tparams, ti, s_, t_, s_ == s_ and t_ == t_, lod)
             R[o], R[o + 1], R[o + 2], R[o + 3] = x0, x1, x2, x3
-        elif op == OP_BUMP_SETUP:
-            _bump_setup(R, o, tri, u, v, ng, footprint, k_inst, vertices, triangles, linear)
-        elif op == OP_BUMP:
-            _bump(R, o, R[a], R[b], R[c], R[base + code[pc, 5]], R[base + code[pc, 6]], base + code[pc, 7],
-                  base + imm, ng)
-        elif op == OP_NORMALIZE_N:  # a normal output: unit, on the incident side (else the shading normal)
-            x = (R[a], R[a + 1], R[a + 2])
-            ln = math.sqrt(vec.dot(x, x))
-            if ln > 0.0 and vec.dot(x, ng) > 0.0:
-                x = vec.scale(x, 1.0 / ln)
-            else:
-                x = n
-            R[o], R[o + 1], R[o + 2] = x
-        elif op == OP_MIX_F:
-            f = R[a]
-            if imm & 1:
-                f = min(max(f, 0.0), 1.0)
-            R[o] = (1.0 - f) * R[b] + f * R[c]
-        elif op == OP_MIX_V:
-            f = R[a]
-            if imm & 1:
-                f = min(max(f, 0.0), 1.0)
-            for j in range(3):
-                R[o + j] = (1.0 - f) * R[b + j] + f * R[c + j]
-        elif op == OP_MIX_VN:
-            for j in range(3):
-                f = R[a + j]
-                if imm & 1:
-                    f = min(max(f, 0.0), 1.0)
-                R[o + j] = (1.0 - f) * R[b + j] + f * R[c + j]
-        elif op == OP_LUM:
-            R[o] = 0.2126 * R[a] + 0.7152 * R[a + 1] + 0.0722 * R[a + 2]
-        elif op == OP_AVG:
-            R[o] = (R[a] + R[a + 1] + R[a + 2]) / 3.0
-        elif op == OP_COMBINE:
-            x0, x1, x2 = R[a], R[b], R[c]
-            R[o], R[o + 1], R[o + 2] = x0, x1, x2
-        elif op == OP_COPY:
-            for j in range(imm):
-                R[o + j] = R[a + j]
-        elif op == OP_SELECT:  # o = a if R[c] > 0.5 else b, width imm
-            src = a if R[c] > 0.5 else b
-            for j in range(imm):
-                R[o + j] = R[src + j]
         elif op == OP_CHECKER:  # Cycles' svm_checker: Color1 where the cell parities differ
             sc = R[base + code[pc, 5]]
             px = (R[a] * sc + 0.000001) * 0.999999
@@ -290,8 +268,17 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
             R[o + 3] = 1.0 if first else 0.0
         elif op == OP_NORMAL_MAP:  # imm: space (0 tangent: UV set c; object, world, Blender object / world)
             R[o], R[o + 1], R[o + 2] = _normal_map((R[a], R[a + 1], R[a + 2]), R[b], imm, code[pc, 4], hit, geo)
+        elif op == OP_BUMP_SETUP:
+            _bump_setup(R, o, tri, u, v, ng, footprint, k_inst, vertices, triangles, linear)
+        elif op == OP_BUMP:
+            _bump(R, o, R[a], R[b], R[c], R[base + code[pc, 5]], R[base + code[pc, 6]], base + code[pc, 7],
+                  base + imm, ng)
+        elif op == OP_RAMP:
+            _ramp(R, o, R[a], b, code[pc, 4], code[pc, 8])
         elif op == OP_CURVE:
             _curve(R, o, a, b, code[pc, 4], R[base + code[pc, 5]], imm)
+        elif op == OP_MAPPING:
+            _mapping(R, o, a, b, c, base + code[pc, 5], imm)
         elif op == OP_HSV:
             x0, x1, x2 = ops.hue_sat(R[b], R[c], R[base + code[pc, 5]], R[base + code[pc, 6]], R[a], R[a + 1],
                                      R[a + 2])
@@ -320,6 +307,9 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
             elif imm == 2:
                 x0, x1, x2 = ops.hsl_to_rgb(x0, x1, x2)
             R[o], R[o + 1], R[o + 2] = x0, x1, x2
+        elif op == OP_MAP_RANGE:
+            R[o] = ops.map_range_clamp(imm & 255, R[a], R[b], R[c], R[base + code[pc, 5]], R[base + code[pc, 6]],
+                                       R[base + code[pc, 7]], (imm & 256) != 0)
         elif op == OP_MAP_RANGE_V:
             for j in range(3):
                 R[o + j] = ops.map_range_clamp(imm & 255, R[a + j], R[b + j], R[c + j], R[base + code[pc, 5] + j],
@@ -343,6 +333,16 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
             R[o + 2] = R[a + 2]
         elif op == OP_VTRANSFORM:
             R[o], R[o + 1], R[o + 2] = _vtransform((R[a], R[a + 1], R[a + 2]), imm, hit, geo)
+        elif op >= OP_NOISE:  # procedural textures (tracer.procedural): a = vector, b = parameter block
+            _procedural(R, op, o, a, b, imm)
+        elif op == OP_NORMALIZE_N:  # a normal output: unit, on the incident side (else the shading normal)
+            x = (R[a], R[a + 1], R[a + 2])
+            ln = math.sqrt(vec.dot(x, x))
+            if ln > 0.0 and vec.dot(x, ng) > 0.0:
+                x = vec.scale(x, 1.0 / ln)
+            else:
+                x = n
+            R[o], R[o + 1], R[o + 2] = x
 
 
 @kernel(refcounts=False)
