@@ -167,8 +167,8 @@ POINT, SPOT, DISTANT, RECT, DISK, MESH = 0, 1, 2, 3, 4, 5
 
 class LightTables(NamedTuple):
     """The scene's lights as the kernels read them, one row per light in each field (the fields a kind does not use
-    stay 0); the emissive triangles of the MESH light (if any: the last row) as vertices, radiance and the
-    cumulative distribution of their power."""
+    stay 0); the emissive triangles of the MESH lights (if any: the last rows, each a slice tri_start:tri_end) as
+    vertices, radiance and the cumulative distribution of their power within each slice."""
 
     kind: np.ndarray  # (L,) int64: POINT, SPOT, DISTANT, RECT, DISK or MESH
     side: np.ndarray  # (L,) int64: √ of the light's sample count
