@@ -436,8 +436,8 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     pass_indices[:len(exported)] = [o.pass_index for o in exported]
     b.object_pass_indices = pass_indices
     scene = b.build()
-    scene.object_visibility, scene.light_links = links_from_blender(depsgraph, exported, scene.lights,
-                                                                    len(b.object_names), warnings)
+    scene.object_visibility, scene.light_links, scene.emitter_links = links_from_blender(
+        depsgraph, exported, scene.lights, len(b.object_names), warnings)
     scene.object_holdout, scene.object_shadow_catcher = compose_flags(depsgraph, exported, len(b.object_names))
     if blur:  # last: it evaluates the scene at other sub-frames (and puts the frame back)
         from .motion import apply_motion, sample_motion
@@ -447,10 +447,12 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
 
 
 def links_from_blender(depsgraph, exported: list, lights: list, n_objects: int, warnings: list) -> tuple:
-    """(``scene.object_visibility`` or None, ``scene.light_links``) for the exported objects (object id i =
-    ``exported[i]``) and lights (matched to their Blender objects by name): Object ▸ Visibility ▸ Ray Visibility
-    and Cycles' light / shadow linking (a collection's objects and child collections, each included or excluded:
-    only included objects when there are any, minus the excluded; everything but the excluded otherwise)."""
+    """(``scene.object_visibility`` or None, ``scene.light_links``, ``scene.emitter_links``) for the exported
+    objects (object id i = ``exported[i]``) and lights (matched to their Blender objects by name): Object ▸
+    Visibility ▸ Ray Visibility and Cycles' light / shadow linking (a collection's objects and child collections,
+    each included or excluded: only included objects when there are any, minus the excluded; everything but the
+    excluded otherwise), of lamps and of mesh objects (an emissive mesh's links; every exported id of the object
+    gets them, the tracer ignores those that do not emit)."""
     linking = tracer.linking  # (here, not at import: it loads the kernel machinery)
     ray_visibility = (("visible_camera", linking.CAMERA), ("visible_glossy", linking.GLOSSY),
                       ("visible_transmission", linking.TRANSMISSION), ("visible_shadow", linking.SHADOW))
@@ -465,10 +467,6 @@ def links_from_blender(depsgraph, exported: list, lights: list, n_objects: int, 
             continue
         bits = sum(bit for attr, bit in ray_visibility if getattr(obj, attr, True))
         visibility[members] = bits
-        ll = getattr(obj, "light_linking", None)
-        if ll is not None and (ll.receiver_collection or ll.blocker_collection):
-            warnings.append(f"object {name!r}: light linking of emissive meshes is not supported; it lights and "
-                            "shadows as if unlinked")
 
     def members(collection):
         if collection is None:
@@ -499,9 +497,17 @@ def links_from_blender(depsgraph, exported: list, lights: list, n_objects: int, 
         links.append(link)
     if all(k.is_default() for k in links):
         links = []
+    emitter_links = {}
+    for name, object_ids in ids.items():
+        ll = getattr(by_name.get(name), "light_linking", None)
+        if ll is not None and (ll.receiver_collection or ll.blocker_collection):
+            link = linking.LightLink(receivers=members(ll.receiver_collection),
+                                     blockers=members(ll.blocker_collection))
+            if not link.is_default():
+                emitter_links.update({i: link for i in object_ids})
     if np.all(visibility == linking.ALL_VISIBLE):
         visibility = None
-    return visibility, links
+    return visibility, links, emitter_links
 
 
 def compose_flags(depsgraph, exported: list, n: int) -> tuple:

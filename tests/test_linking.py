@@ -205,3 +205,43 @@ def test_explain_names_only_the_lights_blockers():
     tree = explain_pixel(scene, RenderSettings(width=4, height=4, samples=1, max_depth=0), 2, 2)
     shadows = [(r.light, r.occluded, r.blocker) for r in tree.samples[0] if r.type == "shadow"]
     assert shadows == [(0, True, "card"), (1, True, "lid")]
+
+
+# ------------------------------------------------------------------------------------------ emissive meshes
+def _glowing_floor(emit=(5.0, 5.0), links=None):
+    """The floor (object 0) under one point light (I = 10 W/sr at height 2: E = 2.5 at the centre) and two
+    emissive panels (objects 1 and 2, radiance ``emit``), off to the sides at height 1.5, clear of the light's
+    shadow ray and the orthographic camera's view; ``links``: ``scene.emitter_links``."""
+    b = SceneBuilder()
+    m = b.add_material("grey", diffuse=(0.5, 0.5, 0.5))
+    b.add_mesh([[-2, -2, 0], [2, -2, 0], [2, 2, 0], [-2, 2, 0]], [[0, 1, 2], [0, 2, 3]], material=m, name="floor")
+    for x, le in zip((-1.0, 1.0), emit):
+        glow = b.add_material(f"glow{x}", diffuse=(0, 0, 0), emission=(le,) * 3)
+        b.add_mesh([[x - 0.3, -0.3, 1.5], [x + 0.3, -0.3, 1.5], [x + 0.3, 0.3, 1.5], [x - 0.3, 0.3, 1.5]],
+                   [[0, 1, 2], [0, 2, 3]], material=glow, name=f"panel{x}")
+    b.camera = Camera.look_at((0, 0, 6), (0, 0, 0), up=(0, 1, 0), projection="orthographic",
+                              horizontal_aperture=0.02, vertical_aperture=0.02)
+    b.add_light(PointLight(position=(0, 0, 2), intensity=(10, 10, 10)))
+    scene = b.build()
+    scene.emitter_links = links or {}
+    return scene
+
+
+def _lit(scene):
+    return float(render(scene, RenderSettings(width=4, height=4, samples=1, max_depth=0, light_samples=4)).rgb.mean())
+
+
+def test_linked_emitter_lights_only_its_receivers():
+    """An emissive panel linked away from the floor leaves it as lit by the other lights alone (the same render
+    as with that panel dark), one linked to the floor lights it as unlinked; each emitting object is then its own
+    MESH light, the unlinked ones one light as without linking."""
+    lamp = 0.5 / np.pi * 2.5  # the point light alone: ρ/π·I/r²
+    both, one = _lit(_glowing_floor()), _lit(_glowing_floor(emit=(0.0, 5.0)))
+    assert both > 1.1 * one and one > 1.1 * lamp  # each panel adds light to the centre
+    assert _lit(_glowing_floor(emit=(0.0, 0.0))) == pytest.approx(lamp, rel=1e-4)
+    # panel 1 (object 1) lights only panel 2: the floor reads the lamp and panel 2, exactly as with panel 1 dark
+    assert _lit(_glowing_floor(links={1: LightLink(receivers=[2])})) == pytest.approx(one, rel=1e-9)
+    assert _lit(_glowing_floor(links={1: LightLink(receivers=[2]), 2: LightLink(receivers=[])})) == \
+        pytest.approx(lamp, rel=1e-4)
+    # linked to the floor (include): as unlinked, within the noise of sampling the panels as two lights
+    assert _lit(_glowing_floor(links={1: LightLink(receivers=[0])})) == pytest.approx(both, rel=0.02)

@@ -146,12 +146,13 @@ def world_frame(geom, tables, inst, tri, d, u, v):
 
 
 # ------------------------------------------------------------------------------------------------ lights
-def world_emitters(scene, emission: np.ndarray | None = None):
+def world_emitters(scene, emission: np.ndarray | None = None, with_objects: bool = False):
     """(tri (N, 3, 3) float64 world-space corners, Le (N, 3)) of every emitting triangle of ``scene``, as
     :func:`tracer.lights.emitting_triangles` gives them for a flat scene: the ordinary triangles whose material
     emits, then for each instance the emitting triangles of its prototype (with the instance's material override)
     placed by its matrix — vectorised per prototype, no loop over instances. ``emission``: the materials'
-    (M, 3) emission (default ``scene.materials.emission``)."""
+    (M, 3) emission (default ``scene.materials.emission``). ``with_objects``: a third array, each triangle's object
+    id (an instance's own id for its copies), for per-object light linking of emitters."""
     emission = np.asarray(scene.materials.emission if emission is None else emission, np.float64)
     glowing = emission.max(axis=1) > 0 if len(emission) else np.zeros(0, bool)
     mids = np.asarray(scene.material_ids)
@@ -161,6 +162,7 @@ def world_emitters(scene, emission: np.ndarray | None = None):
     v = np.asarray(scene.vertices, np.float64)
     tris = [v[scene.triangles[rows]]]
     les = [emission[mids[rows]]]
+    objs = [np.asarray(scene.object_ids, np.int64)[rows]]
     if inst is not None and len(inst) and glowing.any():
         overrides = inst.material_overrides()
         oids = np.asarray(scene.object_ids)
@@ -182,7 +184,9 @@ def world_emitters(scene, emission: np.ndarray | None = None):
             placed = np.einsum("nij,nkj->nki", m[:, :3, :3], corners[ti]) + m[:, None, :3, 3]
             tris.append(placed)
             les.append(emission[mat[ki, ti]])
-    return np.concatenate(tris).reshape(-1, 3, 3), np.concatenate(les).reshape(-1, 3)
+            objs.append(np.asarray(inst.object_ids, np.int64)[sel[ki]])
+    out = np.concatenate(tris).reshape(-1, 3, 3), np.concatenate(les).reshape(-1, 3)
+    return out + (np.concatenate(objs),) if with_objects else out
 
 
 # ------------------------------------------------------------------------------------------------ flattening

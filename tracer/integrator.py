@@ -339,10 +339,11 @@ class Integrator:
         self.instances = pack_instances(scene)
         self.motion = pack_motion(scene)  # None: nothing moves (tracer/motion.py)
         # instanced prototypes' emitting triangles placed per instance (tracer/instances.py)
-        emitters = world_emitters(scene, m.emission * m.alpha[:, None])
-        self.lights = pack_lights(scene.lights, settings.light_samples, emitters)
+        linked = sorted(getattr(scene, "emitter_links", None) or {})  # emitting objects that are their own light
+        emitters = world_emitters(scene, m.emission * m.alpha[:, None], with_objects=bool(linked))
+        self.lights = pack_lights(scene.lights, settings.light_samples, emitters, linked)
         #: light and shadow linking, ray visibility (tracer.linking); inactive tables when the scene has none
-        self.links = linking.pack(scene, len(self.lights.kind))
+        self.links = linking.pack(scene, len(self.lights.kind), self.lights.emitter_object)
         self.light_samples = int(np.sum(self.lights.side ** 2))  # shadow rays per shading point, at most
         self.env = pack_environment(scene.environment)
         ambient = scene.ambient

@@ -18,6 +18,8 @@ Units are Blender's and Cycles' (measured in ``docs/units.md``):
   two-sided Lambertian emitter of radiance Le = the material's emission (Cycles' Emission shader: colour ×
   strength). Its K samples pick triangles in proportion to their power (area × mean Le) and a uniform point on
   the chosen one; E = Le·cos θ_l·A/(p·r²) per sample (p the triangle's pick probability), averaged over K.
+  When some emitting object is light-linked (``Scene.emitter_links``), each linked object's triangles are a MESH
+  light of their own (its own slice of the triangle tables and of the CDF) and the unlinked ones one more.
 """
 
 from __future__ import annotations
@@ -165,8 +167,8 @@ POINT, SPOT, DISTANT, RECT, DISK, MESH = 0, 1, 2, 3, 4, 5
 
 class LightTables(NamedTuple):
     """The scene's lights as the kernels read them, one row per light in each field (the fields a kind does not use
-    stay 0); the emissive triangles of the MESH light (if any: the last row) as vertices, radiance and the
-    cumulative distribution of their power."""
+    stay 0); the emissive triangles of the MESH lights (if any: the last rows, each a slice tri_start:tri_end) as
+    vertices, radiance and the cumulative distribution of their power within each slice."""
 
     kind: np.ndarray  # (L,) int64: POINT, SPOT, DISTANT, RECT, DISK or MESH
     side: np.ndarray  # (L,) int64: √ of the light's sample count
@@ -183,7 +185,10 @@ class LightTables(NamedTuple):
     area: np.ndarray  # (L,) float64: area, its area
     tri: np.ndarray  # (N, 3, 3) float64 emitting triangles, world space
     tri_le: np.ndarray  # (N, 3) float64 their radiance
-    tri_cdf: np.ndarray  # (N,) float64 cumulative pick probability (power-proportional), last = 1
+    tri_cdf: np.ndarray  # (N,) float64 cumulative pick probability (power-proportional) within each light's slice
+    tri_start: np.ndarray  # (L,) int64: a MESH light's triangles are rows tri_start:tri_end (its CDF ends at 1)
+    tri_end: np.ndarray  # (L,) int64
+    emitter_object: np.ndarray  # (L,) int64: a MESH light's object id (-1: the unlinked emitters, or no MESH)
 
 
 def emitting_triangles(vertices, triangles, material_ids, emission):
@@ -205,31 +210,59 @@ def _canonical_order(tri: np.ndarray) -> np.ndarray:
     return np.lexsort((q[:, 2], q[:, 1], q[:, 0]))
 
 
-def pack_lights(lights: list, light_samples: int, emitters=None) -> LightTables:
+def _emitter_groups(tri, tri_le, objects, linked) -> tuple:
+    """The emitting triangles with power > 0 as (tri, Le, cdf, groups): triangles of each group contiguous and in
+    canonical order, cdf the power CDF within each group (its last entry 1), groups a list of (object id or -1,
+    start, end). One group (-1) unless ``linked`` names emitting objects: then each of those its own group, after
+    the group of all the others."""
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    power = area * tri_le.mean(axis=1)
+    keep = power > 0
+    tri, tri_le, power = tri[keep], tri_le[keep], power[keep]
+    key = np.full(len(tri), -1, np.int64)
+    if objects is not None and len(linked):
+        obj = np.asarray(objects, np.int64)[keep]
+        own = np.isin(obj, np.asarray(sorted(linked), np.int64))
+        key[own] = obj[own]
+    rows, groups, cdfs = [], [], []
+    start = 0
+    for g in np.unique(key):
+        sel = np.flatnonzero(key == g)
+        sel = sel[_canonical_order(tri[sel])]  # the same emitters listed in another order sample the same points
+        c = np.cumsum(power[sel]) / power[sel].sum()
+        c[-1:] = 1.0
+        rows.append(sel)
+        cdfs.append(c)
+        groups.append((int(g), start, start + len(sel)))
+        start += len(sel)
+    order = np.concatenate(rows) if rows else np.zeros(0, np.int64)
+    cdf = np.concatenate(cdfs) if cdfs else np.zeros(0, np.float64)
+    return tri[order], tri_le[order], cdf, groups
+
+
+def pack_lights(lights: list, light_samples: int, emitters=None, linked=()) -> LightTables:
     """The lights as a :class:`LightTables`, read by :func:`sample_light`. A light with an extent takes side×side
-    stratified samples, side = round(√light_samples). ``emitters`` = (tri (N, 3, 3), Le (N, 3)) adds the emissive
-    triangles as one more light (see :func:`emitting_triangles`)."""
+    stratified samples, side = round(√light_samples). ``emitters`` = (tri (N, 3, 3), Le (N, 3)) or (tri, Le,
+    object id (N,)) adds the emissive triangles as one more light (see :func:`emitting_triangles`), or, for the
+    object ids in ``linked`` that emit, one light per such object after the one of all the others."""
     tri = np.zeros((0, 3, 3), np.float64)
     tri_le = np.zeros((0, 3), np.float64)
     cdf = np.zeros(0, np.float64)
+    groups = []
     if emitters is not None and len(emitters[0]):
-        tri, tri_le = np.ascontiguousarray(emitters[0], np.float64), np.ascontiguousarray(emitters[1], np.float64)
-        area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-        power = area * tri_le.mean(axis=1)
-        keep = power > 0
-        tri, tri_le, power = tri[keep], tri_le[keep], power[keep]
-        order = _canonical_order(tri)  # the same emitters listed in another order sample the same points
-        tri, tri_le, power = tri[order], tri_le[order], power[order]
-        cdf = np.cumsum(power) / power.sum() if len(power) else cdf
-        cdf[-1:] = 1.0
-    n = len(lights) + (1 if len(tri) else 0)
+        tri, tri_le, cdf, groups = _emitter_groups(
+            np.ascontiguousarray(emitters[0], np.float64), np.ascontiguousarray(emitters[1], np.float64),
+            emitters[2] if len(emitters) > 2 else None, linked)
+    n = len(lights) + len(groups)
     f1, f2, f3 = (lambda: np.zeros(n, np.float64)), (lambda: np.zeros((n, 2))), (lambda: np.zeros((n, 3)))
     t = LightTables(kind=np.zeros(n, np.int64), side=np.ones(n, np.int64), position=f3(), color=f3(), radius=f1(),
                     direction=f3(), cos_cone=f1(), blend=f1(), cos_max=f1(), u_axis=f3(), v_axis=f3(), size=f2(),
-                    area=f1(), tri=tri, tri_le=tri_le, tri_cdf=cdf)
-    if len(tri):
-        t.kind[-1] = MESH
-        t.side[-1] = max(1, int(round(np.sqrt(max(1, light_samples)))))
+                    area=f1(), tri=tri, tri_le=tri_le, tri_cdf=cdf, tri_start=np.zeros(n, np.int64),
+                    tri_end=np.zeros(n, np.int64), emitter_object=np.full(n, -1, np.int64))
+    for i, (obj, start, end) in enumerate(groups, start=len(lights)):
+        t.kind[i] = MESH
+        t.side[i] = max(1, int(round(np.sqrt(max(1, light_samples)))))
+        t.tri_start[i], t.tri_end[i], t.emitter_object[i] = start, end, obj
     for i, light in enumerate(lights):
         t.side[i] = max(1, int(round(np.sqrt(light.sample_count(light_samples)))))
         if isinstance(light, PointLight):  # SpotLight included
@@ -248,20 +281,20 @@ def pack_lights(lights: list, light_samples: int, emitters=None) -> LightTables:
 
 
 @kernel(inline=True)
-def _sample_emitters(tri, tri_le, cdf, k, sd, kk, p, r0, r1):
-    """Stratum k of the emissive triangles: the first coordinate picks a triangle by the power CDF (its remainder,
+def _sample_emitters(tri, tri_le, cdf, start, end, k, sd, kk, p, r0, r1):
+    """Stratum k of the emissive triangles start:end (one MESH light): the first coordinate picks a triangle by the power CDF (its remainder,
     rescaled, and the second place a uniform point on it), E = Le·|cos θ_l|·A/(p_pick·r²)/K (two-sided). The points
     are multi-jittered (side² distinct values of the first coordinate: each triangle of a small emitter gets its own
     strata, and a large one well spread points)."""
     s0, s1 = rotated_multijitter(k, sd, r0, r1)
-    lo, hi = 0, cdf.shape[0] - 1
+    lo, hi = start, end - 1
     while lo < hi:  # the first triangle whose cumulative probability exceeds s0
         mid = (lo + hi) // 2
         if cdf[mid] > s0:
             hi = mid
         else:
             lo = mid + 1
-    before = cdf[lo - 1] if lo > 0 else 0.0
+    before = cdf[lo - 1] if lo > start else 0.0
     pick = max(cdf[lo] - before, 1e-30)
     u = min(max((s0 - before) / pick, 0.0), 1.0 - 1e-7)
     su = math.sqrt(u)
@@ -301,7 +334,8 @@ def sample_light(lights, j, k, p, r0, r1):
     kk = sd * sd
     kd = lights.kind[j]
     if kd == MESH:
-        return _sample_emitters(lights.tri, lights.tri_le, lights.tri_cdf, k, sd, kk, p, r0, r1)
+        return _sample_emitters(lights.tri, lights.tri_le, lights.tri_cdf, lights.tri_start[j], lights.tri_end[j],
+                                k, sd, kk, p, r0, r1)
     if kd == POINT or kd == SPOT:
         pos = vec.row(lights.position, j)
         radius = lights.radius[j]

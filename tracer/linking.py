@@ -11,6 +11,9 @@ The scene carries them as plain data:
   lights, the blockers its shadow rays see, whether it casts shadows at all, and whether it gives diffuse / glossy
   light (Blender light ``visible_diffuse`` / ``visible_glossy``: Cycles drops the diffuse / glossy closures from
   that light's samples).
+- ``Scene.emitter_links``: {object id: :class:`LightLink`} for emitting objects that are linked (Blender's light
+  linking on an emissive mesh): each such object's triangles become a MESH light of their own
+  (:func:`tracer.lights.pack_lights`), linked like a lamp; the unlinked emitters stay one light, never linked.
 
 How the tracer spends them (:func:`pack`):
 
@@ -28,8 +31,8 @@ A scene without any of these packs to "inactive" tables and costs nothing: every
 every ray the constant all-ones mask, the direct-light stage tests one boolean per hit.
 
 Limits: the instance array (``Scene.instances``) is one Embree geometry, so all its instances share one mask (the
-union of their objects' masks, with one warning when they differ); the emissive-mesh light (every emitting triangle
-of the scene, one light) is never linked; a ray that passes through an alpha < 1 surface keeps the mask of a camera
+union of their objects' masks, with one warning when they differ); the light of the unlinked emitting triangles
+is never linked; a ray that passes through an alpha < 1 surface keeps the mask of a camera
 ray at depth 0 and of "glossy or transmission" deeper.
 """
 
@@ -131,18 +134,24 @@ def _sets(members: list, limit: int, what: str) -> tuple[list, np.ndarray]:
     return distinct, index
 
 
-def pack(scene, n_lights: int) -> Links:
-    """The scene's visibility and links as :class:`Links` for ``n_lights`` lights of the light tables (the scene's
-    lights, then the emissive-mesh light if any: never linked)."""
+def pack(scene, n_lights: int, emitter_object: np.ndarray | None = None) -> Links:
+    """The scene's visibility and links as :class:`Links` for ``n_lights`` lights of the light tables: the scene's
+    lights, then its MESH lights, ``emitter_object`` (L,) naming each one's object (``LightTables.emitter_object``;
+    -1, or None for all: the unlinked emitters). The receiver and blocker sets are numbered over the lamps' links
+    then ``scene.emitter_links`` by object id, whatever emits: the accelerator's masks (packed without the light
+    tables) agree with the integrator's."""
     n_obj = _object_count(scene)
     links = list(getattr(scene, "light_links", None) or [])
     if links and len(links) != len(scene.lights):  # e.g. a Session's update_lights: the links were for other lights
         warnings.warn(f"light linking: scene.light_links has {len(links)} entries for {len(scene.lights)} lights; "
                       "the lights are rendered unlinked", stacklevel=2)
         links = []
-    for j, link in enumerate(links):
+    emitter_links = dict(getattr(scene, "emitter_links", None) or {})
+    # entries: the lamps' links, then the emitters' by object id; row_entry: each light-table row's entry (-1: none)
+    entries = links + [emitter_links[o] for o in sorted(emitter_links)]
+    for j, link in enumerate(entries):
         if not isinstance(link, LightLink):
-            raise ValueError(f"scene.light_links[{j}] is not a tracer.linking.LightLink")
+            raise ValueError(f"scene.light_links / emitter_links entry {j} is not a tracer.linking.LightLink")
     vis = getattr(scene, "object_visibility", None)
     if vis is not None:
         vis = np.asarray(vis)
@@ -151,10 +160,19 @@ def pack(scene, n_lights: int) -> Links:
         full = np.full(n_obj, ALL_VISIBLE, np.uint32)
         full[:min(len(vis), n_obj)] = vis[:n_obj] & ALL_VISIBLE
         vis = full
-    receivers = [_ids(k.receivers, n_obj, "receivers") for k in links] + [None] * (n_lights - len(links))
-    blockers = [_ids(k.blockers, n_obj, "blockers") for k in links] + [None] * (n_lights - len(links))
-    recv_sets, recv_set = _sets(receivers, MAX_RECEIVER_SETS, "receiver")
-    block_sets, block_set = _sets(blockers, MAX_BLOCKER_SETS - 1, "blocker")
+    row_entry = np.full(n_lights, -1, np.int64)
+    row_entry[:len(links)] = np.arange(len(links))
+    if emitter_object is not None:
+        where = {o: len(links) + e for e, o in enumerate(sorted(emitter_links))}
+        for j, o in enumerate(np.asarray(emitter_object)[:n_lights]):
+            if o >= 0 and j >= len(scene.lights):
+                row_entry[j] = where.get(int(o), -1)
+    receivers = [_ids(k.receivers, n_obj, "receivers") for k in entries]
+    blockers = [_ids(k.blockers, n_obj, "blockers") for k in entries]
+    recv_sets, entry_recv = _sets(receivers, MAX_RECEIVER_SETS, "receiver")
+    block_sets, entry_block = _sets(blockers, MAX_BLOCKER_SETS - 1, "blocker")
+    recv_set = np.where(row_entry >= 0, entry_recv[np.maximum(row_entry, 0)] if len(entries) else -1, -1)
+    block_set = np.where(row_entry >= 0, entry_block[np.maximum(row_entry, 0)] if len(entries) else -1, -1)
 
     object_recv = np.zeros(n_obj, np.uint64)
     for r, ids in enumerate(recv_sets):
@@ -162,14 +180,15 @@ def pack(scene, n_lights: int) -> Links:
     diffuse = np.ones(n_lights, np.float64)
     glossy = np.ones(n_lights, np.float64)
     shadow_mask = np.full(n_lights + 1, 1 << SHADOW_BIT, np.uint32)
-    for j, link in enumerate(links):
+    for j in np.flatnonzero(row_entry >= 0):
+        link = entries[row_entry[j]]
         diffuse[j], glossy[j] = float(link.diffuse), float(link.glossy)
         if not link.cast_shadow:
             shadow_mask[j] = 0
         elif block_set[j] >= 0:
             shadow_mask[j] = 1 << (SHADOW_BIT + 1 + int(block_set[j]))
     hidden = vis is not None and bool(np.any(vis != ALL_VISIBLE))
-    masked = hidden or bool(block_sets) or bool(np.any(shadow_mask == 0))
+    masked = hidden or bool(block_sets) or any(not k.cast_shadow for k in entries)
     object_mask = np.zeros(0, np.uint32)
     array_mask = MASK_ALL
     if masked:

@@ -217,6 +217,9 @@ class Scene:
     #: One tracer.linking.LightLink per light of ``lights`` (receivers, blockers, cast shadow, diffuse / glossy),
     #: or empty: no light is linked.
     light_links: list = field(default_factory=list)
+    #: {object id: tracer.linking.LightLink} for light-linked emitting objects (receivers, blockers): each becomes a
+    #: MESH light of its own (tracer.lights.pack_lights); empty: every emitting triangle is one light.
+    emitter_links: dict = field(default_factory=dict)
     #: Optional (O,) bool per object id: the object is a holdout (Cycles' object / collection holdout): where the
     #: eye path meets it, the pixel is cut out (alpha reduced, colour zero; tracer.compose). Ids past the end: False.
     object_holdout: np.ndarray | None = None

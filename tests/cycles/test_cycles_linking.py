@@ -12,7 +12,7 @@ import pytest
 
 import cycles_harness as H
 from cycles_geometry import trs
-from cycles_scenes import GREY, camera, floor, lambert, mirror, obj, point, scene, sphere
+from cycles_scenes import GREY, camera, emissive, floor, lambert, mirror, obj, point, scene, sphere
 
 pytestmark = pytest.mark.cycles
 
@@ -21,7 +21,8 @@ LINK_PSNR_MIN = 33.0
 LINK_MAE_MAX = 0.006
 
 MATS = {"grey": GREY, "white": lambert((0.85, 0.85, 0.85)), "blue": lambert((0.15, 0.3, 0.8)), "mirror": mirror(),
-        "shiny": dict(base_color=[0.6, 0.1, 0.1], roughness=0.3, specular_ior_level=0.5)}
+        "shiny": dict(base_color=[0.6, 0.1, 0.1], roughness=0.3, specular_ior_level=0.5),
+        "glow": emissive((1.0, 0.9, 0.7), strength=8.0)}
 CAM = camera((0.0, -7.0, 3.2), (0.0, 0.0, 0.7))
 LIGHTS = [point("Key", (2.5, -2.0, 5.0), 1200.0), point("Fill", (-3.0, -1.5, 3.5), 600.0, color=(0.6, 0.7, 1.0))]
 
@@ -31,9 +32,14 @@ def _objects(ball="white"):
             obj("Block", "box", "blue", matrix=trs((1.4, -0.4, 0.6), (0, 0, 0.6), (1.2, 1.2, 1.2)), pass_index=3)]
 
 
-def _desc(name, objects=None, depth=0):
-    return scene(f"linking_{name}", camera=CAM, materials=MATS, objects=objects or _objects(), lights=LIGHTS,
-                 depth=depth, samples=64, ours_samples=4, width=64, height=48)
+def _desc(name, objects=None, depth=0, lights=LIGHTS, samples=64):
+    return scene(f"linking_{name}", camera=CAM, materials=MATS, objects=objects or _objects(), lights=lights,
+                 depth=depth, samples=samples, ours_samples=4, width=64, height=48)
+
+
+#: An emissive panel facing down over the objects (a mesh light of its own once linked: tracer/lights.py).
+PANEL = obj("Panel", "plane", "glow", matrix=trs((0.0, 0.3, 3.2), (np.pi, 0, 0)), params=dict(size=(2.0, 1.2)),
+            pass_index=5)
 
 
 #: name -> (scene, links): ``receivers`` / ``blockers``: light -> [(object, INCLUDE | EXCLUDE)]; ``objects`` /
@@ -48,6 +54,9 @@ CASES = {
         dict(objects={"Ball": {"visible_camera": False}, "Block": {"visible_shadow": False}})),
     "light_not_glossy": (_desc("light_not_glossy", objects=_objects(ball="shiny")),
                          dict(lights={"Key": {"visible_glossy": False}, "Fill": {"visible_diffuse": False}})),
+    # the panel lights the ball only: the floor and block read the fill light alone
+    "emitter_include": (_desc("emitter_include", objects=_objects() + [PANEL], lights=LIGHTS[1:], samples=256),
+                        dict(receivers={"Panel": [("Ball", "INCLUDE")]})),
 }
 
 
@@ -155,8 +164,9 @@ def _ours_usd(desc, links, workdir):
     return scene_
 
 
-#: Object ray visibility has no renderer-neutral USD form (tracer/linking.py, usd_io/lights.py): not in USD.
-USD_CASES = [k for k, (_, links) in CASES.items() if "objects" not in links]
+#: Object ray visibility and emissive meshes' links have no renderer-neutral USD form (tracer/linking.py,
+#: usd_io/lights.py): not in USD.
+USD_CASES = [k for k, (_, links) in CASES.items() if "objects" not in links and not k.startswith("emitter")]
 
 
 @pytest.mark.parametrize("key", USD_CASES)
