@@ -408,7 +408,12 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     """
     bpy_scene = depsgraph.scene_eval if hasattr(depsgraph, "scene_eval") else depsgraph.scene
     warnings: list[str] = []
-    blur = camera is None and getattr(bpy_scene.render, "use_motion_blur", False)  # not in the viewport (a camera)
+    # Motion blur: F12 and Explain Pixel; not the viewport (it passes a camera) nor a synced session (``objects``:
+    # its edits have no motion)
+    blur = getattr(bpy_scene.render, "use_motion_blur", False)
+    if blur and objects is not None and camera is None:
+        warnings.append("motion blur is not rendered with Persistent Data (turn it off for motion blur)")
+    blur = blur and camera is None and objects is None
     rw, rh = render_size(bpy_scene)
     width, height = width or rw, height or rh
     b = tracer.SceneBuilder()
@@ -441,25 +446,24 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     return scene, warnings
 
 
-_RAY_VISIBILITY = (("visible_camera", tracer.linking.CAMERA), ("visible_glossy", tracer.linking.GLOSSY),
-                   ("visible_transmission", tracer.linking.TRANSMISSION), ("visible_shadow", tracer.linking.SHADOW))
-
-
 def links_from_blender(depsgraph, exported: list, lights: list, n_objects: int, warnings: list) -> tuple:
     """(``scene.object_visibility`` or None, ``scene.light_links``) for the exported objects (object id i =
     ``exported[i]``) and lights (matched to their Blender objects by name): Object ▸ Visibility ▸ Ray Visibility
     and Cycles' light / shadow linking (a collection's objects and child collections, each included or excluded:
     only included objects when there are any, minus the excluded; everything but the excluded otherwise)."""
+    linking = tracer.linking  # (here, not at import: it loads the kernel machinery)
+    ray_visibility = (("visible_camera", linking.CAMERA), ("visible_glossy", linking.GLOSSY),
+                      ("visible_transmission", linking.TRANSMISSION), ("visible_shadow", linking.SHADOW))
     by_name = {o.name: o for o in depsgraph.objects}
     ids: dict[str, list[int]] = {}
     for i, o in enumerate(exported):
         ids.setdefault(o.key[0], []).append(i)
-    visibility = np.full(n_objects, tracer.linking.ALL_VISIBLE, np.uint8)
+    visibility = np.full(n_objects, linking.ALL_VISIBLE, np.uint8)
     for name, members in ids.items():
         obj = by_name.get(name)
         if obj is None:
             continue
-        bits = sum(bit for attr, bit in _RAY_VISIBILITY if getattr(obj, attr, True))
+        bits = sum(bit for attr, bit in ray_visibility if getattr(obj, attr, True))
         visibility[members] = bits
         ll = getattr(obj, "light_linking", None)
         if ll is not None and (ll.receiver_collection or ll.blocker_collection):
@@ -484,18 +488,18 @@ def links_from_blender(depsgraph, exported: list, lights: list, n_objects: int, 
     links = []
     for light in lights:
         obj = by_name.get(light.name)
-        link = tracer.linking.LightLink()
+        link = linking.LightLink()
         if obj is not None:
             ll = getattr(obj, "light_linking", None)
             if ll is not None:
                 link.receivers, link.blockers = members(ll.receiver_collection), members(ll.blocker_collection)
             link.cast_shadow = bool(getattr(obj.data, "use_shadow", True))
-            link.diffuse = bool(getattr(obj, "visible_diffuse", True))
-            link.glossy = bool(getattr(obj, "visible_glossy", True))
+            link.diffuse = float(bool(getattr(obj, "visible_diffuse", True)))
+            link.glossy = float(bool(getattr(obj, "visible_glossy", True)))
         links.append(link)
     if all(k.is_default() for k in links):
         links = []
-    if np.all(visibility == tracer.linking.ALL_VISIBLE):
+    if np.all(visibility == linking.ALL_VISIBLE):
         visibility = None
     return visibility, links
 

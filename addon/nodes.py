@@ -218,7 +218,15 @@ def _euler(xyz) -> np.ndarray:
 
 
 def image_rgba(image) -> np.ndarray:
-    """(H, W, 4) scene-linear float32 pixels of a Blender image, top row first, straight alpha.
+    """(H, W, 4) scene-linear float32 pixels of a Blender image, top row first, straight alpha; read once per file
+    version across renders (:mod:`addon.image_cache`: read-only arrays)."""
+    from .image_cache import cached_pixels
+
+    return cached_pixels(image, _read_rgba)
+
+
+def _read_rgba(image) -> np.ndarray:
+    """:func:`image_rgba` read from Blender.
 
     ``Image.pixels`` holds float images linear (Blender converts at load) and byte images as stored, so byte
     images are decoded from their colour space: sRGB with the sRGB transfer function; Non-Color / Linear as is."""

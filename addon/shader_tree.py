@@ -467,6 +467,21 @@ def _image(t: Translator, node, ctx):
                  extension=node.extension)
 
 
+def _environment(t: Translator, node, ctx):
+    ref = t.image_ref(node, node.image, "REPEAT", node.interpolation)
+    if ref is None:
+        t.warn(node, f"Environment Texture {node.name!r} has no image (Cycles renders it pink); black stands in",
+               "none")
+        return {"Color": Value((0.0, 0.0, 0.0), COLOR), "Alpha": Value(0.0, FLOAT)}
+    return t.add(node, ctx, "environment_texture", image=ref, projection=node.projection,
+                 interpolation=node.interpolation)
+
+
+def _background(t: Translator, node, ctx):
+    """A world's surface: its colour × strength is what rays that leave the scene see (an emission closure)."""
+    return t.add(node, ctx, "emission", outputs={"Background": "Emission"})
+
+
 def _mix(t: Translator, node, ctx):
     dt = node.data_type
     if dt == "FLOAT":
@@ -616,7 +631,8 @@ HANDLERS = {
     "ShaderNodeTexBrick": _simple("brick_texture", params=("offset", "offset_frequency", "squash",
                                                            "squash_frequency")),
     "ShaderNodeTexWhiteNoise": _simple("white_noise_texture", params=("noise_dimensions",)),
-    "ShaderNodeTexEnvironment": _world_only,
+    "ShaderNodeTexEnvironment": _environment,
+    "ShaderNodeBackground": _background,
     "ShaderNodeTexSky": _world_only,
     # colour
     "ShaderNodeMix": _mix,
@@ -701,5 +717,23 @@ def material_graph(material, warn, images: dict | None = None) -> Graph:
     return g
 
 
-__all__ = ["material_graph", "tree_graph", "output_node", "Translator", "HANDLERS", "curve_table"]
+def world_graph(world, warn, images: dict | None = None) -> Graph | None:
+    """The shader graph of a Blender world's node tree (its Background is an emission closure: colour × strength is
+    what rays that leave the scene see), or None without a World Output for Cycles."""
+    tree = world.node_tree if world is not None else None
+    if tree is None:
+        return None
+    outs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputWorld"
+            and getattr(n, "target", "ALL") in ("ALL", "CYCLES")]
+    out = next((n for n in outs if n.is_active_output), outs[0] if outs else None)
+    if out is None:
+        return None
+    t = Translator(f"world {world.name!r}", warn, images)
+    surface = t.input(out.inputs["Surface"], ())
+    surf = UNSET if surface is UNSET else t.to_ir(surface, CLOSURE, out, out.inputs["Surface"])
+    t.g.output(surf if isinstance(surf, Out) else None, None)
+    return t.g
+
+
+__all__ = ["material_graph", "tree_graph", "world_graph", "output_node", "Translator", "HANDLERS", "curve_table"]
 

@@ -4,8 +4,12 @@
 - Environment Texture (equirectangular) feeding the Background colour, optionally through a Mapping node
   (Point/Texture: its rotation) and Texture Coordinate Generated/Object: the image as a lat-long environment in
   Blender's orientation (the tracer's mapping is Cycles' ``direction_to_equirectangular``).
-- Anything else a world can be (Sky Texture, an Image Texture, gradients, mixes of backgrounds, a linked strength):
-  **baked with Blender itself** — Cycles renders the world alone through an equirectangular panoramic camera at
+- Anything else a world can be (gradients, noise on the direction, mixes of backgrounds, a linked strength, an
+  Environment Texture behind other nodes): the world's node tree is translated like a material's
+  (addon/shader_tree.py, Background as the emission) and **evaluated by the tracer's shader VM per direction**
+  into a :data:`PROGRAM_SIZE` lat-long environment (tracer.shader_world), cached by the tree's hash.
+- What the VM does not evaluate (Sky Texture, Light Path, a Mirror Ball environment, …): **baked with Blender
+  itself** — Cycles renders the world alone through an equirectangular panoramic camera at
   the world's origin looking along +X with +Z up (:data:`BAKE_SIZE`, :data:`BAKE_SAMPLES`), which is exactly the
   tracer's lat-long layout, and the image becomes the environment. Bakes are cached in memory by a hash of the
   world's node tree (node types, their settings, socket values, links, image names), so re-exports (viewport,
@@ -26,7 +30,7 @@ import numpy as np
 
 from .nodes import read_world
 
-from .bundled import tracer
+from .bundled import tracer, tracer_module
 
 #: Size (width, height) of a baked world: 2:1 lat-long, 0.7° per texel. Measured on the Sky Texture scene: 256 × 128
 #: blurs the horizon (36.9 dB against Cycles), 512 × 256 gives 42.4 dB; a bake takes about 4–7 s on 2 shared cores,
@@ -46,6 +50,11 @@ def world_from_blender(world, warnings: list, images: dict | None = None):
         env = tracer.Environment(image=tex.pixels[..., :3], strength=w["strength"], rotation=w["rotation"])
         return np.asarray(w["color"], np.float32), env.average().astype(np.float32), env
     if "unreadable" in w:
+        image = program_world(world, images)
+        if image is not None:
+            env = tracer.Environment(image=image)
+            mean = env.average().astype(np.float32)
+            return mean, mean, env
         try:
             image = bake_world(world)
         except Exception as exc:  # no way to render here: say so, keep the best colour
@@ -58,6 +67,31 @@ def world_from_blender(world, warnings: list, images: dict | None = None):
         return mean, mean, env
     c = np.asarray(w["color"], np.float32)
     return c, c, None
+
+
+# ---------------------------------------------------------------------------------------------------- the VM
+#: Size of a world evaluated by the VM (tracer.shader_world): 0.35° per texel.
+PROGRAM_SIZE = (1024, 512)
+
+
+def program_world(world, images: dict, size=PROGRAM_SIZE) -> np.ndarray | None:
+    """The world's tree evaluated by the tracer's shader VM per direction (a lat-long image), or None when a node
+    in it is not evaluated there (Sky Texture, Light Path, …: then Blender bakes it). Cached like a bake."""
+    from .shader_tree import world_graph
+
+    key = f"vm-{world_hash(world)}-{size}"
+    if key not in _BAKES:
+        said: list = []
+        try:
+            g = world_graph(world, said.append, images)
+        except Exception as exc:  # noqa: BLE001 - an untranslatable tree is the bake's job
+            said.append(str(exc))
+            g = None
+        image = None
+        if g is not None and not said:
+            image = tracer_module("shader_world").world_image(g, size[0], size[1])
+        _BAKES[key] = image
+    return _BAKES[key]
 
 
 # ---------------------------------------------------------------------------------------------------- baking

@@ -112,6 +112,8 @@ def main(argv=None) -> None:
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--count", type=int, default=COUNT, help="UV sphere rings/segments (176: 245 424 triangles)")
     ap.add_argument("--root", default=ROOT, help="the checkout to measure (default: this one)")
+    ap.add_argument("--before", help="another checkout (e.g. git archive of an older commit) measured in the same "
+                                     "rounds: ours, before, POV-Ray, ours, before, ...")
     ap.add_argument("--work", default=os.path.join(ROOT, ".cache", "bench"))
     ap.add_argument("--phases", action="store_true", help="also one instrumented run: where our process goes")
     ap.add_argument("--skip-povray", action="store_true")
@@ -125,6 +127,10 @@ def main(argv=None) -> None:
     env.pop("PYTHONDONTWRITEBYTECODE", None)  # an install has its bytecode; the warm-up run writes it
     ours_cmd = [sys.executable, "-c", ENTRY, *flags]
     _timed(ours_cmd, env=env, cwd=a.root)  # kernels compiled or loaded once, bytecode written
+    if a.before:
+        env_before = dict(env, PYTHONPATH=os.path.abspath(a.before))
+        _timed(ours_cmd, env=env_before, cwd=a.before)
+    before = []
     has_pov = not a.skip_povray and povray.povray_binary() is not None
     # bench.povray.render's command line (AA off, no display, its threads), timed here for its CPU time too
     pov_cmd = [str(povray.povray_binary()), f"+I{sdl}", f"+O{os.path.join(a.work, 'whole_povray.png')}",
@@ -132,6 +138,8 @@ def main(argv=None) -> None:
     ours, pov = [], []
     for _ in range(a.runs):
         ours.append(_timed(ours_cmd, env=env, cwd=a.root))
+        if a.before:
+            before.append(_timed(ours_cmd, env=env_before, cwd=a.before))
         if has_pov:
             pov.append(_timed(pov_cmd))
     med = lambda xs, i: statistics.median(x[i] for x in xs)  # noqa: E731
@@ -139,6 +147,9 @@ def main(argv=None) -> None:
           f"{a.width}x{a.height}, depth {a.max_depth}, {a.threads} threads, {a.runs} runs, root {a.root}")
     print(f"whitted render (whole process): median wall {med(ours, 0):.3f} s (min {min(o[0] for o in ours):.3f}), "
           f"CPU {med(ours, 1):.3f} s; PNG {os.path.getsize(out) / 1e3:.0f} kB")
+    if before:
+        print(f"before ({a.before}): median wall {med(before, 0):.3f} s (min {min(o[0] for o in before):.3f}), "
+              f"CPU {med(before, 1):.3f} s")
     if pov:
         print(f"POV-Ray (whole process, AA off): median wall {med(pov, 0):.3f} s (min {min(p[0] for p in pov):.3f}), "
               f"CPU {med(pov, 1):.3f} s")
@@ -146,6 +157,10 @@ def main(argv=None) -> None:
               + ", ".join(f"{o[0] / p[0]:.2f}" for o, p in zip(ours, pov))
               + f"), CPU {med(ours, 1) / med(pov, 1):.3f} (pairs: "
               + ", ".join(f"{o[1] / p[1]:.2f}" for o, p in zip(ours, pov)) + ")")
+        if before:
+            print(f"ratio before / POV-Ray: wall {med(before, 0) / med(pov, 0):.3f} (pairs: "
+                  + ", ".join(f"{o[0] / p[0]:.2f}" for o, p in zip(before, pov))
+                  + f"), CPU {med(before, 1) / med(pov, 1):.3f}")
     if a.phases:
         p = subprocess.run([sys.executable, "-c", PHASES, *flags], env=env, cwd=a.root, capture_output=True,
                            text=True, check=True)

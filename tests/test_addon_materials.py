@@ -146,11 +146,12 @@ def test_normal_map_is_described_tangent_space_opengl(bpy_module):
 
 
 def test_world_bake_is_cached_by_the_node_tree(bpy_module, monkeypatch):
-    """A world nobody can read is baked once per distinct node tree; changing a value bakes again."""
+    """A world nobody can read (a Sky Texture: not evaluated by the VM) is baked once per distinct node tree;
+    changing a value bakes again."""
     w = bpy.data.worlds.new("W")
     bg = next(n for n in w.node_tree.nodes if n.type == "BACKGROUND")
-    grad = w.node_tree.nodes.new("ShaderNodeTexGradient")
-    w.node_tree.links.new(grad.outputs["Color"], bg.inputs["Color"])
+    sky = w.node_tree.nodes.new("ShaderNodeTexSky")
+    w.node_tree.links.new(sky.outputs["Color"], bg.inputs["Color"])
     calls = []
 
     def fake_render(name, out, width, height, samples):
@@ -168,3 +169,27 @@ def test_world_bake_is_cached_by_the_node_tree(bpy_module, monkeypatch):
     bg.inputs["Strength"].default_value = 2.0
     world.world_from_blender(w, warnings)
     assert len(calls) == 2
+
+
+def test_world_of_procedural_nodes_is_evaluated_by_the_vm(bpy_module, monkeypatch):
+    """A Gradient (Linear, on the unlinked Vector: Generated = the direction) × Background strength 2 is evaluated by
+    the shader VM per direction, no bake: each texel is 2·clamp(x, 0, 1) of its direction (closed form)."""
+    w = bpy.data.worlds.new("W")
+    bg = next(n for n in w.node_tree.nodes if n.type == "BACKGROUND")
+    bg.inputs["Strength"].default_value = 2.0
+    grad = w.node_tree.nodes.new("ShaderNodeTexGradient")
+    w.node_tree.links.new(grad.outputs["Color"], bg.inputs["Color"])
+
+    def no_bake(*_args):
+        raise AssertionError("baked")
+
+    monkeypatch.setattr(world, "render_world_latlong", no_bake)
+    monkeypatch.setattr(world, "_BAKES", {})
+    warnings = []
+    _bgc, _amb, env = world.world_from_blender(w, warnings)
+    assert env is not None and not warnings
+    from tracer.shader_world import latlong_directions
+
+    h, wd = env.image.shape[:2]
+    want = 2.0 * np.clip(latlong_directions(wd, h)[:, 0], 0.0, 1.0).reshape(h, wd)
+    np.testing.assert_allclose(env.image[..., 0] * env.strength, want, atol=1e-5)

@@ -129,7 +129,7 @@ def test_usd_matte_is_a_holdout_through_whitted_render(tmp_path):
     out = tmp_path / "matte.exr"
     res = subprocess.run([sys.executable, "-c", "from usd_io.cli import run; run()", "render",
                           str(tmp_path / "matte.usda"), "-o", str(out), "--width", "16", "--height", "16", "--aa",
-                          "1", "--quiet"], capture_output=True, text=True, cwd=root, env=env, timeout=300)
+                          "1", "--quiet"], capture_output=True, text=True, cwd=root, env=env, timeout=900)
     assert res.returncode == 0, res.stderr
     alpha = read_image(str(out))[..., 3]
     scene, _ = load_stage(str(tmp_path / "plain.usda"), width=16, height=16)

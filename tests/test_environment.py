@@ -90,3 +90,30 @@ def test_an_hdri_sun_casts_a_shadow():
     col = int((x_shadow + 4) / 8 * 64)
     lit = np.median(out[32, 50:60])
     assert out[32, col] < 0.3 * lit, (out[32, col], lit)
+
+
+@pytest.mark.parametrize("sky", [4, 16])
+def test_a_sky_above_the_horizon_lights_a_floor_with_pi_l_and_a_wall_with_half(sky):
+    """An environment bright above the horizon (L = 0.8) and black below: a floor facing up sees all of it,
+    E = π·L; a wall facing sideways sees the upper half of its hemisphere, E = π·L/2. The sky rays draw half of
+    their directions from the luminance CDF (never below the horizon) and half cosine-weighted (half of them below),
+    so a wrong mixture pdf for either technique biases one of the two walls' means."""
+    h, w = 32, 64
+    img = np.zeros((h, w, 3), np.float32)
+    img[: h // 2] = 0.8
+    b = SceneBuilder()
+    m = b.add_material("white", diffuse=(0.5, 0.5, 0.5), specular=(0.0, 0.0, 0.0))
+    quad(b, (0, 0, 0), 2.0, m, "floor")  # faces +z
+    b.camera = Camera.look_at((0, 0, 5), (0, 0, 0), up=(0, 1, 0), projection="orthographic",
+                              horizontal_aperture=1.0, vertical_aperture=1.0)
+    b.environment = Environment(img)
+    floor = render(b.build(), RenderSettings(width=16, height=16, sky_samples=sky, shading="classic")).rgb
+    b = SceneBuilder()
+    m = b.add_material("white", diffuse=(0.5, 0.5, 0.5), specular=(0.0, 0.0, 0.0))
+    quad(b, (0, 0, 0), 2.0, m, "wall", normal_axis=0)  # faces +x
+    b.camera = Camera.look_at((5, 0, 0), (0, 0, 0), up=(0, 0, 1), projection="orthographic",
+                              horizontal_aperture=1.0, vertical_aperture=1.0)
+    b.environment = Environment(img)
+    wall = render(b.build(), RenderSettings(width=16, height=16, sky_samples=sky, shading="classic")).rgb
+    np.testing.assert_allclose(floor.mean(), 0.5 * 0.8, rtol=0.01)
+    np.testing.assert_allclose(wall.mean(), 0.5 * 0.8 / 2, rtol=0.02)

@@ -74,16 +74,20 @@ def test_no_linking_packs_inactive():
         pack(_stack(links=[LightLink(receivers=[7]), LightLink()]), 2)
 
 
-def _floor(links=None, card=None):
+def _floor(links=None, card=None, lid=False):
     """A grey floor (object 0) under two point lights above its centre, I = 10 and 20 W/sr at heights 2 and 4
     (E = 2.5 and 1.25 W/m² there); with ``card`` (its visibility bits) a small card (object 1) at height 1 between
-    them and the centre. An orthographic camera looks straight down at the centre."""
+    them and the centre (with ``lid`` another card, object 2, at height 3). An orthographic camera looks straight
+    down at the centre."""
     b = SceneBuilder()
     m = b.add_material("grey", diffuse=(0.5, 0.5, 0.5))
     b.add_mesh([[-2, -2, 0], [2, -2, 0], [2, 2, 0], [-2, 2, 0]], [[0, 1, 2], [0, 2, 3]], material=m, name="floor")
     if card is not None:
         b.add_mesh([[-0.3, -0.3, 1], [0.3, -0.3, 1], [0.3, 0.3, 1], [-0.3, 0.3, 1]], [[0, 1, 2], [0, 2, 3]],
                    material=m, name="card")
+    if lid:
+        b.add_mesh([[-0.3, -0.3, 3], [0.3, -0.3, 3], [0.3, 0.3, 3], [-0.3, 0.3, 3]], [[0, 1, 2], [0, 2, 3]],
+                   material=m, name="lid")
     b.camera = Camera.look_at((0, 0, 6), (0, 0, 0), up=(0, 1, 0), projection="orthographic",
                               horizontal_aperture=0.02, vertical_aperture=0.02)
     b.add_light(PointLight(position=(0, 0, 2), intensity=(10, 10, 10)))
@@ -91,7 +95,7 @@ def _floor(links=None, card=None):
     scene = b.build()
     scene.light_links = links or []
     if card is not None:
-        scene.object_visibility = np.array([ALL_VISIBLE, card], np.uint8)
+        scene.object_visibility = np.array([ALL_VISIBLE, card] + [HIDDEN] * lid, np.uint8)
     return scene
 
 
@@ -185,3 +189,19 @@ def test_links_for_other_lights_are_dropped_with_a_warning():
     scene.lights = scene.lights[:1]
     with pytest.warns(UserWarning, match="rendered unlinked"):
         assert not pack(scene, 1).receivers
+
+
+def test_explain_names_only_the_lights_blockers():
+    """Explain Pixel reports a shadow ray as blocked by what its light's shadow rays see: the card shadows light 1
+    (all blockers) and not light 0 (linked to the floor only); light 1 linked to the lid above the card is blocked
+    by the lid, not by the card its ray meets first."""
+    from tracer import explain_pixel
+
+    scene = _floor([LightLink(blockers=[0]), LightLink()], HIDDEN)
+    tree = explain_pixel(scene, RenderSettings(width=4, height=4, samples=1, max_depth=0), 2, 2)
+    shadows = [(r.light, r.occluded, r.blocker) for r in tree.samples[0] if r.type == "shadow"]
+    assert shadows == [(0, False, None), (1, True, "card")]
+    scene = _floor([LightLink(), LightLink(blockers=[2])], HIDDEN, lid=True)
+    tree = explain_pixel(scene, RenderSettings(width=4, height=4, samples=1, max_depth=0), 2, 2)
+    shadows = [(r.light, r.occluded, r.blocker) for r in tree.samples[0] if r.type == "shadow"]
+    assert shadows == [(0, True, "card"), (1, True, "lid")]

@@ -256,3 +256,22 @@ def test_normalmap_scale_and_bump_tilt_the_normal(tmp_path):
         want = 0.5 * max(float(n @ L), 0.0)
         inner = img[4:-4, 4:-4]
         assert np.abs(inner - want).max() < 3e-3, (name, float(inner.mean()), want)
+
+
+def test_a_library_node_implemented_by_a_node_graph_reads_its_files_through_the_interface(tmp_path):
+    """``triplanarprojection`` is a node graph in MaterialX's standard library (switch, extract, combine2, three
+    images whose ``file`` is the interface's filex/filey/filez, normal-weighted blend). On the quad (normal +Z) the
+    weights are (0, 0, 1): every pixel is filez's texel (read raw: no colour space named), none of filex's or
+    filey's."""
+    d = str(tmp_path)
+    for name, rgb in (("x.png", (200, 0, 0)), ("y.png", (0, 200, 0)), ("z.png", (40, 90, 160))):
+        S.write_png(os.path.join(d, name), np.tile(np.array(rgb, np.uint8), (4, 4, 1)))
+
+    def build(s, node):
+        tri = node("tri", "ND_triplanarprojection_color3", T.Color3f, filex=(T.Asset, "./x.png"),
+                   filey=(T.Asset, "./y.png"), filez=(T.Asset, "./z.png"))
+        return surface(node, base_color=(T.Color3f, tri))
+
+    img, info, _ = render_stage(usd_network(d, build))
+    assert not [w for w in info.warnings if "not supported" in w or "no file" in w], info.warnings
+    assert np.abs(img - np.array([40, 90, 160]) / 255.0).max() < 2e-3

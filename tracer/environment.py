@@ -188,6 +188,23 @@ def env_sample(data, rot, row_cdf, col_cdf, row_pdf, col_pdf, s0, s1):
     return vec.normalize(d), row_pdf[row] * col_pdf[row, col] / solid
 
 
+@kernel(inline=True)
+def env_pdf(data, rot, row_pdf, col_pdf, d):
+    """The pdf per steradian with which :func:`env_sample` draws the unit world direction d: its pixel's probability
+    / the pixel's solid angle (the same pixel grid as :func:`env_sample`: column ⌊u·W⌋, row ⌊(1 − t)·H⌋)."""
+    e = _to_env(rot, d)
+    h, w = data.shape[0], data.shape[1]
+    u = 0.5 - math.atan2(e[1], e[0]) / (2.0 * math.pi)
+    z = min(max(e[2], -1.0), 1.0)
+    t = 0.5 + math.asin(z) / math.pi
+    col = min(max(int(math.floor(u * w)), 0), w - 1)
+    row = min(max(int(math.floor((1.0 - t) * h)), 0), h - 1)
+    z_top = math.sin((0.5 - row / h) * math.pi)
+    z_bottom = math.sin((0.5 - (row + 1.0) / h) * math.pi)
+    solid = (2.0 * math.pi / w) * max(z_top - z_bottom, 1e-12)
+    return row_pdf[row] * col_pdf[row, col] / solid
+
+
 @kernel
 def _radiance_rows(data, rot, d, out):
     for i in range(d.shape[0]):

@@ -16,6 +16,7 @@ import numpy as np
 from .accel import Accelerator
 from .integrator import Integrator, RayQueue, Tile
 from .jit import kernel
+from . import linking
 from .scene import Scene
 from .settings import RenderSettings
 from .instances import world_frame
@@ -240,7 +241,8 @@ def _blockers(integ, shadow, blocked) -> list:
     names = [None] * len(shadow.o)
     idx = np.flatnonzero(blocked)
     if len(idx):
-        hits = integ.accel.closest_hits(shadow.o[idx], shadow.d[idx], shadow.t_max[idx])
+        hits = integ.accel.closest_hits(shadow.o[idx], shadow.d[idx], shadow.t_max[idx],  # what its light sees
+                                        mask=linking.shadow_masks(integ.links, shadow.light[idx]))
         scene = integ.scene
         for j, p, k in zip(idx, hits.prim, hits.inst):
             oid = int(scene.object_ids[p]) if k < 0 else int(integ.instances.object_ids[k])

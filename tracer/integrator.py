@@ -34,15 +34,15 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import bsdf, compose, linking, lobes, optics, shading, vec
+from . import bsdf, compose, linking, lobes, optics, shading, sky, vec
 from .accel import Accelerator
-from .environment import env_radiance, env_sample, pack_environment
+from .environment import env_radiance, pack_environment
 from .jit import kernel
 from .instances import mat3_apply, mat3_apply_transposed, pack_instances
 from .instances import world_emitters
 from .lights import MESH, pack_lights, sample_light
 from .motion import frames_at_time, pack_motion
-from .sampling import multijitter, stratum, uniform2_1
+from .sampling import rotated_multijitter, uniform2_1
 from .scene import Scene
 from .settings import RenderSettings
 from .shader_compile import pack_programs
@@ -461,7 +461,8 @@ class Integrator:
             shadow, nxt, n_refl, n_tran, n_through, c = self._shade(depth, o, d, w, smp, t0, h, keys, out, counts,
                                                                     spawn, time)
             shadows.append(shadow)
-            caught.append(c if c is not None else np.zeros(len(shadow.o), np.bool_))
+            if self.compose.has_catcher:
+                caught.append(c if c is not None else np.zeros(len(shadow.o), np.bool_))
             m = len(o)
             refl.append((nxt, slice(0, n_refl)))
             tran.append((nxt, slice(m, m + n_tran)))
@@ -934,15 +935,15 @@ def _lobe_light(surf, d, i, s, weight, keys, depth, spawn, mats, lights, opt, ou
 
 @kernel(refcounts=False)
 def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shadow, n_shadow, counts):
-    """Sky stage: the environment as a light (directions importance-sampled by luminance, local model × radiance
-    / pdf), or the ambient term weighted by the visible sky (cosine-weighted hemisphere rays); deferred like shadow
-    rays. Returns the shadow queue's new length."""
+    """Sky stage: the world as a light (tracer/sky.py), deferred like shadow rays — an environment by rays drawn
+    from its luminance CDF and cosine-weighted (one-sample MIS, local model × radiance / mixture pdf), a constant
+    world by cosine-weighted rays that each carry the ambient term; fewer rays at deeper hits that carry less weight.
+    Returns the shadow queue's new length."""
     if depth > opt.max_depth:
         return n_shadow
     eps = opt.eps
     principled, seed = opt.principled, opt.seed
     side = opt.sky_side
-    kk = side * side
     amb = (opt.ambient[0], opt.ambient[1], opt.ambient[2])
     has_amb = amb[0] > 0.0 or amb[1] > 0.0 or amb[2] > 0.0
     s_hit, s_p, s_ng, s_n = surf.hit, surf.p, surf.ng, surf.n
@@ -959,15 +960,19 @@ def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shado
         cl, wl, g = _closure_at(surf, mats, i, n, di, principled, spawn)
         if wl <= 0.0 or bsdf.is_black(cl):
             continue
-        wo = vec.scale(vec.row(weight, i), wl)
+        w_ray = vec.row(weight, i)
+        wo = vec.scale(w_ray, wl)
         p = (s_p[i, 0], s_p[i, 1], s_p[i, 2])
         ng = vec.row(s_ng, i)
         wi = vec.scale(di, -1.0)
         r0, r1 = uniform2_1(keys[s], _STREAM_SKY + depth, seed)
+        sd = sky.side_at(depth, side, vec.max3(w_ray))
+        kk = sd * sd
+        tu, tv = vec.orthonormal_basis(n)
         if env_present:  # the mirror ray sees the environment: its share of the lobes is left to it
             for k in range(kk):
-                s0, s1 = multijitter(k, side, r0, r1)
-                dr, pdf = env_sample(e_data, e_rot, e_rcdf, e_ccdf, e_rpdf, e_cpdf, s0, s1)
+                s0, s1 = rotated_multijitter(k, sd, r0, r1)
+                dr, pdf = sky.env_direction(e_data, e_rot, e_rcdf, e_ccdf, e_rpdf, e_cpdf, n, tu, tv, s0, s1)
                 n_l = vec.dot(n, dr)
                 if n_l <= 0.0 or vec.dot(ng, dr) <= 0.0 or pdf <= 0.0:
                     continue
@@ -984,12 +989,9 @@ def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shado
             for ch in range(3):
                 o_color[s, ch] += wo[ch] * c[ch]
         c = vec.scale(vec.mul(wo, shading.ambient(cl.diffuse, amb)), 1.0 / kk)
-        tu, tv = vec.orthonormal_basis(n)
         for k in range(kk):
-            s0, s1 = stratum(k, side, r0, r1)
-            r = np.sqrt(s0)
-            phi = 2.0 * np.pi * s1
-            dr = vec.madd(vec.madd(vec.scale(n, np.sqrt(max(0.0, 1.0 - s0))), tu, r * np.cos(phi)), tv, r * np.sin(phi))
+            s0, s1 = rotated_multijitter(k, sd, r0, r1)
+            dr = sky.cosine_direction(n, tu, tv, s0, s1)
             _put(q_o, q_d, q_t, q_s, q_c, q_l, n_shadow, spawn_ray(p, ng, dr, eps), dr, np.inf, s, c, -1)
             n_shadow += 1
         n_new += kk

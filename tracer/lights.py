@@ -30,7 +30,7 @@ import numpy as np
 
 from . import vec
 from .jit import kernel
-from .sampling import stratum
+from .sampling import rotated_multijitter, stratum
 
 
 def _vec3(v, name):
@@ -238,8 +238,10 @@ def pack_lights(lights: list, light_samples: int, emitters=None) -> LightTables:
 @kernel(inline=True)
 def _sample_emitters(tri, tri_le, cdf, k, sd, kk, p, r0, r1):
     """Stratum k of the emissive triangles: the first coordinate picks a triangle by the power CDF (its remainder,
-    rescaled, and the second place a uniform point on it), E = Le·|cos θ_l|·A/(p_pick·r²)/K (two-sided)."""
-    s0, s1 = stratum(k, sd, r0, r1)
+    rescaled, and the second place a uniform point on it), E = Le·|cos θ_l|·A/(p_pick·r²)/K (two-sided). The points
+    are multi-jittered (side² distinct values of the first coordinate: each triangle of a small emitter gets its own
+    strata, and a large one well spread points)."""
+    s0, s1 = rotated_multijitter(k, sd, r0, r1)
     lo, hi = 0, cdf.shape[0] - 1
     while lo < hi:  # the first triangle whose cumulative probability exceeds s0
         mid = (lo + hi) // 2

@@ -103,14 +103,10 @@ class StreamedPNG:
         except OSError as exc:
             raise ValueError(f"{self.path}: cannot write into {directory} ({exc.strerror})") from None
         os.close(fd)
-        spec = oiio.ImageSpec(self.width, self.height, 4, oiio.UINT8)
-        spec.attribute("png:compressionLevel", PNG_COMPRESSION_LEVEL)
-        spec.attribute("png:filter", PNG_FILTER_NONE)
-        self._out = oiio.ImageOutput.create(self._tmp)
-        if self._out is None or not self._out.open(self._tmp, spec):
-            msg = self._out.geterror() if self._out is not None else oiio.geterror()
-            os.unlink(self._tmp)
-            raise ValueError(f"{self.path}: cannot open for writing ({msg})")
+        self._spec = oiio.ImageSpec(self.width, self.height, 4, oiio.UINT8)
+        self._spec.attribute("png:compressionLevel", PNG_COMPRESSION_LEVEL)
+        self._spec.attribute("png:filter", PNG_FILTER_NONE)
+        self._out = None  # opened on the writer thread: OpenImageIO's first open sets itself up (20-90 ms)
         self._thresholds = display_thresholds()
         self._row_filled = np.zeros(self.height, np.int64)  # pixels of each row in the film so far
         self._next = 0  # first row not yet queued
@@ -132,8 +128,21 @@ class StreamedPNG:
             self._queue.put((image.rgba, self._next, end))
             self._next = end
 
+    def _open(self) -> None:
+        import OpenImageIO as oiio
+
+        self._out = oiio.ImageOutput.create(self._tmp)
+        if self._out is None or not self._out.open(self._tmp, self._spec):
+            msg = self._out.geterror() if self._out is not None else oiio.geterror()
+            self._out = None
+            raise ValueError(f"{self.path}: cannot open for writing ({msg})")
+
     def _write_bands(self) -> None:
         colour_t, alpha_t = self._thresholds
+        try:
+            self._open()
+        except BaseException as exc:  # noqa: BLE001 — reported by finish() on the caller's thread
+            self._error = exc
         while True:
             item = self._queue.get()
             if item is None:
@@ -158,6 +167,8 @@ class StreamedPNG:
         self._thread.join()
         try:
             if self._error is not None:
+                if self._out is not None:
+                    self._out.close()
                 raise self._error if isinstance(self._error, ValueError) else ValueError(
                     f"{self.path}: write failed ({self._error})")
             if not self._out.close():
@@ -180,7 +191,8 @@ class StreamedPNG:
             self._queue.put(None)
             self._thread.join()
         try:
-            self._out.close()
+            if self._out is not None:
+                self._out.close()
         except Exception:  # noqa: BLE001 — best effort: the file is removed next
             pass
         if os.path.exists(self._tmp):

@@ -77,3 +77,13 @@ def multijitter(index, side, r0, r1):
     i = index // side
     j = index % side
     return (i + (j + r0) / side) / side, (j + (i + r1) / side) / side
+
+
+@kernel(inline=True)
+def rotated_multijitter(index, side, r0, r1):
+    """Point ``index`` of :func:`multijitter`'s side² points, the whole pattern then rotated by (r1, r0) modulo 1
+    (Cranley-Patterson): the fine 1-D strata of multi-jittering, and a different pattern for every (r0, r1) (with
+    the offsets inside the slices alone, neighbouring pixels' patterns nearly coincide and their errors add up)."""
+    s0, s1 = multijitter(index, side, r0, r1)
+    s0, s1 = s0 + r1, s1 + r0
+    return s0 - math.floor(s0), s1 - math.floor(s1)

@@ -98,9 +98,10 @@ class RenderSettings:
                                  "rounded to N×N", lo=1, flag="--light-samples", metavar="N",
                                  rebuilds_integrator=True, blender="Light Samples", panel="Sampling",
                                  ui=(("max", 1024),))
-    sky_samples: int = setting(0, "hemisphere shadow rays per shading point weighting the world (ambient) light by "
-                               "sky visibility, as Cycles does (e.g. 64); 0 = the classic unoccluded ambient term",
-                               lo=0, flag="--sky-samples", metavar="N", rebuilds_integrator=True,
+    sky_samples: int = setting(16, "shadow rays per shading point towards the world (an environment's bright "
+                               "parts and the cosine-weighted sky; fewer at deeper hits that carry less weight), so "
+                               "the world casts shadows as in Cycles; rounded to N×N; 0 = the notes' flat, unshadowed "
+                               "ambient term", lo=0, flag="--sky-samples", metavar="N", rebuilds_integrator=True,
                                blender="Sky Visibility Samples", panel="Sampling", ui=(("max", 1024),))
     terminal_rays: bool = setting(False, "one more reflection/transmission bounce past the max depth that collects "
                                   "only background and emission (Cycles' last bounce); off = the notes' hard "

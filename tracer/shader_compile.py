@@ -727,6 +727,17 @@ class Compiler(ClosureLowering):
                                          float(node.param("projection_blend") or 0.0)))
         return {"Color": c, "Alpha": a}
 
+    def _n_environment_texture(self, node, var):  # a world's: the equirectangular map of the direction
+        img = node.param("image")
+        if img is None or str(node.param("projection")).upper() != "EQUIRECTANGULAR":
+            self.warn(node.name, f"Environment Texture {node.name!r}: "
+                                 f"{'no image' if img is None else 'Mirror Ball projection is not evaluated'}; "
+                                 "black is used")
+            return {"Color": (0.0, 0.0, 0.0), "Alpha": 0.0}
+        coord = self.inp(node, "Vector", VECTOR, var)
+        c, a = self._rgba_out(self.image(TextureUse(img, -1), coord, node.name, 4))
+        return {"Color": c, "Alpha": a}
+
     def _n_usd_uv_texture(self, node, var):
         img = node.param("image")
         fb = tuple(float(x) for x in node.param("fallback"))

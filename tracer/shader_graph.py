@@ -190,6 +190,8 @@ NODE_TYPES: dict[str, NodeType] = {
     "layer_weight": _t([_f("Blend", 0.5), _N], [_f("Fresnel"), _f("Facing")]),
     "tangent": _t([], [_v("Tangent")], direction_type="UV_MAP", uv_map=""),
     # ---------------------------------------------------------------- textures
+    "environment_texture": _t([_v("Vector", GENERATED)], [_c("Color"), _f("Alpha")], image=None,
+                              projection="EQUIRECTANGULAR", interpolation="Linear"),
     "image_texture": _t([_v("Vector", UV)], [_c("Color"), _f("Alpha")], image=None, projection="FLAT",
                         projection_blend=0.0, interpolation="Linear", extension=None),
     "checker_texture": _t([_v("Vector", GENERATED), _c("Color1"), _c("Color2", (0.2, 0.2, 0.2)),

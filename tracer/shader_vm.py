@@ -95,7 +95,12 @@ def _affine3(spaces, k, row, x):
 @kernel
 def _project(x, y, z, kind):
     """Image Texture's Sphere (2) and Tube (3) projections of a point of the [0, 1]³ box (Cycles' ``map_to_sphere``,
-    ``map_to_tube`` after ``texco_remap_square``)."""
+    ``map_to_tube`` after ``texco_remap_square``); Environment Texture's equirectangular map of a direction (4,
+    Cycles' ``direction_to_equirectangular``)."""
+    if kind == 4:
+        if x == 0.0 and y == 0.0 and z == 0.0:
+            return 0.5, 0.5
+        return -math.atan2(y, x) / (2.0 * math.pi) + 0.5, math.atan2(z, math.hypot(x, y)) / math.pi + 0.5
     x, y, z = 2.0 * x - 1.0, 2.0 * y - 1.0, 2.0 * z - 1.0
     if kind == 2:
         ln = math.sqrt(x * x + y * y + z * z)
@@ -229,7 +234,8 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
                 R[o + j] = R[src + j]
         elif op == OP_INPUT:
             _input(R, o, imm, code[pc, 2], code[pc, 3], base + code[pc, 4], hit, geo)
-        elif op == OP_IMAGE:  # imm: projection (0 flat, 1 box: blend in register d, 2 sphere, 3 tube)
+        elif op == OP_IMAGE:  # imm: projection (0 flat, 1 box: blend in register d, 2 sphere, 3 tube,
+            #                   4 equirectangular of a direction: Environment Texture)
             ti = code[pc, 3]
             lod = 0.0
             k_fp = code[pc, 4]
@@ -407,6 +413,17 @@ def _input(R, o, what, arg, variant, setup, hit, geo):
         q = 4 + 3 * (variant - 1)
         p = (p[0] + R[setup + q], p[1] + R[setup + q + 1], p[2] + R[setup + q + 2])
     x = (0.0, 0.0, 0.0)
+    if tri < 0:  # the world (shade_directions): P is the direction, as Cycles' background; no surface inputs
+        if what == IN_POSITION or what == IN_GENERATED or what == IN_OBJECT:
+            x = p
+        elif what == IN_NORMAL or what == IN_TRUE_NORMAL:
+            x = n
+        elif what == IN_INCOMING:
+            x = (-d[0], -d[1], -d[2])
+        elif what == IN_IS_CAMERA:
+            x = (1.0, 0.0, 0.0)
+        R[o], R[o + 1], R[o + 2] = x
+        return
     if what == IN_POSITION:
         x = p
     elif what == IN_NORMAL:
@@ -937,3 +954,23 @@ def program_alpha(code, pstart, pbase, outs, R, mat, tri, u, v, p, ng, front, d,
     hit = (tri, u, v, p, ng, ng, front, d, t_len, 1, k_inst, 0.0, True, p)
     execute(code, pstart[mat], pstart[mat + 1], R, rb, hit, geo, tex)
     return R[rb + outs[mat, OUT_ALPHA]]
+
+
+@kernel(refcounts=False)
+def shade_directions(code, pstart, pbase, outs, R0, R, mat, dirs, out, tdata, tparams, uv_sets, colors, vertices,
+                     triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids):
+    """A world's program (material ``mat``) for every direction of ``dirs`` (N, 3): its emission into ``out``
+    (N, 3) (the world's Background colour × strength; the surface inputs read as Cycles' background: P = Generated =
+    Object = the direction, N = −direction)."""
+    for j in range(R0.shape[0]):
+        R[j] = R0[j]
+    geo = (uv_sets, colors, False, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids)
+    tex = (tdata, tparams)
+    rb = pbase[mat]
+    r = outs[mat, OUT_EMIT]
+    for i in range(dirs.shape[0]):
+        di = (dirs[i, 0], dirs[i, 1], dirs[i, 2])
+        nb = (-di[0], -di[1], -di[2])
+        hit = (-1, 0.0, 0.0, di, nb, nb, True, di, np.inf, 0, -1, 0.0, False, di)
+        execute(code, pstart[mat], pstart[mat + 1], R, rb, hit, geo, tex)
+        out[i, 0], out[i, 1], out[i, 2] = R[rb + r], R[rb + r + 1], R[rb + r + 2]

@@ -304,6 +304,9 @@ def _compile_kernels(quiet: bool) -> None:
         notice.start()
     try:
         compile_kernels()
+        from tracer.png_stream import to_display_fast
+
+        to_display_fast(np.zeros((1, 1, 4), np.float32))  # the PNG stream's kernel (usd_io.outputs.Outputs.stream)
     finally:
         notice.cancel()
 

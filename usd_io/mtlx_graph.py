@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import MaterialX as mx
 import numpy as np
-from pxr import UsdShade
+from pxr import Sdf, UsdShade
 
 from . import mtlx
 from . import shade_network as net
@@ -86,7 +86,7 @@ class UsdNode:
         if is_out:
             return ("link", UsdNode(UsdShade.Shader(a.GetPrim()), self.time), UsdShade.Output(a).GetBaseName())
         v = a.Get() if self.time is None else a.Get(self.time)
-        return None if v is None else ("const", v)
+        return None if v is None else ("const", v, a)
 
 
 class MxNode:
@@ -108,7 +108,7 @@ class MxNode:
             return None if up is None else ("link", MxNode(up, self.outer), inp.getOutputString() or "out")
         if inp.getInterfaceName():
             return ("outer", self.outer, inp.getInterfaceName())
-        return ("const", inp.getValue()) if inp.getValueString() else None
+        return ("const", inp.getValue(), None) if inp.getValueString() else None
 
 
 class Outs:
@@ -320,10 +320,29 @@ class Translator:
         return self._noise(c, t, "worley", 3, "position")
 
     # ---- images
+    def _graph_image_lookup(self, c, t):
+        """The lookup of an ``image`` inside a node graph implementation (triplanarprojection's): its file comes
+        through the interface from the USD shader's input (colour space and layer from that attribute)."""
+        r, a = c.view.input("file"), None
+        while r is not None and r[0] == "outer":
+            r = r[1].input(r[2])
+        if r is None or r[0] != "const" or r[2] is None or not isinstance(r[1], Sdf.AssetPath):
+            return None
+        from .texture_assets import authoring_layer
+
+        a = r[2]
+        default = self.const(_py(c.uniform("default", 0.0)), "color3").x
+        wrap = [net.MX_ADDRESS.get(str(c.uniform(f"{k}addressmode", "periodic")), "repeat") for k in "uv"]
+        return net.TextureLookup(node=c.view.name, asset=r[1], channel=0 if WIDTH.get(t, 1) == 1 else -1, uv=None,
+                                 transform=np.eye(3), scale=(1.0, 1.0, 1.0, 1.0), bias=(0.0, 0.0, 0.0, 0.0),
+                                 fallback=tuple(default) + (1.0,), wrap_s=wrap[0], wrap_t=wrap[1],
+                                 colorspace="sRGB" if a.GetColorSpace() == "srgb_texture" else "raw",
+                                 layer=authoring_layer(a))
+
     def _n_image(self, c, t, o, tiled=False):
-        lk = net.mx_image_lookup(c.view.s) if isinstance(c.view, UsdNode) else None
+        lk = net.mx_image_lookup(c.view.s) if isinstance(c.view, UsdNode) else self._graph_image_lookup(c, t)
         if lk is None:
-            self.warn(c.view.key, f"MaterialX image {c.view.name} inside a node definition is not supported")
+            self.warn(c.view.key, f"MaterialX image {c.view.name}: no file (its default is used)")
             return c.i("default")
         lk.uv, lk.transform = None, np.eye(3)
         lk.notes = [n for n in lk.notes if not n.startswith("texcoord")]
@@ -540,6 +559,16 @@ class Translator:
     def _n_extract(self, c, t, o):
         return V("float", self.lane(c.i("in"), int(c.uniform("index", 0) or 0)))
 
+    def _n_switch(self, c, t, o):
+        """in{which + 1} (a constant ``which``, as real documents author it)."""
+        which = c.view.input("which")
+        while which is not None and which[0] == "outer":
+            which = which[1].input(which[2])
+        if which is not None and which[0] == "link":
+            self.warn(c.view.key, f"MaterialX switch {c.view.name}: a connected 'which' is not supported (in1 used)")
+        k = int(_py(c.uniform("which", 0)) or 0) if which is None or which[0] != "link" else 0
+        return c.i(f"in{min(max(k, 0), 9) + 1}", t)
+
     def _n_constant(self, c, t, o):
         return c.i("value")
 
@@ -628,12 +657,13 @@ class _Ctx:
 
     def uniform(self, name: str, default):
         """A uniform (string/integer) input's value: authored, else the definition's."""
-        r = self.view.input(name)
-        while r is not None and r[0] == "outer":
+        r, nd, key = self.view.input(name), self.nd, name
+        while r is not None and r[0] == "outer":  # through node-graph interfaces (the outer node's definition)
+            nd, key = mtlx.nodedef(r[1].sid) or nd, r[2]
             r = r[1].input(r[2])
         if r is not None and r[0] == "const":
             return r[1]
-        d = self.nd.getActiveInput(name)
+        d = nd.getActiveInput(key)
         return d.getValue() if d is not None and d.getValueString() else default
 
     def i(self, name: str, t: str | None = None) -> V:

@@ -334,17 +334,28 @@ def _say_if_empty(r, info) -> None:
         info.warn(f"the stage has no visible gprims with geometry{empty}: the frame shows only the background")
         return
     kinds = sorted({p.GetTypeName() for p in gprims})
-    if all(not p.IsA(UsdGeom.PointInstancer) and p.GetTypeName() not in GPRIM_TYPES and not p.IsA(UsdGeom.Mesh)
-           and not _is_points_or_curves(p) for p in gprims):  # only volumes / splats: one line says it all
-        skipped = {f"{p.GetPath()}: {p.GetTypeName()} is not supported (skipped)" for p in gprims}
-        info.warnings[:] = [w for w in info.warnings if w not in skipped]
-        names = ", ".join(str(p.GetPath()) for p in gprims[:3]) + (", ..." if len(gprims) > 3 else "")
-        info.warn(f"the stage's only gprims are {len(gprims)} {'/'.join(kinds)} prim(s) ({names}), which the "
-                  "tracer does not render: the frame shows only the background")
+    undrawn = [_undrawn(p) for p in gprims]  # volumes / splats (an instancer's prototypes): one line says it all
+    if all(undrawn):
+        skipped = tuple(f"{q.GetPath()}: {q.GetTypeName()} is not supported" for u in undrawn for q in u)
+        info.warnings[:] = [w for w in info.warnings if not w.startswith(skipped)]
+        prims = [q for u in undrawn for q in u]
+        names = ", ".join(str(q.GetPath()) for q in prims[:3]) + (", ..." if len(prims) > 3 else "")
+        info.warn(f"the stage's only gprims are {len(prims)} {'/'.join(sorted({q.GetTypeName() for q in prims}))} "
+                  f"prim(s) ({names}), which the tracer does not render: the frame shows only the background")
         return
     info.nothing_drawn = (f"{len(gprims)} visible gprim(s) ({', '.join(kinds)}) gave 0 triangles (see the warnings "
                           "above): nothing is drawn")
     info.warn(info.nothing_drawn)
+
+
+def _undrawn(prim) -> list:
+    """The gprims of types the tracer does not draw (volumes, particle fields) that ``prim`` is, or that an
+    instancer's prototypes hold only; [] when it has anything drawable."""
+    kids = [q for q in Usd.PrimRange(prim) if q != prim and q.IsA(UsdGeom.Gprim)] \
+        if prim.IsA(UsdGeom.PointInstancer) else [prim]
+    drawn = any(q.IsA(UsdGeom.PointInstancer) or q.GetTypeName() in GPRIM_TYPES or q.IsA(UsdGeom.Mesh)
+                or _is_points_or_curves(q) for q in kids)
+    return [] if drawn else kids
 
 
 def select_variant(stage, prim_path: str, vset: str, value: str) -> None:

@@ -160,6 +160,13 @@ def stage_motion(stage, scene, time, camera_path, settings_path=None, subdivisio
             object_motion.append(steps @ np.linalg.inv(m0))
     instance_motion = None
     if inst is not None:
+        from .instancing import instancer_motion
+
+        for row, steps in instancer_motion(stage, names, inst.object_ids, times, base).items():
+            if _moves(steps):
+                if instance_motion is None:
+                    instance_motion = np.repeat(inst.transforms[:, None], len(times), axis=1)
+                instance_motion[row] = steps
         for row, oid in enumerate(inst.object_ids.tolist()):
             name = names[oid] if oid < len(names) else ""
             prim = stage.GetPrimAtPath(name) if name.startswith("/") and "[" not in name else None

@@ -70,3 +70,16 @@ USD_MATERIAL_INHERENT: dict = {
 
 def usd_material_bar(name: str) -> dict:
     return USD_MATERIAL_INHERENT.get(name, dict(psnr=USD_MATERIAL_PSNR_MIN, mae=USD_MATERIAL_MAE_MAX))
+
+
+#: Light from the world at the tracer's default settings (tests/cycles/test_cycles_world_light.py): psnr/mae the
+#: bars, flat_below the PSNR the flat ambient term (sky_samples = 0) must stay under. world_interior: a room lit
+#: through its open front and a skylight, 96×72 at AA 2 × 16 sky rays: 30.6 dB, MAE 0.018, noise only (64 sky rays
+#: at AA 6: 41.1 dB, MAE 0.0053, each object's mean within 0.4 % of Cycles': converged_mae allows the reference's own
+#: noise at 256 samples in a dim room); flat ambient 6.6 dB. world_hdri_object: 35.8 dB, MAE 0.0069; flat ambient 24.3 dB.
+#: gold_suzanne (issue 20: ≥ 35 dB): Blender's Suzanne, smooth-shaded, gold mirror metal under a spot and a sky.
+WORLD_LIGHT = {
+    "world_interior": dict(psnr=29.5, mae=0.022, flat_below=15.0, converged_mae=0.007),
+    "world_hdri_object": dict(psnr=35.0, mae=0.008, flat_below=30.0),
+    "gold_suzanne": dict(psnr=PSNR_MIN, mae=MAE_MAX),
+}

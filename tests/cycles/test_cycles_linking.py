@@ -1,9 +1,11 @@
 """Light linking, shadow linking and ray visibility (tracer/linking.py) against Cycles, through the add-on: the same
 Blender scene with the same links rendered by both. And through USD: Blender's USD export of the scene (which
 writes no linking) with the links authored as UsdLux ``collection:lightLink`` / ``collection:shadowLink`` and
-``inputs:diffuse`` / ``inputs:specular``, read by usd_io, within 1 dB of the add-on's render. Each scene differs from its unlinked self where a renderer that
-ignores the link gets it wrong (a lit floor that should be dark, a shadow that should be gone, a ball that should be
-missing from the camera but in the mirror, a highlight that should be gone)."""
+``inputs:diffuse`` / ``inputs:specular``, read by usd_io, within 1 dB of the add-on's render.
+
+Each scene differs from its unlinked self where a renderer that ignores the link gets it wrong (a lit floor that
+should be dark, a shadow that should be gone, a ball that should be missing from the camera but in the mirror, a
+highlight that should be gone)."""
 
 import numpy as np
 import pytest
@@ -41,7 +43,8 @@ CASES = {
     "exclude": (_desc("exclude"), dict(receivers={"Key": [("Floor", "EXCLUDE")], "Fill": [("Ball", "EXCLUDE")]})),
     "shadow": (_desc("shadow"), dict(blockers={"Key": [("Ball", "EXCLUDE")], "Fill": [("Block", "INCLUDE")]})),
     "hidden_in_mirror": (_desc("hidden_in_mirror", depth=1, objects=_objects() + [
-        obj("Mirror", "plane", "mirror", matrix=trs((0.0, 2.0, 1.5), (np.pi / 2, 0, 0)), params=dict(size=(6.0, 3.0)))]),
+        obj("Mirror", "plane", "mirror", matrix=trs((0.0, 2.0, 1.5), (np.pi / 2, 0, 0)),
+            params=dict(size=(6.0, 3.0)))]),
         dict(objects={"Ball": {"visible_camera": False}, "Block": {"visible_shadow": False}})),
     "light_not_glossy": (_desc("light_not_glossy", objects=_objects(ball="shiny")),
                          dict(lights={"Key": {"visible_glossy": False}, "Fill": {"visible_diffuse": False}})),

@@ -7,7 +7,8 @@ own (>= 40 dB). Lit grid: spheres under a sun for what needs light and a view (B
 Add Shader, Object Info Random) and artist-style materials built as node trees (>= 33 dB). Closure grid: Mix / Add
 Shader trees summed as lobes (tracer.lobes) with secondary rays: coats mixed by Fresnel / Layer Weight reflecting a
 floor, Diffuse + Glass, Diffuse + tinted Transparent, Emission + Diffuse (>= 33 dB). Group / mute / reroute
-plumbing is part of the emission grid. Cycles references are cached by a hash of this file's builders
+plumbing is part of the emission grid; planes that read object space are turned and scaled (:data:`TURNED`). World:
+a world-only view of a procedural world tree, which the add-on evaluates with the VM per direction (>= 40 dB). Cycles references are cached by a hash of this file's builders
 (cycles_harness.content_hash, CACHE_DIR).
 """
 
@@ -826,10 +827,46 @@ def build_closure_grid():
     return scene
 
 
+# ---------------------------------------------------------------------------------------------------- world
+def build_world():
+    """A world-only scene seen by a wide camera (the add-on evaluates the world's tree with the VM per direction,
+    addon/world.py): Background = Mix(a colour ramp of a Gradient on the direction, Noise of the direction rotated by
+    a Mapping, factor the direction's z) × a strength of 1.5."""
+    import bpy
+
+    scene = bs.reset((96, 64))
+    bs.add_camera((0, 0, 0), target=(1.0, 0.3, 0.35), lens=14.0)
+    bs.set_world((0.0, 0.0, 0.0))
+    nt = scene.world.node_tree
+    bg = next(n for n in nt.nodes if n.type == "BACKGROUND")
+    bg.inputs["Strength"].default_value = 1.5
+    grad = _new(nt, "ShaderNodeTexGradient", gradient_type="SPHERICAL")
+    _link(nt, vaffine(nt, coords(nt, "Generated"), 0.8, 0.1), sock(grad.inputs, "Vector"))
+    ramp = _new(nt, "ShaderNodeValToRGB")
+    ramp.color_ramp.elements[0].color = (0.9, 0.5, 0.1, 1)
+    ramp.color_ramp.elements[1].color = (0.1, 0.3, 0.9, 1)
+    _link(nt, sock(grad.outputs, "Fac"), ramp.inputs[0])
+    mapping = _new(nt, "ShaderNodeMapping", vector_type="VECTOR")
+    sock(mapping.inputs, "Rotation").default_value = (0.2, 0.0, 0.7)
+    _link(nt, coords(nt, "Generated"), sock(mapping.inputs, "Vector"))
+    noise = _new(nt, "ShaderNodeTexNoise", in_Scale=2.0, in_Detail=2.0)
+    _link(nt, sock(mapping.outputs, "Vector"), sock(noise.inputs, "Vector"))
+    mix = _new(nt, "ShaderNodeMix", data_type="RGBA")
+    sep = _new(nt, "ShaderNodeSeparateXYZ")
+    _link(nt, coords(nt, "Generated"), sep.inputs[0])
+    _link(nt, affine(nt, sock(sep.outputs, "Z"), 1.0, 0.5), sock(mix.inputs, "Factor_Float"))
+    _link(nt, ramp.outputs[0], sock(mix.inputs, "A_Color"))
+    _link(nt, sock(noise.outputs, "Color"), sock(mix.inputs, "B_Color"))
+    _link(nt, sock(mix.outputs, "Result_Color"), bg.inputs["Color"])
+    bpy.context.view_layer.update()
+    return scene
+
+
 # ---------------------------------------------------------------------------------------------------- rendering
 SCENES = {"nodes_emission": (build_emission_grid, dict(depth=0, samples=64, ours_samples=8)),
           "nodes_lit": (build_lit_grid, dict(depth=0, samples=64, ours_samples=4)),
-          "nodes_closures": (build_closure_grid, dict(depth=4, samples=64, ours_samples=4))}
+          "nodes_closures": (build_closure_grid, dict(depth=4, samples=64, ours_samples=4)),
+          "nodes_world": (build_world, dict(depth=0, samples=16, ours_samples=4))}
 
 
 def scene_source() -> str:
@@ -933,3 +970,16 @@ def test_emission_grid_translates_every_node(emission_pair):
     Blender type, "ShaderNode…")."""
     _ours, _ref, warnings = emission_pair
     assert not [w for w in warnings if "(ShaderNode" in w], warnings
+
+
+def test_world_tree_matches_cycles(tmp_path):
+    """A world of procedural nodes on the direction, seen by the camera: the add-on's VM-evaluated environment
+    against Cycles (>= 40 dB), evaluated without a Blender bake or a stand-in warning."""
+    ref = cycles_image("nodes_world")
+    from addon import world
+
+    ours, warnings = ours_image("nodes_world")
+    assert not [w for w in warnings if "world" in w], warnings
+    assert [k for k, v in world._BAKES.items() if k.startswith("vm-") and v is not None], "the world was baked"
+    H.check_images({"name": "world_tree"}, ours, ref, tmp_path, min_psnr=EMISSION_PSNR_MIN, max_mae=0.01,
+                   label=" [world]")
