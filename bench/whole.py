@@ -124,7 +124,7 @@ def main(argv=None) -> None:
     flags = ["render", usd, "-o", out, "--width", str(a.width), "--height", str(a.height),
              "--max-depth", str(a.max_depth), "--threads", str(a.threads), "--quiet",
              # like for like: POV-Ray's ambient_light is the notes' flat ambient term, not shadowed sky rays
-             "--sky-samples", "0"]
+             "--sky-samples", "0", "--aa", "1"]
     env = dict(os.environ, PYTHONPATH=os.path.abspath(a.root))
     env.pop("PYTHONDONTWRITEBYTECODE", None)  # an install has its bytecode; the warm-up run writes it
     ours_cmd = [sys.executable, "-c", ENTRY, *flags]
