@@ -354,3 +354,79 @@ def lit_quad_with(shader_id, inputs, output="surface", display_color=None, mdl=N
     mat.CreateSurfaceOutput(ctx).ConnectToSource(sh.ConnectableAPI(), "out")
     bind(q, mat)
     return s
+
+
+# ---------------------------------------------------------------- Arnold-only content (issue #21's survey)
+def arnold_camera_stage(matrix=None, position=None, look_at=None, fov=None):
+    """A USD Camera left at the origin (no xformOps, its default 50 mm lens) carrying an Arnold placement as
+    arnold-usd/MtoA write it (``primvars:arnold:matrix`` / ``position`` / ``look_at`` / ``fov``, arrays of motion
+    keys), and a 2 × 2 quad facing +z centred at (10, 0, 0), lit head-on; nothing else."""
+    from pxr import UsdLux
+
+    s = new_stage()
+    cam = UsdGeom.Camera.Define(s, "/Cam")
+    pv = UsdGeom.PrimvarsAPI(cam.GetPrim())
+    T = Sdf.ValueTypeNames
+    if matrix is not None:
+        pv.CreatePrimvar("arnold:matrix", T.Matrix4dArray).Set([Gf.Matrix4d(*matrix)])
+    if position is not None:
+        pv.CreatePrimvar("arnold:position", T.Vector3fArray).Set([Gf.Vec3f(*position)])
+    if look_at is not None:
+        pv.CreatePrimvar("arnold:look_at", T.Vector3fArray).Set([Gf.Vec3f(*look_at)])
+    if fov is not None:
+        pv.CreatePrimvar("arnold:fov", T.FloatArray).Set([fov])
+    sun = UsdLux.DistantLight.Define(s, "/Sun")
+    sun.CreateIntensityAttr(2.0)
+    sun.CreateNormalizeAttr(True)
+    q = quad(s, "/Q", half=1.0)
+    q.AddTranslateOp().Set(Gf.Vec3d(10, 0, 0))
+    return s
+
+
+def arnold_uv_quad(surface_id, inputs, nodes=()):
+    """A 2 × 2 quad with ``st`` running 0..1 across it (u along +x, v along +y), seen head-on by a camera whose
+    aperture it exactly fills, bound to a material whose ``outputs:arnold:surface`` is the shader ``/M/S``
+    (``surface_id``, ``inputs`` {name: (type, value or "/M/Node.outputs:out" to connect)}); ``nodes``: more shaders
+    (path, id, inputs) the same way. No light: Arnold's flat and pattern surfaces are unlit."""
+    s = new_stage()
+    add_camera(s, eye=(0, 0, 10), h=2.0, v=2.0, focal=10.0)
+    q = quad(s, "/Q", half=1.0)
+    st = UsdGeom.PrimvarsAPI(q.GetPrim()).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                                         UsdGeom.Tokens.vertex)
+    st.Set([(0, 0), (1, 0), (1, 1), (0, 1)])
+    mat = UsdShade.Material.Define(s, "/M")
+    for path, sid, ins in ((("/M/S", surface_id, inputs),) + tuple(nodes)):
+        sh = UsdShade.Shader.Define(s, path)
+        sh.CreateIdAttr(sid)
+        sh.CreateOutput("out", Sdf.ValueTypeNames.Color3f)
+    for path, sid, ins in ((("/M/S", surface_id, inputs),) + tuple(nodes)):
+        sh = UsdShade.Shader(s.GetPrimAtPath(path))
+        for name, (typ, v) in ins.items():
+            if isinstance(v, str) and v.startswith("/"):
+                sh.CreateInput(name, typ).ConnectToSource(Sdf.Path(v))
+            else:
+                sh.CreateInput(name, typ).Set(v)
+    mat.CreateSurfaceOutput("arnold").ConnectToSource(UsdShade.Shader(s.GetPrimAtPath("/M/S")).ConnectableAPI(),
+                                                      "out")
+    bind(q, mat)
+    return s
+
+
+def arnold_render_globals_stage():
+    """A lit quad and a RenderSettings whose ``arnold:global:background`` / ``atmosphere`` name ArnoldNodeGraphs of
+    a ``physical_sky`` and a ``fog`` (as Houdini's Solaris writes them)."""
+    from pxr import UsdLux
+
+    s = new_stage()
+    add_camera(s)
+    UsdLux.DistantLight.Define(s, "/Sun").CreateIntensityAttr(2.0)
+    quad(s, "/Q", half=3.0)
+    rs = s.DefinePrim("/Render/Settings", "RenderSettings")
+    for name, sid in (("background", "arnold:physical_sky"), ("atmosphere", "arnold:fog")):
+        rs.CreateAttribute(f"arnold:global:{name}", Sdf.ValueTypeNames.String).Set(f"/{name}_graph")
+        g = s.DefinePrim(f"/{name}_graph", "ArnoldNodeGraph")
+        sh = UsdShade.Shader.Define(s, f"/{name}_graph/node")
+        sh.CreateIdAttr(sid)
+        g.CreateAttribute(f"outputs:{name}", Sdf.ValueTypeNames.Token).AddConnection(
+            Sdf.Path(f"/{name}_graph/node.outputs:out"))
+    return s

@@ -16,6 +16,11 @@ directory (sorted; layers referenced by a test's stage sit beside it). A worker 
     grey        a material no reader understood, drawn in a fallback grey (18 % or 50 %) with no warning naming it
     volumes     (not a fault) the stage's only gprims are volumes or particle fields, which the tracer does not
                 render; counted apart, and a fault (``silent``) unless one warning line says so
+    said        (not a fault) a uniform frame the scene says is right, counted apart with its ``reason``: a
+                warning names what draws the frame in the authoring renderer and not here (:data:`SAID`: an Arnold
+                background or atmosphere, a volume shader on a mesh), or no eye ray meets a gprim (``out of
+                view``: the objectid AOV is empty, e.g. a 1.5-unit torus seen from 4 700 units); the summary lists
+                each with its reason for a person to check
 
 Workers are restarted (and the file counted as ``hang``) when one file takes longer than ``--timeout`` seconds in
 total for the chunk. The summary prints the counts; ``--compare`` prints them beside another run's. The contact
@@ -36,7 +41,11 @@ import time
 import numpy as np
 
 USD_EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
-FLAGS = ("traceback", "refusal", "blank", "empty", "grey", "silent", "hang", "volumes")
+FLAGS = ("traceback", "refusal", "blank", "empty", "grey", "silent", "hang", "volumes", "said")
+#: Warning texts that name what a uniform frame lacks (content of the authoring renderer only): reason.
+SAID = {"Arnold background": "Arnold-only background/atmosphere (warned)",
+        "Arnold atmosphere": "Arnold-only background/atmosphere (warned)",
+        "volume shader": "volume shader on a mesh (warned)"}
 #: Gprim types the tracer documents as not rendered (usd_io.reader: one warning line when they are all a stage has).
 NOT_DRAWN = ("Volume", "ParticleField3DGaussianSplat", "ParticleField")
 
@@ -88,6 +97,20 @@ def silently_grey(info, stage) -> list[str]:
     return greys
 
 
+def blank_reason(scene, info) -> str | None:
+    """Why a uniform frame is right, or None: a warning naming Arnold-only content (:data:`SAID`), or no eye ray
+    meeting a gprim (the objectid AOV, rendered once more)."""
+    from tracer import RenderSettings, render
+
+    for w in info.warnings:
+        for key, reason in SAID.items():
+            if key in w:
+                return reason
+    ids = render(scene, RenderSettings(width=info.width, height=info.height, samples=1, threads=1,
+                                       aovs=("objectid",))).aovs["objectid"]
+    return "out of view (no eye ray meets a gprim)" if int(ids.max()) < 0 else None
+
+
 def examine(path: str, width: int, png: str | None) -> dict:
     from pxr import Usd
 
@@ -135,7 +158,10 @@ def examine(path: str, width: int, png: str | None) -> dict:
     if gprims and rec["triangles"] == 0:
         rec["flags"].append("empty")
     if gprims and float(np.ptp(image.reshape(-1, 3), axis=0).max()) < 1 / 255:
-        rec["flags"].append("blank")
+        reason = blank_reason(scene, info)
+        rec["flags"].append("said" if reason else "blank")
+        if reason:
+            rec["reason"] = reason
     grey = silently_grey(info, stage)
     if grey:
         rec["flags"].append("grey")
@@ -217,6 +243,7 @@ def summary(results: list[dict], root: str, compare: list[dict] | None = None) -
         bad = [f for f in r["flags"] if f != "unreadable"]
         if bad:
             rows.append(f"{','.join(bad):<18} {os.path.relpath(r['file'], root)}  {r.get('error', '')[:120]}"
+                        f"{r.get('reason', '')}"
                         f"{' grey: ' + ', '.join(r['grey']) if r.get('grey') else ''}")
     c = counts(results)
     rows.append("")
