@@ -918,3 +918,27 @@ def test_arnold_background_and_atmosphere_are_named_once():
     _img, info = _image(st.arnold_render_globals_stage(), w=16, h=12)
     said = [w for w in info.warnings if "Arnold background" in w or "Arnold atmosphere" in w]
     assert len(said) == 2 and "arnold:physical_sky" in said[0] and "arnold:fog" in said[1], info.warnings
+
+
+def test_instancer_motion_blur_at_the_earliest_time_opens_the_shutter_at_the_first_frame():
+    """No --time and a camera shutter open: the shutter opens about the stage's startTimeCode (1001), not about
+    EarliestTime's −1.8e308 (which made every instance step NaN: arnold-usd test_2231/1442/1427.3 were refused).
+    The instances move 1/24 unit per frame: ±0.25 frame keeps the centre cube under the centre pixel."""
+    s = new_stage()
+    s.SetStartTimeCode(1001)
+    s.SetEndTimeCode(1010)
+    st.cube(s, "/Protos/Box")
+    pi = st.point_instancer(s, "/PI", ["/Protos/Box"], [(0, 0, 0), (3, 0, 0)])
+    pi.GetPositionsAttr().Clear()
+    pi.GetPositionsAttr().Set([Gf.Vec3f(0, 0, 0), Gf.Vec3f(3, 0, 0)], 1001.0)
+    pi.CreateVelocitiesAttr().Set([Gf.Vec3f(1, 0, 0), Gf.Vec3f(1, 0, 0)], 1001.0)
+    s.GetPrimAtPath("/Protos").SetSpecifier(Sdf.SpecifierOver)
+    cam = add_camera(s, eye=(0, 0, 10))
+    cam.CreateShutterOpenAttr(-0.25)
+    cam.CreateShutterCloseAttr(0.25)
+    scene, _info = load_stage(s, width=24, height=16)
+    motion = scene.motion.instance_motion
+    assert motion is not None and np.all(np.isfinite(motion))
+    np.testing.assert_allclose(motion[0, :, 0, 3], [-0.25 / 24, 0.0, 0.25 / 24], atol=1e-6)
+    ids = render(scene, RenderSettings(width=24, height=16, samples=1, aovs=("objectid",))).aovs["objectid"]
+    assert ids[8, 12] >= 0
