@@ -942,3 +942,22 @@ def test_instancer_motion_blur_at_the_earliest_time_opens_the_shutter_at_the_fir
     np.testing.assert_allclose(motion[0, :, 0, 3], [-0.25 / 24, 0.0, 0.25 / 24], atol=1e-6)
     ids = render(scene, RenderSettings(width=24, height=16, samples=1, aovs=("objectid",))).aovs["objectid"]
     assert ids[8, 12] >= 0
+
+
+def test_a_dome_arnold_hides_from_the_camera_lights_but_is_not_seen():
+    """primvars:arnold:camera = 0 on a textureless dome (Houdini's Arnold exports): the quad is lit as before,
+    the background is black instead of the dome's white."""
+    def frame(hidden):
+        s = new_stage()
+        add_camera(s, eye=(0, 0, 10))
+        st.quad(s, "/Q", half=1.0)
+        dome = UsdLux.DomeLight.Define(s, "/Dome")
+        if hidden:
+            UsdGeom.PrimvarsAPI(dome.GetPrim()).CreatePrimvar("arnold:camera", F).Set(0.0)
+        return _image(s, w=24, h=16)[0]
+
+    seen, unseen = frame(False), frame(True)
+    np.testing.assert_allclose(seen[0, 0], (1, 1, 1), atol=1e-4)
+    np.testing.assert_allclose(unseen[0, 0], (0, 0, 0), atol=1e-6)
+    np.testing.assert_allclose(unseen[8, 12], seen[8, 12], rtol=0.05)  # the quad: lit the same
+    assert unseen[8, 12].max() > 0.1

@@ -16,11 +16,11 @@ directory (sorted; layers referenced by a test's stage sit beside it). A worker 
     grey        a material no reader understood, drawn in a fallback grey (18 % or 50 %) with no warning naming it
     volumes     (not a fault) the stage's only gprims are volumes or particle fields, which the tracer does not
                 render; counted apart, and a fault (``silent``) unless one warning line says so
-    said        (not a fault) a uniform frame the scene says is right, counted apart with its ``reason``: a
-                warning names what draws the frame in the authoring renderer and not here (:data:`SAID`: an Arnold
-                background or atmosphere, a volume shader on a mesh), or no eye ray meets a gprim (``out of
-                view``: the objectid AOV is empty, e.g. a 1.5-unit torus seen from 4 700 units); the summary lists
-                each with its reason for a person to check
+    said        (not a fault) a blank or empty frame the scene says is right, counted apart with its ``reason``:
+                a warning names what it lacks (:data:`SAID`: an Arnold background or atmosphere, points that are
+                not finite), no eye ray meets a gprim (``out of view``: the objectid AOV is empty, e.g. a 1.5-unit
+                torus seen from 4 700 units), or gprims are in view and every pixel is below 1/255 (``dark``: the
+                authored lights do not reach them); the summary lists each with its reason for a person to check
 
 Workers are restarted (and the file counted as ``hang``) when one file takes longer than ``--timeout`` seconds in
 total for the chunk. The summary prints the counts; ``--compare`` prints them beside another run's. The contact
@@ -45,7 +45,7 @@ FLAGS = ("traceback", "refusal", "blank", "empty", "grey", "silent", "hang", "vo
 #: Warning texts that name what a uniform frame lacks (content of the authoring renderer only): reason.
 SAID = {"Arnold background": "Arnold-only background/atmosphere (warned)",
         "Arnold atmosphere": "Arnold-only background/atmosphere (warned)",
-        "volume shader": "volume shader on a mesh (warned)"}
+        "NaN or infinite coordinates": "points with NaN or infinite coordinates (warned, skipped)"}
 #: Gprim types the tracer documents as not rendered (usd_io.reader: one warning line when they are all a stage has).
 NOT_DRAWN = ("Volume", "ParticleField3DGaussianSplat", "ParticleField")
 
@@ -97,18 +97,25 @@ def silently_grey(info, stage) -> list[str]:
     return greys
 
 
-def blank_reason(scene, info) -> str | None:
-    """Why a uniform frame is right, or None: a warning naming Arnold-only content (:data:`SAID`), or no eye ray
-    meeting a gprim (the objectid AOV, rendered once more)."""
+def blank_reason(scene, info, image) -> str | None:
+    """Why a uniform (or empty) frame is what the scene says, or None: a warning naming what it lacks
+    (:data:`SAID`); no eye ray meeting a gprim (the objectid AOV, rendered once more); or gprims in view but every
+    pixel darker than 1/255 (the authored lights do not reach what the camera sees)."""
     from tracer import RenderSettings, render
 
     for w in info.warnings:
         for key, reason in SAID.items():
             if key in w:
                 return reason
+    if not len(scene.triangles):
+        return None
     ids = render(scene, RenderSettings(width=info.width, height=info.height, samples=1, threads=1,
                                        aovs=("objectid",))).aovs["objectid"]
-    return "out of view (no eye ray meets a gprim)" if int(ids.max()) < 0 else None
+    if int(ids.max()) < 0:
+        return "out of view (no eye ray meets a gprim)"
+    if float(image.max()) < 1 / 255:
+        return "dark (gprims in view, every pixel < 1/255: the authored lights do not reach them)"
+    return None
 
 
 def examine(path: str, width: int, png: str | None) -> dict:
@@ -155,13 +162,14 @@ def examine(path: str, width: int, png: str | None) -> dict:
         rec["flags"].append("volumes")
         if not any("only gprims are" in w for w in info.warnings):
             rec["flags"].append("silent")
-    if gprims and rec["triangles"] == 0:
-        rec["flags"].append("empty")
-    if gprims and float(np.ptp(image.reshape(-1, 3), axis=0).max()) < 1 / 255:
-        reason = blank_reason(scene, info)
-        rec["flags"].append("said" if reason else "blank")
-        if reason:
-            rec["reason"] = reason
+    empty = gprims and rec["triangles"] == 0
+    blank = gprims and float(np.ptp(image.reshape(-1, 3), axis=0).max()) < 1 / 255
+    reason = blank_reason(scene, info, image) if empty or blank else None
+    if reason:
+        rec["flags"].append("said")
+        rec["reason"] = reason
+    else:
+        rec["flags"] += ["empty"] * empty + ["blank"] * blank
     grey = silently_grey(info, stage)
     if grey:
         rec["flags"].append("grey")
