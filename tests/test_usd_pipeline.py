@@ -961,3 +961,13 @@ def test_a_dome_arnold_hides_from_the_camera_lights_but_is_not_seen():
     np.testing.assert_allclose(unseen[0, 0], (0, 0, 0), atol=1e-6)
     np.testing.assert_allclose(unseen[8, 12], seen[8, 12], rtol=0.05)  # the quad: lit the same
     assert unseen[8, 12].max() > 0.1
+
+
+@pytest.mark.parametrize("interpolation", ["uniform", "vertex"])
+def test_curves_read_their_st_per_curve_and_per_point(interpolation):
+    """Curves' texture coordinates (arnold-usd test_0189: a ramp over hair by per-curve st): the left curve's
+    u = 0.25 falls in the checkerboard's first cell (color1), the right one's 0.75 in the second (color2)."""
+    img, info = _image(st.curves_with_st(interpolation), w=48, h=32)
+    left, right = img[16, 24 - 8], img[16, 24 + 8]  # x = ∓1 seen through the 3.6-wide aperture at 5 mm, 10 away
+    np.testing.assert_allclose(left, (0.9, 0.1, 0.1), atol=0.02)
+    np.testing.assert_allclose(right, (0.1, 0.2, 0.8), atol=0.02)
