@@ -1,7 +1,8 @@
 """Survey: read and render every USD stage under some directories, in-process, and count what goes wrong.
 
     python tools/usd_survey.py DIR [DIR ...] [--out /tmp/usd_survey] [--per-dir 4] [--width 64]
-                               [--sheet sheet.png] [--compare OTHER/results.json] [--timeout 600]
+                               [--sheet sheet.png [--sheet-rows 16]] [--compare OTHER/results.jsonl]
+                               [--timeout 600]
 
 Nothing is downloaded: DIRs are checkouts the user made (e.g. OpenUSD's testenv stages, arnold-usd's testsuite,
 tinyusdz's tests, usd-wg/assets). Every ``.usd/.usda/.usdc/.usdz`` file is a candidate; at most ``--per-dir`` per
@@ -264,20 +265,29 @@ def summary(results: list[dict], root: str, compare: list[dict] | None = None) -
     return "\n".join(rows)
 
 
-def contact_sheet(results: list[dict], root: str, path: str, tile: int = 64, columns: int = 12) -> None:
-    """Flagged renders first, then the rest, each labelled; as a PNG."""
+def contact_sheet(results: list[dict], root: str, path: str, tile: int = 64, columns: int = 12,
+                  compare: list[dict] | None = None, rows: int = 16) -> None:
+    """Flagged renders first (``!``), then those whose flags changed since ``compare`` (``*``: e.g. blank before,
+    drawn now), then the rest, each labelled; as a PNG."""
     import OpenImageIO as oiio
 
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     from usdwg_survey import fit_tile, label_strip, read_rgb
 
+    before = {r["file"]: set(r["flags"]) for r in compare or ()}
+    flagged = lambda r: bool([f for f in r["flags"] if f != "unreadable"])  # noqa: E731
+    changed = lambda r: r["file"] in before and before[r["file"]] != set(r["flags"])  # noqa: E731
     ordered = sorted((r for r in results if r.get("png") and os.path.exists(r["png"])),
-                     key=lambda r: (not [f for f in r["flags"] if f != "unreadable"], r["file"]))
+                     key=lambda r: (not flagged(r), not changed(r), r["file"]))
     cells = []
-    for r in ordered[: columns * 16]:
+    for r in ordered[: columns * rows]:
         rgb = read_rgb(r["png"])
         t = fit_tile(rgb, tile) if rgb is not None else np.zeros((tile, tile, 3), np.float32)
-        label = ("!" if [f for f in r["flags"] if f != "unreadable"] else "") + os.path.basename(r["file"])[:18]
+        mark = "!" if flagged(r) else "*" if changed(r) else ""
+        name = os.path.basename(r["file"])
+        if os.path.basename(os.path.dirname(r["file"])) == "data":  # arnold-usd's tests: the folder says which
+            name = os.path.basename(os.path.dirname(os.path.dirname(r["file"]))) or name
+        label = mark + name[:18]
         cells.append(np.concatenate([t, label_strip(label, tile, 11)], axis=0))
     if not cells:
         return
@@ -302,6 +312,7 @@ def main(argv=None) -> int:
     ap.add_argument("--width", type=int, default=64)
     ap.add_argument("--timeout", type=float, default=300.0)
     ap.add_argument("--sheet", help="contact sheet PNG")
+    ap.add_argument("--sheet-rows", type=int, default=16, help="rows of 12 renders on the contact sheet")
     ap.add_argument("--compare", help="another run's results.jsonl: counts side by side")
     args = ap.parse_args(argv)
     files = stage_files(args.dirs, args.per_dir)
@@ -312,7 +323,7 @@ def main(argv=None) -> int:
     root = os.path.commonpath([os.path.abspath(d) for d in args.dirs])
     print(summary(results, root, compare))
     if args.sheet:
-        contact_sheet(results, root, args.sheet)
+        contact_sheet(results, root, args.sheet, compare=compare, rows=args.sheet_rows)
         print(f"contact sheet -> {args.sheet}")
     return 0
 
