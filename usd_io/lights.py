@@ -19,7 +19,8 @@ light of power P as a SphereLight with I = P/π, normalize = 1; Cycles' radiant 
     RectLight    radiance Le = I/A with normalize = 1 (A = width·height), else Le = I (Blender: I = P/π)
     DiskLight    the same with A = π·radius²
     DomeLight    the world: a lat-long texture becomes Scene.environment (usd_io/dome.py: orientation, format);
-                 without one, Scene.background = I and Scene.ambient = I · inputs:diffuse
+                 without one, Scene.background = I and Scene.ambient = I · inputs:diffuse; Arnold's
+                 ``primvars:arnold:camera = 0`` (lights the scene, unseen by the camera): background black
 
 Which reading: a stage whose root layer says it was written by Blender (``doc = "Blender v…"``, what
 Blender's exporter writes) takes Blender's sun; every other stage the spec's. For every other light type the two
@@ -47,7 +48,7 @@ Lights see the camera-space units of the stage (no metersPerUnit conversion), li
 from __future__ import annotations
 
 import numpy as np
-from pxr import Sdf, UsdLux
+from pxr import Sdf, UsdGeom, UsdLux
 
 from tracer import AreaLight, DistantLight, PointLight, SpotLight
 from tracer.linking import LightLink
@@ -257,7 +258,24 @@ def _dome(prim, world, time, rgb, warn):
         env = dict(image=image, rotation=rotation)
         if diffuse != 1.0:
             warn(f"{name}: inputs:diffuse = {diffuse} is not supported with a dome texture (1 used)")
-    return "dome", None, dict(background=colour, ambient=colour * diffuse, environment=env)
+    background = colour
+    if _hidden_from_camera(prim, time):  # Arnold's visibility: the dome lights the scene, the camera sees black
+        if env is None:
+            background = np.zeros(3)
+        else:
+            warn(f"{name}: primvars:arnold:camera = 0 (hidden from the camera) is not supported with a dome "
+                 "texture (the dome is seen)")
+    return "dome", None, dict(background=background, ambient=colour * diffuse, environment=env)
+
+
+def _hidden_from_camera(prim, time) -> bool:
+    """Whether Arnold's ``primvars:arnold:camera`` (a light's contribution to camera rays) is authored 0."""
+    pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("arnold:camera")
+    v = pv.Get(time) if pv and pv.HasAuthoredValue() else None
+    try:
+        return v is not None and float(v) == 0.0
+    except (TypeError, ValueError):
+        return False
 
 
 #: The default lighting of a stage without lights, as usdview/usdrecord light one: a headlight along the camera's
