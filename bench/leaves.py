@@ -15,6 +15,7 @@ occlusion, the transparent-shadow rounds (their closest hits and their blocker s
 the shadow rays' count and cost per ray.
 
     python -m bench.leaves [--width 480 --height 270] [--aa 1] [--cycles-samples 16] [--variant principled|mix]
+                           [--no-filter] [--only whitted,cycles,split]
 """
 
 from __future__ import annotations
@@ -166,6 +167,10 @@ def measure(renderer, a) -> dict:
     import bpy
 
     sc = build_scene(a.width, a.height, a.variant, a.leaves)
+    if a.no_filter:
+        from tracer import alpha
+
+        alpha.ENABLED = False
     depsgraph = bpy.context.evaluated_depsgraph_get()  # Blender evaluates the node tree outside the timings
     n_inst = sum(1 for i in depsgraph.object_instances if i.is_instance)
     out = {"renderer": renderer, "width": a.width, "height": a.height, "variant": a.variant, "leaves": n_inst}
@@ -272,7 +277,8 @@ def split(a) -> dict:
 def _child(renderer, a) -> dict:
     cmd = [sys.executable, "-m", "bench.leaves", "--child", renderer, "--width", str(a.width), "--height",
            str(a.height), "--threads", str(a.threads), "--aa", str(a.aa), "--cycles-samples", str(a.cycles_samples),
-           "--variant", a.variant, "--leaves", str(a.leaves)] + (["--save", a.save] if a.save else [])
+           "--variant", a.variant, "--leaves", str(a.leaves)] + (["--save", a.save] if a.save else []) + (
+               ["--no-filter"] if a.no_filter else [])
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=os.getcwd())
     line = [ln for ln in proc.stdout.splitlines() if ln.startswith("BENCH_JSON ")]
     if not line:
@@ -290,6 +296,8 @@ def main(argv=None):
     ap.add_argument("--variant", choices=("principled", "mix"), default="principled")
     ap.add_argument("--leaves", type=int, default=4800)
     ap.add_argument("--only", default="whitted,cycles,split")
+    ap.add_argument("--no-filter", action="store_true",
+                    help="ours with the round-by-round transparent-shadow loop (tracer.alpha.ENABLED = False)")
     ap.add_argument("--save", default="", help="write each F12's picture to SAVE_<renderer>.png")
     ap.add_argument("--child", choices=("whitted", "cycles", "split"))
     a = ap.parse_args(argv)

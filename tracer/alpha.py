@@ -34,6 +34,8 @@ would count a partial surface twice), and objects that became see-through after 
 
 from __future__ import annotations
 
+import time as clock
+
 import numpy as np
 import numba
 from numba import carray, types
@@ -303,6 +305,7 @@ class FilterTables:
                       spaces=it.spaces, tdata=x.data, tparams=x.params, linear=inst.linear, mirrored=inst.mirrored,
                       inst_ids=inst.object_ids, lobe_extra=pt.lobe_extra, slot_start=accel._start,
                       slot_rows=accel._rows, inst_proto=accel._inst_proto)
+        self.accel_arrays = (accel._start, accel._rows, accel._inst_proto)  # replaced by the accelerator's edits
         self.arrays = []
         self.table = np.zeros(len(TABLE) * _ENTRY, np.uint64)
         for i, (name, dtype, ndim) in enumerate(TABLE):
@@ -337,19 +340,20 @@ def usable(it) -> bool:
 def occluded(it, shadow, masks, time) -> np.ndarray:
     """The shadow rays' blocked mask, their colours (``shadow.color``, float32 C-contiguous) scaled in place by
     the see-through surfaces they cross (:func:`occluded_through`)."""
-    from .accel import T_FAR_MAX, _ray_masks, _times
+    from .accel import T_FAR_MAX, _ray_masks, _times  # (tracer.accel imports this module)
 
     accel = it.accel
     n = len(shadow.o)
     blocked = np.zeros(n, bool)
     tables = it.__dict__.get("_alpha_tables")
-    if tables is None:
+    if tables is None or any(a is not b for a, b in zip(tables.accel_arrays, (accel._start, accel._rows,
+                                                                                accel._inst_proto))):
         tables = it.__dict__["_alpha_tables"] = FilterTables(it, accel)
     o = np.ascontiguousarray(shadow.o, np.float32)
     d = np.ascontiguousarray(shadow.d, np.float32)
     tm = np.ascontiguousarray(np.minimum(shadow.t_max, T_FAR_MAX), np.float32)
-    import time as clock
-
+    if shadow.color.dtype != np.float32 or not shadow.color.flags.c_contiguous:
+        raise TypeError("tracer.alpha.occluded: shadow colours must be C-contiguous float32 (scaled in place)")
     start = clock.perf_counter()
     occluded_through(accel._top.handle, o, d, np.float32(0.0), tm, blocked, _ray_masks(masks), _times(time),
                      shadow.color, tables.table, it.programs.R0, np.int64(it.settings.max_transparent),
