@@ -140,6 +140,8 @@ def blank_reason(scene, info, image) -> str | None:
     if int(ids.max()) < 0:
         return "out of view (no eye ray meets a gprim)"
     if float(image.max()) < 1 / 255:
+        if any("not found" in w for w in info.warnings):
+            return "dark (gprims in view, every pixel < 1/255: a texture is missing, warned, its fallback black)"
         return "dark (gprims in view, every pixel < 1/255: the authored lights do not reach them)"
     return None
 
