@@ -996,3 +996,23 @@ def test_blender_32_to_36_without_a_dome_is_the_released_exporters_power_over_10
     scene, info = load_stage(_exporter_stage("Blender v3.2.0"), width=20, height=16)
     np.testing.assert_allclose(_first_light(info).intensity, 1000 / (4 * np.pi), rtol=1e-6)
     assert any("power / 100" in n for n in info.notes), info.notes
+
+
+def test_lights_with_the_pre_2102_usdlux_attribute_names_are_read():
+    """OpenUSD's testUsdLuxLightListAPI/torch.usda spells its SphereLight's inputs as UsdLux did before 21.02
+    (``radius``, ``exposure``, no ``inputs:``): read as the same light written today (it was USD's dim default,
+    r = 0.5, exposure 0: a dark frame)."""
+    def light(legacy):
+        s = new_stage()
+        lt = UsdLux.SphereLight.Define(s, "/Lamp")
+        prim = lt.GetPrim()
+        for name, typ, v in (("intensity", F, 3.0), ("exposure", F, 2.0), ("radius", F, 0.1)):
+            prim.CreateAttribute(name if legacy else f"inputs:{name}", typ).Set(v)
+        add_camera(s)
+        quad(s, "/Q")
+        return _first_light(load_stage(s, width=8, height=8)[1])
+
+    old, new = light(True), light(False)
+    np.testing.assert_allclose(old.intensity, new.intensity, rtol=1e-6)
+    np.testing.assert_allclose(new.intensity, 3.0 * 4 * np.pi * 0.01, rtol=1e-6)  # I·2^e·πr²
+    assert old.radius == new.radius == pytest.approx(0.1)
