@@ -220,7 +220,8 @@ def translate(path: str) -> Sdf.Layer | None:
     if path not in _LAYERS:
         try:
             _LAYERS[path] = _Writer(read_document(path), os.path.dirname(path)).translate()
-        except (mx.Exception, OSError, ValueError):
+        except (mx.Exception, mx.ExceptionFileMissing, mx.ExceptionParseError, mx.ExceptionFoundCycle,
+                mx.ExceptionOrphanedElement, OSError, ValueError):  # a missing .mtlx: USD's own error names it
             _LAYERS[path] = None
     return _LAYERS[path]
 
