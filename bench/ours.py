@@ -1,9 +1,10 @@
 """Our tracer and raw Embree, measured in a child process (``python -m bench.ours ...`` prints one JSON object).
 
-Timed runs call :func:`tracer.render` without recording, after one untimed 64×36 render that loads the kernels. A separate run with ``extra={"record_rays": True}`` captures
-the ray batches exactly as the integrator traced them, and :func:`replay` sends the same batches through a bare
-Embree scene on the same number of threads (batches handed to a thread pool, as our tiles are): raw Embree through
-our binding (:mod:`tracer.embree`: one triangle geometry over all triangles, the same compiled loops), twice —
+Timed runs call :func:`tracer.render` without recording, after one untimed 64×36 render that loads the kernels. A
+separate run with ``extra={"record_rays": True}`` captures the ray batches exactly as the integrator traced them, and
+:func:`replay` sends the same batches through a bare Embree scene on the same number of threads (batches handed to a
+thread pool, as our tiles are): raw Embree through our binding (:mod:`tracer.embree`: one triangle geometry over all
+triangles, the same compiled loops), twice —
 
 - **single-ray**: ``rtcIntersect1`` / ``rtcOccluded1``, one ray per call (Embree's default, incoherent): the
   anchor of issue 23, what an integrator on this library gets tracing one ray at a time;
