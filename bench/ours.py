@@ -1,9 +1,10 @@
 """Our tracer and raw Embree, measured in a child process (``python -m bench.ours ...`` prints one JSON object).
 
-Timed runs call :func:`tracer.render` without recording. A separate run with ``extra={"record_rays": True}`` captures
-the ray batches exactly as the integrator traced them, and :func:`replay` sends the same batches through a bare
-Embree scene on the same number of threads (batches handed to a thread pool, as our tiles are): raw Embree through
-our binding (:mod:`tracer.embree`: one triangle geometry over all triangles, the same compiled loops), twice —
+Timed runs call :func:`tracer.render` without recording, after one untimed 64×36 render that loads the kernels. A
+separate run with ``extra={"record_rays": True}`` captures the ray batches exactly as the integrator traced them, and
+:func:`replay` sends the same batches through a bare Embree scene on the same number of threads (batches handed to a
+thread pool, as our tiles are): raw Embree through our binding (:mod:`tracer.embree`: one triangle geometry over all
+triangles, the same compiled loops), twice —
 
 - **single-ray**: ``rtcIntersect1`` / ``rtcOccluded1``, one ray per call (Embree's default, incoherent): the
   anchor of issue 23, what an integrator on this library gets tracing one ray at a time;
@@ -204,6 +205,8 @@ def measure(name: str, width: int, height: int, threads: int, runs: int, samples
     settings = RenderSettings(width=width, height=height, samples=samples, max_depth=max_depth, threads=threads,
                               sky_samples=0)
     times, trace_times, cpu_times, splits, stats = [], [], [], [], None
+    # kernels loaded and the allocator warmed before the timed runs (the raw replay's runs come after these)
+    tracer.render(scene, settings.with_(width=64, height=36))
     for _ in range(runs):
         with TraceTimer() as tt:
             t0, c0 = time.perf_counter(), time.process_time()

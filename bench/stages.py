@@ -19,6 +19,9 @@ from . import scenes
 
 #: (label, module, attribute) of what is timed.
 STAGES = [
+    ("tiles: trace_tile", tiles, "trace_tile"),
+    ("integrator: trace", integrator.Integrator, "trace"),
+    ("integrator: step", integrator.Integrator, "step"),
     ("Embree closest hits", accel.Accelerator, "closest_hits"),
     ("Embree occlusion", accel.Accelerator, "occluded"),
     ("all shading stages (_shade)", integrator.Integrator, "_shade"),

@@ -29,6 +29,7 @@ Every spawned ray leaves its surface through :func:`spawn_ray`, the one place ε
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -229,9 +230,28 @@ class SurfaceQueue(NamedTuple):
         k = lobes.MAX_LOBES
         return cls(np.empty(n, np.bool_), np.empty((n, 3), np.float64), f3(), f3(), np.empty(n, np.bool_),
                    np.empty(n, np.int32), f3(), f1(), f1(), f1(), f1(), f3(), np.empty(n, np.int32),
-                   np.zeros((n, 3), np.float32), f1(), np.full(n, -1, np.int32), np.empty((n, k), np.int32),
+                   f3(), f1(), np.empty(n, np.int32), np.empty((n, k), np.int32),
                    np.empty((n, k, 3), np.float32), np.empty((n, k, 3), np.float32), np.empty((n, k, 4), np.float32),
-                   f3(), np.zeros(n, np.float32))
+                   f3(), f1()).reset()
+
+    #: The columns that start at a value (the rest are written before they are read), by field name.
+    START = {"mirror": 0.0, "lobes": -1, "holdout": 0.0}
+
+    def reset(self) -> "SurfaceQueue":
+        """Set the :data:`START` columns to their start values; returns the queue."""
+        for name, value in self.START.items():
+            getattr(self, name).fill(value)
+        return self
+
+    @classmethod
+    def scratch(cls, held: dict, n: int) -> "SurfaceQueue":
+        """An :meth:`empty` queue of n rows made of views of ``held["surf"]`` (one thread's queue, kept between
+        batches and grown when n exceeds it): the arrays of a fresh queue, allocated for every batch, cost more
+        than some of the stages that fill them (page faults on fresh memory)."""
+        q = held.get("surf")
+        if q is None or len(q.hit) < n:
+            q = held["surf"] = cls.empty(n)
+        return cls(*(a[:n] for a in q)).reset()
 
     @property
     def lobe_arrays(self) -> tuple:
@@ -366,6 +386,14 @@ class Integrator:
         self.see_through = bool(np.any(used & ((m.alpha < 1) | self.programs.alpha_varies)))
         #: Holdouts and shadow catchers (tracer.compose)
         self.compose = compose.pack(scene)
+        self._local = threading.local()
+
+    def _held(self) -> dict:
+        """This thread's scratch arrays (:meth:`SurfaceQueue.scratch`): tiles trace on threads, each its own."""
+        held = getattr(self._local, "held", None)
+        if held is None:
+            held = self._local.held = {}
+        return held
 
     @property
     def last_depth(self) -> int:
@@ -378,7 +406,7 @@ class Integrator:
         n_through)."""
         n = len(o)
         t, prim, u, v, inst = hits
-        surf = SurfaceQueue.empty(n)
+        surf = SurfaceQueue.scratch(self._held(), n)
         it = self.instances
         n_textured = _surfaces(o, d, t, prim, inst, it.normal_matrix, it.materials, u, v, self.geometry,
                                self.materials, surf)
