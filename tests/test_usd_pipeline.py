@@ -971,3 +971,48 @@ def test_curves_read_their_st_per_curve_and_per_point(interpolation):
     left, right = img[16, 24 - 8], img[16, 24 + 8]  # x = ∓1 seen through the 3.6-wide aperture at 5 mm, 10 away
     np.testing.assert_allclose(left, (0.9, 0.1, 0.1), atol=0.02)
     np.testing.assert_allclose(right, (0.1, 0.2, 0.8), atol=0.02)
+
+
+def test_a_missing_mtlx_reference_is_one_warning_not_a_crash(tmp_path):
+    """tinyusdz's references-multiple-001 references .mtlx files its checkout lacks: MaterialX raised
+    ExceptionFileMissing (not an mx.Exception) through load_stage; now USD's composition warning names the file and
+    the rest is drawn."""
+    s = new_stage()
+    add_camera(s, eye=(0, 0, 10))
+    UsdGeom.Sphere.Define(s, "/Ball")
+    s.DefinePrim("/Looks").GetReferences().AddReference("./missing_looks.mtlx", "/MaterialX")
+    path = str(tmp_path / "m.usda")
+    s.GetRootLayer().Export(path)
+    img, info = _image(path, w=24, h=16)
+    assert any("missing_looks.mtlx" in w for w in info.warnings), info.warnings
+    assert np.ptp(img.reshape(-1, 3), axis=0).max() > 0.05  # the ball is drawn
+
+
+def test_blender_32_to_36_without_a_dome_is_the_released_exporters_power_over_100():
+    """Released Blender kept intensity = P/100 until 4.0 (its usd_writer_light.cc, with the PXR ≥ 21.11 code
+    path of 3.2+); only the USD branch builds wrote nits, and they also wrote the world as a DomeLight. tinyusdz's
+    geomsubset-test-001 (doc "Blender v3.2.0", a default 1000 W point of radius 0.1 written as 10) read as nits was
+    a 1.8 mW lamp: a black frame."""
+    scene, info = load_stage(_exporter_stage("Blender v3.2.0"), width=20, height=16)
+    np.testing.assert_allclose(_first_light(info).intensity, 1000 / (4 * np.pi), rtol=1e-6)
+    assert any("power / 100" in n for n in info.notes), info.notes
+
+
+def test_lights_with_the_pre_2102_usdlux_attribute_names_are_read():
+    """OpenUSD's testUsdLuxLightListAPI/torch.usda spells its SphereLight's inputs as UsdLux did before 21.02
+    (``radius``, ``exposure``, no ``inputs:``): read as the same light written today (it was USD's dim default,
+    r = 0.5, exposure 0: a dark frame)."""
+    def light(legacy):
+        s = new_stage()
+        lt = UsdLux.SphereLight.Define(s, "/Lamp")
+        prim = lt.GetPrim()
+        for name, typ, v in (("intensity", F, 3.0), ("exposure", F, 2.0), ("radius", F, 0.1)):
+            prim.CreateAttribute(name if legacy else f"inputs:{name}", typ).Set(v)
+        add_camera(s)
+        quad(s, "/Q")
+        return _first_light(load_stage(s, width=8, height=8)[1])
+
+    old, new = light(True), light(False)
+    np.testing.assert_allclose(old.intensity, new.intensity, rtol=1e-6)
+    np.testing.assert_allclose(new.intensity, 3.0 * 4 * np.pi * 0.01, rtol=1e-6)  # I·2^e·πr²
+    assert old.radius == new.radius == pytest.approx(0.1)

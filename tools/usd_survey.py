@@ -12,7 +12,8 @@ directory (sorted; layers referenced by a test's stage sit beside it). A worker 
     unreadable  pxr itself cannot open the file (not counted against us)
     traceback   any exception other than UsdInputError (a crash)
     refusal     UsdInputError on a file pxr opens
-    blank       every pixel the same colour although the stage has visible gprims with points or a size
+    blank       every pixel the same colour although the stage has visible gprims with points (a Mesh: and faces)
+                or a size, or a PointInstancer with prototypes, protoIndices and positions (:func:`has_gprims`)
     empty       0 triangles although it has such gprims
     grey        a material no reader understood, drawn in a fallback grey (18 % or 50 %) with no warning naming it
     volumes     (not a fault) the stage's only gprims are volumes or particle fields, which the tracer does not
@@ -64,22 +65,46 @@ def stage_files(dirs, per_dir: int) -> list[str]:
 # ---------------------------------------------------------------------------------------------------- worker
 def has_gprims(stage) -> bool:
     """Whether the stage has a gprim a renderer should draw: active, defined, visible at the earliest time, of
-    purpose default or render, with points (point-based gprims) or a size (implicit ones)."""
+    purpose default or render, with points (point-based gprims; a Mesh also faces) or a size (implicit ones), and
+    not under a PointInstancer (prototypes are drawn as its instances); or a PointInstancer with the prototypes,
+    protoIndices and positions its schema requires (OpenUSD's pi_bad_schema_input expects an empty image)."""
     from pxr import Usd, UsdGeom
 
     t = Usd.TimeCode.EarliestTime()
+    instancers = []
     for prim in stage.Traverse(Usd.TraverseInstanceProxies()):
-        if not prim.IsA(UsdGeom.Gprim) or prim.GetTypeName() in NOT_DRAWN:
+        if any(prim.GetPath().HasPrefix(p) for p in instancers):
             continue
         img = UsdGeom.Imageable(prim)
+        if prim.IsA(UsdGeom.PointInstancer):
+            instancers.append(prim.GetPath())
+            pi = UsdGeom.PointInstancer(prim)
+            needs = (pi.GetPrototypesRel().GetForwardedTargets(), pi.GetProtoIndicesAttr().Get(t),
+                     pi.GetPositionsAttr().Get(t))
+            if all(v is not None and len(v) for v in needs) and img.ComputeVisibility(t) != UsdGeom.Tokens.invisible \
+                    and any(_drawable_below(stage.GetPrimAtPath(p)) for p in needs[0]):
+                return True
+            continue
+        if not prim.IsA(UsdGeom.Gprim) or prim.GetTypeName() in NOT_DRAWN:
+            continue
         if img.ComputeVisibility(t) == UsdGeom.Tokens.invisible or img.ComputePurpose() not in ("default", "render"):
             continue
         if prim.IsA(UsdGeom.PointBased):
             pts = UsdGeom.PointBased(prim).GetPointsAttr().Get(t)
             if pts is None or len(pts) == 0:
                 continue
+        if prim.IsA(UsdGeom.Mesh) and not len(UsdGeom.Mesh(prim).GetFaceVertexCountsAttr().Get(t) or []):
+            continue
         return True
     return False
+
+
+def _drawable_below(prim) -> bool:
+    """Whether a prototype holds a gprim the tracer draws (not only volumes or particle fields)."""
+    from pxr import Usd, UsdGeom
+
+    return bool(prim) and any(p.IsA(UsdGeom.Gprim) and p.GetTypeName() not in NOT_DRAWN
+                              for p in Usd.PrimRange(prim, Usd.TraverseInstanceProxies()))
 
 
 def silently_grey(info, stage) -> list[str]:
@@ -115,6 +140,8 @@ def blank_reason(scene, info, image) -> str | None:
     if int(ids.max()) < 0:
         return "out of view (no eye ray meets a gprim)"
     if float(image.max()) < 1 / 255:
+        if any("not found" in w for w in info.warnings):
+            return "dark (gprims in view, every pixel < 1/255: a texture is missing, warned, its fallback black)"
         return "dark (gprims in view, every pixel < 1/255: the authored lights do not reach them)"
     return None
 

@@ -59,16 +59,17 @@ _CONTEXT_WORDS = 11
 _ARGS_WORDS = 6  # RTCOccludedArguments: flags, feature_mask, context, filter, occluded[, minWidthDistanceFactor]
 _ENTRY = 5  # table words per array: address, then up to 4 extents
 
-#: The arrays the filter reads, in table order, with the dtype and rank the kernels see them with (rank 0: a scalar) (the shader VM's
-#: ``execute`` is compiled once for these types: another combination would compile it again, about 80 s).
+#: The arrays the filter reads, in table order, with the dtype and rank the kernels see them with (rank 0: a
+#: scalar's value; the shader VM's ``execute`` is compiled once for these types: others would compile it again).
 TABLE = (("overrides", np.int32, 1), ("normal_matrix", np.float64, 3), ("material_ids", np.int32, 1),
          ("face_normals", np.float32, 2), ("alphas", np.float32, 1), ("threshold", np.float32, 1),
          ("code", np.int32, 2), ("pstart", np.int32, 1), ("pbase", np.int32, 1), ("outs", np.int32, 2),
-         ("uv_sets", np.float32, 4), ("colors", np.float32, 3), ("has_colors", np.bool_, 0),
+         ("uv_values", np.float32, 3), ("colors", np.float32, 3), ("has_colors", np.bool_, 0),
          ("vertices", np.float32, 2), ("triangles", np.int32, 2), ("object_ids", np.int32, 1),
          ("spaces", np.float64, 3), ("tdata", np.float32, 2), ("tparams", np.float64, 2), ("linear", np.float64, 3),
          ("mirrored", np.bool_, 1), ("inst_ids", np.int32, 1), ("lobe_extra", np.int32, 2),
-         ("slot_start", np.int64, 1), ("slot_rows", np.int32, 1), ("inst_proto", np.int32, 1))
+         ("slot_start", np.int64, 1), ("slot_rows", np.int32, 1), ("inst_proto", np.int32, 1),
+         ("uv_triangles", np.int32, 2), ("uv_per_vertex", np.bool_, 0))
 
 
 # ---------------------------------------------------------------------------------------------- one blocker
@@ -170,7 +171,8 @@ def _occlusion_filter(argp):
     pstart = _a1(table, 7, np.int32)
     pbase = _a1(table, 8, np.int32)
     outs = _a2(table, 9, np.int32)
-    geo = (_a4(table, 10, np.float32), _a3(table, 11, np.float32), table[12 * _ENTRY] != 0,
+    uv_sets = (_a3(table, 10, np.float32), _a2(table, 26, np.int32), table[27 * _ENTRY] != 0)
+    geo = (uv_sets, _a3(table, 11, np.float32), table[12 * _ENTRY] != 0,
            _a2(table, 13, np.float32), _a2(table, 14, np.int32), face_normals,
            _a1(table, 15, np.int32), _a3(table, 16, np.float64), _a3(table, 19, np.float64),
            _a1(table, 20, np.bool_), _a1(table, 21, np.int32))
@@ -237,14 +239,16 @@ def _aligned_words(n):
 
 @kernel
 def occluded_through(scene, o, d, tnear, t_max, blocked, masks, time, color, table, R0, max_transparent,
-                     filter_address):
+                     filter_address, q):
     """blocked[i] = shadow ray i meets an opaque surface, or more than ``max_transparent`` see-through ones, on
     [tnear, t_max[i]]; where it does not, color[i] is scaled by what the see-through ones let pass. One
-    ``rtcOccluded8`` per packet with :func:`_occlusion_filter` as the argument filter (``masks``, ``time`` as in
-    :func:`tracer.embree.occluded_rays`; ``table``: :class:`FilterTables`; ``R0``: the VM's initial registers)."""
-    f = embree._aligned(embree.RAY8_WORDS, np.float32)
+    ``rtcOccludedN`` per packet (``q``: :func:`tracer.embree.query`) with :func:`_occlusion_filter` as the argument
+    filter (``masks``, ``time`` as in :func:`tracer.embree.occluded_rays`; ``table``: :class:`FilterTables`;
+    ``R0``: the VM's initial registers)."""
+    W = q & embree._WIDTH_BITS
+    f = embree._aligned(embree.RAY_FIELDS * embree.MAX_PACKET, np.float32)
     w = f.view(np.uint32)
-    valid = embree._aligned(embree.PACKET, np.int32)
+    valid = embree._aligned(embree.MAX_PACKET, np.int32)
     n = o.shape[0]
     R = R0.copy()
     count = np.zeros(n, np.int32)
@@ -256,15 +260,15 @@ def occluded_through(scene, o, d, tnear, t_max, blocked, masks, time, color, tab
     ctx[_C_O], ctx[_C_D], ctx[_C_N] = o.ctypes.data, d.ctypes.data, n
     ctx[_C_MAXT] = max_transparent
     args = _aligned_words(_ARGS_WORDS)
-    args[0] = _ARGS_WORD0
+    args[0] = _ARGS_WORD0 | np.uint64(q & ~np.int64(embree._WIDTH_BITS))  # the query's flags (coherent or not)
     args[1] = ctx.ctypes.data
     args[2] = filter_address
-    for start in range(0, n, embree.PACKET):
-        count_ = min(embree.PACKET, n - start)
-        embree._load_packet(f, w, valid, o, d, start, count_, tnear, t_max, masks, time)
-        embree._rtcOccluded8(valid.ctypes.data, scene, f.ctypes.data, args.ctypes.data)
+    for start in range(0, n, W):
+        count_ = min(W, n - start)
+        embree._load_packet(f, w, valid, W, o, d, embree.IN_ORDER, start, count_, tnear, t_max, masks, time)
+        embree._occluded(W, valid.ctypes.data, scene, f.ctypes.data, args.ctypes.data)
         for k in range(count_):
-            blocked[start + k] = f[embree._P_TFAR + k] < 0.0
+            blocked[start + k] = f[embree._TFAR * W + k] < 0.0
 
 
 # ---------------------------------------------------------------------------------------------- Python side
@@ -300,7 +304,8 @@ class FilterTables:
         g, m, pt, x, inst = it.geometry, it.materials, it.programs, it.textures, it.instances
         arrays = dict(overrides=inst.materials, normal_matrix=inst.normal_matrix, material_ids=g.material_ids,
                       face_normals=g.face_normals, alphas=m.alpha, threshold=m.alpha_threshold, code=pt.code,
-                      pstart=pt.pstart, pbase=pt.pbase, outs=pt.outs, uv_sets=g.uv_sets, colors=g.colors,
+                      pstart=pt.pstart, pbase=pt.pbase, outs=pt.outs, uv_values=g.uv_sets[0],
+                      uv_triangles=g.uv_sets[1], uv_per_vertex=g.uv_sets[2], colors=g.colors,
                       has_colors=g.has_colors, vertices=g.vertices, triangles=g.triangles, object_ids=g.object_ids,
                       spaces=it.spaces, tdata=x.data, tparams=x.params, linear=inst.linear, mirrored=inst.mirrored,
                       inst_ids=inst.object_ids, lobe_extra=pt.lobe_extra, slot_start=accel._start,
@@ -354,10 +359,11 @@ def occluded(it, shadow, masks, time) -> np.ndarray:
     tm = np.ascontiguousarray(np.minimum(shadow.t_max, T_FAR_MAX), np.float32)
     if shadow.color.dtype != np.float32 or not shadow.color.flags.c_contiguous:
         raise TypeError("tracer.alpha.occluded: shadow colours must be C-contiguous float32 (scaled in place)")
+    q = embree.query(coherent=False)
     start = clock.perf_counter()
     occluded_through(accel._top.handle, o, d, np.float32(0.0), tm, blocked, _ray_masks(masks), _times(time),
                      shadow.color, tables.table, it.programs.R0, np.int64(it.settings.max_transparent),
-                     np.uint64(filter_address()))
+                     np.uint64(filter_address()), q)
     embree.library().check()
-    accel._account(start, "OCCLUDED", o, d, tm)
+    accel._account(start, "OCCLUDED", o, d, tm, q)
     return blocked

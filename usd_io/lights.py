@@ -60,6 +60,12 @@ _WHITE_6500 = np.asarray(UsdLux.BlackbodyTemperatureAsRgb(6500.0), dtype=np.floa
 
 
 def _get(attr, time, default):
+    """An input's value; an unauthored ``inputs:NAME`` falls back to ``NAME`` as UsdLux spelt it before 21.02
+    (OpenUSD's own testenv still has such lights: ``radius``, ``exposure``, ``intensity`` without the prefix)."""
+    if attr and attr.GetName().startswith("inputs:") and not attr.HasAuthoredValue():
+        legacy = attr.GetPrim().GetAttribute(attr.GetName()[len("inputs:"):])
+        if legacy and legacy.HasAuthoredValue():
+            attr = legacy
     v = attr.Get(time) if attr else None
     return default if v is None else v
 
@@ -72,6 +78,8 @@ def light_colour(prim, time) -> np.ndarray:
     c = np.asarray(_get(api.GetColorAttr(), time, (1.0, 1.0, 1.0)), dtype=np.float64)
     rgb = i * 2.0 ** e * c
     temp_attr = api.GetColorTemperatureAttr()
+    if not temp_attr.HasAuthoredValue() and prim.GetAttribute("colorTemperature").HasAuthoredValue():
+        temp_attr = prim.GetAttribute("colorTemperature")  # the pre-21.02 name (see _get)
     if _get(api.GetEnableColorTemperatureAttr(), time, False) and temp_attr.HasAuthoredValue():
         t = float(temp_attr.Get(time))
         rgb = rgb * np.asarray(UsdLux.BlackbodyTemperatureAsRgb(t)) / _WHITE_6500
