@@ -50,7 +50,7 @@ from .shader_compile import pack_programs
 from .shader_spaces import object_spaces, set_camera
 from .shader_vm import cut as _cut
 from .shader_vm import program_alpha, shade_programs
-from .surface import color_at, geometry_of, shading_frame
+from .surface import color_at, corner_normals, geometry_of, shading_frame
 from .texture import pack_textures
 
 RAY_TYPES = ("eye", "shadow", "reflection", "transmission", "sky")
@@ -730,6 +730,7 @@ def _surfaces(o, d, t, prim, inst, normal_matrix, overrides, u, v, geom, mats, s
     reference counting per ray.)"""
     material_ids = geom.material_ids
     face_normals, normals, corner_ok, has_normals = geom.face_normals, geom.normals, geom.corner_ok, geom.has_normals
+    triangles, per_vertex = geom.triangles, geom.normals_per_vertex
     colors, has_colors = geom.colors, geom.has_colors
     diffuse, roughness, metallic, specular = mats.diffuse, mats.roughness, mats.metallic, mats.specular
     alphas, emission, threshold, textured = mats.alpha, mats.emission, mats.alpha_threshold, mats.textured
@@ -750,11 +751,9 @@ def _surfaces(o, d, t, prim, inst, normal_matrix, overrides, u, v, geom, mats, s
         k = inst[i]
         mat = material_ids[tri]
         smooth = has_normals and corner_ok[tri]
-        c = tri if smooth else 0  # the corner normals' row (read either way: no branch around array reads)
+        c = tri if smooth else 0  # the corner normals' triangle (read either way: no branch around array reads)
         fn = (float(face_normals[tri, 0]), float(face_normals[tri, 1]), float(face_normals[tri, 2]))
-        n0 = (float(normals[c, 0, 0]), float(normals[c, 0, 1]), float(normals[c, 0, 2]))
-        n1 = (float(normals[c, 1, 0]), float(normals[c, 1, 1]), float(normals[c, 1, 2]))
-        n2 = (float(normals[c, 2, 0]), float(normals[c, 2, 1]), float(normals[c, 2, 2]))
+        n0, n1, n2 = corner_normals(normals, triangles, per_vertex and smooth, c)
         if k < 0:
             ng, n, front = shading_frame(fn, smooth, n0, n1, n2, di, ui, vi)
         else:  # an instance: the frame in object space (M⁻¹·d keeps the side), normals to world by (M)⁻ᵀ
