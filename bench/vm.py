@@ -6,7 +6,13 @@ untextured material and with a dozen-node procedural material (tracer.shader_gra
 ns per op = (procedural − untextured) / (hits × the program's ops); the untextured render's own time per hit is the
 "shading time of an untextured hit" the issue compares against (it includes the light sample and its shadow ray).
 "textures stage" is the CPU time inside the VM's stage (tracer.shader_vm.shade_programs) per hit, timed around its
-call: what the program itself costs, apart from what a program material costs the other stages.
+call: what the program itself costs, apart from what a program material costs the other stages; "with the untextured
+hit" is (untextured render + textures stage) / untextured render. The three scenes render in rounds (best of
+``--runs``), so that the shared machine's load swings touch them alike.
+
+ns per op by kind: the noise material's stage re-run on one render's hits with its ops turned into no-ops, in turn:
+per hit without a program (the stage's own work), dispatch (every op a no-op), arithmetic (the Noise ops no-ops),
+Noise.
 """
 
 from __future__ import annotations
@@ -68,7 +74,6 @@ def main(argv=None) -> None:
     a = ap.parse_args(argv)
     settings = tracer.RenderSettings(width=a.size, height=a.size, samples=1, max_depth=0, threads=1)
     hits = a.size * a.size
-    best, stage = {}, {}
     vm_time = [0.0]
     integrator = __import__("tracer.integrator", fromlist=["shade_programs"])
     shade = integrator.shade_programs
@@ -79,27 +84,74 @@ def main(argv=None) -> None:
         vm_time[0] += time.process_time() - t0
 
     integrator.shade_programs = timed
-    for kind in ("plain", "sine", "noise"):
-        s = scene(kind)
+    scenes = {kind: scene(kind) for kind in ("plain", "sine", "noise")}
+    for s in scenes.values():
         tracer.render(s, settings)  # warm: kernels, the program table
-        times, in_vm = [], []
-        for _ in range(a.runs):
+    best = {kind: np.inf for kind in scenes}
+    stage = dict(best)
+    for _ in range(a.runs):  # rounds of the three, so that the machine's load changes touch all of them alike
+        for kind, s in scenes.items():
             vm_time[0] = 0.0
             t0 = time.process_time()
             tracer.render(s, settings)
-            times.append(time.process_time() - t0)
-            in_vm.append(vm_time[0])
-        best[kind], stage[kind] = min(times), min(in_vm)
+            best[kind] = min(best[kind], time.process_time() - t0)
+            stage[kind] = min(stage[kind], vm_time[0])
     integrator.shade_programs = shade
-    print(f"untextured: {best['plain'] * 1e9 / hits:.0f} ns per hit (whole render, {a.size}² hits)")
+    kinds = op_kinds(scenes["noise"], settings, shade, a.runs)
+    plain = best["plain"] * 1e9 / hits
+    print(f"untextured: {plain:.0f} ns per hit (whole render, {a.size}² hits)")
     for kind in ("sine", "noise"):
         g = Graph(kind)
         g.output(material(g, kind == "noise"))
         ops = compile_graph(g).program.n_ops
         extra = (best[kind] - best["plain"]) * 1e9 / hits
         print(f"{kind}: {ops} ops, {best[kind] / best['plain']:.2f}x the untextured render, +{extra:.0f} ns per hit, "
-              f"{extra / ops:.1f} ns per op; textures stage {stage[kind] * 1e9 / hits:.0f} ns per hit, "
+              f"{extra / ops:.1f} ns per op; textures stage {stage[kind] * 1e9 / hits:.0f} ns per hit "
+              f"({(plain + stage[kind] * 1e9 / hits) / plain:.2f}x with the untextured hit), "
               f"{stage[kind] * 1e9 / hits / ops:.1f} ns per op")
+
+    print("noise material, ns per op by kind: " + ", ".join(f"{k} {v:.0f}" for k, v in kinds.items()))
+
+
+def op_kinds(s, settings, shade, runs: int) -> dict:
+    """ns per hit and per op of the stage's parts (module docstring), from one render's calls of the stage."""
+    import tracer
+    from tracer import integrator, shader_vm as vm
+
+    calls = []
+    integrator.shade_programs = lambda *args: (calls.append(args), shade(*args))
+    try:
+        tracer.render(s, settings)
+    finally:
+        integrator.shade_programs = shade
+    hits = sum(len(c[0]) for c in calls)
+    code = calls[0][8]  # shade_programs' ``code``; ``pstart`` follows
+
+    def stage(code_, pstart=None) -> float:
+        best = np.inf
+        for _ in range(max(runs, 5) * 2):
+            t0 = time.process_time()
+            for c in calls:
+                shade(*c[:8], code_, c[9] if pstart is None else pstart, *c[10:])
+            best = min(best, time.process_time() - t0)
+        return best * 1e9 / hits
+
+    def nops(which) -> np.ndarray:
+        out = code.copy()
+        out[which(out[:, 0]), 0] = vm.OP_NOP
+        return out
+
+    def is_noise(op):
+        return op == vm.OP_NOISE
+
+    n_noise, n_ops = int(is_noise(code[:, 0]).sum()), len(code)
+    full = stage(code)
+    no_noise = stage(nops(is_noise))
+    all_nop = stage(nops(lambda op: op >= 0))
+    empty = stage(code, np.zeros_like(calls[0][9]))
+    return {"per hit without a program": empty, "dispatch per op": (all_nop - empty) / n_ops,
+            "arithmetic op": (no_noise - all_nop) / (n_ops - n_noise) + (all_nop - empty) / n_ops,
+            "Noise op": (full - no_noise) / n_noise + (all_nop - empty) / n_ops}
 
 
 if __name__ == "__main__":

@@ -61,15 +61,29 @@ def object_spaces(scene) -> np.ndarray:
         xf[:k] = ot[:k]
     out[:n, LOC, :3] = xf[:, :3, 3]
     out[:n, NRM:NRM + 3, :3] = np.transpose(xf[:, :3, :3], (0, 2, 1))
-    inv = np.linalg.inv(xf)
-    if scene.instances is not None:  # an instance's triangles are its prototype's, stored in the prototype's space
-        protos = np.unique(scene.instances.prototypes)
-        inv[protos] = np.linalg.inv(xf[protos])
-    out[:n, XF:XF + 3, :] = inv[:, :3, :]
-    out[:n, LO:HI + 1, :3] = _texture_spaces(scene, inv[:, :3, :], n)
+    inv = affine_inverse(xf)  # (an instance's triangles are its prototype's, in that object's space)
+    out[:n, XF:XF + 3, :] = inv
+    out[:n, LO:HI + 1, :3] = _texture_spaces(scene, inv, n)
     for k, name in enumerate(scene.object_names[:n]):
         out[k, LOC, 3] = object_random(str(name))
     set_camera(out, scene.camera)
+    return out
+
+
+def affine_inverse(m: np.ndarray) -> np.ndarray:
+    """(..., 3, 4): the inverses of affine (..., 4, 4) matrices (bottom row 0 0 0 1), by the adjugate of their 3×3
+    part (0 where it is singular). Not ``np.linalg.inv``: numpy's OpenBLAS hands even a 4×4 to its thread pool,
+    which on a loaded 2-core machine costs 0.1–4 ms of CPU per call (docs/benchmarks.md), and these run every render
+    and every batch."""
+    m = np.asarray(m, np.float64)
+    r0, r1, r2 = m[..., 0, :3], m[..., 1, :3], m[..., 2, :3]
+    c0, c1, c2 = np.cross(r1, r2), np.cross(r2, r0), np.cross(r0, r1)
+    det = np.sum(r0 * c0, axis=-1)
+    scale = np.divide(1.0, det, out=np.zeros_like(det), where=det != 0.0)
+    a = np.stack([c0, c1, c2], axis=-1) * scale[..., None, None]  # columns c0, c1, c2: rows · columns = det·I
+    out = np.empty(m.shape[:-2] + (3, 4), np.float64)
+    out[..., :3] = a
+    out[..., 3] = -np.einsum("...ij,...j->...i", a, m[..., :3, 3])
     return out
 
 
@@ -96,8 +110,8 @@ def _texture_spaces(scene, w2o: np.ndarray, n: int, chunk: int = 1 << 18) -> np.
 def camera_space(camera) -> np.ndarray:
     """(9, 4): the camera entry (module docstring)."""
     out = np.zeros((9, 4), np.float64)
-    w2c = np.linalg.inv(camera.camera_to_world)
-    out[CAM_XF:CAM_XF + 3] = np.diag([1.0, 1.0, -1.0]) @ w2c[:3]  # the tracer's camera looks down −z, Cycles' +z
+    w2c = affine_inverse(np.asarray(camera.camera_to_world, np.float64))
+    out[CAM_XF:CAM_XF + 3] = w2c * np.array([[1.0], [1.0], [-1.0]])  # the tracer's camera looks down −z, Cycles' +z
     out[CAM_FILM] = (camera.horizontal_aperture, camera.vertical_aperture, camera.horizontal_aperture_offset,
                      camera.vertical_aperture_offset)
     out[CAM_LENS, :2] = (camera.focal_length, 1.0 if camera.projection == "perspective" else 0.0)

@@ -35,7 +35,7 @@ def rot(x, k):
     return ((x << k) | (x >> (32 - k))) & M32
 
 
-@kernel
+@kernel(inline=True)
 def _final(a, b, c):
     """lookup3's ``final(a, b, c)``: the last avalanche of the three words; returns (a, b, c)."""
     c = ((c ^ b) - rot(b, 14)) & M32
@@ -84,14 +84,21 @@ def hash_uint2(kx, ky):
     return c
 
 
-@kernel
-def hash_uint3(kx, ky, kz):
+@kernel(inline=True)
+def hash_uint3_inline(kx, ky, kz):
+    """:func:`hash_uint3` inlined into its caller (Perlin's eight lattice corners: the compiler then schedules the
+    eight independent hashes together)."""
     a = b = c = _INIT[3]
     c = (c + (kz & M32)) & M32
     b = (b + (ky & M32)) & M32
     a = (a + (kx & M32)) & M32
     a, b, c = _final(a, b, c)
     return c
+
+
+@kernel
+def hash_uint3(kx, ky, kz):
+    return hash_uint3_inline(kx, ky, kz)
 
 
 @kernel
