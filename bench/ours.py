@@ -1,10 +1,15 @@
 """Our tracer and raw Embree, measured in a child process (``python -m bench.ours ...`` prints one JSON object).
 
-Timed runs call :func:`tracer.render` without recording. A separate run with ``extra={"record_rays": True}`` captures
-the ray batches exactly as the integrator traced them, and :func:`replay` sends the same batches through a bare
-Embree scene on the same number of threads (batches handed to a thread pool, as our tiles are): raw Embree through
-our binding (:mod:`tracer.embree`: one triangle geometry over all triangles, ``rtcIntersect1`` / ``rtcOccluded1``
-in a compiled loop), i.e. the limit any integrator on this library could reach on these rays.
+Timed runs call :func:`tracer.render` without recording, after one untimed 64×36 render that loads the kernels. A
+separate run with ``extra={"record_rays": True}`` captures the ray batches exactly as the integrator traced them, and
+:func:`replay` sends the same batches through a bare Embree scene on the same number of threads (batches handed to a
+thread pool, as our tiles are): raw Embree through our binding (:mod:`tracer.embree`: one triangle geometry over all
+triangles, the same compiled loops), twice —
+
+- **single-ray**: ``rtcIntersect1`` / ``rtcOccluded1``, one ray per call (Embree's default, incoherent): the
+  anchor of issue 23, what an integrator on this library gets tracing one ray at a time;
+- **packets**: the packets our tracer made of each batch (recorded with it: 16 lanes on AVX-512, coherent for eye,
+  mirror, glass and light-grouped shadow rays), i.e. the limit our integrator could reach with its own queries.
 
 The world lights the bench scenes through the notes' flat ambient term (``sky_samples=0``, pinned in
 :func:`measure`), as POV-Ray's ``ambient_light`` does, not through the default shadowed sky rays.
@@ -47,6 +52,7 @@ from . import scenes
 ZERO_START = np.zeros(1, np.int64)  # one geometry: row = primID
 NO_ROWS = np.zeros(0, np.int32)
 NO_INSTANCES = np.zeros(0, np.int32)  # no instance array
+NO_TIME = np.zeros(0, np.float32)  # no motion blur
 
 
 class TraceTimer:
@@ -114,63 +120,80 @@ def build_embreex(scene) -> dict | None:
 
 
 def replay(scene, batches, threads: int, runs: int = 3) -> dict:
-    """Trace ``batches`` [(query, origins, directions, t_max)] with raw Embree through our binding, ``runs`` times.
+    """Trace ``batches`` [(query, origins, directions, t_max, packet query)] with raw Embree through our binding,
+    ``runs`` times, two ways: ``packet`` — each batch in the packets our tracer made of it (its recorded
+    :func:`tracer.embree.query`: width, coherent or not), and ``single`` — one ray per ``rtcIntersect1`` /
+    ``rtcOccluded1`` call (incoherent, Embree's default), the anchor issue 23 names.
 
     Each run first sets up a fresh bare Embree scene (:func:`build_embree`, timed on its own: ``build_seconds``),
-    then replays the batches through it (``seconds``); both are medians over the runs. ``rays_per_second`` is the
-    replay alone (tracing only), ``end_to_end_rays_per_second`` is rays / (build + replay) with the medians.
+    then replays the batches through it both ways (``seconds``, ``single_seconds``); all are medians over the runs.
+    ``rays_per_second`` is the packet replay alone (tracing only), ``end_to_end_rays_per_second`` is rays / (build
+    + packet replay) with the medians; ``single_*`` the same for one ray per call.
     """
     n_rays = int(sum(len(b[1]) for b in batches))
+    single = embree.query(False, width=1)
 
     def prepared():
         out = []
-        for q, o, d, t in batches:
+        for q, o, d, t, packet in batches:
             if q == "OCCLUDED":
-                out.append((q, o, d, np.ascontiguousarray(np.minimum(t, 3.0e38), np.float32).copy()))
+                out.append((q, o, d, np.ascontiguousarray(np.minimum(t, 3.0e38), np.float32).copy(), packet))
             else:
-                out.append((q, o, d, None if t is None else np.ascontiguousarray(t, np.float32).copy()))
+                t = np.zeros(0, np.float32) if t is None else np.ascontiguousarray(t, np.float32).copy()
+                out.append((q, o, d, t, packet))
         return out
 
-    times, build_times, build_splits, cpu_times = [], [], [], []
+    def trace(handle, b, packet):
+        q, o, d, t, _ = b
+        n = len(o)
+        if q == "OCCLUDED":
+            embree.occluded_rays(handle, o, d, np.float32(0), t, np.empty(n, np.bool_), embree.ALL_RAYS, NO_TIME,
+                                 embree.IN_ORDER, packet)
+        else:
+            embree.intersect_rays(handle, o, d, np.float32(0), t, ZERO_START, NO_ROWS, NO_INSTANCES,
+                                  np.empty(n, np.float32), np.empty(n, np.int32), np.empty(n, np.int32),
+                                  np.empty(n, np.float32), np.empty(n, np.float32), embree.ALL_RAYS, NO_TIME,
+                                  embree.IN_ORDER, packet)
+
+    times, single_times, build_times, build_splits, cpu_times, single_cpu = [], [], [], [], [], []
     with ThreadPoolExecutor(max_workers=threads) as pool:
         for _ in range(runs):
             emb = keep = None  # let the previous run's scene go before building the next (1 M triangles: ~100 MB)
             c0 = time.process_time()
             emb, keep, split = build_embree(scene)
+            c1 = time.process_time()
             build_times.append(sum(split.values()))
             build_splits.append(split)
-
-            def one(b, handle=emb.handle):
-                q, o, d, t = b
-                n = len(o)
-                if q == "OCCLUDED":
-                    embree.occluded_rays(handle, o, d, np.float32(0), t, np.empty(n, np.bool_), embree.ALL_RAYS,
-                                         np.zeros(0, np.float32))
-                else:
-                    embree.intersect_rays(handle, o, d, np.float32(0), np.zeros(0, np.float32) if t is None else t,
-                                          ZERO_START, NO_ROWS, NO_INSTANCES, np.empty(n, np.float32),
-                                          np.empty(n, np.int32), np.empty(n, np.int32), np.empty(n, np.float32),
-                                          np.empty(n, np.float32), embree.ALL_RAYS, np.zeros(0, np.float32))
-
-            c1 = time.process_time()
             work = prepared()
-            c2 = time.process_time()
-            t0 = time.perf_counter()
-            list(pool.map(one, work))
-            times.append(time.perf_counter() - t0)
-            cpu_times.append(time.process_time() - c2 + (c1 - c0))  # build + replay, not the batch copies
-            del work, one
+            for label, pick in (("packet", lambda b: b[4]), ("single", lambda b: single)):
+                c2 = time.process_time()
+                t0 = time.perf_counter()
+                list(pool.map(lambda b, h=emb.handle: trace(h, b, pick(b)), work))
+                wall = time.perf_counter() - t0
+                cpu = time.process_time() - c2 + (c1 - c0)  # build + replay, not the batch copies
+                (times if label == "packet" else single_times).append(wall)
+                (cpu_times if label == "packet" else single_cpu).append(cpu)
+            del work
     del emb, keep
     before = [b for b in (build_embreex(scene) for _ in range(runs)) if b is not None]
-    med = statistics.median(times)
+    med, med1 = statistics.median(times), statistics.median(single_times)
     build = statistics.median(build_times)
+    rate = lambda s: n_rays / s if s > 0 else 0.0  # noqa: E731
     return {"seconds": med, "times": times, "rays": n_rays, "batches": len(batches),
-            "rays_per_second": n_rays / med if med > 0 else 0.0,
+            "rays_per_second": rate(med), "packets": sorted({f"{b[0]}:{_packet_name(b[4])}" for b in batches}),
             "build_seconds": build, "build_times": build_times,
             "build_split": {k: statistics.median(s[k] for s in build_splits) for k in build_splits[0]},
-            "end_to_end_rays_per_second": n_rays / (build + med) if build + med > 0 else 0.0,
+            "end_to_end_rays_per_second": rate(build + med),
             "cpu_seconds": statistics.median(cpu_times), "cpu_times": cpu_times,
+            "single_seconds": med1, "single_times": single_times, "single_rays_per_second": rate(med1),
+            "single_end_to_end_rays_per_second": rate(build + med1),
+            "single_cpu_seconds": statistics.median(single_cpu), "single_cpu_times": single_cpu,
             "embreex_build_seconds": statistics.median(b["seconds"] for b in before) if before else None}
+
+
+def _packet_name(q: int) -> str:
+    """"16 coherent", "1", ... for a recorded packet query."""
+    return f"{q & 0xFFFF}{' coherent' if q & embree.COHERENT else ''}"
 
 
 def measure(name: str, width: int, height: int, threads: int, runs: int, samples: int = 1, max_depth: int = 8,
@@ -182,6 +205,8 @@ def measure(name: str, width: int, height: int, threads: int, runs: int, samples
     settings = RenderSettings(width=width, height=height, samples=samples, max_depth=max_depth, threads=threads,
                               sky_samples=0)
     times, trace_times, cpu_times, splits, stats = [], [], [], [], None
+    # kernels loaded and the allocator warmed before the timed runs (the raw replay's runs come after these)
+    tracer.render(scene, settings.with_(width=64, height=36))
     for _ in range(runs):
         with TraceTimer() as tt:
             t0, c0 = time.perf_counter(), time.process_time()

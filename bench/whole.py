@@ -31,31 +31,48 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 COUNT = 176  # UV sphere rings and segments: 2 × 122 388 + 648 floor = 245 424 triangles
 ENTRY = "import sys, usd_io.cli as c; sys.exit((getattr(c, 'run', None) or c.main)())"
 
-#: ``--phases``: the CLI in-process, its own calls wrapped by timers (exclusive of each other).
+#: ``--phases``: the CLI in-process, its imports made first in the order it makes them and its own calls wrapped by
+#: timers (exclusive of each other): wall and the process's CPU (every thread) of each.
 PHASES = r'''
 import os, sys, time
-t0 = time.perf_counter()
 marks = {}
+clock = lambda: (time.perf_counter(), time.process_time())  # noqa: E731
+t0 = last = clock()
+def mark(label, since=None):
+    global last
+    now = clock()
+    a = since or last
+    w, c = marks.get(label, (0.0, 0.0))
+    marks[label] = (w + now[0] - a[0], c + now[1] - a[1])
+    last = now
 import usd_io.cli as cli
-marks["import usd_io.cli"] = time.perf_counter() - t0
+mark("import numpy, usd_io.cli")
+import usd_io.stage
+mark("import pxr (usd_io.stage)")
+import tracer.render
+mark("import numba, tracer (tracer.render)")
+import usd_io.reader
+mark("import usd_io.reader")
 import usd_io.request as rq, usd_io.outputs as outs
 def wrap(obj, name, label):
     f = getattr(obj, name)
     def timed(*a, **k):
-        s = time.perf_counter()
+        mark("main: the rest")
         try:
             return f(*a, **k)
         finally:
-            marks[label] = marks.get(label, 0.0) + time.perf_counter() - s
+            mark(label)
     setattr(obj, name, timed)
-wrap(rq.StageRequest, "read", "usd read (imports on its path included)")
+wrap(rq.StageRequest, "read", "usd read")
 import tracer
 wrap(tracer, "render", "render (kernel loads, BVH included)")
-wrap(outs.Outputs, "write", "image write")
+wrap(outs.Outputs, "write", "image write (the PNG's last rows)")
 code = cli.main(sys.argv[1:])
-marks["main() total"] = time.perf_counter() - t0
-for k, v in marks.items():
-    print(f"PHASE {k}\t{v:.4f}")
+mark("main: the rest")
+w, c = clock()
+marks["total (after Python start-up)"] = (w - t0[0], c)
+for k, (w, c) in marks.items():
+    print(f"PHASE {k}\t{w:.4f}\t{c:.4f}")
 '''
 
 
@@ -120,6 +137,7 @@ def main(argv=None) -> None:
     a = ap.parse_args(argv)
 
     usd, sdl = _files(a.work, a.width, a.height, a.max_depth, a.count)
+    print("load average (1, 5, 15 min) at the start: " + ", ".join(f"{x:.2f}" for x in os.getloadavg()))
     out = os.path.join(a.work, "whole_whitted.png")
     flags = ["render", usd, "-o", out, "--width", str(a.width), "--height", str(a.height),
              "--max-depth", str(a.max_depth), "--threads", str(a.threads), "--quiet",
@@ -166,10 +184,12 @@ def main(argv=None) -> None:
     if a.phases:
         p = subprocess.run([sys.executable, "-c", PHASES, *flags], env=env, cwd=a.root, capture_output=True,
                            text=True, check=True)
+        print("phases of one instrumented run (wall, CPU of all threads):")
         for line in p.stdout.splitlines():
             if line.startswith("PHASE "):
-                name, value = line[6:].split("\t")
-                print(f"  {name}: {float(value):.3f} s")
+                name, wall, cpu = line[6:].split("\t")
+                print(f"  {name}: {float(wall):.3f} s, CPU {float(cpu):.3f} s")
+    print("load average (1, 5, 15 min) at the end: " + ", ".join(f"{x:.2f}" for x in os.getloadavg()))
 
 
 if __name__ == "__main__":

@@ -153,8 +153,8 @@ def test_modifiers_normals_uvs_and_per_face_materials(bpy_module):
     # smooth shading: corner normals point away from the centre (radial), not along the face normal
     corners = scene.vertices[scene.triangles[sph]] - np.array([4.0, 0, 0])
     radial = corners / np.linalg.norm(corners, axis=-1, keepdims=True)
-    assert np.einsum("tcx,tcx->tc", scene.normals[sph], radial).min() > 0.999
-    assert scene.uvs is not None and np.ptp(scene.uvs[sph][..., 0]) > 0.9
+    assert np.einsum("tcx,tcx->tc", scene.corner_normals(sph), radial).min() > 0.999
+    assert scene.uvs is not None and np.ptp(scene.corner_uvs(0, sph)[..., 0]) > 0.9
     assert sphere.name in names
 
 
@@ -202,7 +202,7 @@ def test_mirrored_objects_keep_outward_front_faces_and_zero_scale_is_skipped(bpy
     outward = p.mean(axis=1) - np.array([3.0, 0.0, 0.0])
     assert np.einsum("ij,ij->i", ng, outward).min() > 0
     # the shading normals still agree with the geometric ones
-    assert np.einsum("tcx,tx->tc", scene.normals.astype(np.float64), ng).min() > 0
+    assert np.einsum("tcx,tx->tc", scene.corner_normals().astype(np.float64), ng).min() > 0
 
 
 def test_settings_from_scene(bpy_module):

@@ -156,27 +156,65 @@ def test_a_library_that_is_not_embree_4_is_refused():
         embree._Library(__file__)
 
 
-def test_packet_layout_matches_the_header():
-    """The kernels' word offsets agree with RTCRayHit8 as rtcore_ray.h declares it (laid out by ctypes)."""
-    lanes = lambda t: t * embree.PACKET  # noqa: E731
+@pytest.mark.parametrize("lanes", embree.QUERY_WIDTHS)
+def test_packet_layout_matches_the_header(lanes):
+    """The kernels' word offsets agree with RTCRayHit (one ray) and RTCRayHit4/8/16 as rtcore_ray.h declares them
+    (laid out by ctypes; RTCRay and RTCHit are 16-byte aligned, the packets 4·N-byte aligned)."""
+    row = (lambda t: t * lanes) if lanes > 1 else (lambda t: t)  # noqa: E731
 
-    class RTCRay8(ctypes.Structure):
-        _fields_ = ([(n, lanes(ctypes.c_float)) for n in ("org_x", "org_y", "org_z", "tnear", "dir_x", "dir_y",
-                                                           "dir_z", "time", "tfar")]
-                    + [(n, lanes(ctypes.c_uint)) for n in ("mask", "id", "flags")])
+    class RTCRay(ctypes.Structure):
+        _fields_ = ([(n, row(ctypes.c_float)) for n in ("org_x", "org_y", "org_z", "tnear", "dir_x", "dir_y",
+                                                         "dir_z", "time", "tfar")]
+                    + [(n, row(ctypes.c_uint)) for n in ("mask", "id", "flags")])
 
-    class RTCHit8(ctypes.Structure):  # RTC_MAX_INSTANCE_LEVEL_COUNT = 1, RTC_GEOMETRY_INSTANCE_ARRAY on
-        _fields_ = ([(n, lanes(ctypes.c_float)) for n in ("Ng_x", "Ng_y", "Ng_z", "u", "v")]
-                    + [(n, lanes(ctypes.c_uint)) for n in ("primID", "geomID")]
-                    + [("instID", lanes(ctypes.c_uint) * 1), ("instPrimID", lanes(ctypes.c_uint) * 1)])
+    class RTCHit(ctypes.Structure):  # RTC_MAX_INSTANCE_LEVEL_COUNT = 1, RTC_GEOMETRY_INSTANCE_ARRAY on
+        _fields_ = ([(n, row(ctypes.c_float)) for n in ("Ng_x", "Ng_y", "Ng_z", "u", "v")]
+                    + [(n, row(ctypes.c_uint)) for n in ("primID", "geomID")]
+                    + [("instID", row(ctypes.c_uint) * 1), ("instPrimID", row(ctypes.c_uint) * 1)])
 
-    assert ctypes.sizeof(RTCRay8) == 4 * embree.RAY8_WORDS and ctypes.sizeof(RTCHit8) % 32 == 0
-    assert ctypes.sizeof(RTCRay8) + ctypes.sizeof(RTCHit8) == 4 * embree.RAYHIT8_WORDS
-    hit = lambda f: (ctypes.sizeof(RTCRay8) + getattr(RTCHit8, f).offset) // 4  # noqa: E731
-    assert (RTCRay8.tnear.offset // 4, RTCRay8.tfar.offset // 4, RTCRay8.mask.offset // 4) == (
-        embree._P_TNEAR, embree._P_TFAR, embree._P_MASK)
-    assert (hit("u"), hit("v"), hit("primID"), hit("geomID"), hit("instID")) == (
-        embree._P_U, embree._P_V, embree._P_PRIM, embree._P_GEOM, embree._P_INST)
+    align = max(16, 4 * lanes)
+    ray_size = ctypes.sizeof(RTCRay)
+    hit_size = -(-ctypes.sizeof(RTCHit) // align) * align  # padded to its alignment
+    assert ray_size == 4 * embree.RAY_FIELDS * lanes and ray_size % align == 0
+    assert ray_size + hit_size <= 4 * 24 * embree.MAX_PACKET  # the kernels' work buffer holds it
+    field = lambda f: getattr(RTCRay, f).offset // (4 * lanes)  # noqa: E731
+    hit = lambda f: (ray_size + getattr(RTCHit, f).offset) // (4 * lanes)  # noqa: E731
+    assert [field(f) for f in ("org_x", "org_y", "org_z", "tnear", "dir_x", "dir_y", "dir_z", "time", "tfar",
+                               "mask", "id", "flags")] == list(range(12))
+    assert (hit("u"), hit("v"), hit("primID"), hit("geomID"), hit("instID"), hit("instPrimID")) == (
+        embree._U, embree._V, embree._PRIM, embree._GEOM, embree._INST, embree._INST_PRIM)
+
+
+@pytest.mark.parametrize("width", embree.QUERY_WIDTHS)
+@pytest.mark.parametrize("coherent", [False, True])
+def test_every_packet_width_finds_the_same_hits(width, coherent):
+    """One ray per call, packets of 4, 8 and 16, coherent or not: the closed-form hits of rays fanned at a wall of
+    two triangles (z = 1 for x < 0, z = 2 for x ≥ 0), 37 rays (partial last packets), every third one cut short
+    before the wall, shadow rays too; a bad lane offset or packet width would scramble them."""
+    b = SceneBuilder()
+    b.add_mesh([[-5, -5, 1], [0, -5, 1], [0, 5, 1], [-5, 5, 1]], [[0, 1, 2], [0, 2, 3]], name="left")
+    b.add_mesh([[0, -5, 2], [5, -5, 2], [5, 5, 2], [0, 5, 2]], [[0, 1, 2], [0, 2, 3]], name="right")
+    b.camera = Camera.look_at((0, 0, 5), (0, 0, 0))
+    acc = Accelerator(b.build())
+    x = (np.linspace(-4, 4, 37) + 0.05).astype(np.float32)  # no ray on the seam
+    o = np.stack([x, 0.1 * x, np.full_like(x, 10)], 1).astype(np.float32)
+    d = np.tile(np.array([0, 0, -1], np.float32), (37, 1))
+    t_max = np.where(np.arange(37) % 3 == 0, 5.0, np.inf).astype(np.float32)
+    expect_t = np.where(x < 0, 9.0, 8.0)
+    short = t_max < expect_t
+    expect_t[short] = np.inf
+    t, prim, u, v, inst = (np.empty(37, np.float32), np.empty(37, np.int32), np.empty(37, np.int32),
+                           np.empty(37, np.float32), np.empty(37, np.float32))
+    q = embree.query(coherent, width)
+    order = np.arange(37)[::-1].copy()  # packets made in reverse: results still land on their own rows
+    embree.intersect_rays(acc._top.handle, o, d, np.float32(0), t_max, acc._start, acc._rows, acc._inst_proto, t,
+                          prim, inst, u, v, embree.ALL_RAYS, np.zeros(0, np.float32), order, q)
+    np.testing.assert_allclose(t, expect_t)
+    assert np.all((prim[~short] >= 2) == (x[~short] >= 0)) and np.all(prim[short] == -1)
+    blocked = np.empty(37, np.bool_)
+    embree.occluded_rays(acc._top.handle, o, d, np.float32(0), t_max, blocked, embree.ALL_RAYS,
+                         np.zeros(0, np.float32), embree.IN_ORDER, q)
+    assert np.array_equal(blocked, ~short)
 
 
 def test_instance_array_hits_report_the_prototype_row_and_the_instance():

@@ -188,6 +188,28 @@ def test_same_pixels_for_any_thread_count_and_tile_size():
     np.testing.assert_array_equal(a.rgba, b.rgba)
 
 
+def test_a_tile_traced_in_batches_of_eye_samples_gives_the_same_pixels(monkeypatch):
+    """tracer.tiles bounds the shadow queue by tracing a tile's eye samples in batches: each sample's whole path
+    (glass: reflection and transmission, soft shadows) stays in one batch, so every pixel and AOV is that of one
+    batch, and so are the ray counts."""
+    import tracer.tiles as tiles
+
+    b = lit_sphere_on_floor()
+    b.lights[0] = PointLight(position=b.lights[0].position, intensity=b.lights[0].intensity, radius=1.0)
+    glass = b.add_material("glass", diffuse=(0, 0, 0), transmission=1.0, ior=1.5)
+    sphere(b, (1.2, -1.0, 0.4), 0.4, glass, "glass_ball", count=16)
+    scene = b.build()
+    s = RenderSettings(width=W, height=H, samples=2, light_samples=4, max_depth=4,
+                       aovs=("depth", "normal", "albedo", "objectid", "direct", "transmission", "raydepth"))
+    whole = render(scene, s)
+    monkeypatch.setattr(tiles, "SHADOW_SLOTS", 1)  # batches of 1 024 eye samples: 12 per tile
+    batched = render(scene, s)
+    np.testing.assert_array_equal(whole.rgba, batched.rgba)
+    for name in s.aovs:
+        np.testing.assert_array_equal(whole.aovs[name], batched.aovs[name])
+    assert whole.stats["rays"] == batched.stats["rays"] and whole.stats["rays"]["transmission"] > 0
+
+
 def test_transparent_film_and_aovs():
     scene = mirror_and_ball().build()
     img = render(scene, RenderSettings(samples=1, width=W, height=H, transparent=True,

@@ -70,8 +70,8 @@ def test_degenerate_triangles_are_skipped_with_a_warning():
 def test_wrong_shapes():
     with pytest.raises(ValueError, match=r"vertices must have shape \(V, 3\)"):
         scene(vertices=np.zeros((3, 2)))
-    with pytest.raises(ValueError, match=r"normals must have shape \(1, 3, 3\)"):
-        scene(normals=np.zeros((3, 3)))
+    with pytest.raises(ValueError, match=r"normals must have shape \(3, 3\) \(per vertex\) or \(1, 3, 3\)"):
+        scene(normals=np.zeros((2, 3)))
 
 
 def test_lights_validate():
@@ -202,10 +202,56 @@ def test_builder_builds_twice_and_hands_its_arrays_over():
     for name in ("vertices", "triangles", "normals", "colors", "material_ids", "object_ids"):
         np.testing.assert_array_equal(getattr(first, name), getattr(second, name), err_msg=name)
     np.testing.assert_array_equal(first.uvs, second.uvs)
-    np.testing.assert_allclose(first.normals[0], [[0, 0, 1]] * 3)
-    assert np.isnan(first.uvs[1]).all() and (first.colors[0] == 1).all() and (first.colors[1] == 0.5).all()
+    np.testing.assert_allclose(first.corner_normals()[0], [[0, 0, 1]] * 3)
+    assert np.isnan(first.corner_uvs()[1]).all() and (first.colors[0] == 1).all() and (first.colors[1] == 0.5).all()
     b.add_mesh(TRI + 4, [[0, 1, 2]], material=m, uvs=np.ones((3, 2)))
     third = b.build()
     assert len(third.triangles) == 3 and third.triangles[2].min() == 6
-    np.testing.assert_array_equal(third.uvs[:2], first.uvs, strict=False)
-    assert (third.uvs[2] == 1).all() and (third.normals[2] == 0).all()
+    np.testing.assert_array_equal(third.corner_uvs()[:2], first.corner_uvs(), strict=False)
+    assert (third.corner_uvs()[2] == 1).all() and (third.corner_normals()[2] == 0).all()
+
+
+def _smooth_textured_ball(hard_box: bool):
+    """A UV sphere with per-vertex normals and UVs, a checker base colour and a bumpy normal map (UV lookups and
+    tangents), and optionally a box with flat (per-face) normals: a hard edge."""
+    import trimesh
+
+    b = SceneBuilder()
+    checks = np.kron((np.indices((8, 8)).sum(axis=0) % 2)[..., None] * [0.8, 0.2, 0.1] + 0.1, np.ones((4, 4, 1)))
+    bumps = np.zeros((32, 32, 3)) + [0.5, 0.5, 1.0]
+    bumps[..., 0] += 0.3 * np.sin(np.arange(32) / 2.0)[None, :]
+    m = b.add_material("m", diffuse=(1, 1, 1), diffuse_texture=b.add_texture(checks.astype(np.float32)),
+                       normal_texture=b.add_texture(bumps.astype(np.float32)), specular=0.5, roughness=0.3)
+    ball = trimesh.creation.uv_sphere(radius=1.0, count=[24, 24])
+    uv = np.stack([np.arctan2(ball.vertices[:, 1], ball.vertices[:, 0]) / (2 * np.pi) + 0.5,
+                   np.arccos(np.clip(ball.vertices[:, 2], -1, 1)) / np.pi], axis=1)
+    b.add_mesh(ball.vertices, ball.faces, material=m, normals=ball.vertices, uvs=uv[ball.faces], name="ball")
+    if hard_box:
+        box = trimesh.creation.box(extents=(0.8, 0.8, 0.8))
+        b.add_mesh(box.vertices + [1.6, 0, 0], box.faces, material=m, name="box",
+                   normals=np.repeat(box.face_normals[:, None], 3, axis=1))
+    b.add_light(PointLight(position=(3, -4, 5), intensity=(200.0,) * 3))
+    b.camera = Camera.look_at((0.5, -5, 1), (0.5, 0, 0), up=(0, 0, 1), focal_length=35.0)
+    return b.build()
+
+
+@pytest.mark.parametrize("hard_box", [False, True])
+def test_per_vertex_normals_and_uvs_draw_what_per_corner_ones_draw(hard_box):
+    """SceneBuilder stores normals and UVs per vertex where every corner of a vertex agrees (6 + 4 bytes per
+    triangle on a closed mesh instead of 36 + 24); a mesh with a hard edge keeps the scene's normals per corner.
+    The same scene given per corner (the layout before) renders bit for bit the same picture."""
+    s = _smooth_textured_ball(hard_box)
+    assert s.normals_per_vertex != hard_box and s.uvs_per_vertex
+    assert s.normals.shape == ((len(s.triangles), 3, 3) if hard_box else (len(s.vertices), 3))
+    def again(normals, uv_sets):  # both validated once more (normalising a unit normal may move its last bit)
+        return Scene(vertices=s.vertices, triangles=s.triangles, materials=s.materials, camera=s.camera,
+                     lights=s.lights, textures=s.textures, material_ids=s.material_ids, object_ids=s.object_ids,
+                     normals=normals, uv_sets=uv_sets)
+
+    corners = again(s.corner_normals(), [s.corner_uvs(k) for k in range(len(s.uv_sets))])
+    assert not corners.normals_per_vertex and not corners.uvs_per_vertex
+    st = RenderSettings(width=48, height=36, samples=1, aovs=("normal",))
+    a, b = render(again(s.normals, list(s.uv_sets)), st), render(corners, st)
+    np.testing.assert_array_equal(a.rgba, b.rgba)
+    np.testing.assert_array_equal(a.aovs["normal"], b.aovs["normal"])
+    assert len(np.unique(np.round(a.rgba[..., 0], 2))) > 10  # textured and shaded, not flat

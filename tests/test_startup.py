@@ -96,14 +96,12 @@ def test_run_runs_atexit_handlers_and_joins_threads(ball, tmp_path):
 
 
 def test_tracer_kernels_use_the_light_cache_loader():
-    from numba.core.dispatcher import Dispatcher
-
     import tracer.integrator
     import tracer.jit
 
-    kernels = [k for k in vars(tracer.integrator).values() if isinstance(k, Dispatcher)]
+    kernels = [k for k in vars(tracer.integrator).values() if isinstance(k, tracer.jit.Kernel)]
     assert kernels and tracer.jit._LIGHT_LOADS
-    assert all(type(k._cache) is tracer.jit._KernelCache for k in kernels)
+    assert all(type(k.dispatcher._cache) is tracer.jit._KernelCache for k in kernels)
 
 
 def test_a_process_that_loaded_kernels_without_refresh_still_compiles_new_ones(ball, tmp_path):

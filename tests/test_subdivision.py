@@ -232,7 +232,7 @@ def test_blender_usd_export_round_trip(tmp_path):
     assert mesh.GetFaceVaryingLinearInterpolationAttr().Get() == "cornersOnly"
     scene, info = load_stage(path, width=8, complexity="high")
     corners = scene.vertices[scene.triangles].reshape(-1, 3)
-    ours = np.concatenate([corners, scene.uvs.reshape(-1, 2)], axis=1)
+    ours = np.concatenate([corners, scene.corner_uvs().reshape(-1, 2)], axis=1)
     assert _set_distance(ours, np.concatenate([corner_pts, their_uv], axis=1)) < BLENDER_TOL
 
 
@@ -559,7 +559,7 @@ def test_usd_uvs_holes_normals_and_handedness(tmp_path):
     s.GetRootLayer().Save()
     scene, info = load_stage(str(tmp_path / "grid.usda"), width=8, complexity="high")
     corners = scene.vertices[scene.triangles]
-    np.testing.assert_allclose(scene.uvs, corners[..., :2] * [0.25, 0.2], atol=1e-6)
+    np.testing.assert_allclose(scene.corner_uvs(), corners[..., :2] * [0.25, 0.2], atol=1e-6)
     assert len(scene.triangles) == 2 * 16 * (9 - 1)
     centre = corners.mean(axis=1)
     assert not np.any((np.abs(centre[:, 0] - 1.5) < 0.5) & (np.abs(centre[:, 1] - 1.5) < 0.5))  # the hole
@@ -571,7 +571,7 @@ def test_usd_uvs_holes_normals_and_handedness(tmp_path):
     st2.Save()
     scene, _ = load_stage(path, width=8, complexity="high")
     c = scene.vertices[scene.triangles]
-    outward = np.einsum("tkj,tkj->tk", scene.normals, c)
+    outward = np.einsum("tkj,tkj->tk", scene.corner_normals(), c)
     assert (outward > 0).all()
     geo = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
     assert (np.einsum("tj,tj->t", geo, c.mean(axis=1)) > 0).all()  # and the winding faces out too

@@ -831,3 +831,188 @@ def test_a_stage_of_only_volumes_says_so_in_one_line():
     lines = [w for w in info.warnings if "Vol" in w or "triangles" in w]
     assert len(lines) == 1 and "only gprims are 2 Volume" in lines[0], info.warnings
     assert info.nothing_drawn is None
+
+
+# ---------------------------------------------------------------- Arnold-only content met by the survey (#21)
+def _image(stage, w=40, h=40):
+    scene, info = load_stage(stage, width=w, height=h)
+    return render(scene, RenderSettings(width=w, height=h, samples=1)).rgb, info
+
+
+def _lit_columns(img):
+    """Fraction of the image width where the middle row sees the (lit) quad."""
+    row = img[img.shape[0] // 2]
+    return float(np.mean(row.max(axis=1) > 0.05))
+
+
+def test_arnold_camera_placement_is_read_when_the_usd_camera_has_no_transform():
+    """arnold-usd's exports leave the USD camera at the origin and place Arnold's by primvars. Closed form: a
+    2-unit quad 10 units away under a horizontal fov of 2·atan(0.5) spans (1/10)/0.5 = 20 % of the width."""
+    fov = float(np.degrees(2 * np.arctan(0.5)))
+    img, info = _image(st.arnold_camera_stage(position=(10, 0, 10), look_at=(10, 0, 0), fov=fov))
+    assert abs(_lit_columns(img) - 0.2) <= 0.05, _lit_columns(img)
+    assert any("placed by its Arnold primvars:arnold:position/look_at" in n for n in info.notes), info.notes
+    # the same camera as Arnold's matrix (row vectors, translation last) and no fov: the USD lens (50 mm on
+    # 20.955 mm: half-width 2.1 at 10 units, so the quad spans 1/2.1 = 48 %)
+    m = (1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 10, 0, 10, 1)
+    img, _ = _image(st.arnold_camera_stage(matrix=m))
+    assert abs(_lit_columns(img) - 1 / 2.0955) <= 0.05, _lit_columns(img)
+
+
+def test_a_usd_camera_with_a_transform_keeps_it_over_arnold_primvars():
+    s = st.arnold_camera_stage(position=(10, 0, 10), look_at=(10, 0, 0))
+    UsdGeom.Xformable(s.GetPrimAtPath("/Cam")).AddTranslateOp().Set(Gf.Vec3d(0, 0, 10))  # looks at nothing
+    img, info = _image(s)
+    assert _lit_columns(img) == 0.0 and not any("Arnold" in n for n in info.notes)
+
+
+S_ = Sdf.ValueTypeNames.String
+I_ = Sdf.ValueTypeNames.Int
+FA, C3A, IA = Sdf.ValueTypeNames.FloatArray, Sdf.ValueTypeNames.Color3fArray, Sdf.ValueTypeNames.IntArray
+RED, BLUE = (0.9, 0.1, 0.1), (0.1, 0.2, 0.8)
+
+
+def test_arnold_checkerboard_as_the_surface_is_unlit_with_color1_at_the_uv_origin():
+    """u, v frequency 2 on a quad whose st runs 0..1: four cells; the one at the UV origin (lower left) and its
+    diagonal are color1 (Arnold's references: a [0, 1) UV square is color1), the others color2."""
+    img, info = _image(st.arnold_uv_quad("arnold:checkerboard", {
+        "color1": (C3, Gf.Vec3f(*RED)), "color2": (C3, Gf.Vec3f(*BLUE)), "u_frequency": (F, 2.0),
+        "v_frequency": (F, 2.0)}))
+    lower_left, lower_right, upper_left, upper_right = img[30, 10], img[30, 30], img[10, 10], img[10, 30]
+    for px, want in ((lower_left, RED), (upper_right, RED), (lower_right, BLUE), (upper_left, BLUE)):
+        np.testing.assert_allclose(px, want, atol=0.01)
+    assert not any("not supported" in w for w in info.warnings), info.warnings
+
+
+@pytest.mark.parametrize("interpolation, want_at_quarter", [(1, 0.25), (0, 0.0)])
+def test_arnold_ramp_rgb_along_u(interpolation, want_at_quarter):
+    """Keys red at 0 and blue at 1 along u; a linear key gives red·0.75 + blue·0.25 a quarter across, a constant
+    one red until the next key."""
+    img, info = _image(st.arnold_uv_quad("arnold:flat", {"color": (C3, "/M/R.outputs:out")}, nodes=[
+        ("/M/R", "arnold:ramp_rgb", {"type": (Sdf.ValueTypeNames.Token, "u"), "position": (FA, [0.0, 1.0]),
+                                     "color": (C3A, [Gf.Vec3f(*RED), Gf.Vec3f(*BLUE)]),
+                                     "interpolation": (IA, [interpolation] * 2)})]))
+    x = 10  # pixel centre u = 10.5/40
+    u = (x + 0.5) / 40
+    k = u if want_at_quarter else 0.0
+    np.testing.assert_allclose(img[20, x], (1 - k) * np.asarray(RED) + k * np.asarray(BLUE), atol=0.015)
+    assert not any("not supported" in w for w in info.warnings), info.warnings
+
+
+def test_arnold_color_correct_shifts_the_hue_of_a_connected_flat():
+    """hue_shift −0.555 turns of yellow (1, 0.915, 0) read through another flat shader (Arnold's shaders are all
+    connectable): colorsys's HSV rotation is the reference (Arnold's reference image of test_0158 shows it)."""
+    import colorsys
+
+    img, info = _image(st.arnold_uv_quad("arnold:flat", {"color": (C3, "/M/CC.outputs:out")}, nodes=[
+        ("/M/CC", "arnold:color_correct", {"input": (Sdf.ValueTypeNames.Color4f, "/M/Y.outputs:out"),
+                                           "hue_shift": (F, -0.555)}),
+        ("/M/Y", "arnold:flat", {"color": (C3, Gf.Vec3f(1.0, 0.915, 0.0))})]))
+    h, s, v = colorsys.rgb_to_hsv(1.0, 0.915, 0.0)
+    want = colorsys.hsv_to_rgb((h - 0.555) % 1.0, s, v)
+    np.testing.assert_allclose(img[20, 20], want, atol=0.01)
+    assert img[20, 20][2] > 0.9 and img[20, 20][0] < 0.01  # blue, not the yellow input or white
+
+
+def test_arnold_background_and_atmosphere_are_named_once():
+    _img, info = _image(st.arnold_render_globals_stage(), w=16, h=12)
+    said = [w for w in info.warnings if "Arnold background" in w or "Arnold atmosphere" in w]
+    assert len(said) == 2 and "arnold:physical_sky" in said[0] and "arnold:fog" in said[1], info.warnings
+
+
+def test_instancer_motion_blur_at_the_earliest_time_opens_the_shutter_at_the_first_frame():
+    """No --time and a camera shutter open: the shutter opens about the stage's startTimeCode (1001), not about
+    EarliestTime's −1.8e308 (which made every instance step NaN: arnold-usd test_2231/1442/1427.3 were refused).
+    The instances move 1/24 unit per frame: ±0.25 frame keeps the centre cube under the centre pixel."""
+    s = new_stage()
+    s.SetStartTimeCode(1001)
+    s.SetEndTimeCode(1010)
+    st.cube(s, "/Protos/Box")
+    pi = st.point_instancer(s, "/PI", ["/Protos/Box"], [(0, 0, 0), (3, 0, 0)])
+    pi.GetPositionsAttr().Clear()
+    pi.GetPositionsAttr().Set([Gf.Vec3f(0, 0, 0), Gf.Vec3f(3, 0, 0)], 1001.0)
+    pi.CreateVelocitiesAttr().Set([Gf.Vec3f(1, 0, 0), Gf.Vec3f(1, 0, 0)], 1001.0)
+    s.GetPrimAtPath("/Protos").SetSpecifier(Sdf.SpecifierOver)
+    cam = add_camera(s, eye=(0, 0, 10))
+    cam.CreateShutterOpenAttr(-0.25)
+    cam.CreateShutterCloseAttr(0.25)
+    scene, _info = load_stage(s, width=24, height=16)
+    motion = scene.motion.instance_motion
+    assert motion is not None and np.all(np.isfinite(motion))
+    np.testing.assert_allclose(motion[0, :, 0, 3], [-0.25 / 24, 0.0, 0.25 / 24], atol=1e-6)
+    ids = render(scene, RenderSettings(width=24, height=16, samples=1, aovs=("objectid",))).aovs["objectid"]
+    assert ids[8, 12] >= 0
+
+
+def test_a_dome_arnold_hides_from_the_camera_lights_but_is_not_seen():
+    """primvars:arnold:camera = 0 on a textureless dome (Houdini's Arnold exports): the quad is lit as before,
+    the background is black instead of the dome's white."""
+    def frame(hidden):
+        s = new_stage()
+        add_camera(s, eye=(0, 0, 10))
+        st.quad(s, "/Q", half=1.0)
+        dome = UsdLux.DomeLight.Define(s, "/Dome")
+        if hidden:
+            UsdGeom.PrimvarsAPI(dome.GetPrim()).CreatePrimvar("arnold:camera", F).Set(0.0)
+        return _image(s, w=24, h=16)[0]
+
+    seen, unseen = frame(False), frame(True)
+    np.testing.assert_allclose(seen[0, 0], (1, 1, 1), atol=1e-4)
+    np.testing.assert_allclose(unseen[0, 0], (0, 0, 0), atol=1e-6)
+    np.testing.assert_allclose(unseen[8, 12], seen[8, 12], rtol=0.05)  # the quad: lit the same
+    assert unseen[8, 12].max() > 0.1
+
+
+@pytest.mark.parametrize("interpolation", ["uniform", "vertex"])
+def test_curves_read_their_st_per_curve_and_per_point(interpolation):
+    """Curves' texture coordinates (arnold-usd test_0189: a ramp over hair by per-curve st): the left curve's
+    u = 0.25 falls in the checkerboard's first cell (color1), the right one's 0.75 in the second (color2)."""
+    img, info = _image(st.curves_with_st(interpolation), w=48, h=32)
+    left, right = img[16, 24 - 8], img[16, 24 + 8]  # x = ∓1 seen through the 3.6-wide aperture at 5 mm, 10 away
+    np.testing.assert_allclose(left, (0.9, 0.1, 0.1), atol=0.02)
+    np.testing.assert_allclose(right, (0.1, 0.2, 0.8), atol=0.02)
+
+
+def test_a_missing_mtlx_reference_is_one_warning_not_a_crash(tmp_path):
+    """tinyusdz's references-multiple-001 references .mtlx files its checkout lacks: MaterialX raised
+    ExceptionFileMissing (not an mx.Exception) through load_stage; now USD's composition warning names the file and
+    the rest is drawn."""
+    s = new_stage()
+    add_camera(s, eye=(0, 0, 10))
+    UsdGeom.Sphere.Define(s, "/Ball")
+    s.DefinePrim("/Looks").GetReferences().AddReference("./missing_looks.mtlx", "/MaterialX")
+    path = str(tmp_path / "m.usda")
+    s.GetRootLayer().Export(path)
+    img, info = _image(path, w=24, h=16)
+    assert any("missing_looks.mtlx" in w for w in info.warnings), info.warnings
+    assert np.ptp(img.reshape(-1, 3), axis=0).max() > 0.05  # the ball is drawn
+
+
+def test_blender_32_to_36_without_a_dome_is_the_released_exporters_power_over_100():
+    """Released Blender kept intensity = P/100 until 4.0 (its usd_writer_light.cc, with the PXR ≥ 21.11 code
+    path of 3.2+); only the USD branch builds wrote nits, and they also wrote the world as a DomeLight. tinyusdz's
+    geomsubset-test-001 (doc "Blender v3.2.0", a default 1000 W point of radius 0.1 written as 10) read as nits was
+    a 1.8 mW lamp: a black frame."""
+    scene, info = load_stage(_exporter_stage("Blender v3.2.0"), width=20, height=16)
+    np.testing.assert_allclose(_first_light(info).intensity, 1000 / (4 * np.pi), rtol=1e-6)
+    assert any("power / 100" in n for n in info.notes), info.notes
+
+
+def test_lights_with_the_pre_2102_usdlux_attribute_names_are_read():
+    """OpenUSD's testUsdLuxLightListAPI/torch.usda spells its SphereLight's inputs as UsdLux did before 21.02
+    (``radius``, ``exposure``, no ``inputs:``): read as the same light written today (it was USD's dim default,
+    r = 0.5, exposure 0: a dark frame)."""
+    def light(legacy):
+        s = new_stage()
+        lt = UsdLux.SphereLight.Define(s, "/Lamp")
+        prim = lt.GetPrim()
+        for name, typ, v in (("intensity", F, 3.0), ("exposure", F, 2.0), ("radius", F, 0.1)):
+            prim.CreateAttribute(name if legacy else f"inputs:{name}", typ).Set(v)
+        add_camera(s)
+        quad(s, "/Q")
+        return _first_light(load_stage(s, width=8, height=8)[1])
+
+    old, new = light(True), light(False)
+    np.testing.assert_allclose(old.intensity, new.intensity, rtol=1e-6)
+    np.testing.assert_allclose(new.intensity, 3.0 * 4 * np.pi * 0.01, rtol=1e-6)  # I·2^e·πr²
+    assert old.radius == new.radius == pytest.approx(0.1)

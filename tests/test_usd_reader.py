@@ -136,21 +136,21 @@ def test_normals_every_interpolation():
     a, b = (0.0, 0.6, 0.8), (0.6, 0.0, 0.8)
     # constant
     sc = _normals_of("constant", [a])
-    np.testing.assert_allclose(sc.normals, np.broadcast_to(_unit(a), (4, 3, 3)), atol=1e-6)
+    np.testing.assert_allclose(sc.corner_normals(), np.broadcast_to(_unit(a), (4, 3, 3)), atol=1e-6)
     # uniform: face 0 -> a, face 1 -> b; triangles 0,1 from face 0
     sc = _normals_of("uniform", [a, b])
-    np.testing.assert_allclose(sc.normals[:2], np.broadcast_to(_unit(a), (2, 3, 3)), atol=1e-6)
-    np.testing.assert_allclose(sc.normals[2:], np.broadcast_to(_unit(b), (2, 3, 3)), atol=1e-6)
+    np.testing.assert_allclose(sc.corner_normals()[:2], np.broadcast_to(_unit(a), (2, 3, 3)), atol=1e-6)
+    np.testing.assert_allclose(sc.corner_normals()[2:], np.broadcast_to(_unit(b), (2, 3, 3)), atol=1e-6)
     # vertex and varying: one per point, looked up through the triangle's point indices
     per_point = _unit(np.array([[i * 0.1, 0.2, 1.0] for i in range(6)]))
     for interp in ("vertex", "varying"):
         sc = _normals_of(interp, per_point)
-        np.testing.assert_allclose(sc.normals, per_point[sc.triangles], atol=1e-6)
+        np.testing.assert_allclose(sc.corner_normals(), per_point[sc.triangles], atol=1e-6)
     # faceVarying: one per face-vertex (8), indexed primvar (2 distinct values)
     sc = _normals_of("faceVarying", [a, b], indices=[0, 1, 0, 1, 1, 1, 1, 0])
     fv = _unit(np.array([a, b, a, b, b, b, b, a]))
     # fan triangles: face 0 -> (0,1,2), (0,2,3); face 1 -> (4,5,6), (4,6,7)
-    np.testing.assert_allclose(sc.normals, fv[[[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]]], atol=1e-6)
+    np.testing.assert_allclose(sc.corner_normals(), fv[[[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]]], atol=1e-6)
 
 
 def test_wrong_size_normals_are_ignored_with_a_warning():
@@ -218,7 +218,7 @@ def test_gprims(kind, attrs, area, extent):
     if kind != "Plane":  # closed shapes: every face points away from the centre
         assert np.all(np.einsum("ij,ij->i", cross, tri.mean(axis=1) - [1, 2, 3]) > 0)
     if scene.normals is not None:  # shading normals agree with the faces
-        assert np.all(np.einsum("ij,ij->i", scene.normals.mean(axis=1), cross) > 0)
+        assert np.all(np.einsum("ij,ij->i", scene.corner_normals().mean(axis=1), cross) > 0)
 
 
 # ---------------------------------------------------------------- transforms and time
@@ -374,7 +374,7 @@ def test_texture_and_display_color(tmp_path):
     c.AddTranslateOp().Set(Gf.Vec3d(0, 0, -3))
     scene, info = load_stage(s, width=16)
     assert scene.uvs is not None
-    np.testing.assert_allclose(scene.uvs[0], [[0, 0], [0.5, 0], [0.5, 1]])
+    np.testing.assert_allclose(scene.corner_uvs()[0], [[0, 0], [0.5, 0], [0.5, 1]])
     # the texture is an image of the material's graph (tracer.shader_graph), read per hit
     graph = scene.materials.programs[scene.material_ids[0]].graph
     (tex,) = [n for n in graph.nodes.values() if n.type == "usd_uv_texture"]

@@ -23,13 +23,13 @@ def _kernels():
     """Every numba kernel defined in the tracer's modules (found, not listed: a kernel added later is checked too)."""
     import pkgutil
 
-    from numba.core.dispatcher import Dispatcher
+    from tracer.jit import Kernel
 
     found = {}
     for info in pkgutil.iter_modules(tracer.__path__):
         module = importlib.import_module(f"tracer.{info.name}")
         for name, obj in vars(module).items():
-            if isinstance(obj, Dispatcher) and obj.py_func.__module__ == module.__name__:
+            if isinstance(obj, Kernel) and obj.__module__ == module.__name__:
                 found[f"{info.name}.{name}"] = obj
     return found
 
@@ -56,15 +56,39 @@ def test_compile_kernels_covers_the_kernels_a_render_uses():
     assert r.returncode == 0, r.stderr[-2000:]
     before, after = json.loads(r.stdout.strip().splitlines()[-1])
     for hot in ("integrator._surfaces", "integrator._direct_light", "integrator._spawn_secondary",
-                "integrator._add_unoccluded", "tiles._tile_eye_rays"):
+                "integrator._add_unoccluded", "tiles._tile_eye_rays", "tiles._tile_eye_rays_timed",
+                "motion.frames_at_time"):
         assert before[hot] > 0, f"compile_kernels left {hot} uncompiled: {before}"
     grew = {k: (before[k], n) for k, n in after.items() if n != before.get(k, 0)}
     assert not grew, f"renders after compile_kernels compiled new kernel specialisations: {grew}"
 
 
+def _moving_sphere():
+    """lit_sphere_on_floor with motion blur: the floor slides, the sphere's vertices move, the camera turns, and the
+    shutter has a curve (tracer/motion.py's kernels and the stages' timed paths)."""
+    from tracer.motion import Motion, curve_table
+
+    b = lit_sphere_on_floor()
+    eye = b.camera.camera_to_world
+    turn = np.eye(4)
+    turn[:2, :2] = [[np.cos(0.05), -np.sin(0.05)], [np.sin(0.05), np.cos(0.05)]]
+    b.camera.motion = np.stack([eye, turn @ eye])
+    scene = b.build()
+    slide = np.eye(4)
+    slide[:3, 3] = (0.2, 0.0, 0.0)
+    moved = scene.vertices.copy()
+    moved[np.unique(scene.triangles[scene.object_ids == 1])] += np.float32(0.1)
+    scene.motion = Motion(steps=2, object_ids=np.array([0]), object_motion=np.stack([np.eye(4), slide])[None],
+                          vertices=np.stack([scene.vertices, moved]), deforming=np.array([1]),
+                          curve=curve_table([0.2, 1.0, 0.2]))
+    scene.validate_motion()
+    return scene
+
+
 def check_in_this_process():
     """Signatures per kernel after compile_kernels(), and after renders that take other paths (smooth normals,
-    lights with extent, AA, no shading normals, orthographic, sky visibility, AOVs, an environment image)."""
+    lights with extent, AA, no shading normals, orthographic, sky visibility, AOVs, an environment image, motion
+    blur)."""
     tracer.compile_kernels()
     kernels = _kernels()
     before = {name: len(k.signatures) for name, k in kernels.items()}
@@ -82,7 +106,8 @@ def check_in_this_process():
                             (placed.build(), RenderSettings(width=16, height=12)),
                             (_flat_scene_without_normals(), RenderSettings(width=16, height=16, sky_samples=4,
                                                                             threads=2, aovs=("normal",))),
-                            (sky, RenderSettings(width=16, height=12, samples=1, sky_samples=4))):
+                            (sky, RenderSettings(width=16, height=12, samples=1, sky_samples=4)),
+                            (_moving_sphere(), RenderSettings(width=16, height=12))):
         image = tracer.render(scene, settings)
         assert image.rgba[..., :3].max() > 0  # the scenes are lit
     after = {name: len(k.signatures) for name, k in _kernels().items()}

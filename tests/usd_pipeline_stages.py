@@ -354,3 +354,104 @@ def lit_quad_with(shader_id, inputs, output="surface", display_color=None, mdl=N
     mat.CreateSurfaceOutput(ctx).ConnectToSource(sh.ConnectableAPI(), "out")
     bind(q, mat)
     return s
+
+
+# ---------------------------------------------------------------- Arnold-only content (issue #21's survey)
+def arnold_camera_stage(matrix=None, position=None, look_at=None, fov=None):
+    """A USD Camera left at the origin (no xformOps, its default 50 mm lens) carrying an Arnold placement as
+    arnold-usd/MtoA write it (``primvars:arnold:matrix`` / ``position`` / ``look_at`` / ``fov``, arrays of motion
+    keys), and a 2 × 2 quad facing +z centred at (10, 0, 0), lit head-on; nothing else."""
+    from pxr import UsdLux
+
+    s = new_stage()
+    cam = UsdGeom.Camera.Define(s, "/Cam")
+    pv = UsdGeom.PrimvarsAPI(cam.GetPrim())
+    T = Sdf.ValueTypeNames
+    if matrix is not None:
+        pv.CreatePrimvar("arnold:matrix", T.Matrix4dArray).Set([Gf.Matrix4d(*matrix)])
+    if position is not None:
+        pv.CreatePrimvar("arnold:position", T.Vector3fArray).Set([Gf.Vec3f(*position)])
+    if look_at is not None:
+        pv.CreatePrimvar("arnold:look_at", T.Vector3fArray).Set([Gf.Vec3f(*look_at)])
+    if fov is not None:
+        pv.CreatePrimvar("arnold:fov", T.FloatArray).Set([fov])
+    sun = UsdLux.DistantLight.Define(s, "/Sun")
+    sun.CreateIntensityAttr(2.0)
+    sun.CreateNormalizeAttr(True)
+    q = quad(s, "/Q", half=1.0)
+    q.AddTranslateOp().Set(Gf.Vec3d(10, 0, 0))
+    return s
+
+
+def arnold_uv_quad(surface_id, inputs, nodes=()):
+    """A 2 × 2 quad with ``st`` running 0..1 across it (u along +x, v along +y), seen head-on by a camera whose
+    aperture it exactly fills, bound to a material whose ``outputs:arnold:surface`` is the shader ``/M/S``
+    (``surface_id``, ``inputs`` {name: (type, value or "/M/Node.outputs:out" to connect)}); ``nodes``: more shaders
+    (path, id, inputs) the same way. No light: Arnold's flat and pattern surfaces are unlit."""
+    s = new_stage()
+    add_camera(s, eye=(0, 0, 10), h=2.0, v=2.0, focal=10.0)
+    q = quad(s, "/Q", half=1.0)
+    st = UsdGeom.PrimvarsAPI(q.GetPrim()).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                                         UsdGeom.Tokens.vertex)
+    st.Set([(0, 0), (1, 0), (1, 1), (0, 1)])
+    mat = UsdShade.Material.Define(s, "/M")
+    for path, sid, ins in ((("/M/S", surface_id, inputs),) + tuple(nodes)):
+        sh = UsdShade.Shader.Define(s, path)
+        sh.CreateIdAttr(sid)
+        sh.CreateOutput("out", Sdf.ValueTypeNames.Color3f)
+    for path, sid, ins in ((("/M/S", surface_id, inputs),) + tuple(nodes)):
+        sh = UsdShade.Shader(s.GetPrimAtPath(path))
+        for name, (typ, v) in ins.items():
+            if isinstance(v, str) and v.startswith("/"):
+                sh.CreateInput(name, typ).ConnectToSource(Sdf.Path(v))
+            else:
+                sh.CreateInput(name, typ).Set(v)
+    mat.CreateSurfaceOutput("arnold").ConnectToSource(UsdShade.Shader(s.GetPrimAtPath("/M/S")).ConnectableAPI(),
+                                                      "out")
+    bind(q, mat)
+    return s
+
+
+def arnold_render_globals_stage():
+    """A lit quad and a RenderSettings whose ``arnold:global:background`` / ``atmosphere`` name ArnoldNodeGraphs of
+    a ``physical_sky`` and a ``fog`` (as Houdini's Solaris writes them)."""
+    from pxr import UsdLux
+
+    s = new_stage()
+    add_camera(s)
+    UsdLux.DistantLight.Define(s, "/Sun").CreateIntensityAttr(2.0)
+    quad(s, "/Q", half=3.0)
+    rs = s.DefinePrim("/Render/Settings", "RenderSettings")
+    for name, sid in (("background", "arnold:physical_sky"), ("atmosphere", "arnold:fog")):
+        rs.CreateAttribute(f"arnold:global:{name}", Sdf.ValueTypeNames.String).Set(f"/{name}_graph")
+        g = s.DefinePrim(f"/{name}_graph", "ArnoldNodeGraph")
+        sh = UsdShade.Shader.Define(s, f"/{name}_graph/node")
+        sh.CreateIdAttr(sid)
+        g.CreateAttribute(f"outputs:{name}", Sdf.ValueTypeNames.Token).AddConnection(
+            Sdf.Path(f"/{name}_graph/node.outputs:out"))
+    return s
+
+
+def curves_with_st(interpolation="uniform"):
+    """Two vertical linear BasisCurves (width 0.6) at x = −1 and x = +1 whose ``st`` is (0.25, 0.5) on the left
+    curve and (0.75, 0.5) on the right one (per curve, or the same on each of its points), seen head-on, bound to
+    an Arnold checkerboard surface of u frequency 2: the left curve in color1, the right one in color2."""
+    s = new_stage()
+    add_camera(s, eye=(0, 0, 10))
+    c = UsdGeom.BasisCurves.Define(s, "/C")
+    c.CreateTypeAttr("linear")
+    c.CreateCurveVertexCountsAttr([2, 2])
+    c.CreatePointsAttr([(-1, -1, 0), (-1, 1, 0), (1, -1, 0), (1, 1, 0)])
+    c.CreateWidthsAttr([0.6])
+    c.SetWidthsInterpolation(UsdGeom.Tokens.constant)
+    st = UsdGeom.PrimvarsAPI(c.GetPrim()).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray, interpolation)
+    st.Set([(0.25, 0.5), (0.75, 0.5)] if interpolation == "uniform" else [(0.25, 0.5)] * 2 + [(0.75, 0.5)] * 2)
+    mat = UsdShade.Material.Define(s, "/M")
+    sh = UsdShade.Shader.Define(s, "/M/S")
+    sh.CreateIdAttr("arnold:checkerboard")
+    sh.CreateInput("color1", Sdf.ValueTypeNames.Color3f).Set((0.9, 0.1, 0.1))
+    sh.CreateInput("color2", Sdf.ValueTypeNames.Color3f).Set((0.1, 0.2, 0.8))
+    sh.CreateInput("u_frequency", Sdf.ValueTypeNames.Float).Set(2.0)
+    mat.CreateSurfaceOutput("arnold").ConnectToSource(sh.ConnectableAPI(), "out")
+    bind(c, mat)
+    return s

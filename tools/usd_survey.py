@@ -1,7 +1,8 @@
 """Survey: read and render every USD stage under some directories, in-process, and count what goes wrong.
 
     python tools/usd_survey.py DIR [DIR ...] [--out /tmp/usd_survey] [--per-dir 4] [--width 64]
-                               [--sheet sheet.png] [--compare OTHER/results.json] [--timeout 600]
+                               [--sheet sheet.png [--sheet-rows 16]] [--compare OTHER/results.jsonl]
+                               [--timeout 600]
 
 Nothing is downloaded: DIRs are checkouts the user made (e.g. OpenUSD's testenv stages, arnold-usd's testsuite,
 tinyusdz's tests, usd-wg/assets). Every ``.usd/.usda/.usdc/.usdz`` file is a candidate; at most ``--per-dir`` per
@@ -11,11 +12,17 @@ directory (sorted; layers referenced by a test's stage sit beside it). A worker 
     unreadable  pxr itself cannot open the file (not counted against us)
     traceback   any exception other than UsdInputError (a crash)
     refusal     UsdInputError on a file pxr opens
-    blank       every pixel the same colour although the stage has visible gprims with points or a size
+    blank       every pixel the same colour although the stage has visible gprims with points (a Mesh: and faces)
+                or a size, or a PointInstancer with prototypes, protoIndices and positions (:func:`has_gprims`)
     empty       0 triangles although it has such gprims
     grey        a material no reader understood, drawn in a fallback grey (18 % or 50 %) with no warning naming it
     volumes     (not a fault) the stage's only gprims are volumes or particle fields, which the tracer does not
                 render; counted apart, and a fault (``silent``) unless one warning line says so
+    said        (not a fault) a blank or empty frame the scene says is right, counted apart with its ``reason``:
+                a warning names what it lacks (:data:`SAID`: an Arnold background or atmosphere, points that are
+                not finite), no eye ray meets a gprim (``out of view``: the objectid AOV is empty, e.g. a 1.5-unit
+                torus seen from 4 700 units), or gprims are in view and every pixel is below 1/255 (``dark``: the
+                authored lights do not reach them); the summary lists each with its reason for a person to check
 
 Workers are restarted (and the file counted as ``hang``) when one file takes longer than ``--timeout`` seconds in
 total for the chunk. The summary prints the counts; ``--compare`` prints them beside another run's. The contact
@@ -36,7 +43,11 @@ import time
 import numpy as np
 
 USD_EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
-FLAGS = ("traceback", "refusal", "blank", "empty", "grey", "silent", "hang", "volumes")
+FLAGS = ("traceback", "refusal", "blank", "empty", "grey", "silent", "hang", "volumes", "said")
+#: Warning texts that name what a uniform frame lacks (content of the authoring renderer only): reason.
+SAID = {"Arnold background": "Arnold-only background/atmosphere (warned)",
+        "Arnold atmosphere": "Arnold-only background/atmosphere (warned)",
+        "NaN or infinite coordinates": "points with NaN or infinite coordinates (warned, skipped)"}
 #: Gprim types the tracer documents as not rendered (usd_io.reader: one warning line when they are all a stage has).
 NOT_DRAWN = ("Volume", "ParticleField3DGaussianSplat", "ParticleField")
 
@@ -54,22 +65,46 @@ def stage_files(dirs, per_dir: int) -> list[str]:
 # ---------------------------------------------------------------------------------------------------- worker
 def has_gprims(stage) -> bool:
     """Whether the stage has a gprim a renderer should draw: active, defined, visible at the earliest time, of
-    purpose default or render, with points (point-based gprims) or a size (implicit ones)."""
+    purpose default or render, with points (point-based gprims; a Mesh also faces) or a size (implicit ones), and
+    not under a PointInstancer (prototypes are drawn as its instances); or a PointInstancer with the prototypes,
+    protoIndices and positions its schema requires (OpenUSD's pi_bad_schema_input expects an empty image)."""
     from pxr import Usd, UsdGeom
 
     t = Usd.TimeCode.EarliestTime()
+    instancers = []
     for prim in stage.Traverse(Usd.TraverseInstanceProxies()):
-        if not prim.IsA(UsdGeom.Gprim) or prim.GetTypeName() in NOT_DRAWN:
+        if any(prim.GetPath().HasPrefix(p) for p in instancers):
             continue
         img = UsdGeom.Imageable(prim)
+        if prim.IsA(UsdGeom.PointInstancer):
+            instancers.append(prim.GetPath())
+            pi = UsdGeom.PointInstancer(prim)
+            needs = (pi.GetPrototypesRel().GetForwardedTargets(), pi.GetProtoIndicesAttr().Get(t),
+                     pi.GetPositionsAttr().Get(t))
+            if all(v is not None and len(v) for v in needs) and img.ComputeVisibility(t) != UsdGeom.Tokens.invisible \
+                    and any(_drawable_below(stage.GetPrimAtPath(p)) for p in needs[0]):
+                return True
+            continue
+        if not prim.IsA(UsdGeom.Gprim) or prim.GetTypeName() in NOT_DRAWN:
+            continue
         if img.ComputeVisibility(t) == UsdGeom.Tokens.invisible or img.ComputePurpose() not in ("default", "render"):
             continue
         if prim.IsA(UsdGeom.PointBased):
             pts = UsdGeom.PointBased(prim).GetPointsAttr().Get(t)
             if pts is None or len(pts) == 0:
                 continue
+        if prim.IsA(UsdGeom.Mesh) and not len(UsdGeom.Mesh(prim).GetFaceVertexCountsAttr().Get(t) or []):
+            continue
         return True
     return False
+
+
+def _drawable_below(prim) -> bool:
+    """Whether a prototype holds a gprim the tracer draws (not only volumes or particle fields)."""
+    from pxr import Usd, UsdGeom
+
+    return bool(prim) and any(p.IsA(UsdGeom.Gprim) and p.GetTypeName() not in NOT_DRAWN
+                              for p in Usd.PrimRange(prim, Usd.TraverseInstanceProxies()))
 
 
 def silently_grey(info, stage) -> list[str]:
@@ -86,6 +121,29 @@ def silently_grey(info, stage) -> list[str]:
         if not any(name in w for w in info.warnings):
             greys.append(name)
     return greys
+
+
+def blank_reason(scene, info, image) -> str | None:
+    """Why a uniform (or empty) frame is what the scene says, or None: a warning naming what it lacks
+    (:data:`SAID`); no eye ray meeting a gprim (the objectid AOV, rendered once more); or gprims in view but every
+    pixel darker than 1/255 (the authored lights do not reach what the camera sees)."""
+    from tracer import RenderSettings, render
+
+    for w in info.warnings:
+        for key, reason in SAID.items():
+            if key in w:
+                return reason
+    if not len(scene.triangles):
+        return None
+    ids = render(scene, RenderSettings(width=info.width, height=info.height, samples=1, threads=1,
+                                       aovs=("objectid",))).aovs["objectid"]
+    if int(ids.max()) < 0:
+        return "out of view (no eye ray meets a gprim)"
+    if float(image.max()) < 1 / 255:
+        if any("not found" in w for w in info.warnings):
+            return "dark (gprims in view, every pixel < 1/255: a texture is missing, warned, its fallback black)"
+        return "dark (gprims in view, every pixel < 1/255: the authored lights do not reach them)"
+    return None
 
 
 def examine(path: str, width: int, png: str | None) -> dict:
@@ -132,10 +190,14 @@ def examine(path: str, width: int, png: str | None) -> dict:
         rec["flags"].append("volumes")
         if not any("only gprims are" in w for w in info.warnings):
             rec["flags"].append("silent")
-    if gprims and rec["triangles"] == 0:
-        rec["flags"].append("empty")
-    if gprims and float(np.ptp(image.reshape(-1, 3), axis=0).max()) < 1 / 255:
-        rec["flags"].append("blank")
+    empty = gprims and rec["triangles"] == 0
+    blank = gprims and float(np.ptp(image.reshape(-1, 3), axis=0).max()) < 1 / 255
+    reason = blank_reason(scene, info, image) if empty or blank else None
+    if reason:
+        rec["flags"].append("said")
+        rec["reason"] = reason
+    else:
+        rec["flags"] += ["empty"] * empty + ["blank"] * blank
     grey = silently_grey(info, stage)
     if grey:
         rec["flags"].append("grey")
@@ -217,6 +279,7 @@ def summary(results: list[dict], root: str, compare: list[dict] | None = None) -
         bad = [f for f in r["flags"] if f != "unreadable"]
         if bad:
             rows.append(f"{','.join(bad):<18} {os.path.relpath(r['file'], root)}  {r.get('error', '')[:120]}"
+                        f"{r.get('reason', '')}"
                         f"{' grey: ' + ', '.join(r['grey']) if r.get('grey') else ''}")
     c = counts(results)
     rows.append("")
@@ -229,20 +292,29 @@ def summary(results: list[dict], root: str, compare: list[dict] | None = None) -
     return "\n".join(rows)
 
 
-def contact_sheet(results: list[dict], root: str, path: str, tile: int = 64, columns: int = 12) -> None:
-    """Flagged renders first, then the rest, each labelled; as a PNG."""
+def contact_sheet(results: list[dict], root: str, path: str, tile: int = 64, columns: int = 12,
+                  compare: list[dict] | None = None, rows: int = 16) -> None:
+    """Flagged renders first (``!``), then those whose flags changed since ``compare`` (``*``: e.g. blank before,
+    drawn now), then the rest, each labelled; as a PNG."""
     import OpenImageIO as oiio
 
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     from usdwg_survey import fit_tile, label_strip, read_rgb
 
+    before = {r["file"]: set(r["flags"]) for r in compare or ()}
+    flagged = lambda r: bool([f for f in r["flags"] if f != "unreadable"])  # noqa: E731
+    changed = lambda r: r["file"] in before and before[r["file"]] != set(r["flags"])  # noqa: E731
     ordered = sorted((r for r in results if r.get("png") and os.path.exists(r["png"])),
-                     key=lambda r: (not [f for f in r["flags"] if f != "unreadable"], r["file"]))
+                     key=lambda r: (not flagged(r), not changed(r), r["file"]))
     cells = []
-    for r in ordered[: columns * 16]:
+    for r in ordered[: columns * rows]:
         rgb = read_rgb(r["png"])
         t = fit_tile(rgb, tile) if rgb is not None else np.zeros((tile, tile, 3), np.float32)
-        label = ("!" if [f for f in r["flags"] if f != "unreadable"] else "") + os.path.basename(r["file"])[:18]
+        mark = "!" if flagged(r) else "*" if changed(r) else ""
+        name = os.path.basename(r["file"])
+        if os.path.basename(os.path.dirname(r["file"])) == "data":  # arnold-usd's tests: the folder says which
+            name = os.path.basename(os.path.dirname(os.path.dirname(r["file"]))) or name
+        label = mark + name[:18]
         cells.append(np.concatenate([t, label_strip(label, tile, 11)], axis=0))
     if not cells:
         return
@@ -267,6 +339,7 @@ def main(argv=None) -> int:
     ap.add_argument("--width", type=int, default=64)
     ap.add_argument("--timeout", type=float, default=300.0)
     ap.add_argument("--sheet", help="contact sheet PNG")
+    ap.add_argument("--sheet-rows", type=int, default=16, help="rows of 12 renders on the contact sheet")
     ap.add_argument("--compare", help="another run's results.jsonl: counts side by side")
     args = ap.parse_args(argv)
     files = stage_files(args.dirs, args.per_dir)
@@ -277,7 +350,7 @@ def main(argv=None) -> int:
     root = os.path.commonpath([os.path.abspath(d) for d in args.dirs])
     print(summary(results, root, compare))
     if args.sheet:
-        contact_sheet(results, root, args.sheet)
+        contact_sheet(results, root, args.sheet, compare=compare, rows=args.sheet_rows)
         print(f"contact sheet -> {args.sheet}")
     return 0
 

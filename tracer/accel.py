@@ -61,8 +61,9 @@ class Accelerator:
 
     ``quality``: Embree build quality of the objects' BVHs ("low" | "medium" | "high"). ``instanced``: the layout
     (see the module docstring). ``seconds`` accumulates the wall time spent inside Embree queries (summed over
-    threads). With ``record=True`` every batch is kept in ``batches`` as (query, origins, directions, t_max), so a
-    benchmark can replay exactly the rays the integrator traced. ``cancelled``: polled between objects and during
+    threads). With ``record=True`` every batch is kept in ``batches`` as (query, origins, directions, t_max, packet
+    query of :func:`tracer.embree.query`), so a benchmark can replay exactly the rays and packets the integrator
+    traced. ``cancelled``: polled between objects and during
     each BVH build; True stops the set-up with :class:`tracer.embree.BuildCancelled`.
     """
 
@@ -134,10 +135,12 @@ class Accelerator:
         return tuple(self.closest_hits(origins, directions, t_max, t_min)[:4])
 
     def closest_hits(self, origins: np.ndarray, directions: np.ndarray, t_max: np.ndarray | None = None,
-                     t_min: float = 0.0, mask: np.ndarray | None = None, time: np.ndarray | None = None) -> Hits:
+                     t_min: float = 0.0, mask: np.ndarray | None = None, time: np.ndarray | None = None,
+                     coherent: bool = False) -> Hits:
         """Closest hits on [t_min, t_max] as :class:`Hits` (t, prim, u, v, inst). ``mask``: the rays' Embree masks
         (uint32, one per ray or one for all; None: they see every object), see :mod:`tracer.linking`; ``time``:
-        each ray's time in [0, 1] across the shutter (motion blur; None: time 0)."""
+        each ray's time in [0, 1] across the shutter (motion blur; None: time 0); ``coherent``: neighbouring rays
+        start close and point alike (Embree traces each packet as a frustum, :data:`tracer.embree.COHERENT`)."""
         n = len(origins)
         t = np.empty(n, np.float32)
         prim = np.empty(n, np.int32)
@@ -150,17 +153,22 @@ class Accelerator:
         o = np.ascontiguousarray(origins, dtype=np.float32)
         d = np.ascontiguousarray(directions, dtype=np.float32)
         tm = _NONE_F32 if t_max is None else np.ascontiguousarray(np.minimum(t_max, T_FAR_MAX), np.float32)
+        q = embree.query(coherent)
         start = clock.perf_counter()
         embree.intersect_rays(self._top.handle, o, d, np.float32(t_min), tm, self._start, self._rows,
-                              self._inst_proto, t, prim, inst, u, v, _ray_masks(mask), _times(time))
+                              self._inst_proto, t, prim, inst, u, v, _ray_masks(mask), _times(time), embree.IN_ORDER,
+                              q)
         embree.library().check()
-        self._account(start, "INTERSECT", o, d, None if t_max is None else tm)
+        self._account(start, "INTERSECT", o, d, None if t_max is None else tm, q)
         return Hits(t, prim, u, v, inst)
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray, t_max: np.ndarray, t_min: float = 0.0,
-                 mask: np.ndarray | None = None, time: np.ndarray | None = None):
+                 mask: np.ndarray | None = None, time: np.ndarray | None = None, coherent: bool = False,
+                 order: np.ndarray | None = None):
         """Boolean mask: something lies on the segment [origin + t_min·direction, origin + t_max·direction]
-        (shadow rays); ``mask`` as in :meth:`closest_hits`, ``time`` each ray's time (None: 0)."""
+        (shadow rays); ``mask`` as in :meth:`closest_hits`, ``time`` each ray's time (None: 0); ``coherent`` as there.
+        ``order``: which rays share packets (the batch's rows in packet order, e.g. shadow rays grouped by light;
+        None: consecutive rows)."""
         n = len(origins)
         blocked = np.zeros(n, bool)
         if n == 0 or not (self._objects or self._array is not None):
@@ -168,11 +176,13 @@ class Accelerator:
         o = np.ascontiguousarray(origins, dtype=np.float32)
         d = np.ascontiguousarray(directions, dtype=np.float32)
         tm = np.ascontiguousarray(np.minimum(t_max, T_FAR_MAX), dtype=np.float32)
+        q = embree.query(coherent)
+        idx = embree.IN_ORDER if order is None else np.ascontiguousarray(order, np.int64)
         start = clock.perf_counter()
         embree.occluded_rays(self._top.handle, o, d, np.float32(t_min), tm, blocked, _ray_masks(mask),
-                             _times(time))
+                             _times(time), idx, q)
         embree.library().check()
-        self._account(start, "OCCLUDED", o, d, tm)
+        self._account(start, "OCCLUDED", o, d, tm, q, order)
         return blocked
 
     # ---------------------------------------------------------------------------------------------- edits
@@ -307,12 +317,16 @@ class Accelerator:
         obj.instance = embree.InstanceGeometry(obj.mesh)
         return obj
 
-    def _account(self, start, query, o, d, t_max):
+    def _account(self, start, query, o, d, t_max, q, order=None):
+        """Time spent in Embree; with ``record``, the batch as (query, o, d, t_max, q) in the order its packets were
+        made (``q``: :func:`tracer.embree.query`)."""
         elapsed = clock.perf_counter() - start
         with self._lock:
             self.seconds += elapsed
             if self.record:
-                self.batches.append((query, o.copy(), d.copy(), None if t_max is None else np.array(t_max, np.float32)))
+                rows = slice(None) if order is None else order
+                t = None if t_max is None else np.array(t_max, np.float32)[rows]
+                self.batches.append((query, o[rows].copy(), d[rows].copy(), t, q))
 
 
 class _Object:

@@ -91,7 +91,8 @@ class SceneBuilder:
                    meshes without them read white
         """
         label = name or f"object{len(self.object_names)}"
-        mesh = place_mesh(vertices, triangles, material, transform=transform, normals=normals, uvs=uvs, label=label)
+        mesh = place_mesh(vertices, triangles, material, transform=transform, normals=normals, uvs=uvs, label=label,
+                          vertex_normals=True)
         n_tri = len(mesh.triangles)
         instances = int(instances)
         if instances < 1 or n_tri % instances or (instances > 1 and object_id is not None):
@@ -117,7 +118,7 @@ class SceneBuilder:
         a = mesh.transform[:3, :3]
         mirrored = bool(float(a[0] @ _cofactors(a)[0]) < 0)
         self._extra.append(_corner_extras(label, uv_sets, colors, mesh.uvs, len(mesh.vertices), mesh.triangles,
-                                          mirrored))
+                                          mirrored, vertex_uvs=True))
         return object_id
 
     def add_instances(self, prototype: int, transforms, object_ids=None, names=None, materials=None) -> np.ndarray:
@@ -182,6 +183,7 @@ class SceneBuilder:
             raise ValueError("SceneBuilder.build: no camera set")
         n = self.triangle_count
         sizes = [len(t) for t in self._triangles]
+        v_sizes = [len(v) for v in self._vertices]
 
         def cat(parts, tail, dtype):
             if not parts:
@@ -191,13 +193,17 @@ class SceneBuilder:
             return out
 
         # Meshes without normals get zero normals: the integrator uses the geometric normal for those.
-        normals = _joined(self._normals, sizes, 0.0)
+        normals = _joined_attribute(self._normals, self._triangles, sizes, v_sizes, 0.0)
         # Meshes without a UV set have no coordinates in it (NaN: textures read their fallback there).
         n_sets = max([1 if u is not None else 0 for u in self._uvs]
                      + [max(e["uv_sets"], default=-1) + 1 for e in self._extra], default=0)
         had_uvs = any(u is not None for u in self._uvs)
         self._uvs[:] = [None] * len(self._uvs)  # set 0 of the extras: the same arrays
-        uv_sets = [_joined([e["uv_sets"].pop(k, None) for e in self._extra], sizes, np.nan) for k in range(n_sets)]
+        uv_parts = [[e["uv_sets"].pop(k, None) for e in self._extra] for k in range(n_sets)]
+        per_vertex = all(p is None or p.ndim == 2 for parts in uv_parts for p in parts)  # one layout for all sets
+        uv_sets = [_joined_attribute(parts, self._triangles, sizes, v_sizes, np.nan, per_vertex)
+                   for parts in uv_parts]
+        del uv_parts
         colors = _joined([e.pop("colors", None) for e in self._extra], sizes, 1.0)
         vertices = cat(self._vertices, (3,), np.float32)
         triangles = cat(self._triangles, (3,), np.int32)
@@ -256,6 +262,54 @@ class SceneBuilder:
         return out
 
 
+def _joined_attribute(parts: list, triangles: list, sizes: list, v_sizes: list, fill,
+                      per_vertex: bool | None = None) -> np.ndarray | None:
+    """The meshes' pieces of one shading attribute (normals, a UV set) as one array: per vertex (V, C) when every
+    mesh that has it has it per vertex (``per_vertex``: decided by the caller for several attributes at once;
+    ``fill`` for the vertices of meshes without), else per corner (T, 3, C), per-vertex pieces gathered through
+    their mesh's triangles (``triangles[i]`` hold global vertex indices). Pieces are dropped once copied."""
+    if per_vertex is None:
+        per_vertex = all(p is None or p.ndim == 2 for p in parts)
+    if per_vertex:
+        return _joined(parts, v_sizes, fill)
+    first = np.cumsum([0] + v_sizes[:-1])
+    for i, p in enumerate(parts):
+        if p is not None and p.ndim == 2:
+            parts[i] = p[triangles[i] - first[i]]
+    return _joined(parts, sizes, fill)
+
+
+def vertex_values(corners: np.ndarray, triangles: np.ndarray, n_vertices: int) -> np.ndarray | None:
+    """Per-corner values (T, n, C) of faces ``triangles`` (T, n) as per-vertex values (V, C) when every corner of
+    each vertex holds the same value, bit for bit (a smooth mesh's normals, seamless UVs): corner k of face t is
+    then ``out[triangles[t, k]]``; None where some vertex has two (a hard edge, a seam). Vertices no face uses
+    get zeros."""
+    c = np.ascontiguousarray(corners)
+    bits = {4: np.uint32, 8: np.uint64}.get(c.dtype.itemsize)
+    if bits is None or c.ndim != 3 or c.shape[:2] != np.shape(triangles):
+        return None
+    out = np.zeros((n_vertices, c.shape[2]), c.dtype)
+    ok = _vertex_values(c.view(bits), np.ascontiguousarray(triangles), out.view(bits), np.zeros(n_vertices, np.bool_))
+    return out if ok else None
+
+
+@kernel
+def _vertex_values(corners, triangles, out, seen):
+    """out[v] = the value every corner of vertex v holds (compared as bits); False at the first disagreement."""
+    for t in range(triangles.shape[0]):
+        for k in range(triangles.shape[1]):
+            x = triangles[t, k]
+            if seen[x]:
+                for c in range(corners.shape[2]):
+                    if out[x, c] != corners[t, k, c]:
+                        return False
+            else:
+                seen[x] = True
+                for c in range(corners.shape[2]):
+                    out[x, c] = corners[t, k, c]
+    return True
+
+
 def _joined(parts: list, sizes: list, fill) -> np.ndarray | None:
     """Per-mesh per-corner float32 arrays (None: ``fill`` for that mesh's ``sizes[i]`` rows) as one array, or None
     when no mesh has any. Each piece is dropped from ``parts`` once copied."""
@@ -273,7 +327,8 @@ def _joined(parts: list, sizes: list, fill) -> np.ndarray | None:
 
 class PlacedMesh(NamedTuple):
     """One mesh placed in the world by :func:`place_mesh`: float32 world vertices, int32 triangles indexing them,
-    per-triangle material ids, optional per-corner normals / uvs, and the matrix it was placed with."""
+    per-triangle material ids, optional normals (per corner; per vertex (V, 3) where ``place_mesh(vertex_normals=True)``
+    kept them so) and per-corner uvs, and the matrix it was placed with."""
 
     vertices: np.ndarray
     triangles: np.ndarray
@@ -284,10 +339,12 @@ class PlacedMesh(NamedTuple):
 
 
 def place_mesh(vertices, triangles, material=0, *, transform=None, normals=None, uvs=None, label="mesh",
-               n_materials: int | None = None) -> PlacedMesh:
+               n_materials: int | None = None, vertex_normals: bool = False) -> PlacedMesh:
     """An object-space mesh in world space (arguments as :meth:`SceneBuilder.add_mesh`): vertices by the 4×4
     ``transform``, normals by its inverse transpose, winding turned back under a mirroring transform. Raises
-    ``ValueError`` naming ``label`` for bad input (``n_materials``: also check the material indices)."""
+    ``ValueError`` naming ``label`` for bad input (``n_materials``: also check the material indices). The normals
+    come out per corner (T, 3, 3), or with ``vertex_normals`` per vertex (V, 3) wherever that holds the same
+    values (given per vertex, or per corner agreeing at every vertex: :func:`vertex_values`)."""
     v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
     t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
     if t.size and (t.min() < 0 or t.max() >= len(v)):
@@ -323,13 +380,16 @@ def place_mesh(vertices, triangles, material=0, *, transform=None, normals=None,
         nr = np.asarray(normals)
         if nr.dtype != np.float32:
             nr = nr.astype(np.float64, copy=False)
-        if nr.shape == (len(v), 3):
+        if vertex_normals and nr.shape == (n_tri, 3, 3) and n_tri:
+            per_vertex = vertex_values(nr, t, len(v))  # None: a hard edge, they stay per corner
+            nr = nr if per_vertex is None else per_vertex
+        if nr.shape == (len(v), 3) and not vertex_normals:
             nr = nr[t]
-        if nr.shape != (n_tri, 3, 3):
+        if nr.shape != (n_tri, 3, 3) and nr.shape != (len(v), 3):
             raise ValueError(f"mesh {label!r}: normals must be per vertex ({len(v)}, 3) "
                              f"or per corner ({n_tri}, 3, 3), got {nr.shape}")
         if transform is not None:  # by the inverse transpose, in float64, stored as float32
-            corner_normals = np.empty((n_tri, 3, 3), np.float32)
+            corner_normals = np.empty(nr.shape, np.float32)
             _linear_rows(np.ascontiguousarray(nr, np.float64).reshape(-1, 3), inv_t, corner_normals.reshape(-1, 3))
         else:
             corner_normals = nr.astype(np.float32)
@@ -349,7 +409,8 @@ def place_mesh(vertices, triangles, material=0, *, transform=None, normals=None,
         # A mirroring transform turns the winding around: swap two corners so front faces stay outside
         # (the integrator tells entering from leaving glass by the winding).
         t = t[:, [0, 2, 1]]
-        corner_normals = None if corner_normals is None else corner_normals[:, [0, 2, 1]]
+        if corner_normals is not None and corner_normals.ndim == 3:  # per vertex: they follow their vertices
+            corner_normals = corner_normals[:, [0, 2, 1]]
         corner_uvs = None if corner_uvs is None else corner_uvs[:, [0, 2, 1]]
     return PlacedMesh(np.ascontiguousarray(v, np.float32), np.ascontiguousarray(t, np.int32), mat,
                       corner_normals, corner_uvs, m)
@@ -383,9 +444,10 @@ def _linear_rows(src, a, out):
             out[i, k] = a[k, 0] * x + a[k, 1] * y + a[k, 2] * z
 
 
-def _corner_extras(label, uv_sets, colors, corner_uvs, n_vertices, t, mirrored) -> dict:
+def _corner_extras(label, uv_sets, colors, corner_uvs, n_vertices, t, mirrored, vertex_uvs=False) -> dict:
     """A mesh's UV sets and vertex colours per corner (checked, winding-corrected like its normals and uvs: ``t``
-    is already in its final winding, per-corner input is not)."""
+    is already in its final winding, per-corner input is not). ``vertex_uvs``: each UV set per vertex (V, 2)
+    instead where every corner of a vertex holds the same coordinates (:func:`vertex_values`)."""
     n_tri = len(t)
 
     def per_corner(a, width, what):
@@ -410,5 +472,9 @@ def _corner_extras(label, uv_sets, colors, corner_uvs, n_vertices, t, mirrored) 
         if 0 in sets and not np.allclose(sets[0], corner_uvs, equal_nan=True):
             raise ValueError(f"mesh {label!r}: uvs and uv_sets[0] differ (uvs is UV set 0; give one of them)")
         sets[0] = corner_uvs
+    if vertex_uvs and n_tri:
+        for k, a in sets.items():
+            pv = vertex_values(a, t, n_vertices)
+            sets[k] = a if pv is None else pv
     col = per_corner(colors, (3, 4), "colors") if colors is not None else None
     return {"uv_sets": sets, "colors": col}

@@ -14,14 +14,17 @@ What is used of the API, with the layouts of ``include/embree4/rtcore_*.h`` (Emb
   mask, id, flags (uint32);
 - ``RTCHit`` (48 bytes, 16-aligned): Ng_x, Ng_y, Ng_z, u, v (float32), primID, geomID, instID[1],
   instPrimID[1] (uint32), padding; ``RTCRayHit`` = RTCRay + RTCHit = 96 bytes;
-- ``RTCRayHit8`` / ``RTCRay8`` (32-aligned): the same fields as arrays of 8 lanes (structure of arrays), 168 / 96
-  words; the kernels use these packets (:data:`PACKET`: measurably faster than one ray per call);
-- ``rtcIntersect8(valid, scene, rayhit8, args)`` / ``rtcOccluded8(valid, scene, ray8, args)`` with ``args =
-  NULL``: Embree's defaults (incoherent rays, all features, its own ``RTCRayQueryContext``), so neither
-  ``RTCIntersectArguments`` nor the context's layout is ours to keep in step with the library.
+- ``RTCRayHitN`` / ``RTCRayN`` for N = 4, 8, 16 (aligned to 4·N bytes): the same fields as arrays of N lanes
+  (structure of arrays), 21·N / 12·N words; ``RTCRayHit`` / ``RTCRay`` are that layout at N = 1 (padded to 24 / 12
+  words), so one loop serves every width (:data:`QUERY_WIDTHS`);
+- ``rtcIntersectN(valid, scene, rayhitN, args)`` / ``rtcOccludedN(valid, scene, rayN, args)`` (and ``rtcIntersect1``
+  / ``rtcOccluded1`` without ``valid``) with ``args`` an ``RTCIntersectArguments`` (= ``RTCOccludedArguments``):
+  flags (RTC_RAY_QUERY_FLAG_INCOHERENT or _COHERENT), feature mask (all), and NULL context, filter and callback, so
+  Embree uses its own ``RTCRayQueryContext`` and the context's layout is not ours to keep in step with the library.
+  Coherent packets (eye rays, mirror and glass rays, shadow rays grouped by light) take Embree's frustum traversal.
 
-The kernels (:func:`intersect_rays`, :func:`occluded_rays`) call ``rtcIntersect8`` / ``rtcOccluded8`` as numba
-external functions, through LLVM symbols of our own names (``whitted_embree_rtcIntersect8``, ...) that the loader
+The kernels (:func:`intersect_rays`, :func:`occluded_rays`) call ``rtcIntersect*`` / ``rtcOccluded*`` as numba
+external functions, through LLVM symbols of our own names (``whitted_embree_rtcIntersect16``, ...) that the loader
 binds to this library's function addresses — never through the plain ``rtc*`` names, which inside Blender resolve
 to Blender's own Embree — so they compile once and are cached on disk like every other kernel; the scene handle and struct pointers are passed as
 pointer-sized integers (the same registers as pointers on every 64-bit ABI Embree supports).
@@ -59,6 +62,7 @@ DEVICE_PROPERTY_VERSION = 0
 DEVICE_PROPERTY_VERSION_MAJOR = 1
 DEVICE_PROPERTY_VERSION_MINOR = 2
 DEVICE_PROPERTY_VERSION_PATCH = 3
+DEVICE_PROPERTY_NATIVE_RAY = {4: 32, 8: 33, 16: 34}  # RTC_DEVICE_PROPERTY_NATIVE_RAY{4,8,16}_SUPPORTED
 FORMAT_UINT = 0x5001
 FORMAT_UINT3 = 0x5003
 FORMAT_FLOAT3 = 0x9003
@@ -178,7 +182,7 @@ _SIGNATURES = {  # name: (restype, argtypes)
 
 
 #: Embree functions the kernels call, and the prefix of the LLVM symbols they are bound to.
-_KERNEL_FUNCTIONS = ("rtcIntersect8", "rtcOccluded8")
+_KERNEL_FUNCTIONS = tuple(f"rtc{q}{w}" for w in (1, 4, 8, 16) for q in ("Intersect", "Occluded"))
 _KERNEL_PREFIX = "whitted_embree_"
 
 
@@ -199,7 +203,7 @@ class _Library:
             except AttributeError as exc:
                 raise EmbreeUnavailable(f"{path} is not an Embree 4 library (no {name})") from exc
             fn.restype, fn.argtypes = res, args
-        # Kernels call rtcIntersect8/rtcOccluded8 through LLVM symbols of our own names bound to this library's
+        # Kernels call rtcIntersect*/rtcOccluded* through LLVM symbols of our own names bound to this library's
         # functions: not the plain rtc* names, which the process may already resolve to another Embree (Blender's
         # bpy module links its own libembree4; calling its rtcIntersect8 on our scene would crash).
         import llvmlite.binding as llvm
@@ -221,6 +225,9 @@ class _Library:
             found = ".".join(map(str, self.version))
             raise EmbreeUnavailable(f"{path} is Embree {found}; the tracer's binding needs Embree "
                                     f"{REQUIRED_VERSION[0]}.x (>= {REQUIRED_VERSION[0]}.{REQUIRED_VERSION[1]})")
+        #: the widest packet this CPU traces natively (16 with AVX-512, 8 with AVX, 4 with SSE/NEON): a wider one
+        #: is traced one ray at a time inside Embree
+        self.packet = max([w for w, p in DEVICE_PROPERTY_NATIVE_RAY.items() if prop(self.device, p)], default=8)
 
     def _on_error(self, _user, code, message):
         # Called by Embree on the thread where the error happened; Python exceptions cannot cross the C frames
@@ -512,75 +519,133 @@ class InstanceArrayGeometry(Geometry):
 
 
 # ---------------------------------------------------------------------------------------------- ray queries
-#: Rays per Embree call: ``rtcIntersect8`` / ``rtcOccluded8`` on packets of 8 (RTCRayHit8 / RTCRay8). Measured on
-#: the recorded rays of the bench scenes (one thread, medians of 6): 10-20 % faster than ``rtcIntersect1`` /
-#: ``rtcOccluded1`` per ray on whitted, 5-10 % on heavy and instances; 16-wide was no faster than 8 (AVX-512 here).
-#: Embree runs 8-wide packets on any CPU (natively with AVX/AVX2, as two 4-wide halves on SSE and NEON).
-PACKET = 8
-# Word offsets (4-byte words, one row of PACKET lanes per field) in RTCRayHit8 = RTCRay8 + RTCHit8.
-_P_ORG_X, _P_ORG_Y, _P_ORG_Z, _P_TNEAR = 0, 8, 16, 24
-_P_DIR_X, _P_DIR_Y, _P_DIR_Z, _P_TIME = 32, 40, 48, 56
-_P_TFAR, _P_MASK, _P_ID, _P_FLAGS = 64, 72, 80, 88
-_P_U, _P_V, _P_PRIM, _P_GEOM, _P_INST = 120, 128, 136, 144, 152  # then instPrimID at 160
-RAY8_WORDS = 96  # sizeof(RTCRay8) / 4
-RAYHIT8_WORDS = 168  # sizeof(RTCRayHit8) / 4 (RTCHit8: Ng xyz, u, v, primID, geomID, instID[1], instPrimID[1])
+#: Packet widths the kernels call: ``rtcIntersect1`` / ``4`` / ``8`` / ``16`` (and ``rtcOccluded*``). The tracer uses
+#: the CPU's widest native packet (``library().packet``); measured on the bench scenes' recorded rays (AVX-512, one
+#: thread, docs/benchmarks.md): 16 lanes trace 25-35 % faster than one ray per call, 1-4 % faster than 8 lanes.
+QUERY_WIDTHS = (1, 4, 8, 16)
+MAX_PACKET = 16
+#: RTC_RAY_QUERY_FLAG_COHERENT in a query: Embree traces each packet's rays of one octant together through the BVH
+#: (a frustum), for rays that start close and point alike (eye rays, mirror and glass rays of neighbouring pixels,
+#: shadow rays grouped by light): eye rays 2.5-3× faster than incoherent packets.
+COHERENT = 1 << 16
+_WIDTH_BITS = 0xFFFF
+# Word of each field in RTCRayHitN = RTCRayN + RTCHitN, in rows of N lanes (× N): the ray's 12 fields, then the
+# hit's Ng_x, Ng_y, Ng_z, u, v, primID, geomID, instID[1], instPrimID[1].
+_ORG_X, _ORG_Y, _ORG_Z, _TNEAR, _DIR_X, _DIR_Y, _DIR_Z, _TIME, _TFAR, _MASK, _ID, _FLAGS = range(12)
+_U, _V, _PRIM, _GEOM, _INST, _INST_PRIM = 15, 16, 17, 18, 19, 20
+RAY_FIELDS, RAYHIT_FIELDS = 12, 21  # RTCRayN and RTCRayHitN are this many × N words (RTCRayHit: padded to 24)
+_ARGS_WORDS = 12  # RTCIntersectArguments: flags, feature_mask, 3 pointers (and minWidthDistanceFactor), padded
 
-# void rtcIntersect8(const int* valid, RTCScene, RTCRayHit8*, RTCIntersectArguments*); rtcOccluded8 alike.
-_rtcIntersect8 = types.ExternalFunction(_KERNEL_PREFIX + "rtcIntersect8",
-                                        types.void(types.intp, types.intp, types.intp, types.intp))
-_rtcOccluded8 = types.ExternalFunction(_KERNEL_PREFIX + "rtcOccluded8",
-                                       types.void(types.intp, types.intp, types.intp, types.intp))
+_sig3 = types.void(types.intp, types.intp, types.intp)
+_sig4 = types.void(types.intp, types.intp, types.intp, types.intp)
+# void rtcIntersectN(const int* valid, RTCScene, RTCRayHitN*, RTCIntersectArguments*); rtcOccludedN alike;
+# rtcIntersect1(RTCScene, RTCRayHit*, RTCIntersectArguments*) has no valid mask.
+_rtcIntersect1 = types.ExternalFunction(_KERNEL_PREFIX + "rtcIntersect1", _sig3)
+_rtcOccluded1 = types.ExternalFunction(_KERNEL_PREFIX + "rtcOccluded1", _sig3)
+_rtcIntersect4 = types.ExternalFunction(_KERNEL_PREFIX + "rtcIntersect4", _sig4)
+_rtcOccluded4 = types.ExternalFunction(_KERNEL_PREFIX + "rtcOccluded4", _sig4)
+_rtcIntersect8 = types.ExternalFunction(_KERNEL_PREFIX + "rtcIntersect8", _sig4)
+_rtcOccluded8 = types.ExternalFunction(_KERNEL_PREFIX + "rtcOccluded8", _sig4)
+_rtcIntersect16 = types.ExternalFunction(_KERNEL_PREFIX + "rtcIntersect16", _sig4)
+_rtcOccluded16 = types.ExternalFunction(_KERNEL_PREFIX + "rtcOccluded16", _sig4)
+
+
+def query(coherent: bool = False, width: int | None = None) -> int:
+    """The kernels' ``query`` argument: the packet width (default: the CPU's widest native one) and whether the
+    rays are coherent (:data:`COHERENT`)."""
+    width = library().packet if width is None else int(width)
+    if width not in QUERY_WIDTHS:
+        raise ValueError(f"packet width must be one of {QUERY_WIDTHS}, got {width}")
+    return width | (COHERENT if coherent else 0)
 
 
 @kernel(inline=True)
 def _aligned(n, dtype):
-    """A work array of n 4-byte words starting 32-byte aligned (RTCRayHit8 and the valid mask need it)."""
-    raw = np.empty(n + 8, dtype)
-    off = ((32 - raw.ctypes.data % 32) % 32) // 4
+    """A work array of n 4-byte words starting 64-byte aligned (RTCRayHit16 and its valid mask need it)."""
+    raw = np.empty(n + 16, dtype)
+    off = ((64 - raw.ctypes.data % 64) % 64) // 4
     return raw[off:off + n]
 
 
 @kernel(inline=True)
-def _load_packet(f, w, valid, o, d, start, count, tnear, t_max, masks, time):
-    """Lanes 0..count-1 get rays start..start+count-1 (t_max empty: unbounded; ``masks``: one ray mask per ray,
-    or one for all; ``time`` empty: time 0, no motion blur); the rest are switched off."""
+def _query_args(q):
+    """An RTCIntersectArguments (= RTCOccludedArguments) for query ``q``: its flags, every feature, NULL pointers."""
+    a = _aligned(_ARGS_WORDS, np.uint32)
+    a[:] = 0
+    a[0] = q & ~np.int64(_WIDTH_BITS)
+    a[1] = MASK_ALL
+    return a
+
+
+@kernel(inline=True)
+def _load_packet(f, w, valid, W, o, d, order, start, count, tnear, t_max, masks, time):
+    """Lanes 0..count-1 of a W-lane packet get rays start..start+count-1 (through ``order`` when it is not empty;
+    t_max empty: unbounded; ``masks``: one ray mask per ray, or one for all; ``time`` empty: time 0, no motion
+    blur); the rest are switched off."""
     bounded = t_max.shape[0] > 0
     per_ray = masks.shape[0] > 1
     timed = time.shape[0] > 0
-    for k in range(PACKET):
+    ordered = order.shape[0] > 0
+    for k in range(W):
         if k < count:
-            i = start + k
+            i = order[start + k] if ordered else start + k
             valid[k] = -1
-            f[_P_ORG_X + k], f[_P_ORG_Y + k], f[_P_ORG_Z + k] = o[i, 0], o[i, 1], o[i, 2]
-            f[_P_DIR_X + k], f[_P_DIR_Y + k], f[_P_DIR_Z + k] = d[i, 0], d[i, 1], d[i, 2]
-            f[_P_TFAR + k] = t_max[i] if bounded else np.inf
-            f[_P_TIME + k] = time[i] if timed else 0.0
-            w[_P_ID + k] = i
-            w[_P_MASK + k] = masks[i] if per_ray else masks[0]
+            f[_ORG_X * W + k], f[_ORG_Y * W + k], f[_ORG_Z * W + k] = o[i, 0], o[i, 1], o[i, 2]
+            f[_DIR_X * W + k], f[_DIR_Y * W + k], f[_DIR_Z * W + k] = d[i, 0], d[i, 1], d[i, 2]
+            f[_TFAR * W + k] = t_max[i] if bounded else np.inf
+            f[_TIME * W + k] = time[i] if timed else 0.0
+            w[_ID * W + k] = i
+            w[_MASK * W + k] = masks[i] if per_ray else masks[0]
         else:
             valid[k] = 0
-            f[_P_ORG_X + k], f[_P_ORG_Y + k], f[_P_ORG_Z + k] = 0.0, 0.0, 0.0
-            f[_P_DIR_X + k], f[_P_DIR_Y + k], f[_P_DIR_Z + k] = 0.0, 0.0, 1.0
-            f[_P_TFAR + k] = 0.0
-            f[_P_TIME + k] = 0.0
-            w[_P_ID + k] = 0
-            w[_P_MASK + k] = 0
-        f[_P_TNEAR + k] = tnear
-        w[_P_FLAGS + k] = 0
+            f[_ORG_X * W + k], f[_ORG_Y * W + k], f[_ORG_Z * W + k] = 0.0, 0.0, 0.0
+            f[_DIR_X * W + k], f[_DIR_Y * W + k], f[_DIR_Z * W + k] = 0.0, 0.0, 1.0
+            f[_TFAR * W + k] = 0.0
+            f[_TIME * W + k] = 0.0
+            w[_ID * W + k] = 0
+            w[_MASK * W + k] = 0
+        f[_TNEAR * W + k] = tnear
+        w[_FLAGS * W + k] = 0
+
+
+@kernel(inline=True)
+def _intersect(W, valid, scene, rayhit, args):
+    if W == 16:
+        _rtcIntersect16(valid, scene, rayhit, args)
+    elif W == 8:
+        _rtcIntersect8(valid, scene, rayhit, args)
+    elif W == 4:
+        _rtcIntersect4(valid, scene, rayhit, args)
+    else:
+        _rtcIntersect1(scene, rayhit, args)
+
+
+@kernel(inline=True)
+def _occluded(W, valid, scene, ray, args):
+    if W == 16:
+        _rtcOccluded16(valid, scene, ray, args)
+    elif W == 8:
+        _rtcOccluded8(valid, scene, ray, args)
+    elif W == 4:
+        _rtcOccluded4(valid, scene, ray, args)
+    else:
+        _rtcOccluded1(scene, ray, args)
 
 
 #: Geometry ids in a top-level scene: the instance array (if any) is geometry 0, object i is geometry i + 1.
 ARRAY_GEOM_ID = 0
 OBJECT_GEOM_BASE = 1
-_P_INST_PRIM = 160
+#: The ``order`` of a batch traced in its own order.
+IN_ORDER = np.zeros(0, np.int64)
 
 
 @kernel
 def intersect_rays(scene, o, d, tnear, t_max, slot_start, slot_rows, inst_proto, t_out, prim_out, inst_out,
-                   u_out, v_out, masks, time):
+                   u_out, v_out, masks, time, order, q):
     """Closest hits of rays (o, d) at times ``time`` (empty: 0; each ray's motion-blur time in [0, 1]) on
     [tnear, t_max[i]] (t_max empty: unbounded) against the top-level scene
-    ``scene`` (an RTCScene handle), in packets of :data:`PACKET`. Writes t (inf on a miss), the hit's row, the
+    ``scene`` (an RTCScene handle), in packets of ``q``'s width (:func:`query`), ``order`` giving which rays share a
+    packet (empty: consecutive ones). Writes t (inf on a miss), the hit's row, the
     instance index (``inst_out``: k for a hit on instance k of the instance array, else -1) and the barycentrics
     u, v. ``masks``: the rays' Embree masks, one per ray or one for all (:data:`ALL_RAYS`: every geometry).
 
@@ -588,55 +653,62 @@ def intersect_rays(scene, o, d, tnear, t_max, slot_start, slot_rows, inst_proto,
     own scene); the instance array is geometry :data:`ARRAY_GEOM_ID`, and its instance k places the mesh of object
     ``inst_proto[k]`` (a prototype). The row of primitive ``primID`` of object i is
     ``slot_rows[slot_start[i] + primID]`` (``slot_start[i] + primID`` when ``slot_rows`` is empty); -1 on a miss."""
-    f = _aligned(RAYHIT8_WORDS, np.float32)
+    W = q & _WIDTH_BITS
+    args = _query_args(q)
+    f = _aligned(24 * MAX_PACKET, np.float32)
     w = f.view(np.uint32)
-    valid = _aligned(PACKET, np.int32)
+    valid = _aligned(MAX_PACKET, np.int32)
     indirect = slot_rows.shape[0] > 0
     has_array = inst_proto.shape[0] > 0
+    ordered = order.shape[0] > 0
     n = o.shape[0]
-    for start in range(0, n, PACKET):
-        count = min(PACKET, n - start)
-        _load_packet(f, w, valid, o, d, start, count, tnear, t_max, masks, time)
-        for k in range(PACKET):
-            w[_P_GEOM + k] = INVALID_ID
-            w[_P_INST + k] = INVALID_ID
-        _rtcIntersect8(valid.ctypes.data, scene, f.ctypes.data, 0)
+    for start in range(0, n, W):
+        count = min(W, n - start)
+        _load_packet(f, w, valid, W, o, d, order, start, count, tnear, t_max, masks, time)
+        for k in range(W):
+            w[_GEOM * W + k] = INVALID_ID
+            w[_INST * W + k] = INVALID_ID
+        _intersect(W, valid.ctypes.data, scene, f.ctypes.data, args.ctypes.data)
         for k in range(count):
-            i = start + k
-            if w[_P_GEOM + k] == INVALID_ID:
+            i = order[start + k] if ordered else start + k
+            if w[_GEOM * W + k] == INVALID_ID:
                 t_out[i] = np.inf
                 prim_out[i] = -1
                 inst_out[i] = -1
                 u_out[i] = 0.0
                 v_out[i] = 0.0
                 continue
-            inst = w[_P_INST + k]
+            inst = w[_INST * W + k]
             if has_array and inst == ARRAY_GEOM_ID:
-                instance = np.int64(w[_P_INST_PRIM + k])
+                instance = np.int64(w[_INST_PRIM * W + k])
                 obj = np.int64(inst_proto[instance])
                 inst_out[i] = instance
             else:
-                slot = inst if inst != INVALID_ID else w[_P_GEOM + k]
+                slot = inst if inst != INVALID_ID else w[_GEOM * W + k]
                 obj = np.int64(slot) - OBJECT_GEOM_BASE
                 inst_out[i] = -1
-            row = slot_start[obj] + np.int64(w[_P_PRIM + k])
+            row = slot_start[obj] + np.int64(w[_PRIM * W + k])
             prim_out[i] = slot_rows[row] if indirect else row
-            t_out[i] = f[_P_TFAR + k]
-            u_out[i] = f[_P_U + k]
-            v_out[i] = f[_P_V + k]
+            t_out[i] = f[_TFAR * W + k]
+            u_out[i] = f[_U * W + k]
+            v_out[i] = f[_V * W + k]
 
 
 @kernel
-def occluded_rays(scene, o, d, tnear, t_max, blocked, masks, time):
-    """blocked[i] = something lies on ray i between tnear and t_max[i] at its time (shadow rays), in packets of
-    :data:`PACKET`; ``masks`` and ``time`` as in :func:`intersect_rays`."""
-    f = _aligned(RAY8_WORDS, np.float32)
+def occluded_rays(scene, o, d, tnear, t_max, blocked, masks, time, order, q):
+    """blocked[i] = something lies on ray i between tnear and t_max[i] at its time (shadow rays), in packets as
+    :func:`intersect_rays` makes them (``order``, ``q``); ``masks`` and ``time`` as there."""
+    W = q & _WIDTH_BITS
+    args = _query_args(q)
+    f = _aligned(12 * MAX_PACKET, np.float32)
     w = f.view(np.uint32)
-    valid = _aligned(PACKET, np.int32)
+    valid = _aligned(MAX_PACKET, np.int32)
+    ordered = order.shape[0] > 0
     n = o.shape[0]
-    for start in range(0, n, PACKET):
-        count = min(PACKET, n - start)
-        _load_packet(f, w, valid, o, d, start, count, tnear, t_max, masks, time)
-        _rtcOccluded8(valid.ctypes.data, scene, f.ctypes.data, 0)
+    for start in range(0, n, W):
+        count = min(W, n - start)
+        _load_packet(f, w, valid, W, o, d, order, start, count, tnear, t_max, masks, time)
+        _occluded(W, valid.ctypes.data, scene, f.ctypes.data, args.ctypes.data)
         for k in range(count):
-            blocked[start + k] = f[_P_TFAR + k] < 0.0  # Embree sets tfar to -inf where the ray is occluded
+            i = order[start + k] if ordered else start + k
+            blocked[i] = f[_TFAR * W + k] < 0.0  # Embree sets tfar to -inf where the ray is occluded

@@ -210,6 +210,10 @@ def flatten(scene, chunk: int = 1024):
         return None if a is None else (list(a) if isinstance(a, list) else [a])
 
     fields = {f: arrays(f) for f in PER_TRIANGLE}
+    if scene.normals_per_vertex:  # rows of triangles: per corner
+        fields["normals"] = [scene.corner_normals()]
+    if scene.uvs_per_vertex:
+        fields["uv_sets"] = [scene.corner_uvs(k) for k in range(len(scene.uv_sets))]
     parts = {f: None if a is None else [[x[world]] for x in a] for f, a in fields.items()}
     n_v = len(scene.vertices)
     overrides = inst.material_overrides()

@@ -29,6 +29,7 @@ Every spawned ray leaves its surface through :func:`spawn_ray`, the one place ε
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -49,7 +50,7 @@ from .shader_compile import pack_programs
 from .shader_spaces import object_spaces, set_camera
 from .shader_vm import cut as _cut
 from .shader_vm import program_alpha, shade_programs
-from .surface import color_at, geometry_of, shading_frame
+from .surface import color_at, corner_normals, geometry_of, shading_frame
 from .texture import pack_textures
 
 RAY_TYPES = ("eye", "shadow", "reflection", "transmission", "sky")
@@ -229,9 +230,28 @@ class SurfaceQueue(NamedTuple):
         k = lobes.MAX_LOBES
         return cls(np.empty(n, np.bool_), np.empty((n, 3), np.float64), f3(), f3(), np.empty(n, np.bool_),
                    np.empty(n, np.int32), f3(), f1(), f1(), f1(), f1(), f3(), np.empty(n, np.int32),
-                   np.zeros((n, 3), np.float32), f1(), np.full(n, -1, np.int32), np.empty((n, k), np.int32),
+                   f3(), f1(), np.empty(n, np.int32), np.empty((n, k), np.int32),
                    np.empty((n, k, 3), np.float32), np.empty((n, k, 3), np.float32), np.empty((n, k, 4), np.float32),
-                   f3(), np.zeros(n, np.float32))
+                   f3(), f1()).reset()
+
+    #: The columns that start at a value (the rest are written before they are read), by field name.
+    START = {"mirror": 0.0, "lobes": -1, "holdout": 0.0}
+
+    def reset(self) -> "SurfaceQueue":
+        """Set the :data:`START` columns to their start values; returns the queue."""
+        for name, value in self.START.items():
+            getattr(self, name).fill(value)
+        return self
+
+    @classmethod
+    def scratch(cls, held: dict, n: int) -> "SurfaceQueue":
+        """An :meth:`empty` queue of n rows made of views of ``held["surf"]`` (one thread's queue, kept between
+        batches and grown when n exceeds it): the arrays of a fresh queue, allocated for every batch, cost more
+        than some of the stages that fill them (page faults on fresh memory)."""
+        q = held.get("surf")
+        if q is None or len(q.hit) < n:
+            q = held["surf"] = cls.empty(n)
+        return cls(*(a[:n] for a in q)).reset()
 
     @property
     def lobe_arrays(self) -> tuple:
@@ -366,6 +386,14 @@ class Integrator:
         self.see_through = bool(np.any(used & ((m.alpha < 1) | self.programs.alpha_varies)))
         #: Holdouts and shadow catchers (tracer.compose)
         self.compose = compose.pack(scene)
+        self._local = threading.local()
+
+    def _held(self) -> dict:
+        """This thread's scratch arrays (:meth:`SurfaceQueue.scratch`): tiles trace on threads, each its own."""
+        held = getattr(self._local, "held", None)
+        if held is None:
+            held = self._local.held = {}
+        return held
 
     @property
     def last_depth(self) -> int:
@@ -378,7 +406,7 @@ class Integrator:
         n_through)."""
         n = len(o)
         t, prim, u, v, inst = hits
-        surf = SurfaceQueue.empty(n)
+        surf = SurfaceQueue.scratch(self._held(), n)
         it = self.instances
         n_textured = _surfaces(o, d, t, prim, inst, it.normal_matrix, it.materials, u, v, self.geometry,
                                self.materials, surf)
@@ -450,7 +478,7 @@ class Integrator:
         n = len(rays.o)
         mask = rays.mask if depth else linking.ray_masks(self.links, 0, n, 0)
         time = rays.time
-        hits = self.accel.closest_hits(rays.o, rays.d, rays.t_max, mask=mask, time=time)
+        hits = self.accel.closest_hits(rays.o, rays.d, rays.t_max, mask=mask, time=time, coherent=True)
         timed = time is not None
         if timed:  # every ray keeps its eye sample's time: looked up by sample
             sample_time = np.zeros(len(out.color), np.float32)
@@ -475,13 +503,17 @@ class Integrator:
             if rays.t_max is not None:  # eye rays stop at the far plane: what is left of their length
                 tm = np.maximum(rays.t_max[np.searchsorted(rays.sample, smp)] - t0, 0).astype(np.float32)
             time = sample_time[smp] if timed else None
-            h = self.accel.closest_hits(o, d, tm, mask=linking.through_mask(self.links, depth), time=time)
+            h = self.accel.closest_hits(o, d, tm, mask=linking.through_mask(self.links, depth), time=time,
+                                        coherent=True)
         shadow = shadows[0] if len(shadows) == 1 else ShadowQueue(*(np.concatenate(c) for c in zip(*shadows)))
         blocked = np.zeros(0, bool)
         if len(shadow.o):
             shadow_time = sample_time[shadow.sample] if timed else None
+            # grouped by light, shadow rays from neighbouring points form coherent packets (sky rays do not)
             blocked = self.accel.occluded(shadow.o, shadow.d, shadow.t_max,
-                                          mask=linking.shadow_masks(self.links, shadow.light), time=shadow_time)
+                                          mask=linking.shadow_masks(self.links, shadow.light), time=shadow_time,
+                                          coherent=not self.sky_side, order=_by_light(shadow.light,
+                                                                                      len(self.lights.kind)))
             if self.compose.has_catcher:
                 self._catcher_light(out, shadow, np.concatenate(caught), blocked)
             if self.see_through and blocked.any():
@@ -698,6 +730,7 @@ def _surfaces(o, d, t, prim, inst, normal_matrix, overrides, u, v, geom, mats, s
     reference counting per ray.)"""
     material_ids = geom.material_ids
     face_normals, normals, corner_ok, has_normals = geom.face_normals, geom.normals, geom.corner_ok, geom.has_normals
+    triangles, per_vertex = geom.triangles, geom.normals_per_vertex
     colors, has_colors = geom.colors, geom.has_colors
     diffuse, roughness, metallic, specular = mats.diffuse, mats.roughness, mats.metallic, mats.specular
     alphas, emission, threshold, textured = mats.alpha, mats.emission, mats.alpha_threshold, mats.textured
@@ -718,11 +751,9 @@ def _surfaces(o, d, t, prim, inst, normal_matrix, overrides, u, v, geom, mats, s
         k = inst[i]
         mat = material_ids[tri]
         smooth = has_normals and corner_ok[tri]
-        c = tri if smooth else 0  # the corner normals' row (read either way: no branch around array reads)
+        c = tri if smooth else 0  # the corner normals' triangle (read either way: no branch around array reads)
         fn = (float(face_normals[tri, 0]), float(face_normals[tri, 1]), float(face_normals[tri, 2]))
-        n0 = (float(normals[c, 0, 0]), float(normals[c, 0, 1]), float(normals[c, 0, 2]))
-        n1 = (float(normals[c, 1, 0]), float(normals[c, 1, 1]), float(normals[c, 1, 2]))
-        n2 = (float(normals[c, 2, 0]), float(normals[c, 2, 1]), float(normals[c, 2, 2]))
+        n0, n1, n2 = corner_normals(normals, triangles, per_vertex and smooth, c)
         if k < 0:
             ng, n, front = shading_frame(fn, smooth, n0, n1, n2, di, ui, vi)
         else:  # an instance: the frame in object space (M⁻¹·d keeps the side), normals to world by (M)⁻ᵀ
@@ -1170,6 +1201,29 @@ def _pass_shadow(sel, idx, t, prim, inst, overrides, normal_matrix, u, v, materi
                 color[r, c] *= 1.0 - a
         o[j, 0], o[j, 1], o[j, 2] = spawn_ray(p, ng, dj, eps)
         t_max[j] = t_max[j] - t[q]
+
+
+def _by_light(light: np.ndarray, n_lights: int) -> np.ndarray | None:
+    """The shadow queue's rows grouped by the light they aim at (sky rays first), each group in queue order; None
+    where there is one light (the queue order is that)."""
+    if n_lights < 2:
+        return None
+    order = np.empty(len(light), np.int64)
+    _group_rows(light, np.zeros(n_lights + 2, np.int64), order)
+    return order
+
+
+@kernel(refcounts=False)
+def _group_rows(key, start, order):
+    """order = the rows of ``key`` (values -1 .. len(start) - 3) grouped by value, stably (a counting sort)."""
+    for i in range(key.shape[0]):
+        start[key[i] + 2] += 1
+    for k in range(2, start.shape[0]):
+        start[k] += start[k - 1]
+    for i in range(key.shape[0]):
+        j = key[i] + 1
+        order[start[j]] = i
+        start[j] += 1
 
 
 @kernel(refcounts=False)

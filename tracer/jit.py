@@ -20,8 +20,10 @@ distant lights) behaving as IEEE says.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
+import threading
 
 import numba
 from numba.core.caching import FunctionCache
@@ -124,14 +126,26 @@ def kernel(fn=None, *, inline: bool = False, refcounts: bool = True):
     (numba's ``_nrt`` flag). numba counts references to every array an inlined helper is handed, atomically, and
     cannot prune them across branches: after moving NamedTuples out of the helpers' arguments, what was left cost
     the textures stage 20 % and the other stages 3-10 % (docs/benchmarks.md). A kernel that allocates (np.empty
-    …) fails to compile with this set, at once."""
+    …) fails to compile with this set, at once.
+
+    The numba dispatcher is made when the kernel is first used (:class:`Kernel`), not at import: a render uses
+    about 20 of the tracer's ~370 kernels, and making a dispatcher costs 0.2 ms."""
     opts = dict(_OPTIONS, inline="always") if inline else dict(_OPTIONS)
     if not refcounts:
         opts["_nrt"] = False
 
     def wrap(f):
-        # numba picks a function's cache location when it is decorated: point it at this source version's folder
-        # for the tracer's kernels only (other numba users in the process keep their own setting).
+        return Kernel(f, opts)
+
+    return wrap(fn) if fn is not None else wrap
+
+
+_MAKING = threading.RLock()
+
+
+def _dispatcher(f, opts: dict):
+    """numba's dispatcher of ``f``, caching into this source version's folder."""
+    with _MAKING:  # numba picks a function's cache location when it is decorated, from its global config
         saved = numba.config.CACHE_DIR
         if _CACHE_DIR is not None:
             numba.config.CACHE_DIR = _CACHE_DIR
@@ -139,8 +153,48 @@ def kernel(fn=None, *, inline: bool = False, refcounts: bool = True):
             dispatcher = numba.njit(**opts)(f)
         finally:
             numba.config.CACHE_DIR = saved
-        if _LIGHT_LOADS and type(getattr(dispatcher, "_cache", None)) is FunctionCache:
-            dispatcher._cache.__class__ = _KernelCache
-        return dispatcher
+    if _LIGHT_LOADS and type(getattr(dispatcher, "_cache", None)) is FunctionCache:
+        dispatcher._cache.__class__ = _KernelCache
+    return dispatcher
 
-    return wrap(fn) if fn is not None else wrap
+
+class Kernel:
+    """A tracer kernel: ``fn`` and its numba options, its dispatcher made on first use (a call from Python, or numba
+    typing a kernel that calls it) and everything else forwarded to it (``signatures``, ``py_func``, ...).
+
+    numba types a global by its ``_numba_type_`` and inlines a callee by its ``targetoptions`` and ``py_func``
+    (duck-typed in both places), so a kernel that calls this one compiles as with the dispatcher itself; machine
+    code loaded from the cache never looks at its callees at all."""
+
+    def __init__(self, fn, opts: dict):
+        functools.update_wrapper(self, fn)
+        self._fn, self._opts, self._made = fn, opts, None
+
+    @property
+    def dispatcher(self):
+        """numba's dispatcher of this kernel (made now if it was not)."""
+        made = self._made
+        if made is None:
+            with _MAKING:
+                if self._made is None:
+                    self._made = _dispatcher(self._fn, self._opts)
+                made = self._made
+        return made
+
+    @property
+    def _numba_type_(self):
+        return self.dispatcher._numba_type_
+
+    def __call__(self, *args, **kwargs):
+        return self.dispatcher(*args, **kwargs)
+
+    def __getattr__(self, name):
+        if name.startswith("__") or name in ("_fn", "_opts", "_made"):  # not set yet (copy, pickle), or dunder
+            raise AttributeError(name)
+        return getattr(self.dispatcher, name)
+
+    def __reduce__(self):  # pickled by reference, as its module's attribute
+        return self.__qualname__
+
+    def __repr__(self):
+        return f"<tracer kernel {self.__module__}.{self.__qualname__}>"

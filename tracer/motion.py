@@ -38,7 +38,7 @@ import numpy as np
 
 from .jit import kernel
 from .sampling import uniform1
-from .surface import shading_frame
+from .surface import corner_normals, shading_frame
 
 #: Sample stream of the eye samples' times (film jitter: stream 0, lens: 61).
 STREAM_TIME = 67
@@ -379,7 +379,7 @@ def frames_at_time(d, prim, inst, u, v, time, geom, tables, s_ng, s_n, s_front):
     - a moving instance: the same with its object-to-world M(τ);
     - a deforming object: the face normal of its corners interpolated at τ (the corner normals as stored)."""
     face_normals, normals, corner_ok, has_normals = geom.face_normals, geom.normals, geom.corner_ok, geom.has_normals
-    object_ids, triangles = geom.object_ids, geom.triangles
+    object_ids, triangles, per_vertex = geom.object_ids, geom.triangles, geom.normals_per_vertex
     object_row, object_dec, instance_dec = tables.object_row, tables.object_dec, tables.instance_dec
     vsteps, deforming = tables.vertices, tables.deforming
     has_inst = instance_dec.shape[0] > 0
@@ -405,9 +405,7 @@ def frames_at_time(d, prim, inst, u, v, time, geom, tables, s_ng, s_n, s_front):
         ui, vi = float(u[i]), float(v[i])
         smooth = has_normals and corner_ok[tri]
         c = tri if smooth else 0
-        n0 = (float(normals[c, 0, 0]), float(normals[c, 0, 1]), float(normals[c, 0, 2]))
-        n1 = (float(normals[c, 1, 0]), float(normals[c, 1, 1]), float(normals[c, 1, 2]))
-        n2 = (float(normals[c, 2, 0]), float(normals[c, 2, 1]), float(normals[c, 2, 2]))
+        n0, n1, n2 = corner_normals(normals, triangles, per_vertex and smooth, c)
         if row == -2:  # deforming: the corners at τ, as Embree interpolates the vertex steps
             steps = vsteps.shape[0]
             x = min(max(float(time[i]), 0.0), 1.0) * (steps - 1)

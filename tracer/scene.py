@@ -27,7 +27,8 @@ DEGENERATE_AREA = 1e-14
 #: of such arrays), with the value a row without such data gets. tracer.Session's mesh edits keep every one of
 #: these in step with the triangles; a new per-triangle field belongs here.
 #: Per-triangle fields and the value rows without data get (UV sets: NaN = no coordinates). ``uvs`` is not listed:
-#: it is ``uv_sets[0]``.
+#: it is ``uv_sets[0]``. ``normals`` and ``uv_sets`` are per triangle in their per-corner layout; code that edits
+#: rows first turns per-vertex ones into that (``Scene.to_corner_layout``).
 PER_TRIANGLE = {"material_ids": 0, "object_ids": 0, "normals": 0.0, "uv_sets": np.nan, "colors": 1.0}
 
 
@@ -167,10 +168,15 @@ class Scene:
     triangles     (T, 3) int32, indices into ``vertices`` (counter-clockwise = front, right-handed)
     material_ids  (T,) int32, rows of ``materials``
     object_ids    (T,) int32, user-facing object index (AOV "objectid"); names in ``object_names``
-    normals       optional (T, 3, 3) float32 per-corner shading normals
-    uvs           optional (T, 3, 2) float32 per-corner texture coordinates (UV set 0)
-    uv_sets       list of (T, 3, 2) per-corner texture coordinates; set 0 is ``uvs``. NaN = this triangle has no
-                  coordinates in the set (a texture reading it gives its fallback)
+    normals       optional float32 shading normals, per vertex (V, 3): corner k of triangle t reads
+                  ``normals[triangles[t, k]]`` (6 bytes per triangle on a closed mesh), or per corner (T, 3, 3)
+                  where some vertex has different normals on different faces (hard edges). SceneBuilder stores them
+                  per vertex whenever every mesh's corners agree per vertex; :meth:`corner_normals` gives the
+                  per-corner array either way. Zero = unusable (the face normal is used)
+    uvs           optional float32 texture coordinates of UV set 0: per vertex (V, 2) or per corner (T, 3, 2)
+    uv_sets       list of texture coordinates, all per vertex (V, 2) or all per corner (T, 3, 2) (as ``normals``;
+                  a mix is gathered per corner); set 0 is ``uvs``. NaN = no coordinates in the set (a texture
+                  reading it gives its fallback). :meth:`corner_uvs` gives a set per corner either way
     colors        optional (T, 3, 3) float32 per-corner vertex colours (linear RGB), read by materials with
                   ``vertex_color``
     textures      list of :class:`tracer.Texture` (a bare (H, W, C) array is wrapped with the defaults), referenced
@@ -271,8 +277,9 @@ class Scene:
 
         if self.normals is not None:
             nr = np.asarray(self.normals, dtype=np.float32)
-            if nr.shape != (n, 3, 3):
-                raise ValueError(f"scene.normals must have shape ({n}, 3, 3) (per-corner), got {nr.shape}")
+            if nr.shape != (n, 3, 3) and nr.shape != (len(self.vertices), 3):
+                raise ValueError(f"scene.normals must have shape ({len(self.vertices)}, 3) (per vertex) or "
+                                 f"({n}, 3, 3) (per corner), got {nr.shape}")
             self.normals = scene_kernels.unit_normals(nr, in_place=_own(self.normals))
         self._validate_uv_sets(n)
         if self.colors is not None:
@@ -372,11 +379,15 @@ class Scene:
                 raise ValueError("scene.uvs and scene.uv_sets[0] differ; uvs is UV set 0 (give one of them)")
         elif seen is not None and sets and sets[0] is seen:
             sets = []  # uvs was set to None after validation: no UV sets
+        n_v = len(self.vertices)
         for i, uv in enumerate(sets):
             a = np.asarray(uv, dtype=np.float32)
-            if a.shape != (n, 3, 2):
-                raise ValueError(f"scene.uv_sets[{i}] must have shape ({n}, 3, 2) (per-corner), got {a.shape}")
+            if a.shape != (n, 3, 2) and a.shape != (n_v, 2):
+                raise ValueError(f"scene.uv_sets[{i}] must have shape ({n_v}, 2) (per vertex) or ({n}, 3, 2) "
+                                 f"(per corner), got {a.shape}")
             sets[i] = scene_kernels.inf_to_nan(a, in_place=_own(uv))
+        if len({a.ndim for a in sets}) > 1:  # one layout for all sets: a mix goes per corner
+            sets = [a[self.triangles] if a.ndim == 2 else a for a in sets]
         self.uv_sets = sets
         self.uvs = sets[0] if sets else None
         self._uvs_validated = self.uvs
@@ -410,14 +421,52 @@ class Scene:
             self._bounds = None
             self.material_ids = np.ascontiguousarray(self.material_ids[keep])
             self.object_ids = np.ascontiguousarray(self.object_ids[keep])
-            if self.normals is not None:
+            if self.normals is not None and not self.normals_per_vertex:
                 self.normals = np.ascontiguousarray(self.normals[keep])
-            self.uv_sets = [np.ascontiguousarray(uv[keep]) for uv in self.uv_sets]
+            self.uv_sets = [uv if uv.ndim == 2 else np.ascontiguousarray(uv[keep]) for uv in self.uv_sets]
             self.uvs = self._uvs_validated = self.uv_sets[0] if self.uv_sets else None
             if self.colors is not None:
                 self.colors = np.ascontiguousarray(self.colors[keep])
 
     # ------------------------------------------------------------------ queries
+    @property
+    def normals_per_vertex(self) -> bool:
+        """Whether ``normals`` is stored per vertex (V, 3) rather than per corner (T, 3, 3)."""
+        return self.normals is not None and np.ndim(self.normals) == 2
+
+    @property
+    def uvs_per_vertex(self) -> bool:
+        """Whether ``uv_sets`` are stored per vertex (V, 2) rather than per corner (T, 3, 2)."""
+        return bool(self.uv_sets) and np.ndim(self.uv_sets[0]) == 2
+
+    def corner_uvs(self, k: int = 0, rows=None) -> np.ndarray | None:
+        """UV set k per corner, (T, 3, 2) (or of triangles ``rows`` only), whichever way it is stored; None
+        without such a set."""
+        if k >= len(self.uv_sets):
+            return None
+        a = self.uv_sets[k]
+        if a.ndim == 3:
+            return a if rows is None else a[rows]
+        return a[self.triangles if rows is None else self.triangles[rows]]
+
+    def to_corner_layout(self) -> None:
+        """Store per-vertex normals and UV sets per corner (new arrays): what code that edits or copies rows of
+        the per-triangle fields (``PER_TRIANGLE``) works on."""
+        if self.normals_per_vertex:
+            self.normals = np.ascontiguousarray(self.corner_normals())
+        if self.uvs_per_vertex:
+            self.uv_sets = [np.ascontiguousarray(self.corner_uvs(k)) for k in range(len(self.uv_sets))]
+            self.uvs = self._uvs_validated = self.uv_sets[0]
+
+    def corner_normals(self, rows=None) -> np.ndarray | None:
+        """The shading normals per corner, (T, 3, 3) (or of triangles ``rows`` only), whichever way they are
+        stored; None without normals. A per-vertex layout is gathered (a new array)."""
+        if self.normals is None:
+            return None
+        if not self.normals_per_vertex:
+            return self.normals if rows is None else self.normals[rows]
+        return self.normals[self.triangles if rows is None else self.triangles[rows]]
+
     def prototype_rows(self) -> np.ndarray:
         """(T,) bool: the rows of ``triangles`` that belong to a prototype (object space, drawn by instances)."""
         if self.instances is None or not len(self.instances):

@@ -439,9 +439,17 @@ class _Objects:
         self._set_instances(Instances(inst.prototypes[keep], inst.transforms[keep], inst.object_ids[keep],
                                       None if inst.materials is None else inst.materials[keep]))
 
+    def _corner_normals(self) -> None:
+        """Edits work on rows of per-triangle fields: per-vertex normals and UV sets (Scene.normals, uv_sets)
+        become per-corner ones the first time (new arrays, owned by the session)."""
+        if self.scene.normals_per_vertex or self.scene.uvs_per_vertex:
+            self.scene.to_corner_layout()
+            self._owned.update(("normals", "uv_sets"))
+
     def set_transform(self, object_id: int, matrix: np.ndarray) -> None:
         rows = self.require(object_id)
         s = self.scene
+        self._corner_normals()
         rel = matrix @ np.linalg.inv(self.transform(object_id))
         if np.linalg.det(rel[:3, :3]) < 0:  # the winding turns around: a new mesh for this object
             v, t = _object_mesh(s, rows)
@@ -478,6 +486,7 @@ class _Objects:
         a re-placed mesh). Its new rows go where its old ones began (the end for a new object), so the row order
         stays that of a scene built afresh in the same object order."""
         s = self.scene
+        self._corner_normals()
         old = s.object_ids == object_id
         at = int(np.argmax(old)) if old.any() else len(old)  # where its rows began (the end if it had none)
         keep = ~old

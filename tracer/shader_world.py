@@ -57,7 +57,7 @@ def world_image(graph, width: int, height: int, warn=None) -> np.ndarray | None:
     out = np.empty((len(dirs), 3), np.float64)
     f32, i32 = np.float32, np.int32  # the dtypes of tracer.surface.Geometry / InstanceTables: one compiled execute
     vm.shade_directions(code, pstart, pbase, outs, R0, np.empty_like(R0), 0, dirs, out, tex.data, tex.params,
-                        np.zeros((0, 0, 3, 2), f32), np.zeros((0, 3, 3), f32), False, np.zeros((0, 3), f32),
+                        (np.zeros((0, 3, 2), f32), np.zeros((0, 3), i32), False), np.zeros((0, 3, 3), f32), False, np.zeros((0, 3), f32),
                         np.zeros((0, 3), i32), np.zeros((0, 3), f32), np.zeros(0, i32), np.zeros((2, 9, 4)),
                         np.zeros((0, 3, 3)), np.zeros(0, np.bool_), np.zeros(0, i32), 0, True)
     img = np.nan_to_num(out.reshape(height, width, 3), nan=0.0, posinf=0.0, neginf=0.0)

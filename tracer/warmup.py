@@ -3,7 +3,8 @@
 The first render on a machine compiles the kernels (about 10 s); later processes load them from the on-disk cache
 (well under a second). :func:`compile_kernels` renders a tiny scene that takes every path through the kernels (all
 light kinds with and without extent, shading normals, a texture, mirror, glass, alpha, emission, sky visibility), so front
-ends can say "compiling" instead of looking stuck on their first tile.
+ends can say "compiling" instead of looking stuck on their first tile; then the same scene with motion blur (a moving
+and a deforming object, a moving camera, a shutter curve: tracer/motion.py's kernels and the stages' timed paths).
 """
 
 from __future__ import annotations
@@ -42,8 +43,30 @@ def compile_kernels() -> None:
     b.camera = Camera.look_at((0, -3, 2), (0, 0, 0), up=(0, 0, 1))
     b.background = np.array([0.1, 0.1, 0.1], np.float32)
     b.ambient = np.array([0.1, 0.1, 0.1], np.float32)
-    render(b.build(), RenderSettings(width=8, height=8, samples=2, light_samples=1, sky_samples=1, threads=1,
-                                     aovs=("depth",), transparent=True))
+    settings = RenderSettings(width=8, height=8, samples=2, light_samples=1, sky_samples=1, threads=1,
+                              aovs=("depth",), transparent=True)
+    render(b.build(), settings)
+    render(_with_motion(b), settings)
     from .jit import mark_kernels_cached
 
     mark_kernels_cached()
+
+
+def _with_motion(b):
+    """The warm-up scene with everything moving across the shutter: the plain quad by its transform, the glass quad
+    by its vertices, the camera, and a shutter curve (every timed path of the kernels)."""
+    from .motion import Motion, curve_table
+
+    shift = np.eye(4)
+    shift[:3, 3] = (0.1, 0.0, 0.0)
+    eye = b.camera.camera_to_world
+    b.camera.motion = np.stack([eye, shift @ eye])
+    scene = b.build()
+    b.camera.motion = None
+    moved = scene.vertices.copy()
+    moved[scene.triangles[scene.object_ids == 1].ravel()] += np.float32(0.05)  # the glass quad's vertices
+    scene.motion = Motion(steps=2, object_ids=np.array([0]), object_motion=np.stack([np.eye(4), shift])[None],
+                          vertices=np.stack([scene.vertices, moved]), deforming=np.array([1]),
+                          curve=curve_table([0.0, 1.0, 0.5]))
+    scene.validate_motion()
+    return scene

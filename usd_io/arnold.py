@@ -19,8 +19,12 @@ Nodes upstream of an input (``shade_network.source`` asks :func:`upstream`):
                               clamp, mirror, black); ``color_space`` ("sRGB", "linear"/"Raw" → raw, else auto)
     arnold:user_data_rgb      a primvar read (``attribute``, fallback ``default``): vertex colour
     arnold:user_data_float    the same, one channel
+    arnold:flat, checkerboard, ramp_rgb, ramp_float, color_correct, color_jitter
+                              written into the material's shader graph (``usd_io.arnold_patterns``)
 
-Anything else upstream is ``Unsupported`` (one warning naming the node; the input's value is used).
+Anything else upstream is ``Unsupported`` (one warning naming the node; the input's value is used). A pattern
+node (or ``arnold:image``) connected as the surface itself is drawn as Arnold draws it: its colour, unlit (as
+``arnold:flat``).
 """
 
 from __future__ import annotations
@@ -29,10 +33,11 @@ import numpy as np
 from pxr import Sdf
 
 from . import shade_network as net
+from .arnold_patterns import PATTERNS
 
 #: Arnold surface ids read as a MaterialX family (a key of ``material.MX_SURFACES``).
 AS_MATERIALX = {"arnold:standard_surface": "standard_surface", "arnold:openpbr_surface": "open_pbr_surface"}
-SIMPLE_SURFACES = ("arnold:lambert", "arnold:standard", "arnold:flat")
+SIMPLE_SURFACES = ("arnold:lambert", "arnold:standard", "arnold:flat") + PATTERNS[1:] + ("arnold:image",)
 _WRAP = {"periodic": "repeat", "clamp": "clamp", "mirror": "mirror", "black": "black", "file": "useMetadata"}
 
 
@@ -44,6 +49,11 @@ def simple_surface(table, s, label: str, needs):
     """(fields) of arnold:lambert / standard / flat; None for other ids."""
     sid = net.shader_id(s)
     t = table.model()
+    if sid in PATTERNS[1:] or sid == "arnold:image":  # a colour node as the surface: unlit, like arnold:flat
+        t.update(base_color=(0.0, 0.0, 0.0), specular=0.0)
+        src = upstream(s, "rgb", (1.0, 1.0, 1.0), table.time)
+        table._colour_input(t, "emission", src, (1.0, 1.0, 1.0), label, "color", needs)
+        return t
     num = lambda name, d: float(net.floats(net.value(s, name, d, table.time), 1, (d,))[0])  # noqa: E731
     if sid == "arnold:flat":
         t.update(base_color=(0.0, 0.0, 0.0), specular=0.0)
@@ -72,6 +82,8 @@ def simple_surface(table, s, label: str, needs):
 def upstream(node, output: str, fallback, time):
     """What an Arnold node upstream of an input reads as (TextureLookup, PrimvarLookup), or None."""
     sid = net.shader_id(node)
+    if sid in PATTERNS:
+        return net.GraphLookup(str(node.GetPath()), node, output, fallback)
     if sid == "arnold:image":
         return image_lookup(node, output, time)
     if sid in ("arnold:user_data_rgb", "arnold:user_data_rgba", "arnold:user_data_float"):
@@ -103,3 +115,31 @@ def image_lookup(node, output: str, time) -> net.TextureLookup:
         bias=tuple(off) + (0.0,), fallback=missing, wrap_s=_WRAP.get(str(v("swrap", "periodic")), "repeat"),
         wrap_t=_WRAP.get(str(v("twrap", "periodic")), "repeat"), colorspace=colorspace,
         layer=net.file_layer(node, time, "filename"))
+
+
+#: Arnold render globals (``arnold:global:NAME`` on a RenderSettings prim, naming an ArnoldNodeGraph) that draw
+#: something, and what this tracer does without them.
+RENDER_GLOBALS = {"background": "rays that leave the scene see the stage's dome or background instead",
+                  "atmosphere": "no participating medium is rendered"}
+
+
+def render_globals(stage, prims, warn) -> None:
+    """One warning per Arnold background/atmosphere shader a RenderSettings prim names (``arnold:global:background``
+    = "/sky_graph", whose ``outputs:background`` is e.g. an ``arnold:physical_sky``): Arnold-only content this
+    tracer does not draw. ``prims``: the stage's prims as the reader traversed them."""
+    from pxr import UsdShade
+
+    for prim in prims:
+        if prim.GetTypeName() != "RenderSettings":
+            continue
+        for name, instead in RENDER_GLOBALS.items():
+            a = prim.GetAttribute(f"arnold:global:{name}")
+            path = a.Get() if a else None
+            if not path or not Sdf.Path.IsValidPathString(str(path)):
+                continue
+            graph = stage.GetPrimAtPath(str(path))
+            out = graph.GetAttribute(f"outputs:{name}") if graph else None
+            srcs = out.GetConnections() if out else []
+            shader = UsdShade.Shader(stage.GetPrimAtPath(srcs[0].GetPrimPath())) if srcs else None
+            sid = net.shader_id(shader) if shader else ""
+            warn(f"{prim.GetPath()}: Arnold {name} {path}{f' ({sid})' if sid else ''} is not supported: {instead}")

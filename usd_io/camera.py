@@ -13,7 +13,7 @@ MatchVertically crops a 16:9 aperture rendered at 4:3 to a 1.33x zoom). The imag
 from __future__ import annotations
 
 import numpy as np
-from pxr import Sdf, UsdGeom
+from pxr import Gf, Sdf, UsdGeom
 
 from tracer import ORTHOGRAPHIC, PERSPECTIVE, Camera, fit_apertures
 from tracer.camera import lens_radius
@@ -72,6 +72,64 @@ def fold_depth_of_field(raw: dict, warn) -> dict:
     if out.get("f_stop", 0.0) > 0 and not out.get("focus_distance", 0.0) > 0:
         warn(f"{raw['path']}: fStop {out['f_stop']:g} without a positive focusDistance: depth of field ignored")
         out["f_stop"] = 0.0
+    return out
+
+
+def _arnold_primvar(prim, name: str, time):
+    """``primvars:arnold:NAME`` as authored, its first motion key when it is an array (Arnold's motion keys span
+    the shutter); None when not authored."""
+    pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar(f"arnold:{name}")
+    v = pv.Get(time) if pv and pv.HasAuthoredValue() else None
+    if v is None:
+        return None
+    if isinstance(v, Gf.Matrix4d):
+        return v
+    if hasattr(v, "__len__") and len(v) and not isinstance(v, (str, Gf.Vec3f, Gf.Vec3d, Gf.Vec2f)):
+        v = v[0]
+    return v
+
+
+def arnold_placement(prim, time):
+    """(camera_to_world, horizontal fov in degrees or None, the primvars that placed it) of an Arnold camera written into a USD Camera's
+    primvars (arnold-usd and MtoA/HtoA exports keep ``persp_camera`` parameters USD has no attribute for as
+    ``primvars:arnold:*``), or None when it has none. Arnold places a camera by its ``matrix`` applied to the
+    look-at frame of ``position`` → ``look_at`` with ``up`` (defaults: the origin, −Z, +Y: the identity)."""
+    names = ("matrix", "position", "look_at", "up", "fov")
+    got = {n: _arnold_primvar(prim, n, time) for n in names}
+    if got["matrix"] is None and got["position"] is None and got["look_at"] is None:
+        return None
+    m = np.eye(4) if got["matrix"] is None else to_numpy(Gf.Matrix4d(got["matrix"]))
+    vec = lambda v, d: np.asarray(d if v is None else tuple(v), np.float64)  # noqa: E731
+    eye, target, up = vec(got["position"], (0, 0, 0)), vec(got["look_at"], (0, 0, -1)), vec(got["up"], (0, 1, 0))
+    fwd = target - eye
+    x = np.cross(up, -fwd)
+    if np.linalg.norm(fwd) == 0 or np.linalg.norm(x) < 1e-12 or not np.all(np.isfinite(m)):
+        return None
+    z = -fwd / np.linalg.norm(fwd)
+    x /= np.linalg.norm(x)
+    frame = np.eye(4)
+    frame[:3, 0], frame[:3, 1], frame[:3, 2], frame[:3, 3] = x, np.cross(z, x), z, eye
+    fov = got["fov"]
+    fov = float(fov) if fov is not None and np.isfinite(float(fov)) and 0 < float(fov) < 180 else None
+    return m @ frame, fov, [n for n in names[:4] if got[n] is not None]
+
+
+def fold_arnold_camera(raw: dict, prim, time, note) -> dict:
+    """A camera USD leaves at the origin (no transform: its world matrix is the identity) that carries an Arnold
+    placement (:func:`arnold_placement`) is placed as Arnold places it, with its ``fov`` (horizontal) setting the
+    focal length against the horizontal aperture; ``note`` receives one line saying so. Any other camera is as
+    USD says."""
+    if not np.allclose(raw["camera_to_world"], np.eye(4)) or raw["projection"] != PERSPECTIVE:
+        return raw
+    placed = arnold_placement(prim, time)
+    if placed is None:
+        return raw
+    out = dict(raw, camera_to_world=placed[0])
+    said = "primvars:arnold:" + "/".join(placed[2])
+    if placed[1] is not None:
+        out["focal_length"] = raw["horizontal_aperture"] / 2 / np.tan(np.radians(placed[1]) / 2)
+        said += f" and its fov {placed[1]:g}°"
+    note(f"{raw['path']}: the USD camera has no transform; placed by its Arnold {said}")
     return out
 
 

@@ -287,6 +287,8 @@ def _prepare_kernels(quiet: bool) -> None:
 
 def _warn_not_finite(rgba: np.ndarray, scene_path: str) -> None:
     """One warning when the renderer produced NaN/inf pixels (the film writes them black, silently)."""
+    if np.isfinite(rgba.min()) and np.isfinite(rgba.max()):  # NaN propagates through both: 2 ms, no temporaries
+        return
     bad = int(np.count_nonzero(~np.all(np.isfinite(rgba), axis=-1)))
     if bad:
         warn(f"{scene_path}: {bad} pixel(s) not finite (NaN or inf; written black)")

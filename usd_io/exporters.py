@@ -11,12 +11,13 @@ and each writer maps to one set of units (:data:`UNITS`), applied by ``usd_io.li
 
     spec           the UsdLux reading (every other stage, and ``--light-units spec``)
     blender        Blender ≥ 4.0: the spec's except the sun (E = 4·I, diameter = 2·angle)
-    blender-nits   Blender 3.2 – 3.6: intensities in nits (the "convert light to nits" export, 1 W/m² = 683
-                   nits, i.e. nits · 0.0014641 = W/m²): a point of power P was written P / (0.0014641 · 4πr²),
-                   a rect P / (0.0014641 · w·h), a disk P / (0.0014641 · 2πr²), a sun S / 0.0014641 and the
-                   world's strength S as a DomeLight of S · 683
-    blender-legacy Blender 2.83 – 3.1: intensity = P / 100 for points, spots and area lights (no normalize), the
-                   sun's strength as is with its angle in radians written as degrees; no dome
+    blender-nits   Blender 3.2 – 3.6 stages **with a DomeLight**: intensities in nits (the "convert light to nits"
+                   export of Blender's USD branch builds, 1 W/m² = 683 nits, i.e. nits · 0.0014641 = W/m²): a point
+                   of power P was written P / (0.0014641 · 4πr²), a rect P / (0.0014641 · w·h), a disk
+                   P / (0.0014641 · 2πr²), a sun S / 0.0014641 and the world's strength S as a DomeLight of S · 683
+    blender-legacy Blender 2.83 – 3.1, and 3.2 – 3.6 stages without a DomeLight (the released exporter kept
+                   ``energy / 100`` until 4.0 and wrote no world): intensity = P / 100 for points, spots and area
+                   lights (no normalize), the sun's strength as is with its angle in radians written as degrees
     kit            Omniverse Kit: every intensity (and OmniPBR's emissive_intensity) × 2^KIT_EV (−9 EV: Kit's
                    lights are in nits seen through an auto-exposed camera; −9 EV matches its previews)
 
@@ -75,6 +76,13 @@ def detect(stage) -> Writer | None:
     return None
 
 
+def _has_dome(stage) -> bool:
+    """Whether the stage holds a DomeLight: only the nits-writing branch builds exported Blender's world."""
+    from pxr import Usd
+
+    return any(p.GetTypeName() in ("DomeLight", "DomeLight_1") for p in stage.Traverse(Usd.TraverseInstanceProxies()))
+
+
 def light_units(stage, mode: str = "auto") -> tuple[str, str | None]:
     """(units, note): ``mode`` "auto" guesses from :func:`detect` (a note naming the writer and the conversion
     when it is not the spec's); "spec" (``--light-units spec``) or any of :data:`UNITS` forces those units."""
@@ -85,6 +93,8 @@ def light_units(stage, mode: str = "auto") -> tuple[str, str | None]:
     w = detect(stage)
     if w is None or w.units == "spec":
         return "spec", None
+    if w.units == "blender-nits" and not _has_dome(stage):  # a released 3.2–3.6 build: energy / 100, no world
+        w = Writer(w.name, "blender-legacy")
     what = {"blender": "its sun as E = 4·I",
             "blender-nits": "its intensities from nits (× 0.0014641, areas as its exporter computed them)",
             "blender-legacy": "its intensities as power / 100 (P = 100·I) and its sun angle in radians",

@@ -19,7 +19,8 @@ light of power P as a SphereLight with I = P/π, normalize = 1; Cycles' radiant 
     RectLight    radiance Le = I/A with normalize = 1 (A = width·height), else Le = I (Blender: I = P/π)
     DiskLight    the same with A = π·radius²
     DomeLight    the world: a lat-long texture becomes Scene.environment (usd_io/dome.py: orientation, format);
-                 without one, Scene.background = I and Scene.ambient = I · inputs:diffuse
+                 without one, Scene.background = I and Scene.ambient = I · inputs:diffuse; Arnold's
+                 ``primvars:arnold:camera = 0`` (lights the scene, unseen by the camera): background black
 
 Which reading: a stage whose root layer says it was written by Blender (``doc = "Blender v…"``, what
 Blender's exporter writes) takes Blender's sun; every other stage the spec's. For every other light type the two
@@ -47,7 +48,7 @@ Lights see the camera-space units of the stage (no metersPerUnit conversion), li
 from __future__ import annotations
 
 import numpy as np
-from pxr import Sdf, UsdLux
+from pxr import Sdf, UsdGeom, UsdLux
 
 from tracer import AreaLight, DistantLight, PointLight, SpotLight
 from tracer.linking import LightLink
@@ -59,6 +60,12 @@ _WHITE_6500 = np.asarray(UsdLux.BlackbodyTemperatureAsRgb(6500.0), dtype=np.floa
 
 
 def _get(attr, time, default):
+    """An input's value; an unauthored ``inputs:NAME`` falls back to ``NAME`` as UsdLux spelt it before 21.02
+    (OpenUSD's own testenv still has such lights: ``radius``, ``exposure``, ``intensity`` without the prefix)."""
+    if attr and attr.GetName().startswith("inputs:") and not attr.HasAuthoredValue():
+        legacy = attr.GetPrim().GetAttribute(attr.GetName()[len("inputs:"):])
+        if legacy and legacy.HasAuthoredValue():
+            attr = legacy
     v = attr.Get(time) if attr else None
     return default if v is None else v
 
@@ -71,6 +78,8 @@ def light_colour(prim, time) -> np.ndarray:
     c = np.asarray(_get(api.GetColorAttr(), time, (1.0, 1.0, 1.0)), dtype=np.float64)
     rgb = i * 2.0 ** e * c
     temp_attr = api.GetColorTemperatureAttr()
+    if not temp_attr.HasAuthoredValue() and prim.GetAttribute("colorTemperature").HasAuthoredValue():
+        temp_attr = prim.GetAttribute("colorTemperature")  # the pre-21.02 name (see _get)
     if _get(api.GetEnableColorTemperatureAttr(), time, False) and temp_attr.HasAuthoredValue():
         t = float(temp_attr.Get(time))
         rgb = rgb * np.asarray(UsdLux.BlackbodyTemperatureAsRgb(t)) / _WHITE_6500
@@ -257,7 +266,24 @@ def _dome(prim, world, time, rgb, warn):
         env = dict(image=image, rotation=rotation)
         if diffuse != 1.0:
             warn(f"{name}: inputs:diffuse = {diffuse} is not supported with a dome texture (1 used)")
-    return "dome", None, dict(background=colour, ambient=colour * diffuse, environment=env)
+    background = colour
+    if _hidden_from_camera(prim, time):  # Arnold's visibility: the dome lights the scene, the camera sees black
+        if env is None:
+            background = np.zeros(3)
+        else:
+            warn(f"{name}: primvars:arnold:camera = 0 (hidden from the camera) is not supported with a dome "
+                 "texture (the dome is seen)")
+    return "dome", None, dict(background=background, ambient=colour * diffuse, environment=env)
+
+
+def _hidden_from_camera(prim, time) -> bool:
+    """Whether Arnold's ``primvars:arnold:camera`` (a light's contribution to camera rays) is authored 0."""
+    pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("arnold:camera")
+    v = pv.Get(time) if pv and pv.HasAuthoredValue() else None
+    try:
+        return v is not None and float(v) == 0.0
+    except (TypeError, ValueError):
+        return False
 
 
 #: The default lighting of a stage without lights, as usdview/usdrecord light one: a headlight along the camera's

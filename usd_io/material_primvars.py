@@ -122,6 +122,9 @@ def mesh_primvars(prim, data, needs, uv_set_names: list, time, warn):
             colors = gprim_colors(prim, data, *needs.color, time, warn)
         # a refined subdivision surface carries its st through the refinement (usd_io/mesh.py): that is set 0
         sets = {} if getattr(data, "uvs", None) is None else {0: np.asarray(data.uvs, np.float32)}
+        name = default_uv_name(prim, warn) if not sets and prim.IsA(UsdGeom.Curves) else None
+        if name:  # curves' st per curve (uniform) or per point, the way their colours are read
+            sets[0] = gprim_colors(prim, data, name, (0.0, 0.0, 0.0), time, warn)[..., :2].astype(np.float32)
         return sets, colors
     tri = Triangulation(data.triangles, data.corners, data.faces, data.n_faces)
     n_points, n_fv = len(data.points), data.n_face_vertices

@@ -23,6 +23,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from pxr import UsdGeom
 
+from tracer.builder import vertex_values
+
 #: Interpolations that are one value per point for a mesh.
 _PER_POINT = (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying)
 
@@ -398,7 +400,9 @@ def _refined_mesh(r, warnings, label, left, fvar_names, vertex_cols, varying_col
     if left:
         corner = corner[:, [0, 2, 1]]
     triangles = q.reshape(-1)[corner]
-    normals = r.normals.reshape(-1, 3)[corner]
+    # per vertex where the limit normals agree at every corner of a vertex (no crease): 6 bytes a triangle, not 36
+    normals = vertex_values(r.normals, q, len(r.points)) if r.normals is not None and len(q) else None
+    normals = r.normals.reshape(-1, 3)[corner] if normals is None else normals
     if left:
         normals = -normals
     face_of = r.face[corner[:, 0] // n]

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import os
 
-import MaterialX as mx
 from pxr import Sdf
 
 #: MaterialX type -> Sdf value type.
@@ -42,6 +41,8 @@ _LIB: dict = {}
 
 def _library() -> mx.Document:
     """The standard data libraries (stdlib, pbrlib, bxdf: Standard Surface, OpenPBR, UsdPreviewSurface)."""
+    import MaterialX as mx  # in the three functions that read documents: a stage without .mtlx never loads it
+
     if "std" not in _LIB:
         lib = mx.createDocument()
         mx.loadLibraries(mx.getDefaultDataLibraryFolders(), mx.getDefaultDataSearchPath(), lib)
@@ -76,6 +77,8 @@ def _register(doc: mx.Document) -> None:
 def read_document(path: str) -> mx.Document:
     """A ``.mtlx`` file read with its XIncludes (relative to its folder), upgraded to the library's version and
     resolved against the standard libraries."""
+    import MaterialX as mx
+
     doc = mx.createDocument()
     mx.readFromXmlFile(doc, path, mx.FileSearchPath(os.path.dirname(path)))
     doc.setDataLibrary(_library())
@@ -216,11 +219,14 @@ class _Writer:
 
 def translate(path: str) -> Sdf.Layer | None:
     """The in-memory USD layer of a ``.mtlx`` document (cached by path), or None when it cannot be read."""
+    import MaterialX as mx
+
     path = os.path.abspath(path)
     if path not in _LAYERS:
         try:
             _LAYERS[path] = _Writer(read_document(path), os.path.dirname(path)).translate()
-        except (mx.Exception, OSError, ValueError):
+        except (mx.Exception, mx.ExceptionFileMissing, mx.ExceptionParseError, mx.ExceptionFoundCycle,
+                mx.ExceptionOrphanedElement, OSError, ValueError):  # a missing .mtlx: USD's own error names it
             _LAYERS[path] = None
     return _LAYERS[path]
 

@@ -220,6 +220,10 @@ class Translator:
         return self._cache[key]
 
     def _node(self, view, output: str) -> V:
+        if view.sid.startswith("arnold:") and isinstance(view, UsdNode):  # Arnold patterns (usd_io.arnold_patterns)
+            from .arnold_patterns import graph_node
+
+            return graph_node(self, view, output)
         nd = mtlx.nodedef(view.sid) if view.sid.startswith("ND_") or view.sid else None
         if nd is None:
             self.warn(view.key, f"MaterialX node {view.name} ({view.sid or 'no shader id'}) has no node definition "

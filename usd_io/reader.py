@@ -21,6 +21,7 @@ from . import camera as cam
 from .curves import read_curves, read_points
 from .gprims import DEFAULT_SEGMENTS, GPRIM_TYPES, read_gprim
 from .instancing import instance_matrices
+from .arnold import render_globals as arnold_render_globals
 from .dome import environment
 from .layer_metadata import meters_per_unit
 from .diagnostics import summarize
@@ -307,7 +308,8 @@ def _camera(stage, r, info, tc, camera, width, height, settings_prim) -> None:
     par = spec.pixel_aspect if spec else 1.0
     policy = CONFORM[spec.conform] if spec else CONFORM[DEFAULT_CONFORM]
     if cam_prim is not None:
-        raw = cam.fold_depth_of_field(cam.fold_clipping_planes(cam.read_camera(cam_prim, tc), info.warn), info.warn)
+        raw = cam.fold_arnold_camera(cam.read_camera(cam_prim, tc), cam_prim, tc, info.notes.append)
+        raw = cam.fold_depth_of_field(cam.fold_clipping_planes(raw, info.warn), info.warn)
         info.width, info.height = cam.image_size(raw, width, height, par)
         r.b.camera = cam.to_tracer(raw, info.width, info.height, policy, par)
         info.camera = str(cam_prim.GetPath())
@@ -492,6 +494,7 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
 
 
     _camera(stage, r, info, tc, camera, width, height, render_settings_prim)
+    arnold_render_globals(stage, r.prims, info.warn)  # usd_io.arnold: Arnold backgrounds and atmospheres, named
     if default_light and not info.lights:
         sun, dome = default_lights(r.b.camera)
         r.b.add_light(sun)

@@ -116,6 +116,8 @@ def stage_motion(stage, scene, time, camera_path, settings_path=None, subdivisio
     interval = shutter_interval(stage, cam_prim, settings, base)
     if interval is None:
         return
+    if base.IsEarliestTime():  # no --time: the shutter opens about the stage's first frame (0 without a range)
+        base = Usd.TimeCode(stage.GetStartTimeCode() if stage.HasAuthoredTimeCodeRange() else 0.0)
     frame = base.GetValue() if not base.IsDefault() else 0.0
     times = tracer.motion.step_times(frame + interval[0], frame + interval[1], MOTION_STEPS)
     caches = [UsdGeom.XformCache(Usd.TimeCode(t)) for t in times]
