@@ -877,7 +877,7 @@ def shade_programs(rays, prim, u, v, t, inst, d, depth, code, pstart, pbase, out
             footprint /= max(det, 1e-30) ** (1.0 / 3.0)
         rb = pbase[mat]
         hit = (tri, ui, vi, p, n, ng, s_front[i], di, float(t[i]), depth, k_inst, footprint, False, eye)
-        execute(code, pstart[mat], pstart[mat + 1], R, rb, hit, geo, tex)
+        _execute_inline(code, pstart[mat], pstart[mat + 1], R, rb, hit, geo, tex)
         r = outs[mat, OUT_BASE]
         if r >= 0:
             s_base[i, 0], s_base[i, 1], s_base[i, 2] = (max(R[rb + r], 0.0), max(R[rb + r + 1], 0.0),
@@ -905,6 +905,12 @@ def shade_programs(rays, prim, u, v, t, inst, d, depth, code, pstart, pbase, out
             s_tran[i] = min(max(R[rb + r], 0.0), 1.0)
         if lobe_prog[2][mat, 0] >= 0:
             write_lobes(R, rb, mat, i, lobe_prog, lobe_surf)
+
+
+#: :func:`execute` compiled into the surface stage (:func:`shade_programs`) itself: called per hit, it passed every
+#: array's descriptor (~150 words) on each call, 65 → 12 ns per hit (docs/benchmarks.md); the shadow and world
+#: callers keep the shared compiled one.
+_execute_inline = kernel(inline=True, refcounts=False)(execute.py_func)
 
 
 @kernel(inline=True)
@@ -965,8 +971,8 @@ def shade_directions(code, pstart, pbase, outs, R0, R, mat, dirs, out, tdata, tp
     ``out`` (N, 3) (the world's Background colour × strength; the surface inputs read as Cycles' background: P =
     Generated = Object = the direction, N = −direction). The hit is built with the element types
     :func:`shade_programs` gives :func:`execute` (int32 triangle and instance, float32 barycentrics, ray length,
-    normals and direction, float64 position), so both share one compiled ``execute`` (a second would cost about 80 s
-    of compilation on a cold kernel cache)."""
+    normals and direction, float64 position), so that one compiled ``execute`` serves it and the shadow rays'
+    :func:`program_alpha` (:func:`shade_programs` inlines its own copy)."""
     for j in range(R0.shape[0]):
         R[j] = R0[j]
     geo = (uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored,
