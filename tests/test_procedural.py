@@ -43,6 +43,24 @@ def test_noise_value_is_the_textures_fac():
     assert np.array_equal(out[..., 0], out[..., 1])
 
 
+def test_fbm3_is_the_general_3d_fbm():
+    """fbm3 (the VM's path for an undistorted 3D fBM) gives noise_value's value to the bit, whole and fractional
+    detail, normalised or not, on scattered points (every gradient of the lattice)."""
+    from tracer.jit import kernel
+
+    @kernel
+    def both(pts, out):
+        for i in range(pts.shape[0]):
+            p = (pts[i, 0], pts[i, 1], pts[i, 2], 0.0)
+            for k, (detail, norm) in enumerate(((0.0, True), (2.0, True), (2.6, True), (3.4, False))):
+                out[i, k, 0] = noise.noise_value(p, 3, noise.FBM, 3.7, detail, 0.6, 2.2, 0.0, 1.0, 0.0, norm)
+                out[i, k, 1] = noise.fbm3(p[0], p[1], p[2], 3.7, detail, 0.6, 2.2, norm)
+
+    out = np.empty((500, 4, 2))
+    both(RNG.uniform(-40, 40, (500, 3)), out)
+    assert np.array_equal(out[..., 0], out[..., 1])
+
+
 def test_gradient_closed_forms():
     p = RNG.uniform(-1.5, 1.5, (500, 3))
     x, y, z = p.T

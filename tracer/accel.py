@@ -30,7 +30,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import embree, linking
+from . import alpha, embree, linking
 from .heap import trim
 from .motion import decompose
 from .scene import Scene
@@ -91,6 +91,9 @@ class Accelerator:
         links = linking.pack(scene, len(scene.lights))
         self._masks = links.object_mask if links.masked else None
         self._array_mask = links.array_mask
+        #: objects whose geometry the transparent-shadow filter sees (tracer/alpha.py)
+        self.filtered = alpha.see_through_objects(scene)
+        self._see_through = set(self.filtered.tolist())
         inst = scene.instances
         protos = set(np.unique(inst.prototypes).tolist()) if inst is not None else set()
         self.triangle_count = len(scene.triangles)
@@ -109,8 +112,8 @@ class Accelerator:
                 if cancelled is not None and cancelled():
                     raise embree.BuildCancelled("Embree set-up cancelled")
                 if oid in protos:
-                    self._prototypes[oid] = self._scene_of(embree.TriangleGeometry(
-                        self._vertices, self._triangles[s:e], self.quality))
+                    self._prototypes[oid] = self._scene_of(self._triangle_geometry(
+                        oid, self._vertices, self._triangles[s:e]))
                 else:
                     self._add(oid, self._vertices, self._triangles[s:e])
         if inst is not None:
@@ -238,8 +241,8 @@ class Accelerator:
             proto.mesh.detach(0)
             geometry = None
             if vertices is not None and len(triangles):
-                geometry = embree.TriangleGeometry(embree.padded(vertices, np.float32),
-                                                   embree.padded(triangles, np.int32), self.quality)
+                geometry = self._triangle_geometry(object_id, embree.padded(vertices, np.float32),
+                                                   embree.padded(triangles, np.int32))
                 proto.mesh.attach(geometry, 0)
             proto.mesh.commit()
             proto.geometry = geometry
@@ -279,8 +282,16 @@ class Accelerator:
         self._prototypes.clear()
 
     # ---------------------------------------------------------------------------------------------- internals
-    def _add(self, object_id, vertices, triangles):
+    def _triangle_geometry(self, object_id, vertices, triangles):
+        """The object's triangle geometry; one that may be see-through lets tracer/alpha.py's filter see its hits."""
         geometry = embree.TriangleGeometry(vertices, triangles, self.quality)
+        if object_id in self._see_through:
+            geometry.enable_argument_filter()
+            geometry.commit()
+        return geometry
+
+    def _add(self, object_id, vertices, triangles):
+        geometry = self._triangle_geometry(object_id, vertices, triangles)
         mo = self._motion
         if mo is not None and object_id in mo.deforming and vertices is getattr(self, "_vertices", None):
             geometry.set_vertex_steps(mo.vertex_steps)  # the same rows of each step's vertex buffer

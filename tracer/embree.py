@@ -177,6 +177,7 @@ _SIGNATURES = {  # name: (restype, argtypes)
     "rtcSetGeometryTransformQuaternion": (None, [_P, _UI, _P]),
     "rtcGetGeometryTransform": (None, [_P, ctypes.c_float, _I, _P]),
     "rtcSetGeometryMask": (None, [_P, _UI]),
+    "rtcSetGeometryEnableFilterFunctionFromArguments": (None, [_P, ctypes.c_bool]),
     "rtcGetSceneBounds": (None, [_P, _P]),
 }
 
@@ -364,6 +365,10 @@ class Geometry:
         """The rays this geometry is seen by: those whose mask ANDs non-zero with ``mask`` (then commit)."""
         self._lib.call("rtcSetGeometryMask", self.handle, int(mask) & MASK_ALL)
         self.commit()
+
+    def enable_argument_filter(self) -> None:
+        """Let the filter function a query passes in its arguments see this geometry's hits (tracer/alpha.py)."""
+        self._lib.call("rtcSetGeometryEnableFilterFunctionFromArguments", self.handle, True)
 
     def commit(self) -> None:
         self._lib.call("rtcCommitGeometry", self.handle)

@@ -35,7 +35,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import bsdf, compose, linking, lobes, optics, shading, sky, vec
+from . import alpha, bsdf, compose, linking, lobes, optics, shading, sky, vec
 from .accel import Accelerator
 from .environment import env_radiance, pack_environment
 from .jit import kernel
@@ -49,7 +49,7 @@ from .settings import RenderSettings
 from .shader_compile import pack_programs
 from .shader_spaces import object_spaces, set_camera
 from .shader_vm import cut as _cut
-from .shader_vm import program_alpha, shade_programs
+from .shader_vm import shade_programs
 from .surface import color_at, corner_normals, geometry_of, shading_frame
 from .texture import pack_textures
 
@@ -509,14 +509,16 @@ class Integrator:
         blocked = np.zeros(0, bool)
         if len(shadow.o):
             shadow_time = sample_time[shadow.sample] if timed else None
-            # grouped by light, shadow rays from neighbouring points form coherent packets (sky rays do not)
-            blocked = self.accel.occluded(shadow.o, shadow.d, shadow.t_max,
-                                          mask=linking.shadow_masks(self.links, shadow.light), time=shadow_time,
-                                          coherent=not self.sky_side, order=_by_light(shadow.light,
-                                                                                      len(self.lights.kind)))
+            masks = linking.shadow_masks(self.links, shadow.light)
+            if self.see_through and alpha.usable(self):  # see-through surfaces inside Embree's traversal
+                blocked = alpha.occluded(self, shadow, masks, shadow_time)
+            else:  # grouped by light, shadow rays from neighbouring points form coherent packets (sky rays do not)
+                blocked = self.accel.occluded(shadow.o, shadow.d, shadow.t_max, mask=masks, time=shadow_time,
+                                              coherent=not self.sky_side,
+                                              order=_by_light(shadow.light, len(self.lights.kind)))
             if self.compose.has_catcher:
                 self._catcher_light(out, shadow, np.concatenate(caught), blocked)
-            if self.see_through and blocked.any():
+            if self.see_through and blocked.any() and not alpha.usable(self):
                 blocked = self._through_shadows(shadow, blocked, shadow_time)
             _add_unoccluded(out.color, shadow.sample, shadow.color, blocked)
         parts = refl + tran
@@ -1171,34 +1173,15 @@ def _pass_shadow(sel, idx, t, prim, inst, overrides, normal_matrix, u, v, materi
             pending[j] = False
             blocked[r] = False
             continue
-        k = inst[q]
-        mat = material_ids[tri]
-        if k >= 0 and overrides[k] >= 0:
-            mat = overrides[k]
         dj = vec.row(d, j)
-        p = vec.madd(vec.row(o, j), dj, float(t[q]))
-        ng = vec.row(face_normals, tri)
-        if k >= 0:  # to world space by the instance's normal matrix (tracer.instances.to_world_normal)
-            ng = vec.normalize(mat3_apply(normal_matrix, k, ng))
-        front = vec.dot(ng, dj) < 0.0
-        if not front:
-            ng = vec.scale(ng, -1.0)
-        if outs[mat, 4] >= 0:  # OUT_ALPHA: the program's
-            a = _cut(program_alpha(code, pstart, pbase, outs, R, mat, tri, float(u[q]), float(v[q]), p, ng, front,
-                                   dj, float(t[q]), k, geo, tex), float(threshold[mat]))
-        else:
-            a = _cut(float(alphas[mat]), float(threshold[mat]))
+        a, f, p, ng = alpha.blocker(tri, inst[q], float(u[q]), float(v[q]), float(t[q]), vec.row(o, j), dj,
+                                    material_ids, overrides, normal_matrix, face_normals, alphas, threshold, code,
+                                    pstart, pbase, outs, R, lobe_extra, geo, tex)
         if a >= 1.0:
             pending[j] = False
             continue
-        rt = lobe_extra[mat, 0]
-        if rt >= 0:  # a sum of lobes (tracer.lobes): its pass-through colour (Transparent BSDF tints)
-            rt += pbase[mat]
-            for c in range(3):
-                color[r, c] *= max(R[rt + c], 0.0)
-        else:
-            for c in range(3):
-                color[r, c] *= 1.0 - a
+        for c in range(3):
+            color[r, c] *= f[c]
         o[j, 0], o[j, 1], o[j, 2] = spawn_ray(p, ng, dj, eps)
         t_max[j] = t_max[j] - t[q]
 

@@ -358,6 +358,8 @@ def _procedural(R, op, o, a, b, imm):
             f, c = pnoise.noise_texture(p4, e0, e1, R[b + 1], R[b + 2], R[b + 3], R[b + 4], R[b + 5], R[b + 6],
                                         R[b + 7], e2 != 0)
             R[o], R[o + 1], R[o + 2], R[o + 3] = f, c[0], c[1], c[2]
+        elif e0 == 3 and e1 == pnoise.FBM and R[b + 7] == 0.0:  # the common case, without the dispatch
+            R[o] = pnoise.fbm3(p3[0], p3[1], p3[2], R[b + 1], R[b + 2], R[b + 3], R[b + 4], e2 != 0)
         else:
             R[o] = pnoise.noise_value(p4, e0, e1, R[b + 1], R[b + 2], R[b + 3], R[b + 4], R[b + 5], R[b + 6],
                                       R[b + 7], e2 != 0)

@@ -47,6 +47,8 @@ def compile_kernels() -> None:
                               aovs=("depth",), transparent=True)
     render(b.build(), settings)
     render(_with_motion(b), settings)
+    b.materials[glass]["alpha"] = 1.0  # nothing see-through: shadow rays take plain occlusion (tracer/alpha.py)
+    render(b.build(), settings)
     from .jit import mark_kernels_cached
 
     mark_kernels_cached()

@@ -212,6 +212,28 @@ def fbm(p, dim, detail, roughness, lacunarity, normalize):
 
 
 @kernel
+def fbm3(x, y, z, scale, detail, roughness, lacunarity, normalize):
+    """:func:`noise_value` of a 3D fBM without distortion (the common Noise Texture), without the dimension and type
+    dispatch: the same operations in the same order as the general path, so the same value to the bit."""
+    detail = min(max(detail, 0.0), 15.0)
+    roughness = max(roughness, 0.0)
+    x, y, z = x * scale, y * scale, z * scale
+    fscale, amp, maxamp, total = 1.0, 1.0, 0.0, 0.0
+    for _ in range(int(detail) + 1):
+        total += snoise3(x * fscale, y * fscale, z * fscale) * amp
+        maxamp += amp
+        amp *= roughness
+        fscale *= lacunarity
+    rmd = detail - math.floor(detail)
+    if rmd != 0.0:
+        total2 = total + snoise3(x * fscale, y * fscale, z * fscale) * amp
+        if normalize:
+            return _lerp(0.5 * total / maxamp + 0.5, 0.5 * total2 / (maxamp + amp) + 0.5, rmd)
+        return _lerp(total, total2, rmd)
+    return 0.5 * total / maxamp + 0.5 if normalize else total
+
+
+@kernel
 def multi_fractal(p, dim, detail, roughness, lacunarity):
     """Π (1 + roughnessⁱ · snoise(lacunarityⁱ p)), the fraction scaling the last factor's noise."""
     value, pwr = 1.0, 1.0
