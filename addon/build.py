@@ -185,26 +185,52 @@ def _copy(src, dst):
     shutil.copyfile(src, dst)
 
 
-def build(out_dir: str = "dist", platforms=tuple(PLATFORMS), offline: bool = False, cache: str = CACHE) -> dict:
+#: Blender platforms whose zip carries kernels compiled ahead (tracer/kernel_bundle.py), for the baseline CPU of
+#: tracer.kernel_cache.BASELINE_CPU; they can only be compiled on such a machine (this one: x86-64 Linux).
+KERNEL_PLATFORMS = ("linux-x64",)
+#: The name Blender imports an extension's bundled tracer by when it is installed into the default repository.
+EXTENSION_TRACER = "bl_ext.user_default.whitted.tracer"
+
+
+def _kernels_here(platform: str) -> bool:
+    import platform as host
+
+    return platform in KERNEL_PLATFORMS and sys.platform.startswith("linux") and host.machine() in ("x86_64", "AMD64")
+
+
+def build(out_dir: str = "dist", platforms=tuple(PLATFORMS), offline: bool = False, cache: str = CACHE,
+          kernels: bool = True) -> dict:
     """Write one extension zip per platform into ``out_dir`` (removing older whitted zips there) with Blender's
-    builder; returns {platform: zip path}."""
+    builder; returns {platform: zip path}. The Linux zip carries the kernels compiled ahead (``kernels=False``
+    leaves them out)."""
     platforms = list(platforms)
     wheels = fetch_wheels(platforms, cache=cache, offline=offline)
     script = blender_ext_script()
     with open(os.path.join(ADDON, "blender_manifest.toml"), "rb") as f:
         manifest = tomllib.load(f)
+    made = {}
     with tempfile.TemporaryDirectory(prefix="whitted-ext-") as tmp:
-        src, out = os.path.join(tmp, "source"), os.path.join(tmp, "out")
-        os.makedirs(src)
-        os.makedirs(out)
-        stage(src, wheels, platforms)
-        cmd = [sys.executable, script, "build", "--source-dir", src, "--output-dir", out, "--split-platforms"]
-        proc = subprocess.run(cmd, capture_output=True, text=True)
-        made = {p: os.path.join(out, f"{manifest['id']}-{manifest['version']}-{p.replace('-', '_')}.zip")
-                for p in platforms}
-        if proc.returncode != 0 or not all(os.path.isfile(z) for z in made.values()):
-            raise BuildError(f"Blender's extension builder failed:\n  command: {' '.join(cmd)}\n"
-                             f"  it said: {(proc.stdout + proc.stderr).strip()[-1500:]}")
+        bundle = None
+        for p in platforms:  # one staged source per platform: only some carry kernels
+            src, out = os.path.join(tmp, p, "source"), os.path.join(tmp, p, "out")
+            os.makedirs(src)
+            os.makedirs(out)
+            mine = [w for w in wheels if w in fetch_wheels([p], cache=cache, offline=True)]
+            stage(src, mine, [p])
+            if kernels and _kernels_here(p):
+                if bundle is None:
+                    from tracer import kernel_bundle
+
+                    bundle = os.path.join(tmp, "kernels")
+                    kernel_bundle.build(bundle, package=EXTENSION_TRACER, tracer_dir=os.path.join(src, "tracer"))
+                shutil.copytree(bundle, os.path.join(src, "kernels"))
+            cmd = [sys.executable, script, "build", "--source-dir", src, "--output-dir", out, "--split-platforms"]
+            proc = subprocess.run(cmd, capture_output=True, text=True)
+            z = os.path.join(out, f"{manifest['id']}-{manifest['version']}-{p.replace('-', '_')}.zip")
+            if proc.returncode != 0 or not os.path.isfile(z):
+                raise BuildError(f"Blender's extension builder failed:\n  command: {' '.join(cmd)}\n"
+                                 f"  it said: {(proc.stdout + proc.stderr).strip()[-1500:]}")
+            made[p] = z
         os.makedirs(out_dir, exist_ok=True)
         for old in glob.glob(os.path.join(out_dir, f"{manifest['id']}-*.zip")):
             os.unlink(old)
@@ -221,9 +247,11 @@ def main(argv=None):
     ap.add_argument("--platform", action="append", choices=sorted(PLATFORMS),
                     help="Blender platform(s) to bundle the wheels for (default: all)")
     ap.add_argument("--offline", action="store_true", help="use cached wheels only, never run pip")
+    ap.add_argument("--no-kernels", action="store_true", help="leave the kernels compiled ahead out of the Linux zip")
     args = ap.parse_args(argv)
     try:
-        paths = build(args.out_dir, args.platform or tuple(PLATFORMS), offline=args.offline)
+        paths = build(args.out_dir, args.platform or tuple(PLATFORMS), offline=args.offline,
+                      kernels=not args.no_kernels)
     except BuildError as exc:
         print(f"addon.build: {exc}", file=sys.stderr)
         return 1

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from . import export, sync, viewport
+from . import export, kernels, sync, viewport
 from .bundled import tracer
 from .export import viewport_camera
 
@@ -281,10 +281,10 @@ class _Job:
     def trace(self, run, scene) -> None:
         """``run(on_tile)`` renders (tracer.render or a kept session's render); the report is recorded."""
         engine = self.engine
-        # The first render on a machine compiles the tracer's kernels (numba, cached on disk afterwards); the
-        # add-on started that on a thread when it was enabled, so this mostly waits for it or returns at once.
-        engine.update_stats("", "Whitted: preparing kernels (the first render on this machine compiles them, ~10 s)")
-        tracer.compile_kernels()
+        # The first render of a new version waits for the kernels, prepared in a separate process since the add-on
+        # was enabled (addon/kernels.py); sleeping here keeps Blender responsive and Esc works.
+        if not kernels.wait(cancelled=self.cancelled, on_status=lambda text: engine.update_stats("", text)):
+            return self.stopped("kernels")
         engine.update_stats("", f"Whitted: tracing {len(scene.triangles):,} triangles, {len(scene.lights)} lights")
         try:
             image = run(self.tile_writer(scene))
@@ -382,17 +382,10 @@ def _tile_z(camera, distance, tile, width, height):
 
 def register():
     bpy.utils.register_class(WhittedRenderEngine)
-    # Compile (first run on this machine) or load the kernels now, off the UI thread, so the first F12 or
-    # viewport does not freeze Blender for the ~10 s of a first compile.
-    threading.Thread(target=_prepare_kernels, name="whitted-compile", daemon=True).start()
-
-
-def _prepare_kernels():
-    try:
-        tracer.compile_kernels()
-    except Exception as exc:  # reported again, in context, by the first render that needs them
-        print(f"Whitted: preparing the kernels failed: {exc}")
+    # Shipped kernels where they fit; the rest prepared in a child process, never in Blender's (addon/kernels.py).
+    kernels.start()
 
 
 def unregister():
+    kernels.stop()
     bpy.utils.unregister_class(WhittedRenderEngine)

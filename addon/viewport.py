@@ -186,6 +186,11 @@ class ViewportRender:
         return [(level, 1) for level in levels(size)] + [(1, n) for n in AA_PASSES]
 
     def _run(self):
+        from . import kernels
+
+        # a first use of this version: the kernels are prepared in a separate process (addon/kernels.py)
+        if not kernels.wait(cancelled=lambda: self._stop):
+            return
         while True:
             with self._lock:
                 self._lock.wait_for(lambda: self._stop or (self._ready() and (self._edits or not self._converged())))

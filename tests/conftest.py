@@ -10,6 +10,9 @@ import pytest
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 if ROOT not in sys.path:
     sys.path.insert(0, ROOT)
+# The suite's kernels go to the checkout's own cache (cold in a fresh clone, as CI's is; shared by the test
+# processes, Blender children included), not to the user's ~/.cache/whitted/kernels.
+os.environ.setdefault("WHITTED_KERNEL_CACHE", os.path.join(ROOT, ".cache", "kernels"))
 
 
 @pytest.fixture

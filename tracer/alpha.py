@@ -117,25 +117,25 @@ def _ptr(typingctx, address):
     return types.voidptr(address), codegen
 
 
-@kernel(inline=True)
+@kernel(inline="always")
 def _a1(table, i, dtype):
     e = i * _ENTRY
     return carray(_ptr(table[e]), (table[e + 1],), dtype)
 
 
-@kernel(inline=True)
+@kernel(inline="always")
 def _a2(table, i, dtype):
     e = i * _ENTRY
     return carray(_ptr(table[e]), (table[e + 1], table[e + 2]), dtype)
 
 
-@kernel(inline=True)
+@kernel(inline="always")
 def _a3(table, i, dtype):
     e = i * _ENTRY
     return carray(_ptr(table[e]), (table[e + 1], table[e + 2], table[e + 3]), dtype)
 
 
-@kernel(inline=True)
+@kernel(inline="always")
 def _a4(table, i, dtype):
     e = i * _ENTRY
     return carray(_ptr(table[e]), (table[e + 1], table[e + 2], table[e + 3], table[e + 4]), dtype)
@@ -218,18 +218,12 @@ def filter_address() -> int:
     """The C address of :func:`_occlusion_filter`, compiled (and cached on disk with the kernels) on first use."""
     global _FILTER
     if _FILTER is None:
-        saved = numba.config.CACHE_DIR
-        if jit._CACHE_DIR is not None:
-            numba.config.CACHE_DIR = jit._CACHE_DIR
-        try:
-            _FILTER = numba.cfunc(types.void(types.voidptr), cache=True, error_model="numpy")(_occlusion_filter)
-        finally:
-            numba.config.CACHE_DIR = saved
+        _FILTER = jit.cfunc(types.void(types.voidptr), _occlusion_filter)
     return _FILTER.address
 
 
 # ---------------------------------------------------------------------------------------------- the query
-@kernel(inline=True)
+@kernel(inline=True, refcounts=True)
 def _aligned_words(n):
     """n zeroed 8-byte words starting 16-byte aligned (Embree's argument structs are RTC_ALIGN(16))."""
     raw = np.zeros(n + 2, np.uint64)

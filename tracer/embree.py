@@ -564,7 +564,7 @@ def query(coherent: bool = False, width: int | None = None) -> int:
     return width | (COHERENT if coherent else 0)
 
 
-@kernel(inline=True)
+@kernel(inline=True, refcounts=True)
 def _aligned(n, dtype):
     """A work array of n 4-byte words starting 64-byte aligned (RTCRayHit16 and its valid mask need it)."""
     raw = np.empty(n + 16, dtype)
@@ -572,7 +572,7 @@ def _aligned(n, dtype):
     return raw[off:off + n]
 
 
-@kernel(inline=True)
+@kernel(inline=True, refcounts=True)
 def _query_args(q):
     """An RTCIntersectArguments (= RTCOccludedArguments) for query ``q``: its flags, every feature, NULL pointers."""
     a = _aligned(_ARGS_WORDS, np.uint32)

@@ -1,15 +1,23 @@
-"""How the tracer's kernels are compiled: numba, ahead of the first use, cached on disk, without the GIL.
+"""How the tracer's kernels are compiled: numba, in small units, cached on disk by content, without the GIL.
 
 Every hot loop of the tracer (one iteration per ray or per hit) is a numba function: the per-ray maths stays in
 plain scalar Python that reads like the notes, and runs at compiled speed on the tile threads. ``kernel`` is the
-one decorator they all use:
+one decorator they all use, in three kinds:
 
-- ``cache=True``: compiled machine code is stored in ``NUMBA_CACHE_DIR`` when that is set, else in
-  ``tracer/__pycache__/kernels-<hash>``, else, where that folder is not writable, in the user's cache directory;
-  only the first render on a machine pays the compilation (about 10 s for all kernels). ``<hash>`` is a hash of
-  every tracer source file: numba's own cache check looks only at the file a kernel is defined in, so a kernel
-  that inlines a function from another module (the integrator calls ``optics.reflect_dir``) would otherwise keep
-  running stale machine code after that module changed;
+- ``@kernel``: a stage called from Python (a tile's eye rays, the direct-light stage, ...).
+- ``@kernel(inline=True)``: a helper called from other kernels (a BSDF, a light's sample, a noise). It is its own
+  compile unit, compiled once per argument types however many kernels call it; LLVM inlines it into its callers
+  where that pays (numba links a callee's optimised IR into each caller before optimising the caller). It gets no
+  Python wrapper (a call from Python, as tests make, compiles a separate Python-callable copy on demand) and no
+  reference counting (``refcounts=False``) unless it says otherwise.
+- ``@kernel(inline="always")``: numba copies the function's IR into every caller before typing it. Only for tiny
+  leaf helpers (tracer/vec.py's vector maths): numba types an inlined body again at every call site, so a large
+  one multiplies the compile time (a 2 000-line inlined stage took 54 s to compile; docs/benchmarks.md).
+
+Options of every kernel:
+
+- cached on disk by content (:mod:`tracer.kernel_cache`): each kernel's key covers the modules and values it
+  reaches, in the user's cache folder; kernels shipped ahead for a CPU baseline are loaded from there;
 - ``nogil=True``: tiles run their kernels in parallel on the render thread pool;
 - ``error_model="numpy"``: a division by zero gives inf/NaN as numpy would (the integrator clears non-finite
   pixels) instead of raising, and lets loops compile without the checks.
@@ -21,118 +29,74 @@ distant lights) behaving as IEEE says.
 from __future__ import annotations
 
 import functools
-import hashlib
 import os
 import threading
 
 import numba
-from numba.core.caching import FunctionCache
+import numba.core.event
 
-_OPTIONS = dict(cache=True, nogil=True, error_model="numpy")
+from . import kernel_cache
 
+_OPTIONS = dict(nogil=True, error_model="numpy")
+#: A helper's unit: no Python or C wrapper (only kernels call it).
+_HELPER = dict(no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
-def _cache_dir() -> str | None:
-    """Where this version of the tracer's sources keeps its kernels (None: ``NUMBA_CACHE_DIR`` decides)."""
-    if os.environ.get("NUMBA_CACHE_DIR"):
-        return None
-    here = os.path.dirname(os.path.abspath(__file__))
-    h = hashlib.sha1()
-    for name in sorted(_sources(here)):  # subpackages too: the VM inlines tracer.procedural's functions
-        with open(os.path.join(here, name), "rb") as f:
-            h.update(name.encode() + b"\0" + f.read())
-    leaf = f"kernels-{h.hexdigest()[:16]}"
-    _prune(os.path.join(here, "__pycache__"), leaf)
-    for base in (os.path.join(here, "__pycache__"),
-                 os.path.join(os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "whitted")):
-        try:
-            os.makedirs(os.path.join(base, leaf), exist_ok=True)
-            if os.access(os.path.join(base, leaf), os.W_OK):
-                return os.path.join(base, leaf)
-        except OSError:
-            continue
-    return None
-
-
-def _sources(here: str) -> list:
-    """Every .py file under ``here`` (relative paths), subpackages included."""
-    out = []
-    for root, dirs, files in os.walk(here):
-        dirs[:] = [d for d in dirs if d != "__pycache__"]
-        out += [os.path.relpath(os.path.join(root, f), here) for f in files if f.endswith(".py")]
-    return out
-
-
-def _prune(base: str, keep: str, versions: int = 3) -> None:
-    """Remove kernel folders of older source versions beyond the newest few (best effort)."""
-    import shutil
-
-    try:
-        old = sorted((e for e in os.scandir(base) if e.is_dir() and e.name.startswith("kernels-") and e.name != keep),
-                     key=lambda e: e.stat().st_mtime, reverse=True)
-    except OSError:
-        return
-    for e in old[versions:]:
-        shutil.rmtree(e.path, ignore_errors=True)
-
-
-_CACHE_DIR = _cache_dir()
 #: Written into the kernel cache folder once :func:`tracer.compile_kernels` has compiled every kernel there.
 _WARM_MARKER = ".all-kernels-compiled"
 
 
+def _marker() -> str:
+    """The marker of this version of the tracer's sources (any edit under tracer/ makes a new one)."""
+    import hashlib
+
+    here = os.path.dirname(os.path.abspath(__file__))
+    h = hashlib.sha256()
+    for root, dirs, files in sorted(os.walk(here)):
+        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
+        for name in sorted(f for f in files if f.endswith(".py")):
+            with open(os.path.join(root, name), "rb") as f:
+                h.update(name.encode() + b"\0" + f.read())
+    return os.path.join(kernel_cache.cache_root(), f"{_WARM_MARKER}-{h.hexdigest()[:16]}")
+
+
 def kernels_cached() -> bool:
     """True where an earlier process compiled every kernel of these sources into the cache (loading them is then
-    quick, and a warm-up render would only cost time). False with ``NUMBA_CACHE_DIR``, which numba manages."""
-    return _CACHE_DIR is not None and os.path.exists(os.path.join(_CACHE_DIR, _WARM_MARKER))
+    quick, and a warm-up render would only cost time)."""
+    return os.path.exists(_marker())
 
 
 def mark_kernels_cached() -> None:
     """Record that every kernel is in the cache (called by :func:`tracer.compile_kernels`)."""
-    if _CACHE_DIR is not None:
-        try:
-            with open(os.path.join(_CACHE_DIR, _WARM_MARKER), "w") as f:
-                f.write("numba cache complete\n")
-        except OSError:
-            pass
+    try:
+        os.makedirs(kernel_cache.cache_root(), exist_ok=True)
+        with open(_marker(), "w") as f:
+            f.write("numba cache complete\n")
+    except OSError:
+        pass
 
 
-class _KernelCache(FunctionCache):
-    """numba's on-disk cache of one kernel, loading a cached specialisation without numba's full target set-up.
+def kernel(fn=None, *, inline: bool | str = False, refcounts: bool | None = None):
+    """Compile ``fn`` with the tracer's options: a stage (default), a helper unit (``inline=True``) or an inlined
+    leaf (``inline="always"``); see the module.
 
-    numba's ``Cache.load_overload`` refreshes the CPU target before every load: the first time in a process that
-    imports some forty modules of numba (typed containers, np.random, polynomials, datetime, ...) and installs
-    their typing and lowering registries, 90 ms of a 0.7 s ``whitted render`` of one sphere. Machine code loaded
-    from the cache needs none of it, only numba's runtime (NRT, initialised here as the refresh would); compiling
-    still gets it all, since numba's compiler refreshes the target itself before typing anything
-    (``compiler.compile_extra``), as does a lowering lookup that misses (``BaseContext.get_function``)."""
+    ``refcounts=False`` for code that allocates nothing: numba's runtime (NRT) is left out of it, so the arrays it
+    reads are borrowed from the caller for the call and no reference counting is emitted at all (numba's ``_nrt``
+    flag). numba counts references to every array a function is handed, atomically, and cannot prune them across
+    branches: for the stages that cost 3-20 % (docs/benchmarks.md). A kernel that allocates (np.empty …) fails to
+    compile with this set, at once. Default: on for stages, off for helpers; a helper that allocates or returns an
+    array says ``refcounts=True`` (its caller owns what it returns).
 
-    def load_overload(self, sig, target_context):
-        from numba.core.runtime import rtsys
-
-        rtsys.initialize(target_context)
-        with self._guard_against_spurious_io_errors():
-            return self._load_overload(sig, target_context)
-
-
-#: numba versions whose cache has the two internals :class:`_KernelCache` relies on (else numba's own is kept).
-_LIGHT_LOADS = all(hasattr(FunctionCache, name) for name in ("_load_overload", "_guard_against_spurious_io_errors"))
-
-
-def kernel(fn=None, *, inline: bool = False, refcounts: bool = True):
-    """Compile ``fn`` with the tracer's options; ``inline=True`` for small helpers called from other kernels.
-
-    ``refcounts=False`` for a per-ray stage that allocates nothing: numba's runtime (NRT) is left out of it, so the
-    arrays it reads are borrowed from the caller for the call and no reference counting is emitted at all
-    (numba's ``_nrt`` flag). numba counts references to every array an inlined helper is handed, atomically, and
-    cannot prune them across branches: after moving NamedTuples out of the helpers' arguments, what was left cost
-    the textures stage 20 % and the other stages 3-10 % (docs/benchmarks.md). A kernel that allocates (np.empty
-    …) fails to compile with this set, at once.
-
-    The numba dispatcher is made when the kernel is first used (:class:`Kernel`), not at import: a render uses
-    about 20 of the tracer's ~370 kernels, and making a dispatcher costs 0.2 ms."""
-    opts = dict(_OPTIONS, inline="always") if inline else dict(_OPTIONS)
-    if not refcounts:
-        opts["_nrt"] = False
+    The numba dispatcher is made when the kernel is first used (:class:`Kernel`), not at import: a render uses a
+    fraction of the tracer's kernels, and making a dispatcher costs 0.2 ms."""
+    if inline not in (False, True, "always", "call"):
+        raise ValueError(f"kernel(inline={inline!r}): False, True, 'call' or 'always'")
+    # forceinline and _nrt set either way: numba hands an unset one down from the kernel whose compile triggers this
+    opts = dict(_OPTIONS, forceinline=inline is True)
+    if inline == "always":
+        opts["inline"] = "always"
+    elif inline:
+        opts.update(_HELPER)
+    opts["_nrt"] = not (refcounts is False or (refcounts is None and inline in (True, "call")))
 
     def wrap(f):
         return Kernel(f, opts)
@@ -143,19 +107,65 @@ def kernel(fn=None, *, inline: bool = False, refcounts: bool = True):
 _MAKING = threading.RLock()
 
 
+class CompileProgress(numba.core.event.Listener):
+    """Calls ``report(units_done, kernel_name, seconds)`` as numba finishes each of the tracer's compile units, on
+    whichever thread compiles it (for a front end's status line: the first render of a new version compiles what
+    it uses, a unit at a time). Use as a context manager around the work, or :meth:`install` for the process."""
+
+    def __init__(self, report):
+        self.report, self.done, self._start = report, 0, None
+
+    def on_start(self, event):
+        if self._start is None:
+            import time
+
+            self._start = time.perf_counter()
+
+    def on_end(self, event):
+        import time
+
+        f = getattr(event.data.get("dispatcher"), "py_func", None)
+        if f is None or not kernel_cache._ours(f.__module__):
+            return
+        self.done += 1
+        self.report(self.done, f"{f.__module__.removeprefix('tracer.')}.{f.__qualname__}",
+                    time.perf_counter() - self._start)
+
+    def install(self):
+        numba.core.event.register("numba:compile", self)
+        return self
+
+    def uninstall(self):
+        numba.core.event.unregister("numba:compile", self)
+
+    def __enter__(self):
+        return self.install()
+
+    def __exit__(self, *exc):
+        self.uninstall()
+
+
 def _dispatcher(f, opts: dict):
-    """numba's dispatcher of ``f``, caching into this source version's folder."""
-    with _MAKING:  # numba picks a function's cache location when it is decorated, from its global config
-        saved = numba.config.CACHE_DIR
-        if _CACHE_DIR is not None:
-            numba.config.CACHE_DIR = _CACHE_DIR
-        try:
-            dispatcher = numba.njit(**opts)(f)
-        finally:
-            numba.config.CACHE_DIR = saved
-    if _LIGHT_LOADS and type(getattr(dispatcher, "_cache", None)) is FunctionCache:
-        dispatcher._cache.__class__ = _KernelCache
+    """numba's dispatcher of ``f``, cached by content (:class:`tracer.kernel_cache.KernelCache`)."""
+    dispatcher = numba.njit(**opts)(f)
+    if opts.get("inline") != "always":  # an inlined body is never compiled on its own
+        dispatcher._cache = kernel_cache.KernelCache(f, opts)
     return dispatcher
+
+
+def cfunc(signature, fn):
+    """``numba.cfunc(signature)(fn)`` with the tracer's options (a C callback, e.g. Embree's filter), cached by
+    content like the kernels."""
+    from numba.core.ccallback import CFunc
+    from numba.core.typing import signature as make_signature
+
+    opts = dict(error_model="numpy")
+    made = CFunc(fn, signature if isinstance(signature, tuple) else (signature.args, signature.return_type),
+                 locals={}, options=opts)
+    made._cache = kernel_cache.KernelCache(fn, dict(opts, cfunc=str(make_signature(signature.return_type,
+                                                                                  *signature.args))))
+    made.compile()
+    return made
 
 
 class Kernel:
@@ -186,10 +196,19 @@ class Kernel:
         return self.dispatcher._numba_type_
 
     def __call__(self, *args, **kwargs):
-        return self.dispatcher(*args, **kwargs)
+        """A call from Python. A helper unit has no Python wrapper: its Python-callable copy is compiled (and cached)
+        on the first such call, as tests make them."""
+        if not self._opts.get("no_cpython_wrapper"):
+            return self.dispatcher(*args, **kwargs)
+        py = self.__dict__.get("_py")
+        if py is None:
+            with _MAKING:
+                opts = {k: v for k, v in self._opts.items() if k not in _HELPER}
+                py = self.__dict__.setdefault("_py", _dispatcher(self._fn, opts))
+        return py(*args, **kwargs)
 
     def __getattr__(self, name):
-        if name.startswith("__") or name in ("_fn", "_opts", "_made"):  # not set yet (copy, pickle), or dunder
+        if name.startswith("__") or name in ("_fn", "_opts", "_made", "_py"):  # not set yet (copy, pickle), or dunder
             raise AttributeError(name)
         return getattr(self.dispatcher, name)
 

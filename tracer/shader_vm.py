@@ -165,7 +165,20 @@ def _box_lookup(tdata, tparams, ti, co, nrm, blend, lod):
     return r, g, b, al
 
 
-@kernel(refcounts=False)
+@kernel(inline="always")
+def make_hit(tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye):
+    """The ``hit`` tuple :func:`execute` reads, with one set of element types whoever builds it (the surfaces'
+    textures stage, shadow rays' alpha, the world), so that ``execute`` is compiled once: int32 triangle and
+    instance, float32 barycentrics, normals, direction and ray length, float64 position, footprint and eye."""
+    return (np.int32(tri), np.float32(u), np.float32(v), (np.float64(p[0]), np.float64(p[1]), np.float64(p[2])),
+            (np.float32(n[0]), np.float32(n[1]), np.float32(n[2])),
+            (np.float32(ng[0]), np.float32(ng[1]), np.float32(ng[2])), np.bool_(front),
+            (np.float32(d[0]), np.float32(d[1]), np.float32(d[2])), np.float32(t_len), np.int64(depth),
+            np.int32(k_inst), np.float64(footprint), np.bool_(shadow),
+            (np.float64(eye[0]), np.float64(eye[1]), np.float64(eye[2])))
+
+
+@kernel(inline=True)
 def execute(code, pc0, pc1, R, base, hit, geo, tex):
     """Run instructions pc0..pc1 of ``code`` for one hit, registers ``R[base + …]``. ``hit`` = (tri, u, v, p, n, ng,
     front, d, ray length, depth, instance, footprint, shadow ray?, eye), ``geo`` = (uv_sets, colors, has_colors,
@@ -345,7 +358,7 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
             R[o], R[o + 1], R[o + 2] = x
 
 
-@kernel(refcounts=False)
+@kernel(inline="call")
 def _procedural(R, op, o, a, b, imm):
     """A procedural texture node (tracer.procedural, Cycles' algorithms) at the vector R[a…], its other inputs the
     block R[b…] (per op below), its enums in ``imm`` (4 bits each, low first)."""
@@ -876,8 +889,8 @@ def shade_programs(rays, prim, u, v, t, inst, d, depth, code, pstart, pbase, out
                       + lk[k_inst, 0, 2] * (lk[k_inst, 1, 0] * lk[k_inst, 2, 1] - lk[k_inst, 1, 1] * lk[k_inst, 2, 0]))
             footprint /= max(det, 1e-30) ** (1.0 / 3.0)
         rb = pbase[mat]
-        hit = (tri, ui, vi, p, n, ng, s_front[i], di, float(t[i]), depth, k_inst, footprint, False, eye)
-        _execute_inline(code, pstart[mat], pstart[mat + 1], R, rb, hit, geo, tex)
+        hit = make_hit(tri, ui, vi, p, n, ng, s_front[i], di, t[i], depth, k_inst, footprint, False, eye)
+        execute(code, pstart[mat], pstart[mat + 1], R, rb, hit, geo, tex)
         r = outs[mat, OUT_BASE]
         if r >= 0:
             s_base[i, 0], s_base[i, 1], s_base[i, 2] = (max(R[rb + r], 0.0), max(R[rb + r + 1], 0.0),
@@ -905,12 +918,6 @@ def shade_programs(rays, prim, u, v, t, inst, d, depth, code, pstart, pbase, out
             s_tran[i] = min(max(R[rb + r], 0.0), 1.0)
         if lobe_prog[2][mat, 0] >= 0:
             write_lobes(R, rb, mat, i, lobe_prog, lobe_surf)
-
-
-#: :func:`execute` compiled into the surface stage (:func:`shade_programs`) itself: called per hit, it passed every
-#: array's descriptor (~150 words) on each call, 65 → 12 ns per hit (docs/benchmarks.md); the shadow and world
-#: callers keep the shared compiled one.
-_execute_inline = kernel(inline=True, refcounts=False)(execute.py_func)
 
 
 @kernel(inline=True)
@@ -959,7 +966,7 @@ def program_alpha(code, pstart, pbase, outs, R, mat, tri, u, v, p, ng, front, d,
     """The alpha a material's program gives at a hit seen by a shadow ray (Light Path: Is Shadow Ray = 1; ``geo``,
     ``tex``: :func:`execute`'s)."""
     rb = pbase[mat]
-    hit = (tri, u, v, p, ng, ng, front, d, t_len, 1, k_inst, 0.0, True, p)
+    hit = make_hit(tri, u, v, p, ng, ng, front, d, t_len, 1, k_inst, 0.0, True, p)
     execute(code, pstart[mat], pstart[mat + 1], R, rb, hit, geo, tex)
     return R[rb + outs[mat, OUT_ALPHA]]
 
@@ -972,7 +979,7 @@ def shade_directions(code, pstart, pbase, outs, R0, R, mat, dirs, out, tdata, tp
     Generated = Object = the direction, N = −direction). The hit is built with the element types
     :func:`shade_programs` gives :func:`execute` (int32 triangle and instance, float32 barycentrics, ray length,
     normals and direction, float64 position), so that one compiled ``execute`` serves it and the shadow rays'
-    :func:`program_alpha` (:func:`shade_programs` inlines its own copy)."""
+    :func:`program_alpha` (:func:`make_hit`)."""
     for j in range(R0.shape[0]):
         R[j] = R0[j]
     geo = (uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored,
@@ -987,6 +994,6 @@ def shade_directions(code, pstart, pbase, outs, R0, R, mat, dirs, out, tdata, tp
         di = vec.row(dirs, i)  # float32, as a ray's direction
         nb = (-di[0], -di[1], -di[2])  # float32, as the surfaces stage's normals
         p = (np.float64(di[0]), np.float64(di[1]), np.float64(di[2]))  # float64, as its positions
-        hit = (none, zero, zero, p, nb, nb, front, di, far, depth, none, 0.0, False, eye)
+        hit = make_hit(none, zero, zero, p, nb, nb, front, di, far, depth, none, 0.0, False, eye)
         execute(code, pstart[mat], pstart[mat + 1], R, rb, hit, geo, tex)
         out[i, 0], out[i, 1], out[i, 2] = R[rb + r], R[rb + r + 1], R[rb + r + 2]

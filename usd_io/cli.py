@@ -274,15 +274,30 @@ def _render_vars(info, settings, outputs):
 
 
 def _prepare_kernels(quiet: bool) -> None:
-    """After the input has been checked (bad input stays one line): compile the kernels unless they are cached (a
-    warm cache loads each kernel as the render first uses it)."""
+    """Kernels are compiled as the render first uses them (only those it uses: tracer/jit.py) and loaded from the
+    cache after that. Where this version's kernels are not all cached yet, say so and count the compile units as
+    they finish (once per process)."""
     global _kernels_ready
-    if not _kernels_ready:
-        from tracer.jit import kernels_cached
+    if _kernels_ready:
+        return
+    _kernels_ready = True
+    from tracer.jit import kernels_cached
 
-        if not kernels_cached():
-            _compile_kernels(quiet=quiet)
-        _kernels_ready = True
+    if quiet or kernels_cached():
+        return
+    import time
+
+    from tracer.jit import CompileProgress
+
+    last = [0.0]
+
+    def report(done, name, seconds):
+        if seconds - last[0] >= 2.0 or done == 1:
+            last[0] = seconds
+            print(f"whitted: compiling kernels (first use of this version on this machine, then cached): {done} "
+                  f"done in {seconds:.0f} s, last {name}", file=sys.stderr, flush=True)
+
+    CompileProgress(report).install()
 
 
 def _warn_not_finite(rgba: np.ndarray, scene_path: str) -> None:
@@ -295,22 +310,22 @@ def _warn_not_finite(rgba: np.ndarray, scene_path: str) -> None:
 
 
 def _compile_kernels(quiet: bool) -> None:
-    """Compile (first run on a machine) or load the tracer's kernels, saying so when that takes a while."""
-    import threading
-
+    """Compile (or load) every kernel of every render path, counting compile units on stderr unless ``quiet``."""
     from tracer import compile_kernels
+    from tracer.jit import CompileProgress
 
-    notice = threading.Timer(1.0, lambda: print("whitted: compiling the tracer's kernels (first run on this machine "
-                                                "only, about 10 s)", file=sys.stderr, flush=True))
-    if not quiet:
-        notice.start()
-    try:
+    def report(done, name, seconds):
+        print(f"\rwhitted: compiling kernels: {done} done, {seconds:.0f} s ({name})\033[K", end="",
+              file=sys.stderr, flush=True)
+
+    progress = CompileProgress(report if not quiet else (lambda *a: None))
+    with progress:
         compile_kernels()
         from tracer.png_stream import to_display_fast
 
         to_display_fast(np.zeros((1, 1, 4), np.float32))  # the PNG stream's kernel (usd_io.outputs.Outputs.stream)
-    finally:
-        notice.cancel()
+    if progress.done and not quiet:
+        print(file=sys.stderr)
 
 
 def cmd_info(args) -> int:
@@ -372,7 +387,7 @@ def cmd_warmup(args) -> int:
 
     start = time.perf_counter()
     was = kernels_cached()
-    _compile_kernels(quiet=True)
+    _compile_kernels(quiet=not sys.stderr.isatty())
     print(f"whitted: kernels {'were already compiled' if was else 'compiled'} "
           f"({time.perf_counter() - start:.1f} s)", file=sys.stderr)
     return 0

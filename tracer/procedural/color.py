@@ -80,7 +80,7 @@ _WAVELENGTH_SCALE = 1.0 / 2.52
 
 
 # ---------------------------------------------------------------------------------------------- Cycles' HSV / HSL
-@kernel(inline=True)
+@kernel(inline="call")
 def rgb_to_hsv(c):
     """Cycles' rgb_to_hsv (util/color.h): hue in [0, 1), saturation, value = max component."""
     r, g, b = c
@@ -104,7 +104,7 @@ def rgb_to_hsv(c):
     return (h, s, v)
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def hsv_to_rgb(c):
     """Cycles' hsv_to_rgb (util/color.h)."""
     h, s, v = c
@@ -131,7 +131,7 @@ def hsv_to_rgb(c):
     return (v, p, q)
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def rgb_to_hsl(c):
     """Cycles' rgb_to_hsl (util/color.h)."""
     r, g, b = c
@@ -151,7 +151,7 @@ def rgb_to_hsl(c):
     return (h / 6.0, s, lum)
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _hue_to_rgb(p, q, t):
     if t < 0.0:
         t += 1.0
@@ -166,7 +166,7 @@ def _hue_to_rgb(p, q, t):
     return p
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def hsl_to_rgb(c):
     """Cycles' hsl_to_rgb (util/color.h)."""
     h, s, lum = c
@@ -177,7 +177,7 @@ def hsl_to_rgb(c):
     return (_hue_to_rgb(p, q, h + 1.0 / 3.0), _hue_to_rgb(p, q, h), _hue_to_rgb(p, q, h - 1.0 / 3.0))
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _lerp3(a, b, t):
     return ((1.0 - t) * a[0] + t * b[0], (1.0 - t) * a[1] + t * b[1], (1.0 - t) * a[2] + t * b[2])
 
@@ -257,7 +257,7 @@ BLEND_TYPES = {"MIX": MIX, "DARKEN": DARKEN, "MULTIPLY": MULTIPLY, "BURN": BURN,
                "DIVIDE": DIVIDE, "HUE": HUE, "SATURATION": SATURATION, "VALUE": VALUE, "COLOR": COLOR}
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _dodge1(a, b, t):
     if a == 0.0:
         return a
@@ -268,7 +268,7 @@ def _dodge1(a, b, t):
     return 1.0 if tmp > 1.0 else tmp
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _burn1(a, b, t):
     tmp = (1.0 - t) + t * b
     if tmp <= 0.0:
@@ -277,7 +277,7 @@ def _burn1(a, b, t):
     return min(max(tmp, 0.0), 1.0)
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _overlay1(a, b, t):
     tm = 1.0 - t
     if a < 0.5:
@@ -285,13 +285,13 @@ def _overlay1(a, b, t):
     return 1.0 - (tm + 2.0 * t * (1.0 - b)) * (1.0 - a)
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _soft1(a, b, t):
     scr = 1.0 - (1.0 - b) * (1.0 - a)
     return (1.0 - t) * a + t * ((1.0 - a) * b * a + a * scr)
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _divide1(a, b, t):
     return (1.0 - t) * a + t * a / b if b != 0.0 else a
 
@@ -532,18 +532,18 @@ def color_ramp_table(positions, colors, interpolation="LINEAR", color_mode="RGB"
                                         hue_interpolation) for i in range(size)], np.float32)
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _entry(table, i, k):
     return float(table[i, k]) if k < table.shape[1] else 0.0
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _extrap(table, i0, i1, k, s):
     t0 = _entry(table, i0, k)
     return t0 + (t0 - _entry(table, i1, k)) * s
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _interp(table, i, j, k, t):
     a = _entry(table, i, k)
     return a if t == 0.0 else (1.0 - t) * a + t * _entry(table, j, k)

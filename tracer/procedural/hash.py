@@ -29,13 +29,13 @@ _INIT = (0, 0xDEADBEEF + (1 << 2) + 13, 0xDEADBEEF + (2 << 2) + 13, 0xDEADBEEF +
 _INV_UINT_MAX = float(np.float32(1.0) / np.float32(4294967295.0))
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def rot(x, k):
     """32-bit rotate left."""
     return ((x << k) | (x >> (32 - k))) & M32
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _final(a, b, c):
     """lookup3's ``final(a, b, c)``: the last avalanche of the three words; returns (a, b, c)."""
     c = ((c ^ b) - rot(b, 14)) & M32
@@ -84,7 +84,7 @@ def hash_uint2(kx, ky):
     return c
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def hash_uint3_inline(kx, ky, kz):
     """:func:`hash_uint3` inlined into its caller (Perlin's eight lattice corners: the compiler then schedules the
     eight independent hashes together)."""
@@ -193,20 +193,20 @@ def hash_float4_to_float4(x, y, z, w):
 
 
 # --- PCG integer hashes (Jarzynski & Olano, JCGT 2020, in Cycles' signed-int variant): Voronoi's n-D cells
-@kernel(inline=True)
+@kernel(inline="call")
 def _mul32(a, b):
     """a · b mod 2^32 for uint32 words, without overflowing int64 (b split into 16-bit halves)."""
     return (a * (b & 0xFFFF) + (((a * (b >> 16)) & 0xFFFF) << 16)) & M32
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _xorshift16(v):
     """v ^ (v >> 16) with C's arithmetic (sign-extending) shift of a signed int."""
     s = v - 0x100000000 if v & 0x80000000 else v
     return (v ^ ((s >> 16) & M32)) & M32
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _lcg(v):
     return (_mul32(v & M32, 1664525) + 1013904223) & M32
 
@@ -250,7 +250,7 @@ def hash_pcg4d(x, y, z, w):
     return x & 0x7FFFFFFF, y & 0x7FFFFFFF, z & 0x7FFFFFFF, w & 0x7FFFFFFF
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _int31_to_float(h):
     """[0, 2^31-1] -> [0, 1]: float32(h) · 2^-31 (Cycles' (float)h · (1 / (float)0x7FFFFFFF))."""
     return float(np.float32(h)) * 4.656612873077393e-10

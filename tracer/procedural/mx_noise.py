@@ -32,17 +32,17 @@ SCALE_2D, SCALE_3D = 0.6616, 0.9820
 _INV_UINT = 1.0 / 4294967295.0
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _bits_to_01(h):
     return h * _INV_UINT
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _fade(t):
     return t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _neg_if(v, b):
     return -v if b else v
 
@@ -63,7 +63,7 @@ def _grad3(h, x, y, z):
     return _neg_if(u, h & 1) + _neg_if(v, h & 2)
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _lerp(a, b, t):
     return a * (1.0 - t) + b * t
 

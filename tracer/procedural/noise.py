@@ -38,25 +38,25 @@ PERIOD = 100000.0
 
 
 # ---------------------------------------------------------------------------------------------- Perlin
-@kernel(inline=True)
+@kernel(inline="call")
 def fade(t):
     """Perlin's quintic 6t⁵ − 15t⁴ + 10t³."""
     return t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _lerp(a, b, t):
     return (1.0 - t) * a + t * b
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def grad1(h, x):
     h = h & 15
     g = 1.0 + (h & 7)
     return -g * x if h & 8 else g * x
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def grad2(h, x, y):
     h = h & 7
     u = x if h < 4 else y
@@ -64,7 +64,7 @@ def grad2(h, x, y):
     return (-u if h & 1 else u) + (-v if h & 2 else v)
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def grad3(h, x, y, z):
     """Cycles' ``grad3``: u = x if h < 8 else y; v = y if h < 4, x if h is 12 or 14, else z; u and v negated by bits
     0 and 1. Without branches (pairs indexed by the bits, a multiplication by ±1: exact), as the hashes are random
@@ -75,7 +75,7 @@ def grad3(h, x, y, z):
     return u * (1.0 - 2.0 * (h & 1)) + v * (1.0 - 2.0 * ((h >> 1) & 1))
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def grad4(h, x, y, z, w):
     h = h & 31
     u = x if h < 24 else y
@@ -145,7 +145,7 @@ def perlin4(x, y, z, w):
     return _lerp(lo, hi, fade(fw))
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _wrap(p):
     """C's fmodf(p, 100000): the remainder with the sign of p (numba has no math.fmod)."""
     if abs(p) < PERIOD:
@@ -186,7 +186,7 @@ def snoise(p, dim):
     return snoise4(p[0], p[1], p[2], p[3])
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _scale4(p, s):
     return (p[0] * s, p[1] * s, p[2] * s, p[3] * s)
 

@@ -40,7 +40,7 @@ GRADIENT_TYPES = {"LINEAR": LINEAR, "QUADRATIC": QUADRATIC, "EASING": EASING, "D
                   "SPHERICAL": SPHERICAL, "QUADRATIC_SPHERE": QUADRATIC_SPHERE, "RADIAL": RADIAL}
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _nudge(x):
     """Cycles' guard against unit coordinates landing exactly on a cell edge: (x + 1e-6) · 0.999999."""
     return (x + 0.000001) * 0.999999
@@ -79,7 +79,7 @@ def wave(p, wave_type, direction, profile, scale, distortion, detail, detail_sca
 
 
 # ---------------------------------------------------------------------------------------------- magic
-@kernel(inline=True)
+@kernel(inline="call")
 def _fmod(a, b):
     return a - math.trunc(a / b) * b
 

@@ -36,33 +36,33 @@ METRICS = {"EUCLIDEAN": EUCLIDEAN, "MANHATTAN": MANHATTAN, "CHEBYCHEV": CHEBYCHE
 FLT_MAX = 3.4028234663852886e38
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _add(a, b):
     return (a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3])
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _sub(a, b):
     return (a[0] - b[0], a[1] - b[1], a[2] - b[2], a[3] - b[3])
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _scale(a, s):
     return (a[0] * s, a[1] * s, a[2] * s, a[3] * s)
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _lerp4(a, b, t):
     return ((1.0 - t) * a[0] + t * b[0], (1.0 - t) * a[1] + t * b[1], (1.0 - t) * a[2] + t * b[2],
             (1.0 - t) * a[3] + t * b[3])
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _lerp3(a, b, t):
     return ((1.0 - t) * a[0] + t * b[0], (1.0 - t) * a[1] + t * b[1], (1.0 - t) * a[2] + t * b[2])
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3]
 
@@ -114,13 +114,13 @@ def cell_color(cell, dim):
     return (h[0], h[1], h[2])
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _span(dim, axis, r):
     """The neighbour offsets on ``axis``: -r..r where the axis is used, 0 elsewhere (as range bounds)."""
     return (-r, r + 1) if axis < dim else (0, 1)
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _floor4(p):
     return (math.floor(p[0]), math.floor(p[1]), math.floor(p[2]), math.floor(p[3]))
 
@@ -154,7 +154,7 @@ def voronoi_f1_f2(coord, dim, second, randomness, metric, exponent):
     return d1, cell_color(_add(cell, o1), dim), _add(q1, cell)
 
 
-@kernel(inline=True)
+@kernel(inline="call")
 def _smoothstep01(x):
     if x <= 0.0:
         return 0.0
