@@ -96,6 +96,8 @@ def write_image(path: str, pixels: np.ndarray, channel_names=None, float32: bool
     ext = os.path.splitext(path)[1].lower()
     if not ext:
         raise ValueError(f"{path}: the output needs a file extension (.png, .exr, ...)")
+    if c == 4 and not keeps_alpha(ext):  # RGB-only formats (Radiance .hdr, JPEG): the colour, without alpha
+        pixels, c = pixels[..., :3], 3
     linear = ext in LINEAR_EXTENSIONS
     if linear:
         data, fmt = pixels, oiio.HALF if ext == ".exr" and not float32 else oiio.FLOAT
@@ -141,6 +143,15 @@ def write_image(path: str, pixels: np.ndarray, channel_names=None, float32: bool
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
+
+
+def keeps_alpha(ext: str) -> bool:
+    """Whether OpenImageIO's writer of file type ``ext`` (".png", ...) stores an alpha channel (its
+    ``supports("alpha")``: Radiance HDR and JPEG do not; an unknown type says True and fails when written)."""
+    import OpenImageIO as oiio
+
+    out = oiio.ImageOutput.create(ext.lstrip(".").lower())
+    return out is None or bool(out.supports("alpha"))
 
 
 def read_image(path: str) -> np.ndarray:
