@@ -202,3 +202,90 @@ def test_info_prints_the_memory_estimate(tmp_path):
     assert res.returncode == 0, res.stderr
     line = [ln for ln in res.stdout.splitlines() if ln.startswith("memory:")]
     assert len(line) == 1 and "16x16" in line[0] and "available" in line[0], res.stdout
+
+
+# ---------------------------------------------------------------------------------------------- faults
+def _limited(limit):
+    """A child's preexec: files larger than ``limit`` bytes cannot be written (EFBIG: Python ignores SIGXFSZ), the
+    way a full disk refuses the rest of a file."""
+    import resource
+
+    def pre():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+    return pre
+
+
+@pytest.mark.parametrize("ext", [".png", ".exr", ".tif"])
+def test_a_write_that_runs_out_of_room_is_one_line_and_no_file(tmp_path, ext):
+    """Before: the streamed PNG was cut at the limit and renamed into place with exit 0."""
+    stage = ball_stage(tmp_path / "s.usda")
+    assert whitted("render", stage, "-o", tmp_path / f"warm{ext}", "--width", 256, "--quiet").returncode == 0
+    os.unlink(tmp_path / f"warm{ext}")
+    out = tmp_path / f"full{ext}"
+    cmd = [sys.executable, "-c", "from usd_io.cli import run; run()", "render", str(stage), "-o", str(out),
+           "--width", "256", "--quiet"]
+    env = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    res = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300, preexec_fn=_limited(1000))
+    one_line_error(res, str(out), "write")
+    assert sorted(os.listdir(tmp_path)) == ["s.usda"]
+
+
+def test_a_full_disk_is_refused_before_writing(tmp_path, monkeypatch):
+    """The free space is checked against the uncompressed image (statvfs), for every format (libjpeg would exit the
+    process on a failed write, OpenImageIO's PNG writer would not notice)."""
+    import tracer
+    from tracer import film
+
+    real = os.statvfs
+
+    class Full:
+        def __init__(self, st):
+            self.f_frsize, self.f_bavail = st.f_frsize, 1
+
+    monkeypatch.setattr(film.os, "statvfs", lambda p: Full(real(p)))
+    for ext in (".jpg", ".png", ".exr"):
+        with pytest.raises(ValueError, match="not enough space"):
+            tracer.write_image(str(tmp_path / f"x{ext}"), np.ones((64, 64, 4), np.float32))
+    assert os.listdir(tmp_path) == []
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only directories")
+def test_a_read_only_output_directory_is_one_line(tmp_path):
+    stage = ball_stage(tmp_path / "s.usda")
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o555)
+    try:
+        one_line_error(whitted("render", stage, "-o", ro / "x.png", "--width", 16, "--quiet"), "cannot write")
+        assert os.listdir(ro) == []
+    finally:
+        ro.chmod(0o755)
+
+
+@pytest.mark.parametrize("wait", [0.0, 0.5])
+def test_sigint_removes_the_temporary_image(tmp_path, wait):
+    """SIGINT while the picture is being written (the streamed PNG's temporary file exists from the start): exit 130,
+    one line, nothing left in the output directory. Before: the temporary file stayed when the interrupt came
+    between its creation and the render, and libpng added a line about the aborted file."""
+    import glob
+    import signal
+    import time
+
+    stage = ball_stage(tmp_path / "s.usda")
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    assert whitted("render", stage, "-o", out_dir / "warm.png", "--width", 16, "--quiet").returncode == 0
+    os.unlink(out_dir / "warm.png")
+    env = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    p = subprocess.Popen([sys.executable, "-c", "from usd_io.cli import run; run()", "render", str(stage), "-o",
+                          str(out_dir / "big.png"), "--width", "2000", "--aa", "4", "--quiet"], env=env,
+                         stderr=subprocess.PIPE, text=True)
+    while not glob.glob(str(out_dir / ".whitted-*")) and p.poll() is None:
+        time.sleep(0.005)
+    assert p.poll() is None, "the render ended before it could be interrupted"
+    time.sleep(wait)
+    p.send_signal(signal.SIGINT)
+    err = p.communicate(timeout=300)[1]
+    assert p.returncode == 130, err
+    assert [ln for ln in err.splitlines() if ln.strip()] == ["whitted: interrupted"], err
+    assert os.listdir(out_dir) == []

@@ -440,6 +440,9 @@ def main(argv=None) -> int:
         print(f"whitted: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
+        film = sys.modules.get("tracer.film")  # loaded once anything was written
+        if film is not None:  # wherever the interrupt landed, no half-written .whitted-* file stays behind
+            film.remove_temp_files()
         print("whitted: interrupted", file=sys.stderr)
         return 130
     except SystemExit as exc:  # --help
