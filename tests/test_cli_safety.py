@@ -163,6 +163,10 @@ def test_an_impossible_size_is_refused_before_anything_is_allocated(tmp_path):
     one_line_error(res, "100000x100000", "GiB", "available")
     assert "Traceback" not in res.stderr
     assert os.listdir(tmp_path) == ["s.usda"]  # no image, no temporary file
+    res = whitted("explain", stage, "--pixel", 0, 0, "--width", 100000, "--height", 100000, "--png",
+                  tmp_path / "e.png")  # explain's picture: the same one line
+    one_line_error(res, "100000x100000")
+    assert os.listdir(tmp_path) == ["s.usda"]
 
 
 def test_the_api_raises_a_clear_error_for_an_impossible_size():

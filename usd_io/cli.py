@@ -447,7 +447,11 @@ def main(argv=None) -> int:
         return 130
     except SystemExit as exc:  # --help
         return int(exc.code or 0)
-    except Exception:  # noqa: BLE001 — a real fault: show where
+    except Exception as exc:  # noqa: BLE001 — a real fault: show where
+        tiles = sys.modules.get("tracer.tiles")
+        if tiles is not None and isinstance(exc, tiles.RenderTooLarge):  # a size no command can render (explain)
+            print(f"whitted: error: {' '.join(str(exc).split())}", file=sys.stderr)
+            return EXIT_BAD_INPUT
         traceback.print_exc()
         return EXIT_FAULT
     return code
