@@ -14,6 +14,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 import tracer
 from tracer.camera import Camera
@@ -23,8 +24,10 @@ RUNS = 30
 THREADS = 8
 
 
-def leaves_scene(n_leaves: int = 120, seed: int = 7) -> tracer.Scene:
-    """A ground under ``n_leaves`` alpha-textured leaves at random heights, lit by a sun and two point lights."""
+def leaves_scene(n_leaves: int = 120, seed: int = 7, instanced: bool = False) -> tracer.Scene:
+    """A ground under ``n_leaves`` alpha-textured leaves at random heights, lit by a sun and two point lights;
+    ``instanced``: one leaf prototype placed n times, each instance with its own material (the filter's
+    instance-array path)."""
     rng = np.random.default_rng(seed)
     b = tracer.SceneBuilder()
     ground = b.add_material("ground", diffuse=(0.5, 0.45, 0.4), specular=0.0, roughness=1.0)
@@ -41,6 +44,7 @@ def leaves_scene(n_leaves: int = 120, seed: int = 7) -> tracer.Scene:
         img[..., 3] = np.clip((0.5 - r) * (4 + k), 0.0, 1.0)
         img[..., 1] = 0.3 + 0.1 * k
         textures.append(b.add_texture(tracer.Texture(image=img, wrap_s="clamp", wrap_t="clamp")))
+    placements, materials = [], []
     for i in range(n_leaves):
         fields = dict(diffuse=tuple(rng.uniform(0.1, 0.9, 3)), specular=0.0, alpha=float(rng.uniform(0.4, 1.0)),
                       alpha_texture=textures[i % len(textures)], alpha_channel=3, diffuse_texture=textures[i % 6])
@@ -56,7 +60,19 @@ def leaves_scene(n_leaves: int = 120, seed: int = 7) -> tracer.Scene:
         tilt = rng.uniform(-0.3, 0.3, 2)
         v = np.column_stack([corners[:, 0] + c[0], corners[:, 1] + c[1],
                              h + corners[:, 0] * tilt[0] + corners[:, 1] * tilt[1]]).astype(np.float32)
-        b.add_mesh(v, quad, material=mat, name=f"leaf{i}", uvs=uv)
+        if not instanced:
+            b.add_mesh(v, quad, material=mat, name=f"leaf{i}", uvs=uv)
+            continue
+        m = np.eye(4)  # the unit leaf (corners ±1 in x, y) onto this leaf's corners 0, 1, 3
+        m[:3, 0], m[:3, 1] = (v[1] - v[0]) / 2, (v[3] - v[0]) / 2
+        m[:3, 3] = (v[1] + v[3]) / 2
+        m[:3, 2] = np.cross(m[:3, 0], m[:3, 1]) / max(np.linalg.norm(m[:3, 0]), 1e-6)
+        placements.append(m)
+        materials.append(mat)
+    if instanced:
+        unit = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], np.float32)
+        proto = b.add_mesh(unit, quad, material=materials[0], name="leaf", uvs=uv)
+        b.add_instances(proto, np.stack(placements), materials=np.array(materials, np.int32))
     b.add_light(DistantLight(direction=(0.3, 0.2, -1), irradiance=(2.0, 2.0, 2.0)))
     b.add_light(PointLight(position=(2, -3, 7), intensity=(40.0, 35.0, 30.0), radius=0.5))
     b.add_light(PointLight(position=(-3, 2, 6), intensity=(20.0, 25.0, 30.0), radius=0.3))
@@ -70,9 +86,9 @@ def settings(threads: int) -> tracer.RenderSettings:
                                  tile_size=8, threads=threads, seed=3)
 
 
-def soak(runs: int = RUNS, threads: int = THREADS) -> str:
+def soak(runs: int = RUNS, threads: int = THREADS, instanced: bool = False) -> str:
     """Render the leaves ``runs`` times with ``threads`` threads: 'ok', or which runs differed from 1 thread."""
-    scene = leaves_scene()
+    scene = leaves_scene(instanced=instanced)
     reference = tracer.render(scene, settings(1)).rgba
     assert np.isfinite(reference).all() and reference[..., :3].max() > 0.01
     bad = []
@@ -83,9 +99,11 @@ def soak(runs: int = RUNS, threads: int = THREADS) -> str:
     return "ok" if not bad else "; ".join(bad)
 
 
-def test_cut_outs_render_the_same_with_8_threads_30_times():
+@pytest.mark.parametrize("instanced", [False, True])
+def test_cut_outs_render_the_same_with_8_threads_30_times(instanced):
     here = os.path.dirname(os.path.abspath(__file__))
-    code = f"import sys; sys.path.insert(0, {here!r}); import test_thread_safety as t; print('RESULT', t.soak())"
+    code = (f"import sys; sys.path.insert(0, {here!r}); import test_thread_safety as t; "
+            f"print('RESULT', t.soak(instanced={instanced}))")
     env = dict(os.environ, PYTHONFAULTHANDLER="1")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=3000)
     if proc.returncode < 0:
