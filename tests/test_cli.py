@@ -150,12 +150,15 @@ def test_whitted_1980_example_renders(tmp_path):
     assert floor[:, 0].max() > 0.5 and floor[:, 1].max() > 0.5  # red and yellow squares at the bottom
 
 
-def test_purposes_take_commas_or_spaces(scene_file):
-    """README writes `--purposes render,proxy,guide`; argparse alone would read that as one unknown purpose."""
+def test_purposes_take_one_comma_separated_value(scene_file):
+    """README writes `--purposes render,proxy,guide`; argparse alone would read that as one unknown purpose. One
+    value, so the scene after it stays a scene (issue #30: `--purposes render SCENE` swallowed SCENE)."""
     from usd_io.cli import build_parser, split_purposes
 
-    args = build_parser().parse_args(["info", str(scene_file), "--purposes", "default,render", "proxy"])
+    args = build_parser().parse_args(["info", str(scene_file), "--purposes", "default,render,proxy"])
     assert split_purposes(args.purposes) == ("default", "render", "proxy")
+    args = build_parser().parse_args(["render", "--purposes", "render", str(scene_file), "-o", "x.png"])
+    assert args.scenes == [str(scene_file)] and split_purposes(args.purposes) == ("render",)
     res = whitted("info", scene_file, "--purposes", "default,render")
     assert res.returncode == 0 and "/Ball" in res.stdout, res.stderr
     one_line_error(whitted("info", scene_file, "--purposes", "default,nope"), "nope")

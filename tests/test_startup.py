@@ -95,13 +95,15 @@ def test_run_runs_atexit_handlers_and_joins_threads(ball, tmp_path):
     assert flag.read_text() == "thread\natexit\n"
 
 
-def test_tracer_kernels_use_the_light_cache_loader():
+def test_tracer_kernels_use_the_content_keyed_cache_with_the_light_loader():
     import tracer.integrator
     import tracer.jit
+    from tracer.kernel_cache import KernelCache
 
-    kernels = [k for k in vars(tracer.integrator).values() if isinstance(k, tracer.jit.Kernel)]
-    assert kernels and tracer.jit._LIGHT_LOADS
-    assert all(type(k.dispatcher._cache) is tracer.jit._KernelCache for k in kernels)
+    kernels = [k for k in vars(tracer.integrator).values()
+               if isinstance(k, tracer.jit.Kernel) and k._opts.get("inline") != "always"]
+    assert kernels
+    assert all(type(k.dispatcher._cache) is KernelCache for k in kernels)
 
 
 def test_a_process_that_loaded_kernels_without_refresh_still_compiles_new_ones(ball, tmp_path):

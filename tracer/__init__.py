@@ -26,7 +26,7 @@ _EXPORTS = {
     "RAY_TYPES": "integrator",
     "AreaLight": "lights", "DistantLight": "lights", "PointLight": "lights", "SpotLight": "lights",
     "DEFAULT_MATERIAL": "materials", "Materials": "materials", "roughness_to_exponent": "materials",
-    "render": "render", "RenderCancelled": "tiles", "render_tile": "tiles", "tiles_of": "tiles",
+    "render": "render", "RenderCancelled": "tiles", "RenderTooLarge": "tiles", "render_tile": "tiles", "tiles_of": "tiles",
     "Instances": "scene", "Scene": "scene",
     "Session": "session",
     "AOV_NAMES": "settings", "SHADING_MODELS": "settings", "RenderSettings": "settings",

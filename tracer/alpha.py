@@ -34,7 +34,9 @@ would count a partial surface twice), and objects that became see-through after 
 
 from __future__ import annotations
 
+import threading
 import time as clock
+from typing import NamedTuple
 
 import numpy as np
 import numba
@@ -215,45 +217,46 @@ _FILTER = None
 
 
 def filter_address() -> int:
-    """The C address of :func:`_occlusion_filter`, compiled (and cached on disk with the kernels) on first use."""
+    """The C address of :func:`_occlusion_filter`, compiled (and cached on disk with the kernels) on first use.
+
+    Made under :data:`tracer.jit._MAKING`, the lock the kernels' dispatchers are made under: tile threads ask for
+    it at once, and two compiles would each set ``_FILTER``, the first cfunc (whose address a thread may already
+    have handed to Embree) then dropped; numba's global ``CACHE_DIR``, switched for the compile, is switched under
+    the same lock by every kernel's first use."""
     global _FILTER
     if _FILTER is None:
-        _FILTER = jit.cfunc(types.void(types.voidptr), _occlusion_filter)
+        with jit._MAKING:  # tile threads reach this together on a first render
+            if _FILTER is None:
+                _FILTER = jit.cfunc(types.void(types.voidptr), _occlusion_filter)
     return _FILTER.address
 
 
 # ---------------------------------------------------------------------------------------------- the query
-@kernel(inline=True, refcounts=True)
-def _aligned_words(n):
-    """n zeroed 8-byte words starting 16-byte aligned (Embree's argument structs are RTC_ALIGN(16))."""
-    raw = np.zeros(n + 2, np.uint64)
-    off = ((16 - raw.ctypes.data % 16) % 16) // 8
-    return raw[off:off + n]
-
-
 @kernel
-def occluded_through(scene, o, d, tnear, t_max, blocked, masks, time, color, table, R0, max_transparent,
-                     filter_address, q):
+def occluded_through(scene, o, d, tnear, t_max, blocked, masks, time, color, table, R, count, ctx, args,
+                     max_transparent, filter_address, q):
     """blocked[i] = shadow ray i meets an opaque surface, or more than ``max_transparent`` see-through ones, on
     [tnear, t_max[i]]; where it does not, color[i] is scaled by what the see-through ones let pass. One
     ``rtcOccludedN`` per packet (``q``: :func:`tracer.embree.query`) with :func:`_occlusion_filter` as the argument
-    filter (``masks``, ``time`` as in :func:`tracer.embree.occluded_rays`; ``table``: :class:`FilterTables`;
-    ``R0``: the VM's initial registers)."""
+    filter (``masks``, ``time`` as in :func:`tracer.embree.occluded_rays`; ``table``: :class:`FilterTables`).
+
+    ``R`` (this call's register file, a copy of the VM's initial registers), ``count`` (n zeroed int32), ``ctx``
+    (:data:`_CONTEXT_WORDS` words) and ``args`` (:data:`_ARGS_WORDS` words), both 16-byte aligned
+    (:func:`_words`), are the caller's, one set per call (:func:`occluded`): the filter reaches them only
+    through the raw addresses written into ``ctx``, and numba frees an array the kernel itself allocated right
+    after the last line that names it, so a kernel-local register file, counter or context would be freed memory
+    by the time Embree calls the filter (issue #30: tile threads corrupted each other's heap)."""
     W = q & embree._WIDTH_BITS
     f = embree._aligned(embree.RAY_FIELDS * embree.MAX_PACKET, np.float32)
     w = f.view(np.uint32)
     valid = embree._aligned(embree.MAX_PACKET, np.int32)
     n = o.shape[0]
-    R = R0.copy()
-    count = np.zeros(n, np.int32)
-    ctx = _aligned_words(_CONTEXT_WORDS)
     ctx[0] = _NO_INSTANCE
     ctx[_C_TABLE] = table.ctypes.data
     ctx[_C_R], ctx[_C_RLEN] = R.ctypes.data, R.shape[0]
     ctx[_C_COLOR], ctx[_C_COUNT] = color.ctypes.data, count.ctypes.data
     ctx[_C_O], ctx[_C_D], ctx[_C_N] = o.ctypes.data, d.ctypes.data, n
     ctx[_C_MAXT] = max_transparent
-    args = _aligned_words(_ARGS_WORDS)
     args[0] = _ARGS_WORD0 | np.uint64(q & ~np.int64(embree._WIDTH_BITS))  # the query's flags (coherent or not)
     args[1] = ctx.ctypes.data
     args[2] = filter_address
@@ -263,6 +266,13 @@ def occluded_through(scene, o, d, tnear, t_max, blocked, masks, time, color, tab
         embree._occluded(W, valid.ctypes.data, scene, f.ctypes.data, args.ctypes.data)
         for k in range(count_):
             blocked[start + k] = f[embree._TFAR * W + k] < 0.0
+
+
+def _words(n: int) -> np.ndarray:
+    """n zeroed 8-byte words starting 16-byte aligned (Embree's argument structs are RTC_ALIGN(16))."""
+    raw = np.zeros(n + 2, np.uint64)
+    off = ((16 - raw.ctypes.data % 16) % 16) // 8
+    return raw[off:off + n]
 
 
 # ---------------------------------------------------------------------------------------------- Python side
@@ -320,44 +330,77 @@ class FilterTables:
             self.table[i * _ENTRY + 1:i * _ENTRY + 1 + ndim] = a.shape
 
 
-def usable(it) -> bool:
-    """The filter gives this integrator's shadow rays the round-by-round loop's answer: every object that may be
-    see-through has it enabled in the accelerator, no shadow catcher, no spatial splits."""
-    cached = it.__dict__.get("_alpha_usable")
-    if cached is not None:
-        return cached
+class _Prepared(NamedTuple):
+    usable: bool
+    tables: FilterTables | None
+
+
+_PREPARING = threading.Lock()
+
+
+def _prepared(it) -> _Prepared:
+    """Whether the filter serves integrator ``it`` and, if so, its :class:`FilterTables`: made once, by the first
+    tile thread that asks, under a lock, and published whole in one assignment; the tables are made again (same
+    lock) when the accelerator's row tables were replaced by a session edit. Every tile thread of a render asks at
+    once, so a check-then-set without the lock would build the tables several times over, each thread then holding
+    a different table while the integrator keeps the last one."""
+    state = it.__dict__.get("_alpha")
+    if state is not None and _current(state, it.accel):
+        return state
+    with _PREPARING:
+        state = it.__dict__.get("_alpha")
+        if state is None or not _current(state, it.accel):
+            ok = _usable(it)
+            state = _Prepared(ok, FilterTables(it, it.accel) if ok else None)
+            it.__dict__["_alpha"] = state
+    return state
+
+
+def _current(state: _Prepared, accel) -> bool:
+    """The tables still point at the accelerator's row tables (a session edit replaces them)."""
+    return state.tables is None or all(a is b for a, b in zip(state.tables.accel_arrays, (
+        accel._start, accel._rows, accel._inst_proto)))
+
+
+def _usable(it) -> bool:
     accel = it.accel
     filtered = getattr(accel, "filtered", None)
     ok = ENABLED and filtered is not None and not it.compose.has_catcher and accel.quality != "high"
     if ok:
         see = np.asarray(it.materials.alpha < 1) | it.programs.alpha_varies
         ok = bool(np.isin(see_through_objects(it.scene, see), filtered).all())
-    it.__dict__["_alpha_usable"] = ok
     return ok
+
+
+def usable(it) -> bool:
+    """The filter gives this integrator's shadow rays the round-by-round loop's answer: every object that may be
+    see-through has it enabled in the accelerator, no shadow catcher, no spatial splits."""
+    return _prepared(it).usable
 
 
 def occluded(it, shadow, masks, time) -> np.ndarray:
     """The shadow rays' blocked mask, their colours (``shadow.color``, float32 C-contiguous) scaled in place by
-    the see-through surfaces they cross (:func:`occluded_through`)."""
+    the see-through surfaces they cross (:func:`occluded_through`). Thread-safe: the tables are shared read-only,
+    and the register file, counters and Embree context the filter writes or reads by address are this call's."""
     from .accel import T_FAR_MAX, _ray_masks, _times  # (tracer.accel imports this module)
 
     accel = it.accel
     n = len(shadow.o)
     blocked = np.zeros(n, bool)
-    tables = it.__dict__.get("_alpha_tables")
-    if tables is None or any(a is not b for a, b in zip(tables.accel_arrays, (accel._start, accel._rows,
-                                                                                accel._inst_proto))):
-        tables = it.__dict__["_alpha_tables"] = FilterTables(it, accel)
+    tables = _prepared(it).tables
     o = np.ascontiguousarray(shadow.o, np.float32)
     d = np.ascontiguousarray(shadow.d, np.float32)
     tm = np.ascontiguousarray(np.minimum(shadow.t_max, T_FAR_MAX), np.float32)
     if shadow.color.dtype != np.float32 or not shadow.color.flags.c_contiguous:
         raise TypeError("tracer.alpha.occluded: shadow colours must be C-contiguous float32 (scaled in place)")
+    registers = it.programs.R0.copy()  # the VM writes its registers: one file per call, never R0 itself
+    count = np.zeros(n, np.int32)
+    ctx, args = _words(_CONTEXT_WORDS), _words(_ARGS_WORDS)
     q = embree.query(coherent=False)
     start = clock.perf_counter()
     occluded_through(accel._top.handle, o, d, np.float32(0.0), tm, blocked, _ray_masks(masks), _times(time),
-                     shadow.color, tables.table, it.programs.R0, np.int64(it.settings.max_transparent),
-                     np.uint64(filter_address()), q)
+                     shadow.color, tables.table, registers, count, ctx, args,
+                     np.int64(it.settings.max_transparent), np.uint64(filter_address()), q)
     embree.library().check()
     accel._account(start, "OCCLUDED", o, d, tm, q)
     return blocked

@@ -76,6 +76,87 @@ def heat_map(values: np.ndarray, vmax: float | None = None) -> np.ndarray:
     return srgb_to_linear(srgb).astype(np.float32)
 
 
+#: The temporary files of writes in progress (:func:`temp_file`): a process interrupted mid-write (SIGINT in the
+#: command line) removes them with :func:`remove_temp_files`, wherever the interrupt landed.
+_TEMP_FILES: set = set()
+
+
+def temp_file(path: str, ext: str) -> str:
+    """A new empty temporary file next to ``path`` (``.whitted-*ext``, the same directory: the final rename stays
+    on one filesystem), registered until :func:`finish_temp` renames or removes it. ValueError naming ``path``."""
+    directory = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(directory):
+        raise ValueError(f"{path}: directory {directory} does not exist")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=".whitted-", suffix=ext, dir=directory)
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot write into {directory} ({exc.strerror})") from None
+    os.close(fd)
+    _TEMP_FILES.add(tmp)
+    return tmp
+
+
+def finish_temp(tmp: str, path: str | None) -> None:
+    """Rename the written temporary file ``tmp`` to ``path`` (mkstemp's 0600 widened to the usual permissions);
+    ``path`` None, or any failure: remove it. Either way it leaves the registry."""
+    try:
+        if path is not None:
+            umask = os.umask(0)
+            os.umask(umask)
+            os.chmod(tmp, 0o666 & ~umask)
+            try:
+                os.replace(tmp, path)
+            except OSError as exc:
+                raise ValueError(f"{path}: cannot write ({exc.strerror})") from None
+    finally:
+        _TEMP_FILES.discard(tmp)
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def remove_temp_files() -> None:
+    """Remove every temporary file of a write still in progress (an interrupted process)."""
+    for tmp in list(_TEMP_FILES):
+        _TEMP_FILES.discard(tmp)
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+
+
+def check_space(path: str, nbytes: int) -> None:
+    """ValueError unless the filesystem of ``path``'s directory has ``nbytes`` free for an unprivileged writer
+    (``os.statvfs``: f_bavail · f_frsize). Called with the image's uncompressed size, an upper bound of what any
+    of the formats writes, so a full disk is one clear error before the write, not a truncated file (some
+    encoders do not report a failed write: libpng through OpenImageIO wrote a cut PNG and said nothing, libjpeg
+    exits the process)."""
+    try:
+        st = os.statvfs(os.path.dirname(os.path.abspath(path)))
+    except (OSError, AttributeError):
+        return
+    free = st.f_bavail * st.f_frsize
+    if free < nbytes:
+        raise ValueError(f"{path}: not enough space on the output disk ({free} bytes free, the image needs up to "
+                         f"{nbytes})")
+
+
+_PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"
+
+
+def check_png_complete(tmp: str, path: str) -> None:
+    """ValueError unless the PNG written to ``tmp`` ends with its IEND chunk: OpenImageIO's PNG writer does not
+    report a failed write (a full disk, a file size limit), and a cut file would be renamed into place."""
+    try:
+        with open(tmp, "rb") as f:
+            f.seek(0, os.SEEK_END)
+            f.seek(max(0, f.tell() - len(_PNG_END)))
+            tail = f.read()
+    except OSError as exc:
+        raise ValueError(f"{path}: write failed ({exc.strerror})") from None
+    if tail != _PNG_END:
+        raise ValueError(f"{path}: write failed (the PNG was cut short: is the output disk full?)")
+
+
 #: PNG encoding (docs/benchmarks.md, "PNG writes"): zlib level 1 with libpng's "none" row filter (PNG_FILTER_NONE =
 #: 8): a 1920×1080 render encodes in about half the CPU time of the default (level 6, adaptive filters) for files
 #: about a third larger; the pixels are the same (PNG is lossless).
@@ -96,6 +177,8 @@ def write_image(path: str, pixels: np.ndarray, channel_names=None, float32: bool
     ext = os.path.splitext(path)[1].lower()
     if not ext:
         raise ValueError(f"{path}: the output needs a file extension (.png, .exr, ...)")
+    if c == 4 and not keeps_alpha(ext):  # RGB-only formats (Radiance .hdr, JPEG): the colour, without alpha
+        pixels, c = pixels[..., :3], 3
     linear = ext in LINEAR_EXTENSIONS
     if linear:
         data, fmt = pixels, oiio.HALF if ext == ".exr" and not float32 else oiio.FLOAT
@@ -112,14 +195,9 @@ def write_image(path: str, pixels: np.ndarray, channel_names=None, float32: bool
         spec.attribute("png:filter", PNG_FILTER_NONE)
     if channel_names:
         spec.channelnames = tuple(channel_names)
-    directory = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(directory):
-        raise ValueError(f"{path}: directory {directory} does not exist")
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=".whitted-", suffix=ext, dir=directory)
-    except OSError as exc:
-        raise ValueError(f"{path}: cannot write into {directory} ({exc.strerror})") from None
-    os.close(fd)
+    check_space(path, data.nbytes)
+    tmp = temp_file(path, ext)
+    done = None
     try:
         out = oiio.ImageOutput.create(tmp)
         if out is None:
@@ -128,19 +206,23 @@ def write_image(path: str, pixels: np.ndarray, channel_names=None, float32: bool
             msg = out.geterror()
             raise ValueError(f"{path}: cannot open for writing ({msg})")
         ok = out.write_image(data)
-        out.close()
-        if not ok:
+        closed = out.close()
+        if not ok or not closed:
             raise ValueError(f"{path}: write failed ({out.geterror()})")
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600 files; give the image the usual permissions
-        try:
-            os.replace(tmp, path)
-        except OSError as exc:
-            raise ValueError(f"{path}: cannot write ({exc.strerror})") from None
+        if ext == ".png":
+            check_png_complete(tmp, path)
+        done = path
     finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        finish_temp(tmp, done)
+
+
+def keeps_alpha(ext: str) -> bool:
+    """Whether OpenImageIO's writer of file type ``ext`` (".png", ...) stores an alpha channel (its
+    ``supports("alpha")``: Radiance HDR and JPEG do not; an unknown type says True and fails when written)."""
+    import OpenImageIO as oiio
+
+    out = oiio.ImageOutput.create(ext.lstrip(".").lower())
+    return out is None or bool(out.supports("alpha"))
 
 
 def read_image(path: str) -> np.ndarray:

@@ -340,7 +340,13 @@ class Tile(NamedTuple):
 
 
 class Integrator:
-    """Holds what every tile needs: the scene's arrays, its BVH and the settings. ``trace`` is thread-safe."""
+    """Holds what every tile needs: the scene's arrays, its BVH and the settings. ``trace`` is thread-safe: tile
+    threads share this object, so everything on it is made in ``__init__`` and only read afterwards, except three
+    things, each made safe where it lives: the scratch queues (:meth:`_held`, one set per thread), the camera's
+    entry of ``spaces`` (written under ``_camera_lock`` when a session's camera changed, :meth:`_shade`) and the
+    transparent-shadow filter's tables (made once under a lock, :func:`tracer.alpha.occluded`, which also gives
+    each call its own VM register file). The VM's initial registers ``programs.R0`` are never written: every
+    kernel that runs programs copies them into a register file of its call."""
 
     def __init__(self, scene: Scene, settings: RenderSettings, accel: Accelerator | None = None):
         self.scene = scene
@@ -387,6 +393,7 @@ class Integrator:
         #: Holdouts and shadow catchers (tracer.compose)
         self.compose = compose.pack(scene)
         self._local = threading.local()
+        self._camera_lock = threading.Lock()
 
     def _held(self) -> dict:
         """This thread's scratch arrays (:meth:`SurfaceQueue.scratch`): tiles trace on threads, each its own."""
@@ -417,7 +424,8 @@ class Integrator:
             # one eye sample's footprint, for the mip level of lookups and the bump offsets: read now, as a
             # session's camera and settings change between renders without a new Integrator
             eye, spread, flat = self.scene.camera.sample_footprint(self.settings.width, self.settings.samples)
-            set_camera(self.spaces, self.scene.camera)
+            with self._camera_lock:  # every tile thread reads ``spaces``: one writer, and only on a change
+                set_camera(self.spaces, self.scene.camera)
             shade_programs(surf.textured[:n_textured], prim, u, v, t, inst, d, depth, pt.code, pt.pstart, pt.pbase,
                            pt.outs, pt.R0, np.empty_like(pt.R0), surf.mat, surf.p, surf.ng, surf.n, surf.front,
                            surf.base, surf.roughness, surf.metallic, surf.specular, surf.cover, surf.emission,

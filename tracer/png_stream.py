@@ -20,12 +20,12 @@ from __future__ import annotations
 
 import os
 import queue
-import tempfile
 import threading
 
 import numpy as np
 
-from .film import PNG_COMPRESSION_LEVEL, PNG_FILTER_NONE, to_display
+from .film import (PNG_COMPRESSION_LEVEL, PNG_FILTER_NONE, check_png_complete, check_space, finish_temp, temp_file,
+                   to_display)
 from .jit import kernel
 
 _THRESHOLDS: tuple | None = None
@@ -95,14 +95,8 @@ class StreamedPNG:
         self.path = os.fspath(path)
         self.width, self.height = int(width), int(height)
         self.scale = np.float32(scale)
-        directory = os.path.dirname(os.path.abspath(self.path))
-        if not os.path.isdir(directory):
-            raise ValueError(f"{self.path}: directory {directory} does not exist")
-        try:
-            fd, self._tmp = tempfile.mkstemp(prefix=".whitted-", suffix=".png", dir=directory)
-        except OSError as exc:
-            raise ValueError(f"{self.path}: cannot write into {directory} ({exc.strerror})") from None
-        os.close(fd)
+        check_space(self.path, self.width * self.height * 4)  # 8-bit RGBA uncompressed: a bound of the file
+        self._tmp = temp_file(self.path, ".png")
         self._spec = oiio.ImageSpec(self.width, self.height, 4, oiio.UINT8)
         self._spec.attribute("png:compressionLevel", PNG_COMPRESSION_LEVEL)
         self._spec.attribute("png:filter", PNG_FILTER_NONE)
@@ -165,24 +159,19 @@ class StreamedPNG:
             self._next = self.height
         self._queue.put(None)
         self._thread.join()
+        done = None
         try:
             if self._error is not None:
                 if self._out is not None:
-                    self._out.close()
+                    _quiet_close(self._out)
                 raise self._error if isinstance(self._error, ValueError) else ValueError(
                     f"{self.path}: write failed ({self._error})")
             if not self._out.close():
                 raise ValueError(f"{self.path}: write failed ({self._out.geterror()})")
-            umask = os.umask(0)
-            os.umask(umask)
-            os.chmod(self._tmp, 0o666 & ~umask)  # mkstemp makes 0600 files; give the image the usual permissions
-            try:
-                os.replace(self._tmp, self.path)
-            except OSError as exc:
-                raise ValueError(f"{self.path}: cannot write ({exc.strerror})") from None
+            check_png_complete(self._tmp, self.path)
+            done = self.path
         finally:
-            if os.path.exists(self._tmp):
-                os.unlink(self._tmp)
+            finish_temp(self._tmp, done)
 
     def abort(self) -> None:
         """Stop writing and remove the temporary file (a render that failed or was cancelled)."""
@@ -192,8 +181,28 @@ class StreamedPNG:
             self._thread.join()
         try:
             if self._out is not None:
-                self._out.close()
+                _quiet_close(self._out)
         except Exception:  # noqa: BLE001 — best effort: the file is removed next
             pass
-        if os.path.exists(self._tmp):
-            os.unlink(self._tmp)
+        finish_temp(self._tmp, None)
+
+
+def _quiet_close(out) -> None:
+    """Close an OpenImageIO output whose file is dropped anyway, without libpng's complaint about it on the
+    process's stderr ("No IDATs written into file": an abort before the first row), which would be a second
+    line after the command line's one."""
+    import sys
+
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError, AttributeError):
+        out.close()
+        return
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 2)
+            out.close()
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)

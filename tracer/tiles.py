@@ -269,6 +269,77 @@ def uses_ray_types(settings: RenderSettings) -> bool:
 SHADOW_SLOTS = 1 << 19
 
 
+class RenderTooLarge(ValueError):
+    """A render whose estimated memory (:func:`memory_estimate`) is more than the machine has available."""
+
+
+def memory_estimate(settings: RenderSettings) -> dict:
+    """Bytes a render with ``settings`` allocates, by part (an estimate for refusing impossible sizes up front,
+    not a measurement): "image" the RGBA float32 film; "aovs" the AOV arrays (:func:`empty_aovs`'s, per pixel);
+    "output" the writer's copies (:func:`tracer.film.write_image`: a float32 copy without NaN, then for 8-bit
+    files the display conversion's float32 and uint8 arrays: 36 bytes a pixel); "tiles" per tile thread the tile's eye samples with their per-sample outputs, one batch of rays' surface
+    and next-ray queues (reflections and transmissions: twice the batch) and the shadow queue of
+    :data:`SHADOW_SLOTS` (twice: a depth's layers are joined into one copy). The queues' row sizes are read from
+    their definitions in :mod:`tracer.integrator`. The scene and its BVH are not counted (the caller holds them)."""
+    from .integrator import NextQueue, ShadowQueue, SurfaceQueue
+
+    settings = settings.validate()
+    row = lambda q: sum(a.nbytes for a in q if isinstance(a, np.ndarray)) + sum(  # noqa: E731
+        row(a) for a in q if isinstance(a, tuple))
+    px = settings.width * settings.height
+    aov_px = sum(a.nbytes for a in empty_aovs(settings, 1, 1).values())
+    k = len(PATH_TYPES) if uses_ray_types(settings) else 1
+    tile_samples = settings.tile_size ** 2 * settings.samples ** 2
+    per_sample = (3 * 4 * 2 + 8 + 4) + k * (12 + 4 + 4 + 12 + 12 + 4 + 8)  # eye o, d, key, time; Tile outputs, keys
+    batch = 2 * min(tile_samples, max(1024, SHADOW_SLOTS))
+    per_thread = (tile_samples * per_sample + batch * (row(SurfaceQueue.empty(1)) + row(NextQueue.empty(1, True)))
+                  + 2 * SHADOW_SLOTS * row(ShadowQueue.empty(1)))
+    threads = min(settings.threads or os.cpu_count() or 1, len(tiles_of(settings)))
+    return {"image": 16 * px, "aovs": aov_px * px, "output": 36 * px, "tiles": threads * per_thread}
+
+
+def available_memory() -> int | None:
+    """Bytes the machine can give a process now: ``MemAvailable`` of /proc/meminfo (Linux: free memory plus
+    what the kernel can reclaim), else the physical memory (``os.sysconf``); None where neither is known."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return int(os.sysconf("SC_PHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def format_bytes(n: float) -> str:
+    """1536 -> '1.5 KiB', 3.2e9 -> '3.0 GiB'."""
+    for unit in ("bytes", "KiB", "MiB", "GiB", "TiB"):
+        if n < 1024 or unit == "TiB":
+            return f"{n:.0f} {unit}" if unit == "bytes" else f"{n:.1f} {unit}"
+        n /= 1024.0
+    return f"{n:.1f} TiB"
+
+
+def describe_memory(settings: RenderSettings) -> str:
+    """'about 1.2 GiB (image 0.5 GiB, aovs 0 bytes, output 0.5 GiB, tiles 0.2 GiB)' for ``settings``."""
+    need = memory_estimate(settings)
+    parts = ", ".join(f"{k} {format_bytes(v)}" for k, v in need.items() if v)
+    return f"about {format_bytes(sum(need.values()))} ({parts})"
+
+
+def check_memory(settings: RenderSettings, available: int | None = None) -> None:
+    """Raise :class:`RenderTooLarge` when a render with ``settings`` needs more memory (:func:`memory_estimate`)
+    than ``available`` (default: :func:`available_memory`; unknown: no check), before anything is allocated."""
+    available = available_memory() if available is None else available
+    need = sum(memory_estimate(settings).values())
+    if available is not None and need > available:
+        raise RenderTooLarge(f"a {settings.width}x{settings.height} render needs {describe_memory(settings)}, "
+                             f"more than the {format_bytes(available)} this machine has available")
+
+
 def trace_batches(integ, o, d, keys, cancelled, ray_types=False, t_max=None, times=None):
     """``integ.trace`` over a tile's eye samples in consecutive batches of at most :data:`SHADOW_SLOTS` shadow
     slots, joined into one :class:`~tracer.integrator.TileResult`. Each sample's path is traced within one batch
@@ -340,6 +411,7 @@ def render_session(session, settings: RenderSettings | None = None, *, on_tile=N
                    started: float | None = None) -> Image:
     """:meth:`tracer.Session.render`: every tile of ``settings`` on a thread pool, written into one image."""
     settings = (settings or RenderSettings()).validate()
+    check_memory(settings)  # an impossible size is one clear error, not numpy's allocation failure midway
     cancelled = cancelled or (lambda: False)
     start = started if started is not None else time.perf_counter()
     scene = session.scene

@@ -34,7 +34,7 @@ import warnings
 import numpy as np
 
 from .errors import UsdInputError
-from .outputs import BadInput, Outputs, check_output, frame_path, output_for, print_warnings, warn
+from .outputs import BadInput, Outputs, check_output, frame_path, output_for, print_warnings, product_path, warn
 from .request import (StageRequest, add_request_flags, add_settings_flags, settings_from_args,
                       split_purposes)
 
@@ -111,6 +111,13 @@ def _add_render_command(r) -> None:
                    help="output image (.png/.jpg/.tif sRGB 8-bit, .exr linear half); several scenes need {stem} "
                         "(or {name}) in it, e.g. thumbs/{stem}.png; default: the stage's RenderProduct "
                         "productName")
+    r.add_argument("--output-dir", metavar="DIR",
+                   help="without -o: the directory the stage's RenderProduct productNames are written in (default: "
+                   "the current directory); a productName that leaves it (.., an absolute path, a symbolic link) "
+                   "is refused")
+    r.add_argument("--allow-product-paths", action="store_true",
+                   help="without -o: write each RenderProduct where its productName says, even outside the output "
+                   "directory (for stages from a trusted pipeline)")
     r.add_argument("--frames", "-f", help="time codes A:B or A:BxS; output pattern out.####.png")
     add_render_flags(r)
     r.add_argument("--scheduler", help="render on a Dask cluster: tcp://HOST:PORT, tls://HOST:PORT, a scheduler "
@@ -150,6 +157,11 @@ def _check_args(args) -> None:
     for flag in ("ship_assets", "worker_writes"):
         if getattr(args, flag) and not args.scheduler:
             raise BadInput(f"--{flag.replace('_', '-')} needs --scheduler")
+    for flag in ("output_dir", "allow_product_paths"):
+        if getattr(args, flag) and args.output:
+            raise BadInput(f"--{flag.replace('_', '-')} is for RenderProduct outputs: it cannot be used with -o")
+    if args.output_dir and not os.path.isdir(args.output_dir):
+        raise BadInput(f"--output-dir {args.output_dir}: no such directory")
     if args.frames and args.time is not None:
         raise BadInput("--frames and --time are exclusive")
     if len(args.scenes) > 1 and not re.search(r"\{(stem|name)\}", args.output or ""):
@@ -171,7 +183,7 @@ def cmd_render(args) -> int:
             out = output_for(args.output, scene_path) if args.output else _product_output(args, scene_path)
             check_output(out)
             request = StageRequest.from_args(args, scene_path)
-            jobs = [(request, out)] + ([] if args.output else _more_products(request))
+            jobs = [(request, out)] + ([] if args.output else _more_products(args, request))
             for _r, check_out in jobs[1:]:
                 check_output(check_out)
             for job_request, job_out in jobs:  # without -o: every RenderProduct (usd_io.render_settings)
@@ -218,6 +230,8 @@ def render_file(request: StageRequest, settings, output: str, frames, outputs: O
         if frame == frames[0]:
             print_warnings(info)
             settings, outputs = _render_vars(info, settings, outputs)
+        if frame == frames[0]:  # an impossible size is refused before the kernels, the PNG stream or the film
+            check_size(request.path, settings.with_(width=info.width, height=info.height))
         _prepare_kernels(args.quiet)
         out = frame_path(output, frame, many)
         stream = outputs.stream(out, info.width, info.height)  # a PNG is encoded while the tiles are traced
@@ -240,6 +254,16 @@ def render_file(request: StageRequest, settings, output: str, frames, outputs: O
     return EXIT_OK
 
 
+def check_size(scene_path: str, settings) -> None:
+    """BadInput when the render needs more memory than the machine has (tracer.tiles.check_memory's estimate)."""
+    from tracer.tiles import RenderTooLarge, check_memory
+
+    try:
+        check_memory(settings)
+    except RenderTooLarge as exc:
+        raise BadInput(f"{scene_path}: {exc} (use a smaller --width/--height)") from None
+
+
 def _product_output(args, scene_path: str) -> str:
     """Without ``-o``: the first productName of the stage's RenderSettings (usd_io.render_settings)."""
     from .render_settings import product_names
@@ -248,11 +272,19 @@ def _product_output(args, scene_path: str) -> str:
     names = product_names(open_stage(scene_path), getattr(args, "render_settings_prim", None))
     if not names:
         raise BadInput(f"{scene_path}: -o OUT is required (the stage has no RenderProduct with a productName)")
-    return names[0]
+    return _confined(args, scene_path, names[0])
 
 
-def _more_products(request) -> list:
-    """(request, productName) of the RenderProducts after the first: each renders with its own camera, size and
+def _confined(args, scene_path: str, name: str) -> str:
+    """A productName's output path, inside ``--output-dir`` unless ``--allow-product-paths`` (outputs.product_path)."""
+    try:
+        return product_path(name, args.output_dir, args.allow_product_paths)
+    except BadInput as exc:
+        raise BadInput(f"{scene_path}: {exc}") from None
+
+
+def _more_products(args, request) -> list:
+    """(request, output path) of the RenderProducts after the first: each renders with its own camera, size and
     RenderVars (``--render-settings`` naming the product prim)."""
     import dataclasses
 
@@ -260,7 +292,8 @@ def _more_products(request) -> list:
     from .stage import open_stage
 
     more = products(open_stage(request.path), request.render_settings_prim)[1:]
-    return [(dataclasses.replace(request, render_settings_prim=prim), name) for name, prim in more]
+    return [(dataclasses.replace(request, render_settings_prim=prim), _confined(args, request.path, name))
+            for name, prim in more]
 
 
 def _render_vars(info, settings, outputs):
@@ -342,6 +375,13 @@ def cmd_info(args) -> int:
     if rs is not None:  # UsdRender (usd_io.render_settings)
         print(f"render settings: {rs.path}: {info.width}x{info.height}, {rs.conform}, products "
               f"{', '.join(rs.products) or 'none'}, AOVs {', '.join(rs.aovs) or 'none'}", file=out)
+    from tracer import RenderSettings
+    from tracer.tiles import available_memory, describe_memory, format_bytes
+
+    size = RenderSettings(width=info.width, height=info.height)
+    free = available_memory()
+    print(f"memory: a {info.width}x{info.height} render at the default settings needs {describe_memory(size)}"
+          + (f"; {format_bytes(free)} available" if free is not None else ""), file=out)
     print(f"lights ({len(info.lights)}):", file=out)
     for path, kind, light in info.lights:
         print(f"  {path}: {kind} -> {_describe_light(light)}", file=out)
@@ -415,11 +455,18 @@ def main(argv=None) -> int:
         print(f"whitted: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
+        film = sys.modules.get("tracer.film")  # loaded once anything was written
+        if film is not None:  # wherever the interrupt landed, no half-written .whitted-* file stays behind
+            film.remove_temp_files()
         print("whitted: interrupted", file=sys.stderr)
         return 130
     except SystemExit as exc:  # --help
         return int(exc.code or 0)
-    except Exception:  # noqa: BLE001 — a real fault: show where
+    except Exception as exc:  # noqa: BLE001 — a real fault: show where
+        tiles = sys.modules.get("tracer.tiles")
+        if tiles is not None and isinstance(exc, tiles.RenderTooLarge):  # a size no command can render (explain)
+            print(f"whitted: error: {' '.join(str(exc).split())}", file=sys.stderr)
+            return EXIT_BAD_INPUT
         traceback.print_exc()
         return EXIT_FAULT
     return code

@@ -21,6 +21,12 @@ and each writer maps to one set of units (:data:`UNITS`), applied by ``usd_io.li
     kit            Omniverse Kit: every intensity (and OmniPBR's emissive_intensity) × 2^KIT_EV (−9 EV: Kit's
                    lights are in nits seen through an auto-exposed camera; −9 EV matches its previews)
 
+Evidence: the metadata above says who wrote the stage, and each light's own authored intensity
+(``inputs:intensity`` or the pre-21.02 ``intensity``: ``usd_io.lights.authored``) says the writer chose that
+number. A light without one carries UsdLux's fallback, no writer's value, and is read as the spec says under any
+writer (so a guess can never darken what the writer did not write); the angle rules likewise need an authored
+angle.
+
 Sources (read with the team's search tools, not copied): Blender's ``source/blender/io/usd/intern/
 usd_writer_light.cc`` at three points of its history — ``energy / 100.0f`` ("the reverse of the versioning code in
 light_emission_unify()"), then ``convert_light_to_nits`` with ``nits_to_energy_scale_factor`` (area factors 4πr²,

@@ -70,6 +70,17 @@ def _get(attr, time, default):
     return default if v is None else v
 
 
+def authored(prim, name: str) -> bool:
+    """Whether the stage authors light input ``name``: ``inputs:NAME``, or ``NAME`` as UsdLux spelt it before
+    21.02 (see :func:`_get`). The evidence every exporter unit guess needs (docs/usd.md, "Two readings"): an
+    unauthored input reads UsdLux's fallback, a number no exporter wrote, so no exporter's units apply to it."""
+    for n in (f"inputs:{name}", name):
+        a = prim.GetAttribute(n)
+        if a and a.HasAuthoredValue():
+            return True
+    return False
+
+
 def light_colour(prim, time) -> np.ndarray:
     """intensity · 2^exposure · color (· the colour temperature, where authored), per channel."""
     api = UsdLux.LightAPI(prim)
@@ -125,6 +136,8 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
     """(kind, tracer light or None, world dict or None) for one UsdLux prim in ``units`` (usd_io.exporters.UNITS:
     the writer's light units; None: "blender" when ``blender`` else "spec")."""
     units = units or ("blender" if blender else "spec")
+    if units != "spec" and not authored(prim, "intensity"):
+        units = "spec"  # the writer's units are about the numbers it wrote: a fallback intensity is UsdLux's
     blender = units == "blender"
     t = prim.GetTypeName()
     name = str(prim.GetPath())
@@ -168,6 +181,8 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
         lux = UsdLux.DistantLight(prim)
         angle = _finite(_get(lux.GetAngleAttr(), time, 0.53), "angle")
         irradiance, diameter = sun_irradiance(rgb, angle, _normalized(prim, time), blender)
+        if blender and not authored(prim, "angle"):  # Blender's half angle is for an angle it wrote
+            diameter = float(np.clip(np.radians(angle), 0, np.pi - 1e-6))
         if not blender and angle <= 0:  # a delta sun: the limit the normalized reading gives
             irradiance = rgb
         return "distant", DistantLight(direction=down, irradiance=irradiance, angle=diameter, name=name), None
@@ -248,7 +263,8 @@ def _old_blender(t, prim, world, time, rgb, units, warn):
                                  radiance=power / (np.pi * area), shape=shape, name=name), None
     if t == "DistantLight":
         angle = _finite(_get(UsdLux.DistantLight(prim).GetAngleAttr(), time, 0.0), "angle")
-        diameter = float(np.clip(angle if legacy else np.radians(angle), 0, np.pi - 1e-6))  # legacy: radians
+        radians = legacy and authored(prim, "angle")  # legacy: radians, where the exporter wrote the angle
+        diameter = float(np.clip(angle if radians else np.radians(angle), 0, np.pi - 1e-6))
         irradiance = rgb if legacy else rgb * K
         return "distant", DistantLight(direction=down, irradiance=irradiance, angle=diameter, name=name), None
     if t in ("DomeLight", "DomeLight_1") and not legacy:  # the world's strength S written as S · 683

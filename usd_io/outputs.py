@@ -104,6 +104,24 @@ def output_for(pattern: str, scene: str) -> str:
     return pattern.replace("{stem}", os.path.splitext(base)[0]).replace("{name}", base)
 
 
+def product_path(name: str, directory: str | None = None, anywhere: bool = False) -> str:
+    """Where a RenderProduct's ``productName`` is written. The name comes from the stage, and a stage may be
+    anyone's (a survey of downloaded assets, a farm's queue), so it is joined to ``directory`` (default: the
+    current directory) and must stay inside it: a name whose real path (``os.path.realpath``: ``..``, an absolute
+    path and symbolic links resolved) leaves the directory is a :class:`BadInput`, unless ``anywhere``
+    (``--allow-product-paths``: a trusted pipeline's stage writes where it says)."""
+    base = os.path.realpath(directory or os.curdir)
+    path = os.path.join(base, name)
+    if anywhere:
+        return path
+    real = os.path.realpath(path)
+    if real == base or os.path.commonpath([real, base]) != base:
+        where = f"--output-dir {directory}" if directory else f"the output directory {base}"
+        raise BadInput(f"RenderProduct productName {name!r} leaves {where}; refusing to write {real} "
+                       "(--allow-product-paths writes products where the stage says)")
+    return path
+
+
 def aov_path(image_path: str, aov: str) -> str:
     root, _ext = os.path.splitext(image_path)
     return f"{root}.{aov}.exr"
@@ -139,14 +157,8 @@ def write_outputs(image, out, aovs, max_depth: int | None = None, picture: bool 
 
 
 def _save(image, out: str) -> None:
-    """PNG/TIFF/EXR keep alpha; JPEG has none (RGB only)."""
-    from tracer import write_image
-
-    ext = os.path.splitext(out)[1].lower()
-    if ext in (".jpg", ".jpeg"):
-        write_image(out, image.rgba[..., :3])
-    else:
-        image.save(out)
+    """PNG/TIFF/EXR keep alpha; formats without it (JPEG, Radiance HDR) get RGB (tracer.film.write_image)."""
+    image.save(out)
 
 
 def _write_aov(path, pixels):

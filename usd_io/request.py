@@ -37,9 +37,13 @@ def request_field(default, *flags, parse=None, **options):
 
 
 def split_purposes(values) -> tuple[str, ...] | None:
-    """``--purposes`` takes space- or comma-separated names (``render proxy`` or ``render,proxy``)."""
+    """``--purposes`` takes one comma-separated value (``render,proxy,guide``). One value, not several separated
+    by spaces: a flag that takes several swallows the scene path after it (``--purposes render SCENE``). A list
+    (the API's) is accepted, each item comma-separated too."""
     if values is None:
         return None
+    if isinstance(values, str):
+        values = [values]
     return tuple(p.strip() for v in values for p in v.split(",") if p.strip())
 
 
@@ -62,9 +66,9 @@ class StageRequest:
                                        help="camera prim path (default: the first camera in the stage)")
     width: int | None = request_field(None)
     height: int | None = request_field(None)
-    purposes: tuple | None = request_field(None, "--purposes", nargs="+", parse=split_purposes, metavar="P",
-                                           help="purposes to render, space- or comma-separated (default: default "
-                                           "render)")
+    purposes: tuple | None = request_field(None, "--purposes", parse=split_purposes, metavar="P[,P...]",
+                                           help="purposes to render, comma-separated, e.g. render,proxy,guide "
+                                           "(default: default,render)")
     variants: tuple = request_field((), "--variant", action="append", type=parse_variant, metavar="/PRIM:SET=VALUE",
                                     parse=lambda v: tuple(v or ()),
                                     help="select a variant before reading (repeatable)")
