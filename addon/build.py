@@ -201,44 +201,52 @@ def _kernels_here(platform: str) -> bool:
 def build(out_dir: str = "dist", platforms=tuple(PLATFORMS), offline: bool = False, cache: str = CACHE,
           kernels: bool = True) -> dict:
     """Write one extension zip per platform into ``out_dir`` (removing older whitted zips there) with Blender's
-    builder; returns {platform: zip path}. The Linux zip carries the kernels compiled ahead (``kernels=False``
-    leaves them out)."""
+    builder; returns {platform: zip path}. The Linux zip then gets the kernels compiled ahead (``kernels/``,
+    :func:`add_kernels`; ``kernels=False`` leaves them out)."""
     platforms = list(platforms)
     wheels = fetch_wheels(platforms, cache=cache, offline=offline)
     script = blender_ext_script()
     with open(os.path.join(ADDON, "blender_manifest.toml"), "rb") as f:
         manifest = tomllib.load(f)
-    made = {}
     with tempfile.TemporaryDirectory(prefix="whitted-ext-") as tmp:
-        bundle = None
-        for p in platforms:  # one staged source per platform: only some carry kernels
-            src, out = os.path.join(tmp, p, "source"), os.path.join(tmp, p, "out")
-            os.makedirs(src)
-            os.makedirs(out)
-            mine = [w for w in wheels if w in fetch_wheels([p], cache=cache, offline=True)]
-            stage(src, mine, [p])
-            if kernels and _kernels_here(p):
-                if bundle is None:
-                    from tracer import kernel_bundle
-
-                    bundle = os.path.join(tmp, "kernels")
-                    kernel_bundle.build(bundle, package=EXTENSION_TRACER, tracer_dir=os.path.join(src, "tracer"))
-                shutil.copytree(bundle, os.path.join(src, "kernels"))
-            cmd = [sys.executable, script, "build", "--source-dir", src, "--output-dir", out, "--split-platforms"]
-            proc = subprocess.run(cmd, capture_output=True, text=True)
-            z = os.path.join(out, f"{manifest['id']}-{manifest['version']}-{p.replace('-', '_')}.zip")
-            if proc.returncode != 0 or not os.path.isfile(z):
-                raise BuildError(f"Blender's extension builder failed:\n  command: {' '.join(cmd)}\n"
-                                 f"  it said: {(proc.stdout + proc.stderr).strip()[-1500:]}")
-            made[p] = z
+        src, out = os.path.join(tmp, "source"), os.path.join(tmp, "out")
+        os.makedirs(src)
+        os.makedirs(out)
+        stage(src, wheels, platforms)
+        cmd = [sys.executable, script, "build", "--source-dir", src, "--output-dir", out, "--split-platforms"]
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        made = {p: os.path.join(out, f"{manifest['id']}-{manifest['version']}-{p.replace('-', '_')}.zip")
+                for p in platforms}
+        if proc.returncode != 0 or not all(os.path.isfile(z) for z in made.values()):
+            raise BuildError(f"Blender's extension builder failed:\n  command: {' '.join(cmd)}\n"
+                             f"  it said: {(proc.stdout + proc.stderr).strip()[-1500:]}")
         os.makedirs(out_dir, exist_ok=True)
         for old in glob.glob(os.path.join(out_dir, f"{manifest['id']}-*.zip")):
             os.unlink(old)
         result = {}
         for p, z in made.items():
+            if kernels and _kernels_here(p):
+                add_kernels(z, os.path.join(src, "tracer"), os.path.join(tmp, "kernels"))
             result[p] = os.path.join(out_dir, os.path.basename(z))
             shutil.move(z, result[p])
     return result
+
+
+def add_kernels(zip_path: str, tracer_dir: str, work: str) -> dict:
+    """Compile the staged tracer's kernels for the baseline CPU (tracer/kernel_bundle.py) as Blender will import
+    it, and add them to the zip under ``kernels/`` (Blender's builder takes no per-platform files, so they are
+    added to the Linux zip it wrote). Returns the bundle's manifest."""
+    import zipfile
+
+    from tracer import kernel_bundle
+
+    manifest = kernel_bundle.build(work, package=EXTENSION_TRACER, tracer_dir=tracer_dir)
+    with zipfile.ZipFile(zip_path, "a", compression=zipfile.ZIP_DEFLATED) as z:
+        for d, _, files in os.walk(work):
+            for name in sorted(files):
+                path = os.path.join(d, name)
+                z.write(path, "kernels/" + os.path.relpath(path, work).replace(os.sep, "/"))
+    return manifest
 
 
 def main(argv=None):

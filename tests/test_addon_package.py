@@ -66,6 +66,10 @@ scene.render.filepath = png
 scene.render.image_settings.file_format = "PNG"
 bpy.ops.render.render(write_still=True)
 out["stats"] = mod.engine.WhittedRenderEngine.last_render.stats["rays"]
+out["kernels"] = {"compiled_in_child": mod.kernels._state.done, "child_error": mod.kernels._state.error,
+                  "in_extension": sorted(os.path.relpath(os.path.join(d, f), os.path.dirname(mod.__file__))
+                                         for d, _, fs in os.walk(os.path.dirname(mod.__file__)) for f in fs
+                                         if f.endswith((".nbi", ".nbc")))}
 bpy.ops.preferences.addon_disable(module="bl_ext.user_default.whitted")
 out["engines_after_disable"] = engines()
 out["scene_prop_after_disable"] = hasattr(bpy.types.Scene, "whitted")
@@ -158,7 +162,7 @@ def test_blenders_builder_makes_one_zip_per_platform_with_its_wheels(tmp_path, m
                 whl.writestr("stand-in.txt", name)
     calls = []
     monkeypatch.setattr(build.subprocess, "run", _no_pip(calls, build.subprocess.run))
-    zips = build.build(str(tmp_path / "dist"), offline=True, cache=str(cache))
+    zips = build.build(str(tmp_path / "dist"), offline=True, cache=str(cache), kernels=False)
     assert set(zips) == set(WHEEL_FILES) and not [c for c in calls if "pip" in c]
     assert sorted(os.listdir(tmp_path / "dist")) == [f"whitted-0.1.0-{p.replace('-', '_')}.zip" for p in
                                                      sorted(WHEEL_FILES)]
@@ -193,7 +197,8 @@ def test_builder_errors_are_clear(tmp_path, monkeypatch):
 
 
 def test_extension_installs_registers_renders_and_unregisters(zip_path, tmp_path):
-    env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "blender_user"))
+    env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "blender_user"),
+               WHITTED_KERNEL_CACHE=str(tmp_path / "kernel_cache"))  # an empty cache: the zip's kernels or nothing
     png = str(tmp_path / "f12.png")
     proc = subprocess.run([sys.executable, "-c", SCRIPT, zip_path, png, PROBE], env=env, capture_output=True, text=True,
                           timeout=1200, cwd=str(tmp_path))  # a hang guard: kernels compile cold in Blender
@@ -222,6 +227,15 @@ def test_extension_installs_registers_renders_and_unregisters(zip_path, tmp_path
     assert out["addon_file"].startswith(user_dir) and out["tracer_file"].startswith(user_dir)  # bundled tracer
     assert out["stats"]["eye"] > 0 and os.path.getsize(png) > 0
     assert "WHITTED" not in out["engines_after_disable"] and not out["scene_prop_after_disable"]
+    # the kernels: shipped in the zip for this CPU family (kernels/), copied into the user's kernel cache by a child
+    # process at register, none compiled there; nothing was written into the extension folder besides the zip's own
+    k = out["kernels"]
+    assert k["child_error"] is None and k["compiled_in_child"] == 0, k
+    assert k["in_extension"] and all(f.startswith("kernels" + os.sep) for f in k["in_extension"]), k
+    with zipfile.ZipFile(zip_path) as z:
+        shipped = {n.split("/")[-1] for n in z.namelist() if n.startswith("kernels/") and n.endswith(".nbi")}
+    cached = {f for _, _, fs in os.walk(tmp_path / "kernel_cache") for f in fs if f.endswith(".nbi")}
+    assert cached and cached <= shipped and all(f.startswith("bl_ext.user_default.whitted.tracer.") for f in cached)
 
 
 def _wheel_metadata(zip_path, package, platform_tag):
