@@ -28,6 +28,7 @@ import time
 from .bundled import tracer, tracer_module
 
 class _State:
+    started = False
     proc: subprocess.Popen | None = None
     thread: threading.Thread | None = None
     done = 0
@@ -38,6 +39,7 @@ class _State:
 
 
 _state = _State()
+_LOCK = threading.Lock()
 
 
 def bundle_folder() -> str:
@@ -59,6 +61,10 @@ def expected_units() -> int | None:
 
 def start() -> None:
     """Use the shipped kernels where they fit, and prepare the rest in a child process (at once, non-blocking)."""
+    with _LOCK:
+        if _state.started:
+            return
+        _state.started = True
     cache = tracer_module("kernel_cache")
     folder = bundle_folder()
     cache.use_bundle(folder)
@@ -105,6 +111,7 @@ def _python() -> str:
 
 
 def ready() -> bool:
+    start()  # (a no-op after register(); a render engine registered on its own, as tests do, starts it here)
     return _state.finished.is_set()
 
 
@@ -118,6 +125,7 @@ def status() -> str:
 
 def wait(cancelled=lambda: False, on_status=lambda text: None, poll: float = 0.1) -> bool:
     """Wait (sleeping: Blender's UI keeps running) until the kernels are ready; False if cancelled first."""
+    start()
     while not _state.finished.wait(poll):
         if cancelled():
             return False

@@ -50,7 +50,7 @@ stage = open_stage(sys.argv[1]); scene, info = load_stage(stage, width=64); mark
 from numba.core.compiler_lock import global_compiler_lock
 from numba.core.registry import cpu_target
 with global_compiler_lock:  # what the first cached kernel's load sets up: all of numba's target, or NRT only
-    if hasattr(tracer.jit, "_KernelCache"):
+    if hasattr(tracer.jit, "_KernelCache") or hasattr(tracer, "kernel_cache"):
         from numba.core.runtime import rtsys
         rtsys.initialize(cpu_target.target_context)
     else:

@@ -2,7 +2,7 @@
 
 - ``usd_io.cli.run`` (the console script) ends the process with ``os._exit`` after joining threads, running atexit
   handlers and flushing: same exit codes, same messages, the image complete, as ``sys.exit(main())``;
-- ``tracer.jit._KernelCache`` loads cached kernels without numba's full target refresh: the pixels are the same,
+- ``tracer.kernel_cache.KernelCache`` loads cached kernels without numba's full target refresh: the pixels are the same,
   and a kernel that is not in the cache still compiles in a process that only loaded from it.
 """
 

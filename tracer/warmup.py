@@ -1,10 +1,12 @@
-"""Compile (or load from numba's cache) every kernel a render uses, before the first real render needs them.
+"""Compile (or load from the kernel cache) every kernel of every render path, before a render needs them.
 
-The first render on a machine compiles the kernels (about 10 s); later processes load them from the on-disk cache
-(well under a second). :func:`compile_kernels` renders a tiny scene that takes every path through the kernels (all
-light kinds with and without extent, shading normals, a texture, mirror, glass, alpha, emission, sky visibility), so front
-ends can say "compiling" instead of looking stuck on their first tile; then the same scene with motion blur (a moving
+A render compiles only the kernels it uses, as it first uses them (tracer/jit.py), and later processes load them
+from the cache (tracer/kernel_cache.py). :func:`compile_kernels` is for preparing everything ahead: ``whitted
+warmup``, the Blender add-on's child process, and the kernels shipped in the add-on's zip (tracer/kernel_bundle.py).
+It renders a tiny scene that takes every path through the kernels (all light kinds with and without extent, shading
+normals, a texture, mirror, glass, alpha, emission, sky visibility), then the same scene with motion blur (a moving
 and a deforming object, a moving camera, a shutter curve: tracer/motion.py's kernels and the stages' timed paths).
+docs/benchmarks.md ("Ready at install") has what that costs, measured.
 """
 
 from __future__ import annotations
