@@ -83,6 +83,11 @@ def _run_child(folder: str) -> None:
                                                        folder if os.path.isdir(folder) else "")
     try:
         _state.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+        if hasattr(os, "setpriority"):  # below Blender's own threads: the UI and a render in progress come first
+            try:
+                os.setpriority(os.PRIO_PROCESS, _state.proc.pid, 10)
+            except OSError:
+                pass
         for line in _state.proc.stdout:
             if line.startswith("PROGRESS "):
                 _, done, seconds, name = line.split(" ", 3)

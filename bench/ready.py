@@ -43,6 +43,8 @@ class L(event.Listener):
         f = getattr(ev.data.get("dispatcher"), "py_func", None)
         if f is not None and f.__module__.startswith("tracer"):
             units[0] += 1
+            if os.environ.get("BENCH_UNITS"):
+                print("UNIT", f.__module__, f.__qualname__, file=sys.stderr)
 lis = L()
 event.register("numba:compile", lis)
 start = [None]
@@ -58,7 +60,7 @@ class Top(event.Listener):  # CPU inside the outermost compiles only (nested one
             cpu[0] += time.process_time() - start[0]
 event.register("numba:compile", Top())
 if sys.argv[1] == "vm":  # a bench.vm scene (a procedural material) through the API
-    sys.path.insert(0, os.environ["BENCH_ROOT"])
+    sys.path.append(os.environ["BENCH_ROOT"])  # bench/ only: the tracer is the one on PYTHONPATH
     import tracer
     from bench import vm
     tracer.render(vm.scene(sys.argv[2]), tracer.RenderSettings(width=64, height=64, progress=False))
@@ -82,6 +84,8 @@ def run(cmd, env, cwd=ROOT):
     if proc.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd[:4])}... failed ({proc.returncode}):\n{proc.stderr[-3000:]}")
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    if os.environ.get("BENCH_UNITS"):  # which units compiled (a debugging aid)
+        sys.stderr.write("".join(ln + "\n" for ln in proc.stderr.splitlines() if ln.startswith("UNIT ")))
     return wall, cpu, proc.stdout
 
 
@@ -90,9 +94,13 @@ def render_once(cache: str, tree: str = ROOT, what=("render", "examples/whitted_
     cmd = [sys.executable, "-c", RENDER, *what]
     if what[0] == "render":
         cmd += ["-o", os.path.join(cache, "out.png"), "--quiet"]
+    os.makedirs(cache, exist_ok=True)
     wall, cpu, out = run(cmd, env, cwd=tree)
     line = next(ln for ln in out.splitlines() if ln.startswith("BENCH "))
-    return dict(wall=wall, cpu=cpu, **json.loads(line[len("BENCH "):]))
+    result = dict(wall=wall, cpu=cpu, **json.loads(line[len("BENCH "):]))
+    if result["code"]:
+        raise RuntimeError(f"{' '.join(what)}: exit {result['code']}")
+    return result
 
 
 def bench_cli(args):
