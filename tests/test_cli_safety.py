@@ -281,9 +281,12 @@ def test_sigint_removes_the_temporary_image(tmp_path, wait):
     assert whitted("render", stage, "-o", out_dir / "warm.png", "--width", 16, "--quiet").returncode == 0
     os.unlink(out_dir / "warm.png")
     env = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    # SIGINT as a terminal sends it: a test run in the background of a non-interactive shell (as CI may be)
+    # inherits SIGINT ignored, and Python then installs no KeyboardInterrupt handler
     p = subprocess.Popen([sys.executable, "-c", "from usd_io.cli import run; run()", "render", str(stage), "-o",
                           str(out_dir / "big.png"), "--width", "2000", "--aa", "4", "--quiet"], env=env,
-                         stderr=subprocess.PIPE, text=True)
+                         stderr=subprocess.PIPE, text=True,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     while not glob.glob(str(out_dir / ".whitted-*")) and p.poll() is None:
         time.sleep(0.005)
     assert p.poll() is None, "the render ended before it could be interrupted"
