@@ -19,6 +19,7 @@ with one warning.
 
 from __future__ import annotations
 
+import functools
 import os
 import subprocess
 import sys
@@ -47,8 +48,10 @@ def bundle_folder() -> str:
     return os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(tracer.__file__))), "kernels")
 
 
+@functools.lru_cache(maxsize=1)
 def expected_units() -> int | None:
-    """How many compile units the bundle's manifest counted (an estimate of a compile's length), or None."""
+    """How many compile units the bundle's manifest counted (an estimate of a compile's length), or None; read
+    once (the status line asks ten times a second)."""
     import json
 
     cache = tracer_module("kernel_cache")

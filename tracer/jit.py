@@ -155,15 +155,12 @@ def _dispatcher(f, opts: dict):
 
 def cfunc(signature, fn):
     """``numba.cfunc(signature)(fn)`` with the tracer's options (a C callback, e.g. Embree's filter), cached by
-    content like the kernels."""
+    content like the kernels. ``signature``: a numba signature such as ``types.void(types.voidptr)``."""
     from numba.core.ccallback import CFunc
-    from numba.core.typing import signature as make_signature
 
     opts = dict(error_model="numpy")
-    made = CFunc(fn, signature if isinstance(signature, tuple) else (signature.args, signature.return_type),
-                 locals={}, options=opts)
-    made._cache = kernel_cache.KernelCache(fn, dict(opts, cfunc=str(make_signature(signature.return_type,
-                                                                                  *signature.args))))
+    made = CFunc(fn, (signature.args, signature.return_type), locals={}, options=opts)
+    made._cache = kernel_cache.KernelCache(fn, dict(opts, cfunc=str(signature)))
     made.compile()
     return made
 
