@@ -331,3 +331,95 @@ def test_a_texture_column_multiplies_its_constant():
     b.ambient = np.ones(3, np.float32)
     img = render(b.build(), RenderSettings(width=N, height=N, samples=1, max_depth=0)).rgb
     np.testing.assert_allclose(img, tex * np.array([0.5, 1.0, 0.25], np.float32), atol=1e-5)
+
+
+# ---------------------------------------------------------------------------------------------- the node table
+def _branches(fn_name: str) -> list[str]:
+    """The OP_* names compared with ``op`` in the if/elif chain of ``tracer.shader_vm.<fn_name>``, in order."""
+    import ast
+    import inspect
+
+    tree = ast.parse(inspect.getsource(vm))
+    fn = next(n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef) and n.name == fn_name)
+    out = []
+    for n in ast.walk(fn):
+        if isinstance(n, ast.If) and isinstance(n.test, ast.Compare) and isinstance(n.test.left, ast.Name) and \
+                n.test.left.id == "op" and isinstance(n.test.ops[0], ast.Eq):
+            out.append(n.test.comparators[0].id)
+    return sorted(set(out), key=out.index) if len(set(out)) == len(out) else out
+
+
+def test_vm_dispatch_follows_the_op_table():
+    """Every instruction of the node table has exactly one branch in the VM (execute, or _procedural for the
+    procedural textures, numbered last from OP_NOISE), and no branch names an instruction the table lacks."""
+    from tracer import shader_nodes as nodes
+
+    main, proc = _branches("execute"), _branches("_procedural")
+    assert len(main) == len(set(main)) and len(proc) == len(set(proc)), "an instruction with two branches"
+    names = {f"OP_{op.name.upper()}" for op in nodes.OPS if op.name != "nop"}
+    assert set(main) | set(proc) == names and not set(main) & set(proc)
+    assert {nodes.OPCODE[n[3:].lower()] for n in proc} == set(range(nodes.OP_NOISE, len(nodes.OPS)))
+    for k, op in enumerate(nodes.OPS):  # the names numba's branches read are the table's opcodes
+        assert getattr(vm, f"OP_{op.name.upper()}", k) == k and vm.OP_NAMES[k] == op.name
+
+
+def test_node_table_entries_are_whole():
+    """Each node type has sockets of known kinds, its lowering (closures: the closure lowering) and a proof."""
+    from tracer import shader_nodes as nodes
+
+    closures = {n for n, t in nodes.NODE_TYPES.items() if any(s.kind == nodes.CLOSURE for s in t.outputs)}
+    for name, t in nodes.NODE_TYPES.items():
+        assert all(s.kind in nodes.KINDS for s in t.inputs + t.outputs), name
+        assert (t.lower is None) == (name in closures or name == "material_output"), name
+        assert t.proof or name == "material_output", name
+
+
+def _fold_cases():
+    from tracer import shader_nodes as nodes
+
+    imms = {"math": [k | c for k in range(41) for c in (0, 256)], "vmath": list(range(29)),
+            "mix_f": [0, 1], "mix_v": [0, 1], "mix_vn": [0, 1], "mix_c": [k | c for k in range(19) for c in (0, 768)],
+            "sep_color": [0, 1, 2], "comb_color": [0, 1, 2], "map_range": [k | c for k in range(4) for c in (0, 256)],
+            "map_range_v": [0, 1, 2, 3, 256], "clamp": [0, 1], "mapping": [0, 1, 2, 3], "ramp": [0, 1],
+            "curve": [0, 1, 2], "vrotate": [0, 1, 2, 3, 4, 8, 12], "copy": [1, 3], "select": [1, 3]}
+    return [(op.name, imm) for op in nodes.OPS if op.fold is not None for imm in imms.get(op.name, [0])]
+
+
+def test_every_fold_matches_the_vm():
+    """The compiler's constant folding (each OPS row's ``fold``) gives what the VM computes for the same
+    instruction, for every instruction that folds and every mode: one-instruction programs run through the world
+    stage (tracer.shader_vm.shade_directions, whose register file is left holding the results)."""
+    from tracer import shader_nodes as nodes
+    from tracer.texture import pack_textures
+
+    rng = np.random.default_rng(7)
+    tex = pack_textures([])
+    f32, i32 = np.float32, np.int32
+    for name, imm in _fold_cases():
+        R0 = rng.uniform(-1.5, 2.5, 96)
+        R0[rng.random(96) < 0.15] = 0.0  # divisions by zero, zero vectors
+        a, b, c, d, e, f = 8, 24, 40, 56, 64, 72
+        if name == "ramp":
+            c, R0[b:b + 16] = 4, rng.uniform(0, 1, 16)  # 4 RGBA entries
+        elif name == "curve":
+            R0[b:b + 3] = (-0.5, 1.5, 4.0)
+            R0[b + 3:b + 3 + 16] = rng.uniform(0, 1, 16)  # 4 channels × 4 samples
+            c = 4
+        elif name == "blackbody":
+            R0[a] = 5000.0
+        elif name == "wavelength":
+            R0[a] = 550.0
+        o = 80
+        code = np.array([[nodes.OPCODE[name], o, a, b, c, d, e, f, imm]], np.int32)
+        want = R0.copy()
+        nodes.OPS[nodes.OPCODE[name]].fold(want, o, a, b, c, d, e, f, imm)
+        R = np.zeros_like(R0)
+        out = np.zeros((1, 3))
+        vm.shade_directions(code, np.array([0, 1], i32), np.zeros(1, i32), np.zeros((1, 8), i32), R0, R, 0,
+                            np.array([[0.0, 0.0, 1.0]], f32), out, tex.data, tex.params,
+                            (np.zeros((0, 3, 2), f32), np.zeros((0, 3), i32), False), np.zeros((0, 3, 3), f32), False,
+                            np.zeros((0, 3), f32), np.zeros((0, 3), i32), np.zeros((0, 3), f32), np.zeros(0, i32),
+                            np.zeros((2, 9, 4)), np.zeros((0, 3, 3)), np.zeros(0, np.bool_), np.zeros(0, i32), 0,
+                            True)
+        w = nodes.OPS[nodes.OPCODE[name]].width(imm)
+        np.testing.assert_allclose(R[o:o + w], want[o:o + w], rtol=1e-12, atol=1e-12, err_msg=f"{name} imm={imm}")

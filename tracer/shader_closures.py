@@ -17,7 +17,7 @@ lowered to the tracer's closure inputs and, where one closure cannot hold it, to
    holdout        a black, opaque surface; its weight is the hit's ``holdout`` (tracer.compose: alpha)
    ============== ===================================================================================
 
-3. **The one-closure outputs** (:data:`tracer.shader_vm.OUT_SLOTS`) blend the lobes' parameters: transparency
+3. **The one-closure outputs** (:data:`tracer.shader_nodes.OUTPUTS`) blend the lobes' parameters: transparency
    T = Σ transparent weights × mean(Color) + Σ wᵢ(1 − alphaᵢ); alpha = 1 − T; emission = Σ wᵢ·Eᵢ / alpha (the
    tracer adds emission × alpha); the reflecting lobes' weights sᵢ = wᵢ·alphaᵢ give base = Σ sᵢ·baseᵢ / alpha,
    specular level likewise, roughness, metallic and transmission as sᵢ-weighted means. Exact for one lobe with
@@ -35,10 +35,9 @@ from __future__ import annotations
 import numpy as np
 
 from . import lobes as L
-from . import shader_compile as sc
 from . import shader_ops as ops
-from . import shader_vm as vm
-from .shader_graph import FLOAT, VECTOR, Node, Out
+from .shader_graph import Node, Out
+from .shader_nodes import FLOAT, IN_NORMAL, VECTOR, is_const, vec3
 
 _KIND = {"principled_bsdf": L.PRINCIPLED, "diffuse_bsdf": L.DIFFUSE, "glossy_bsdf": L.GLOSSY, "glass_bsdf": L.GLASS,
          "refraction_bsdf": L.REFRACTION, "translucent_bsdf": L.TRANSLUCENT}
@@ -63,15 +62,15 @@ class ClosureLowering:
         node = self.g.node(ref)
         if node.type == "mix_closure":
             f = self.inp(node, "Fac", FLOAT)
-            if sc._is_const(f):
+            if is_const(f):
                 f = min(max(float(f), 0.0), 1.0)
             a, b = (self.g.input_value(node, s) for s in ("Shader", "Shader_001"))
             wa = self.math(ops.M_MULTIPLY, weight, self.math(ops.M_SUBTRACT, 1.0, f))
             wb = self.math(ops.M_MULTIPLY, weight, f)
             out = []
-            if not (sc._is_const(wa) and wa == 0.0):
+            if not (is_const(wa) and wa == 0.0):
                 out += self.closure(a, wa)
-            if not (sc._is_const(wb) and wb == 0.0):
+            if not (is_const(wb) and wb == 0.0):
                 out += self.closure(b, wb)
             return out
         if node.type == "add_closure":
@@ -100,14 +99,14 @@ class ClosureLowering:
             if isinstance(st, Out):
                 self.warn(node.name + "st", f"Principled BSDF {node.name!r}: a linked Specular Tint is read as white")
             else:
-                lb["specular_tint"] = sc._vec(st)
+                lb["specular_tint"] = vec3(st)
             for name in ("Coat Weight", "Sheen Weight", "Subsurface Weight"):
                 w = self.g.input_value(node, name)
                 if isinstance(w, Out) or float(w) > 0:
                     self.warn(node.name + name, f"Principled BSDF {node.name!r}: {name} is not supported (ignored)")
             tint = node.params.get("transmission_tint")
             if tint is not None:
-                lb["tint"] = sc._vec(tint)
+                lb["tint"] = vec3(tint)
         elif t in ("diffuse_bsdf", "translucent_bsdf"):
             lb.update(base=self.inp(node, "Color"), roughness=1.0, normal=self._normal_in(node))
             lb["colour"] = lb["base"]
@@ -120,12 +119,12 @@ class ClosureLowering:
             lb["colour"] = lb["base"]
         elif t in ("glass_bsdf", "refraction_bsdf"):
             r = self.inp(node, "Roughness")
-            if not sc._is_const(r) or float(r) > 0.05:
+            if not is_const(r) or float(r) > 0.05:
                 self.warn(node.name + "r", f"{node.name!r}: rough glass is rendered as smooth glass")
             col = self.g.input_value(node, "Color")
             if isinstance(col, Out):
                 self.warn(node.name + "c", f"{node.name!r}: a linked glass colour is read as its constant estimate")
-            colour = sc._vec(self._estimate_of(node, "Color")) if isinstance(col, Out) else sc._vec(col)
+            colour = vec3(self._estimate_of(node, "Color")) if isinstance(col, Out) else vec3(col)
             lb.update(base=colour, transmission=1.0, roughness=r, specular=0.5, ior=self._const_in(node, "IOR", 1.5),
                       tint=colour, normal=self._normal_in(node), colour=colour)
         elif t == "transparent_bsdf":
@@ -170,23 +169,23 @@ class ClosureLowering:
         return vals, extras
 
     def _displacement_bump(self, disp: Out, normal):
-        nrm = normal if normal is not None else self.hit(vm.IN_NORMAL)
+        nrm = normal if normal is not None else self.hit(IN_NORMAL)
         if self.estimate:
             return nrm
         hs = []
         for var in range(3):
             d = self.val(disp, VECTOR, var)
-            hs.append(self.vmath(ops.V_DOT_PRODUCT, d, self.hit(vm.IN_NORMAL))[1])
-        if all(sc._is_const(h) for h in hs):
+            hs.append(self.vmath(ops.V_DOT_PRODUCT, d, self.hit(IN_NORMAL))[1])
+        if all(is_const(h) for h in hs):
             return nrm
         setup = self.bump_setup()
-        return self.e.emit(vm.OP_BUMP, 3, [(hs[0], 1), (hs[1], 1), (hs[2], 1), (1.0, 1), (1.0, 1), (nrm, 3)],
+        return self.op("bump", [(hs[0], 1), (hs[1], 1), (hs[2], 1), (1.0, 1), (1.0, 1), (nrm, 3)],
                            imm=setup.r, raw={"reads": [(setup.r, 10)]})
 
     def _mean(self, c):
         """The mean of a colour (a transparent lobe's share of coverage)."""
-        if sc._is_const(c):
-            return sum(sc._vec(c)) / 3.0
+        if is_const(c):
+            return sum(vec3(c)) / 3.0
         return self.convert(c, VECTOR, FLOAT)
 
     def combine(self, lobes: list) -> tuple[dict, dict]:
@@ -200,7 +199,7 @@ class ClosureLowering:
         for _w, lb in surf:
             extras["specular_tint"] = lb["specular_tint"]
             extras["alpha_threshold"] = max(extras["alpha_threshold"], lb["threshold"])
-        glass = [(w, lb) for w, lb in surf if not (sc._is_const(lb["transmission"]) and lb["transmission"] == 0.0)]
+        glass = [(w, lb) for w, lb in surf if not (is_const(lb["transmission"]) and lb["transmission"] == 0.0)]
         if glass:
             extras["ior"] = glass[0][1]["ior"]
             tints = [lb["tint"] for _w, lb in glass]
@@ -209,7 +208,7 @@ class ClosureLowering:
             extras["ior"] = surf[0][1]["ior"]
         normals = [lb["normal"] for _w, lb in surf if lb["normal"] is not None]
         normal = normals[0] if normals else None
-        if len({id(x) if not sc._is_const(x) else sc._vec(x) for x in normals}) > 1:
+        if len({id(x) if not is_const(x) else vec3(x) for x in normals}) > 1:
             self.warn("normals", "lobes with different normals: the first lobe's normal is used for all")
         if len(lobes) == 1:
             w, lb = lobes[0]
@@ -220,7 +219,7 @@ class ClosureLowering:
             if lb["kind"] == "emission":
                 return dict(base=zero3, roughness=0.5, metallic=0.0, specular=0.0, alpha=1.0,
                             emission=self.scale3(lb["emission"], w), normal=None, transmission=0.0), extras
-            if sc._is_const(w) and float(w) == 1.0:
+            if is_const(w) and float(w) == 1.0:
                 return {k: lb[k] for k in ("base", "roughness", "metallic", "specular", "alpha", "emission",
                                            "transmission")} | {"normal": normal}, extras
         # several lobes (or a weighted one): transparency, emission sum, weighted parameters
@@ -264,7 +263,7 @@ class ClosureLowering:
         refl = [(w, lb) for w, lb in lobes if lb["kind"] == "surface"]
         special = any(lb["lk"] in (L.GLOSSY, L.TRANSLUCENT, L.REFRACTION) for _w, lb in refl) or any(
             lb["kind"] == "holdout" or (lb["kind"] == "transparent" and not (
-                sc._is_const(lb["through"]) and sc._vec(lb["through"]) == (1.0, 1.0, 1.0))) for _w, lb in lobes)
+                is_const(lb["through"]) and vec3(lb["through"]) == (1.0, 1.0, 1.0))) for _w, lb in lobes)
         if len(refl) < 2 and not special:
             return None
         m = self.math
@@ -277,7 +276,7 @@ class ClosureLowering:
                 holdout = m(ops.M_ADD, holdout, w)
             elif lb["kind"] == "surface":
                 a = lb["alpha"]
-                if not (sc._is_const(a) and float(a) == 1.0):
+                if not (is_const(a) and float(a) == 1.0):
                     through = self.add3(through, self.convert(m(ops.M_MULTIPLY, w, m(ops.M_SUBTRACT, 1.0, a)),
                                                               FLOAT, VECTOR))
                 slots.append((m(ops.M_MULTIPLY, w, a), lb))
@@ -302,7 +301,7 @@ class ClosureLowering:
         blended into one Principled lobe of weight-averaged parameters (one warning)."""
         self.warn("lobes", f"{len(slots)} reflecting BSDFs: the lightest are merged into one blended lobe "
                            f"(the tracer keeps {L.MAX_LOBES})")
-        est = [float(w) if sc._is_const(w) else 0.5 for w, _lb in slots]
+        est = [float(w) if is_const(w) else 0.5 for w, _lb in slots]
         order = sorted(range(len(slots)), key=lambda k: -est[k])
         keep = [slots[k] for k in order[:L.MAX_LOBES - 1]]
         rest = [slots[k] for k in order[L.MAX_LOBES - 1:]]

@@ -7,7 +7,7 @@
 What the compiler does, in order:
 
 1. **Closures flatten** into a weighted list of lobes (Mix / Add Shader trees of any depth), which become the tracer's
-   closure inputs (:data:`tracer.shader_vm.OUT_SLOTS`: one blended Principled set) and, where one closure cannot hold
+   closure inputs (:data:`tracer.shader_N.OUT_SLOTS`: one blended Principled set) and, where one closure cannot hold
    the tree (several reflecting lobes, a Glossy, Glass-beside-something, Translucent, Refraction, Holdout or tinted
    Transparent leaf), lobe slots (:mod:`tracer.lobes`): :mod:`tracer.shader_closures` does both.
 2. **Outputs** are registers: each closure input's (``outs``) and each lobe slot's (``Program.lobes``).
@@ -30,43 +30,15 @@ from typing import NamedTuple
 
 import numpy as np
 
+from . import shader_nodes as N
 from . import shader_ops as ops
-from . import shader_vm as vm
 from .lobes import MAX_LOBES
 from .shader_closures import ClosureLowering, LobeSlots
-from .shader_graph import (CLOSURE, COLOR, ENUMS, FLOAT, IMPLICIT, NODE_TYPES, VECTOR, Graph, ImageRef, Implicit,
-                           Node, Out)
-
-
-class Reg(NamedTuple):
-    """A value in registers r … r + n − 1 (``uv``: the UV set its coordinates came from, for the mip footprint)."""
-
-    r: int
-    n: int
-    uv: int = -1
-    src: object = None  # (TextureUse, coordinates, (projection, blend)) of an image lookup's colour: a constant scale
-    #                     folds into it
-
-
-def _is_const(x) -> bool:
-    return not isinstance(x, Reg)
-
-
-def _vec(x):
-    """A constant as a 3-tuple of floats."""
-    if np.ndim(x) == 0:
-        return (float(x),) * 3
-    return tuple(float(c) for c in tuple(x)[:3])
-
-
-class TextureUse(NamedTuple):
-    """What an image op reads: an ImageRef with the UsdUVTexture scale/bias/fallback, or a scene texture."""
-
-    image: ImageRef | None
-    scene_index: int
-    scale: tuple = (1.0, 1.0, 1.0, 1.0)
-    bias: tuple = (0.0, 0.0, 0.0, 0.0)
-    fallback: tuple = (1.0, 1.0, 1.0, 1.0)
+from .shader_graph import Graph, Implicit, Node, Out
+from .shader_nodes import COLOR, FLOAT, NODE_TYPES, OPS, OPCODE, VECTOR, Reg, TextureUse, convert_constant
+from .shader_nodes import is_const as _is_const
+from .shader_nodes import vec3 as _vec
+from .shader_nodes import transform2d_matrix  # noqa: F401  (re-exported: the USD readers' UsdTransform2d)
 
 
 @dataclass
@@ -88,7 +60,7 @@ class Program:
     def disassemble(self) -> str:
         lines = []
         for row in self.code:
-            lines.append(f"{vm.OP_NAMES[row[0]]:>12} " + " ".join(str(int(x)) for x in row[1:]))
+            lines.append(f"{N.OP_NAMES[row[0]]:>12} " + " ".join(str(int(x)) for x in row[1:]))
         return "\n".join(lines)
 
 
@@ -101,6 +73,12 @@ class Compiled:
 
 
 # ---------------------------------------------------------------------------------------------- the emitter
+def _operand(item) -> bool:
+    """An operand that is a value: (value, width), not a raw int."""
+    return isinstance(item, tuple) and (isinstance(item[0], Reg) or (
+        len(item) == 2 and not isinstance(item[0], (int, np.integer))))
+
+
 class _Emitter:
     def __init__(self):
         self.code: list[list[int]] = []
@@ -109,6 +87,7 @@ class _Emitter:
         self.init: list[float] = []
         self._consts: dict = {}
         self._cse: dict = {}
+        self.varying: set = set()  # registers an instruction writes (the rest are constants)
 
     def alloc(self, n: int) -> int:
         r = len(self.init)
@@ -129,14 +108,16 @@ class _Emitter:
             return x.r
         return self.const(_vec(x) if n == 3 else (x if np.ndim(x) else float(x))).r
 
-    def emit(self, op: int, width: int, operands: list, imm: int = 0, uv: int = -1, raw: dict | None = None) -> Reg:
-        """One instruction: ``operands`` fill fields a..f in order, each (value, width) or an int (raw);
-        returns its result registers (CSE: an identical instruction is emitted once)."""
+    def is_const(self, x) -> bool:
+        """A value known now: a float or tuple, or a Reg of constant registers."""
+        return not isinstance(x, Reg) or not any(r in self.varying for r in range(x.r, x.r + x.n))
+
+    def fields(self, operands: list) -> tuple[list, list]:
+        """(fields a..f, the (register, width) each reads) of ``operands``: each (value, width), or an int (raw)."""
         fields = []
         reads = []
         for item in operands:
-            if isinstance(item, tuple) and len(item) == 2 and not isinstance(item[0], (int, np.integer)) or \
-                    (isinstance(item, tuple) and isinstance(item[0], Reg)):
+            if _operand(item):
                 x, n = item
                 r = self.reg(x, n)
                 fields.append(r)
@@ -144,10 +125,17 @@ class _Emitter:
             else:
                 fields.append(int(item))
         fields += [0] * (6 - len(fields))
+        return fields, reads
+
+    def emit(self, op: int, width: int, operands: list, imm: int = 0, uv: int = -1, raw: dict | None = None) -> Reg:
+        """One instruction: ``operands`` fill fields a..f in order (:meth:`fields`); returns its result registers
+        (CSE: an identical instruction is emitted once)."""
+        fields, reads = self.fields(operands)
         key = (op, tuple(fields), imm)
         if key in self._cse:
             return Reg(self._cse[key], width, uv)
         dst = self.alloc(width)
+        self.varying.update(range(dst, dst + width))
         self.code.append([op, dst] + fields + [imm])
         self.reads.append(reads + (raw or {}).get("reads", []))
         self.widths.append(width)
@@ -166,18 +154,8 @@ class _Emitter:
                 keep[i] = True
                 for r, n in self.reads[i]:
                     live.update(range(r, r + n))
-        code = np.array([c for c, k in zip(self.code, keep) if k], np.int32).reshape(-1, vm.WIDTH)
+        code = np.array([c for c, k in zip(self.code, keep) if k], np.int32).reshape(-1, N.WIDTH)
         return code, np.array(self.init, np.float64)
-
-
-def _enum(key: str, value, default_first=True) -> int:
-    names = ENUMS[key]
-    if value is None:
-        return 0
-    try:
-        return names.index(str(value).upper() if key != "image_texture.interpolation" else str(value))
-    except ValueError:
-        raise ValueError(f"{key}: unknown value {value!r}; one of {names}") from None
 
 
 # ---------------------------------------------------------------------------------------------- the compiler
@@ -216,18 +194,35 @@ class Compiler(ClosureLowering):
         return self.convert(x, src_kind, kind)
 
     def convert(self, x, src: str, dst: str):
+        """A value of socket kind ``src`` as kind ``dst`` (:func:`tracer.shader_nodes.convert_constant`'s rule;
+        per hit by the lum / avg / combine instructions)."""
         if src == dst or {src, dst} <= {VECTOR, COLOR}:
             return x
+        if _is_const(x):
+            return convert_constant(x, src, dst)
         if dst == FLOAT:
-            if _is_const(x):
-                v = _vec(x)
-                return (0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]) if src == COLOR else sum(v) / 3.0
-            return self.e.emit(vm.OP_LUM if src == COLOR else vm.OP_AVG, 1, [(x, 3)])
+            return self.op("lum" if src == COLOR else "avg", [(x, 3)])
         if src == FLOAT:  # to a vector / colour
-            if _is_const(x):
-                return (float(x),) * 3
-            return self.e.emit(vm.OP_COMBINE, 3, [(x, 1), (x, 1), (x, 1)])
+            return self.op("combine", [(x, 1), (x, 1), (x, 1)])
         return x
+
+    def op(self, name: str, operands: list, imm: int = 0, uv: int = -1, raw: dict | None = None):
+        """The instruction ``name`` of :data:`tracer.shader_nodes.OPS` on ``operands`` (:meth:`_Emitter.fields`),
+        as many registers wide as its row says; folded to a constant by its row's ``fold`` when every operand is
+        one (a float for one register, else a tuple)."""
+        spec = OPS[OPCODE[name]]
+        width = spec.width(imm)
+        reads = (raw or {}).get("reads", [])
+        if spec.fold is not None and all(self.e.is_const(item[0]) for item in operands if _operand(item)) and \
+                all(self.e.is_const(Reg(r, n)) for r, n in reads):
+            fields, _reads = self.e.fields(operands)
+            o = len(self.e.init)
+            R = np.zeros(o + width, np.float64)
+            R[:o] = self.e.init
+            spec.fold(R, o, *fields, imm)
+            vals = tuple(float(x) for x in R[o:o + width])
+            return vals[0] if width == 1 else vals
+        return self.e.emit(OPCODE[name], width, operands, imm, uv, raw)
 
     def inp(self, node: Node, name: str, kind: str | None = None, variant: int = 0):
         sock = NODE_TYPES[node.type].input(name)
@@ -243,25 +238,25 @@ class Compiler(ClosureLowering):
 
     def implicit(self, what: Implicit, variant: int = 0):
         if what.what == "normal":
-            return self.hit(vm.IN_NORMAL)
+            return self.hit(N.IN_NORMAL)
         if what.what == "uv":
             return self.uv("", variant)
         if what.what == "generated":
-            return self.hit(vm.IN_GENERATED, variant=variant)
+            return self.hit(N.IN_GENERATED, variant=variant)
         if what.what == "position":
-            return self.hit(vm.IN_POSITION, variant=variant)
-        return self.hit(vm.IN_TANGENT, arg=0)
+            return self.hit(N.IN_POSITION, variant=variant)
+        return self.hit(N.IN_TANGENT, arg=0)
 
     def hit(self, what: int, arg: int = 0, variant: int = 0, uv: int = -1):
         """An OP_INPUT (in estimate mode: a neutral constant)."""
         if self.estimate:
-            return {vm.IN_NORMAL: (0.0, 0.0, 1.0), vm.IN_TRUE_NORMAL: (0.0, 0.0, 1.0), vm.IN_INCOMING: (0.0, 0.0, 1.0),
-                    vm.IN_COLOR: (1.0, 1.0, 1.0), vm.IN_UV: (0.5, 0.5, 0.0), vm.IN_GENERATED: (0.5, 0.5, 0.5),
-                    vm.IN_COLOR_ALPHA: (1.0, 0.0, 0.0), vm.IN_IS_CAMERA: (1.0, 0.0, 0.0)}.get(what, (0.0, 0.0, 0.0))
+            return {N.IN_NORMAL: (0.0, 0.0, 1.0), N.IN_TRUE_NORMAL: (0.0, 0.0, 1.0), N.IN_INCOMING: (0.0, 0.0, 1.0),
+                    N.IN_COLOR: (1.0, 1.0, 1.0), N.IN_UV: (0.5, 0.5, 0.0), N.IN_GENERATED: (0.5, 0.5, 0.5),
+                    N.IN_COLOR_ALPHA: (1.0, 0.0, 0.0), N.IN_IS_CAMERA: (1.0, 0.0, 0.0)}.get(what, (0.0, 0.0, 0.0))
         setup = 0
         if variant > 0:
             setup = self.bump_setup().r
-        return self.e.emit(vm.OP_INPUT, 3, [arg, variant, setup], imm=what, uv=uv,
+        return self.op("input", [arg, variant, setup], imm=what, uv=uv,
                            raw={"reads": [(setup, 10)] if variant else []})
 
     def uv(self, name, variant: int = 0):
@@ -274,11 +269,11 @@ class Compiler(ClosureLowering):
             if k is None:
                 self.warn(f"uv {name}", f"UV map {name!r} is not known; the default one is used")
                 k = 0
-        return self.hit(vm.IN_UV, arg=k, variant=variant, uv=k)
+        return self.hit(N.IN_UV, arg=k, variant=variant, uv=k)
 
     def bump_setup(self) -> Reg:
         if self._bump_setup is None:
-            self._bump_setup = self.e.emit(vm.OP_BUMP_SETUP, 10, [])
+            self._bump_setup = self.op("bump_setup", [])
         return self._bump_setup
 
     def scalar(self, x) -> tuple:
@@ -289,9 +284,7 @@ class Compiler(ClosureLowering):
 
     # ------------------------------------------------------------------ generic helpers (folding)
     def math(self, op: int, a, b=0.0, c=0.0, clamp=False):
-        if _is_const(a) and _is_const(b) and _is_const(c):
-            x = float(ops.math_op(int(op), float(a), float(b), float(c)))
-            return min(max(x, 0.0), 1.0) if clamp else x
+        """A Math op (folded where its operands are constants; x·1, x·0, x + 0 simplified)."""
         if op == ops.M_MULTIPLY and not clamp:
             if _is_const(a) and float(a) == 1.0:
                 return b
@@ -304,13 +297,10 @@ class Compiler(ClosureLowering):
                 return b
             if _is_const(b) and float(b) == 0.0:
                 return a
-        return self.e.emit(vm.OP_MATH, 1, [(a, 1), (b, 1), (c, 1)], imm=int(op) | (256 if clamp else 0))
+        return self.op("math", [(a, 1), (b, 1), (c, 1)], imm=int(op) | (256 if clamp else 0))
 
     def vmath(self, op: int, a, b=(0.0, 0.0, 0.0), c=(0.0, 0.0, 0.0), s=1.0):
         """(vector, value) of a Vector Math op."""
-        if all(_is_const(x) for x in (a, b, c, s)):
-            r = ops.vmath_op(int(op), *_vec(a), *_vec(b), *_vec(c), float(s))
-            return tuple(float(x) for x in r[:3]), float(r[3])
         if op == ops.V_MULTIPLY:
             if _is_const(a) and _vec(a) == (1.0, 1.0, 1.0):
                 return b, 0.0
@@ -328,9 +318,8 @@ class Compiler(ClosureLowering):
                 return Reg(r.r, 3, src=r.src), 0.0
         if op == ops.V_SCALE and _is_const(s) and float(s) == 1.0:
             return a, 0.0
-        r = self.e.emit(vm.OP_VMATH, 4, [(a, 3), (b, 3), (c, 3), (s, 1)], imm=int(op),
-                        uv=a.uv if isinstance(a, Reg) else -1)
-        return Reg(r.r, 3, r.uv), Reg(r.r + 3, 1)
+        r = self.op("vmath", [(a, 3), (b, 3), (c, 3), (s, 1)], imm=int(op), uv=a.uv if isinstance(a, Reg) else -1)
+        return (Reg(r.r, 3, r.uv), Reg(r.r + 3, 1)) if isinstance(r, Reg) else (r[:3], r[3])
 
     def mul3(self, a, b):
         return self.vmath(ops.V_MULTIPLY, a, b)[0]
@@ -359,10 +348,7 @@ class Compiler(ClosureLowering):
                 return b
         if _is_const(a) and _is_const(b) and float(a) == float(b):
             return a
-        if _is_const(f) and _is_const(a) and _is_const(b):
-            return (1 - f) * float(a) + f * float(b)
-        return self.e.emit(vm.OP_MIX_F, 1, [(f, 1), (a, 1), (b, 1)]) if not _is_const(f) or not (
-            _is_const(a) and _is_const(b)) else (1 - f) * a + f * b
+        return self.op("mix_f", [(f, 1), (a, 1), (b, 1)])
 
     def lerp3(self, a, b, f):
         if _is_const(f):
@@ -371,320 +357,28 @@ class Compiler(ClosureLowering):
                 return a
             if f >= 1.0:
                 return b
-            if _is_const(a) and _is_const(b):
-                return tuple((1 - f) * x + f * y for x, y in zip(_vec(a), _vec(b)))
         if _is_const(a) and _is_const(b) and _vec(a) == _vec(b):
             return a
-        return self.e.emit(vm.OP_MIX_V, 3, [(f, 1), (a, 3), (b, 3)])
+        return self.op("mix_v", [(f, 1), (a, 3), (b, 3)])
 
     # ------------------------------------------------------------------ nodes
     def lower(self, node: Node, variant: int) -> dict:
-        fn = getattr(self, f"_n_{node.type}", None)
+        """The outputs of ``node`` (its entry's lowering in :data:`tracer.shader_nodes.NODE_TYPES`)."""
+        fn = NODE_TYPES[node.type].lower
         if fn is None:
             self.warn(node.type + node.name, f"node {node.name!r} ({node.type}) is not evaluated by the tracer yet; "
                                              "its outputs read 0")
             out = {}
             for s in NODE_TYPES[node.type].outputs:
-                out[s.name] = self.hit(vm.IN_NORMAL) if s.name == "Normal" else (0.0 if s.kind == FLOAT
+                out[s.name] = self.hit(N.IN_NORMAL) if s.name == "Normal" else (0.0 if s.kind == FLOAT
                                                                                   else (0.0, 0.0, 0.0))
             return out
-        return fn(node, variant)
-
-    def _n_value(self, node, var):
-        return {"Value": float(node.param("value"))}
-
-    def _n_color(self, node, var):
-        return {"Color": _vec(node.param("value"))}
-
-    def _n_math(self, node, var):
-        op = _enum("math.operation", node.param("operation"))
-        a, b, c = (self.inp(node, s, FLOAT, var) for s in ("Value", "Value_001", "Value_002"))
-        return {"Value": self.math(op, a, b, c, bool(node.param("use_clamp")))}
-
-    def _n_vector_math(self, node, var):
-        op = _enum("vector_math.operation", node.param("operation"))
-        a, b, c = (self.inp(node, s, VECTOR, var) for s in ("Vector", "Vector_001", "Vector_002"))
-        s = self.inp(node, "Scale", FLOAT, var) if op in (ops.V_SCALE, ops.V_REFRACT) else 1.0
-        if op == ops.V_REFRACT:
-            s = self.inp(node, "Scale", FLOAT, var)  # Blender's IOR socket of Refract is the Scale socket
-        v, x = self.vmath(op, a, b, c, s)
-        return {"Vector": v, "Value": x}
-
-    def _n_separate_xyz(self, node, var):
-        v = self.inp(node, "Vector", VECTOR, var)
-        if _is_const(v):
-            return dict(zip("XYZ", _vec(v)))
-        return {"X": Reg(v.r, 1), "Y": Reg(v.r + 1, 1), "Z": Reg(v.r + 2, 1)}
-
-    def _combine(self, x, y, z):
-        if _is_const(x) and _is_const(y) and _is_const(z):
-            return (float(x), float(y), float(z))
-        return self.e.emit(vm.OP_COMBINE, 3, [(x, 1), (y, 1), (z, 1)])
-
-    def _n_combine_xyz(self, node, var):
-        return {"Vector": self._combine(*(self.inp(node, s, FLOAT, var) for s in "XYZ"))}
-
-    def _n_separate_color(self, node, var):
-        mode = _enum("color_mode", node.param("color_mode"))
-        c = self.inp(node, "Color", COLOR, var)
-        if _is_const(c):
-            v = _vec(c)
-            if mode == 1:
-                v = ops.rgb_to_hsv(*v)
-            elif mode == 2:
-                v = ops.rgb_to_hsl(*v)
-            return dict(zip(("Red", "Green", "Blue"), (float(x) for x in v)))
-        if mode:
-            c = self.e.emit(vm.OP_SEP_COLOR, 3, [(c, 3)], imm=mode)
-        return {"Red": Reg(c.r, 1), "Green": Reg(c.r + 1, 1), "Blue": Reg(c.r + 2, 1)}
-
-    def _n_combine_color(self, node, var):
-        mode = _enum("color_mode", node.param("color_mode"))
-        x, y, z = (self.inp(node, s, FLOAT, var) for s in ("Red", "Green", "Blue"))
-        if _is_const(x) and _is_const(y) and _is_const(z):
-            v = (float(x), float(y), float(z))
-            if mode == 1:
-                v = ops.hsv_to_rgb(*v)
-            elif mode == 2:
-                v = ops.hsl_to_rgb(*v)
-            return {"Color": tuple(float(a) for a in v)}
-        return {"Color": self.e.emit(vm.OP_COMB_COLOR, 3, [(x, 1), (y, 1), (z, 1)], imm=mode)}
-
-    def _n_rgb_to_bw(self, node, var):  # whatever feeds it is a colour first (a vector as is), then its luminance
-        return {"Val": self.convert(self.inp(node, "Color", COLOR, var), COLOR, FLOAT)}
-
-    def _n_mix_float(self, node, var):
-        f, a, b = self.inp(node, "Factor", FLOAT, var), self.inp(node, "A", FLOAT, var), self.inp(node, "B", FLOAT, var)
-        if node.param("use_clamp") and _is_const(f):
-            f = min(max(float(f), 0.0), 1.0)
-        if _is_const(f) and _is_const(a) and _is_const(b):
-            return {"Result": (1 - f) * a + f * b}
-        return {"Result": self.e.emit(vm.OP_MIX_F, 1, [(f, 1), (a, 1), (b, 1)], imm=int(bool(node.param("use_clamp"))))}
-
-    def _n_mix_vector(self, node, var):
-        f, a, b = (self.inp(node, "Factor", FLOAT, var), self.inp(node, "A", VECTOR, var),
-                   self.inp(node, "B", VECTOR, var))
-        clamp = bool(node.param("use_clamp"))
-        if _is_const(f) and _is_const(a) and _is_const(b):
-            f = min(max(float(f), 0.0), 1.0) if clamp else float(f)
-            return {"Result": tuple((1 - f) * x + f * y for x, y in zip(_vec(a), _vec(b)))}
-        return {"Result": self.e.emit(vm.OP_MIX_V, 3, [(f, 1), (a, 3), (b, 3)], imm=int(clamp))}
-
-    def _n_mix_vector_non_uniform(self, node, var):
-        f, a, b = (self.inp(node, "Factor", VECTOR, var), self.inp(node, "A", VECTOR, var),
-                   self.inp(node, "B", VECTOR, var))
-        clamp = bool(node.param("use_clamp"))
-        if _is_const(f) and _is_const(a) and _is_const(b):
-            ff = [min(max(x, 0.0), 1.0) if clamp else x for x in _vec(f)]
-            return {"Result": tuple((1 - t) * x + t * y for t, x, y in zip(ff, _vec(a), _vec(b)))}
-        return {"Result": self.e.emit(vm.OP_MIX_VN, 3, [(f, 3), (a, 3), (b, 3)], imm=int(clamp))}
-
-    def _n_mix_color(self, node, var):
-        blend = _enum("mix_color.blend_type", node.param("blend_type"))
-        f, a, b = (self.inp(node, "Factor", FLOAT, var), self.inp(node, "A", COLOR, var),
-                   self.inp(node, "B", COLOR, var))
-        clamp_f, clamp_r = bool(node.param("use_clamp")), bool(node.param("use_clamp_result"))
-        if _is_const(f) and _is_const(a) and _is_const(b):
-            t = min(max(float(f), 0.0), 1.0) if clamp_f else float(f)
-            r = ops.mix_blend(int(blend), t, *_vec(a), *_vec(b))
-            r = tuple(min(max(float(x), 0.0), 1.0) if clamp_r else float(x) for x in r)
-            return {"Result": r}
-        if blend == ops.B_MIX and not clamp_r and _is_const(f) and (not clamp_f or 0.0 <= float(f) <= 1.0):
-            return {"Result": self.lerp3(a, b, f)}
-        return {"Result": self.e.emit(vm.OP_MIX_C, 3, [(f, 1), (a, 3), (b, 3)],
-                                      imm=blend | (256 if clamp_f else 0) | (512 if clamp_r else 0))}
-
-    def _n_invert(self, node, var):
-        f, c = self.inp(node, "Fac", FLOAT, var), self.inp(node, "Color", COLOR, var)
-        if _is_const(f) and _is_const(c):
-            return {"Color": tuple((1 - f) * x + f * (1 - x) for x in _vec(c))}
-        return {"Color": self.e.emit(vm.OP_INVERT, 3, [(c, 3), (f, 1)])}
-
-    def _n_gamma(self, node, var):
-        c, g = self.inp(node, "Color", COLOR, var), self.inp(node, "Gamma", FLOAT, var)
-        if _is_const(c) and _is_const(g):
-            return {"Color": tuple(float(ops.gamma(float(x), float(g))) for x in _vec(c))}
-        return {"Color": self.e.emit(vm.OP_GAMMA, 3, [(c, 3), (g, 1)])}
-
-    def _n_brightness_contrast(self, node, var):
-        c, br, co = (self.inp(node, "Color", COLOR, var), self.inp(node, "Bright", FLOAT, var),
-                     self.inp(node, "Contrast", FLOAT, var))
-        if _is_const(c) and _is_const(br) and _is_const(co):
-            return {"Color": tuple(float(x) for x in ops.bright_contrast(*_vec(c), float(br), float(co)))}
-        return {"Color": self.e.emit(vm.OP_BRIGHT, 3, [(c, 3), (br, 1), (co, 1)])}
-
-    def _n_hsv(self, node, var):
-        h, s, v, f, c = (self.inp(node, k, None, var) for k in ("Hue", "Saturation", "Value", "Fac", "Color"))
-        if all(_is_const(x) for x in (h, s, v, f, c)):
-            return {"Color": tuple(float(x) for x in ops.hue_sat(float(h), float(s), float(v), float(f), *_vec(c)))}
-        return {"Color": self.e.emit(vm.OP_HSV, 3, [(c, 3), (h, 1), (s, 1), (v, 1), (f, 1)])}
-
-    def _n_map_range(self, node, var):
-        kind = _enum("map_range.interpolation_type", node.param("interpolation_type"))
-        xs = [self.inp(node, k, FLOAT, var) for k in ("Value", "From Min", "From Max", "To Min", "To Max", "Steps")]
-        clamp = bool(node.param("clamp"))
-        if all(_is_const(x) for x in xs):
-            return {"Result": float(ops.map_range_clamp(kind, *(float(x) for x in xs), clamp))}
-        return {"Result": self.e.emit(vm.OP_MAP_RANGE, 1, [(x, 1) for x in xs], imm=kind | (256 if clamp else 0))}
-
-    def _n_vector_map_range(self, node, var):
-        kind = _enum("map_range.interpolation_type", node.param("interpolation_type"))
-        xs = [self.inp(node, k, VECTOR, var) for k in ("Vector", "From Min", "From Max", "To Min", "To Max", "Steps")]
-        clamp = bool(node.param("clamp"))
-        if all(_is_const(x) for x in xs):
-            cols = list(zip(*(_vec(x) for x in xs)))
-            return {"Vector": tuple(float(ops.map_range_clamp(kind, *c, clamp)) for c in cols)}
-        return {"Vector": self.e.emit(vm.OP_MAP_RANGE_V, 3, [(x, 3) for x in xs], imm=kind | (256 if clamp else 0))}
-
-    def _n_clamp(self, node, var):
-        kind = _enum("clamp.clamp_type", node.param("clamp_type"))
-        x, lo, hi = (self.inp(node, k, FLOAT, var) for k in ("Value", "Min", "Max"))
-        if _is_const(x) and _is_const(lo) and _is_const(hi):
-            lo, hi = float(lo), float(hi)
-            if kind == 1 and lo > hi:
-                lo, hi = hi, lo
-            return {"Result": min(max(float(x), lo), hi)}
-        return {"Result": self.e.emit(vm.OP_CLAMP, 1, [(x, 1), (lo, 1), (hi, 1)], imm=kind)}
-
-    def _n_mapping(self, node, var):
-        kind = _enum("mapping.vector_type", node.param("vector_type"))
-        v = self.inp(node, "Vector", VECTOR, var)
-        loc, rot, scl = (self.inp(node, k, VECTOR, var) for k in ("Location", "Rotation", "Scale"))
-        if kind >= 2:
-            loc = (0.0, 0.0, 0.0)
-        if _is_const(loc) and _is_const(rot) and _is_const(scl) and _vec(loc) == (0.0,) * 3 and \
-                _vec(rot) == (0.0,) * 3 and _vec(scl) == (1.0,) * 3 and kind != 3:
-            return {"Vector": v}
-        r = self.e.emit(vm.OP_MAPPING, 3, [(v, 3), (loc, 3), (rot, 3), (scl, 3)], imm=kind,
-                        uv=v.uv if isinstance(v, Reg) else -1)
-        if all(_is_const(x) for x in (v, loc, rot, scl)):
-            return {"Vector": self._fold(r, 3)}
-        return {"Vector": r}
-
-    def _n_vector_transform(self, node, var):
-        kind = _enum("vector_transform.vector_type", node.param("vector_type"))
-        src, dst = _enum("space", node.param("convert_from")), _enum("space", node.param("convert_to"))
-        v = self.inp(node, "Vector", VECTOR, var)
-        if src == dst:
-            return {"Vector": v}
-        if self.estimate:
-            return {"Vector": v if _is_const(v) else (0.0, 0.0, 0.0)}
-        return {"Vector": self.e.emit(vm.OP_VTRANSFORM, 3, [(v, 3)], imm=kind | src << 2 | dst << 4)}
-
-    def _n_vector_rotate(self, node, var):
-        kind = _enum("vector_rotate.rotation_type", node.param("rotation_type"))
-        xs = [self.inp(node, k, None, var) for k in ("Vector", "Center", "Axis", "Angle", "Rotation")]
-        r = self.e.emit(vm.OP_VROTATE, 3, [(xs[0], 3), (xs[1], 3), (xs[2], 3), (xs[3], 1), (xs[4], 3)],
-                        imm=kind | (8 if node.param("invert") else 0))
-        return {"Vector": self._fold(r, 3) if all(_is_const(x) for x in xs) else r}
-
-    def _fold(self, r: Reg, n: int):
-        """Evaluate the op just emitted, whose operands are all constants, with the VM's own function for it, and
-        take it back out of the program."""
-        op = self.e.code.pop()
-        self.e.reads.pop()
-        self.e.widths.pop()
-        self.e._cse = {k: v for k, v in self.e._cse.items() if v != r.r}
-        R = np.array(self.e.init, np.float64)
-        o, a, b, c, d, e_, f_, imm = op[1:]
-        if op[0] == vm.OP_RAMP:
-            vm._ramp(R, o, R[a], b, c, imm)
-        elif op[0] == vm.OP_CURVE:
-            vm._curve(R, o, a, b, c, R[d], imm)
-        elif op[0] == vm.OP_MAPPING:
-            vm._mapping(R, o, a, b, c, d, imm)
-        elif op[0] == vm.OP_VROTATE:
-            vm._vrotate(R, o, a, b, c, d, e_, imm)
-        else:
-            raise AssertionError(vm.OP_NAMES[op[0]])
-        vals = tuple(float(x) for x in R[o:o + n])
-        return vals if n > 1 else vals[0]
-
-    def _n_fresnel(self, node, var):
-        ior, n = self.inp(node, "IOR", FLOAT, var), self.inp(node, "Normal", VECTOR, var)
-        if self.estimate:
-            return {"Fac": float(ops.math_op(ops.M_POWER, (float(ior) - 1) / (float(ior) + 1), 2.0, 0.0))
-                    if _is_const(ior) else 0.04}
-        return {"Fac": self.e.emit(vm.OP_FRESNEL, 1, [(ior, 1), (n, 3)])}
-
-    def _n_layer_weight(self, node, var):
-        b, n = self.inp(node, "Blend", FLOAT, var), self.inp(node, "Normal", VECTOR, var)
-        if self.estimate:
-            return {"Fresnel": 0.1, "Facing": 0.3}
-        r = self.e.emit(vm.OP_LAYER_WEIGHT, 2, [(b, 1), (n, 3)])
-        return {"Fresnel": Reg(r.r, 1), "Facing": Reg(r.r + 1, 1)}
+        return fn(self, node, variant)
 
     # ------------------------------------------------------------------ inputs
-    def _n_texture_coordinate(self, node, var):
-        if node.param("from_object"):
-            self.warn(node.name + "obj", f"Texture Coordinate {node.name!r}: From Object is not supported (the "
-                                         "hit's own object is used)")
-        out = {"Generated": lambda: self.hit(vm.IN_GENERATED, variant=var),
-               "Normal": lambda: self.hit(vm.IN_NORMAL), "UV": lambda: self.uv("", var),
-               "Object": lambda: self.hit(vm.IN_OBJECT, variant=var), "Camera": lambda: self.hit(vm.IN_CAMERA),
-               "Window": lambda: self.hit(vm.IN_WINDOW), "Reflection": lambda: self.hit(vm.IN_REFLECTION)}
-        return _Lazy(out)
-
-    def _n_geometry(self, node, var):
-        def one(what):
-            return lambda: Reg(self.hit(what).r, 1) if not self.estimate else 0.0
-        out = {"Position": lambda: self.hit(vm.IN_POSITION, variant=var), "Normal": lambda: self.hit(vm.IN_NORMAL),
-               "Tangent": lambda: self.hit(vm.IN_TANGENT, arg=0), "True Normal": lambda: self.hit(vm.IN_TRUE_NORMAL),
-               "Incoming": lambda: self.hit(vm.IN_INCOMING), "Parametric": lambda: self.hit(vm.IN_PARAMETRIC, variant=var),
-               "Backfacing": one(vm.IN_BACKFACING), "Pointiness": lambda: self._stand_in(node, "Pointiness", 0.5),
-               "Random Per Island": lambda: self._stand_in(node, "Random Per Island", 0.0)}
-        return _Lazy(out)
-
     def _stand_in(self, node, what, value):
         self.warn(node.name + what, f"{what} ({node.name!r}) is not available; {value} is used")
         return value
-
-    def _n_object_info(self, node, var):
-        def one(what):
-            return lambda: Reg(self.hit(what).r, 1) if not self.estimate else 0.0
-        return _Lazy({"Location": lambda: self.hit(vm.IN_OBJ_LOCATION), "Color": lambda: (1.0, 1.0, 1.0),
-                      "Alpha": lambda: 1.0, "Object Index": one(vm.IN_OBJ_INDEX),
-                      "Material Index": lambda: self._stand_in(node, "Material Index", 0.0),
-                      "Random": one(vm.IN_OBJ_RANDOM)})
-
-    def _n_light_path(self, node, var):
-        def one(what):
-            return lambda: Reg(self.hit(what).r, 1) if not self.estimate else (1.0 if what == vm.IN_IS_CAMERA
-                                                                                 else 0.0)
-        return _Lazy({"Is Camera Ray": one(vm.IN_IS_CAMERA), "Is Shadow Ray": one(vm.IN_IS_SHADOW),
-                      "Is Diffuse Ray": lambda: 0.0, "Is Glossy Ray": one(vm.IN_IS_REFLECTION),
-                      "Is Singular Ray": one(vm.IN_IS_REFLECTION), "Is Reflection Ray": one(vm.IN_IS_REFLECTION),
-                      "Is Transmission Ray": lambda: 0.0, "Ray Length": one(vm.IN_RAY_LENGTH),
-                      "Ray Depth": one(vm.IN_RAY_DEPTH), "Diffuse Depth": lambda: 0.0,
-                      "Glossy Depth": one(vm.IN_RAY_DEPTH), "Transparent Depth": lambda: 0.0,
-                      "Transmission Depth": lambda: 0.0})
-
-    def _n_uvmap(self, node, var):
-        return {"UV": self.uv(node.param("attribute") or "", var)}
-
-    def _n_vertex_color(self, node, var):
-        name = node.param("layer_name") or ""
-        if name not in self.vertex_colors:
-            self.vertex_colors.append(name)
-        return _Lazy({"Color": lambda: self.hit(vm.IN_COLOR, variant=var), "Alpha": lambda: 1.0})
-
-    def _n_attribute(self, node, var):
-        name = node.param("attribute") or ""
-        if node.param("attribute_type") not in (None, "GEOMETRY"):
-            self.warn(node.name, f"Attribute {node.name!r}: {node.param('attribute_type')} attributes are not "
-                                 "supported; white is used")
-            return {"Color": (1.0, 1.0, 1.0), "Vector": (1.0, 1.0, 1.0), "Fac": 1.0, "Alpha": 1.0}
-        if self.uv_index(name) is not None and name and name in getattr(self.uv_index, "names", ()):
-            uvv = self.uv(name, var)
-            return {"Color": uvv, "Vector": uvv, "Fac": self.convert(uvv, VECTOR, FLOAT), "Alpha": 1.0}
-        if name not in self.vertex_colors:
-            self.vertex_colors.append(name)
-        c = self.hit(vm.IN_COLOR, variant=var)
-        return {"Color": c, "Vector": c, "Fac": self.convert(c, COLOR, FLOAT), "Alpha": 1.0}
-
-    def _n_tangent(self, node, var):
-        k = self.uv_index(node.param("uv_map") or "") or 0
-        return {"Tangent": self.hit(vm.IN_TANGENT, arg=k)}
 
     # ------------------------------------------------------------------ textures
     def _texture(self, use: TextureUse) -> int:
@@ -704,7 +398,7 @@ class Compiler(ClosureLowering):
             self.warn(node_name + "const", f"texture {node_name!r} reads constant coordinates")
         k = self._texture(use)
         uv = coord.uv if isinstance(coord, Reg) and projection == 0 else -1
-        r = self.e.emit(vm.OP_IMAGE, 4, [(coord, 3), k, uv, (blend, 1)], imm=projection)
+        r = self.op("image", [(coord, 3), k, uv, (blend, 1)], imm=projection)
         return Reg(r.r, 4, src=(use, coord, (projection, blend)))
 
     def _rgba_out(self, rgba):
@@ -712,133 +406,12 @@ class Compiler(ClosureLowering):
             return tuple(rgba[:3]), float(rgba[3])
         return Reg(rgba.r, 3, src=rgba.src), Reg(rgba.r + 3, 1)
 
-    def _n_image_texture(self, node, var):
-        img = node.param("image")
-        if img is None:
-            self.warn(node.name, f"Image Texture {node.name!r} has no image; black is used")
-            return {"Color": (0.0, 0.0, 0.0), "Alpha": 0.0}
-        ext = node.param("extension")
-        if ext is not None:
-            wrap = {"REPEAT": "repeat", "EXTEND": "clamp", "CLIP": "black", "MIRROR": "mirror"}[str(ext).upper()]
-            img = _with_wrap(img, wrap)
-        coord = self.inp(node, "Vector", VECTOR, var)
-        proj = ("FLAT", "BOX", "SPHERE", "TUBE").index(str(node.param("projection") or "FLAT").upper())
-        c, a = self._rgba_out(self.image(TextureUse(img, -1), coord, node.name, proj,
-                                         float(node.param("projection_blend") or 0.0)))
-        return {"Color": c, "Alpha": a}
-
-    def _n_environment_texture(self, node, var):  # a world's: the equirectangular map of the direction
-        img = node.param("image")
-        if img is None or str(node.param("projection")).upper() != "EQUIRECTANGULAR":
-            self.warn(node.name, f"Environment Texture {node.name!r}: "
-                                 f"{'no image' if img is None else 'Mirror Ball projection is not evaluated'}; "
-                                 "black is used")
-            return {"Color": (0.0, 0.0, 0.0), "Alpha": 0.0}
-        coord = self.inp(node, "Vector", VECTOR, var)
-        c, a = self._rgba_out(self.image(TextureUse(img, -1), coord, node.name, 4))
-        return {"Color": c, "Alpha": a}
-
-    def _n_usd_uv_texture(self, node, var):
-        img = node.param("image")
-        fb = tuple(float(x) for x in node.param("fallback"))
-        if img is None:
-            return {"r": fb[0], "g": fb[1], "b": fb[2], "a": fb[3], "rgb": fb[:3]}
-        coord = self.inp(node, "st", VECTOR, var)
-        use = TextureUse(img, -1, tuple(float(x) for x in node.param("scale")),
-                         tuple(float(x) for x in node.param("bias")), fb)
-        rgba = self.image(use, coord, node.name)
-        if _is_const(rgba):
-            return {"r": rgba[0], "g": rgba[1], "b": rgba[2], "a": rgba[3], "rgb": tuple(rgba[:3])}
-        return {"r": Reg(rgba.r, 1), "g": Reg(rgba.r + 1, 1), "b": Reg(rgba.r + 2, 1), "a": Reg(rgba.r + 3, 1),
-                "rgb": Reg(rgba.r, 3)}
-
-    def _n_scene_texture(self, node, var):
-        from .shader_graph import ImageRef  # noqa: F401  (documentation: scene textures are tracer.Texture)
-        k_tex, uv_set = node.param("index"), node.param("uv_set")
-        coord = self.uv(int(uv_set), var) if not self.estimate else (0.5, 0.5, 0.0)
-        rgba = self.image(TextureUse(None, int(k_tex)), coord, node.name) if not self.estimate else \
-            self._scene_mean(int(k_tex))
-        c, a = self._rgba_out(rgba)
-        return {"Color": c, "Alpha": a}
-
     def _scene_mean(self, k):
         t = self.scene_textures[k] if getattr(self, "scene_textures", None) is not None else None
         if t is None:
             return (1.0, 1.0, 1.0, 1.0)
         m = t.rgba().reshape(-1, 4).mean(0) * np.asarray(t.scale) + np.asarray(t.bias)
         return tuple(float(x) for x in m)
-
-    def _n_usd_transform2d(self, node, var):
-        v = self.inp(node, "in", VECTOR, var)
-        m = node.param("matrix")
-        if m is None:
-            m = transform2d_matrix(node.param("scale"), float(node.param("rotation")), node.param("translation"))
-        m = np.asarray(m, np.float64)
-        if _is_const(v):
-            s, t = _vec(v)[:2]
-            return {"result": (m[0, 0] * s + m[0, 1] * t + m[0, 2], m[1, 0] * s + m[1, 1] * t + m[1, 2], 0.0)}
-        if np.allclose(m, np.eye(3)):
-            return {"result": v}
-        k = self.e.const(tuple(m[:2].reshape(-1)))
-        return {"result": self.e.emit(vm.OP_AFFINE2, 3, [(v, 3), (k, 6)], uv=v.uv)}
-
-    def _n_checker_texture(self, node, var):
-        v = self.inp(node, "Vector", VECTOR, var)
-        c1, c2, sc = (self.inp(node, k, None, var) for k in ("Color1", "Color2", "Scale"))
-        if self.estimate or _is_const(v):
-            if _is_const(v) and not self.estimate:
-                p = [(x * float(sc) + 1e-6) * 0.999999 for x in _vec(v)] if _is_const(sc) else None
-                if p is not None and _is_const(c1) and _is_const(c2):
-                    xi, yi, zi = (int(abs(np.floor(x))) for x in p)
-                    first = (xi % 2 == yi % 2) == (zi % 2 != 0)
-                    return {"Color": _vec(c1 if first else c2), "Fac": 1.0 if first else 0.0}
-            if _is_const(c1) and _is_const(c2):
-                return {"Color": tuple(0.5 * (a + b) for a, b in zip(_vec(c1), _vec(c2))), "Fac": 0.5}
-        r = self.e.emit(vm.OP_CHECKER, 4, [(v, 3), (c1, 3), (c2, 3), (sc, 1)])
-        return {"Color": Reg(r.r, 3), "Fac": Reg(r.r + 3, 1)}
-
-    def _n_rgb_ramp(self, node, var):
-        from .procedural.color import color_ramp_table
-        ramp = node.param("ramp")
-        interp = str(node.param("interpolation") or "LINEAR").upper()
-        f = self.inp(node, "Fac", FLOAT, var)
-        if not ramp:
-            return {"Color": (0.0, 0.0, 0.0), "Alpha": 1.0}
-        stops = sorted(((float(p), tuple(float(x) for x in (tuple(c) + (1.0,))[:4])) for p, c in ramp),
-                       key=lambda s: s[0])
-        table = color_ramp_table([p for p, _c in stops], [c for _p, c in stops], interp,
-                                 str(node.param("color_mode") or "RGB").upper(),
-                                 str(node.param("hue_interpolation") or "NEAR").upper())
-        k = self.e.const(tuple(np.asarray(table, np.float64).reshape(-1)))
-        r = self.e.emit(vm.OP_RAMP, 4, [(f, 1), (k, table.size), len(table)], imm=int(interp != "CONSTANT"))
-        if _is_const(f):
-            rgba = self._fold(r, 4)
-            return {"Color": tuple(rgba[:3]), "Alpha": rgba[3]}
-        return {"Color": Reg(r.r, 3), "Alpha": Reg(r.r + 3, 1)}
-
-    def _curve_node(self, node, var, kind, inp_name, out_name, fac_name):
-        table = np.asarray(node.param("curves"), np.float64) if node.param("curves") is not None else None
-        x = self.inp(node, inp_name, None, var)
-        fac = self.inp(node, fac_name, FLOAT, var)
-        if table is None:
-            return {out_name: x}
-        lo, hi = (float(x) for x in node.param("range"))
-        size = table.shape[0]
-        k = self.e.const((lo, hi, float(table.shape[1])) + tuple(table.T.reshape(-1)))
-        n = 1 if kind == 2 else 3
-        r = self.e.emit(vm.OP_CURVE, n, [(x, n), (k, 3 + table.size), size, (fac, 1)], imm=kind)
-        if _is_const(x) and _is_const(fac):
-            return {out_name: self._fold(r, n)}
-        return {out_name: r}
-
-    def _n_rgb_curves(self, node, var):
-        return self._curve_node(node, var, 0, "Color", "Color", "Fac")
-
-    def _n_vector_curves(self, node, var):
-        return self._curve_node(node, var, 1, "Vector", "Vector", "Fac")
-
-    def _n_float_curve(self, node, var):
-        return self._curve_node(node, var, 2, "Value", "Value", "Factor")
 
     # ------------------------------------------------------------------ procedural textures (tracer.procedural)
     def block(self, values: list) -> Reg:
@@ -853,7 +426,8 @@ class Compiler(ClosureLowering):
             if _is_const(x):
                 self.e.init[base + j] = float(x)
             else:
-                self.e.code.append([vm.OP_COPY, base + j, x.r, 0, 0, 0, 0, 0, 1])
+                self.e.code.append([N.OP_COPY, base + j, x.r, 0, 0, 0, 0, 0, 1])
+                self.e.varying.add(base + j)
                 self.e.reads.append([(x.r, 1)])
                 self.e.widths.append(1)
         return Reg(base, len(flat))
@@ -867,196 +441,16 @@ class Compiler(ClosureLowering):
                 out.append(x)
         return out
 
-    def _proc(self, op, node, var, names, imm, width):
+    def _proc(self, op: str, node, var, names, imm):
         if self.estimate:
             return None
         vec_in = self.inp(node, "Vector", VECTOR, var) if "Vector" in [s.name for s in NODE_TYPES[node.type].inputs] \
             else 0.0
         blk = self.block(self._flat([self.inp(node, n, None, var) for n in names]))
         raw = {"reads": [(blk.r, blk.n)]}
-        return self.e.emit(op, width, [(vec_in, 3), blk.r], imm=imm, raw=raw)
-
-    def _n_noise_texture(self, node, var):
-        from .procedural import noise as pn
-        dim = int(str(node.param("noise_dimensions"))[0])
-        kind = pn.NOISE_TYPES[str(node.param("noise_type")).upper()]
-        if self.estimate:
-            return {"Fac": 0.5, "Color": (0.5, 0.5, 0.5)}
-        names = ["W", "Scale", "Detail", "Roughness", "Lacunarity", "Offset", "Gain", "Distortion"]
-        imm = dim | kind << 4 | int(bool(node.param("normalize"))) << 8
-        made = {}
-
-        def colour():  # the full node (three times the work of Fac alone: Cycles' noise_value vs noise_texture)
-            if "c" not in made:
-                made["c"] = self._proc(vm.OP_NOISE, node, var, names, imm | 1 << 12, 4)
-            return made["c"]
-
-        def fac():
-            if "c" in made:
-                return Reg(made["c"].r, 1)
-            return Reg(self._proc(vm.OP_NOISE, node, var, names, imm, 1).r, 1)
-        return _Lazy({"Fac": fac, "Color": lambda: Reg(colour().r + 1, 3)})
-
-    def _n_mx_noise(self, node, var):
-        """MaterialX's noise nodes (tracer.procedural.mx_noise); one op, all outputs."""
-        from .procedural import mx_noise as mxn
-        if self.estimate:
-            return {"Value": 0.5, "Vector": (0.5, 0.5, 0.5), "W": 0.5}
-        imm = (mxn.KINDS.index(str(node.param("kind"))) | int(node.param("dimensions")) << 4
-               | int(node.param("width")) << 8 | int(node.param("style")) << 12)
-        r = self._proc(vm.OP_MX_NOISE, node, var, ["Amplitude", "Amplitude W", "Pivot", "Octaves", "Lacunarity",
-                                                   "Diminish", "Jitter"], imm, 4)
-        return {"Value": Reg(r.r, 1), "Vector": Reg(r.r, 3), "W": Reg(r.r + 3, 1)}
-
-    def _n_voronoi_texture(self, node, var):
-        from .procedural import voronoi as pv
-        dim = int(str(node.param("voronoi_dimensions"))[0])
-        feat = pv.FEATURES[str(node.param("feature")).upper()]
-        metric = pv.METRICS[str(node.param("distance")).upper()]
-        if self.estimate:
-            return {"Distance": 0.5, "Color": (0.5, 0.5, 0.5), "Position": (0.5, 0.5, 0.5), "W": 0.5, "Radius": 0.5}
-        r = self._proc(vm.OP_VORONOI, node, var, ["W", "Scale", "Detail", "Roughness", "Lacunarity", "Smoothness",
-                                                  "Exponent", "Randomness"],
-                       dim | feat << 4 | metric << 8 | int(bool(node.param("normalize"))) << 12, 9)
-        return {"Distance": Reg(r.r, 1), "Color": Reg(r.r + 1, 3), "Position": Reg(r.r + 4, 3), "W": Reg(r.r + 7, 1),
-                "Radius": Reg(r.r + 8, 1)}
-
-    def _n_wave_texture(self, node, var):
-        from .procedural import patterns as pp
-        kind = pp.WAVE_TYPES[str(node.param("wave_type")).upper()]
-        dirs = pp.BANDS_DIRECTIONS if kind == pp.BANDS else pp.RINGS_DIRECTIONS
-        direction = dirs[str(node.param("bands_direction" if kind == pp.BANDS else "rings_direction")).upper()]
-        prof = pp.WAVE_PROFILES[str(node.param("wave_profile")).upper()]
-        if self.estimate:
-            return {"Fac": 0.5, "Color": (0.5, 0.5, 0.5)}
-        r = self._proc(vm.OP_WAVE, node, var, ["Scale", "Distortion", "Detail", "Detail Scale", "Detail Roughness",
-                                               "Phase Offset"], kind | direction << 4 | prof << 8, 1)
-        return {"Fac": r, "Color": self.convert(r, FLOAT, COLOR)}
-
-    def _n_magic_texture(self, node, var):
-        if self.estimate:
-            return {"Fac": 0.5, "Color": (0.5, 0.5, 0.5)}
-        r = self._proc(vm.OP_MAGIC, node, var, ["Scale", "Distortion"], int(node.param("turbulence_depth")) & 15, 4)
-        return {"Color": Reg(r.r, 3), "Fac": Reg(r.r + 3, 1)}
-
-    def _n_gradient_texture(self, node, var):
-        from .procedural import patterns as pp
-        kind = pp.GRADIENT_TYPES[str(node.param("gradient_type")).upper()]
-        if self.estimate:
-            return {"Fac": 0.5, "Color": (0.5, 0.5, 0.5)}
-        r = self._proc(vm.OP_GRADIENT, node, var, [], kind, 1)
-        return {"Fac": r, "Color": self.convert(r, FLOAT, COLOR)}
-
-    def _n_brick_texture(self, node, var):
-        if self.estimate:
-            c1, c2 = self.inp(node, "Color1", None, var), self.inp(node, "Color2", None, var)
-            mean = tuple(0.5 * (a + b) for a, b in zip(_vec(c1), _vec(c2))) if _is_const(c1) and _is_const(c2) \
-                else (0.5, 0.5, 0.5)
-            return {"Color": mean, "Fac": 0.1}
-        names = ["Color1", "Color2", "Mortar", "Scale", "Mortar Size", "Mortar Smooth", "Bias", "Brick Width",
-                 "Row Height"]
-        vals = [self.inp(node, n, None, var) for n in names] + [
-            float(node.param("offset")), float(node.param("offset_frequency")), float(node.param("squash")),
-            float(node.param("squash_frequency"))]
-        v = self.inp(node, "Vector", VECTOR, var)
-        blk = self.block(self._flat(vals))
-        r = self.e.emit(vm.OP_BRICK, 4, [(v, 3), blk.r], raw={"reads": [(blk.r, blk.n)]})
-        return {"Color": Reg(r.r, 3), "Fac": Reg(r.r + 3, 1)}
-
-    def _n_white_noise_texture(self, node, var):
-        dim = int(str(node.param("noise_dimensions"))[0])
-        if self.estimate:
-            return {"Value": 0.5, "Color": (0.5, 0.5, 0.5)}
-        r = self._proc(vm.OP_WHITE_NOISE, node, var, ["W"], dim, 4)
-        return {"Value": Reg(r.r, 1), "Color": Reg(r.r + 1, 3)}
-
-    def _n_blackbody(self, node, var):
-        from .procedural import color as pc
-        t = self.inp(node, "Temperature", FLOAT, var)
-        if _is_const(t):
-            return {"Color": tuple(float(x) for x in pc.blackbody(float(t)))}
-        return {"Color": self.e.emit(vm.OP_BLACKBODY, 3, [(t, 1)])}
-
-    def _n_wavelength(self, node, var):
-        from .procedural import color as pc
-        t = self.inp(node, "Wavelength", FLOAT, var)
-        if _is_const(t):
-            return {"Color": tuple(float(x) for x in pc.wavelength(float(t)))}
-        return {"Color": self.e.emit(vm.OP_WAVELENGTH, 3, [(t, 1)])}
+        return self.op(op, [(vec_in, 3), blk.r], imm=imm, raw=raw)
 
     # ------------------------------------------------------------------ normals
-    def _n_normal_map(self, node, var):
-        space = _enum("normal_map.space", node.param("space"))
-        strength, col = self.inp(node, "Strength", FLOAT, var), self.inp(node, "Color", COLOR, var)
-        if self.estimate:
-            return {"Normal": (0.0, 0.0, 1.0)}
-        if space == 0 and _is_const(col) and np.allclose(_vec(col), (0.5, 0.5, 1.0)):
-            return {"Normal": self.hit(vm.IN_NORMAL)}
-        k = -1
-        if space == 0:
-            uv_map = node.param("uv_map")
-            k = uv_map if isinstance(uv_map, (int, np.integer)) else self.uv_index(uv_map or "")
-            if k is None:
-                self.warn(node.name + "uv", f"Normal Map {node.name!r}: UV map {uv_map!r} is not known; the default "
-                                            "one is used")
-                k = 0
-        return {"Normal": self.e.emit(vm.OP_NORMAL_MAP, 3, [(col, 3), (strength, 1), int(k)], imm=space)}
-
-    def _n_bump(self, node, var):
-        nrm = self.inp(node, "Normal", VECTOR, var)
-        if self.estimate:
-            return {"Normal": (0.0, 0.0, 1.0)}
-        h0 = self.inp(node, "Height", FLOAT, 0)
-        if _is_const(h0):
-            return {"Normal": nrm}
-        hx, hy = self.inp(node, "Height", FLOAT, 1), self.inp(node, "Height", FLOAT, 2)
-        strength, dist = self.inp(node, "Strength", FLOAT, var), self.inp(node, "Distance", FLOAT, var)
-        if node.param("invert"):
-            dist = self.math(ops.M_MULTIPLY, dist, -1.0)
-        setup = self.bump_setup()
-        return {"Normal": self.e.emit(vm.OP_BUMP, 3, [(h0, 1), (hx, 1), (hy, 1), (strength, 1), (dist, 1), (nrm, 3)],
-                                      imm=setup.r, raw={"reads": [(setup.r, 10)]})}
-
-    def _n_displacement(self, node, var):
-        h, mid, sc = (self.inp(node, k, FLOAT, var) for k in ("Height", "Midlevel", "Scale"))
-        nrm = self.inp(node, "Normal", VECTOR, var)
-        amount = self.math(ops.M_MULTIPLY, self.math(ops.M_SUBTRACT, h, mid), sc)
-        return {"Displacement": self.scale3(nrm, amount)}
-
-
-def transform2d_matrix(scale=(1.0, 1.0), rotation=0.0, translation=(0.0, 0.0)) -> np.ndarray:
-    """The (3, 3) matrix of a UsdTransform2d on (s, t, 1): T · R · S (scale, then rotate CCW in degrees, then
-    translate), the spec's ``in · scale · rotate + translation``."""
-    import math
-    if not math.isfinite(rotation):
-        return np.full((3, 3), np.nan)
-    c, s = math.cos(math.radians(rotation)), math.sin(math.radians(rotation))
-    S = np.diag([scale[0], scale[1], 1.0])
-    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    T = np.array([[1.0, 0.0, translation[0]], [0.0, 1.0, translation[1]], [0.0, 0.0, 1.0]])
-    return T @ R @ S
-
-
-class _Lazy(dict):
-    """Outputs computed on first use (input nodes: only the outputs a graph reads emit an op)."""
-
-    def __init__(self, makers: dict):
-        super().__init__()
-        self._makers = makers
-
-    def __missing__(self, key):
-        v = self._makers[key]()
-        self[key] = v
-        return v
-
-
-def _with_wrap(img: ImageRef, wrap: str) -> ImageRef:
-    if img.wrap_s == wrap and img.wrap_t == wrap:
-        return img
-    from dataclasses import replace
-    out = replace(img, wrap_s=wrap, wrap_t=wrap)
-    out.pixels = img.pixels
-    return out
 
 
 def _mean_rgba(use: TextureUse) -> tuple:
@@ -1071,10 +465,6 @@ def _mean_rgba(use: TextureUse) -> tuple:
 
 
 # ---------------------------------------------------------------------------------------------- entry points
-_SLOT_WIDTH = {"base": 3, "roughness": 1, "metallic": 1, "specular": 1, "alpha": 1, "emission": 3, "normal": 3,
-               "transmission": 1}
-
-
 def compile_graph(graph: Graph, warn=None, uv_index=None, scene_textures=None, row: bool = True) -> Compiled:
     """Compile ``graph`` (module docstring). ``uv_index(name)`` -> UV set index (None: unknown); ``warn``: one
     call per problem, naming the material and node. ``row=False``: the program only (no estimate of the row's
@@ -1088,15 +478,15 @@ def compile_graph(graph: Graph, warn=None, uv_index=None, scene_textures=None, r
         row = _row(est.outputs()[0], extras)
     else:
         row = {}
-    outs = np.full(len(vm.OUT_SLOTS), -1, np.int32)
+    outs = np.full(len(N.OUT_SLOTS), -1, np.int32)
     live = []
-    for k, slot in enumerate(vm.OUT_SLOTS):
+    for k, slot in enumerate(N.OUT_SLOTS):
         x = vals[slot]
         if x is None or _is_const(x):
             continue
-        n = _SLOT_WIDTH[slot]
+        n = N.OUT_WIDTH[slot]
         if slot == "normal":
-            x = c.e.emit(vm.OP_NORMALIZE_N, 3, [(x, 3)])
+            x = c.op("normalize_n", [(x, 3)])
         outs[k] = x.r
         live.append((x.r, n))
     slots = c.lobe_slots
@@ -1105,7 +495,7 @@ def compile_graph(graph: Graph, warn=None, uv_index=None, scene_textures=None, r
     program = None
     if live:
         code, init = c.e.finish(live)
-        images = code[:, 0] == vm.OP_IMAGE  # the textures the kept lookups read, renumbered
+        images = code[:, 0] == N.OP_IMAGE  # the textures the kept lookups read, renumbered
         used = sorted(set(code[images, 3].tolist()))
         code[images, 3] = np.searchsorted(np.asarray(used, np.int32), code[images, 3])
         program = Program(code=code, init=init, outs=outs, textures=[c.textures[k] for k in used], lobes=slots)
@@ -1191,7 +581,7 @@ class ProgramTable(NamedTuple):
 
     @property
     def alpha_varies(self) -> np.ndarray:
-        return self.outs[:, vm.OUT_ALPHA] >= 0
+        return self.outs[:, N.OUT_ALPHA] >= 0
 
 
 def row_graph(m, i: int, textures: list) -> Graph:
@@ -1272,7 +662,7 @@ def _pack_programs(m, textures: list) -> tuple[ProgramTable, list]:
     codes, inits = [], []
     pstart = np.zeros(n + 1, np.int32)
     pbase = np.zeros(n, np.int32)
-    outs = np.full((n, len(vm.OUT_SLOTS)), -1, np.int32)
+    outs = np.full((n, len(N.OUT_SLOTS)), -1, np.int32)
     has = np.zeros(n, np.bool_)
     lobe_kind = np.full((n, MAX_LOBES), -1, np.int32)
     lobe_out = np.zeros((n, MAX_LOBES, 6), np.int32)
@@ -1303,7 +693,7 @@ def _pack_programs(m, textures: list) -> tuple[ProgramTable, list]:
                                             fallback=use.fallback, interpolation=use.image.interpolation))
             index.append(added[key])
         code = prog.code.copy()
-        image_ops = code[:, 0] == vm.OP_IMAGE
+        image_ops = code[:, 0] == N.OP_IMAGE
         code[image_ops, 3] = np.asarray(index, np.int32)[code[image_ops, 3]] if image_ops.any() else code[image_ops, 3]
         codes.append(code)
         inits.append(prog.init)
@@ -1315,7 +705,7 @@ def _pack_programs(m, textures: list) -> tuple[ProgramTable, list]:
         n_code += len(code)
         n_reg += len(prog.init)
     pstart[n] = n_code
-    code = np.concatenate(codes) if codes else np.zeros((0, vm.WIDTH), np.int32)
+    code = np.concatenate(codes) if codes else np.zeros((0, N.WIDTH), np.int32)
     R0 = np.concatenate(inits) if inits else np.zeros(1, np.float64)
     return ProgramTable(np.ascontiguousarray(code, np.int32), pstart, pbase, outs, np.ascontiguousarray(R0),
                         has, lobe_kind, lobe_out, lobe_extra), out_textures

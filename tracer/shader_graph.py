@@ -16,7 +16,7 @@ The tracer compiles a graph once (:mod:`tracer.shader_compile`: constants folded
 flattened into a weighted sum of lobes) and evaluates what is left per hit (:mod:`tracer.shader_vm`).
 
 Socket kinds (:data:`FLOAT`, :data:`VECTOR`, :data:`COLOR`, :data:`CLOSURE`). A link between kinds converts as
-Blender does: colour → float is the Rec.709 luminance (0.2126, 0.7152, 0.0722), vector → float the mean of x, y, z,
+Blender does (:func:`convert_constant`): colour → float is the luminance (tracer.colorspace), vector → float the mean of x, y, z,
 float → colour/vector (f, f, f), colour ↔ vector as is; a closure links only to a closure. Colours are RGB (alpha is
 a separate float output, as in Blender).
 
@@ -45,7 +45,8 @@ texture nodes as ``usd_uv_texture`` (UsdUVTexture: scale, bias, fallback where t
 ``uvmap`` (a primvar reader) through ``usd_transform2d``; MaterialX ``image``/``tiledimage`` and ``normalmap`` as
 ``usd_uv_texture`` / ``normal_map``.
 
-Node types and their sockets are :data:`NODE_TYPES` (documented with their meaning in docs/materials-api.md).
+Node types and their sockets are :data:`NODE_TYPES`, the entries of the node table :mod:`tracer.shader_nodes`
+(documented with their meaning in docs/materials-api.md).
 """
 
 from __future__ import annotations
@@ -57,233 +58,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .materials import PRINCIPLED_DEFAULTS
+from .shader_nodes import (CLOSURE, COLOR, ENUMS, FLOAT, GENERATED, IMPLICIT, KINDS, NODE_TYPES, NORMAL,  # noqa: F401
+                           POSITION, TANGENT, UV, VECTOR, Implicit, NodeType, Socket, convert_constant)
 
-FLOAT, VECTOR, COLOR, CLOSURE = "float", "vector", "color", "closure"
-KINDS = (FLOAT, VECTOR, COLOR, CLOSURE)
-
-
-class Implicit(NamedTuple):
-    """The default of an input that, unlinked, reads a value of the hit (not a constant)."""
-
-    what: str
-
-
-NORMAL, UV, GENERATED, POSITION, TANGENT = (Implicit("normal"), Implicit("uv"), Implicit("generated"),
-                                             Implicit("position"), Implicit("tangent"))
-IMPLICIT = (NORMAL, UV, GENERATED, POSITION, TANGENT)
-
-
-class Socket(NamedTuple):
-    name: str
-    kind: str
-    default: object = None  # float, 3-tuple, an Implicit, or None (closures: nothing connected = black)
-
-
-class NodeType(NamedTuple):
-    """One node type: inputs and outputs (:class:`Socket`) and parameters {name: default} (enums: the first of the
-    tuple in :data:`ENUMS` is the default when the value is None here)."""
-
-    inputs: tuple
-    outputs: tuple
-    params: dict
-
-    def input(self, name: str) -> Socket | None:
-        return next((s for s in self.inputs if s.name == name), None)
-
-    def output(self, name: str) -> Socket | None:
-        return next((s for s in self.outputs if s.name == name), None)
-
-
-def _f(name, d=0.0):
-    return Socket(name, FLOAT, float(d))
-
-
-def _v(name, d=(0.0, 0.0, 0.0)):
-    return Socket(name, VECTOR, d if isinstance(d, Implicit) else tuple(float(x) for x in d))
-
-
-def _c(name, d=(0.8, 0.8, 0.8)):
-    return Socket(name, COLOR, tuple(float(x) for x in d))
-
-
-def _s(name):
-    return Socket(name, CLOSURE, None)
-
-
-def _t(inputs, outputs, **params):
-    return NodeType(tuple(inputs), tuple(outputs), params)
-
-
-_N = _v("Normal", NORMAL)
-
-#: Enumerations of parameters (the first is the default). Names and members are Blender's (RNA enum identifiers).
-ENUMS = {
-    "math.operation": ("ADD", "SUBTRACT", "MULTIPLY", "DIVIDE", "MULTIPLY_ADD", "POWER", "LOGARITHM", "SQRT",
-                       "INVERSE_SQRT", "ABSOLUTE", "EXPONENT", "MINIMUM", "MAXIMUM", "LESS_THAN", "GREATER_THAN",
-                       "SIGN", "COMPARE", "SMOOTH_MIN", "SMOOTH_MAX", "ROUND", "FLOOR", "CEIL", "TRUNC", "FRACT",
-                       "MODULO", "FLOORED_MODULO", "WRAP", "SNAP", "PINGPONG", "SINE", "COSINE", "TANGENT", "ARCSINE",
-                       "ARCCOSINE", "ARCTANGENT", "ARCTAN2", "SINH", "COSH", "TANH", "RADIANS", "DEGREES"),
-    "vector_math.operation": ("ADD", "SUBTRACT", "MULTIPLY", "DIVIDE", "MULTIPLY_ADD", "CROSS_PRODUCT", "PROJECT",
-                              "REFLECT", "REFRACT", "FACEFORWARD", "DOT_PRODUCT", "DISTANCE", "LENGTH", "SCALE",
-                              "NORMALIZE", "ABSOLUTE", "POWER", "SIGN", "MINIMUM", "MAXIMUM", "FLOOR", "CEIL",
-                              "FRACTION", "MODULO", "WRAP", "SNAP", "SINE", "COSINE", "TANGENT"),
-    "mix_color.blend_type": ("MIX", "DARKEN", "MULTIPLY", "BURN", "LIGHTEN", "SCREEN", "DODGE", "ADD", "OVERLAY",
-                             "SOFT_LIGHT", "LINEAR_LIGHT", "DIFFERENCE", "EXCLUSION", "SUBTRACT", "DIVIDE", "HUE",
-                             "SATURATION", "COLOR", "VALUE"),
-    "map_range.interpolation_type": ("LINEAR", "STEPPED", "SMOOTHSTEP", "SMOOTHERSTEP"),
-    "clamp.clamp_type": ("MINMAX", "RANGE"),
-    "color_mode": ("RGB", "HSV", "HSL"),
-    "rgb_ramp.interpolation": ("LINEAR", "CONSTANT", "EASE", "CARDINAL", "B_SPLINE"),
-    "mapping.vector_type": ("POINT", "TEXTURE", "VECTOR", "NORMAL"),
-    "vector_rotate.rotation_type": ("AXIS_ANGLE", "X_AXIS", "Y_AXIS", "Z_AXIS", "EULER_XYZ"),
-    "vector_transform.vector_type": ("VECTOR", "POINT", "NORMAL"),
-    "space": ("WORLD", "OBJECT", "CAMERA"),
-    "normal_map.space": ("TANGENT", "OBJECT", "WORLD", "BLENDER_OBJECT", "BLENDER_WORLD"),
-    "image_texture.projection": ("FLAT", "BOX", "SPHERE", "TUBE"),
-    "image_texture.interpolation": ("Linear", "Closest", "Cubic", "Smart"),
-    "extension": ("REPEAT", "EXTEND", "CLIP", "MIRROR"),
-    "distribution": ("MULTI_GGX", "GGX", "BECKMANN", "ASHIKHMIN_SHIRLEY"),
-}
-
-#: Every node type of the IR. Procedural textures (noise, voronoi, wave, magic, gradient, brick, white noise),
-#: blackbody and wavelength follow Blender's sockets; their evaluation is :mod:`tracer.procedural`'s.
-NODE_TYPES: dict[str, NodeType] = {
-    # ---------------------------------------------------------------- output
-    "material_output": _t([_s("Surface"), _v("Displacement")], []),
-    # ---------------------------------------------------------------- closures
-    "principled_bsdf": _t([(_c if np.ndim(d) else _f)(k, d) for k, d in PRINCIPLED_DEFAULTS.items()] + [
-                          _N, _f("Coat Weight"), _f("Sheen Weight"), _f("Subsurface Weight"), _f("Anisotropic"),
-                           _f("Alpha Threshold")],  # Alpha Threshold: USD's opacityThreshold (not in Blender)
-                          [_s("BSDF")], transmission_tint=None),  # None: the base colour tints (Cycles)
-    "diffuse_bsdf": _t([_c("Color"), _f("Roughness"), _N], [_s("BSDF")]),
-    "glossy_bsdf": _t([_c("Color"), _f("Roughness", 0.5), _f("Anisotropy"), _f("Rotation"), _N],
-                      [_s("BSDF")], distribution="MULTI_GGX"),
-    "glass_bsdf": _t([_c("Color", (1, 1, 1)), _f("Roughness"), _f("IOR", 1.5), _N], [_s("BSDF")],
-                     distribution="MULTI_GGX"),
-    "refraction_bsdf": _t([_c("Color", (1, 1, 1)), _f("Roughness"), _f("IOR", 1.5), _N], [_s("BSDF")],
-                          distribution="GGX"),
-    "translucent_bsdf": _t([_c("Color"), _N], [_s("BSDF")]),
-    "transparent_bsdf": _t([_c("Color", (1, 1, 1))], [_s("BSDF")]),
-    "emission": _t([_c("Color", (1, 1, 1)), _f("Strength", 1.0)], [_s("Emission")]),
-    "holdout": _t([], [_s("Holdout")]),
-    "mix_closure": _t([_f("Fac", 0.5), _s("Shader"), _s("Shader_001")], [_s("Shader")]),
-    "add_closure": _t([_s("Shader"), _s("Shader_001")], [_s("Shader")]),
-    # ---------------------------------------------------------------- inputs
-    "value": _t([], [_f("Value")], value=0.0),
-    "color": _t([], [_c("Color")], value=(0.8, 0.8, 0.8)),
-    "texture_coordinate": _t([], [_v("Generated"), _v("Normal"), _v("UV"), _v("Object"), _v("Camera"),
-                                  _v("Window"), _v("Reflection")], from_object=None),
-    "geometry": _t([], [_v("Position"), _v("Normal"), _v("Tangent"), _v("True Normal"), _v("Incoming"),
-                        _v("Parametric"), _f("Backfacing"), _f("Pointiness"), _f("Random Per Island")]),
-    "object_info": _t([], [_v("Location"), _c("Color"), _f("Alpha"), _f("Object Index"), _f("Material Index"),
-                           _f("Random")]),
-    "light_path": _t([], [_f(n) for n in ("Is Camera Ray", "Is Shadow Ray", "Is Diffuse Ray", "Is Glossy Ray",
-                                          "Is Singular Ray", "Is Reflection Ray", "Is Transmission Ray",
-                                          "Ray Length", "Ray Depth", "Diffuse Depth", "Glossy Depth",
-                                          "Transparent Depth", "Transmission Depth")]),
-    "uvmap": _t([], [_v("UV")], attribute=""),  # attribute: the UV map / primvar name, "" = the default one
-    "attribute": _t([], [_c("Color"), _v("Vector"), _f("Fac"), _f("Alpha")], attribute="",
-                    attribute_type="GEOMETRY"),
-    "vertex_color": _t([], [_c("Color"), _f("Alpha")], layer_name=""),  # "" = the mesh's active colour
-    "fresnel": _t([_f("IOR", 1.5), _N], [_f("Fac")]),
-    "layer_weight": _t([_f("Blend", 0.5), _N], [_f("Fresnel"), _f("Facing")]),
-    "tangent": _t([], [_v("Tangent")], direction_type="UV_MAP", uv_map=""),
-    # ---------------------------------------------------------------- textures
-    "environment_texture": _t([_v("Vector", GENERATED)], [_c("Color"), _f("Alpha")], image=None,
-                              projection="EQUIRECTANGULAR", interpolation="Linear"),
-    "image_texture": _t([_v("Vector", UV)], [_c("Color"), _f("Alpha")], image=None, projection="FLAT",
-                        projection_blend=0.0, interpolation="Linear", extension=None),
-    "checker_texture": _t([_v("Vector", GENERATED), _c("Color1"), _c("Color2", (0.2, 0.2, 0.2)),
-                           _f("Scale", 5.0)], [_c("Color"), _f("Fac")]),
-    "noise_texture": _t([_v("Vector", GENERATED), _f("W"), _f("Scale", 5.0), _f("Detail", 2.0),
-                         _f("Roughness", 0.5), _f("Lacunarity", 2.0), _f("Offset"), _f("Gain", 1.0),
-                         _f("Distortion")], [_f("Fac"), _c("Color")], noise_dimensions="3D", noise_type="FBM",
-                        normalize=True),
-    "voronoi_texture": _t([_v("Vector", GENERATED), _f("W"), _f("Scale", 5.0), _f("Detail"), _f("Roughness", 0.5),
-                           _f("Lacunarity", 2.0), _f("Smoothness", 1.0), _f("Exponent", 0.5),
-                           _f("Randomness", 1.0)],
-                          [_f("Distance"), _c("Color"), _v("Position"), _f("W"), _f("Radius")],
-                          voronoi_dimensions="3D", feature="F1", distance="EUCLIDEAN", normalize=False),
-    "wave_texture": _t([_v("Vector", GENERATED), _f("Scale", 5.0), _f("Distortion"), _f("Detail", 2.0),
-                        _f("Detail Scale", 1.0), _f("Detail Roughness", 0.5), _f("Phase Offset")],
-                       [_c("Color"), _f("Fac")], wave_type="BANDS", bands_direction="X", rings_direction="X",
-                       wave_profile="SIN"),
-    "magic_texture": _t([_v("Vector", GENERATED), _f("Scale", 5.0), _f("Distortion", 1.0)], [_c("Color"), _f("Fac")],
-                        turbulence_depth=2),
-    "gradient_texture": _t([_v("Vector", GENERATED)], [_c("Color"), _f("Fac")], gradient_type="LINEAR"),
-    "brick_texture": _t([_v("Vector", GENERATED), _c("Color1"), _c("Color2", (0.2, 0.2, 0.2)),
-                         _c("Mortar", (0.0, 0.0, 0.0)), _f("Scale", 5.0), _f("Mortar Size", 0.02),
-                         _f("Mortar Smooth", 0.1), _f("Bias"), _f("Brick Width", 0.5), _f("Row Height", 0.25)],
-                        [_c("Color"), _f("Fac")], offset=0.5, offset_frequency=2, squash=1.0, squash_frequency=2),
-    "white_noise_texture": _t([_v("Vector", GENERATED), _f("W")], [_f("Value"), _c("Color")],
-                              noise_dimensions="3D"),
-    # ---------------------------------------------------------------- colour
-    "mix_color": _t([_f("Factor", 0.5), _c("A", (0.5, 0.5, 0.5)), _c("B", (0.5, 0.5, 0.5))], [_c("Result")],
-                    blend_type="MIX", use_clamp=False, use_clamp_result=False),
-    "mix_float": _t([_f("Factor", 0.5), _f("A"), _f("B")], [_f("Result")], use_clamp=True),
-    "mix_vector": _t([_f("Factor", 0.5), _v("A"), _v("B")], [_v("Result")], use_clamp=True),
-    "mix_vector_non_uniform": _t([_v("Factor", (0.5, 0.5, 0.5)), _v("A"), _v("B")], [_v("Result")],
-                                 use_clamp=True),
-    "invert": _t([_f("Fac", 1.0), _c("Color", (0.0, 0.0, 0.0))], [_c("Color")]),
-    "gamma": _t([_c("Color", (1, 1, 1)), _f("Gamma", 1.0)], [_c("Color")]),
-    "brightness_contrast": _t([_c("Color", (1, 1, 1)), _f("Bright"), _f("Contrast")], [_c("Color")]),
-    "hsv": _t([_f("Hue", 0.5), _f("Saturation", 1.0), _f("Value", 1.0), _f("Fac", 1.0), _c("Color")],
-              [_c("Color")]),
-    "rgb_curves": _t([_f("Fac", 1.0), _c("Color", (1, 1, 1))], [_c("Color")], curves=None, range=(0.0, 1.0)),
-    "rgb_ramp": _t([_f("Fac", 0.5)], [_c("Color"), _f("Alpha")], ramp=None, interpolation="LINEAR",
-                   color_mode="RGB", hue_interpolation="NEAR"),
-    "blackbody": _t([_f("Temperature", 1500.0)], [_c("Color")]),
-    "wavelength": _t([_f("Wavelength", 500.0)], [_c("Color")]),
-    "rgb_to_bw": _t([_c("Color", (0.5, 0.5, 0.5))], [_f("Val")]),
-    "separate_color": _t([_c("Color")], [_f("Red"), _f("Green"), _f("Blue")], color_mode="RGB"),
-    "combine_color": _t([_f("Red"), _f("Green"), _f("Blue")], [_c("Color")], color_mode="RGB"),
-    # ---------------------------------------------------------------- vector / converter
-    "separate_xyz": _t([_v("Vector")], [_f("X"), _f("Y"), _f("Z")]),
-    "combine_xyz": _t([_f("X"), _f("Y"), _f("Z")], [_v("Vector")]),
-    "math": _t([_f("Value", 0.5), _f("Value_001", 0.5), _f("Value_002", 0.5)], [_f("Value")], operation="ADD",
-               use_clamp=False),
-    "vector_math": _t([_v("Vector"), _v("Vector_001"), _v("Vector_002"), _f("Scale", 1.0)],
-                      [_v("Vector"), _f("Value")], operation="ADD"),
-    "map_range": _t([_f("Value", 1.0), _f("From Min"), _f("From Max", 1.0), _f("To Min"), _f("To Max", 1.0),
-                     _f("Steps", 4.0)], [_f("Result")], interpolation_type="LINEAR", clamp=True),
-    "vector_map_range": _t([_v("Vector"), _v("From Min"), _v("From Max", (1, 1, 1)), _v("To Min"),
-                            _v("To Max", (1, 1, 1)), _v("Steps", (4, 4, 4))], [_v("Vector")],
-                           interpolation_type="LINEAR", clamp=True),
-    "clamp": _t([_f("Value", 1.0), _f("Min"), _f("Max", 1.0)], [_f("Result")], clamp_type="MINMAX"),
-    "float_curve": _t([_f("Factor", 1.0), _f("Value", 1.0)], [_f("Value")], curves=None, range=(0.0, 1.0)),
-    "vector_curves": _t([_f("Fac", 1.0), _v("Vector")], [_v("Vector")], curves=None, range=(0.0, 1.0)),
-    "mapping": _t([_v("Vector"), _v("Location"), _v("Rotation"), _v("Scale", (1, 1, 1))], [_v("Vector")],
-                  vector_type="POINT"),
-    "vector_rotate": _t([_v("Vector"), _v("Center"), _v("Axis", (0, 0, 1)), _f("Angle"), _v("Rotation")],
-                        [_v("Vector")], rotation_type="AXIS_ANGLE", invert=False),
-    "vector_transform": _t([_v("Vector", (0.5, 0.5, 0.5))], [_v("Vector")], vector_type="VECTOR",
-                           convert_from="WORLD", convert_to="OBJECT"),
-    "normal_map": _t([_f("Strength", 1.0), _c("Color", (0.5, 0.5, 1.0))], [_v("Normal")], space="TANGENT",
-                     uv_map=""),
-    "bump": _t([_f("Strength", 1.0), _f("Distance", 1.0), _f("Filter Width", 0.1), _f("Height", 1.0), _N],
-               [_v("Normal")], invert=False),
-    "displacement": _t([_f("Height"), _f("Midlevel", 0.5), _f("Scale", 1.0), _N], [_v("Displacement")],
-                       space="OBJECT"),
-    # ---------------------------------------------------------------- USD / MaterialX
-    # MaterialX's noise2d/3d, fractal2d/3d, cellnoise2d/3d, worleynoise2d/3d (tracer.procedural.mx_noise): kind
-    # perlin | cell | worley | fractal, dimensions 2 | 3, width 1-4 (float, vector2, vector3/color3, vector4/color4),
-    # style 0 distance | 1 solid (worley). Value = x, Vector = (x, y, z), W = w of the node's result.
-    "mx_noise": _t([_v("Vector", GENERATED), _v("Amplitude", (1, 1, 1)), _f("Amplitude W", 1.0), _f("Pivot"),
-                    _f("Octaves", 3.0), _f("Lacunarity", 2.0), _f("Diminish", 0.5), _f("Jitter", 1.0)],
-                   [_f("Value"), _v("Vector"), _f("W")], kind="perlin", dimensions=3, width=1, style=0),
-    # UsdUVTexture: image (an ImageRef, wrap from it), st, scale/bias per channel, fallback where the mesh has no
-    # coordinates. Outputs r, g, b, a and rgb as in the spec.
-    "usd_uv_texture": _t([_v("st", UV)], [_f("r"), _f("g"), _f("b"), _f("a"), _c("rgb")], image=None,
-                         scale=(1.0, 1.0, 1.0, 1.0), bias=(0.0, 0.0, 0.0, 0.0), fallback=(0.0, 0.0, 0.0, 1.0)),
-    # UsdTransform2d: in · scale · rotate (degrees, counter-clockwise) + translation, on (s, t)
-    # (internal) a row's P_texture column: Scene.textures[index] read in its own UV set with its own transform,
-    # scale, bias and fallback — how rows of the table API become programs
-    "scene_texture": _t([], [_c("Color"), _f("Alpha")], index=0, uv_set=0),
-    # (or ``matrix``: the 3 × 3 on (s, t, 1) of a chain of them, composed)
-    "usd_transform2d": _t([_v("in", UV)], [_v("result")], scale=(1.0, 1.0), rotation=0.0,
-                          translation=(0.0, 0.0), matrix=None),
-}
+# Node types, their sockets, parameters and lowering: tracer.shader_nodes (the node table), re-exported here as the
+# IR's vocabulary.
 
 
 @dataclass(eq=False)

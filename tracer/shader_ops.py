@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 
+from . import vec
 from .jit import kernel
 
 # math.operation codes (ENUMS["math.operation"] order)
@@ -23,7 +24,9 @@ from .jit import kernel
  V_FACEFORWARD, V_DOT_PRODUCT, V_DISTANCE, V_LENGTH, V_SCALE, V_NORMALIZE, V_ABSOLUTE, V_POWER, V_SIGN, V_MINIMUM,
  V_MAXIMUM, V_FLOOR, V_CEIL, V_FRACTION, V_MODULO, V_WRAP, V_SNAP, V_SINE, V_COSINE, V_TANGENT) = range(29)
 
-# mix_color.blend_type codes
+#: Mix Color's blend modes (Blender's names; the codes are their positions)
+BLEND_TYPES = ("MIX", "DARKEN", "MULTIPLY", "BURN", "LIGHTEN", "SCREEN", "DODGE", "ADD", "OVERLAY", "SOFT_LIGHT",
+               "LINEAR_LIGHT", "DIFFERENCE", "EXCLUSION", "SUBTRACT", "DIVIDE", "HUE", "SATURATION", "COLOR", "VALUE")
 (B_MIX, B_DARKEN, B_MULTIPLY, B_BURN, B_LIGHTEN, B_SCREEN, B_DODGE, B_ADD, B_OVERLAY, B_SOFT_LIGHT, B_LINEAR_LIGHT,
  B_DIFFERENCE, B_EXCLUSION, B_SUBTRACT, B_DIVIDE, B_HUE, B_SATURATION, B_COLOR, B_VALUE) = range(19)
 
@@ -499,3 +502,126 @@ def map_range_clamp(kind, value, from_min, from_max, to_min, to_max, steps, clam
         lo, hi = min(to_min, to_max), max(to_min, to_max)
         r = min(max(r, lo), hi)
     return r
+
+
+
+# ---------------------------------------------------------------------------------------------- on the register file
+@kernel(refcounts=False)
+def ramp(R, o, f, table, size, interpolate):
+    """Color Ramp: Cycles' ``rgb_ramp_lookup`` on the (size, 4) RGBA table at R[table…] (Blender's 257 samples of
+    the ramp, made by tracer.procedural.color.color_ramp_table): entry int(f·(size − 1)) of f clamped to [0, 1],
+    linear to the next unless the ramp is CONSTANT."""
+    x = min(max(f, 0.0), 1.0) * (size - 1)
+    if x != x:
+        x = 0.0
+    i = min(max(int(x), 0), size - 1)
+    t = x - i if interpolate else 0.0
+    j = min(i + 1, size - 1)
+    for k in range(4):
+        a = R[table + 4 * i + k]
+        R[o + k] = a if t <= 0.0 else (1.0 - t) * a + t * R[table + 4 * j + k]
+
+
+@kernel(refcounts=False)
+def _curve_lookup(R, table, size, x, ch):
+    """Curve channel ``ch`` of a baked table at R[table…]: header (x_min, x_max, channels), then ``size`` samples
+    per channel over [x_min, x_max], linear between samples and extrapolated from the end slopes (Cycles'
+    ``rgb_ramp_lookup`` with extrapolation)."""
+    lo, hi = R[table], R[table + 1]
+    first = table + 3 + ch * size
+    f = (x - lo) / (hi - lo) * (size - 1) if hi > lo else 0.0
+    if f < 0.0:
+        return R[first] + (R[first] - R[first + 1]) * (-f)
+    if f > size - 1:
+        return R[first + size - 1] + (R[first + size - 1] - R[first + size - 2]) * (f - (size - 1))
+    i = min(int(f), size - 2)
+    t = f - i
+    return (1.0 - t) * R[first + i] + t * R[first + i + 1]
+
+
+@kernel(refcounts=False)
+def curve(R, o, a, table, size, fac, kind):
+    """RGB Curves (kind 0: the combined curve after each channel's, channels 3 then 0–2 in the table), Vector
+    Curves (1: x, y, z) and Float Curve (2), blended with the input by ``fac``."""
+    if kind == 2:
+        x = R[a]
+        y = _curve_lookup(R, table, size, x, 0)
+        R[o] = (1.0 - fac) * x + fac * y
+        return
+    for j in range(3):
+        x = R[a + j]
+        if kind == 0:
+            y = _curve_lookup(R, table, size, _curve_lookup(R, table, size, x, j + 1), 0)
+        else:
+            y = _curve_lookup(R, table, size, x, j)
+        R[o + j] = (1.0 - fac) * x + fac * y
+
+
+@kernel
+def euler(rx, ry, rz):
+    """Blender's XYZ Euler rotation matrix rows (R = Rz·Ry·Rx)."""
+    cx, sx, cy, sy, cz, sz = math.cos(rx), math.sin(rx), math.cos(ry), math.sin(ry), math.cos(rz), math.sin(rz)
+    return ((cy * cz, sx * sy * cz - cx * sz, cx * sy * cz + sx * sz),
+            (cy * sz, sx * sy * sz + cx * cz, cx * sy * sz - sx * cz),
+            (-sy, sx * cy, cx * cy))
+
+
+@kernel
+def rot(m, v):
+    return (vec.dot(m[0], v), vec.dot(m[1], v), vec.dot(m[2], v))
+
+
+@kernel
+def rot_t(m, v):
+    return (m[0][0] * v[0] + m[1][0] * v[1] + m[2][0] * v[2], m[0][1] * v[0] + m[1][1] * v[1] + m[2][1] * v[2],
+            m[0][2] * v[0] + m[1][2] * v[1] + m[2][2] * v[2])
+
+
+@kernel(refcounts=False)
+def mapping(R, o, a, loc, rot_r, scl, kind):
+    """Blender's Mapping node (``svm_mapping``): 0 point, 1 texture, 2 vector, 3 normal."""
+    v = (R[a], R[a + 1], R[a + 2])
+    lv = (R[loc], R[loc + 1], R[loc + 2])
+    sv = (R[scl], R[scl + 1], R[scl + 2])
+    m = euler(R[rot_r], R[rot_r + 1], R[rot_r + 2])
+    if kind == 0:
+        x = vec.add(rot(m, vec.mul(v, sv)), lv)
+    elif kind == 1:
+        w = rot_t(m, vec.sub(v, lv))
+        x = (safe_divide(w[0], sv[0]), safe_divide(w[1], sv[1]), safe_divide(w[2], sv[2]))
+    elif kind == 2:
+        x = rot(m, vec.mul(v, sv))
+    else:
+        w = rot(m, (safe_divide(v[0], sv[0]), safe_divide(v[1], sv[1]), safe_divide(v[2], sv[2])))
+        ln = math.sqrt(vec.dot(w, w))
+        x = vec.scale(w, 1.0 / ln) if ln > 0.0 else w
+    R[o], R[o + 1], R[o + 2] = x
+
+
+@kernel
+def _axis_angle(v, axis, angle):
+    ln = math.sqrt(vec.dot(axis, axis))
+    if ln == 0.0:
+        return v
+    k = vec.scale(axis, 1.0 / ln)
+    c, s = math.cos(angle), math.sin(angle)
+    return vec.add(vec.add(vec.scale(v, c), vec.scale(vec.cross(k, v), s)), vec.scale(k, vec.dot(k, v) * (1.0 - c)))
+
+
+@kernel(refcounts=False)
+def vrotate(R, o, a, center, axis, angle_r, rot_r, imm):
+    """Blender's Vector Rotate (``svm_node_vector_rotate``): imm = type (0 axis-angle, 1–3 X/Y/Z, 4 Euler) + 8·invert."""
+    kind, inv = imm & 7, (imm & 8) != 0
+    v = (R[a], R[a + 1], R[a + 2])
+    cen = (R[center], R[center + 1], R[center + 2])
+    w = vec.sub(v, cen)
+    ang = R[angle_r] * (-1.0 if inv else 1.0)
+    if kind == 4:
+        m = euler(R[rot_r], R[rot_r + 1], R[rot_r + 2])
+        w = rot_t(m, w) if inv else rot(m, w)
+    elif kind == 0:
+        w = _axis_angle(w, (R[axis], R[axis + 1], R[axis + 2]), ang)
+    else:
+        ax = (1.0 if kind == 1 else 0.0, 1.0 if kind == 2 else 0.0, 1.0 if kind == 3 else 0.0)
+        w = _axis_angle(w, ax, ang)
+    R[o], R[o + 1], R[o + 2] = vec.add(w, cen)

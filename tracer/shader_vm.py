@@ -26,6 +26,7 @@ import numpy as np
 
 from . import shader_ops as ops, vec
 from .instances import mat3_apply, mat3_apply_transposed
+from .colorspace import REC709_LUMINANCE
 from .jit import kernel
 from .procedural import color as pcolor
 from .procedural import mx_noise as pmx
@@ -36,32 +37,22 @@ from .surface import areas_at, tangent_at, uv_at
 from .shader_spaces import CAM_FILM, CAM_LENS, CAM_XF, HI, LO, LOC, NRM, XF
 from .texture import lookup_at, texel_density
 
-WIDTH = 9  # op, dst, a, b, c, d, e, f, imm
+# Opcodes, hit inputs and closure outputs: the node table's (tracer.shader_nodes; numba reads these globals as
+# constants). The branches of execute and _procedural follow its OPS rows (tests/test_shader_vm.py checks them).
+from .shader_nodes import (IN_BACKFACING, IN_CAMERA, IN_COLOR, IN_COLOR_ALPHA, IN_GENERATED,  # noqa: E402,F401
+                           IN_INCOMING, IN_IS_CAMERA, IN_IS_REFLECTION, IN_IS_SHADOW, IN_NORMAL, IN_OBJ_INDEX,
+                           IN_OBJ_LOCATION, IN_OBJ_RANDOM, IN_OBJECT, IN_PARAMETRIC, IN_POSITION, IN_RAY_DEPTH,
+                           IN_RAY_LENGTH, IN_REFLECTION, IN_TANGENT, IN_TRUE_NORMAL, IN_UV, IN_WINDOW, OP_AFFINE2,
+                           OP_AVG, OP_BLACKBODY, OP_BRICK, OP_BRIGHT, OP_BUMP, OP_BUMP_SETUP, OP_CHECKER, OP_CLAMP,
+                           OP_COMB_COLOR, OP_COMBINE, OP_COPY, OP_CURVE, OP_FRESNEL, OP_GAMMA, OP_GRADIENT, OP_HSV,
+                           OP_IMAGE, OP_INPUT, OP_INVERT, OP_LAYER_WEIGHT, OP_LUM, OP_MAGIC, OP_MAP_RANGE,
+                           OP_MAP_RANGE_V, OP_MAPPING, OP_MATH, OP_MIX_C, OP_MIX_F, OP_MIX_V, OP_MIX_VN, OP_MX_NOISE,
+                           OP_NAMES, OP_NOISE, OP_NORMAL_MAP, OP_NORMALIZE_N, OP_RAMP, OP_SELECT, OP_SEP_COLOR,
+                           OP_VMATH, OP_VORONOI, OP_VROTATE, OP_VTRANSFORM, OP_WAVE, OP_WAVELENGTH, OP_WHITE_NOISE,
+                           OUT_ALPHA, OUT_BASE, OUT_EMIT, OUT_METAL, OUT_NORMAL, OUT_ROUGH, OUT_SLOTS, OUT_SPEC,
+                           OUT_TRANS, WIDTH)
 
-(OP_NOP, OP_MATH, OP_VMATH, OP_MIX_F, OP_MIX_V, OP_MIX_VN, OP_MIX_C, OP_LUM, OP_AVG, OP_COMBINE, OP_INPUT,
- OP_IMAGE, OP_CHECKER, OP_NORMAL_MAP, OP_BUMP_SETUP, OP_BUMP, OP_RAMP, OP_CURVE, OP_MAPPING, OP_HSV, OP_GAMMA,
- OP_BRIGHT, OP_INVERT, OP_SEP_COLOR, OP_COMB_COLOR, OP_MAP_RANGE, OP_CLAMP, OP_FRESNEL, OP_LAYER_WEIGHT,
- OP_VROTATE, OP_COPY, OP_AFFINE2, OP_MAP_RANGE_V, OP_SELECT, OP_NORMALIZE_N, OP_NOISE, OP_VORONOI, OP_WAVE,
- OP_MAGIC, OP_GRADIENT, OP_BRICK, OP_WHITE_NOISE, OP_BLACKBODY, OP_WAVELENGTH, OP_VTRANSFORM) = range(45)
-
-OP_NAMES = ("nop", "math", "vmath", "mix_f", "mix_v", "mix_vn", "mix_c", "lum", "avg", "combine", "input", "image",
-            "checker", "normal_map", "bump_setup", "bump", "ramp", "curve", "mapping", "hsv", "gamma", "bright",
-            "invert", "sep_color", "comb_color", "map_range", "clamp", "fresnel", "layer_weight", "vrotate", "copy",
-            "affine2", "map_range_v", "select", "normalize_n", "noise", "voronoi", "wave", "magic", "gradient",
-            "brick", "white_noise", "blackbody", "wavelength", "vtransform")
-#: MaterialX's noises (tracer.procedural.mx_noise), numbered after everything above.
-OP_MX_NOISE = len(OP_NAMES)
-OP_NAMES += ("mx_noise",)
-
-(IN_POSITION, IN_NORMAL, IN_TRUE_NORMAL, IN_INCOMING, IN_UV, IN_GENERATED, IN_OBJECT, IN_BACKFACING, IN_PARAMETRIC,
- IN_COLOR, IN_COLOR_ALPHA, IN_OBJ_LOCATION, IN_OBJ_RANDOM, IN_OBJ_INDEX, IN_RAY_DEPTH, IN_RAY_LENGTH, IN_IS_CAMERA,
- IN_IS_REFLECTION, IN_IS_TRANSMISSION, IN_IS_SHADOW, IN_TANGENT, IN_CAMERA, IN_WINDOW, IN_REFLECTION,
- IN_MAT_INDEX, IN_ZERO) = range(26)
-
-#: The closure inputs a program writes (its row of ``outs``): base colour (3), roughness, metallic, specular
-#: level, alpha, emission (3), shading normal (3), transmission.
-OUT_SLOTS = ("base", "roughness", "metallic", "specular", "alpha", "emission", "normal", "transmission")
-OUT_BASE, OUT_ROUGH, OUT_METAL, OUT_SPEC, OUT_ALPHA, OUT_EMIT, OUT_NORMAL, OUT_TRANS = range(8)
+_LUM_R, _LUM_G, _LUM_B = REC709_LUMINANCE
 
 
 @kernel
@@ -232,7 +223,7 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
                 x0, x1, x2 = min(max(x0, 0.0), 1.0), min(max(x1, 0.0), 1.0), min(max(x2, 0.0), 1.0)
             R[o], R[o + 1], R[o + 2] = x0, x1, x2
         elif op == OP_LUM:
-            R[o] = 0.2126 * R[a] + 0.7152 * R[a + 1] + 0.0722 * R[a + 2]
+            R[o] = _LUM_R * R[a] + _LUM_G * R[a + 1] + _LUM_B * R[a + 2]
         elif op == OP_AVG:
             R[o] = (R[a] + R[a + 1] + R[a + 2]) / 3.0
         elif op == OP_COMBINE:
@@ -287,11 +278,11 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
             _bump(R, o, R[a], R[b], R[c], R[base + code[pc, 5]], R[base + code[pc, 6]], base + code[pc, 7],
                   base + imm, ng)
         elif op == OP_RAMP:
-            _ramp(R, o, R[a], b, code[pc, 4], code[pc, 8])
+            ops.ramp(R, o, R[a], b, code[pc, 4], code[pc, 8])
         elif op == OP_CURVE:
-            _curve(R, o, a, b, code[pc, 4], R[base + code[pc, 5]], imm)
+            ops.curve(R, o, a, b, code[pc, 4], R[base + code[pc, 5]], imm)
         elif op == OP_MAPPING:
-            _mapping(R, o, a, b, c, base + code[pc, 5], imm)
+            ops.mapping(R, o, a, b, c, base + code[pc, 5], imm)
         elif op == OP_HSV:
             x0, x1, x2 = ops.hue_sat(R[b], R[c], R[base + code[pc, 5]], R[base + code[pc, 6]], R[a], R[a + 1],
                                      R[a + 2])
@@ -338,7 +329,7 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
         elif op == OP_LAYER_WEIGHT:
             _layer_weight(R, o, R[a], (R[b], R[b + 1], R[b + 2]), d, front)
         elif op == OP_VROTATE:
-            _vrotate(R, o, a, b, c, base + code[pc, 5], base + code[pc, 6], imm)
+            ops.vrotate(R, o, a, b, c, base + code[pc, 5], base + code[pc, 6], imm)
         elif op == OP_AFFINE2:  # (s, t) -> M (s, t, 1), M the six constants at b
             s_, t_ = R[a], R[a + 1]
             R[o] = R[b] * s_ + R[b + 1] * t_ + R[b + 2]
@@ -552,7 +543,7 @@ def _object_matrices(hit, geo):
              (linear[k_inst, 1, 0], linear[k_inst, 1, 1], linear[k_inst, 1, 2]),
              (linear[k_inst, 2, 0], linear[k_inst, 2, 1], linear[k_inst, 2, 2]))
         po = _bary_at(vertices, triangles, tri, u, v)
-        return m, _inverse3(m), vec.sub(p, _rot(m, po))
+        return m, _inverse3(m), vec.sub(p, ops.rot(m, po))
     oid = object_ids[tri]
     return (_cols(spaces, oid, NRM), _rows(spaces, oid, XF),  # NRM's rows hold Mᵀ, XF's M⁻¹
             (spaces[oid, LOC, 0], spaces[oid, LOC, 1], spaces[oid, LOC, 2]))
@@ -575,10 +566,10 @@ def _normal_map(col, strength, space, k_uv, hit, geo):
         tg, sign = tangent_at(uv_sets, vertices, triangles, k_uv, tri, vec.row(face_normals, tri))
         m, mi, t = _object_matrices(hit, geo)
         if k_inst < 0:  # a placed mesh's triangles are in world space: its tangent and handedness to object space
-            tg = _rot(mi, tg)
+            tg = ops.rot(mi, tg)
             if vec.dot(mi[0], vec.cross(mi[1], mi[2])) < 0.0:
                 sign = -sign
-        no = _rot_t(m, vec.scale(n, side))
+        no = ops.rot_t(m, vec.scale(n, side))
         no = vec.scale(no, 1.0 / max(math.sqrt(vec.dot(no, no)), 1e-30))
         tg = vec.sub(tg, vec.scale(no, vec.dot(no, tg)))
         if vec.dot(tg, tg) < 1e-24:
@@ -586,7 +577,7 @@ def _normal_map(col, strength, space, k_uv, hit, geo):
         tg = vec.normalize(tg)
         b = vec.scale(vec.cross(no, tg), sign)
         # not normalised before Strength blends it (Blender 5.0's Cycles, measured: tests/cycles/test_cycles_nodes.py)
-        x = _rot_t(mi, vec.madd(vec.madd(vec.scale(tg, c[0]), b, c[1]), no, c[2]))
+        x = ops.rot_t(mi, vec.madd(vec.madd(vec.scale(tg, c[0]), b, c[1]), no, c[2]))
         x = vec.scale(x, side)
     else:
         if space >= 3:
@@ -594,7 +585,7 @@ def _normal_map(col, strength, space, k_uv, hit, geo):
         x = c
         if space == 1 or space == 3:
             m, mi, t = _object_matrices(hit, geo)
-            x = _rot_t(mi, c)
+            x = ops.rot_t(mi, c)
         ln = math.sqrt(vec.dot(x, x))
         if ln == 0.0:
             return n
@@ -622,23 +613,23 @@ def _vtransform(x, imm, hit, geo):
     # to world
     if src == 1:
         if kind == 0:
-            x = _rot(m, x)
+            x = ops.rot(m, x)
         elif kind == 1:
-            x = vec.add(_rot(m, x), t)
+            x = vec.add(ops.rot(m, x), t)
         else:
-            x = _rot_t(mi, x)
+            x = ops.rot_t(mi, x)
     elif src == 2:
-        x = _rot_t(c, vec.sub(x, ct) if kind == 1 else x)
+        x = ops.rot_t(c, vec.sub(x, ct) if kind == 1 else x)
     # from world
     if dst == 1:
         if kind == 0:
-            x = _rot(mi, x)
+            x = ops.rot(mi, x)
         elif kind == 1:
-            x = _rot(mi, vec.sub(x, t))
+            x = ops.rot(mi, vec.sub(x, t))
         else:
-            x = _rot_t(m, x)
+            x = ops.rot_t(m, x)
     elif dst == 2:
-        x = _rot(c, x)
+        x = ops.rot(c, x)
         if kind == 1:
             x = vec.add(x, ct)
     if kind == 2:
@@ -697,125 +688,13 @@ def _bump(R, o, h0, hx, hy, strength, distance, nrm, setup, ng):
     R[o], R[o + 1], R[o + 2] = out
 
 
-@kernel(refcounts=False)
-def _ramp(R, o, f, table, size, interpolate):
-    """Color Ramp: Cycles' ``rgb_ramp_lookup`` on the (size, 4) RGBA table at R[table…] (Blender's 257 samples of
-    the ramp, made by tracer.procedural.color.color_ramp_table): entry int(f·(size − 1)) of f clamped to [0, 1],
-    linear to the next unless the ramp is CONSTANT."""
-    x = min(max(f, 0.0), 1.0) * (size - 1)
-    if x != x:
-        x = 0.0
-    i = min(max(int(x), 0), size - 1)
-    t = x - i if interpolate else 0.0
-    j = min(i + 1, size - 1)
-    for k in range(4):
-        a = R[table + 4 * i + k]
-        R[o + k] = a if t <= 0.0 else (1.0 - t) * a + t * R[table + 4 * j + k]
 
 
-@kernel(refcounts=False)
-def _curve_lookup(R, table, size, x, ch):
-    """Curve channel ``ch`` of a baked table at R[table…]: header (x_min, x_max, channels), then ``size`` samples
-    per channel over [x_min, x_max], linear between samples and extrapolated from the end slopes (Cycles'
-    ``rgb_ramp_lookup`` with extrapolation)."""
-    lo, hi = R[table], R[table + 1]
-    first = table + 3 + ch * size
-    f = (x - lo) / (hi - lo) * (size - 1) if hi > lo else 0.0
-    if f < 0.0:
-        return R[first] + (R[first] - R[first + 1]) * (-f)
-    if f > size - 1:
-        return R[first + size - 1] + (R[first + size - 1] - R[first + size - 2]) * (f - (size - 1))
-    i = min(int(f), size - 2)
-    t = f - i
-    return (1.0 - t) * R[first + i] + t * R[first + i + 1]
 
 
-@kernel(refcounts=False)
-def _curve(R, o, a, table, size, fac, kind):
-    """RGB Curves (kind 0: the combined curve after each channel's, channels 3 then 0–2 in the table), Vector
-    Curves (1: x, y, z) and Float Curve (2), blended with the input by ``fac``."""
-    if kind == 2:
-        x = R[a]
-        y = _curve_lookup(R, table, size, x, 0)
-        R[o] = (1.0 - fac) * x + fac * y
-        return
-    for j in range(3):
-        x = R[a + j]
-        if kind == 0:
-            y = _curve_lookup(R, table, size, _curve_lookup(R, table, size, x, j + 1), 0)
-        else:
-            y = _curve_lookup(R, table, size, x, j)
-        R[o + j] = (1.0 - fac) * x + fac * y
 
 
-@kernel
-def _euler(rx, ry, rz):
-    """Blender's XYZ Euler rotation matrix rows (R = Rz·Ry·Rx)."""
-    cx, sx, cy, sy, cz, sz = math.cos(rx), math.sin(rx), math.cos(ry), math.sin(ry), math.cos(rz), math.sin(rz)
-    return ((cy * cz, sx * sy * cz - cx * sz, cx * sy * cz + sx * sz),
-            (cy * sz, sx * sy * sz + cx * cz, cx * sy * sz - sx * cz),
-            (-sy, sx * cy, cx * cy))
 
-
-@kernel
-def _rot(m, v):
-    return (vec.dot(m[0], v), vec.dot(m[1], v), vec.dot(m[2], v))
-
-
-@kernel
-def _rot_t(m, v):
-    return (m[0][0] * v[0] + m[1][0] * v[1] + m[2][0] * v[2], m[0][1] * v[0] + m[1][1] * v[1] + m[2][1] * v[2],
-            m[0][2] * v[0] + m[1][2] * v[1] + m[2][2] * v[2])
-
-
-@kernel(refcounts=False)
-def _mapping(R, o, a, loc, rot, scl, kind):
-    """Blender's Mapping node (``svm_mapping``): 0 point, 1 texture, 2 vector, 3 normal."""
-    v = (R[a], R[a + 1], R[a + 2])
-    lv = (R[loc], R[loc + 1], R[loc + 2])
-    sv = (R[scl], R[scl + 1], R[scl + 2])
-    m = _euler(R[rot], R[rot + 1], R[rot + 2])
-    if kind == 0:
-        x = vec.add(_rot(m, vec.mul(v, sv)), lv)
-    elif kind == 1:
-        w = _rot_t(m, vec.sub(v, lv))
-        x = (ops.safe_divide(w[0], sv[0]), ops.safe_divide(w[1], sv[1]), ops.safe_divide(w[2], sv[2]))
-    elif kind == 2:
-        x = _rot(m, vec.mul(v, sv))
-    else:
-        w = _rot(m, (ops.safe_divide(v[0], sv[0]), ops.safe_divide(v[1], sv[1]), ops.safe_divide(v[2], sv[2])))
-        ln = math.sqrt(vec.dot(w, w))
-        x = vec.scale(w, 1.0 / ln) if ln > 0.0 else w
-    R[o], R[o + 1], R[o + 2] = x
-
-
-@kernel
-def _axis_angle(v, axis, angle):
-    ln = math.sqrt(vec.dot(axis, axis))
-    if ln == 0.0:
-        return v
-    k = vec.scale(axis, 1.0 / ln)
-    c, s = math.cos(angle), math.sin(angle)
-    return vec.add(vec.add(vec.scale(v, c), vec.scale(vec.cross(k, v), s)), vec.scale(k, vec.dot(k, v) * (1.0 - c)))
-
-
-@kernel(refcounts=False)
-def _vrotate(R, o, a, center, axis, angle_r, rot, imm):
-    """Blender's Vector Rotate (``svm_node_vector_rotate``): imm = type (0 axis-angle, 1–3 X/Y/Z, 4 Euler) + 8·invert."""
-    kind, inv = imm & 7, (imm & 8) != 0
-    v = (R[a], R[a + 1], R[a + 2])
-    cen = (R[center], R[center + 1], R[center + 2])
-    w = vec.sub(v, cen)
-    ang = R[angle_r] * (-1.0 if inv else 1.0)
-    if kind == 4:
-        m = _euler(R[rot], R[rot + 1], R[rot + 2])
-        w = _rot_t(m, w) if inv else _rot(m, w)
-    elif kind == 0:
-        w = _axis_angle(w, (R[axis], R[axis + 1], R[axis + 2]), ang)
-    else:
-        ax = (1.0 if kind == 1 else 0.0, 1.0 if kind == 2 else 0.0, 1.0 if kind == 3 else 0.0)
-        w = _axis_angle(w, ax, ang)
-    R[o], R[o + 1], R[o + 2] = vec.add(w, cen)
 
 
 @kernel

@@ -23,6 +23,7 @@ import pytest
 import cycles_harness as H
 
 from blender_kit import scene as bs
+from tracer import shader_ops
 from tracer.procedural import color, noise, patterns, voronoi
 
 pytestmark = pytest.mark.cycles
@@ -206,7 +207,7 @@ def graph(kind, output=None, **params):
     return {"graph": kind, "params": params, "output": output}
 
 
-for _blend in color.BLEND_TYPES:
+for _blend in shader_ops.BLEND_TYPES:
     VARIANTS[f"mix_{_blend.lower()}"] = graph("mix", blend=_blend, fac=None, clamp_factor=True, clamp_result=False)
 VARIANTS["mix_linear_light_clamped"] = graph("mix", blend="LINEAR_LIGHT", fac=0.8, clamp_factor=True,
                                              clamp_result=True)

@@ -1,14 +1,18 @@
-"""Cycles' colour nodes: HSV/HSL, Hue/Saturation/Value, Blackbody, Wavelength, RGB to BW, Mix, Color Ramp, curves.
+"""Cycles' colour nodes that are tables or spectra: Blackbody, Wavelength, Color Ramp, curves; and the numpy forms
+(``*_array``) of every colour node, for tests and front ends.
 
-Followed (Blender 5.0): ``intern/cycles/util/color.h`` (Cycles' HSV/HSL), ``kernel/svm/hsv.h``,
-``kernel/svm/color_util.h`` (the Mix blend modes), ``kernel/svm/math_util.h`` + ``kernel/tables.h`` (Blackbody's
-piecewise fit, the CIE 1931 colour-matching table of Wavelength), ``kernel/svm/wavelength.h``, ``kernel/svm/ramp.h``
-(table lookups of Color Ramp and the curve nodes), and Blender's ``blenkernel/intern/colorband.cc`` (how a Color Ramp
-is sampled into Cycles' 257-entry table: interpolations constant/linear/ease/cardinal/b-spline, colour modes RGB/HSV/
-HSL with near/far/cw/ccw hue) with ``blenlib``'s own HSV/HSL (which differ in detail from Cycles').
+The per-hit colour maths (HSV/HSL, Hue/Saturation/Value, RGB to BW, Mix's blend modes) is written once, in
+:mod:`tracer.shader_ops`, which the VM runs and the compiler folds with; the ``*_array`` forms here call those same
+functions, so the tests that compare them with Cycles (tests/test_procedural.py, tests/cycles/) prove the VM's code.
 
-Colours are 3-tuples in the scene-linear space, which for these functions is linear Rec.709 (Blender's default
-working space): Blackbody's fit is Rec.709, Wavelength goes XYZ → Rec.709, RGB to BW uses Rec.709 luminance weights.
+Followed (Blender 5.0): ``kernel/svm/math_util.h`` + ``kernel/tables.h`` (Blackbody's piecewise fit, the CIE 1931
+colour-matching table of Wavelength), ``kernel/svm/wavelength.h``, ``kernel/svm/ramp.h`` (table lookups of Color Ramp
+and the curve nodes), and Blender's ``blenkernel/intern/colorband.cc`` (how a Color Ramp is sampled into Cycles'
+257-entry table: interpolations constant/linear/ease/cardinal/b-spline, colour modes RGB/HSV/HSL with near/far/cw/ccw
+hue) with ``blenlib``'s own HSV/HSL (which differ in detail from Cycles').
+
+Colours are 3-tuples in the scene-linear space, linear Rec.709 (Blender's default working space): Blackbody's fit
+is Rec.709, Wavelength goes XYZ → Rec.709 (:mod:`tracer.colorspace`), RGB to BW uses its luminance weights.
 
 Curves (RGB Curves, Vector Curves, Float Curve): Cycles never sees Blender's Bézier curve, only a 257-entry table
 that Blender samples with ``CurveMapping.evaluate`` over [min x, max x] of the curves' points; the front end bakes
@@ -22,14 +26,10 @@ import math
 
 import numpy as np
 
+from ..colorspace import REC709_LUMINANCE, XYZ_TO_REC709
+from .. import shader_ops as ops
 from ..jit import kernel
 
-#: Linear Rec.709 luminance weights (Blender's OCIO config, scene_linear = Linear Rec.709): RGB to BW's Y.
-REC709_LUMINANCE = (0.2126729, 0.7151522, 0.0721750)
-#: CIE XYZ (D65) -> linear Rec.709 (sRGB primaries), as Cycles' xyz_to_rgb for the default working space.
-XYZ_TO_REC709 = ((3.2404542, -1.5371385, -0.4985314),
-                 (-0.9692660, 1.8760108, 0.0415560),
-                 (0.0556434, -0.2040259, 1.0572252))
 #: Size of the tables Blender samples a Color Ramp or a curve into for Cycles in Blender 5.0: 257 entries
 #: (Blender's CM_TABLE + 1; measured: 257 matches Cycles to 130-160 dB, the 256 of older Cycles to 27-108 dB).
 RAMP_TABLE_SIZE = 257
@@ -80,129 +80,6 @@ _WAVELENGTH_SCALE = 1.0 / 2.52
 
 
 # ---------------------------------------------------------------------------------------------- Cycles' HSV / HSL
-@kernel(inline="call")
-def rgb_to_hsv(c):
-    """Cycles' rgb_to_hsv (util/color.h): hue in [0, 1), saturation, value = max component."""
-    r, g, b = c
-    cmax = max(r, max(g, b))
-    cmin = min(r, min(g, b))
-    delta = cmax - cmin
-    v = cmax
-    s = delta / cmax if cmax != 0.0 else 0.0
-    h = 0.0
-    if s != 0.0:
-        cr, cg, cb = (cmax - r) / delta, (cmax - g) / delta, (cmax - b) / delta
-        if r == cmax:
-            h = cb - cg
-        elif g == cmax:
-            h = 2.0 + cr - cb
-        else:
-            h = 4.0 + cg - cr
-        h /= 6.0
-        if h < 0.0:
-            h += 1.0
-    return (h, s, v)
-
-
-@kernel(inline="call")
-def hsv_to_rgb(c):
-    """Cycles' hsv_to_rgb (util/color.h)."""
-    h, s, v = c
-    if s == 0.0:
-        return (v, v, v)
-    if h == 1.0:
-        h = 0.0
-    h *= 6.0
-    i = math.floor(h)
-    f = h - i
-    p = v * (1.0 - s)
-    q = v * (1.0 - s * f)
-    t = v * (1.0 - s * (1.0 - f))
-    if i == 0.0:
-        return (v, t, p)
-    if i == 1.0:
-        return (q, v, p)
-    if i == 2.0:
-        return (p, v, t)
-    if i == 3.0:
-        return (p, q, v)
-    if i == 4.0:
-        return (t, p, v)
-    return (v, p, q)
-
-
-@kernel(inline="call")
-def rgb_to_hsl(c):
-    """Cycles' rgb_to_hsl (util/color.h)."""
-    r, g, b = c
-    cmax = max(r, max(g, b))
-    cmin = min(r, min(g, b))
-    lum = min(1.0, (cmax + cmin) / 2.0)
-    if cmax == cmin:
-        return (0.0, 0.0, lum)
-    d = cmax - cmin
-    s = d / (2.0 - cmax - cmin) if lum > 0.5 else d / (cmax + cmin)
-    if cmax == r:
-        h = (g - b) / d + (6.0 if g < b else 0.0)
-    elif cmax == g:
-        h = (b - r) / d + 2.0
-    else:
-        h = (r - g) / d + 4.0
-    return (h / 6.0, s, lum)
-
-
-@kernel(inline="call")
-def _hue_to_rgb(p, q, t):
-    if t < 0.0:
-        t += 1.0
-    if t > 1.0:
-        t -= 1.0
-    if t < 1.0 / 6.0:
-        return p + (q - p) * 6.0 * t
-    if t < 1.0 / 2.0:
-        return q
-    if t < 2.0 / 3.0:
-        return p + (q - p) * (2.0 / 3.0 - t) * 6.0
-    return p
-
-
-@kernel(inline="call")
-def hsl_to_rgb(c):
-    """Cycles' hsl_to_rgb (util/color.h)."""
-    h, s, lum = c
-    if s == 0.0:
-        return (lum, lum, lum)
-    q = lum * (1.0 + s) if lum < 0.5 else lum + s - lum * s
-    p = 2.0 * lum - q
-    return (_hue_to_rgb(p, q, h + 1.0 / 3.0), _hue_to_rgb(p, q, h), _hue_to_rgb(p, q, h - 1.0 / 3.0))
-
-
-@kernel(inline="call")
-def _lerp3(a, b, t):
-    return ((1.0 - t) * a[0] + t * b[0], (1.0 - t) * a[1] + t * b[1], (1.0 - t) * a[2] + t * b[2])
-
-
-# ---------------------------------------------------------------------------------------------- single nodes
-@kernel
-def hue_saturation_value(color, hue, saturation, value, fac):
-    """The Hue/Saturation/Value node (svm/hsv.h): hue shifted by hue − 0.5 (wrapped), saturation scaled and clamped
-    to [0, 1], value scaled; blended with the input by fac; negative results clamped to 0."""
-    h, s, v = rgb_to_hsv(color)
-    x = h + hue + 0.5
-    h = x - math.floor(x)
-    s = min(max(s * saturation, 0.0), 1.0)
-    v *= value
-    r, g, b = hsv_to_rgb((h, s, v))
-    return (max(fac * r + (1.0 - fac) * color[0], 0.0), max(fac * g + (1.0 - fac) * color[1], 0.0),
-            max(fac * b + (1.0 - fac) * color[2], 0.0))
-
-
-@kernel
-def rgb_to_bw(color):
-    """RGB to BW: the Rec.709 luminance of a scene-linear colour."""
-    return REC709_LUMINANCE[0] * color[0] + REC709_LUMINANCE[1] * color[1] + REC709_LUMINANCE[2] * color[2]
-
-
 @kernel
 def blackbody_rec709(t):
     """Cycles' blackbody colour in Rec.709 before clamping (svm_math_blackbody_color_rec709): a fit whose
@@ -246,141 +123,6 @@ def wavelength(nm):
     g = (m[1][0] * x + m[1][1] * y + m[1][2] * z) * _WAVELENGTH_SCALE
     b = (m[2][0] * x + m[2][1] * y + m[2][2] * z) * _WAVELENGTH_SCALE
     return (max(r, 0.0), max(g, 0.0), max(b, 0.0))
-
-
-# ---------------------------------------------------------------------------------------------- Mix
-MIX, DARKEN, MULTIPLY, BURN, LIGHTEN, SCREEN, DODGE, ADD, OVERLAY, SOFT_LIGHT, LINEAR_LIGHT, DIFFERENCE, \
-    EXCLUSION, SUBTRACT, DIVIDE, HUE, SATURATION, VALUE, COLOR = range(19)
-BLEND_TYPES = {"MIX": MIX, "DARKEN": DARKEN, "MULTIPLY": MULTIPLY, "BURN": BURN, "LIGHTEN": LIGHTEN,
-               "SCREEN": SCREEN, "DODGE": DODGE, "ADD": ADD, "OVERLAY": OVERLAY, "SOFT_LIGHT": SOFT_LIGHT,
-               "LINEAR_LIGHT": LINEAR_LIGHT, "DIFFERENCE": DIFFERENCE, "EXCLUSION": EXCLUSION, "SUBTRACT": SUBTRACT,
-               "DIVIDE": DIVIDE, "HUE": HUE, "SATURATION": SATURATION, "VALUE": VALUE, "COLOR": COLOR}
-
-
-@kernel(inline="call")
-def _dodge1(a, b, t):
-    if a == 0.0:
-        return a
-    tmp = 1.0 - t * b
-    if tmp <= 0.0:
-        return 1.0
-    tmp = a / tmp
-    return 1.0 if tmp > 1.0 else tmp
-
-
-@kernel(inline="call")
-def _burn1(a, b, t):
-    tmp = (1.0 - t) + t * b
-    if tmp <= 0.0:
-        return 0.0
-    tmp = 1.0 - (1.0 - a) / tmp
-    return min(max(tmp, 0.0), 1.0)
-
-
-@kernel(inline="call")
-def _overlay1(a, b, t):
-    tm = 1.0 - t
-    if a < 0.5:
-        return a * (tm + 2.0 * t * b)
-    return 1.0 - (tm + 2.0 * t * (1.0 - b)) * (1.0 - a)
-
-
-@kernel(inline="call")
-def _soft1(a, b, t):
-    scr = 1.0 - (1.0 - b) * (1.0 - a)
-    return (1.0 - t) * a + t * ((1.0 - a) * b * a + a * scr)
-
-
-@kernel(inline="call")
-def _divide1(a, b, t):
-    return (1.0 - t) * a + t * a / b if b != 0.0 else a
-
-
-@kernel
-def mix_blend(blend, t, a, b):
-    """Cycles' svm_mix of colours a (A) and b (B) by factor t for blend type ``blend`` (MIX ... COLOR)."""
-    tm = 1.0 - t
-    if blend == MIX:
-        return _lerp3(a, b, t)
-    if blend == ADD:
-        return _lerp3(a, (a[0] + b[0], a[1] + b[1], a[2] + b[2]), t)
-    if blend == MULTIPLY:
-        return _lerp3(a, (a[0] * b[0], a[1] * b[1], a[2] * b[2]), t)
-    if blend == SCREEN:
-        return (1.0 - (tm + t * (1.0 - b[0])) * (1.0 - a[0]), 1.0 - (tm + t * (1.0 - b[1])) * (1.0 - a[1]),
-                1.0 - (tm + t * (1.0 - b[2])) * (1.0 - a[2]))
-    if blend == OVERLAY:
-        return (_overlay1(a[0], b[0], t), _overlay1(a[1], b[1], t), _overlay1(a[2], b[2], t))
-    if blend == SUBTRACT:
-        return _lerp3(a, (a[0] - b[0], a[1] - b[1], a[2] - b[2]), t)
-    if blend == DIVIDE:
-        return (_divide1(a[0], b[0], t), _divide1(a[1], b[1], t), _divide1(a[2], b[2], t))
-    if blend == DIFFERENCE:
-        return _lerp3(a, (abs(a[0] - b[0]), abs(a[1] - b[1]), abs(a[2] - b[2])), t)
-    if blend == EXCLUSION:
-        return _lerp3(a, (a[0] + b[0] - 2.0 * a[0] * b[0], a[1] + b[1] - 2.0 * a[1] * b[1],
-                          a[2] + b[2] - 2.0 * a[2] * b[2]), t)
-    if blend == DARKEN:
-        return _lerp3(a, (min(a[0], b[0]), min(a[1], b[1]), min(a[2], b[2])), t)
-    if blend == LIGHTEN:
-        return _lerp3(a, (max(a[0], b[0]), max(a[1], b[1]), max(a[2], b[2])), t)
-    if blend == DODGE:
-        return (_dodge1(a[0], b[0], t), _dodge1(a[1], b[1], t), _dodge1(a[2], b[2], t))
-    if blend == BURN:
-        return (_burn1(a[0], b[0], t), _burn1(a[1], b[1], t), _burn1(a[2], b[2], t))
-    if blend == HUE:
-        hsv2 = rgb_to_hsv(b)
-        if hsv2[1] != 0.0:
-            hsv = rgb_to_hsv(a)
-            return _lerp3(a, hsv_to_rgb((hsv2[0], hsv[1], hsv[2])), t)
-        return a
-    if blend == SATURATION:
-        hsv = rgb_to_hsv(a)
-        if hsv[1] != 0.0:
-            hsv2 = rgb_to_hsv(b)
-            return hsv_to_rgb((hsv[0], tm * hsv[1] + t * hsv2[1], hsv[2]))
-        return a
-    if blend == VALUE:
-        hsv = rgb_to_hsv(a)
-        hsv2 = rgb_to_hsv(b)
-        return hsv_to_rgb((hsv[0], hsv[1], tm * hsv[2] + t * hsv2[2]))
-    if blend == COLOR:
-        hsv2 = rgb_to_hsv(b)
-        if hsv2[1] != 0.0:
-            hsv = rgb_to_hsv(a)
-            return _lerp3(a, hsv_to_rgb((hsv2[0], hsv2[1], hsv[2])), t)
-        return a
-    if blend == SOFT_LIGHT:
-        return (_soft1(a[0], b[0], t), _soft1(a[1], b[1], t), _soft1(a[2], b[2], t))
-    # LINEAR_LIGHT
-    return (a[0] + t * (2.0 * b[0] - 1.0), a[1] + t * (2.0 * b[1] - 1.0), a[2] + t * (2.0 * b[2] - 1.0))
-
-
-@kernel
-def mix_color(blend, fac, a, b, clamp_factor, clamp_result):
-    """The Mix node in Color mode: factor clamped to [0, 1] when ``clamp_factor``, the blend, the result clamped to
-    [0, 1] when ``clamp_result``."""
-    t = min(max(fac, 0.0), 1.0) if clamp_factor else fac
-    c = mix_blend(blend, t, a, b)
-    if clamp_result:
-        return (min(max(c[0], 0.0), 1.0), min(max(c[1], 0.0), 1.0), min(max(c[2], 0.0), 1.0))
-    return c
-
-
-@kernel
-def mix_float(fac, a, b, clamp_factor):
-    """The Mix node in Float mode (svm_node_mix_float): a·(1 − t) + b·t, t clamped to [0, 1] if asked."""
-    t = min(max(fac, 0.0), 1.0) if clamp_factor else fac
-    return a * (1.0 - t) + b * t
-
-
-@kernel
-def mix_vector(fac, a, b, clamp_factor):
-    """The Mix node in Vector mode; ``fac`` a 3-tuple (Non-Uniform factor; pass (t, t, t) for Uniform)."""
-    t0, t1, t2 = fac
-    if clamp_factor:
-        t0, t1, t2 = min(max(t0, 0.0), 1.0), min(max(t1, 0.0), 1.0), min(max(t2, 0.0), 1.0)
-    return (a[0] * (1.0 - t0) + b[0] * t0, a[1] * (1.0 - t1) + b[1] * t1, a[2] * (1.0 - t2) + b[2] * t2)
 
 
 # ---------------------------------------------------------------------------------------------- Color Ramp
@@ -618,8 +360,8 @@ def _rows(c):
 @kernel
 def _hsv_rows(cols, params, out):
     for i in range(cols.shape[0]):
-        out[i, 0], out[i, 1], out[i, 2] = hue_saturation_value(
-            (cols[i, 0], cols[i, 1], cols[i, 2]), params[i, 0], params[i, 1], params[i, 2], params[i, 3])
+        out[i, 0], out[i, 1], out[i, 2] = ops.hue_sat(params[i, 0], params[i, 1], params[i, 2], params[i, 3],
+                                                      cols[i, 0], cols[i, 1], cols[i, 2])
 
 
 def hue_saturation_value_array(color, hue=0.5, saturation=1.0, value=1.0, fac=1.0):
@@ -634,15 +376,15 @@ def hue_saturation_value_array(color, hue=0.5, saturation=1.0, value=1.0, fac=1.
 @kernel
 def _conv_rows(cols, mode, out):
     for i in range(cols.shape[0]):
-        c = (cols[i, 0], cols[i, 1], cols[i, 2])
+        x, y, z = cols[i, 0], cols[i, 1], cols[i, 2]
         if mode == 0:
-            r = rgb_to_hsv(c)
+            r = ops.rgb_to_hsv(x, y, z)
         elif mode == 1:
-            r = hsv_to_rgb(c)
+            r = ops.hsv_to_rgb(x, y, z)
         elif mode == 2:
-            r = rgb_to_hsl(c)
+            r = ops.rgb_to_hsl(x, y, z)
         else:
-            r = hsl_to_rgb(c)
+            r = ops.hsl_to_rgb(x, y, z)
         out[i, 0], out[i, 1], out[i, 2] = r
 
 
@@ -684,8 +426,11 @@ def rgb_to_bw_array(color):
 @kernel
 def _mix_rows(blend, fac, a, b, clamp_factor, clamp_result, out):
     for i in range(a.shape[0]):
-        out[i, 0], out[i, 1], out[i, 2] = mix_color(blend, fac[i], (a[i, 0], a[i, 1], a[i, 2]),
-                                                    (b[i, 0], b[i, 1], b[i, 2]), clamp_factor, clamp_result)
+        t = min(max(fac[i], 0.0), 1.0) if clamp_factor else fac[i]
+        x, y, z = ops.mix_blend(blend, t, a[i, 0], a[i, 1], a[i, 2], b[i, 0], b[i, 1], b[i, 2])
+        if clamp_result:
+            x, y, z = min(max(x, 0.0), 1.0), min(max(y, 0.0), 1.0), min(max(z, 0.0), 1.0)
+        out[i, 0], out[i, 1], out[i, 2] = x, y, z
 
 
 def mix_color_array(blend_type, fac, a, b, clamp_factor=True, clamp_result=False):
@@ -695,15 +440,16 @@ def mix_color_array(blend_type, fac, a, b, clamp_factor=True, clamp_result=False
     bb = np.ascontiguousarray(np.broadcast_to(np.asarray(b, np.float64)[..., :3], shape + (3,)).reshape(-1, 3))
     ff = np.ascontiguousarray(np.broadcast_to(np.asarray(fac, np.float64), shape).reshape(-1))
     out = np.empty_like(aa)
-    _mix_rows(BLEND_TYPES[blend_type], ff, aa, bb, bool(clamp_factor), bool(clamp_result), out)
+    _mix_rows(ops.BLEND_TYPES.index(blend_type), ff, aa, bb, bool(clamp_factor), bool(clamp_result), out)
     return out.reshape(shape + (3,)).astype(np.float32)
 
 
 @kernel
 def _mix_vector_rows(fac, a, b, clamp_factor, out):
     for i in range(a.shape[0]):
-        out[i, 0], out[i, 1], out[i, 2] = mix_vector((fac[i, 0], fac[i, 1], fac[i, 2]), (a[i, 0], a[i, 1], a[i, 2]),
-                                                     (b[i, 0], b[i, 1], b[i, 2]), clamp_factor)
+        for j in range(3):
+            t = min(max(fac[i, j], 0.0), 1.0) if clamp_factor else fac[i, j]
+            out[i, j] = (1.0 - t) * a[i, j] + t * b[i, j]
 
 
 def mix_vector_array(fac, a, b, clamp_factor=True):
@@ -721,7 +467,7 @@ def mix_vector_array(fac, a, b, clamp_factor=True):
 
 
 def mix_float_array(fac, a, b, clamp_factor=True):
-    """The Mix node (Float) over arrays (numpy; the formula is :func:`mix_float`'s)."""
+    """The Mix node (Float) over arrays (numpy; the VM's mix_f instruction)."""
     t = np.asarray(fac, np.float64)
     t = np.clip(t, 0.0, 1.0) if clamp_factor else t
     return (np.asarray(a, np.float64) * (1.0 - t) + np.asarray(b, np.float64) * t).astype(np.float32)
