@@ -30,10 +30,12 @@ from .bundled import tracer_module
 
 add_graph = tracer_module("shader_compile").add_graph
 graph_from_fields = tracer_module("shader_fields").graph_from_fields
+FIELD_DEFAULTS = tracer_module("shader_fields").FIELD_DEFAULTS
+luminance = tracer_module("colorspace").luminance
 Graph, ImageRef = tracer_module("shader_graph").Graph, tracer_module("shader_graph").ImageRef
 
-#: Blender's default surface (no material): 0.8 grey, Principled defaults.
-DEFAULT_FIELDS = {"base_color": (0.8, 0.8, 0.8), "roughness": 0.5, "specular": 0.5, "ior": 1.5}
+#: Blender's default surface (no material): every field the Principled default (tracer.shader_fields.FIELD_DEFAULTS).
+DEFAULT_FIELDS: dict = {}
 
 
 class Corners(NamedTuple):
@@ -116,11 +118,11 @@ class MaterialWriter:
         out: dict = {}
         for key, v in f.items():
             if key == "specular" and np.ndim(v):  # a colour on a float socket: Blender reads its luminance
-                out[key] = float(np.dot(np.asarray(v, np.float64)[:3], (0.2126, 0.7152, 0.0722)))
+                out[key] = luminance(np.asarray(v, np.float64)[:3])
             else:
                 out[key] = v
         if float(f.get("transmission", 0.0)) > 0 and "transmission_tint" not in out:
-            out["transmission_tint"] = tuple(np.broadcast_to(np.asarray(f.get("base_color", (0.8, 0.8, 0.8)),
+            out["transmission_tint"] = tuple(np.broadcast_to(np.asarray(f.get("base_color", FIELD_DEFAULTS["base_color"]),
                                                                          np.float64), (3,)))
         return out
 

@@ -33,11 +33,11 @@ from .bundled import tracer_module
 _ir = tracer_module("shader_graph")
 CLOSURE, COLOR, FLOAT, NODE_TYPES, VECTOR = _ir.CLOSURE, _ir.COLOR, _ir.FLOAT, _ir.NODE_TYPES, _ir.VECTOR
 Graph, ImageRef, Out, constant_material = _ir.Graph, _ir.ImageRef, _ir.Out, _ir.constant_material
+#: A constant of one socket kind as another (Blender's implicit conversions; the tracer's one rule).
+convert_constant = _ir.convert_constant
 
 #: Blender socket type -> IR kind (None: a socket type no shader program carries).
 KIND = {"VALUE": FLOAT, "INT": FLOAT, "BOOLEAN": FLOAT, "VECTOR": VECTOR, "RGBA": COLOR, "SHADER": CLOSURE}
-#: Rec.709 luminance: Blender's colour -> float conversion (its default scene-linear space).
-LUMINANCE = (0.2126, 0.7152, 0.0722)
 #: Samples of a baked curve or ramp table (Cycles' RAMP_TABLE_SIZE).
 TABLE_SIZE = 256
 #: Blender's Extension -> ImageRef wrap.
@@ -59,18 +59,6 @@ class Value:
 
 #: "Nothing arrives": the receiving socket keeps its own value (its default, or the IR's implicit input).
 UNSET = None
-
-
-def convert_constant(v, src: str, dst: str):
-    """A constant of kind ``src`` as kind ``dst`` (Blender's implicit socket conversions)."""
-    if dst == FLOAT:
-        if np.ndim(v) == 0:
-            return float(v)
-        v = tuple(float(x) for x in v)[:3]
-        return float(np.dot(v, LUMINANCE)) if src == COLOR else float(np.mean(v))
-    if np.ndim(v) == 0:
-        return (float(v),) * 3
-    return tuple(float(x) for x in v)[:3]
 
 
 def socket_constant(sock):

@@ -25,10 +25,11 @@ from typing import NamedTuple
 import numpy as np
 
 from . import vec
+from .colorspace import REC709_LUMINANCE
 from .jit import kernel
 
-#: Rec.709 luminance weights (importance of a pixel for sampling).
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+#: Luminance weights (importance of a pixel for sampling): tracer.colorspace's.
+LUMINANCE = np.array(REC709_LUMINANCE)
 
 
 @dataclass

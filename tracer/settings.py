@@ -75,10 +75,11 @@ def setting(default, help: str, *, factory=None, **meta):
 
 @dataclass
 class RenderSettings:
-    width: int = setting(640, "image width", unit="px", lo=1, flag="--width", aliases=("--imageWidth", "-w"),
+    # 960: usdrecord's --imageWidth default, which the CLI keeps; the CLI's height follows the camera's aperture
+    width: int = setting(960, "image width", unit="px", lo=1, flag="--width", aliases=("--imageWidth", "-w"),
                          metavar="W", blender_from="the render resolution × percentage")
-    height: int = setting(480, "image height", unit="px", lo=1, flag="--height", metavar="H",
-                          blender_from="the render resolution × percentage")
+    height: int = setting(540, "image height (the CLI: from the camera aperture's aspect)", unit="px", lo=1,
+                          flag="--height", metavar="H", blender_from="the render resolution × percentage")
     samples: int = setting(DEFAULT_AA, "anti-aliasing: N×N stratified samples per pixel (box filter); 1 = one ray "
                            "through each pixel centre", unit="N", lo=1, flag="--aa", metavar="N",
                            blender="Samples", panel="Sampling", ui=(("soft_max", 8), ("max", 64)))

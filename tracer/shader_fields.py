@@ -16,11 +16,21 @@ from __future__ import annotations
 
 import numpy as np
 
+from .materials import PRINCIPLED_DEFAULTS as _P
 from .shader_graph import Graph
 
+#: Each field's value where ``fields`` leaves it out: the Principled BSDF's defaults (tracer.materials, Blender's),
+#: emission being Emission Color × Emission Strength.
+FIELD_DEFAULTS = {"base_color": _P["Base Color"], "roughness": _P["Roughness"], "metallic": _P["Metallic"],
+                  "specular": _P["Specular IOR Level"], "alpha": _P["Alpha"], "ior": _P["IOR"],
+                  "transmission": _P["Transmission Weight"],
+                  "emission": tuple(c * _P["Emission Strength"] for c in _P["Emission Color"])}
 
-def graph_from_fields(name: str, f: dict, texture, color_attribute: str = "", base_default=(0.8, 0.8, 0.8)) -> Graph:
-    """One ``principled_bsdf`` graph of the fields ``f`` (module docstring)."""
+
+def graph_from_fields(name: str, f: dict, texture=None, color_attribute: str = "", base_default=None) -> Graph:
+    """One ``principled_bsdf`` graph of the fields ``f`` (module docstring); a field left out is its
+    :data:`FIELD_DEFAULTS` value (``base_default``: a front end's own base colour, e.g. UsdPreviewSurface's)."""
+    d = dict(FIELD_DEFAULTS, **({"base_color": base_default} if base_default is not None else {}))
     g = Graph(name)
     nodes: dict = {}
 
@@ -49,16 +59,17 @@ def graph_from_fields(name: str, f: dict, texture, color_attribute: str = "", ba
             return const
         return g.add("math", {"Value": value(key, False), "Value_001": const}, operation="MULTIPLY")["Value"]
 
-    base = colour("base_color", base_default)
+    base = colour("base_color", d["base_color"])
     vc = f.get("vertex_color")
     if vc is not None and vc is not False:
         layer = color_attribute if vc is True else str(vc)
         col = g.add("vertex_color", layer_name=layer)["Color"]
         base = g.add("vector_math", {"Vector": base, "Vector_001": col}, operation="MULTIPLY")["Vector"]
-    inputs = {"Base Color": base, "Roughness": scalar("roughness", 0.5), "Metallic": scalar("metallic", 0.0),
-              "Specular IOR Level": scalar("specular", 0.0), "Alpha": scalar("alpha", 1.0),
-              "Emission Color": colour("emission", (0.0, 0.0, 0.0)), "Emission Strength": 1.0,
-              "IOR": float(f.get("ior", 1.5)), "Transmission Weight": float(f.get("transmission", 0.0)),
+    inputs = {"Base Color": base, "Roughness": scalar("roughness", d["roughness"]),
+              "Metallic": scalar("metallic", d["metallic"]), "Specular IOR Level": scalar("specular", d["specular"]),
+              "Alpha": scalar("alpha", d["alpha"]), "Emission Color": colour("emission", d["emission"]),
+              "Emission Strength": 1.0, "IOR": float(f.get("ior", d["ior"])),
+              "Transmission Weight": float(f.get("transmission", d["transmission"])),
               "Alpha Threshold": float(f.get("alpha_threshold", 0.0))}
     if f.get("normal_texture") is not None:
         node, uv_map = tex(f["normal_texture"])
@@ -69,7 +80,7 @@ def graph_from_fields(name: str, f: dict, texture, color_attribute: str = "", ba
     params = {}
     if f.get("transmission_tint") is not None:
         params["transmission_tint"] = tuple(float(x) for x in np.broadcast_to(f["transmission_tint"], (3,)))
-    elif float(f.get("transmission", 0.0)) > 0:
+    elif float(f.get("transmission", d["transmission"])) > 0:
         params["transmission_tint"] = (1.0, 1.0, 1.0)
     g.output(g.add("principled_bsdf", inputs, **params)["BSDF"])
     return g

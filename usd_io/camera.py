@@ -17,6 +17,7 @@ from pxr import Gf, Sdf, UsdGeom
 
 from tracer import ORTHOGRAPHIC, PERSPECTIVE, Camera, fit_apertures
 from tracer.camera import lens_radius
+from tracer.settings import default_of
 
 from .stage import UsdInputError
 from .xform import to_numpy
@@ -24,7 +25,8 @@ from .xform import to_numpy
 #: UsdRender's fallback aspectRatioConformPolicy (expandAperture), as Arnold renders a stage camera: the
 #: aperture's short side grows until it has the image's aspect (usd_io.render_settings has all five policies).
 CONFORM_POLICY = "expand"
-DEFAULT_WIDTH = 960
+#: The image width when neither side is asked for: tracer.RenderSettings' (usdrecord's 960).
+DEFAULT_WIDTH = default_of("width")
 #: USD's default apertures (35 mm academy, in tenths of a unit) and focal length, for the framing camera.
 DEFAULT_APERTURE = (20.955, 15.2908)
 DEFAULT_FOCAL = 50.0
@@ -166,7 +168,7 @@ def fold_clipping_planes(raw: dict, warn) -> dict:
 
 def image_size(raw: dict, width=None, height=None, pixel_aspect: float = 1.0) -> tuple[int, int]:
     """Resolve the image size: missing sides follow the aperture aspect (pixels ``pixel_aspect`` wide per unit of
-    height); the default width is 960."""
+    height); the default width is :data:`DEFAULT_WIDTH`."""
     aspect = raw["horizontal_aperture"] / raw["vertical_aperture"] / pixel_aspect
     if width is None and height is None:
         width = DEFAULT_WIDTH

@@ -28,6 +28,7 @@ import re
 from dataclasses import dataclass, field, fields
 
 from .complexity import COMPLEXITY, DEFAULT_COMPLEXITY
+from .exporters import UNITS
 
 
 def request_field(default, *flags, parse=None, **options):
@@ -83,8 +84,7 @@ class StageRequest:
                                                      "(default: the stage's renderSettingsPrimPath): resolution, "
                                                      "camera, pixel aspect, conform policy, data window, RenderVars "
                                                      "as AOVs")
-    light_units: str = request_field("auto", "--light-units", choices=["auto", "spec", "blender", "blender-nits",
-                                                                      "blender-legacy", "kit"],
+    light_units: str = request_field("auto", "--light-units", choices=["auto", *UNITS],
                                      help="auto (default): lights in the units of the application that wrote the "
                                      "stage (Blender by version, Omniverse Kit; a note says which); spec: as "
                                      "UsdLux says (docs/usd.md, \"Two readings\")")
