@@ -37,8 +37,9 @@ from .scene import Scene
 
 #: "No hit" in ``prim``.
 NO_HIT = -1
-#: Largest finite ray length handed to Embree (inf would be fine for Embree; this keeps recorded rays finite).
-T_FAR_MAX = np.float32(3.0e38)
+# the ray arguments every Embree query takes (tracer.embree: shared with tracer.alpha's filtered queries)
+T_FAR_MAX = embree.T_FAR_MAX
+_times, _ray_masks = embree.ray_times, embree.ray_masks
 _NONE_F32 = np.zeros(0, np.float32)
 _NO_INSTANCES = np.zeros(0, np.int32)
 
@@ -366,17 +367,6 @@ def _embree_motion(scene) -> _EmbreeMotion | None:
     return _EmbreeMotion(objects={int(o): dec[i] for i, o in enumerate(mo.object_ids.tolist())},
                          instances=None if mo.instance_motion is None else decompose(mo.instance_motion),
                          deforming=frozenset(mo.deforming.tolist()), vertex_steps=steps)
-
-
-def _times(time) -> np.ndarray:
-    """The rays' times as the kernels take them (float32; empty = no motion, time 0)."""
-    return _NONE_F32 if time is None else np.ascontiguousarray(time, np.float32)
-
-
-def _ray_masks(mask) -> np.ndarray:
-    if mask is None:
-        return embree.ALL_RAYS
-    return np.ascontiguousarray(np.asarray(mask, np.uint32).reshape(-1))
 
 
 def _geom_id(object_id: int) -> int:

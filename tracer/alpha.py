@@ -382,15 +382,13 @@ def occluded(it, shadow, masks, time) -> np.ndarray:
     """The shadow rays' blocked mask, their colours (``shadow.color``, float32 C-contiguous) scaled in place by
     the see-through surfaces they cross (:func:`occluded_through`). Thread-safe: the tables are shared read-only,
     and the register file, counters and Embree context the filter writes or reads by address are this call's."""
-    from .accel import T_FAR_MAX, _ray_masks, _times  # (tracer.accel imports this module)
-
     accel = it.accel
     n = len(shadow.o)
     blocked = np.zeros(n, bool)
     tables = _prepared(it).tables
     o = np.ascontiguousarray(shadow.o, np.float32)
     d = np.ascontiguousarray(shadow.d, np.float32)
-    tm = np.ascontiguousarray(np.minimum(shadow.t_max, T_FAR_MAX), np.float32)
+    tm = np.ascontiguousarray(np.minimum(shadow.t_max, embree.T_FAR_MAX), np.float32)
     if shadow.color.dtype != np.float32 or not shadow.color.flags.c_contiguous:
         raise TypeError("tracer.alpha.occluded: shadow colours must be C-contiguous float32 (scaled in place)")
     registers = it.programs.R0.copy()  # the VM writes its registers: one file per call, never R0 itself
@@ -398,7 +396,7 @@ def occluded(it, shadow, masks, time) -> np.ndarray:
     ctx, args = _words(_CONTEXT_WORDS), _words(_ARGS_WORDS)
     q = embree.query(coherent=False)
     start = clock.perf_counter()
-    occluded_through(accel._top.handle, o, d, np.float32(0.0), tm, blocked, _ray_masks(masks), _times(time),
+    occluded_through(accel._top.handle, o, d, np.float32(0.0), tm, blocked, embree.ray_masks(masks), embree.ray_times(time),
                      shadow.color, tables.table, registers, count, ctx, args,
                      np.int64(it.settings.max_transparent), np.uint64(filter_address()), q)
     embree.library().check()

@@ -56,6 +56,21 @@ INVALID_ID = 0xFFFFFFFF  # RTC_INVALID_GEOMETRY_ID
 MASK_ALL = 0xFFFFFFFF  # a geometry / ray mask with every bit set
 #: The ray mask of a batch whose rays see every geometry (the kernels' ``masks`` argument).
 ALL_RAYS = np.full(1, MASK_ALL, np.uint32)
+#: Largest finite ray length handed to Embree (inf would be fine for Embree; this keeps recorded rays finite).
+T_FAR_MAX = np.float32(3.0e38)
+_NONE_F32 = np.zeros(0, np.float32)
+
+
+def ray_times(time) -> np.ndarray:
+    """The rays' times as the query kernels take them (float32; empty = no motion, time 0)."""
+    return _NONE_F32 if time is None else np.ascontiguousarray(time, np.float32)
+
+
+def ray_masks(mask) -> np.ndarray:
+    """The rays' masks as the query kernels take them (one for all: :data:`ALL_RAYS`)."""
+    if mask is None:
+        return ALL_RAYS
+    return np.ascontiguousarray(np.asarray(mask, np.uint32).reshape(-1))
 
 # enum values (rtcore_common.h, rtcore_device.h, rtcore_buffer.h, rtcore_geometry.h, rtcore_scene.h)
 DEVICE_PROPERTY_VERSION = 0

@@ -18,6 +18,7 @@ from .camera import Camera
 from .environment import Environment
 from .lights import AreaLight, DistantLight, PointLight, SpotLight
 from .materials import Materials
+from .motion import Motion
 from .texture import as_texture
 
 #: Triangles whose area is at most this fraction of the squared bounding-box diagonal are degenerate and skipped.
@@ -356,8 +357,6 @@ class Scene:
         scene calls this); an empty one becomes None."""
         if self.motion is None:
             return
-        from .motion import Motion
-
         if not isinstance(self.motion, Motion):
             raise ValueError("scene.motion must be a tracer.motion.Motion or None")
         self.motion.validate(len(self.vertices), len(self.instances) if self.instances is not None else 0)

@@ -13,7 +13,6 @@ import numpy as np
 
 from . import vec
 from .jit import kernel
-from .scene import Scene
 
 
 class Geometry(NamedTuple):
@@ -34,7 +33,7 @@ class Geometry(NamedTuple):
     normals_per_vertex: bool  # ``normals`` rows are vertices (read through ``triangles``), else corners
 
 
-def geometry_of(scene: Scene) -> Geometry:
+def geometry_of(scene) -> Geometry:  # scene: a tracer.Scene
     has_n = scene.normals is not None
     has_uv = scene.uvs is not None
     n_tri = len(scene.triangles)
@@ -52,7 +51,7 @@ def geometry_of(scene: Scene) -> Geometry:
                     normals_per_vertex=per_vertex)
 
 
-def uv_table(scene: Scene) -> tuple:
+def uv_table(scene) -> tuple:  # scene: a tracer.Scene
     """The kernels' view of ``scene.uv_sets``: (values (S, R, 2), triangles, per_vertex), rows per vertex (V) or
     per corner (3T, row 3t + k); one set is a view, several are stacked."""
     sets = scene.uv_sets

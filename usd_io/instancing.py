@@ -14,6 +14,8 @@ from __future__ import annotations
 import numpy as np
 from pxr import Usd, UsdGeom
 
+from .xform import to_numpy
+
 
 def instance_matrices(prim, time) -> tuple[np.ndarray, np.ndarray, list]:
     """(K, 4, 4) column-vector instance matrices (without prototype xforms), (K,) proto indices with masked
@@ -43,7 +45,6 @@ def instancer_motion(stage, names: list, instance_object_ids, times, base) -> di
     filtered, are left out (they stand still)."""
     import re
 
-    from .xform import to_numpy
 
     pattern = re.compile(r"^(/[^\[]*)\[(/[^\]]*)\]\[(\d+)\]$")
     groups: dict = {}

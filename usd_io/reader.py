@@ -35,7 +35,8 @@ from .mesh import COMPLEXITY, DEFAULT_COMPLEXITY, SUBDIVIDED, MeshData, read_mes
 from .skel import Skinning
 from .stage import (DEFAULT_PURPOSES, captured_stderr, UsdInputError, check_purposes, composition_warnings, open_stage,
                     renderable_prims, stage_messages, stage_time)
-from .xform import Transforms, transform_points, stage_motion
+from .motion import stage_motion
+from .xform import Transforms, transform_points
 
 
 @dataclass
@@ -511,7 +512,7 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
         links = []
     try:
         scene = r.b.build()
-        # motion blur across the camera's shutter (usd_io.xform.stage_motion; nothing when it is closed)
+        # motion blur across the camera's shutter (usd_io.motion.stage_motion; nothing when it is closed)
         stage_motion(stage, scene, tc, info.camera, info.render_settings.path if info.render_settings else None,
                      r.subdivision_level, info.warn)
     except ValueError as exc:  # the tracer's validation of what was read (e.g. a NaN material input)
