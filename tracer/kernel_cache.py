@@ -36,10 +36,12 @@ import os
 import shutil
 import sys
 import threading
+import time
 import types as pytypes
 
 import numpy as np
 import numba
+import numba.core.event
 from numba.core.caching import CompileResultCacheImpl, FunctionCache, _CacheLocator
 
 #: Environment variable naming the kernel cache folder (a render farm's shared disk, a test's temporary folder).
@@ -274,12 +276,18 @@ class KernelCache(FunctionCache):
         self.enable()
 
     def load_overload(self, sig, target_context):
+        """The cached machine code of ``sig``, or None: then numba compiles it, and this process holds the kernel's
+        lock until :meth:`save_overload` (another process that misses it too waits, then loads it)."""
         from numba.core.runtime import rtsys
 
         rtsys.initialize(target_context)  # what numba's target refresh would do for a load (see the module)
         data = self._load_overload(sig, target_context)
         if data is None and _seed_from_bundle(self._impl.filename_base, self._cache_path):
             data = self._load_overload(sig, target_context)
+        if data is None and _lock(self._cache_path, self._impl.filename_base):
+            data = self._load_overload(sig, target_context)  # saved while this process waited for the lock
+            if data is not None:
+                _unlock(self._impl.filename_base)
         return data
 
     def _load_overload(self, sig, target_context):
@@ -300,8 +308,75 @@ class KernelCache(FunctionCache):
             return None
 
     def _save_overload(self, sig, data):
-        super()._save_overload(sig, data)
-        _prune(self._cache_path, self._impl.filename_base)
+        try:
+            super()._save_overload(sig, data)
+            _prune(self._cache_path, self._impl.filename_base)
+        finally:
+            _unlock(self._impl.filename_base)
+
+
+# ---------------------------------------------------------------------------------------------- one compile per unit
+# Two processes that fill one cache at once (the render and its helper, tracer/kernel_plan.py; two renders started
+# together) would compile every unit both miss twice. A process that misses a kernel takes its lock file
+# (``<kernel>.lock`` beside its index, an advisory flock that the system drops when the process ends), looks in the
+# cache again, and keeps the lock while it compiles and saves. A kernel never waits for itself or for a kernel it
+# calls while holding a caller's lock in the other direction (kernels do not recurse), so two processes cannot
+# deadlock; a lock held longer than LOCK_WAIT seconds (a process stopped in a debugger) is ignored.
+LOCK_WAIT = 120.0
+_HELD: dict = {}
+
+try:
+    import fcntl
+except ImportError:  # Windows: no locks (two processes may compile a unit twice; each result is whole)
+    fcntl = None
+
+
+def _lock(folder: str, base: str) -> bool:
+    """Take kernel ``base``'s lock, waiting while another process holds it; True when this process holds it."""
+    if fcntl is None or base in _HELD:
+        return False
+    try:
+        os.makedirs(folder, exist_ok=True)
+        fd = os.open(os.path.join(folder, base + ".lock"), os.O_CREAT | os.O_RDWR, 0o644)
+    except OSError:
+        return False
+    deadline = time.monotonic() + LOCK_WAIT
+    while True:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            break
+        except BlockingIOError:
+            if time.monotonic() > deadline:
+                os.close(fd)
+                return False
+            time.sleep(0.01)
+        except OSError:
+            os.close(fd)
+            return False
+    _HELD[base] = fd
+    return True
+
+
+def _unlock(base: str) -> None:
+    fd = _HELD.pop(base, None)
+    if fd is not None:
+        os.close(fd)  # closing the file drops its flock
+
+
+class _ReleaseOnFailure(numba.core.event.Listener):
+    """A compile that raised never reaches save_overload: drop its lock then."""
+
+    def on_start(self, event):
+        pass
+
+    def on_end(self, event):
+        cache = getattr(event.data.get("dispatcher"), "_cache", None)
+        # numba 0.68's Event.is_failed is inverted (True when there is no exception): read the details themselves
+        if getattr(event, "_exc_details", None) is not None and isinstance(cache, KernelCache):
+            _unlock(cache._impl.filename_base)
+
+
+numba.core.event.register("numba:compile", _ReleaseOnFailure())
 
 
 # ---------------------------------------------------------------------------------------------- shipped kernels

@@ -177,6 +177,20 @@ def cmd_render(args) -> int:
         raise BadInput(f"{', '.join(args.scenes)}: {exc}") from None
     outputs = Outputs.of(settings, args.exposure)
     frames = parse_frames(args.frames) if args.frames else [args.time]
+    global _helper
+    if not args.scheduler:  # a cold kernel cache is filled by two processes (tracer/kernel_plan.py)
+        from tracer import kernel_plan
+
+        _helper = kernel_plan.start()
+    try:
+        return _render_scenes(args, settings, outputs, frames)
+    finally:
+        if _helper is not None:
+            _helper.stop()
+            _helper = None
+
+
+def _render_scenes(args, settings, outputs, frames) -> int:
     failed = 0
     for scene_path in args.scenes:
         try:
@@ -208,6 +222,7 @@ def cmd_render(args) -> int:
 
 
 _kernels_ready = False
+_helper = None  # the second compiling process of this render (tracer.kernel_plan.Helper), while it runs
 
 
 def render_file(request: StageRequest, settings, output: str, frames, outputs: Outputs, args) -> int:
@@ -327,10 +342,24 @@ def _prepare_kernels(quiet: bool) -> None:
     def report(done, name, seconds):
         if seconds - last[0] >= 2.0 or done == 1:
             last[0] = seconds
-            print(f"whitted: compiling kernels (first use of this version on this machine, then cached): {done} "
-                  f"done in {seconds:.0f} s, last {name}", file=sys.stderr, flush=True)
+            helper = _helper
+            print(f"whitted: compiling kernels (first use of this version on this machine, then cached): "
+                  f"{compile_status(done, seconds, helper)}, last {name}", file=sys.stderr, flush=True)
 
     CompileProgress(report).install()
+
+
+def compile_status(done: int, seconds: float, helper=None) -> str:
+    """``97 of about 130 units in 9 s, about 4 s left (2 processes)``: the units compiled by this process and its
+    helper against the plan's total (tracer/kernel_plan.py), and the time left at the rate so far; without a
+    helper, the units done so far."""
+    if helper is None or not helper.total:
+        return f"{done} units in {seconds:.0f} s"
+    done += helper.units()
+    if done >= helper.total:
+        return f"{done} units in {seconds:.0f} s (2 processes)"
+    left = seconds / max(done, 1) * (helper.total - done)
+    return f"{done} of about {helper.total} units in {seconds:.0f} s, about {left:.0f} s left (2 processes)"
 
 
 def _warn_not_finite(rgba: np.ndarray, scene_path: str) -> None:
