@@ -150,7 +150,25 @@ def _dispatcher(f, opts: dict):
     dispatcher = numba.njit(**opts)(f)
     if opts.get("inline") != "always":  # an inlined body is never compiled on its own
         dispatcher._cache = kernel_cache.KernelCache(f, opts)
+    if opts.get("no_cpython_wrapper"):
+        _compile_unliteral(dispatcher)
     return dispatcher
+
+
+def _compile_unliteral(dispatcher) -> None:
+    """A helper is compiled for the plain types of its arguments, not once per constant a caller passes: numba
+    types a constant argument as a literal (``Literal[int](0)``) and compiles a kernel called from other kernels
+    once per literal value (``lobes._slot`` was compiled four times, for slots 0-3). The constant still reaches the
+    machine code, since LLVM inlines the helper into its caller and folds it there."""
+    from numba.core import types
+
+    get_call_template = dispatcher.get_call_template
+
+    def plain(args, kws):
+        return get_call_template(tuple(types.unliteral(a) for a in args),
+                                 {k: types.unliteral(v) for k, v in kws.items()})
+
+    dispatcher.get_call_template = plain
 
 
 def cfunc(signature, fn):
