@@ -150,6 +150,24 @@ def test_a_second_process_loads_every_kernel_and_an_edit_elsewhere_recompiles_no
     assert _render(tree, cache) == dict(first, units=0)
 
 
+def test_an_installed_package_with_its_kernels_compiles_nothing(tree, tmp_path):
+    """A package built with kernels inside (``tracer/kernels/``, tracer.kernel_cache.PACKAGED) renders from an empty
+    user cache without compiling: the kernels are copied from the package into the cache and loaded."""
+    built = tmp_path / "built"
+    first = _render(tree, built)
+    assert first["units"] > 20
+    flavour = next(built.iterdir()).name
+    packaged = tree / "tracer" / "kernels" / flavour
+    shutil.copytree(built / flavour, packaged, ignore=shutil.ignore_patterns(".*", "*.lock"))
+    from numba.core.registry import cpu_target
+
+    magic = list(cpu_target.target_context.codegen().magic_tuple())
+    (packaged / "bundle.json").write_text(json.dumps({"magic": magic, "features": []}))
+    user = tmp_path / "user"
+    assert _render(tree, user) == dict(first, units=0)
+    assert any(f.endswith(".nbi") for f in os.listdir(user / flavour))  # copied into the user's cache
+
+
 def test_a_bundle_is_refused_where_it_does_not_fit(tmp_path):
     from tracer import kernel_cache
 

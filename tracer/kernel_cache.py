@@ -282,6 +282,8 @@ class KernelCache(FunctionCache):
 
         rtsys.initialize(target_context)  # what numba's target refresh would do for a load (see the module)
         data = self._load_overload(sig, target_context)
+        if data is None and not _BUNDLE and not _BUNDLE_TRIED:
+            _BUNDLE_TRIED.append(use_bundle(PACKAGED))  # an installed package's own kernels (see PACKAGED)
         if data is None and _seed_from_bundle(self._impl.filename_base, self._cache_path):
             data = self._load_overload(sig, target_context)
         if data is None and _lock(self._cache_path, self._impl.filename_base):
@@ -381,7 +383,12 @@ numba.core.event.register("numba:compile", _ReleaseOnFailure())
 
 # ---------------------------------------------------------------------------------------------- shipped kernels
 _BUNDLE: dict = {}
+_BUNDLE_TRIED: list = []
 _WARNED: list = []
+#: Kernels shipped inside the installed package: a wheel built after ``python -m tracer.kernel_bundle
+#: tracer/kernels`` carries them (pyproject.toml's package data), and they are used, where this CPU can run them,
+#: the first time a kernel is missing from the user's cache. A checkout has none (the folder is not in git).
+PACKAGED = os.path.join(os.path.dirname(os.path.abspath(__file__)), "kernels")
 
 
 def use_bundle(folder: str) -> bool:
