@@ -31,6 +31,7 @@ import numpy as np
 
 from . import vec
 from .jit import kernel
+from .scene import PER_TRIANGLE, Scene
 from .surface import hit_frame
 
 
@@ -196,7 +197,6 @@ def flatten(scene, chunk: int = 1024):
     transpose, corners 1 and 2 swapped under a mirroring M (every per-corner field: normals, UV sets, colours),
     each copy carrying its instance's object id and material override; prototypes are dropped. A scene without
     instances is returned as it is. For tools and tests that want the flat arrays (the renderer never flattens)."""
-    from .scene import PER_TRIANGLE, Scene
 
     inst = scene.instances
     if inst is None or not len(inst):

@@ -48,18 +48,20 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from pxr import UsdGeom, UsdShade
+from tracer.materials import f0_from_ior as _f0_from_ior
+from tracer.shader_compile import add_graph
+from tracer.shader_fields import graph_from_fields
 from tracer.shader_graph import Graph, ImageRef
 
 from . import shade_network as net
-from .material_primvars import find_primvar, mesh_primvars
+from .material_primvars import DEFAULT_UV, find_primvar, mesh_primvars
 from .preview_ranges import clamp_preview_inputs
-from .surfaces import other_surface
+from .surfaces import MX_SURFACES, other_surface
 from .texture_assets import open_texture
 from .texture_files import TextureCache, resolve_wrap
 
 FALLBACK_DIFFUSE = (0.18, 0.18, 0.18)  # UsdPreviewSurface's diffuseColor fallback
 DEFAULT_DISPLAY = (0.5, 0.5, 0.5)  # Hydra's colour for geometry with neither material nor displayColor
-DEFAULT_UV = "<default>"  # the name of UV set 0: each mesh's st, or its only UV primvar (material_primvars)
 
 #: UsdPreviewSurface inputs and their spec fallbacks.
 PREVIEW_DEFAULTS = dict(diffuseColor=FALLBACK_DIFFUSE, emissiveColor=(0.0, 0.0, 0.0), useSpecularWorkflow=0,
@@ -70,8 +72,7 @@ PREVIEW_DEFAULTS = dict(diffuseColor=FALLBACK_DIFFUSE, emissiveColor=(0.0, 0.0, 
 
 def f0_from_ior(ior: float) -> float:
     """UsdPreviewSurface's F0 of a dielectric (:func:`tracer.materials.f0_from_ior`, the one formula)."""
-    from tracer.materials import f0_from_ior as f0
-    return float(f0(ior))
+    return float(_f0_from_ior(ior))
 
 
 @dataclass(eq=False)
@@ -361,7 +362,8 @@ class MaterialTable:
         return default
 
     def _graph(self, src, label, name, needs):
-        from .mtlx_graph import MxProgram  # a MaterialX network, written into the graph by principled_graph
+        # here, not at import: mtlx_graph loads the MaterialX library, which a stage without networks never needs
+        from .mtlx_graph import MxProgram
 
         return MxProgram(self, src, label, name, needs)
 
@@ -456,7 +458,6 @@ class MaterialTable:
 
     def add_material(self, name: str, fields: dict, needs: MeshNeeds | None = None) -> int:
         """Write one surface as a shader graph (tracer.shader_graph) and add its row (tracer.shader_compile)."""
-        from tracer.shader_compile import add_graph
         color = needs.color[0] if needs is not None and needs.color is not None else "displayColor"
         return add_graph(self.b, principled_graph(name, fields, color), self.warn, self.uv_set_index, name=name)
 
@@ -522,21 +523,6 @@ class MaterialTable:
         return out
 
 
-#: MaterialX surfaces: input names and the defaults of their node definitions (base colour = weight × colour).
-MX_SURFACES = {
-    "open_pbr_surface": dict(weight="base_weight", weight_default=1.0, base="base_color",
-                             base_default=(0.8, 0.8, 0.8), metal="base_metalness", rough="specular_roughness",
-                             rough_default=0.3, normal="geometry_normal", trans="transmission_weight",
-                             ior="specular_ior", tint="transmission_color", spec="specular_weight",
-                             dropped=("coat_weight", "emission_luminance", "subsurface_weight", "fuzz_weight")),
-    "standard_surface": dict(weight="base", weight_default=0.8, base="base_color", base_default=(1.0, 1.0, 1.0),
-                             metal="metalness", rough="specular_roughness", rough_default=0.2, normal="normal",
-                             trans="transmission", ior="specular_IOR", tint="transmission_color",
-                             emission="emission", emission_color="emission_color", spec="specular",
-                             dropped=("coat", "subsurface", "sheen")),
-}
-
-
 #: Shader ids of UsdPreviewSurface: its own, and MaterialX's node definition of it (what usdMtlx writes for a
 #: ``<UsdPreviewSurface>`` in a .mtlx document, e.g. on ``outputs:mtlx:surface``).
 PREVIEW_SURFACE_IDS = ("UsdPreviewSurface", "ND_UsdPreviewSurface_surfaceshader")
@@ -568,8 +554,6 @@ def _is_default(src, default) -> bool:
 def principled_graph(name: str, f: dict, color_primvar: str = "displayColor") -> Graph:
     """A reader description (:meth:`MaterialTable.model` fields) as a shader graph (tracer.shader_fields); each
     :class:`UVLookup` becomes a ``usd_uv_texture`` node, its st a ``uvmap`` through ``usd_transform2d``."""
-    from tracer.shader_fields import graph_from_fields
-
     def texture(g, lk: UVLookup):
         if hasattr(lk, "write"):  # a MaterialX network (usd_io.mtlx_graph.MxProgram)
             return lk.write(g)

@@ -32,7 +32,6 @@ boolean) or three (vector2 with z = 0, vector3, color3); color4/vector4 carry th
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import MaterialX as mx
 import numpy as np
@@ -40,24 +39,10 @@ from pxr import Sdf, UsdShade
 
 from . import mtlx
 from . import shade_network as net
-
-WIDTH = {"float": 1, "integer": 1, "boolean": 1, "vector2": 2, "vector3": 3, "color3": 3, "vector4": 4,
-         "color4": 4}
-
-
-@dataclass
-class V:
-    """A MaterialX value: ``t`` its type, ``x`` its first lane (1-wide types) or its first three (an IR constant
-    tuple or a link), ``w`` the fourth lane of color4/vector4."""
-
-    t: str
-    x: object
-    w: object = 1.0
-
-    @property
-    def wide(self) -> int:
-        return WIDTH.get(self.t, 1)
-
+from .arnold_patterns import graph_node as arnold_node
+from .material_primvars import DEFAULT_UV
+from .shade_types import WIDTH, V
+from .texture_assets import authoring_layer
 
 def _py(v):
     """A MaterialX or USD value as a float or a tuple of floats."""
@@ -80,7 +65,7 @@ class UsdNode:
         self.key = self.name = str(shader.GetPath())
 
     def input(self, name: str):
-        a, is_out = net._producer(self.s, name)
+        a, is_out = net.producer(self.s, name)
         if a is None:
             return None
         if is_out:
@@ -221,9 +206,7 @@ class Translator:
 
     def _node(self, view, output: str) -> V:
         if view.sid.startswith("arnold:") and isinstance(view, UsdNode):  # Arnold patterns (usd_io.arnold_patterns)
-            from .arnold_patterns import graph_node
-
-            return graph_node(self, view, output)
+            return arnold_node(self, view, output)
         nd = mtlx.nodedef(view.sid) if view.sid.startswith("ND_") or view.sid else None
         if nd is None:
             self.warn(view.key, f"MaterialX node {view.name} ({view.sid or 'no shader id'}) has no node definition "
@@ -274,8 +257,6 @@ class Translator:
         return self.const(0.0, t)
 
     def uvmap(self, name: str):
-        from .material import DEFAULT_UV
-
         k = self.table.uv_set_index(name or None)
         self.needs.uv_sets.add(self.table.uv_set_names[k] if name else DEFAULT_UV)
         return self.add("uvmap", out="UV", attribute=name)
@@ -332,8 +313,6 @@ class Translator:
             r = r[1].input(r[2])
         if r is None or r[0] != "const" or r[2] is None or not isinstance(r[1], Sdf.AssetPath):
             return None
-        from .texture_assets import authoring_layer
-
         a = r[2]
         default = self.const(_py(c.uniform("default", 0.0)), "color3").x
         wrap = [net.MX_ADDRESS.get(str(c.uniform(f"{k}addressmode", "periodic")), "repeat") for k in "uv"]
