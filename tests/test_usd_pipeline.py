@@ -485,6 +485,18 @@ def test_render_settings_products_vars_and_flags_win():
     assert any("fancyLobe" in w for w in info.warnings)
 
 
+def test_every_tracer_aov_is_a_render_var_by_its_own_name():
+    """A RenderVar's sourceName reads every tracer AOV by its name (tracer.settings.AOV_NAMES, the one list:
+    raydepth and shadow_catcher were missing from the reader's own copy and warned), and the other renderers'
+    names (Ci, z, primId) as well."""
+    from tracer.settings import AOV_NAMES
+
+    _, info = load_stage(_render_settings_stage(var_sources=("Ci", "z", "primId") + AOV_NAMES))
+    assert info.render_settings.aovs == ["depth", "objectid"] + [a for a in AOV_NAMES if a not in ("depth",
+                                                                                                   "objectid")]
+    assert not any("no counterpart" in w for w in info.warnings), info.warnings
+
+
 def test_render_settings_data_window_renders_that_part():
     """dataWindowNDC (0.5, 0.5, 1, 1): the upper-right quarter of the full frame, as its own 50 × 50 image."""
     full_scene, _ = load_stage(_render_settings_stage())
