@@ -97,7 +97,7 @@ class MxNode:
 
 
 class Outs:
-    """A translated value seen as a texture node of :func:`tracer.shader_fields.graph_from_fields`: outputs
+    """A translated value seen as a lookup's node by :func:`usd_io.material.principled_graph`: outputs
     ``rgb`` (three lanes), ``r``, ``g``, ``b`` and ``a``."""
 
     def __init__(self, tr: "Translator", v: V):
@@ -674,12 +674,13 @@ class _Ctx:
 
 class MxProgram:
     """A MaterialX network driving one surface input (:class:`usd_io.shade_network.GraphLookup`), written into
-    the material's graph when :func:`usd_io.material.principled_graph` writes it (as a texture lookup of
-    :func:`tracer.shader_fields.graph_from_fields`: ``write(g) -> (outputs, UV map name)``)."""
+    the material's graph when :func:`usd_io.material.principled_graph` writes it (as one of its lookups:
+    ``write(g, translators) -> (outputs, UV map name)``). ``translators`` is the writer's, one per graph: the
+    networks of one material share one :class:`Translator` (nodes written once), and nothing is kept on the
+    Graph."""
 
     def __init__(self, table, lookup, label: str, name: str, needs):
         self.table, self.lookup, self.label, self.name, self.needs = table, lookup, label, name, needs
-        self._tr: dict = {}
 
     @property
     def label_text(self) -> str:
@@ -688,19 +689,14 @@ class MxProgram:
     def __repr__(self):
         return self.label_text
 
-    def translator(self, g) -> Translator:
-        if id(g) not in self._tr:
-            trs = getattr(g, "_mx_translators", None)
-            if trs is None:
-                trs = g._mx_translators = {}
-            key = id(self.table)
-            if key not in trs:
-                trs[key] = Translator(self.table, g, self.label, self.needs, self.table.time)
-            self._tr[id(g)] = trs[key]
-        return self._tr[id(g)]
+    def translator(self, g, translators: dict) -> Translator:
+        key = id(self.table)
+        if key not in translators:
+            translators[key] = Translator(self.table, g, self.label, self.needs, self.table.time)
+        return translators[key]
 
-    def value(self, g) -> V:
-        tr = self.translator(g)
+    def value(self, g, translators: dict) -> V:
+        tr = self.translator(g, translators)
         v = tr.out(UsdNode(self.lookup.shader, self.table.time), self.lookup.output)
         k = float(self.lookup.scale)
         if k != 1.0:
@@ -708,6 +704,5 @@ class MxProgram:
                 V(v.t, tr.vmath("MULTIPLY", v.x, (k, k, k)))
         return v
 
-    def write(self, g):
-        tr = self.translator(g)
-        return Outs(tr, self.value(g)), ""
+    def write(self, g, translators: dict):
+        return Outs(self.translator(g, translators), self.value(g, translators)), ""
