@@ -765,6 +765,25 @@ def test_cli_without_output_writes_the_render_product(tmp_path):
     assert res.returncode == 2 and "-o OUT is required" in res.stderr
 
 
+def test_cli_render_opens_the_stage_once(tmp_path, monkeypatch):
+    """`whitted render` without -o, two RenderProducts, two frames: the file is opened once (it was opened for the
+    first product's name, again for the list of the others and again for each product's render)."""
+    from pxr import Usd
+
+    from usd_io import cli
+
+    s = _render_settings_stage(products=("first.png", "second.png"), var_sources=("color",))
+    path = str(tmp_path / "two.usda")
+    s.GetRootLayer().Export(path)
+    opened = []
+    real = Usd.Stage.Open
+    monkeypatch.setattr(Usd.Stage, "Open", staticmethod(lambda *a, **k: opened.append(a[0]) or real(*a, **k)))
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["render", path, "--quiet", "--width", "16", "--height", "16", "--frames", "1:2"]) == 0
+    assert len(opened) == 1
+    assert all((tmp_path / f"{p}.000{f}.png").exists() for p in ("first", "second") for f in (1, 2))
+
+
 @pytest.mark.parametrize("basis", ["bezier", "bspline", "catmullRom"])
 def test_cubic_basis_curves_follow_the_curve_not_the_hull(basis):
     """One cubic curve with control points (0,0) (1,2) (2,2) (3,0) (and for bspline/catmullRom the same four): its
