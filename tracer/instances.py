@@ -85,15 +85,6 @@ def to_world_normal(tables, inst, n):
 
 
 @kernel(inline=True)
-def to_world_vector(tables, inst, v):
-    """Object-space vector ``v`` (a tangent, a displacement) of instance ``inst`` in world space: M₃ₓ₃·v,
-    not normalised; ``v`` where ``inst`` < 0."""
-    if inst < 0:
-        return v
-    return mat3_apply(tables.linear, inst, v)
-
-
-@kernel(inline=True)
 def to_object_direction(tables, inst, d):
     """World direction ``d`` in instance ``inst``'s object space: M⁻¹·d = Nᵀ·d (not normalised); ``d`` where
     ``inst`` < 0."""
