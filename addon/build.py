@@ -238,7 +238,7 @@ def add_kernels(zip_path: str, tracer_dir: str, work: str) -> dict:
     added to the Linux zip it wrote). Returns the bundle's manifest."""
     import zipfile
 
-    from tracer import kernel_bundle
+    from tracer import kernel_bundle  # here: building a zip without kernels never loads the tracer (numba)
 
     manifest = kernel_bundle.build(work, package=EXTENSION_TRACER, tracer_dir=tracer_dir)
     with zipfile.ZipFile(zip_path, "a", compression=zipfile.ZIP_DEFLATED) as z:

@@ -18,24 +18,12 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from . import export, kernels, sync, viewport
+from . import export, kernels, passes, sync, viewport
 from .bundled import tracer
 from .export import viewport_camera
 
-#: Blender pass name, channels, channel ids, type — for each tracer AOV.
-PASSES = {
-    "depth": ("Depth", 1, "Z", "VALUE"),
-    "normal": ("Normal", 3, "XYZ", "VECTOR"),
-    # Blender 5.0 names the object index pass "Object Index" (Cycles writes it so); older versions "IndexOB".
-    "objectid": ("Object Index" if bpy.app.version >= (5, 0, 0) else "IndexOB", 1, "X", "VALUE"),
-    # With scene.whitted.ray_type_passes (tracer.settings.RAY_TYPE_AOVS):
-    "direct": ("Whitted Direct", 3, "RGB", "COLOR"),
-    "reflection": ("Whitted Reflection", 3, "RGB", "COLOR"),
-    "transmission": ("Whitted Transmission", 3, "RGB", "COLOR"),
-    "raydepth": ("Whitted Ray Depth", 1, "X", "VALUE"),
-    # Cycles' name (tracer.compose): the view layer's Shadow Catcher checkbox (Cycles' view-layer setting)
-    "shadow_catcher": ("Shadow Catcher", 3, "RGB", "COLOR"),
-}
+#: Blender pass name, channels, channel ids, type — for each tracer AOV (from the one table, addon/passes.py).
+PASSES = {p.aov: p.register_args for p in passes.PASSES}
 #: Depth Blender writes where nothing was hit.
 NO_DEPTH = 1.0e10
 
@@ -62,18 +50,8 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
     # ---------------------------------------------------------------------------------------------- passes
     def update_render_passes(self, scene=None, renderlayer=None):
         self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
-        if renderlayer.use_pass_z:
-            self.register_pass(scene, renderlayer, *PASSES["depth"])
-        if renderlayer.use_pass_normal:
-            self.register_pass(scene, renderlayer, *PASSES["normal"])
-        if renderlayer.use_pass_object_index:
-            self.register_pass(scene, renderlayer, *PASSES["objectid"])
-        if export.use_pass_shadow_catcher(renderlayer):
-            self.register_pass(scene, renderlayer, *PASSES["shadow_catcher"])
-        props = getattr(scene, "whitted", None)
-        if props is not None and props.ray_type_passes:
-            for aov in tracer.settings.RAY_TYPE_AOVS:
-                self.register_pass(scene, renderlayer, *PASSES[aov])
+        for p in passes.asked(renderlayer, getattr(scene, "whitted", None)):
+            self.register_pass(scene, renderlayer, *p.register_args)
 
     # ---------------------------------------------------------------------------------------------- F12
     def render(self, depsgraph):

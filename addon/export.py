@@ -36,7 +36,9 @@ import numpy as np
 
 from .bundled import tracer
 
+from . import passes
 from .model import Corners, MaterialWriter
+from .motion import apply_motion, sample_motion
 from .nodes import image_rgba
 from .world import world_from_blender
 
@@ -440,8 +442,6 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
         depsgraph, exported, scene.lights, len(b.object_names), warnings)
     scene.object_holdout, scene.object_shadow_catcher = compose_flags(depsgraph, exported, len(b.object_names))
     if blur:  # last: it evaluates the scene at other sub-frames (and puts the frame back)
-        from .motion import apply_motion, sample_motion
-
         apply_motion(scene, exported, sample_motion(depsgraph, exported, warnings, frame_set))
     return scene, warnings
 
@@ -573,38 +573,20 @@ def settings_from_scene(bpy_scene, view_layer=None) -> "tracer.RenderSettings":
     """Render settings from a Blender scene: ``scene.whitted`` (every property addon/properties.py made from a
     RenderSettings field; the defaults where unregistered), the render size
     (resolution × percentage), the render border as ``region``, Film > Transparent, and the AOVs the view layer
-    asks for (Z -> depth, Normal -> normal, Object Index -> objectid, Shadow Catcher -> shadow_catcher)."""
+    and ``scene.whitted.ray_type_passes`` ask for (addon/passes.py: the one pass ↔ AOV table)."""
     r = bpy_scene.render
     w, h = render_size(bpy_scene)
     props = getattr(bpy_scene, "whitted", None)
     kw = {}
     if props is not None:
-        from .properties import settings_kwargs
+        from .properties import settings_kwargs  # here: properties imports bpy, which export alone does not need
 
         kw = settings_kwargs(props)
     region = border_region(bpy_scene) if r.use_border else None
-    aovs = []
     layer = view_layer if view_layer is not None else (bpy_scene.view_layers[0] if bpy_scene.view_layers else None)
-    if layer is not None:
-        if layer.use_pass_z:
-            aovs.append("depth")
-        if layer.use_pass_normal:
-            aovs.append("normal")
-        if layer.use_pass_object_index:
-            aovs.append("objectid")
-        if use_pass_shadow_catcher(layer):
-            aovs.append("shadow_catcher")
-    if props is not None and props.ray_type_passes:
-        aovs.extend(tracer.settings.RAY_TYPE_AOVS)
+    aovs = [p.aov for p in passes.asked(layer, props)]
     return tracer.RenderSettings(width=w, height=h, transparent=bool(r.film_transparent), region=region,
                                  aovs=tuple(aovs), **kw).validate()
-
-
-def use_pass_shadow_catcher(view_layer) -> bool:
-    """Whether the view layer asks for Cycles' Shadow Catcher pass (its setting lives with Cycles' view-layer
-    properties: the same checkbox for both engines)."""
-    cycles = getattr(view_layer, "cycles", None)
-    return bool(getattr(cycles, "use_pass_shadow_catcher", False))
 
 
 def border_region(bpy_scene) -> tuple[int, int, int, int]:

@@ -1,8 +1,8 @@
 """The materials :mod:`addon.shader_tree` translates, written as the tracer's shader graphs (tracer.shader_graph, the
 IR of docs/materials-api.md) and compiled into rows (tracer.shader_compile.add_graph).
 
-A material is a graph (written as it is); the default surface is Principled fields, which
-:func:`tracer.shader_fields.graph_from_fields` turns into one ``principled_bsdf`` graph:
+Every material is a graph (written as it is), the default surface (no material) too: one ``principled_bsdf`` with
+Blender's defaults (:func:`default_surface`). What a material's nodes become (addon/shader_tree.py):
 
     every parameter       its constant and, where a texture feeds it, a ``tracer.Texture`` (pixels shared by every
                           lookup of one image; wrap from the Extension; the Mapping node as the texture's UV
@@ -23,19 +23,20 @@ import numpy as np
 
 from typing import NamedTuple
 
-from .nodes import TextureRef
 from .shader_tree import material_graph
 
 from .bundled import tracer_module
 
 add_graph = tracer_module("shader_compile").add_graph
-graph_from_fields = tracer_module("shader_fields").graph_from_fields
-FIELD_DEFAULTS = tracer_module("shader_fields").FIELD_DEFAULTS
-luminance = tracer_module("colorspace").luminance
-Graph, ImageRef = tracer_module("shader_graph").Graph, tracer_module("shader_graph").ImageRef
+Graph = tracer_module("shader_graph").Graph
 
-#: Blender's default surface (no material): every field the Principled default (tracer.shader_fields.FIELD_DEFAULTS).
-DEFAULT_FIELDS: dict = {}
+
+def default_surface(name: str = "__default__") -> Graph:
+    """Blender's surface for geometry without a material: a Principled BSDF left at its defaults
+    (tracer.materials.PRINCIPLED_DEFAULTS, Blender's own)."""
+    g = Graph(name)
+    g.output(g.add("principled_bsdf")["BSDF"])
+    return g
 
 
 class Corners(NamedTuple):
@@ -66,12 +67,11 @@ class MaterialWriter:
         self.b = builder
         self.warnings = warnings
         self.images: dict = {}  # image name -> (H, W, 4) pixels (shared by materials and the world)
-        self.fields: dict[int, tuple[str, dict]] = {}  # row -> (material name, Principled fields or {"graph": g})
+        self.fields: dict[int, tuple[str, dict]] = {}  # row -> (material name, {"graph": its Graph})
         self.uv_sets: dict[str, int] = {"": 0}  # UV map name ('' = the mesh's active render map) -> UV set
         self._rows: dict[str, int] = {}
-        self._images: dict = {}  # (pixels id, wrap) -> ImageRef
         self._said: set = set()
-        self.default_row = self._add("__default__", dict(DEFAULT_FIELDS))
+        self.default_row = self._add("__default__", default_surface())
 
     def warn(self, message: str) -> None:
         if message not in self._said:
@@ -86,12 +86,11 @@ class MaterialWriter:
             self._rows[material.name] = self._add(material.name, material_graph(material, self.warn, self.images))
         return self._rows[material.name]
 
-    def _add(self, name: str, f) -> int:
-        if isinstance(f, dict) and "graph" in f:  # what self.fields keeps of a graph (addon/sync.py hands it back)
-            f = f["graph"]
-        graph = f if isinstance(f, Graph) else graph_from_fields(name, self._principled(f), self._texture_node)
+    def _add(self, name: str, graph) -> int:
+        if isinstance(graph, dict):  # what self.fields keeps of a graph (addon/sync.py hands it back)
+            graph = graph["graph"]
         row = add_graph(self.b, graph, self.warn, self.uv_index, name=name)
-        self.fields.setdefault(row, (name, f if not isinstance(f, Graph) else {"graph": f}))
+        self.fields.setdefault(row, (name, {"graph": graph}))
         return row
 
     def uv_index(self, name) -> int:
@@ -99,32 +98,6 @@ class MaterialWriter:
         if isinstance(name, (int, np.integer)):
             return int(name)
         return self.uv_sets.setdefault(name or "", len(self.uv_sets))
-
-    def _texture_node(self, g: Graph, tex: TextureRef):
-        """A :class:`TextureRef` as IR: ``usd_uv_texture`` (its scale and bias; fallback 1 where a mesh has no
-        coordinates) at ``uvmap`` through the Mapping node's matrix."""
-        key = (id(tex.pixels), tex.wrap)
-        if key not in self._images:
-            self._images[key] = (ImageRef(pixels=tex.pixels, wrap_s=tex.wrap, wrap_t=tex.wrap, label=tex.label), tex)
-        st = g.add("uvmap", attribute=tex.uv_map)["UV"]
-        if not np.allclose(tex.transform, np.eye(3)):
-            st = g.add("usd_transform2d", {"in": st}, matrix=np.asarray(tex.transform, np.float64))["result"]
-        node = g.add("usd_uv_texture", {"st": st}, image=self._images[key][0], scale=tuple(tex.scale),
-                     bias=tuple(tex.bias), fallback=(1.0, 1.0, 1.0, 1.0), name=tex.label)
-        return node, tex.uv_map
-
-    def _principled(self, f: dict) -> dict:
-        """The reader's Principled fields as :func:`graph_from_fields` reads them."""
-        out: dict = {}
-        for key, v in f.items():
-            if key == "specular" and np.ndim(v):  # a colour on a float socket: Blender reads its luminance
-                out[key] = luminance(np.asarray(v, np.float64)[:3])
-            else:
-                out[key] = v
-        if float(f.get("transmission", 0.0)) > 0 and "transmission_tint" not in out:
-            out["transmission_tint"] = tuple(np.broadcast_to(np.asarray(f.get("base_color", FIELD_DEFAULTS["base_color"]),
-                                                                         np.float64), (3,)))
-        return out
 
     # ------------------------------------------------------------------ meshes
     def mesh_inputs(self, label: str, rows, g: dict):
@@ -148,7 +121,7 @@ class MaterialWriter:
         colors, chosen = None, None
         for row in np.unique(rows):
             name, f = self.fields.get(int(row), ("", {}))
-            vc = f.get("vertex_color") if "graph" not in f else _graph_color(f["graph"])
+            vc = _graph_color(f["graph"]) if "graph" in f else None
             if vc is None:
                 continue
             attr = vc or g.get("color_default")
@@ -169,8 +142,6 @@ class MaterialWriter:
         for row in np.unique(rows):
             _, f = self.fields.get(int(row), ("", {}))
             if "graph" in f and k in _graph_uv_sets(f["graph"], self.uv_sets):
-                return True
-            if any(isinstance(v, TextureRef) and self.uv_sets.get(v.uv_map) == k for v in f.values()):
                 return True
         return False
 

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .bundled import tracer_module
+from .image_cache import cached_pixels
 
 srgb_to_linear = tracer_module("texture").srgb_to_linear
 
@@ -220,8 +221,6 @@ def _euler(xyz) -> np.ndarray:
 def image_rgba(image) -> np.ndarray:
     """(H, W, 4) scene-linear float32 pixels of a Blender image, top row first, straight alpha; read once per file
     version across renders (:mod:`addon.image_cache`: read-only arrays)."""
-    from .image_cache import cached_pixels
-
     return cached_pixels(image, _read_rgba)
 
 

@@ -29,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from .bundled import tracer_module
+from .nodes import image_rgba
 
 _ir = tracer_module("shader_graph")
 CLOSURE, COLOR, FLOAT, NODE_TYPES, VECTOR = _ir.CLOSURE, _ir.COLOR, _ir.FLOAT, _ir.NODE_TYPES, _ir.VECTOR
@@ -266,7 +267,6 @@ class Translator:
         if image is None:
             return None
         if image.name not in self.images:
-            from .nodes import image_rgba
             try:
                 self.images[image.name] = image_rgba(image)
             except Exception as exc:  # missing file, unreadable pixels

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import bpy
 
+from . import passes
 from .bundled import tracer
 
 ENGINE = "WHITTED"
@@ -74,11 +75,11 @@ class WHITTED_PT_render(_Panel, bpy.types.Panel):
         col = layout.column(heading="Film")
         col.prop(context.scene.render, "film_transparent", text="Transparent")
         col = layout.column(heading="Passes")
-        layer = context.view_layer
-        col.prop(layer, "use_pass_z", text="Depth")
-        col.prop(layer, "use_pass_normal", text="Normal")
-        col.prop(layer, "use_pass_object_index", text="Object Index")
-        col.prop(props, "ray_type_passes")
+        for holder, prop, label in passes.checkboxes(context.view_layer, props):  # addon/passes.py
+            if label:
+                col.prop(holder, prop, text=label)
+            else:
+                col.prop(holder, prop)
 
 
 class WHITTED_PT_performance(_Panel, bpy.types.Panel):

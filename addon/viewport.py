@@ -25,8 +25,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import kernels
 from .export import tracer
-from .sync import apply_edits
+from .sync import Edit, apply_edits
 
 #: Pixel-size factors of the refinement passes, coarse to full resolution, for viewports up to 512 pixels across
 #: (:func:`levels` starts coarser in larger ones).
@@ -100,8 +101,6 @@ class ViewportRender:
 
     def set_scene(self, scene: "tracer.Scene", settings: "tracer.RenderSettings | None" = None) -> None:
         """A whole new scene (a new session is built on the worker), and optionally settings."""
-        from .sync import Edit
-
         with self._lock:
             self._edits = [Edit("rebuild", (scene,))]
             if settings is not None:
@@ -186,8 +185,6 @@ class ViewportRender:
         return [(level, 1) for level in levels(size)] + [(1, n) for n in AA_PASSES]
 
     def _run(self):
-        from . import kernels
-
         # a first use of this version: the kernels are prepared in a separate process (addon/kernels.py)
         if not kernels.wait(cancelled=lambda: self._stop):
             return

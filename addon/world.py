@@ -29,6 +29,7 @@ import tempfile
 import numpy as np
 
 from .nodes import read_world
+from .shader_tree import world_graph
 
 from .bundled import tracer, tracer_module
 
@@ -77,8 +78,6 @@ PROGRAM_SIZE = (1024, 512)
 def program_world(world, images: dict, size=PROGRAM_SIZE) -> np.ndarray | None:
     """The world's tree evaluated by the tracer's shader VM per direction (a lat-long image), or None when a node
     in it is not evaluated there (Sky Texture, Light Path, …: then Blender bakes it). Cached like a bake."""
-    from .shader_tree import world_graph
-
     key = f"vm-{world_hash(world)}-{size}"
     if key not in _BAKES:
         said: list = []

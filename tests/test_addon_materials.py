@@ -197,20 +197,24 @@ def test_world_of_procedural_nodes_is_evaluated_by_the_vm(bpy_module, monkeypatc
 
 def test_principled_defaults_are_blenders():
     """The Principled defaults written once (tracer.materials.PRINCIPLED_DEFAULTS) are those of Blender's own
-    Principled BSDF node (read from bpy, the independent reference), and a surface described by fields that leave
-    a parameter out (the add-on's default surface, a USD reader's description) gets that default: Specular IOR Level
-    0.5, i.e. the dielectric F0 of IOR 1.5, ((1.5 − 1)/(1.5 + 1))² = 0.04 (before: 0.0, no highlight at all)."""
+    Principled BSDF node (read from bpy, the independent reference), and a surface that leaves a parameter out (the
+    add-on's default surface, a USD reader's description) gets that default: Specular IOR Level 0.5, i.e. the
+    dielectric F0 of IOR 1.5, ((1.5 − 1)/(1.5 + 1))² = 0.04 (before: 0.0, no highlight at all); the USD reader's
+    base colour is UsdPreviewSurface's own fallback, 0.18."""
+    from addon.model import default_surface
     from tracer.materials import PRINCIPLED_DEFAULTS, f0_from_ior
-    from tracer.shader_fields import graph_from_fields
+    from usd_io.material import principled_graph
 
     mat, _nt, _out, bsdf = node_material("defaults")
     for name, want in PRINCIPLED_DEFAULTS.items():
         got = bsdf.inputs[name].default_value
         got = tuple(got)[:3] if hasattr(got, "__len__") else got
         np.testing.assert_allclose(got, want, atol=1e-6, err_msg=name)
-    row = compile_graph(graph_from_fields("empty", {})).row
+    row = compile_graph(default_surface("empty")).row
     assert row["specular"] == 0.5 and row["roughness"] == 0.5 and row["metallic"] == 0.0 and row["ior"] == 1.5
     assert row["base_color"] == pytest.approx((0.8, 0.8, 0.8)) and row["emission"] == (0.0, 0.0, 0.0)
+    usd = compile_graph(principled_graph("empty", {})).row
+    assert usd == dict(row, base_color=pytest.approx((0.18, 0.18, 0.18)))
     assert 2.0 * row["specular"] * f0_from_ior(row["ior"]) == pytest.approx(((1.5 - 1.0) / (1.5 + 1.0)) ** 2)
     from addon.model import MaterialWriter
     from tracer import SceneBuilder

@@ -205,6 +205,26 @@ def surface(node, **inputs):
     return sh
 
 
+def test_one_material_s_networks_share_their_nodes(tmp_path, monkeypatch):
+    """Two inputs driven by one MaterialX node: it is written once into the material's graph (one translator per
+    graph, kept by the writer, usd_io.material.principled_graph, not on the Graph object)."""
+    import usd_io.material as M
+    from usd_io import load_stage
+
+    graphs = []
+    real = M.principled_graph
+    monkeypatch.setattr(M, "principled_graph", lambda *a, **k: graphs.append(real(*a, **k)) or graphs[-1])
+
+    def build(s, node):
+        n = node("n", "ND_noise3d_float", T.Float)
+        c = node("c", "ND_convert_float_color3", T.Color3f, **{"in": (T.Float, n)})
+        return surface(node, base_color=(T.Color3f, c), specular_roughness=(T.Float, n))
+
+    load_stage(usd_network(str(tmp_path), build))
+    g = next(g for g in graphs if any(n.type == "mx_noise" for n in g.nodes.values()))
+    assert sum(n.type == "mx_noise" for n in g.nodes.values()) == 1
+
+
 def test_remap_ifgreater_mask(tmp_path):
     """ifgreater(s, 0.5, red, grey) with grey = convert(remap(t, 0, 1, 0.2, 0.6)): st = ((x+1)/2, (y+1)/2) on the
     quad, so the right half is red and the left half a vertical grey ramp 0.2 + 0.4·t."""

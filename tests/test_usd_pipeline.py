@@ -485,6 +485,18 @@ def test_render_settings_products_vars_and_flags_win():
     assert any("fancyLobe" in w for w in info.warnings)
 
 
+def test_every_tracer_aov_is_a_render_var_by_its_own_name():
+    """A RenderVar's sourceName reads every tracer AOV by its name (tracer.settings.AOV_NAMES, the one list:
+    raydepth and shadow_catcher were missing from the reader's own copy and warned), and the other renderers'
+    names (Ci, z, primId) as well."""
+    from tracer.settings import AOV_NAMES
+
+    _, info = load_stage(_render_settings_stage(var_sources=("Ci", "z", "primId") + AOV_NAMES))
+    assert info.render_settings.aovs == ["depth", "objectid"] + [a for a in AOV_NAMES if a not in ("depth",
+                                                                                                   "objectid")]
+    assert not any("no counterpart" in w for w in info.warnings), info.warnings
+
+
 def test_render_settings_data_window_renders_that_part():
     """dataWindowNDC (0.5, 0.5, 1, 1): the upper-right quarter of the full frame, as its own 50 × 50 image."""
     full_scene, _ = load_stage(_render_settings_stage())
@@ -751,6 +763,25 @@ def test_cli_without_output_writes_the_render_product(tmp_path):
     lone.GetRootLayer().Export(lpath)
     res = whitted("render", lpath, "--quiet", cwd=tmp_path)
     assert res.returncode == 2 and "-o OUT is required" in res.stderr
+
+
+def test_cli_render_opens_the_stage_once(tmp_path, monkeypatch):
+    """`whitted render` without -o, two RenderProducts, two frames: the file is opened once (it was opened for the
+    first product's name, again for the list of the others and again for each product's render)."""
+    from pxr import Usd
+
+    from usd_io import cli
+
+    s = _render_settings_stage(products=("first.png", "second.png"), var_sources=("color",))
+    path = str(tmp_path / "two.usda")
+    s.GetRootLayer().Export(path)
+    opened = []
+    real = Usd.Stage.Open
+    monkeypatch.setattr(Usd.Stage, "Open", staticmethod(lambda *a, **k: opened.append(a[0]) or real(*a, **k)))
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["render", path, "--quiet", "--width", "16", "--height", "16", "--frames", "1:2"]) == 0
+    assert len(opened) == 1
+    assert all((tmp_path / f"{p}.000{f}.png").exists() for p in ("first", "second") for f in (1, 2))
 
 
 @pytest.mark.parametrize("basis", ["bezier", "bspline", "catmullRom"])

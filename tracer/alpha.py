@@ -47,6 +47,7 @@ from numba.extending import intrinsic
 from . import embree, jit, vec
 from .instances import mat3_apply
 from .jit import kernel
+from .shader_compile import pack_programs
 from .shader_vm import cut, program_alpha
 
 #: Use the filter where it applies (tests switch it off to compare with the round-by-round loop).
@@ -278,7 +279,6 @@ def _words(n: int) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------- Python side
 def see_through_materials(scene) -> np.ndarray:
     """Per material: may let light through (alpha < 1, or an alpha its program computes)."""
-    from .shader_compile import pack_programs
 
     m = scene.materials
     programs, _ = pack_programs(m, scene.textures)  # cached on the table: the integrator's call reuses it

@@ -36,6 +36,7 @@ import numpy as np
 from . import vec
 from .environment import env_radiance
 from .jit import kernel
+from .shader_graph import Out
 
 #: Columns of the per-sample compositing array (``Tile.compose``): catcher-only light (3), the matte's colour at
 #: the split (3), the matte's transparency at the split (1), split flag (1), the world behind (3).
@@ -89,8 +90,6 @@ def holdout_weights(materials) -> np.ndarray:
 
 
 def _holdout_of(g, ref, depth: int = 0) -> float:
-    from .shader_graph import Out
-
     if not isinstance(ref, Out) or depth > 64:
         return 0.0
     node = g.node(ref)

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .accel import Accelerator
+from .clip_planes import clip_eye_rays
 from .integrator import Integrator, RayQueue, Tile
 from .jit import kernel
 from . import linking
@@ -21,6 +22,7 @@ from .scene import Scene
 from .settings import RenderSettings
 from .instances import world_frame
 from .motion import frames_at_time
+from .tiles import timed_eye_rays
 
 RAY_KINDS = ("eye", "shadow", "reflection", "transmission", "sky")
 
@@ -110,7 +112,6 @@ class Explanation:
 def explain_pixel(scene: Scene, settings: RenderSettings, x: int, y: int, accel: Accelerator | None = None,
                   integrator: Integrator | None = None) -> Explanation:
     """The ray tree of pixel (x, y) (image pixels, origin top-left) under ``settings``."""
-    from .tiles import timed_eye_rays
 
     settings = settings.validate()
     if not (0 <= x < settings.width and 0 <= y < settings.height):
@@ -122,8 +123,6 @@ def explain_pixel(scene: Scene, settings: RenderSettings, x: int, y: int, accel:
     t_max = (np.full(spp, scene.camera.far - scene.camera.near, np.float32) if np.isfinite(scene.camera.far)
              else None)
     if scene.camera.clipping_planes:  # as tracer.tiles.trace_tile does
-        from .clip_planes import clip_eye_rays
-
         o, t_max = clip_eye_rays(scene.camera, o, d, scene.camera.far - scene.camera.near)
     queue = RayQueue(o=o, d=d, weight=np.ones((spp, 3), np.float32), sample=np.arange(spp, dtype=np.int32),
                      t_max=t_max, time=times)

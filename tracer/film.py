@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .texture import linear_to_srgb
+from .texture import linear_to_srgb, srgb_to_linear
 
 LINEAR_EXTENSIONS = (".exr", ".hdr")
 
@@ -71,7 +71,6 @@ def heat_map(values: np.ndarray, vmax: float | None = None) -> np.ndarray:
     i = np.minimum(x.astype(int), len(_HEAT_STOPS) - 2)
     f = (x - i)[..., None]
     srgb = _HEAT_STOPS[i] * (1 - f) + _HEAT_STOPS[i + 1] * f
-    from .texture import srgb_to_linear
 
     return srgb_to_linear(srgb).astype(np.float32)
 

@@ -31,6 +31,7 @@ import numpy as np
 
 from . import vec
 from .jit import kernel
+from .scene import PER_TRIANGLE, Scene
 from .surface import hit_frame
 
 
@@ -81,15 +82,6 @@ def to_world_normal(tables, inst, n):
     w = mat3_apply(tables.normal_matrix, inst, n)
     ln = math.sqrt(vec.dot(w, w))
     return vec.scale(w, 1.0 / ln) if ln > 0.0 else w
-
-
-@kernel(inline=True)
-def to_world_vector(tables, inst, v):
-    """Object-space vector ``v`` (a tangent, a displacement) of instance ``inst`` in world space: M₃ₓ₃·v,
-    not normalised; ``v`` where ``inst`` < 0."""
-    if inst < 0:
-        return v
-    return mat3_apply(tables.linear, inst, v)
 
 
 @kernel(inline=True)
@@ -196,7 +188,6 @@ def flatten(scene, chunk: int = 1024):
     transpose, corners 1 and 2 swapped under a mirroring M (every per-corner field: normals, UV sets, colours),
     each copy carrying its instance's object id and material override; prototypes are dropped. A scene without
     instances is returned as it is. For tools and tests that want the flat arrays (the renderer never flattens)."""
-    from .scene import PER_TRIANGLE, Scene
 
     inst = scene.instances
     if inst is None or not len(inst):

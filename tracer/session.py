@@ -47,10 +47,11 @@ import numpy as np
 
 from .accel import Accelerator
 from .embree import BuildCancelled
-from .builder import place_mesh
+from .builder import _corner_extras, place_mesh
 from .camera import Camera
 from .environment import Environment
 from .film import Image
+from .integrator import Integrator
 from .lights import AreaLight, DistantLight, PointLight, SpotLight
 from .materials import Materials
 from .scene import PER_TRIANGLE, Instances, Scene, non_degenerate, singular, unit_normals
@@ -247,8 +248,6 @@ class Session:
     def integrator(self, settings: RenderSettings):
         """The :class:`tracer.integrator.Integrator` for ``settings`` (packed tables), made once per settings
         until an edit other than the camera drops it."""
-        from .integrator import Integrator
-
         key = integrator_key(settings)
         with self._lock:
             integ = self._integrators.get(key)
@@ -581,8 +580,6 @@ def _rows_of(field, rows, mirrored=False):
 def _corner_rows(label, mesh, vertices, uv_sets, colors) -> dict:
     """The per-corner UV sets and colours of a mesh given to ``add_object``/``update_mesh``, checked and turned as
     :func:`place_mesh` turned its triangles: {"uv_sets": [arrays or None], "colors": array or None}."""
-    from .builder import _corner_extras
-
     mirrored = bool(np.linalg.det(mesh.transform[:3, :3]) < 0)
     n_v = len(np.asarray(vertices).reshape(-1, 3))
     ex = _corner_extras(label, uv_sets, colors, mesh.uvs, n_v, mesh.triangles, mirrored)

@@ -38,6 +38,7 @@ from .shader_graph import Graph, Implicit, Node, Out
 from .shader_nodes import COLOR, FLOAT, NODE_TYPES, OPS, OPCODE, VECTOR, Reg, TextureUse, convert_constant
 from .shader_nodes import is_const as _is_const
 from .shader_nodes import vec3 as _vec
+from .texture import Texture, as_texture
 from .shader_nodes import transform2d_matrix  # noqa: F401  (re-exported: the USD readers' UsdTransform2d)
 
 
@@ -635,8 +636,6 @@ def pack_programs(m, textures: list) -> tuple[ProgramTable, list]:
     """(the :class:`ProgramTable` of a Materials table, the textures its image ops read: ``textures`` followed by
     those the graphs' ImageRefs add). Kept on the table while its graphs, texture columns and the constants
     they multiply are the same (a session renders again without compiling again)."""
-    from .texture import as_texture
-
     textures = [as_texture(t) for t in textures]
     tex_slots, ch = m.texture_slots()
     key = (tuple(id(t) for t in textures), tuple(id(p) for p in (getattr(m, "programs", None) or ())),
@@ -652,8 +651,6 @@ def pack_programs(m, textures: list) -> tuple[ProgramTable, list]:
 
 
 def _pack_programs(m, textures: list) -> tuple[ProgramTable, list]:
-    from .texture import Texture
-
     n = len(m)
     tex_slots, _ = m.texture_slots()
     programs = getattr(m, "programs", None) or [None] * n

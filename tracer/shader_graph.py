@@ -60,6 +60,7 @@ import numpy as np
 
 from .shader_nodes import (CLOSURE, COLOR, ENUMS, FLOAT, GENERATED, IMPLICIT, KINDS, NODE_TYPES, NORMAL,  # noqa: F401
                            POSITION, TANGENT, UV, VECTOR, Implicit, NodeType, Socket, convert_constant)
+from .texture import load_texture
 
 # Node types, their sockets, parameters and lowering: tracer.shader_nodes (the node table), re-exported here as the
 # IR's vocabulary.
@@ -93,7 +94,6 @@ class ImageRef:
                 raise ValueError(f"image {self.label!r}: neither a path nor pixels")
             key = (os.path.abspath(self.path), self.colorspace)
             if key not in _PIXELS:
-                from .texture import load_texture
                 _PIXELS[key] = load_texture(self.path, self.colorspace, channels=4)
             self.pixels = _PIXELS[key]
         return self.pixels

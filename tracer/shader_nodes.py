@@ -28,6 +28,7 @@ and :mod:`tracer.shader_compile` / :mod:`tracer.shader_closures` (lowering); it 
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from typing import Callable, NamedTuple
 
@@ -463,7 +464,6 @@ def _with_wrap(img, wrap: str):
 def transform2d_matrix(scale=(1.0, 1.0), rotation=0.0, translation=(0.0, 0.0)) -> np.ndarray:
     """The (3, 3) matrix of a UsdTransform2d on (s, t, 1): T · R · S (scale, then rotate CCW in degrees, then
     translate), the spec's ``in · scale · rotate + translation``."""
-    import math
     if not math.isfinite(rotation):
         return np.full((3, 3), np.nan)
     c, s = math.cos(math.radians(rotation)), math.sin(math.radians(rotation))

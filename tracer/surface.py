@@ -159,13 +159,6 @@ def uv_count(uv_sets):
 
 
 @kernel(inline=True)
-def hit_uv(geom, tri, u, v):
-    """Texture coordinates (s, t) of UV set 0 at barycentrics (u, v) of triangle ``tri`` (0, 0 without)."""
-    s, t, _ok = uv_at(geom.uv_sets, 0, tri, u, v)
-    return s, t
-
-
-@kernel(inline=True)
 def uv_at(uv_sets, k, tri, u, v):
     """Texture coordinates (s, t) of UV set k at barycentrics (u, v) of triangle ``tri``, and whether the triangle
     has coordinates in that set (False: no such set, or NaN corners)."""
@@ -200,12 +193,6 @@ def color_at(colors, has_colors, tri, u, v):
     return (w * c[tri, 0, 0] + u * c[tri, 1, 0] + v * c[tri, 2, 0],
             w * c[tri, 0, 1] + u * c[tri, 1, 1] + v * c[tri, 2, 1],
             w * c[tri, 0, 2] + u * c[tri, 1, 2] + v * c[tri, 2, 2])
-
-
-@kernel(inline=True)
-def uv_tangent(geom, k, tri, ng):
-    """:func:`tangent_at` of the scene's :class:`Geometry`."""
-    return tangent_at(geom.uv_sets, geom.vertices, geom.triangles, k, tri, ng)
 
 
 @kernel(inline=True)

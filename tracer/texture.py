@@ -236,12 +236,6 @@ def pack_textures(textures: list) -> TextureTables:
 
 
 @kernel(inline=True)
-def uv_set_of(params, index):
-    """The UV set texture ``index`` reads."""
-    return int(params[index, _UV_SET])
-
-
-@kernel(inline=True)
 def _wrap(i, n, mode):
     """Texel index i on an axis of n texels under a wrap mode; -1 = outside (black)."""
     if mode == _REPEAT:

@@ -20,7 +20,7 @@ from . import compose
 from .camera import eye_ray
 from .clip_planes import clip_eye_rays
 from .film import Image, box_filter, majority
-from .integrator import PATH_TYPES, RayCounts
+from .integrator import PATH_TYPES, NextQueue, RayCounts, ShadowQueue, SurfaceQueue
 from .jit import kernel
 from .motion import affine_at, decompose, time_sample
 from .sampling import multijitter, uniform2_1
@@ -281,8 +281,6 @@ def memory_estimate(settings: RenderSettings) -> dict:
     and next-ray queues (reflections and transmissions: twice the batch) and the shadow queue of
     :data:`SHADOW_SLOTS` (twice: a depth's layers are joined into one copy). The queues' row sizes are read from
     their definitions in :mod:`tracer.integrator`. The scene and its BVH are not counted (the caller holds them)."""
-    from .integrator import NextQueue, ShadowQueue, SurfaceQueue
-
     settings = settings.validate()
     row = lambda q: sum(a.nbytes for a in q if isinstance(a, np.ndarray)) + sum(  # noqa: E731
         row(a) for a in q if isinstance(a, tuple))

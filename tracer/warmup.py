@@ -13,15 +13,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from .builder import SceneBuilder
+from .camera import Camera
+from .jit import mark_kernels_cached
+from .lights import AreaLight, DistantLight, PointLight, SpotLight
+from .motion import Motion, curve_table
+from .render import render
+from .settings import RenderSettings
+
 
 def compile_kernels() -> None:
     """Render an 8×8 scene that touches every kernel specialisation a render uses."""
-    from .builder import SceneBuilder
-    from .camera import Camera
-    from .lights import AreaLight, DistantLight, PointLight, SpotLight
-    from .render import render
-    from .settings import RenderSettings
-
     b = SceneBuilder()
     tex = b.add_texture(np.ones((2, 2, 3), np.float32))
     plain = b.add_material("plain", diffuse=(0.5, 0.5, 0.5), specular=(0.1, 0.1, 0.1), emission=(0.01, 0, 0),
@@ -51,16 +53,12 @@ def compile_kernels() -> None:
     render(_with_motion(b), settings)
     b.materials[glass]["alpha"] = 1.0  # nothing see-through: shadow rays take plain occlusion (tracer/alpha.py)
     render(b.build(), settings)
-    from .jit import mark_kernels_cached
-
     mark_kernels_cached()
 
 
 def _with_motion(b):
     """The warm-up scene with everything moving across the shutter: the plain quad by its transform, the glass quad
     by its vertices, the camera, and a shutter curve (every timed path of the kernels)."""
-    from .motion import Motion, curve_table
-
     shift = np.eye(4)
     shift[:3, 3] = (0.1, 0.0, 0.0)
     eye = b.camera.camera_to_world

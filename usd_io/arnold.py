@@ -11,34 +11,23 @@ Surfaces:
     arnold:flat               unlit ``color``: written as emission (black diffuse): it shows its colour whatever the
                               light; as an emitter it also lights its surroundings a little (documented)
 
-Nodes upstream of an input (``shade_network.source`` asks :func:`upstream`):
-
-    arnold:image              a texture lookup: ``filename``; ``uvset`` (empty: the mesh's default UVs);
-                              uv · (sscale, tscale) + (soffset, toffset); ``sflip``/``tflip`` (s → 1 − s);
-                              ``multiply``/``offset`` as scale/bias; ``swrap``/``twrap`` (periodic → repeat,
-                              clamp, mirror, black); ``color_space`` ("sRGB", "linear"/"Raw" → raw, else auto)
-    arnold:user_data_rgb      a primvar read (``attribute``, fallback ``default``): vertex colour
-    arnold:user_data_float    the same, one channel
-    arnold:flat, checkerboard, ramp_rgb, ramp_float, color_correct, color_jitter
-                              written into the material's shader graph (``usd_io.arnold_patterns``)
-
-Anything else upstream is ``Unsupported`` (one warning naming the node; the input's value is used). A pattern
-node (or ``arnold:image``) connected as the surface itself is drawn as Arnold draws it: its colour, unlit (as
-``arnold:flat``).
+Nodes upstream of an input (``arnold:image``, ``arnold:user_data_*`` and the pattern nodes) are read by
+:mod:`usd_io.arnold_patterns`; anything else upstream is ``Unsupported`` (one warning naming the node; the input's
+value is used). A pattern node (or ``arnold:image``) connected as the surface itself is drawn as Arnold draws it: its
+colour, unlit (as ``arnold:flat``).
 """
 
 from __future__ import annotations
 
 import numpy as np
-from pxr import Sdf
+from pxr import Sdf, UsdShade
 
 from . import shade_network as net
-from .arnold_patterns import PATTERNS
+from .arnold_patterns import PATTERNS, upstream
 
-#: Arnold surface ids read as a MaterialX family (a key of ``material.MX_SURFACES``).
+#: Arnold surface ids read as a MaterialX family (a key of ``surfaces.MX_SURFACES``).
 AS_MATERIALX = {"arnold:standard_surface": "standard_surface", "arnold:openpbr_surface": "open_pbr_surface"}
 SIMPLE_SURFACES = ("arnold:lambert", "arnold:standard", "arnold:flat") + PATTERNS[1:] + ("arnold:image",)
-_WRAP = {"periodic": "repeat", "clamp": "clamp", "mirror": "mirror", "black": "black", "file": "useMetadata"}
 
 
 def is_arnold(shader) -> bool:
@@ -79,44 +68,6 @@ def simple_surface(table, s, label: str, needs):
     return None
 
 
-def upstream(node, output: str, fallback, time):
-    """What an Arnold node upstream of an input reads as (TextureLookup, PrimvarLookup), or None."""
-    sid = net.shader_id(node)
-    if sid in PATTERNS:
-        return net.GraphLookup(str(node.GetPath()), node, output, fallback)
-    if sid == "arnold:image":
-        return image_lookup(node, output, time)
-    if sid in ("arnold:user_data_rgb", "arnold:user_data_rgba", "arnold:user_data_float"):
-        name = str(net.value(node, "attribute", "", time) or "")
-        default = net.value(node, "default", fallback, time)
-        return net.PrimvarLookup(str(node.GetPath()), name, default, sid) if name else None
-    return None
-
-
-def image_lookup(node, output: str, time) -> net.TextureLookup:
-    v = lambda name, d: net.value(node, name, d, time)  # noqa: E731
-    f = lambda name, d: float(net.floats(v(name, d), 1, (d,))[0])  # noqa: E731
-    asset = v("filename", None)
-    space = str(v("color_space", "auto") or "auto")
-    colorspace = "sRGB" if space.lower() == "srgb" else "raw" if space.lower() in ("linear", "raw") else "auto"
-    ss, ts, so, to = f("sscale", 1.0), f("tscale", 1.0), f("soffset", 0.0), f("toffset", 0.0)
-    m = np.array([[ss, 0.0, so], [0.0, ts, to], [0.0, 0.0, 1.0]])
-    if bool(v("sflip", False)):
-        m = np.array([[-1.0, 0.0, 1.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]) @ m
-    if bool(v("tflip", False)):
-        m = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 1.0], [0.0, 0.0, 1.0]]) @ m
-    mult = net.floats(v("multiply", (1.0, 1.0, 1.0)), 3, (1.0, 1.0, 1.0))
-    off = net.floats(v("offset", (0.0, 0.0, 0.0)), 3, (0.0, 0.0, 0.0))
-    missing = net.floats(v("missing_texture_color", (0.0, 0.0, 0.0, 1.0)), 4, (0.0, 0.0, 0.0, 1.0))
-    uvset = str(v("uvset", "") or "")
-    return net.TextureLookup(
-        node=str(node.GetPath()), asset=asset if isinstance(asset, Sdf.AssetPath) else None,
-        channel=net.CHANNELS.get(output, -1), uv=uvset or None, transform=m, scale=tuple(mult) + (1.0,),
-        bias=tuple(off) + (0.0,), fallback=missing, wrap_s=_WRAP.get(str(v("swrap", "periodic")), "repeat"),
-        wrap_t=_WRAP.get(str(v("twrap", "periodic")), "repeat"), colorspace=colorspace,
-        layer=net.file_layer(node, time, "filename"))
-
-
 #: Arnold render globals (``arnold:global:NAME`` on a RenderSettings prim, naming an ArnoldNodeGraph) that draw
 #: something, and what this tracer does without them.
 RENDER_GLOBALS = {"background": "rays that leave the scene see the stage's dome or background instead",
@@ -127,8 +78,6 @@ def render_globals(stage, prims, warn) -> None:
     """One warning per Arnold background/atmosphere shader a RenderSettings prim names (``arnold:global:background``
     = "/sky_graph", whose ``outputs:background`` is e.g. an ``arnold:physical_sky``): Arnold-only content this
     tracer does not draw. ``prims``: the stage's prims as the reader traversed them."""
-    from pxr import UsdShade
-
     for prim in prims:
         if prim.GetTypeName() != "RenderSettings":
             continue

@@ -1,6 +1,14 @@
-"""Arnold pattern nodes written into the material's shader graph (:mod:`tracer.shader_graph`), through the same
-translator as MaterialX networks (:class:`usd_io.mtlx_graph.Translator`): ``shade_network.source`` reads an input
-driven by one of :data:`PATTERNS` as a ``GraphLookup``, and the translator asks :func:`graph_node` for its value.
+"""Arnold nodes upstream of a surface input (``shade_network.source`` asks :func:`upstream`):
+
+    arnold:image              a texture lookup: ``filename``; ``uvset`` (empty: the mesh's default UVs);
+                              uv · (sscale, tscale) + (soffset, toffset); ``sflip``/``tflip`` (s → 1 − s);
+                              ``multiply``/``offset`` as scale/bias; ``swrap``/``twrap`` (periodic → repeat,
+                              clamp, mirror, black); ``color_space`` ("sRGB", "linear"/"Raw" → raw, else auto)
+    arnold:user_data_rgb      a primvar read (``attribute``, fallback ``default``): vertex colour
+    arnold:user_data_float    the same, one channel
+    the pattern nodes below   a ``GraphLookup``: written into the material's shader graph (:mod:`tracer.shader_graph`)
+                              through the same translator as MaterialX networks
+                              (:class:`usd_io.mtlx_graph.Translator`), which asks :func:`graph_node` for the value
 
 Inputs take Arnold's defaults when unauthored; an input connected to another node reads that node (an Arnold
 pattern, a MaterialX node); an output named ``r``/``g``/``b``/``a`` (or ``x``/``y``/``z``) is that lane.
@@ -21,7 +29,7 @@ pattern, a MaterialX node); an output named ``r``/``g``/``b``/``a`` (or ``x``/``
                          with the input by ``mask``
     arnold:color_jitter  its ``input``, un-jittered (one warning): the random gain/hue/saturation per object, face
                          or user-data value come from Arnold's own hash, which is not published
-    arnold:image         a texture lookup (``usd_io.arnold.image_lookup``); arnold:user_data_rgb/float a primvar
+    arnold:image         a texture lookup (:func:`image_lookup`); arnold:user_data_rgb/float a primvar
 
 Any other Arnold node upstream reads as its input's fallback, named in one warning.
 """
@@ -29,8 +37,10 @@ Any other Arnold node upstream reads as its input's fallback, named in one warni
 from __future__ import annotations
 
 import numpy as np
+from pxr import Sdf
 
-from . import shade_network as net
+from . import shade_types as net
+from .shade_types import V
 
 #: Arnold nodes :func:`graph_node` writes into the graph.
 PATTERNS = ("arnold:flat", "arnold:checkerboard", "arnold:ramp_rgb", "arnold:ramp_float", "arnold:color_correct",
@@ -38,6 +48,47 @@ PATTERNS = ("arnold:flat", "arnold:checkerboard", "arnold:ramp_rgb", "arnold:ram
 #: ramp interpolation ids -> the tracer's rgb_ramp interpolation.
 RAMP_INTERPOLATION = {0: "CONSTANT", 1: "LINEAR", 2: "CARDINAL", 3: "B_SPLINE"}
 _LANES = {"r": 0, "g": 1, "b": 2, "a": 3, "x": 0, "y": 1, "z": 2}
+#: arnold:image swrap/twrap -> UsdUVTexture wrap tokens.
+_WRAP = {"periodic": "repeat", "clamp": "clamp", "mirror": "mirror", "black": "black", "file": "useMetadata"}
+
+
+def upstream(node, output: str, fallback, time):
+    """What an Arnold node upstream of an input reads as (TextureLookup, PrimvarLookup, GraphLookup for a pattern),
+    or None (:func:`usd_io.shade_network.source` asks)."""
+    sid = net.shader_id(node)
+    if sid in PATTERNS:
+        return net.GraphLookup(str(node.GetPath()), node, output, fallback)
+    if sid == "arnold:image":
+        return image_lookup(node, output, time)
+    if sid in ("arnold:user_data_rgb", "arnold:user_data_rgba", "arnold:user_data_float"):
+        name = str(net.value(node, "attribute", "", time) or "")
+        default = net.value(node, "default", fallback, time)
+        return net.PrimvarLookup(str(node.GetPath()), name, default, sid) if name else None
+    return None
+
+
+def image_lookup(node, output: str, time) -> net.TextureLookup:
+    v = lambda name, d: net.value(node, name, d, time)  # noqa: E731
+    f = lambda name, d: float(net.floats(v(name, d), 1, (d,))[0])  # noqa: E731
+    asset = v("filename", None)
+    space = str(v("color_space", "auto") or "auto")
+    colorspace = "sRGB" if space.lower() == "srgb" else "raw" if space.lower() in ("linear", "raw") else "auto"
+    ss, ts, so, to = f("sscale", 1.0), f("tscale", 1.0), f("soffset", 0.0), f("toffset", 0.0)
+    m = np.array([[ss, 0.0, so], [0.0, ts, to], [0.0, 0.0, 1.0]])
+    if bool(v("sflip", False)):
+        m = np.array([[-1.0, 0.0, 1.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]) @ m
+    if bool(v("tflip", False)):
+        m = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 1.0], [0.0, 0.0, 1.0]]) @ m
+    mult = net.floats(v("multiply", (1.0, 1.0, 1.0)), 3, (1.0, 1.0, 1.0))
+    off = net.floats(v("offset", (0.0, 0.0, 0.0)), 3, (0.0, 0.0, 0.0))
+    missing = net.floats(v("missing_texture_color", (0.0, 0.0, 0.0, 1.0)), 4, (0.0, 0.0, 0.0, 1.0))
+    uvset = str(v("uvset", "") or "")
+    return net.TextureLookup(
+        node=str(node.GetPath()), asset=asset if isinstance(asset, Sdf.AssetPath) else None,
+        channel=net.CHANNELS.get(output, -1), uv=uvset or None, transform=m, scale=tuple(mult) + (1.0,),
+        bias=tuple(off) + (0.0,), fallback=missing, wrap_s=_WRAP.get(str(v("swrap", "periodic")), "repeat"),
+        wrap_t=_WRAP.get(str(v("twrap", "periodic")), "repeat"), colorspace=colorspace,
+        layer=net.file_layer(node, time, "filename"))
 
 
 def _input(tr, view, name: str, t: str, default):
@@ -56,15 +107,11 @@ def _uniform(view, name: str, default):
 
 
 def _uv(tr, view):
-    from .mtlx_graph import V
-
     return V("vector2", tr.uvmap(str(_uniform(view, "uvset", "") or "")))
 
 
 def graph_node(tr, view, output: str):
     """The value (a ``mtlx_graph.V``) of output ``output`` of the Arnold node ``view`` (a ``mtlx_graph.UsdNode``)."""
-    from .mtlx_graph import V
-
     kind = view.sid.split(":", 1)[1]
     fn = _NODES.get(kind)
     if fn is None:
@@ -78,9 +125,6 @@ def graph_node(tr, view, output: str):
 
 def _other(tr, view):
     """An Arnold image or user-data node inside a pattern network, else one warning and black."""
-    from .arnold import upstream
-    from .mtlx_graph import V
-
     got = upstream(view.s, "rgb", (0.0, 0.0, 0.0), tr.time)
     if isinstance(got, net.TextureLookup):
         uvl, fallback = tr.table._texture(got, tr.label, view.name, tr.needs)
@@ -105,8 +149,6 @@ def _flat(tr, view):
 
 
 def _checkerboard(tr, view):
-    from .mtlx_graph import V
-
     uv = _uv(tr, view)
     f = lambda name, d: _input(tr, view, name, "float", d).x  # noqa: E731
     s = tr.math("MULTIPLY_ADD", tr.lane(uv, 0), f("u_frequency", 1.0), f("u_offset", 0.0))
@@ -149,8 +191,6 @@ def _ramp_coordinate(tr, view):
 
 
 def _ramp(tr, view, values: str, t: str):
-    from .mtlx_graph import V
-
     pos = [float(p) for p in (_uniform(view, "position", None) or [])]
     vals = _uniform(view, values, None)
     vals = [] if vals is None else [tuple(net.floats(c, 3, (0.0, 0.0, 0.0))) for c in vals]
@@ -173,8 +213,6 @@ def _ramp(tr, view, values: str, t: str):
 
 
 def _color_correct(tr, view):
-    from .mtlx_graph import V
-
     x = _input(tr, view, "input", "color4", (0.0, 0.0, 0.0, 1.0))
     c = V("color3", x.x)
     f = lambda name, d: _input(tr, view, name, "float", d)  # noqa: E731

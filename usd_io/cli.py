@@ -25,11 +25,13 @@ zero-padded frame number (``out.####.png``); without them, ``.####`` is inserted
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import re
 import sys
 import traceback
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -176,6 +178,7 @@ def cmd_render(args) -> int:
     except UsdInputError as exc:
         raise BadInput(f"{', '.join(args.scenes)}: {exc}") from None
     outputs = Outputs.of(settings, args.exposure)
+    options = RenderOptions.from_args(args)
     frames = parse_frames(args.frames) if args.frames else [args.time]
     global _helper
     if not args.scheduler:  # a cold kernel cache is filled by two processes (tracer/kernel_plan.py)
@@ -194,14 +197,17 @@ def _render_scenes(args, settings, outputs, frames) -> int:
     failed = 0
     for scene_path in args.scenes:
         try:
-            out = output_for(args.output, scene_path) if args.output else _product_output(args, scene_path)
-            check_output(out)
+            if args.output:
+                check_output(out := output_for(args.output, scene_path))
+            stage = open_stage(scene_path)  # once: its products, each product's render and every frame read it
+            if not args.output:
+                check_output(out := _product_output(args, scene_path, stage))
             request = StageRequest.from_args(args, scene_path)
-            jobs = [(request, out)] + ([] if args.output else _more_products(args, request))
+            jobs = [(request, out)] + ([] if args.output else _more_products(args, request, stage))
             for _r, check_out in jobs[1:]:
                 check_output(check_out)
             for job_request, job_out in jobs:  # without -o: every RenderProduct (usd_io.render_settings)
-                if render_file(job_request, settings, job_out, frames, outputs, args) != EXIT_OK:
+                if render_file(job_request, settings, job_out, frames, outputs, options, stage) != EXIT_OK:
                     failed += 1
         except ValueError as exc:  # UsdInputError (BadInput) is a ValueError
             if len(args.scenes) == 1:
@@ -225,17 +231,41 @@ _kernels_ready = False
 _helper = None  # the second compiling process of this render (tracer.kernel_plan.Helper), while it runs
 
 
-def render_file(request: StageRequest, settings, output: str, frames, outputs: Outputs, args) -> int:
-    """Render one stage (all its frames) to ``output``; UsdInputError for what the user can fix.
-    Returns the exit code (a farm reports failed frames itself and returns 2)."""
-    from .stage import open_stage
+@dataclass(frozen=True)
+class RenderOptions:
+    """How ``whitted render`` runs, besides the stage request, the settings and the outputs: progress output, and
+    the Dask scheduler with its two options (None: render here)."""
 
-    stage = open_stage(request.path)  # a file that is not a stage says so before anything waits for the kernels
-    if args.scheduler:
+    quiet: bool = False
+    scheduler: str | None = None
+    worker_writes: bool = False
+    ship_assets: bool = False
+
+    @classmethod
+    def from_args(cls, args) -> "RenderOptions":
+        return cls(**{f.name: getattr(args, f.name) for f in dataclasses.fields(cls)})
+
+
+def open_stage(path: str):
+    """The stage at ``path`` (usd_io.stage.open_stage: a file that is not a stage says so here, before anything
+    waits for the kernels)."""
+    from .stage import open_stage as _open  # here: pxr loads after the flags are checked (start-up)
+
+    return _open(path)
+
+
+def render_file(request: StageRequest, settings, output: str, frames, outputs: Outputs, options: RenderOptions,
+                stage=None) -> int:
+    """Render one stage (all its frames) to ``output``; UsdInputError for what the user can fix. ``stage``: the
+    stage already opened from ``request.path`` (else it is opened here). Returns the exit code (a farm reports
+    failed frames itself and returns 2)."""
+    if stage is None:
+        stage = open_stage(request.path)
+    if options.scheduler:
         from .farm import FarmOptions, render_on_farm
 
-        farm = FarmOptions(args.scheduler, worker_writes=args.worker_writes, ship_assets=args.ship_assets,
-                           quiet=args.quiet)
+        farm = FarmOptions(options.scheduler, worker_writes=options.worker_writes, ship_assets=options.ship_assets,
+                           quiet=options.quiet)
         return render_on_farm(request, settings, frames, output, outputs, farm)
     from tracer import render
 
@@ -247,7 +277,7 @@ def render_file(request: StageRequest, settings, output: str, frames, outputs: O
             settings, outputs = _render_vars(info, settings, outputs)
         if frame == frames[0]:  # an impossible size is refused before the kernels, the PNG stream or the film
             check_size(request.path, settings.with_(width=info.width, height=info.height))
-        _prepare_kernels(args.quiet)
+        _prepare_kernels(options.quiet)
         out = frame_path(output, frame, many)
         stream = outputs.stream(out, info.width, info.height)  # a PNG is encoded while the tiles are traced
         try:
@@ -259,7 +289,7 @@ def render_file(request: StageRequest, settings, output: str, frames, outputs: O
             raise
         _warn_not_finite(image.rgba, request.path)
         outputs.write(image, out, stream)
-        if not args.quiet:
+        if not options.quiet:
             s = image.stats
             print(f"{out}: {info.width}x{info.height}, {len(scene.triangles):,} triangles, "
                   f"{s['rays']['total']:,} rays in {s['seconds']:.2f} s", file=sys.stderr)
@@ -279,12 +309,11 @@ def check_size(scene_path: str, settings) -> None:
         raise BadInput(f"{scene_path}: {exc} (use a smaller --width/--height)") from None
 
 
-def _product_output(args, scene_path: str) -> str:
+def _product_output(args, scene_path: str, stage) -> str:
     """Without ``-o``: the first productName of the stage's RenderSettings (usd_io.render_settings)."""
     from .render_settings import product_names
-    from .stage import open_stage
 
-    names = product_names(open_stage(scene_path), getattr(args, "render_settings_prim", None))
+    names = product_names(stage, getattr(args, "render_settings_prim", None))
     if not names:
         raise BadInput(f"{scene_path}: -o OUT is required (the stage has no RenderProduct with a productName)")
     return _confined(args, scene_path, names[0])
@@ -298,15 +327,12 @@ def _confined(args, scene_path: str, name: str) -> str:
         raise BadInput(f"{scene_path}: {exc}") from None
 
 
-def _more_products(args, request) -> list:
+def _more_products(args, request, stage) -> list:
     """(request, output path) of the RenderProducts after the first: each renders with its own camera, size and
     RenderVars (``--render-settings`` naming the product prim)."""
-    import dataclasses
-
     from .render_settings import products
-    from .stage import open_stage
 
-    more = products(open_stage(request.path), request.render_settings_prim)[1:]
+    more = products(stage, request.render_settings_prim)[1:]
     return [(dataclasses.replace(request, render_settings_prim=prim), _confined(args, request.path, name))
             for name, prim in more]
 
@@ -316,8 +342,6 @@ def _render_vars(info, settings, outputs):
     spec = info.render_settings
     if spec is None or not spec.aovs or settings.aovs:
         return settings, outputs
-    import dataclasses
-
     return settings.with_(aovs=tuple(spec.aovs)), dataclasses.replace(outputs, aovs=tuple(spec.aovs))
 
 

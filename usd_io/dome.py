@@ -33,6 +33,8 @@ from __future__ import annotations
 import numpy as np
 from pxr import Sdf, UsdGeom, UsdLux
 
+import tracer
+
 from .texture_files import read_texture_file
 
 #: Dome-local (pole +Y, centre +Z) -> Cycles equirect frame (pole +Z, centre +X).
@@ -99,6 +101,4 @@ def dome_texture(prim, world: np.ndarray, time, colour: np.ndarray, warn):
 
 def environment(parts: dict):
     """``tracer.Environment`` from :func:`dome_texture`'s image and rotation."""
-    import tracer
-
     return tracer.Environment(image=parts["image"], strength=1.0, rotation=parts["rotation"])

@@ -7,13 +7,18 @@ sublayer, so ``usdview`` or Blender opens the rays inside the scene.
 
 from __future__ import annotations
 
+import json
 import os
 
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
+from tracer import render, write_image
 from tracer.camera import ORTHOGRAPHIC
-from tracer.explain import RAY_KINDS, TYPE_COLORS, segments
+from tracer.explain import RAY_KINDS, TYPE_COLORS, draw_overlay, explain_pixel, format_tree, segments
+
+from .outputs import BadInput, Outputs, check_output, print_warnings
+from .request import StageRequest, settings_from_args
 
 #: Curve widths: a ray of weight 1 is this fraction of the scene's size wide; thinner with less weight.
 WIDTH_FRACTION = 0.004
@@ -72,14 +77,6 @@ def cmd_explain(args) -> int:
     """``whitted explain SCENE --pixel X Y``: the tree on stdout, and the JSON / USD / PNG files asked for. Takes
     render's stage and settings flags (usd_io/request.py), so the explained colour is the pixel ``whitted render``
     writes with the same flags (before ``--exposure``, which only the ``--png`` picture gets)."""
-    import json
-
-    from tracer import render
-    from tracer.explain import draw_overlay, explain_pixel, format_tree
-
-    from .outputs import BadInput, Outputs, check_output, print_warnings
-    from .request import StageRequest, settings_from_args
-
     for out, exts in ((args.json, (".json",)), (args.usd, (".usda", ".usd", ".usdc")), (args.png, (".png",))):
         if out is not None:
             check_output(out, exts)
@@ -100,8 +97,6 @@ def cmd_explain(args) -> int:
     if args.png:
         image = render(scene, settings.with_(progress=False))
         outputs.expose(image)
-        from tracer import write_image
-
         write_image(args.png, draw_overlay(ex, scene, image.rgba))
     print_warnings(info)
     return 0

@@ -84,7 +84,7 @@ def detect(stage) -> Writer | None:
 
 def _has_dome(stage) -> bool:
     """Whether the stage holds a DomeLight: only the nits-writing branch builds exported Blender's world."""
-    from pxr import Usd
+    from pxr import Usd  # here: request.py reads UNITS for the CLI's flags before pxr is loaded
 
     return any(p.GetTypeName() in ("DomeLight", "DomeLight_1") for p in stage.Traverse(Usd.TraverseInstanceProxies()))
 

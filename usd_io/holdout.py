@@ -6,6 +6,7 @@ not read from USD. A matte object is a holdout object in the tracer (``Scene.obj
 from __future__ import annotations
 
 import numpy as np
+from pxr import UsdGeom
 
 MATTE = "arnold:matte"
 
@@ -13,8 +14,6 @@ MATTE = "arnold:matte"
 def holdout_flags(stage, object_names: list, time) -> np.ndarray | None:
     """(O,) bool per object id from the prims its name is the path of (``path[...]`` for a PointInstancer's
     pieces: the instancer's); None when no object is a matte."""
-    from pxr import UsdGeom
-
     out = np.zeros(len(object_names), bool)
     seen: dict = {}
     for i, name in enumerate(object_names):

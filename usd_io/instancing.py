@@ -11,6 +11,8 @@ it (reader.py).
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 from pxr import Usd, UsdGeom
 
@@ -43,9 +45,6 @@ def instancer_motion(stage, names: list, instance_object_ids, times, base) -> di
     ``velocities``/``angularVelocities`` (and ``accelerations``) from the sample at ``base``) with the instancer's
     and the piece's own transforms at each time. Rows of nested instancers, or of instancers whose instances were
     filtered, are left out (they stand still)."""
-    import re
-
-
     pattern = re.compile(r"^(/[^\[]*)\[(/[^\]]*)\]\[(\d+)\]$")
     groups: dict = {}
     for row, oid in enumerate(np.asarray(instance_object_ids).tolist()):

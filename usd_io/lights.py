@@ -54,6 +54,7 @@ from tracer import AreaLight, DistantLight, PointLight, SpotLight
 from tracer.linking import LightLink
 
 from .dome import dome_texture
+from .exporters import KIT_EV, NITS_TO_W_PER_M2, detect
 
 LIGHT_TYPES = ("SphereLight", "DistantLight", "RectLight", "DiskLight", "DomeLight", "DomeLight_1", "CylinderLight")
 _WHITE_6500 = np.asarray(UsdLux.BlackbodyTemperatureAsRgb(6500.0), dtype=np.float64)
@@ -115,8 +116,6 @@ def _axis_scales(m):
 
 def blender_authored(stage) -> bool:
     """Whether the stage's root layer was written by Blender's USD exporter (``doc = "Blender v…"``)."""
-    from .exporters import detect
-
     w = detect(stage)
     return w is not None and w.units.startswith("blender")
 
@@ -143,8 +142,6 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
     name = str(prim.GetPath())
     rgb = light_colour(prim, time)
     if units == "kit":
-        from .exporters import KIT_EV
-
         rgb = rgb * 2.0 ** KIT_EV
     if units in ("blender-legacy", "blender-nits"):
         got = _old_blender(t, prim, world, time, rgb, units, warn)
@@ -227,8 +224,7 @@ def _old_blender(t, prim, world, time, rgb, units, warn):
     """Lights of Blender 2.83–3.1 (I = P/100, no normalize) and 3.2–3.6 (nits), converted to the tracer's units
     from the power P (W) or strength S (W/m²) the Blender scene had (usd_io.exporters documents both exporters).
     None for types these exporters never wrote (read as the spec says)."""
-    from .exporters import NITS_TO_W_PER_M2 as K
-
+    K = NITS_TO_W_PER_M2
     name = str(prim.GetPath())
     pos, down = world[:3, 3], -world[:3, 2]
     legacy = units == "blender-legacy"

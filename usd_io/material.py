@@ -48,18 +48,20 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from pxr import UsdGeom, UsdShade
+from tracer.materials import PRINCIPLED_DEFAULTS as _P
+from tracer.materials import f0_from_ior as _f0_from_ior
+from tracer.shader_compile import add_graph
 from tracer.shader_graph import Graph, ImageRef
 
 from . import shade_network as net
-from .material_primvars import find_primvar, mesh_primvars
+from .material_primvars import DEFAULT_UV, find_primvar, mesh_primvars
 from .preview_ranges import clamp_preview_inputs
-from .surfaces import other_surface
+from .surfaces import MX_SURFACES, other_surface
 from .texture_assets import open_texture
 from .texture_files import TextureCache, resolve_wrap
 
 FALLBACK_DIFFUSE = (0.18, 0.18, 0.18)  # UsdPreviewSurface's diffuseColor fallback
 DEFAULT_DISPLAY = (0.5, 0.5, 0.5)  # Hydra's colour for geometry with neither material nor displayColor
-DEFAULT_UV = "<default>"  # the name of UV set 0: each mesh's st, or its only UV primvar (material_primvars)
 
 #: UsdPreviewSurface inputs and their spec fallbacks.
 PREVIEW_DEFAULTS = dict(diffuseColor=FALLBACK_DIFFUSE, emissiveColor=(0.0, 0.0, 0.0), useSpecularWorkflow=0,
@@ -70,8 +72,7 @@ PREVIEW_DEFAULTS = dict(diffuseColor=FALLBACK_DIFFUSE, emissiveColor=(0.0, 0.0, 
 
 def f0_from_ior(ior: float) -> float:
     """UsdPreviewSurface's F0 of a dielectric (:func:`tracer.materials.f0_from_ior`, the one formula)."""
-    from tracer.materials import f0_from_ior as f0
-    return float(f0(ior))
+    return float(_f0_from_ior(ior))
 
 
 @dataclass(eq=False)
@@ -361,7 +362,8 @@ class MaterialTable:
         return default
 
     def _graph(self, src, label, name, needs):
-        from .mtlx_graph import MxProgram  # a MaterialX network, written into the graph by principled_graph
+        # here, not at import: mtlx_graph loads the MaterialX library, which a stage without networks never needs
+        from .mtlx_graph import MxProgram
 
         return MxProgram(self, src, label, name, needs)
 
@@ -456,7 +458,6 @@ class MaterialTable:
 
     def add_material(self, name: str, fields: dict, needs: MeshNeeds | None = None) -> int:
         """Write one surface as a shader graph (tracer.shader_graph) and add its row (tracer.shader_compile)."""
-        from tracer.shader_compile import add_graph
         color = needs.color[0] if needs is not None and needs.color is not None else "displayColor"
         return add_graph(self.b, principled_graph(name, fields, color), self.warn, self.uv_set_index, name=name)
 
@@ -522,21 +523,6 @@ class MaterialTable:
         return out
 
 
-#: MaterialX surfaces: input names and the defaults of their node definitions (base colour = weight × colour).
-MX_SURFACES = {
-    "open_pbr_surface": dict(weight="base_weight", weight_default=1.0, base="base_color",
-                             base_default=(0.8, 0.8, 0.8), metal="base_metalness", rough="specular_roughness",
-                             rough_default=0.3, normal="geometry_normal", trans="transmission_weight",
-                             ior="specular_ior", tint="transmission_color", spec="specular_weight",
-                             dropped=("coat_weight", "emission_luminance", "subsurface_weight", "fuzz_weight")),
-    "standard_surface": dict(weight="base", weight_default=0.8, base="base_color", base_default=(1.0, 1.0, 1.0),
-                             metal="metalness", rough="specular_roughness", rough_default=0.2, normal="normal",
-                             trans="transmission", ior="specular_IOR", tint="transmission_color",
-                             emission="emission", emission_color="emission_color", spec="specular",
-                             dropped=("coat", "subsurface", "sheen")),
-}
-
-
 #: Shader ids of UsdPreviewSurface: its own, and MaterialX's node definition of it (what usdMtlx writes for a
 #: ``<UsdPreviewSurface>`` in a .mtlx document, e.g. on ``outputs:mtlx:surface``).
 PREVIEW_SURFACE_IDS = ("UsdPreviewSurface", "ND_UsdPreviewSurface_surfaceshader")
@@ -565,23 +551,82 @@ def _is_default(src, default) -> bool:
 
 
 # ---------------------------------------------------------------------------------------------- the IR
+#: Each field's value where a description leaves it out: the Principled BSDF's defaults (tracer.materials,
+#: Blender's), emission being Emission Color × Emission Strength, and UsdPreviewSurface's own diffuseColor fallback.
+FIELD_DEFAULTS = {"base_color": FALLBACK_DIFFUSE, "roughness": _P["Roughness"], "metallic": _P["Metallic"],
+                  "specular": _P["Specular IOR Level"], "alpha": _P["Alpha"], "ior": _P["IOR"],
+                  "transmission": _P["Transmission Weight"],
+                  "emission": tuple(c * _P["Emission Strength"] for c in _P["Emission Color"])}
+
+
 def principled_graph(name: str, f: dict, color_primvar: str = "displayColor") -> Graph:
-    """A reader description (:meth:`MaterialTable.model` fields) as a shader graph (tracer.shader_fields); each
-    :class:`UVLookup` becomes a ``usd_uv_texture`` node, its st a ``uvmap`` through ``usd_transform2d``."""
-    from tracer.shader_fields import graph_from_fields
+    """A reader's description (:meth:`MaterialTable.model` fields) written as one ``principled_bsdf`` shader graph,
+    the tracer's one front-end contract (tracer.shader_graph). A field left out is its :data:`FIELD_DEFAULTS`
+    value. A parameter P read from a lookup (``P_texture``, ``P_channel``: −1 rgb — a scalar parameter then reads
+    the lookup's luminance —, 0..3 one channel, which a colour reads as grey) is its constant × the lookup; each
+    :class:`UVLookup` becomes a ``usd_uv_texture`` node, its st a ``uvmap`` through ``usd_transform2d``, and a
+    MaterialX network (:class:`usd_io.mtlx_graph.MxProgram`) its translated nodes, one translator per graph. The
+    normal map is a ``normal_map`` node fed value/2 + 1/2 (the lookup gives the tangent-space normal itself)."""
+    g = Graph(name)
+    nodes: dict = {}  # id(lookup) -> (outputs, UV map name): each lookup written once
+    translators: dict = {}  # the MaterialX networks' translator of this graph (usd_io.mtlx_graph)
 
-    def texture(g, lk: UVLookup):
-        if hasattr(lk, "write"):  # a MaterialX network (usd_io.mtlx_graph.MxProgram)
-            return lk.write(g)
-        st = g.add("uvmap", attribute=lk.uv if lk.uv not in (None, "st") else "")["UV"]
-        if not np.allclose(lk.transform, np.eye(3)):
-            st = g.add("usd_transform2d", {"in": st}, matrix=np.asarray(lk.transform, np.float64))["result"]
-        node = g.add("usd_uv_texture", {"st": st}, image=lk.image, scale=tuple(lk.scale), bias=tuple(lk.bias),
-                     fallback=tuple(lk.fallback), name=lk.label)
-        return node, lk.uv if lk.uv not in (None, "st") else ""
+    def tex(lk):
+        if id(lk) not in nodes:
+            if hasattr(lk, "write"):  # a MaterialX network (usd_io.mtlx_graph.MxProgram)
+                nodes[id(lk)] = lk.write(g, translators)
+            else:
+                st = g.add("uvmap", attribute=lk.uv if lk.uv not in (None, "st") else "")["UV"]
+                if not np.allclose(lk.transform, np.eye(3)):
+                    st = g.add("usd_transform2d", {"in": st}, matrix=np.asarray(lk.transform, np.float64))["result"]
+                node = g.add("usd_uv_texture", {"st": st}, image=lk.image, scale=tuple(lk.scale),
+                             bias=tuple(lk.bias), fallback=tuple(lk.fallback), name=lk.label)
+                nodes[id(lk)] = node, lk.uv if lk.uv not in (None, "st") else ""
+        return nodes[id(lk)]
 
-    g = graph_from_fields(name, f, texture, color_primvar, base_default=FALLBACK_DIFFUSE)
+    def value(key, colour):
+        lk, ch = f[f"{key}_texture"], int(f.get(f"{key}_channel", -1))
+        node = tex(lk)[0]
+        if ch < 0:
+            return node["rgb"]
+        x = node["rgba"[ch]]
+        return g.add("combine_color", {"Red": x, "Green": x, "Blue": x})["Color"] if colour else x
+
+    def colour(key):
+        const = tuple(float(x) for x in np.broadcast_to(np.asarray(f.get(key, FIELD_DEFAULTS[key]), np.float64), (3,)))
+        if f.get(f"{key}_texture") is None:
+            return const
+        return g.add("vector_math", {"Vector": value(key, True), "Vector_001": const}, operation="MULTIPLY")["Vector"]
+
+    def scalar(key):
+        const = float(f.get(key, FIELD_DEFAULTS[key]))
+        if f.get(f"{key}_texture") is None:
+            return const
+        return g.add("math", {"Value": value(key, False), "Value_001": const}, operation="MULTIPLY")["Value"]
+
+    base = colour("base_color")
+    vc = f.get("vertex_color")
+    if vc is not None and vc is not False:
+        col = g.add("vertex_color", layer_name=color_primvar if vc is True else str(vc))["Color"]
+        base = g.add("vector_math", {"Vector": base, "Vector_001": col}, operation="MULTIPLY")["Vector"]
+    inputs = {"Base Color": base, "Roughness": scalar("roughness"), "Metallic": scalar("metallic"),
+              "Specular IOR Level": scalar("specular"), "Alpha": scalar("alpha"), "Emission Color": colour("emission"),
+              "Emission Strength": 1.0, "IOR": float(f.get("ior", FIELD_DEFAULTS["ior"])),
+              "Transmission Weight": float(f.get("transmission", FIELD_DEFAULTS["transmission"])),
+              "Alpha Threshold": float(f.get("alpha_threshold", 0.0))}
+    if f.get("normal_texture") is not None:
+        node, uv_map = tex(f["normal_texture"])
+        half = g.add("vector_math", {"Vector": node["rgb"], "Vector_001": (0.5, 0.5, 0.5),
+                                     "Vector_002": (0.5, 0.5, 0.5)}, operation="MULTIPLY_ADD")["Vector"]
+        inputs["Normal"] = g.add("normal_map", {"Color": half, "Strength": float(f.get("normal_strength", 1.0))},
+                                 uv_map=uv_map)["Normal"]
+    params = {}
+    if f.get("transmission_tint") is not None:
+        params["transmission_tint"] = tuple(float(x) for x in np.broadcast_to(f["transmission_tint"], (3,)))
+    elif float(f.get("transmission", FIELD_DEFAULTS["transmission"])) > 0:
+        params["transmission_tint"] = (1.0, 1.0, 1.0)
+    bsdf = g.add("principled_bsdf", inputs, **params)
     if f.get("normal_graph") is not None:  # a MaterialX normal network: the Principled BSDF's Normal
-        bsdf = next(n for n in g.nodes.values() if n.type == "principled_bsdf")
-        g.link(f["normal_graph"].value(g).x, bsdf, "Normal")
+        g.link(f["normal_graph"].value(g, translators).x, bsdf, "Normal")
+    g.output(bsdf["BSDF"])
     return g

@@ -20,7 +20,10 @@ from __future__ import annotations
 import numpy as np
 from pxr import Sdf, UsdGeom
 
-from .mesh import expand_primvar
+from .mesh import Triangulation, expand_primvar
+
+#: The name of UV set 0 in ``Scene.uv_sets``: each mesh's default set (st, or its only UV primvar: the rule above).
+DEFAULT_UV = "<default>"
 
 _UV_TYPES = {Sdf.ValueTypeNames.TexCoord2fArray, Sdf.ValueTypeNames.TexCoord2dArray,
              Sdf.ValueTypeNames.TexCoord2hArray, Sdf.ValueTypeNames.Float2Array, Sdf.ValueTypeNames.Double2Array,
@@ -111,8 +114,6 @@ def gprim_colors(prim, data, name, fallback, time, warn):
 def mesh_primvars(prim, data, needs, uv_set_names: list, time, warn):
     """(uv_sets {set index: (T, 3, 2)}, colors (T, 3, 3) or None): the per-corner primvars a mesh's materials read
     (set 0, the mesh's default set, always). Gprims (no primvars) give a constant colour fallback only."""
-    from .mesh import Triangulation
-
     colors = None
     refined = getattr(data, "primvars", None)
     if refined is not None:  # a refined subdivision surface: its primvars came through the refinement (mesh.py)

@@ -24,6 +24,8 @@ import numpy as np
 from pxr import UsdGeom
 
 from tracer.builder import vertex_values
+from tracer.heap import trim
+from tracer.subdivision import refine, refine_batch
 
 #: Interpolations that are one value per point for a mesh.
 _PER_POINT = (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying)
@@ -152,8 +154,6 @@ def read_mesh(prim, time, uv_name="st", subdivision_level: int = COMPLEXITY[DEFA
         return None
     mesh, label, points, counts, indices, left, holes, scheme = cage
     if scheme in SUBDIVIDED and subdivision_level > 0:
-        from tracer.subdivision import refine
-
         job = _subdivision_job(prim, mesh, points, counts, indices, holes, left, scheme, subdivision_level, time,
                                uv_name, label)
         return None if job is None else job[1](refine(**job[0]))
@@ -164,9 +164,6 @@ def read_subdivided(prims, time, uv_name="st", subdivision_level: int = COMPLEXI
     """:func:`read_mesh` of many subdivision surfaces with one :func:`tracer.subdivision.refine_batch` (meshes of
     one topology refined once): {prim path: MeshData, None, or the ValueError read_mesh would raise}. Prims that
     are not subdivided at this level are left out (read them with read_mesh)."""
-    from tracer.heap import trim
-    from tracer.subdivision import refine, refine_batch
-
     out, jobs = {}, []
     if subdivision_level <= 0:
         return out

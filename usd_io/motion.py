@@ -8,7 +8,9 @@ Imports :mod:`usd_io.xform` (matrices), :mod:`usd_io.instancing` (instancers' mo
 from __future__ import annotations
 
 import numpy as np
-from pxr import Usd, UsdGeom
+from pxr import Usd, UsdGeom, UsdRender
+
+import tracer
 
 from .instancing import instancer_motion
 from .mesh import read_mesh
@@ -31,8 +33,6 @@ def shutter_interval(stage, camera_prim, settings_prim=None, time=None):
         return None
     t = time if time is not None else Usd.TimeCode.Default()
     if settings_prim is not None and settings_prim.IsValid():
-        from pxr import UsdRender
-
         base = UsdRender.SettingsBase(settings_prim)
         for attr in (base.GetDisableMotionBlurAttr(), base.GetInstantaneousShutterAttr()):
             if attr and attr.HasAuthoredValue() and attr.Get(t):
@@ -75,8 +75,6 @@ def stage_motion(stage, scene, time, camera_path, settings_path=None, subdivisio
     ``scene.motion`` steps relative to where they were placed, native instances as instance steps, the camera as
     ``Camera.motion`` — and meshes whose points move (time samples, ``velocities``/``accelerations``) as vertex
     steps. Changes ``scene`` in place; nothing when the shutter is closed."""
-    import tracer
-
     base = time if time is not None else Usd.TimeCode.Default()
     cam_prim = stage.GetPrimAtPath(camera_path) if camera_path else None
     settings = stage.GetPrimAtPath(settings_path) if settings_path else None

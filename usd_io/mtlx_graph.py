@@ -32,7 +32,6 @@ boolean) or three (vector2 with z = 0, vector3, color3); color4/vector4 carry th
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import MaterialX as mx
 import numpy as np
@@ -40,24 +39,10 @@ from pxr import Sdf, UsdShade
 
 from . import mtlx
 from . import shade_network as net
-
-WIDTH = {"float": 1, "integer": 1, "boolean": 1, "vector2": 2, "vector3": 3, "color3": 3, "vector4": 4,
-         "color4": 4}
-
-
-@dataclass
-class V:
-    """A MaterialX value: ``t`` its type, ``x`` its first lane (1-wide types) or its first three (an IR constant
-    tuple or a link), ``w`` the fourth lane of color4/vector4."""
-
-    t: str
-    x: object
-    w: object = 1.0
-
-    @property
-    def wide(self) -> int:
-        return WIDTH.get(self.t, 1)
-
+from .arnold_patterns import graph_node as arnold_node
+from .material_primvars import DEFAULT_UV
+from .shade_types import WIDTH, V
+from .texture_assets import authoring_layer
 
 def _py(v):
     """A MaterialX or USD value as a float or a tuple of floats."""
@@ -80,7 +65,7 @@ class UsdNode:
         self.key = self.name = str(shader.GetPath())
 
     def input(self, name: str):
-        a, is_out = net._producer(self.s, name)
+        a, is_out = net.producer(self.s, name)
         if a is None:
             return None
         if is_out:
@@ -112,7 +97,7 @@ class MxNode:
 
 
 class Outs:
-    """A translated value seen as a texture node of :func:`tracer.shader_fields.graph_from_fields`: outputs
+    """A translated value seen as a lookup's node by :func:`usd_io.material.principled_graph`: outputs
     ``rgb`` (three lanes), ``r``, ``g``, ``b`` and ``a``."""
 
     def __init__(self, tr: "Translator", v: V):
@@ -221,9 +206,7 @@ class Translator:
 
     def _node(self, view, output: str) -> V:
         if view.sid.startswith("arnold:") and isinstance(view, UsdNode):  # Arnold patterns (usd_io.arnold_patterns)
-            from .arnold_patterns import graph_node
-
-            return graph_node(self, view, output)
+            return arnold_node(self, view, output)
         nd = mtlx.nodedef(view.sid) if view.sid.startswith("ND_") or view.sid else None
         if nd is None:
             self.warn(view.key, f"MaterialX node {view.name} ({view.sid or 'no shader id'}) has no node definition "
@@ -274,8 +257,6 @@ class Translator:
         return self.const(0.0, t)
 
     def uvmap(self, name: str):
-        from .material import DEFAULT_UV
-
         k = self.table.uv_set_index(name or None)
         self.needs.uv_sets.add(self.table.uv_set_names[k] if name else DEFAULT_UV)
         return self.add("uvmap", out="UV", attribute=name)
@@ -332,8 +313,6 @@ class Translator:
             r = r[1].input(r[2])
         if r is None or r[0] != "const" or r[2] is None or not isinstance(r[1], Sdf.AssetPath):
             return None
-        from .texture_assets import authoring_layer
-
         a = r[2]
         default = self.const(_py(c.uniform("default", 0.0)), "color3").x
         wrap = [net.MX_ADDRESS.get(str(c.uniform(f"{k}addressmode", "periodic")), "repeat") for k in "uv"]
@@ -695,12 +674,13 @@ class _Ctx:
 
 class MxProgram:
     """A MaterialX network driving one surface input (:class:`usd_io.shade_network.GraphLookup`), written into
-    the material's graph when :func:`usd_io.material.principled_graph` writes it (as a texture lookup of
-    :func:`tracer.shader_fields.graph_from_fields`: ``write(g) -> (outputs, UV map name)``)."""
+    the material's graph when :func:`usd_io.material.principled_graph` writes it (as one of its lookups:
+    ``write(g, translators) -> (outputs, UV map name)``). ``translators`` is the writer's, one per graph: the
+    networks of one material share one :class:`Translator` (nodes written once), and nothing is kept on the
+    Graph."""
 
     def __init__(self, table, lookup, label: str, name: str, needs):
         self.table, self.lookup, self.label, self.name, self.needs = table, lookup, label, name, needs
-        self._tr: dict = {}
 
     @property
     def label_text(self) -> str:
@@ -709,19 +689,14 @@ class MxProgram:
     def __repr__(self):
         return self.label_text
 
-    def translator(self, g) -> Translator:
-        if id(g) not in self._tr:
-            trs = getattr(g, "_mx_translators", None)
-            if trs is None:
-                trs = g._mx_translators = {}
-            key = id(self.table)
-            if key not in trs:
-                trs[key] = Translator(self.table, g, self.label, self.needs, self.table.time)
-            self._tr[id(g)] = trs[key]
-        return self._tr[id(g)]
+    def translator(self, g, translators: dict) -> Translator:
+        key = id(self.table)
+        if key not in translators:
+            translators[key] = Translator(self.table, g, self.label, self.needs, self.table.time)
+        return translators[key]
 
-    def value(self, g) -> V:
-        tr = self.translator(g)
+    def value(self, g, translators: dict) -> V:
+        tr = self.translator(g, translators)
         v = tr.out(UsdNode(self.lookup.shader, self.table.time), self.lookup.output)
         k = float(self.lookup.scale)
         if k != 1.0:
@@ -729,6 +704,5 @@ class MxProgram:
                 V(v.t, tr.vmath("MULTIPLY", v.x, (k, k, k)))
         return v
 
-    def write(self, g):
-        tr = self.translator(g)
-        return Outs(tr, self.value(g)), ""
+    def write(self, g, translators: dict):
+        return Outs(self.translator(g, translators), self.value(g, translators)), ""

@@ -32,6 +32,7 @@ from __future__ import annotations
 import numpy as np
 from pxr import UsdGeom
 
+from .curves import curve_widths, tube_mesh
 from .mesh import MeshData, smooth_normals
 
 SAMPLES_PER_SPAN = 8
@@ -188,8 +189,6 @@ def _crossings(q: np.ndarray, poly: np.ndarray) -> np.ndarray:
 
 def nurbs_curve_polylines(prim, time):
     """(points (P, 3), counts (C,), widths (P,) or None) of a NurbsCurves prim sampled into polylines."""
-    from .curves import curve_widths
-
     label = str(prim.GetPath())
     nc = UsdGeom.NurbsCurves(prim)
     pts = nc.GetPointsAttr().Get(time)
@@ -242,8 +241,6 @@ def _open_uniform(n: int, order: int) -> np.ndarray:
 
 
 def read_nurbs_curves(prim, time) -> MeshData | None:
-    from .curves import tube_mesh
-
     got = nurbs_curve_polylines(prim, time)
     if got is None:
         return None

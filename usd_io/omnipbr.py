@@ -34,6 +34,7 @@ import numpy as np
 from pxr import Sdf
 
 from . import shade_network as net
+from .exporters import KIT_EV
 
 #: The inputs read, with OmniPBR.mdl's defaults.
 DEFAULTS = dict(diffuse_color_constant=(0.2, 0.2, 0.2), albedo_brightness=1.0, diffuse_tint=(1.0, 1.0, 1.0),
@@ -144,8 +145,6 @@ def read_omnipbr(table, s, label: str, needs):
         table._normal_input(t, nm, label, "normalmap_texture", needs, (0.0, 0.0, 1.0))
     # emission
     if bool(val("enable_emission")):
-        from .exporters import KIT_EV
-
         gain = num("emissive_intensity") * 2.0 ** KIT_EV
         etex = _lookup(s, "emissive_color_texture", time, m, "sRGB",
                        scale=tuple(np.asarray(rgb("emissive_color")) * gain) + (1.0,))

@@ -51,7 +51,7 @@ class Outputs:
         (the picture is encoded band by band while the render runs, this exposure applied); None otherwise."""
         if os.path.splitext(out)[1].lower() != ".png":
             return None
-        from tracer.png_stream import StreamedPNG
+        from tracer.png_stream import StreamedPNG  # the tracer loads after the flags are checked (start-up)
 
         try:
             return StreamedPNG(out, width, height, scale=np.float32(2.0 ** self.exposure))
@@ -149,7 +149,7 @@ def write_outputs(image, out, aovs, max_depth: int | None = None, picture: bool 
             a = a[..., None] if a.ndim == 2 else a
             _write_aov(aov_path(out, name), a.astype(np.float32))
             if name == "raydepth":  # and a heat-map picture of it (black: eye rays only; yellow: max depth)
-                from tracer.film import heat_map
+                from tracer.film import heat_map  # (start-up: as in stream)
 
                 _write_aov(aov_path(out, name)[:-4] + ".png", heat_map(a[..., 0], max_depth))
     except ValueError as exc:  # unwritable output (the tracer's film names the file and the reason)
@@ -162,6 +162,6 @@ def _save(image, out: str) -> None:
 
 
 def _write_aov(path, pixels):
-    from tracer import write_image
+    from tracer import write_image  # (start-up: as in stream)
 
     write_image(path, np.nan_to_num(pixels, posinf=0.0, neginf=0.0), float32=True)

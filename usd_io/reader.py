@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from pxr import Usd, UsdGeom, UsdLux
+from pxr import Sdf, Usd, UsdGeom, UsdLux
 
 from tracer import SceneBuilder
 from tracer.scene import instance_bounds
@@ -363,8 +363,6 @@ def _undrawn(prim) -> list:
 
 def select_variant(stage, prim_path: str, vset: str, value: str) -> None:
     """Select ``vset=value`` on the prim at ``prim_path`` (UsdInputError naming what does not exist)."""
-    from pxr import Sdf
-
     label = stage.GetRootLayer().identifier
     if not Sdf.Path.IsValidPathString(prim_path) or not Sdf.Path(prim_path).IsAbsolutePath():
         raise UsdInputError(f"{label}: --variant {prim_path}: not an absolute prim path")

@@ -20,7 +20,7 @@ camera, size and RenderVars and written to its productName (``RenderSpec.product
     dataWindowNDC           (xmin, ymin, xmax, ymax) of the image in NDC (0, 0 lower left): only that part is
                             rendered, as an image of that part's size (the aperture and offsets cropped to it)
     products                ``productName`` of each product: the files written (``--output`` wins)
-    RenderVars              ``sourceName`` mapped to the tracer's AOVs where one exists (:data:`AOV_NAMES`);
+    RenderVars              ``sourceName`` mapped to the tracer's AOVs where one exists (:data:`RENDER_VAR_AOVS`);
                             ``color``/``Ci``/``rgba`` is the beauty; others warn once
 
 Without RenderSettings the camera's aperture meets the image by the same rule with the fallback policy
@@ -33,7 +33,9 @@ import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
-from pxr import Sdf, UsdRender
+from pxr import Sdf, Usd, UsdRender
+
+from tracer.settings import AOV_NAMES
 
 from .errors import UsdInputError
 
@@ -41,11 +43,11 @@ from .errors import UsdInputError
 CONFORM = {"expandAperture": "expand", "cropAperture": "crop", "adjustApertureWidth": "vertical",
            "adjustApertureHeight": "horizontal", "adjustPixelAspectRatio": "none"}
 DEFAULT_CONFORM = "expandAperture"
-#: RenderVar sourceName -> tracer AOV ("" = the beauty).
-AOV_NAMES = {"color": "", "ci": "", "rgba": "", "rgb": "", "beauty": "", "depth": "depth", "z": "depth",
-             "normal": "normal", "n": "normal", "neye": "normal", "primid": "objectid", "id": "objectid",
-             "objectid": "objectid", "albedo": "albedo", "diffuse_albedo": "albedo", "direct": "direct",
-             "reflection": "reflection", "transmission": "transmission"}
+#: RenderVar sourceName (lower case) -> tracer AOV ("" = the beauty): every AOV by its own name
+#: (tracer.settings.AOV_NAMES), and the other renderers' names for some.
+RENDER_VAR_AOVS = {**{a: a for a in AOV_NAMES}, "color": "", "ci": "", "rgba": "", "rgb": "", "beauty": "",
+                   "z": "depth", "n": "normal", "neye": "normal", "primid": "objectid", "id": "objectid",
+                   "diffuse_albedo": "albedo"}
 
 
 @dataclass
@@ -112,7 +114,7 @@ def read_render_settings(stage, path, time, warn) -> RenderSpec | None:
             if not var:
                 continue
             source = str(var.GetSourceNameAttr().Get(time) or v.name)
-            aov = AOV_NAMES.get(source.lower())
+            aov = RENDER_VAR_AOVS.get(source.lower())
             if aov is None:
                 warn(f"{v}: RenderVar {source!r} has no counterpart in the tracer's AOVs (not written)")
             elif aov and aov not in spec.aovs:
@@ -163,8 +165,6 @@ def product_names(stage, path=None) -> list[str]:
 def products(stage, path=None) -> list[tuple[str, str]]:
     """(productName, product prim path) of every RenderProduct with a name, in order (see :func:`product_names`):
     the CLI renders each (its camera, size, RenderVars) when ``-o`` is not given."""
-    from pxr import Usd
-
     tc = Usd.TimeCode.EarliestTime()
     spec = read_render_settings(stage, path, tc, lambda _m: None)
     if spec is None:

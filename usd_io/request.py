@@ -27,8 +27,12 @@ import dataclasses
 import re
 from dataclasses import dataclass, field, fields
 
+from tracer.settings import INT_FIELDS, SETTINGS, RenderSettings, default_of
+
 from .complexity import COMPLEXITY, DEFAULT_COMPLEXITY
+from .errors import UsdInputError
 from .exporters import UNITS
+from .outputs import warn
 
 
 def request_field(default, *flags, parse=None, **options):
@@ -109,7 +113,7 @@ class StageRequest:
     def read(self, stage=None):
         """``usd_io.load_stage`` of this request (``stage``: the stage already opened from ``path``) ->
         (tracer.Scene, StageInfo). Fields left at None take the reader's defaults."""
-        from .reader import load_stage
+        from .reader import load_stage  # here: the reader loads pxr and the tracer, which parsing flags does not
 
         kw = {f.name: getattr(self, f.name) for f in fields(StageRequest)
               if f.name != "path" and getattr(self, f.name) is not None}
@@ -129,8 +133,6 @@ def add_settings_flags(parser) -> None:
     """One flag per :class:`tracer.RenderSettings` field that has one (its ``Setting.flag``), from the field's
     metadata: type from the default, choices, bounds and unit in the help. Every flag defaults to None (= the
     field's default, or for width/height the stage's camera aperture)."""
-    from tracer.settings import SETTINGS, default_of
-
     for name, s in SETTINGS.items():
         if s.flag is None:
             continue
@@ -156,13 +158,7 @@ def settings_from_args(args, **overrides):
     """The :class:`tracer.RenderSettings` the flags of :func:`add_settings_flags` ask for (flags not given keep
     the field's default; ``overrides``, e.g. the image size the stage resolved, win), validated: a value out of
     its bounds is a :class:`usd_io.UsdInputError` naming the flag."""
-    from tracer.settings import SETTINGS, RenderSettings
-
-    from .errors import UsdInputError
-
     if getattr(args, "spp_deprecated", None) is not None:
-        from .outputs import warn
-
         warn("--spp is deprecated: use --aa N (N×N samples per pixel, the same meaning)")
         if getattr(args, "samples", None) is None:
             args.samples = args.spp_deprecated
@@ -178,8 +174,6 @@ def settings_from_args(args, **overrides):
 
 
 def _number(flag: str, name: str):
-    from tracer.settings import INT_FIELDS
-
     cast = int if name in INT_FIELDS else float
 
     def parse(text):

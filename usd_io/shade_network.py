@@ -17,121 +17,30 @@ on the way. UsdPreviewSurface spec, Transform2d: ``result = in · scale · rotat
 the counter-clockwise rotation in degrees, then the translation), so the matrix is T · R · S. Chains of several
 Transform2d nodes compose (the one nearest the primvar reader applies first).
 
+The value types and the one-input readers are :mod:`usd_io.shade_types` (re-exported here).
+
 A ``UsdUVTexture`` whose ``st`` is not connected reads the mesh's default texture coordinates (``uv = None``): see
 :func:`usd_io.mesh.default_uv_name` for the rule.
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
-
 import numpy as np
 from pxr import Sdf, UsdShade
 
-#: UsdUVTexture output name -> channel (-1 = the rgb triple).
-CHANNELS = {"r": 0, "g": 1, "b": 2, "a": 3, "rgb": -1, "rgba": -1}
-#: UsdUVTexture input fallbacks of the spec.
-UV_TEXTURE_DEFAULTS = dict(scale=(1.0, 1.0, 1.0, 1.0), bias=(0.0, 0.0, 0.0, 0.0), fallback=(0.0, 0.0, 0.0, 1.0),
-                           wrapS="useMetadata", wrapT="useMetadata", sourceColorSpace="auto")
-PRIMVAR_READERS = ("UsdPrimvarReader_float", "UsdPrimvarReader_float2", "UsdPrimvarReader_float3",
-                   "UsdPrimvarReader_float4", "UsdPrimvarReader_normal", "UsdPrimvarReader_point",
-                   "UsdPrimvarReader_vector")
+from .arnold_patterns import upstream as arnold_upstream
+from .mtlx import nodedef
+from .shade_types import (CHANNELS, MX_ADDRESS, PRIMVAR_READERS, UV_TEXTURE_DEFAULTS, WIDTH,  # noqa: F401
+                          Const, GraphLookup, PrimvarLookup, TextureLookup, Unsupported, V, file_layer, floats,
+                          producer, shader_id, transform2d_matrix, value, varname)
 
-
-@dataclass
-class Const:
-    value: object
-
-
-@dataclass
-class TextureLookup:
-    node: str  # the UsdUVTexture prim's path (for messages)
-    asset: Sdf.AssetPath | None
-    channel: int  # 0..3, or -1 for rgb
-    uv: str | None  # primvar name of the st chain; None = the mesh's default texture coordinates
-    transform: np.ndarray  # (3, 3) affine on (s, t, 1)
-    scale: tuple
-    bias: tuple
-    fallback: tuple
-    wrap_s: str
-    wrap_t: str
-    colorspace: str  # sourceColorSpace token: "auto", "sRGB" or "raw"
-    notes: list = field(default_factory=list)  # things on the st chain that were not understood
-    layer: object = None  # the Sdf.Layer that authored the file path (anchors UDIM tiles and backslash paths)
-
-
-@dataclass
-class PrimvarLookup:
-    node: str
-    name: str
-    fallback: object
-    reader: str  # the shader id
-
-
-@dataclass
-class GraphLookup:
-    """A MaterialX network (a node with a node definition) driving an input: :class:`usd_io.mtlx_graph.MxProgram`
-    writes it; ``scale`` multiplies its value (a surface's weight)."""
-
-    node: str
-    shader: object
-    output: str
-    fallback: object
-    scale: float = 1.0
-
-
-@dataclass
-class Unsupported:
-    node: str
-    shader_id: str
-    fallback: object
-
-
-def shader_id(s) -> str:
-    sid = s.GetShaderId() if s else None
-    return str(sid) if sid else ""
-
-
-def _producer(shader: UsdShade.Shader, name: str):
-    """(attribute, is_output) that gives the value of input ``name``, or (None, False)."""
-    inp = shader.GetInput(name)
-    if not inp:
-        return None, False
-    attrs = inp.GetValueProducingAttributes()
-    if not attrs:
-        return None, False
-    a = attrs[0]
-    return a, UsdShade.Output.IsOutput(a)
-
-
-def value(shader: UsdShade.Shader, name: str, default=None, time=None):
-    """An input's own value (following interface connections); ``default`` when unauthored or node-driven."""
-    a, is_out = _producer(shader, name)
-    if a is None or is_out:
-        return default
-    v = a.Get() if time is None else a.Get(time)
-    return default if v is None else v
-
-
-def floats(v, n: int, default) -> tuple:
-    """``v`` as a tuple of ``n`` floats (scalars broadcast, longer values cut, shorter padded from ``default``)."""
-    try:
-        a = np.asarray(v, dtype=np.float64).reshape(-1)
-    except (TypeError, ValueError):
-        return tuple(float(x) for x in default)
-    if a.size == 0:
-        return tuple(float(x) for x in default)
-    if a.size == 1:
-        a = np.repeat(a, n)
-    if a.size >= n:
-        return tuple(float(x) for x in a[:n])
-    return tuple(float(x) for x in a) + tuple(float(x) for x in list(default)[a.size:n])
+#: MaterialX image nodes (``ND_image_color3``, ``ND_tiledimage_float``, ...) read as texture lookups.
+MX_IMAGES = ("ND_image_", "ND_tiledimage_")
 
 
 def source(shader: UsdShade.Shader, name: str, fallback, time=None):
     """What drives input ``name`` of ``shader``: Const, TextureLookup, PrimvarLookup or Unsupported."""
-    a, is_out = _producer(shader, name)
+    a, is_out = producer(shader, name)
     if a is None:
         return Const(fallback)
     if not is_out:
@@ -143,31 +52,20 @@ def source(shader: UsdShade.Shader, name: str, fallback, time=None):
     if sid == "UsdUVTexture" or sid.startswith("ND_UsdUVTexture"):
         return texture_lookup(node, out_name, time)
     if sid in PRIMVAR_READERS or sid.startswith("ND_UsdPrimvarReader"):
-        return PrimvarLookup(str(node.GetPath()), _varname(node, time), value(node, "fallback", None, time), sid)
+        return PrimvarLookup(str(node.GetPath()), varname(node, time), value(node, "fallback", None, time), sid)
     if sid.startswith(MX_IMAGES) and _mx_texcoord(node, [], time)[0] != _COMPUTED:
         return mx_image_lookup(node, time)
     if sid.startswith("ND_normalmap"):
         got = mx_normal_map(node, fallback, time)
         if not isinstance(got, Unsupported):
             return got
-    if sid.startswith("ND_"):
-        from .mtlx import nodedef
-
-        if nodedef(sid) is not None:
-            return GraphLookup(str(node.GetPath()), node, out_name, fallback)
-    if sid.startswith("arnold:"):  # Arnold's image and user-data nodes (usd_io.arnold)
-        from .arnold import upstream
-
-        got = upstream(node, out_name, fallback, time)
+    if sid.startswith("ND_") and nodedef(sid) is not None:
+        return GraphLookup(str(node.GetPath()), node, out_name, fallback)
+    if sid.startswith("arnold:"):  # Arnold's image, user-data and pattern nodes (usd_io.arnold_patterns)
+        got = arnold_upstream(node, out_name, fallback, time)
         if got is not None:
             return got
     return Unsupported(str(node.GetPath()), sid or a.GetPrim().GetTypeName(), value(node, "fallback", fallback, time))
-
-
-#: MaterialX image nodes (``ND_image_color3``, ``ND_tiledimage_float``, ...) read as texture lookups.
-MX_IMAGES = ("ND_image_", "ND_tiledimage_")
-#: MaterialX address modes -> UsdUVTexture wrap tokens.
-MX_ADDRESS = {"periodic": "repeat", "clamp": "clamp", "mirror": "mirror", "constant": "black"}
 
 
 def mx_image_lookup(node: UsdShade.Shader, time=None) -> TextureLookup:
@@ -202,7 +100,7 @@ def mx_normal_map(node: UsdShade.Shader, fallback, time=None):
     ``scale`` on x and y). Anything else upstream is Unsupported."""
     up = source(node, "in", (0.5, 0.5, 1.0), time)
     if not isinstance(up, TextureLookup) or str(value(node, "space", "tangent", time)) != "tangent" or \
-            _producer(node, "normal")[0] is not None:
+            producer(node, "normal")[0] is not None:
         return Unsupported(str(node.GetPath()), shader_id(node), fallback)
     k = floats(value(node, "scale", 1.0, time), 1, (1.0,))[0]
     up.scale = (2.0 * k, 2.0 * k, 2.0, 1.0)
@@ -212,7 +110,7 @@ def mx_normal_map(node: UsdShade.Shader, fallback, time=None):
 
 def _mx_texcoord(node, notes: list, time):
     """(uv primvar name or None, identity) for a MaterialX image's ``texcoord`` input."""
-    a, is_out = _producer(node, "texcoord")
+    a, is_out = producer(node, "texcoord")
     if a is None or not is_out:
         return None, np.eye(3)
     up = UsdShade.Shader(a.GetPrim())
@@ -222,26 +120,13 @@ def _mx_texcoord(node, notes: list, time):
     if sid.startswith("ND_geompropvalue_"):
         return (str(value(up, "geomprop", "", time) or "") or None), np.eye(3)
     if sid in PRIMVAR_READERS or sid.startswith("ND_UsdPrimvarReader"):
-        return (_varname(up, time) or None), np.eye(3)
+        return (varname(up, time) or None), np.eye(3)
     notes.append(f"texcoord driven by {sid or up.GetPrim().GetTypeName()!r} (the mesh's texture coordinates are used)")
     return _COMPUTED, np.eye(3)
 
 
 #: :func:`_mx_texcoord`'s answer for a texcoord computed by a network (the image is then read by usd_io.mtlx_graph).
 _COMPUTED = "<computed>"
-
-
-def _varname(node, time) -> str:
-    v = value(node, "varname", "", time)  # string since spec 2.3; token in older files (McUsd)
-    return str(v) if v else ""
-
-
-def file_layer(node, time, name="file"):
-    """The layer that authored a texture node's ``file`` (through interface connections)."""
-    from .texture_assets import authoring_layer
-
-    a, is_out = _producer(node, name)
-    return None if a is None or is_out else authoring_layer(a)
 
 
 def texture_lookup(node: UsdShade.Shader, output: str, time=None) -> TextureLookup:
@@ -263,24 +148,12 @@ def texture_lookup(node: UsdShade.Shader, output: str, time=None) -> TextureLook
         layer=file_layer(node, time))
 
 
-def transform2d_matrix(scale=(1.0, 1.0), rotation=0.0, translation=(0.0, 0.0)) -> np.ndarray:
-    """The (3, 3) matrix of a UsdTransform2d on (s, t, 1): T · R · S (scale, then rotate CCW in degrees, then
-    translate), the spec's ``in · scale · rotate + translation``."""
-    if not math.isfinite(rotation):
-        return np.full((3, 3), np.nan)  # the caller warns and ignores a non-finite transform
-    c, s = math.cos(math.radians(rotation)), math.sin(math.radians(rotation))
-    S = np.diag([scale[0], scale[1], 1.0])
-    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    T = np.array([[1.0, 0.0, translation[0]], [0.0, 1.0, translation[1]], [0.0, 0.0, 1.0]])
-    return T @ R @ S
-
-
 def _st_chain(tex: UsdShade.Shader, notes: list, time):
     """(uv primvar name or None, (3, 3) matrix) of a UsdUVTexture's st input."""
     m = np.eye(3)
     node, inp = tex, "st"
     for _ in range(16):  # a chain, not a loop
-        a, is_out = _producer(node, inp)
+        a, is_out = producer(node, inp)
         if a is None:
             return None, m
         if not is_out:
@@ -296,7 +169,7 @@ def _st_chain(tex: UsdShade.Shader, notes: list, time):
             node, inp = up, "in"
             continue
         if sid in PRIMVAR_READERS or sid.startswith("ND_UsdPrimvarReader"):
-            name = _varname(up, time)
+            name = varname(up, time)
             return (name or None), m
         notes.append(f"st driven by {sid or up.GetPrim().GetTypeName()!r}, not a primvar reader or UsdTransform2d "
                      "(the mesh's texture coordinates are used)")

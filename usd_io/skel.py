@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-from pxr import Usd, UsdSkel
+from pxr import Usd, UsdSkel, Vt
 
 from .mesh import smooth_normals
 
@@ -64,8 +64,6 @@ class Skinning:
         if xforms is None:
             warn(f"{label}: skeleton {skel.GetPath()} cannot be posed: rest pose rendered")
             return None
-        from pxr import Vt
-
         vt_points = Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(points, np.float32))
         try:
             ok = query.ComputeSkinnedPoints(xforms, vt_points, self.time)
@@ -96,8 +94,6 @@ def apply_blend_shapes(prim, query, skel_query, points: np.ndarray, time, warn):
         return None
     by_name = dict(zip((str(n) for n in anim.GetBlendShapeOrder()), np.asarray(weights, np.float32)))
     order = query.GetBlendShapeOrder() or []
-    from pxr import Vt
-
     weights = Vt.FloatArray([float(by_name.get(str(n), 0.0)) for n in order])  # anim order -> the mesh's order
     bsq = UsdSkel.BlendShapeQuery(UsdSkel.BindingAPI(prim))
     try:

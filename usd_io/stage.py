@@ -15,6 +15,7 @@ import tempfile
 
 from pxr import Sdf, Usd, UsdGeom
 
+from .diagnostics import summarize
 from .mtlx import resolve_mtlx_references
 from .errors import UsdInputError  # noqa: F401  (raised here; usd_io.stage.UsdInputError stays importable)
 
@@ -67,8 +68,6 @@ def open_stage(path_or_stage) -> Usd.Stage:
     # Composition problems are reported by composition_warnings(); anything else USD said is kept for the reader.
     other = [ln for ln in "".join(text).splitlines()
              if ln.strip() and "_ReportErrors" not in ln and "Could not open asset" not in ln]
-    from .diagnostics import summarize
-
     stage_messages[id(stage)] = summarize("\n".join(other))  # a few lines, as the reader's (usd_io.diagnostics)
     return stage
 

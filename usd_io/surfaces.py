@@ -18,14 +18,27 @@ from pxr import UsdShade
 from . import arnold, omnipbr
 from . import shade_network as net
 
+#: MaterialX surfaces: input names and the defaults of their node definitions (base colour = weight × colour).
+MX_SURFACES = {
+    "open_pbr_surface": dict(weight="base_weight", weight_default=1.0, base="base_color",
+                             base_default=(0.8, 0.8, 0.8), metal="base_metalness", rough="specular_roughness",
+                             rough_default=0.3, normal="geometry_normal", trans="transmission_weight",
+                             ior="specular_ior", tint="transmission_color", spec="specular_weight",
+                             dropped=("coat_weight", "emission_luminance", "subsurface_weight", "fuzz_weight")),
+    "standard_surface": dict(weight="base", weight_default=0.8, base="base_color", base_default=(1.0, 1.0, 1.0),
+                             metal="metalness", rough="specular_roughness", rough_default=0.2, normal="normal",
+                             trans="transmission", ior="specular_IOR", tint="transmission_color",
+                             emission="emission", emission_color="emission_color", spec="specular",
+                             dropped=("coat", "subsurface", "sheen")),
+}
+
+
 #: displayColor read as the fallback material's vertex colour (Hydra's 0.5 grey where a prim has none).
 DISPLAY_COLOR_FALLBACK = (0.5, 0.5, 0.5)
 
 
 def other_surface(table, mat, preview, label: str, needs):
     """(fields) for a material whose surface is not a UsdPreviewSurface or outputs:mtlx:surface MaterialX."""
-    from .material import MX_SURFACES
-
     candidates = [preview] if preview else []
     for context in ("arnold", "mdl"):
         s, _, _ = mat.ComputeSurfaceSource(context)

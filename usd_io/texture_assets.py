@@ -17,7 +17,9 @@ from __future__ import annotations
 import os
 
 import numpy as np
-from pxr import Sdf
+from pxr import Sdf, UsdShade
+
+from .texture_files import TextureFile
 
 MAX_TILES = 100  # UDIM's range: 1001..1100 (10 × 10)
 
@@ -47,8 +49,6 @@ def resolve_backslashes(asset: Sdf.AssetPath, layer) -> str | None:
 
 def udim_tiles(asset: Sdf.AssetPath, layer) -> list[tuple[str, int]]:
     """(resolved path, tile number) of the tiles of a ``<UDIM>`` path that exist."""
-    from pxr import UsdShade
-
     path = asset.path.replace("\\", "/")
     if layer is None:
         return []
@@ -85,8 +85,6 @@ def udim_atlas(tiles: list[tuple[str, int]], read, fallback) -> tuple[np.ndarray
 def open_texture(lk, colorspace: str, files, warn, label: str, name: str):
     """(TextureFile, (3, 3) uv matrix applied after the lookup's own) for a texture lookup, or None (one warning;
     the caller uses the fallback). Handles plain resolved paths, backslashes and UDIM sets."""
-    from .texture_files import TextureFile
-
     asset = lk.asset
     if "<UDIM>" in asset.path:
         cache = files.__dict__.setdefault("_udim", {})

@@ -26,6 +26,7 @@ import math
 import numpy as np
 
 from ..jit import kernel
+from .noise import _points4
 from .hash import hash_float_to_float, hash_float_to_float3, hash_int2_to_float2, hash_int3_to_float3, hash_int4_to_float4
 
 F1, F2, SMOOTH_F1, DISTANCE_TO_EDGE, N_SPHERE_RADIUS = 0, 1, 2, 3, 4
@@ -410,7 +411,6 @@ def voronoi_texture_array(vector, w=0.0, *, dimensions=3, feature="F1", distance
         raise ValueError(f"unknown voronoi feature {feature!r}; choose from {sorted(FEATURES)}")
     if distance not in METRICS:
         raise ValueError(f"unknown voronoi distance {distance!r}; choose from {sorted(METRICS)}")
-    from .noise import _points4
 
     shape, pts = _points4(vector, w, dimensions)
     n = len(pts)
