@@ -30,9 +30,10 @@ import pickle
 import signal
 import subprocess
 import sys
+import threading
 import zlib
 
-from . import kernel_cache
+from . import embree, jit, kernel_cache
 
 #: The plan shipped with the tracer (made by ``python -m tools.kernel_plan``).
 PLAN = os.path.join(os.path.dirname(os.path.abspath(__file__)), "kernel_plan.json")
@@ -130,8 +131,6 @@ def prepare(plan: dict, status: str | None = None, parent: int | None = None) ->
     """Compile (or load) the plan's stages, the last first; writes the number of units compiled so far to
     ``status`` after each, and stops early when process ``parent`` has gone or on SIGTERM (between stages: a
     stage's files are written whole). True when it went through the whole plan."""
-    from . import embree, jit
-
     embree.library()  # the LLVM symbols Embree's calls in kernels link against
     stop = []
     signal.signal(signal.SIGTERM, lambda *a: stop.append(1))
@@ -197,6 +196,8 @@ class Helper:
                 self.proc.send_signal(signal.SIGTERM)
             except OSError:
                 pass
+            # reaped on a daemon thread: the render does not wait for it, and it is never left a zombie
+            threading.Thread(target=self.proc.wait, name="whitted-kernel-plan-reaper", daemon=True).start()
         try:
             os.unlink(self.status)
         except OSError:

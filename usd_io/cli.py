@@ -181,19 +181,19 @@ def cmd_render(args) -> int:
     options = RenderOptions.from_args(args)
     frames = parse_frames(args.frames) if args.frames else [args.time]
     global _helper
-    if not args.scheduler:  # a cold kernel cache is filled by two processes (tracer/kernel_plan.py)
+    if not options.scheduler:  # a cold kernel cache is filled by two processes (tracer/kernel_plan.py)
         from tracer import kernel_plan
 
         _helper = kernel_plan.start()
     try:
-        return _render_scenes(args, settings, outputs, frames)
+        return _render_scenes(args, settings, outputs, options, frames)
     finally:
         if _helper is not None:
             _helper.stop()
             _helper = None
 
 
-def _render_scenes(args, settings, outputs, frames) -> int:
+def _render_scenes(args, settings, outputs, options, frames) -> int:
     failed = 0
     for scene_path in args.scenes:
         try:
