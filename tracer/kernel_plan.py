@@ -206,9 +206,11 @@ class Helper:
 
 def start() -> Helper | None:
     """Start the second compiling process where it can help: a plan that fits this numba, a version of the tracer
-    whose plan has not been worked through on this machine yet, more than one core, and ``WHITTED_COMPILE_PROCESSES``
-    not 0. None otherwise."""
+    whose plan has not been worked through on this machine yet, no kernels shipped inside the package, more than one
+    core, and ``WHITTED_COMPILE_PROCESSES`` not 0. None otherwise."""
     if os.environ.get(PARALLEL_ENV, "2") in ("0", "1") or (os.cpu_count() or 1) < 2:
+        return None
+    if os.path.isdir(kernel_cache.PACKAGED):  # an installed package with its kernels inside compiles nothing
         return None
     plan = load()
     if plan is None or not plan["stages"] or os.path.exists(_done_marker(plan)):
