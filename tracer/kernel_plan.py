@@ -216,9 +216,12 @@ def start() -> Helper | None:
     if plan is None or not plan["stages"] or os.path.exists(_done_marker(plan)):
         return None
     root = kernel_cache.cache_root()
-    os.makedirs(root, exist_ok=True)
     status = os.path.join(root, f".plan-status-{os.getpid()}")
-    _write(status, 0)
+    try:
+        os.makedirs(root, exist_ok=True)
+        _write(status, 0)
+    except OSError:  # a cache folder this user cannot write: the render compiles alone (and says so when saving)
+        return None
     proc = subprocess.Popen([sys.executable, "-m", f"{_PACKAGE}.kernel_plan", status, str(os.getpid())],
                             stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                             start_new_session=True)
