@@ -21,7 +21,6 @@ scene whose mirror sphere moves (time samples): every frame then has its own geo
 from __future__ import annotations
 
 import argparse
-import logging
 import os
 import resource
 import statistics
@@ -72,11 +71,9 @@ def cli_run(scene: str, frames: int, width: int, out: str, farm: bool) -> tuple[
 
 # ------------------------------------------------------------------------------------------------------ warm
 def _cluster(n):
-    from dask.distributed import Client, LocalCluster
+    from tracer.farm import local_cluster
 
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                           dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
-    return Client(cluster), cluster
+    return local_cluster(n)  # as `--scheduler local:N` starts it
 
 
 def _worker_cpu():
@@ -89,9 +86,15 @@ def local_frames(scene: str, frames: list, width: int) -> tuple[float, float]:
 
     source = UsdSource(path=scene, width=width, settings=dict(threads=2, progress=False))
     c0, t0 = time.process_time(), time.perf_counter()
+    load = 0.0
     for f in frames:
-        tracer.render(*source.load(f))
-    return time.perf_counter() - t0, time.process_time() - c0
+        c = time.process_time()
+        scene, settings = source.load(f)
+        load += time.process_time() - c
+        tracer.render(scene, settings)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    print(f"  local CPU {cpu:.2f} s: stage reads {load:.2f}, renders {cpu - load:.2f}", flush=True)
+    return wall, cpu
 
 
 def farm_frames(client, scene: str, frames: list, width: int) -> tuple[float, float, list]:
@@ -103,7 +106,12 @@ def farm_frames(client, scene: str, frames: list, width: int) -> tuple[float, fl
     c0, t0 = time.process_time(), time.perf_counter()
     results = list(render_frames(client, source, frames))
     wall = time.perf_counter() - t0
-    cpu = time.process_time() - c0 + sum(client.run(_worker_cpu).values()) - w0
+    client_cpu = time.process_time() - c0
+    workers_cpu = sum(client.run(_worker_cpu).values()) - w0
+    cpu = client_cpu + workers_cpu
+    tasks = sum(r.image.stats["farm"]["prepare_cpu"] + r.image.stats["farm"]["render_cpu"] for r in results)
+    print(f"  farm CPU {cpu:.2f} s: client (scheduler, results) {client_cpu:.2f}, workers {workers_cpu:.2f} "
+          f"(of which the tasks' threads {tasks:.2f})", flush=True)
     bad = [r.error for r in results if r.error]
     if bad:
         raise SystemExit(f"farm frames failed: {bad}")
@@ -178,8 +186,8 @@ def _per_frame(stats):
     if not stats or not stats[0]:
         return
     print("per frame on the workers (last warm run): " + "; ".join(
-        f"{'hit' if s.get('reused') else 'load'} prepare {s.get('prepare_seconds', 0) * 1e3:.0f} ms "
-        f"render {s.get('render_seconds', 0) * 1e3:.0f} ms" for s in stats), flush=True)
+        f"{s.get('reused') or 'loaded'}: prepare {s.get('prepare_cpu', 0) * 1e3:.0f} ms, render "
+        f"{s.get('render_cpu', 0) * 1e3:.0f} ms CPU" for s in stats), flush=True)
 
 
 if __name__ == "__main__":

@@ -40,6 +40,33 @@ DEFAULT_FARM_TILE = 512
 WORKER_CACHE_SIZE = 2
 
 
+#: Dask settings for workers that render (applied to the clusters ``local:N`` starts; for a cluster of your own, start
+#: its workers with them, e.g. ``DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED=False``). Dask's statistical profiler
+#: samples every task thread's stack each 10 ms, and its event-loop and system monitors tick every 20 and 500 ms:
+#: on a one-thread worker they cost 5-8 % of a core beside the render (measured, docs/benchmarks.md "Farm").
+WORKER_CONFIG = {
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "500ms",
+    "distributed.admin.system-monitor.interval": "2s",
+}
+
+
+def local_cluster(n_workers: int, **options):
+    """A Dask ``LocalCluster`` of ``n_workers`` one-thread worker processes on 127.0.0.1 (dashboard on a free port),
+    configured with :data:`WORKER_CONFIG`, and its client -> (client, cluster)."""
+    import logging
+
+    import dask
+    from dask.distributed import Client, LocalCluster
+
+    kw = dict(n_workers=n_workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+              dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
+    kw.update(options)
+    with dask.config.set(WORKER_CONFIG):
+        cluster = LocalCluster(**kw)
+        return Client(cluster), cluster
+
+
 class FarmError(RuntimeError):
     """A frame or tile that failed on the farm for a reason that retrying will not fix (its message says which)."""
 
@@ -187,13 +214,14 @@ def _threads_per_task() -> int:
 def render_frame_task(source, frame, assets=None, write=None) -> Image | None:
     """Dask task: one whole frame, as the local ``tracer.render`` would give it; with ``write`` (a picklable
     ``write(image, frame)``), the worker writes it itself and returns None (nothing travels back)."""
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.thread_time()
     p = prepare(_with_assets(source, assets), frame)
-    t1 = time.perf_counter()
+    t1, c1 = time.perf_counter(), time.thread_time()
     image = p.session.render(p.settings.with_(progress=False))
     image.stats.pop("ray_batches", None)
+    # wall seconds, and CPU seconds of the task's thread (all of the render's with one thread per task)
     image.stats["farm"] = {"prepare_seconds": t1 - t0, "render_seconds": time.perf_counter() - t1,
-                           "reused": p.reused}
+                           "prepare_cpu": c1 - c0, "render_cpu": time.thread_time() - c1, "reused": p.reused}
     if write is not None:
         write(image, frame)
         return None

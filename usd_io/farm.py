@@ -184,19 +184,19 @@ def connect(address: str):
     an address ``tcp://``/``tls://``/… connects to a running scheduler, with Dask's security configuration
     (``distributed.comm.tls.*``) for TLS; anything else is read as a scheduler file."""
     try:
-        from dask.distributed import Client, LocalCluster
+        from dask.distributed import Client
     except ImportError:
         raise UsdInputError("--scheduler needs Dask: pip install 'whitted[farm]' (dask[distributed])") from None
-    import logging
 
     if address.startswith("local:") or address == "local":
         n = address.partition(":")[2] or str(os.cpu_count() or 1)
         if not n.isdigit() or int(n) < 1:
             raise UsdInputError(f"--scheduler {address!r}: expected local:N with N >= 1 workers")
         n = int(n)
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                               dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
-        return Client(cluster), cluster, max(1, (os.cpu_count() or 1) // n)
+        from tracer.farm import local_cluster  # one-thread workers configured for rendering (WORKER_CONFIG)
+
+        client, cluster = local_cluster(n)
+        return client, cluster, max(1, (os.cpu_count() or 1) // n)
     if address.startswith(ADDRESS_SCHEMES):
         if address.startswith("tls://"):
             import dask
