@@ -41,10 +41,18 @@ WORKER_CACHE_SIZE = 2
 
 
 #: Dask settings for workers that render (applied to the clusters ``local:N`` starts; for a cluster of your own, start
-#: its workers with them, e.g. ``DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED=False``). Dask's statistical profiler
-#: samples every task thread's stack each 10 ms, and its event-loop and system monitors tick every 20 and 500 ms:
-#: on a one-thread worker they cost 5-8 % of a core beside the render (measured, docs/benchmarks.md "Farm").
+#: its workers with them, e.g. ``DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED=False``, and without
+#: ``MALLOC_TRIM_THRESHOLD_`` in their environment). Measured (docs/benchmarks.md, "Farm"):
+#:
+#: - Dask's nannies start workers with ``MALLOC_TRIM_THRESHOLD_=65536``, so glibc hands every freed block above
+#:   64 kB back to the kernel and the next tile's arrays fault in fresh pages: 3× the page faults of a plain process
+#:   (78 k against 26 k per 480×270 frame of the 1980 scene) and 0.07-0.1 s more system CPU per frame (10 %).
+#:   The workers keep the other variables Dask sets (one OpenMP/BLAS thread) and glibc's own, adaptive threshold;
+#:   the tracer trims its heap itself where a load frees much (``tracer.heap.trim``).
+#: - Dask's statistical profiler samples every task thread's stack each 10 ms, and its event-loop and system
+#:   monitors tick every 20 and 500 ms: 0.5 s of worker CPU beside 8 such frames.
 WORKER_CONFIG = {
+    "distributed.nanny.pre-spawn-environ": {"OMP_NUM_THREADS": 1, "MKL_NUM_THREADS": 1, "OPENBLAS_NUM_THREADS": 1},
     "distributed.worker.profile.enabled": False,
     "distributed.admin.tick.interval": "500ms",
     "distributed.admin.system-monitor.interval": "2s",
