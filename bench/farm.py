@@ -71,8 +71,16 @@ def cli_run(scene: str, frames: int, width: int, out: str, farm: bool) -> tuple[
 
 # ------------------------------------------------------------------------------------------------------ warm
 def _cluster(n):
-    from tracer.farm import local_cluster
+    try:
+        from tracer.farm import local_cluster
+    except ImportError:  # a checkout from before local_cluster: the cluster its `--scheduler local:N` started
+        import logging
 
+        from dask.distributed import Client, LocalCluster
+
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                               dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
+        return Client(cluster), cluster
     return local_cluster(n)  # as `--scheduler local:N` starts it
 
 
@@ -109,7 +117,8 @@ def farm_frames(client, scene: str, frames: list, width: int) -> tuple[float, fl
     client_cpu = time.process_time() - c0
     workers_cpu = sum(client.run(_worker_cpu).values()) - w0
     cpu = client_cpu + workers_cpu
-    tasks = sum(r.image.stats["farm"]["prepare_cpu"] + r.image.stats["farm"]["render_cpu"] for r in results)
+    farm = [r.image.stats.get("farm", {}) for r in results]  # (a checkout before the stats: none)
+    tasks = sum(s.get("prepare_cpu", 0.0) + s.get("render_cpu", 0.0) for s in farm)
     print(f"  farm CPU {cpu:.2f} s: client (scheduler, results) {client_cpu:.2f}, workers {workers_cpu:.2f} "
           f"(of which the tasks' threads {tasks:.2f})", flush=True)
     bad = [r.error for r in results if r.error]

@@ -1,9 +1,12 @@
 """Render farms on Dask: frames and tiles as Dask tasks, for any scene source.
 
 The tracer does not know where scenes come from, so a farm job names a *scene source*: a small picklable object
-with ``load(frame) -> (Scene, RenderSettings)`` (``usd_io.farm.UsdSource`` reads a USD stage). Workers load the scene
-themselves and keep it prepared for the tasks that share it (every tile of a frame), so nothing is exported per
-tile. The client only submits, assembles and writes:
+with ``load(frame) -> (Scene, RenderSettings)`` (``usd_io.farm.UsdSource`` reads a USD stage) and, optionally,
+``scene_key(frame)``: a key that is equal for frames whose scenes are equal (a still stage's frames) and changes when
+the scene's files change. Workers load the scene themselves and keep it prepared (:func:`prepare`: the scene and a
+:class:`tracer.Session`, its Embree scene and packed tables) for the tasks that share it — every tile of a frame,
+and every frame with the same ``scene_key`` — so nothing is read, exported or built again for them. The client only
+submits, assembles and writes:
 
     >>> from dask.distributed import Client
     >>> from tracer.farm import render_frames
