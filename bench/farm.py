@@ -88,7 +88,7 @@ def _worker_cpu():
     return time.process_time()
 
 
-def local_frames(scene: str, frames: list, width: int) -> tuple[float, float]:
+def local_frames(scene: str, frames: list, width: int, say: bool = True) -> tuple[float, float]:
     import tracer
     from usd_io.farm import UsdSource
 
@@ -101,7 +101,8 @@ def local_frames(scene: str, frames: list, width: int) -> tuple[float, float]:
         load += time.process_time() - c
         tracer.render(scene, settings)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-    print(f"  local CPU {cpu:.2f} s: stage reads {load:.2f}, renders {cpu - load:.2f}", flush=True)
+    if say:
+        print(f"  local CPU {cpu:.2f} s: stage reads {load:.2f}, renders {cpu - load:.2f}", flush=True)
     return wall, cpu
 
 
@@ -152,15 +153,15 @@ def main(argv=None):
                     rows[side].append(cli_run(scene, a.frames, a.width, out, side == "farm"))
             _report("cli (whole `whitted render` processes)", rows, a.frames)
         if "warm" in only:
+            from tracer.farm import render_frames
+            from usd_io.farm import UsdSource
+
             client, cluster = _cluster(2)
             try:
-                import tracer
-
-                # Warm both sides on other sizes of the stage: imports, kernels, the stage opened (not this job).
-                list(__import__("tracer.farm").farm.render_frames(
-                    client, __import__("usd_io.farm").farm.UsdSource(path=scene, width=16, settings=dict(threads=1)),
-                    [float(f) for f in range(4)]))
-                local_frames(scene, frames[:1], 16)
+                # Warm both sides on another size of the stage: imports, kernels, the stage opened (not this job).
+                list(render_frames(client, UsdSource(path=scene, width=16, settings=dict(threads=1)),
+                                   [float(f) for f in range(4)]))
+                local_frames(scene, frames[:1], 16, say=False)
                 rows = {"local": [], "farm": []}
                 per_frame = []
                 for _ in range(a.runs):
@@ -170,7 +171,6 @@ def main(argv=None):
                     per_frame.append(stats)
                 _report("warm (cluster up and warmed; in-process local loop)", rows, a.frames)
                 _per_frame(per_frame[-1])
-                del tracer
             finally:
                 client.close()
                 cluster.close()

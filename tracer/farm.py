@@ -140,9 +140,11 @@ def prepare(source, frame) -> Prepared:
         with _cache_lock:
             _cache[key] = entry
             _cache.move_to_end(key)
-            while len(_cache) > WORKER_CACHE_SIZE:
-                _cache.popitem(last=False)
             _last[token] = entry
+            while len(_cache) > WORKER_CACHE_SIZE:
+                (old_token, _), old = _cache.popitem(last=False)
+                if _last.get(old_token) is old:  # hold no scene the LRU has let go
+                    del _last[old_token]
             _key_locks.pop(key, None)
     return entry
 
