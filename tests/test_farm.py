@@ -353,3 +353,34 @@ def test_workers_keep_a_still_stage_prepared_across_frames(tmp_path, client):
     assert all(r.error is None and np.array_equal(r.image.rgba, expected) for r in results)
     reused = [r.image.stats["farm"]["reused"] for r in results]
     assert reused.count(False) <= 2 and reused.count("scene") >= 4, reused  # one load per worker at most
+
+
+def test_a_stage_animated_by_value_clips_is_read_per_frame(tmp_path, fresh_worker):
+    """The stage's own layer has no time samples; its ball moves through a value clip: every frame its own."""
+    from pxr import Sdf
+
+    from usd_io.farm import UsdSource
+
+    clip = Usd.Stage.CreateNew(str(tmp_path / "clip.usda"))
+    op = UsdGeom.Sphere.Define(clip, "/Ball").AddTranslateOp()
+    op.Set(Gf.Vec3d(-2, 0, 0), 1.0)
+    op.Set(Gf.Vec3d(2, 0, 0), 8.0)
+    clip.GetRootLayer().Save()
+    s = Usd.Stage.CreateInMemory()
+    _dress(s)
+    ball = UsdGeom.Sphere.Define(s, "/Ball")
+    ball.AddTranslateOp()
+    clips = Usd.ClipsAPI(ball.GetPrim())
+    clips.SetClipAssetPaths([Sdf.AssetPath("./clip.usda")])
+    clips.SetClipPrimPath("/Ball")
+    clips.SetClipActive([(1.0, 0)])
+    clips.SetClipTimes([(1.0, 1.0), (8.0, 8.0)])
+    text = s.GetRootLayer().ExportToString()
+    path = tmp_path / "clipped.usda"
+    path.write_text(text)
+    source = UsdSource(path=str(path), width=48, settings=_SETTINGS)
+    first, _ = _worker_frame(source, 1.0)
+    last, reused = _worker_frame(source, 8.0)
+    assert reused is False and not np.array_equal(first, last)
+    assert np.array_equal(first, _reference(tmp_path, text, 1.0))
+    assert np.array_equal(last, _reference(tmp_path, text, 8.0))

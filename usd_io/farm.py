@@ -134,9 +134,24 @@ def _open(path) -> _Opened:
                     layer.Reload(force=True)
             del _stages[path]
         stage = open_stage(path)
-        animated = any(layer.ListAllTimeSamples() for layer in stage.GetUsedLayers())
+        animated = any(layer.ListAllTimeSamples() or _has_clips(layer) for layer in stage.GetUsedLayers())
         opened = _stages[path] = _Opened(stage, _stamp(stage), animated)
         return opened
+
+
+def _has_clips(layer) -> bool:
+    """Whether a prim of ``layer`` names value clips (their layers, and so their time samples, are opened only
+    when a value is read: a stage that uses them counts as animated)."""
+    found = []
+
+    def visit(path):
+        if not found and path.IsPrimPath():
+            spec = layer.GetPrimAtPath(path)
+            if spec is not None and (spec.HasInfo("clips") or spec.HasInfo("clipAssetPaths")):
+                found.append(path)
+
+    layer.Traverse(layer.pseudoRoot.path, visit)
+    return bool(found)
 
 
 def _file_of(layer) -> str | None:
