@@ -55,15 +55,40 @@ def _child_cpu() -> float:
     return r.ru_utime + r.ru_stime
 
 
+def _subreaper() -> None:
+    """Become the reaper of orphaned descendants (Linux ``PR_SET_CHILD_SUBREAPER``): a forkserver's workers outlive
+    the command's own wait, and their CPU counts only once they are reaped here (:func:`_reap`)."""
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(36, 1, 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
+
+
+def _reap(deadline: float = 10.0) -> None:
+    """Wait for every descendant left (see :func:`_subreaper`), so RUSAGE_CHILDREN has their CPU."""
+    end = time.monotonic() + deadline
+    while time.monotonic() < end:
+        try:
+            pid, _ = os.waitpid(-1, os.WNOHANG)
+        except ChildProcessError:
+            return
+        if pid == 0:
+            time.sleep(0.02)
+
+
 def cli_run(scene: str, frames: int, width: int, out: str, farm: bool) -> tuple[float, float]:
-    """(wall, CPU) seconds of one ``whitted render`` process (children included)."""
+    """(wall, CPU) seconds of one ``whitted render`` process (children and every other descendant included)."""
     cmd = [sys.executable, "-m", "usd_io.cli", "render", scene, "-o", os.path.join(out, "f.####.png"),
            "--frames", f"1:{frames}", "--width", str(width), "--quiet"]
     cmd += ["--scheduler", "local:2"] if farm else ["--threads", "2"]
     env = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
     c0, t0 = _child_cpu(), time.perf_counter()
     r = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True)
-    wall, cpu = time.perf_counter() - t0, _child_cpu() - c0
+    wall = time.perf_counter() - t0
+    _reap()
+    cpu = _child_cpu() - c0
     if r.returncode:
         raise SystemExit(f"{' '.join(cmd)} failed:\n{r.stderr[-3000:]}")
     return wall, cpu
@@ -144,6 +169,7 @@ def main(argv=None):
               f"local:2 (one-thread workers), {a.runs} runs interleaved, {os.cpu_count()} cores, load "
               f"{os.getloadavg()[0]:.1f}", flush=True)
         if "cli" in only:
+            _subreaper()
             out = os.path.join(d, "out")
             os.makedirs(out)
             cli_run(scene, 2, 64, out, False)  # kernels cached, files in the OS cache
