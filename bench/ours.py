@@ -156,6 +156,7 @@ def replay(scene, batches, threads: int, runs: int = 3) -> dict:
                                   embree.IN_ORDER, packet)
 
     times, single_times, build_times, build_splits, cpu_times, single_cpu = [], [], [], [], [], []
+    replay_cpu: dict = {}  # CPU seconds of the replays alone (no build), per way
     with ThreadPoolExecutor(max_workers=threads) as pool:
         for _ in range(runs):
             emb = keep = None  # let the previous run's scene go before building the next (1 M triangles: ~100 MB)
@@ -173,6 +174,7 @@ def replay(scene, batches, threads: int, runs: int = 3) -> dict:
                 cpu = time.process_time() - c2 + (c1 - c0)  # build + replay, not the batch copies
                 (times if label == "packet" else single_times).append(wall)
                 (cpu_times if label == "packet" else single_cpu).append(cpu)
+                replay_cpu.setdefault(label, []).append(cpu - (c1 - c0))
             del work
     del emb, keep
     before = [b for b in (build_embreex(scene) for _ in range(runs)) if b is not None]
@@ -188,6 +190,8 @@ def replay(scene, batches, threads: int, runs: int = 3) -> dict:
             "single_seconds": med1, "single_times": single_times, "single_rays_per_second": rate(med1),
             "single_end_to_end_rays_per_second": rate(build + med1),
             "single_cpu_seconds": statistics.median(single_cpu), "single_cpu_times": single_cpu,
+            "replay_cpu_seconds": statistics.median(replay_cpu["packet"]),
+            "single_replay_cpu_seconds": statistics.median(replay_cpu["single"]),
             "embreex_build_seconds": statistics.median(b["seconds"] for b in before) if before else None}
 
 

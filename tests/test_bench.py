@@ -211,3 +211,29 @@ def test_usd_stage_has_same_triangles_and_lights(tmp_path):
     kind = lambda s: (np.round(np.maximum(s.materials.k_m, s.materials.metallic)[s.material_ids], 3)  # noqa: E731
                       + 10 * s.materials.transmission[s.material_ids])
     np.testing.assert_allclose(np.sort(kind(got)), np.sort(kind(ref)))
+
+
+def test_production_stage_is_many_display_colour_meshes(tmp_path, monkeypatch):
+    """bench.production's stage (here 12 props): one Mesh per prop with its own displayColor, no material, read as
+    one object each with vertex colours; the render's texture spaces are skipped (no program reads Generated) and
+    the picture equals one with them computed."""
+    from bench.production import write_stage
+    from tracer import RenderSettings, render
+    from tracer.integrator import Integrator, reads_input
+    from tracer.shader_vm import IN_GENERATED
+    from usd_io import load_stage
+
+    path = str(tmp_path / "production.usda")
+    assert write_stage(path, meshes=12).startswith("12 meshes")
+    scene, info = load_stage(path, width=64, height=36)
+    assert len(info.meshes) == 13 and len(scene.object_names) == 13  # 12 props + the floor
+    assert scene.colors is not None and len(scene.materials) == 1
+    settings = RenderSettings(width=64, height=36, samples=1, sky_samples=0, threads=1).validate()
+    integ = Integrator(scene, settings)
+    assert integ.programs.has.any() and not reads_input(integ.programs, IN_GENERATED)
+    image = render(scene, settings)
+    assert image.rgba[..., :3].max() > 0.05
+    import tracer.integrator
+
+    monkeypatch.setattr(tracer.integrator, "reads_input", lambda programs, what: True)  # computed, as before
+    assert np.array_equal(render(scene, settings).rgba, image.rgba)

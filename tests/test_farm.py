@@ -30,6 +30,13 @@ def _stage(path, frames=8):
 
 def _set(s):
     """A camera looking down at a floor, a sphere light; the stage saved, its path returned."""
+    _dress(s)
+    s.GetRootLayer().Save()
+    return s.GetRootLayer().identifier
+
+
+def _dress(s):
+    """The camera, floor and light every stage here has."""
     UsdGeom.SetStageUpAxis(s, "Z")
     cam = UsdGeom.Camera.Define(s, "/Cam")
     cam.CreateHorizontalApertureAttr(4.0)
@@ -42,8 +49,7 @@ def _set(s):
     light = UsdLux.SphereLight.Define(s, "/Light")
     light.CreateIntensityAttr(300.0)
     light.AddTranslateOp().Set(Gf.Vec3d(2, 2, 6))
-    s.GetRootLayer().Save()
-    return s.GetRootLayer().identifier
+    return cam
 
 
 @pytest.fixture(scope="module")
@@ -224,3 +230,157 @@ def test_the_farm_takes_every_flag_a_local_render_takes(tmp_path, client):
         assert sorted(os.listdir(other)) == names
         for n in names:
             assert np.array_equal(read_image(dirs["local"] / n), read_image(other / n)), other / n
+
+
+# ------------------------------------------------------------------------------------ the worker's prepared scenes
+def _text(ball=None, ball_moves=False, camera_moves=False) -> str:
+    """A stage's .usda text: the ball still at x = ``ball``, or moving over frames 1..8, or still with the camera
+    moving (a fly-through of a still set)."""
+    s = Usd.Stage.CreateInMemory()
+    cam = _dress(s)
+    op = UsdGeom.Sphere.Define(s, "/Ball").AddTranslateOp()
+    if ball_moves:
+        op.Set(Gf.Vec3d(-2, 0, 0), 1.0)
+        op.Set(Gf.Vec3d(2, 0, 0), 8.0)
+    else:
+        op.Set(Gf.Vec3d(ball, 0, 0))
+    if camera_moves:
+        pan = cam.AddTranslateOp(opSuffix="pan")
+        pan.Set(Gf.Vec3d(0, 0, 0), 1.0)
+        pan.Set(Gf.Vec3d(1.5, 0.5, 0), 8.0)
+    return s.GetRootLayer().ExportToString()
+
+
+def _reference(tmp_path, text, frame):
+    """The local render of a stage with this text at ``frame``, read from a file of its own (so nothing a worker
+    cache holds can be what it shows)."""
+    from usd_io import load_stage
+
+    path = tmp_path / f"reference-{abs(hash((text, frame)))}.usda"
+    path.write_text(text)
+    scene, info = load_stage(str(path), time=frame, width=48)
+    return render(scene, _SETTINGS.with_(width=info.width, height=info.height)).rgba
+
+
+def _worker_frame(source, frame):
+    """One frame through the worker's task, in this process (the worker-side cache is this process's)."""
+    from tracer.farm import render_frame_task
+
+    image = render_frame_task(source, frame)
+    return image.rgba, image.stats["farm"]["reused"]
+
+
+from tracer import RenderSettings  # noqa: E402
+
+_SETTINGS = RenderSettings(samples=1, threads=1)
+
+
+@pytest.fixture
+def fresh_worker():
+    from tracer.farm import forget
+
+    forget()
+    yield
+    forget()
+
+
+def test_a_worker_reads_a_changed_stage_again(tmp_path, fresh_worker):
+    """The stage file is rewritten between two frames (same size: only its time stamp and contents differ): the
+    second frame shows the new file, not the scene prepared from the old one."""
+    from usd_io.farm import UsdSource
+
+    before, after = _text(ball=-2.0), _text(ball=-1.0)
+    assert len(before) == len(after) and before != after
+    path = tmp_path / "shot.usda"
+    path.write_text(before)
+    source = UsdSource(path=str(path), width=48, settings=_SETTINGS)
+    first, reused = _worker_frame(source, 1.0)
+    assert reused is False and np.array_equal(first, _reference(tmp_path, before, 1.0))
+    again, reused = _worker_frame(source, 2.0)  # a still stage: frame 2 is frame 1's prepared scene
+    assert reused == "scene" and np.array_equal(again, first)
+    time.sleep(0.05)
+    path.write_text(after)
+    changed, reused = _worker_frame(source, 3.0)
+    expected = _reference(tmp_path, after, 3.0)
+    assert not np.array_equal(expected, first)  # the edit shows in the picture
+    assert reused is False and np.array_equal(changed, expected)
+
+
+def test_a_worker_renders_each_frame_of_an_animated_stage(tmp_path, fresh_worker):
+    """Time samples: every frame is read at its own time (the ball moves); frames the cache has seen are reused."""
+    from usd_io.farm import UsdSource
+
+    text = _text(ball_moves=True)
+    path = tmp_path / "anim.usda"
+    path.write_text(text)
+    source = UsdSource(path=str(path), width=48, settings=_SETTINGS)
+    images = {}
+    for f in (1.0, 4.0, 8.0):
+        images[f], reused = _worker_frame(source, f)
+        assert reused is False, f  # the geometry moved: nothing to share
+        assert np.array_equal(images[f], _reference(tmp_path, text, f)), f
+    assert not np.array_equal(images[1.0], images[8.0])
+    again, reused = _worker_frame(source, 8.0)  # the last frame is still prepared
+    assert reused == "scene" and np.array_equal(again, images[8.0])
+
+
+def test_a_moving_camera_shares_the_embree_scene_and_renders_each_view(tmp_path, fresh_worker):
+    """Only the camera is animated: each frame is read, its Embree scene is the previous frame's, and each frame
+    equals its local render."""
+    from usd_io.farm import UsdSource
+
+    text = _text(ball=-2.0, camera_moves=True)
+    path = tmp_path / "fly.usda"
+    path.write_text(text)
+    source = UsdSource(path=str(path), width=48, settings=_SETTINGS)
+    first, reused = _worker_frame(source, 1.0)
+    assert reused is False and np.array_equal(first, _reference(tmp_path, text, 1.0))
+    last, reused = _worker_frame(source, 8.0)
+    assert reused == "accel" and np.array_equal(last, _reference(tmp_path, text, 8.0))
+    assert not np.array_equal(first, last)
+
+
+def test_workers_keep_a_still_stage_prepared_across_frames(tmp_path, client):
+    """On the farm: after a worker's first frame of a still stage, its frames reuse the prepared scene."""
+    from tracer.farm import render_frames
+    from usd_io.farm import UsdSource
+
+    path = tmp_path / "still.usda"
+    path.write_text(_text(ball=-2.0))
+    source = UsdSource(path=str(path), width=48, settings=_SETTINGS)
+    expected = _reference(tmp_path, _text(ball=-2.0), 1.0)
+    results = list(render_frames(client, source, [float(f) for f in range(1, 7)]))
+    assert all(r.error is None and np.array_equal(r.image.rgba, expected) for r in results)
+    reused = [r.image.stats["farm"]["reused"] for r in results]
+    assert reused.count(False) <= 2 and reused.count("scene") >= 4, reused  # one load per worker at most
+
+
+def test_a_stage_animated_by_value_clips_is_read_per_frame(tmp_path, fresh_worker):
+    """The stage's own layer has no time samples; its ball moves through a value clip: every frame its own."""
+    from pxr import Sdf
+
+    from usd_io.farm import UsdSource
+
+    clip = Usd.Stage.CreateNew(str(tmp_path / "clip.usda"))
+    op = UsdGeom.Sphere.Define(clip, "/Ball").AddTranslateOp()
+    op.Set(Gf.Vec3d(-2, 0, 0), 1.0)
+    op.Set(Gf.Vec3d(2, 0, 0), 8.0)
+    clip.GetRootLayer().Save()
+    s = Usd.Stage.CreateInMemory()
+    _dress(s)
+    ball = UsdGeom.Sphere.Define(s, "/Ball")
+    ball.AddTranslateOp()
+    clips = Usd.ClipsAPI(ball.GetPrim())
+    clips.SetClipAssetPaths([Sdf.AssetPath("./clip.usda")])
+    clips.SetClipPrimPath("/Ball")
+    clips.SetClipActive([(1.0, 0)])
+    clips.SetClipTimes([(1.0, 1.0), (8.0, 8.0)])
+    text = s.GetRootLayer().ExportToString()
+    path = tmp_path / "clipped.usda"
+    path.write_text(text)
+    source = UsdSource(path=str(path), width=48, settings=_SETTINGS)
+    first, _ = _worker_frame(source, 1.0)
+    last, reused = _worker_frame(source, 8.0)
+    assert reused is False and not np.array_equal(first, last)
+    assert np.array_equal(first, _reference(tmp_path, text, 1.0))
+    assert np.array_equal(last, _reference(tmp_path, text, 8.0))

@@ -1,9 +1,12 @@
 """Render farms on Dask: frames and tiles as Dask tasks, for any scene source.
 
 The tracer does not know where scenes come from, so a farm job names a *scene source*: a small picklable object
-with ``load(frame) -> (Scene, RenderSettings)`` (``usd_io.farm.UsdSource`` reads a USD stage). Workers load the scene
-themselves and keep it prepared for the tasks that share it (every tile of a frame), so nothing is exported per
-tile. The client only submits, assembles and writes:
+with ``load(frame) -> (Scene, RenderSettings)`` (``usd_io.farm.UsdSource`` reads a USD stage) and, optionally,
+``scene_key(frame)``: a key that is equal for frames whose scenes are equal (a still stage's frames) and changes when
+the scene's files change. Workers load the scene themselves and keep it prepared (:func:`prepare`: the scene and a
+:class:`tracer.Session`, its Embree scene and packed tables) for the tasks that share it — every tile of a frame,
+and every frame with the same ``scene_key`` — so nothing is read, exported or built again for them. The client only
+submits, assembles and writes:
 
     >>> from dask.distributed import Client
     >>> from tracer.farm import render_frames
@@ -24,9 +27,10 @@ its error, and is not retried.
 from __future__ import annotations
 
 import collections
+import multiprocessing
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -38,6 +42,45 @@ DEFAULT_FARM_TILE = 512
 
 #: Prepared scenes a worker keeps (frames or sources beyond this are loaded again).
 WORKER_CACHE_SIZE = 2
+
+
+#: Dask settings for workers that render (applied to the clusters ``local:N`` starts; for a cluster of your own, start
+#: its workers with them, e.g. ``DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED=False``, and without
+#: ``MALLOC_TRIM_THRESHOLD_`` in their environment). Measured (docs/benchmarks.md, "Farm"):
+#:
+#: - Dask's nannies start workers with ``MALLOC_TRIM_THRESHOLD_=65536``, so glibc hands every freed block above
+#:   64 kB back to the kernel and the next tile's arrays fault in fresh pages: 3× the page faults of a plain process
+#:   (78 k against 26 k per 480×270 frame of the 1980 scene) and 0.07-0.1 s more system CPU per frame (10 %).
+#:   The workers keep the other variables Dask sets (one OpenMP/BLAS thread) and glibc's own, adaptive threshold;
+#:   the tracer trims its heap itself where a load frees much (``tracer.heap.trim``).
+#: - Dask's statistical profiler samples every task thread's stack each 10 ms, and its event-loop and system
+#:   monitors tick every 20 and 500 ms: 0.5 s of worker CPU beside 8 such frames.
+#: - Where the platform has it, workers fork from a forkserver that has imported Dask once, instead of each starting
+#:   a fresh interpreter and importing it (spawn): 0.5-1 s less CPU for a ``whitted render --scheduler local:2``.
+WORKER_CONFIG = {
+    "distributed.nanny.pre-spawn-environ": {"OMP_NUM_THREADS": 1, "MKL_NUM_THREADS": 1, "OPENBLAS_NUM_THREADS": 1},
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "500ms",
+    "distributed.admin.system-monitor.interval": "2s",
+}
+if "forkserver" in multiprocessing.get_all_start_methods():
+    WORKER_CONFIG["distributed.worker.multiprocessing-method"] = "forkserver"
+
+
+def local_cluster(n_workers: int, **options):
+    """A Dask ``LocalCluster`` of ``n_workers`` one-thread worker processes on 127.0.0.1 (dashboard on a free port),
+    configured with :data:`WORKER_CONFIG`, and its client -> (client, cluster)."""
+    import logging
+
+    import dask
+    from dask.distributed import Client, LocalCluster
+
+    kw = dict(n_workers=n_workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+              dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
+    kw.update(options)
+    with dask.config.set(WORKER_CONFIG):
+        cluster = LocalCluster(**kw)
+        return Client(cluster), cluster
 
 
 class FarmError(RuntimeError):
@@ -52,28 +95,126 @@ class FrameResult:
 
 
 # ---------------------------------------------------------------------------------------------------- worker side
-_cache: "collections.OrderedDict" = collections.OrderedDict()
+@dataclass
+class Prepared:
+    """A worker's prepared frame: the scene and settings a source loaded, and the :class:`tracer.Session` (Embree
+    scene and packed tables) that renders it. ``reused``: False (loaded and built for this frame), ``"scene"`` (an
+    earlier frame's scene and session, the source's key said they are the same) or ``"accel"`` (loaded again, but
+    equal to the previous frame's scene except for the camera: its Embree scene is shared)."""
+
+    scene: object
+    settings: RenderSettings
+    session: object
+    renderer: "_TileRenderer"
+    reused: object = False
+
+
+_cache: "collections.OrderedDict" = collections.OrderedDict()  # (source token, scene key) -> Prepared
+_last: dict = {}  # source token -> the Prepared loaded last for it (camera-only changes share its Embree scene)
 _cache_lock = threading.Lock()
+_key_locks: dict = {}  # one loader at a time per key (a frame's tile tasks on a multi-threaded worker)
 
 
-def prepared(source, frame):
-    """The worker's prepared (scene, settings, renderer) for ``source`` at ``frame``, loaded once and kept for the
-    next tasks that share it (an LRU of :data:`WORKER_CACHE_SIZE` entries per worker process)."""
-    key = (_token(source), frame)
+def scene_key(source, frame):
+    """What identifies the scene ``source`` loads at ``frame``: the source's own ``scene_key(frame)`` when it has one
+    (equal keys promise equal scenes and settings: a stage without time samples gives every frame one key, and the
+    key changes when the stage's files change), else the frame itself (loaded once per frame)."""
+    own = getattr(source, "scene_key", None)
+    return ("frame", frame) if own is None else ("source", own(frame))
+
+
+def prepare(source, frame) -> Prepared:
+    """The worker's :class:`Prepared` for ``source`` at ``frame``, kept in an LRU of :data:`WORKER_CACHE_SIZE`
+    entries per worker process, so the frames and tiles that share a scene read the stage and build the Embree
+    scene once. A frame whose scene differs from the last one loaded for this source only by its camera (a camera
+    moving through a still set) shares that frame's Embree scene; any other difference builds its own."""
+    token = _token(source)
+    key = (token, scene_key(source, frame))
     with _cache_lock:
         hit = _cache.get(key)
         if hit is not None:
             _cache.move_to_end(key)
-            return hit
+            return replace(hit, reused="scene")
+        lock = _key_locks.setdefault(key, threading.Lock())
+    with lock:
+        with _cache_lock:
+            hit = _cache.get(key)
+        if hit is not None:
+            return replace(hit, reused="scene")
+        entry = _load(source, frame, token)
+        with _cache_lock:
+            _cache[key] = entry
+            _cache.move_to_end(key)
+            _last[token] = entry
+            while len(_cache) > WORKER_CACHE_SIZE:
+                (old_token, _), old = _cache.popitem(last=False)
+                if _last.get(old_token) is old:  # hold no scene the LRU has let go
+                    del _last[old_token]
+            _key_locks.pop(key, None)
+    return entry
+
+
+def _load(source, frame, token) -> Prepared:
+    from .session import Session
+
     scene, settings = source.load(frame)
     if settings.threads is None:  # share the machine with the worker's other task slots
         settings = settings.with_(threads=_threads_per_task())
-    entry = (scene, settings, _TileRenderer(scene, settings))
     with _cache_lock:
-        _cache[key] = entry
-        while len(_cache) > WORKER_CACHE_SIZE:
-            _cache.popitem(last=False)
-    return entry
+        last = _last.get(token)
+    if last is not None and same_except_camera(last.scene, scene):
+        session = Session(scene, accel=last.session.accel, instanced=False)
+        return Prepared(scene, settings, session, _TileRenderer(session), "accel")
+    session = Session(scene, instanced=False)
+    return Prepared(scene, settings, session, _TileRenderer(session))
+
+
+def prepared(source, frame):
+    """(scene, settings, tile renderer) of :func:`prepare` (the former interface)."""
+    p = prepare(source, frame)
+    return p.scene, p.settings, p.renderer
+
+
+def forget() -> None:
+    """Drop every prepared scene of this worker (tests; a worker that must free its memory)."""
+    with _cache_lock:
+        _cache.clear()
+        _last.clear()
+
+
+def same_except_camera(a, b) -> bool:
+    """True when scenes ``a`` and ``b`` are equal in every field but the camera (arrays element by element, NaNs
+    equal): then an Embree scene and packed tables built for one serve the other."""
+    from dataclasses import fields as dc_fields
+
+    if type(a) is not type(b):
+        return False
+    return all(_equal(getattr(a, f.name), getattr(b, f.name)) for f in dc_fields(a) if f.name != "camera")
+
+
+def _equal(x, y) -> bool:
+    if x is y:
+        return True
+    if isinstance(x, np.ndarray) or isinstance(y, np.ndarray):
+        if not (isinstance(x, np.ndarray) and isinstance(y, np.ndarray)) or x.shape != y.shape or x.dtype != y.dtype:
+            return False
+        return bool(np.array_equal(x, y, equal_nan=x.dtype.kind in "fc"))
+    if type(x) is not type(y):
+        return False
+    if isinstance(x, (list, tuple)):
+        return len(x) == len(y) and all(_equal(p, q) for p, q in zip(x, y))
+    if isinstance(x, dict):
+        return x.keys() == y.keys() and all(_equal(x[k], y[k]) for k in x)
+    from dataclasses import fields as dc_fields, is_dataclass
+
+    if is_dataclass(x):
+        return all(_equal(getattr(x, f.name), getattr(y, f.name)) for f in dc_fields(x))
+    if hasattr(x, "__dict__"):
+        return _equal(vars(x), vars(y))
+    try:
+        return bool(x == y)
+    except (TypeError, ValueError):  # something that does not compare: not known to be equal
+        return False
 
 
 def _threads_per_task() -> int:
@@ -91,11 +232,14 @@ def _threads_per_task() -> int:
 def render_frame_task(source, frame, assets=None, write=None) -> Image | None:
     """Dask task: one whole frame, as the local ``tracer.render`` would give it; with ``write`` (a picklable
     ``write(image, frame)``), the worker writes it itself and returns None (nothing travels back)."""
-    from .render import render
-
-    scene, settings, _ = prepared(_with_assets(source, assets), frame)
-    image = render(scene, settings.with_(progress=False))
+    t0, c0 = time.perf_counter(), time.thread_time()
+    p = prepare(_with_assets(source, assets), frame)
+    t1, c1 = time.perf_counter(), time.thread_time()
+    image = p.session.render(p.settings.with_(progress=False))
     image.stats.pop("ray_batches", None)
+    # wall seconds, and CPU seconds of the task's thread (all of the render's with one thread per task)
+    image.stats["farm"] = {"prepare_seconds": t1 - t0, "render_seconds": time.perf_counter() - t1,
+                           "prepare_cpu": c1 - c0, "render_cpu": time.thread_time() - c1, "reused": p.reused}
     if write is not None:
         write(image, frame)
         return None
@@ -104,31 +248,27 @@ def render_frame_task(source, frame, assets=None, write=None) -> Image | None:
 
 def render_tile_task(source, frame, tile, assets=None) -> tuple:
     """Dask task: the pixels of ``tile`` = (x0, y0, x1, y1) of one frame -> (tile, rgba, aovs)."""
-    _scene, settings, renderer = prepared(_with_assets(source, assets), frame)
-    rgba, aovs = renderer.tile(settings, tile)
+    p = prepare(_with_assets(source, assets), frame)
+    rgba, aovs = p.renderer.tile(p.settings, tile)
     return tile, rgba, aovs
 
 
 class _TileRenderer:
-    """Renders pixel rectangles of one prepared scene into tile-sized arrays (memory bounded by the tile)."""
+    """Renders pixel rectangles of one prepared session into tile-sized arrays (memory bounded by the tile)."""
 
-    def __init__(self, scene, settings):
-        self.scene = scene
-        self._integ = None
-        self._lock = threading.Lock()
+    def __init__(self, session):
+        self.session = session
+        self.scene = session.scene
 
     def tile(self, settings: RenderSettings, tile):
-        from .accel import Accelerator
-        from .integrator import Integrator
         from .tiles import empty_aovs, timed_eye_rays, uses_ray_types, write_tile
 
-        with self._lock:
-            if self._integ is None:
-                self._integ = Integrator(self.scene, settings.validate(), Accelerator(self.scene))
+        settings = settings.validate()
+        integ = self.session.integrator(settings)
         x0, y0, x1, y1 = tile
         th, tw = y1 - y0, x1 - x0
         o, d, keys, times = timed_eye_rays(self.scene, settings, x0, y0, x1, y1)
-        res = self._integ.trace(o, d, keys, ray_types=uses_ray_types(settings), times=times)
+        res = integ.trace(o, d, keys, ray_types=uses_ray_types(settings), times=times)
         cam = self.scene.camera
         if cam.near > 0:  # as tracer.render: depth from the eye (the film plane for orthographic cameras)
             res.depth += (np.linalg.norm(o - cam.position.astype(np.float32), axis=1)

@@ -47,8 +47,9 @@ def object_random(name: str) -> float:
     return float(np.float32(hash_uint2(hash_string(name), 0)) * np.float32(1.0 / 0xFFFFFFFF))
 
 
-def object_spaces(scene) -> np.ndarray:
-    """(O + 1, 9, 4) float64: every object id's spaces and the camera's (module docstring)."""
+def object_spaces(scene, texture_spaces: bool = True) -> np.ndarray:
+    """(O + 1, 9, 4) float64: every object id's spaces and the camera's (module docstring). ``texture_spaces=False``
+    leaves rows LO and HI zero (a pass over every triangle: skip it when no program reads Generated)."""
     ids = [np.asarray(scene.object_ids, np.int64)]
     if scene.instances is not None:
         ids.append(np.asarray(scene.instances.object_ids, np.int64))
@@ -63,7 +64,8 @@ def object_spaces(scene) -> np.ndarray:
     out[:n, NRM:NRM + 3, :3] = np.transpose(xf[:, :3, :3], (0, 2, 1))
     inv = affine_inverse(xf)  # (an instance's triangles are its prototype's, in that object's space)
     out[:n, XF:XF + 3, :] = inv
-    out[:n, LO:HI + 1, :3] = _texture_spaces(scene, inv, n)
+    if texture_spaces:
+        out[:n, LO:HI + 1, :3] = _texture_spaces(scene, inv, n)
     for k, name in enumerate(scene.object_names[:n]):
         out[k, LOC, 3] = object_random(str(name))
     set_camera(out, scene.camera)

@@ -52,8 +52,16 @@ class UsdSource(StageRequest):
         return self.settings if isinstance(self.settings, RenderSettings) else RenderSettings(**self.settings)
 
     def load(self, frame):
-        scene, info = self.at(frame).read(_open(self.path))
+        scene, info = self.at(frame).read(_open(self.path).stage)
         return scene, self.tracer_settings().with_(width=info.width, height=info.height)
+
+    def scene_key(self, frame):
+        """What :func:`tracer.farm.prepare` keys a worker's prepared scene by (with this source's own fields): the
+        stamp of every file the stage is made of (path, size, modification time and inode of each layer USD
+        opened for it), and the frame only when some layer has time samples. So the frames of a still stage share
+        one prepared scene, an animated stage reads each frame, and a stage changed on disk is read again."""
+        opened = _open(self.path)
+        return opened.stamp, (frame if opened.animated else None)
 
     def unpacked(self, assets: bytes) -> "UsdSource":
         """This source reading the package ``assets`` (written once per worker to a temporary file)."""
@@ -97,16 +105,79 @@ class FarmOptions:
 
 _write_lock = threading.Lock()
 _stages: dict = {}
+_stages_lock = threading.Lock()
 
 
-def _open(path):
-    """The worker's open stage for ``path`` (opened once per worker process)."""
+@dataclass(frozen=True)
+class _Opened:
+    """A worker's open stage, the stamp of the files it was read from, and whether any of them has time samples."""
+
+    stage: object
+    stamp: tuple
+    animated: bool
+
+
+def _open(path) -> _Opened:
+    """The worker's open stage for ``path``: opened once per worker process, and opened again (its changed layers
+    reloaded) when a file it is made of changed on disk since (the stamps of :func:`_stamp` differ)."""
     from .stage import open_stage
 
-    stage = _stages.get(path)
-    if stage is None:
-        stage = _stages[path] = open_stage(path)
-    return stage
+    with _stages_lock:
+        opened = _stages.get(path)
+        if opened is not None:
+            now = _stamp(opened.stage)
+            if now == opened.stamp:
+                return opened
+            changed = {p for p, *rest in set(now) ^ set(opened.stamp)}
+            for layer in opened.stage.GetUsedLayers():  # USD's layer registry would hand back the old contents
+                if _file_of(layer) in changed:
+                    layer.Reload(force=True)
+            del _stages[path]
+        stage = open_stage(path)
+        animated = any(layer.ListAllTimeSamples() or _has_clips(layer) for layer in stage.GetUsedLayers())
+        opened = _stages[path] = _Opened(stage, _stamp(stage), animated)
+        return opened
+
+
+def _has_clips(layer) -> bool:
+    """Whether a prim of ``layer`` names value clips (their layers, and so their time samples, are opened only
+    when a value is read: a stage that uses them counts as animated)."""
+    found = []
+
+    def visit(path):
+        if not found and path.IsPrimPath():
+            spec = layer.GetPrimAtPath(path)
+            if spec is not None and (spec.HasInfo("clips") or spec.HasInfo("clipAssetPaths")):
+                found.append(path)
+
+    layer.Traverse(layer.pseudoRoot.path, visit)
+    return bool(found)
+
+
+def _file_of(layer) -> str | None:
+    """The file a layer was read from (a package's file for a layer inside a .usdz), None for anonymous layers."""
+    path = layer.realPath
+    if not path:
+        return None
+    from pxr import Ar
+
+    outer, _inner = Ar.SplitPackageRelativePathOuter(path)
+    return outer or path
+
+
+def _stamp(stage) -> tuple:
+    """(file, size, mtime_ns, inode) of every file the stage's layers were read from, sorted."""
+    out = set()
+    for layer in stage.GetUsedLayers():
+        path = _file_of(layer)
+        if path is None:
+            continue
+        try:
+            st = os.stat(path)
+            out.add((path, st.st_size, st.st_mtime_ns, st.st_ino))
+        except OSError:
+            out.add((path, None, None, None))
+    return tuple(sorted(out, key=lambda r: r[0]))
 
 
 def package_assets(path: str) -> bytes:
@@ -128,19 +199,19 @@ def connect(address: str):
     an address ``tcp://``/``tls://``/… connects to a running scheduler, with Dask's security configuration
     (``distributed.comm.tls.*``) for TLS; anything else is read as a scheduler file."""
     try:
-        from dask.distributed import Client, LocalCluster
+        from dask.distributed import Client
     except ImportError:
         raise UsdInputError("--scheduler needs Dask: pip install 'whitted[farm]' (dask[distributed])") from None
-    import logging
 
     if address.startswith("local:") or address == "local":
         n = address.partition(":")[2] or str(os.cpu_count() or 1)
         if not n.isdigit() or int(n) < 1:
             raise UsdInputError(f"--scheduler {address!r}: expected local:N with N >= 1 workers")
         n = int(n)
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                               dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
-        return Client(cluster), cluster, max(1, (os.cpu_count() or 1) // n)
+        from tracer.farm import local_cluster  # one-thread workers configured for rendering (WORKER_CONFIG)
+
+        client, cluster = local_cluster(n)
+        return client, cluster, max(1, (os.cpu_count() or 1) // n)
     if address.startswith(ADDRESS_SCHEMES):
         if address.startswith("tls://"):
             import dask
