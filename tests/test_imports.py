@@ -45,9 +45,7 @@ DEFERRED: dict = {
     ("addon.build", "tracer"): "numba", ("addon.build", "tracer.kernel_bundle"): "numba",
     # files of the kernel and farm work, not edited in the cycle work (issue #31)
     ("tracer.kernel_cache", "tracer.jit"): "cycle (KNOWN_CYCLES)",
-    ("tracer.farm", "tracer.accel"): "dask workers", ("tracer.farm", "tracer.integrator"): "dask workers",
-    ("tracer.farm", "tracer.render"): "dask workers", ("tracer.farm", "tracer.tiles"): "dask workers",
-    ("tracer.farm", "tracer.session"): "dask workers",
+    ("tracer.farm", "tracer.tiles"): "dask workers", ("tracer.farm", "tracer.session"): "dask workers",
     ("usd_io.farm", "tracer"): "dask workers", ("usd_io.farm", "tracer.farm"): "dask workers",
     ("usd_io.farm", "usd_io.stage"): "dask workers",
 }
