@@ -1,0 +1,203 @@
+"""Fidelity against references (issue #32), first corpus: OpenUSD's imaging tests with an exact camera, against
+Storm's baseline PNGs, by silhouette IoU.
+
+    python tools/fidelity.py OPENUSD_CHECKOUT [--out /tmp/fidelity] [--only NAME[,NAME...]] [--no-dof]
+                             [--aa 2] [--jsonl OUT.jsonl]
+
+Nothing is downloaded: OPENUSD_CHECKOUT is a checkout (or an extracted copy) of OpenUSD holding
+``pxr/usdImaging/usdImagingGL/CMakeLists.txt`` and its ``testenv``. Every ``pxr_register_test`` there whose
+``testUsdImagingGLBasicDrawing`` command names a ``-camera`` (the exact-camera tests: the stage's own camera, not
+Storm's ``-frameAll`` framing) is a candidate; the scene-index duplicates, the volume tests (volumes are not drawn),
+AOV visualisations and the display/data-window framing tests are left out (:func:`wanted`). Each test is rendered
+in-process (``usd_io.load_stage`` + ``tracer.render``) at each of its ``-times`` with its camera, at the size of its
+baseline image, with a transparent film, and compared:
+
+    silhouette  ours: alpha > 0.5; Storm's: pixels further than 24/255 from the test's clear colour (``-clear``,
+                else testUsdImagingGLBasicDrawing's default orange (1, 0.5, 0.1))
+    IoU         |ours ∩ Storm's| / |ours ∪ Storm's|
+
+and a side-by-side PNG is written to ``OUT`` (Storm's baseline | ours | the masks: white both, red ours only,
+green Storm's only). One JSON line per image goes to ``--jsonl``; the summary prints one row per image.
+
+``--no-dof`` renders without depth of field (Storm draws none). Pointed at main's checkout on PYTHONPATH, the same
+tool gives the "before" figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shlex
+import sys
+import time
+
+import numpy as np
+
+#: testUsdImagingGLBasicDrawing's clear colour when the test gives no ``-clear`` (UsdImagingGL_UnitTestGLDrawing).
+DEFAULT_CLEAR = (1.0, 0.5, 0.1)
+THRESHOLD = 24 / 255
+
+
+def wanted(name: str, cmd: str) -> bool:
+    if "-camera" not in cmd or "SceneIndex" in name or "testUsdImagingGLBasicDrawing" not in cmd:
+        return False
+    return not any(k in cmd for k in ("volumeRaymarching", "-rendererAov depth", "-dataWindow", "-displayWindow"))
+
+
+def tests_of(root: str) -> list[dict]:
+    """The exact-camera tests of usdImagingGL's CMakeLists.txt (commented-out ones too: their baselines exist)."""
+    gl = os.path.join(root, "pxr", "usdImaging", "usdImagingGL")
+    text = open(os.path.join(gl, "CMakeLists.txt")).read()
+    text = re.sub(r"^#", "", text, flags=re.M)
+    out = []
+    for name, cmd, rest in re.findall(r'pxr_register_test\((\S+)\s+COMMAND\s+"([^"]*)"(.*?)\n\)', text, re.S):
+        if not wanted(name, cmd):
+            continue
+        argv = shlex.split(cmd)
+        opt = {}
+        i = 1
+        while i < len(argv):
+            a = argv[i]
+            if a.startswith("-") and not re.match(r"-\d", a):
+                vals = []
+                j = i + 1
+                while j < len(argv) and (not argv[j].startswith("-") or re.match(r"-\d", argv[j])):
+                    vals.append(argv[j])
+                    j += 1
+                opt[a] = vals
+                i = j
+            else:
+                i += 1
+        env = re.search(r"TESTENV\s+(\S+)", rest)
+        testenv = os.path.join(gl, "testenv", env.group(1) if env else name)
+        stage = os.path.join(testenv, opt["-stage"][0])
+        write = opt["-write"][0]
+        times = [float(t) for t in opt.get("-times", [])]
+        clear = tuple(float(c) for c in opt["-clear"][:3]) if "-clear" in opt else DEFAULT_CLEAR
+        stem, ext = os.path.splitext(write)
+        images = []
+        for t in (list(dict.fromkeys(times)) or [None]):
+            base = os.path.join(testenv, "baseline", write if t is None else f"{stem}_{int(t):03d}{ext}")
+            images.append((t, base))
+        out.append(dict(name=name, stage=stage, camera=opt["-camera"][0], images=images, clear=clear,
+                        complexity=float(opt.get("-complexity", ["1.0"])[0])))
+    seen, unique = set(), []
+    for t in out:  # one row per (stage, camera, baseline)
+        key = (t["stage"], t["camera"], tuple(b for _t, b in t["images"]))
+        if key not in seen:
+            seen.add(key)
+            unique.append(t)
+    return unique
+
+
+def read_rgb(path: str) -> np.ndarray:
+    import OpenImageIO as oiio
+
+    buf = oiio.ImageBuf(path)
+    px = buf.get_pixels(oiio.FLOAT)
+    if px is None or px.size == 0:
+        raise ValueError(f"{path}: unreadable ({oiio.geterror()})")
+    return np.asarray(px, np.float32)[..., :3]
+
+
+def storm_mask(rgb: np.ndarray, clear) -> np.ndarray:
+    return np.abs(rgb - np.asarray(clear, np.float32)).max(axis=2) > THRESHOLD
+
+
+def iou(a: np.ndarray, b: np.ndarray) -> float:
+    union = np.count_nonzero(a | b)
+    return 1.0 if union == 0 else np.count_nonzero(a & b) / union
+
+
+def _complexity(c: float) -> str:
+    return "low" if c < 1.1 else "medium" if c < 1.2 else "high" if c < 1.3 else "veryhigh"
+
+
+def render_one(test: dict, t, size, aa: int, dof: bool):
+    import tracer
+    from usd_io.reader import load_stage
+
+    h, w = size
+    kw = dict(time=t, camera=test["camera"], width=w, height=h, complexity=_complexity(test["complexity"]))
+    if not dof:
+        kw["depth_of_field"] = False
+    scene, info = load_stage(test["stage"], **kw)
+    settings = tracer.RenderSettings(width=info.width, height=info.height, samples=aa, transparent=True,
+                                     light_samples=1, sky_samples=0, max_depth=1)
+    image = render_quiet(scene, settings)
+    return np.asarray(image.rgba, np.float32), info
+
+
+def render_quiet(scene, settings):
+    import tracer
+
+    return tracer.render(scene, settings)
+
+
+def side_by_side(path: str, storm: np.ndarray, ours_rgba: np.ndarray, a: np.ndarray, b: np.ndarray) -> None:
+    from tracer.film import Image, write_image  # noqa: F401 (written through OpenImageIO)
+    import OpenImageIO as oiio
+
+    ours = np.clip(ours_rgba[..., :3], 0, 1) ** (1 / 2.2)
+    masks = np.zeros_like(storm)
+    masks[a & b] = 1
+    masks[a & ~b] = (1, 0, 0)
+    masks[~a & b] = (0, 1, 0)
+    sheet = np.concatenate([storm, ours, masks], axis=1)
+    spec = oiio.ImageSpec(sheet.shape[1], sheet.shape[0], 3, oiio.UINT8)
+    out = oiio.ImageBuf(spec)
+    out.set_pixels(oiio.ROI(0, sheet.shape[1], 0, sheet.shape[0]), (np.clip(sheet, 0, 1) * 255 + 0.5).astype(np.uint8))
+    out.write(path)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("openusd")
+    p.add_argument("--out", default="/tmp/fidelity")
+    p.add_argument("--only", default="", help="comma-separated test names or stage file names")
+    p.add_argument("--no-dof", action="store_true", help="render without depth of field (Storm draws none)")
+    p.add_argument("--aa", type=int, default=2)
+    p.add_argument("--jsonl", default=None)
+    p.add_argument("--list", action="store_true")
+    args = p.parse_args(argv)
+    tests = tests_of(args.openusd)
+    if args.only:
+        keep = set(args.only.split(","))
+        tests = [t for t in tests if t["name"] in keep or os.path.basename(t["stage"]) in keep]
+    if args.list:
+        for t in tests:
+            print(t["name"], os.path.basename(t["stage"]), t["camera"], [os.path.basename(b) for _t, b in t["images"]])
+        return 0
+    os.makedirs(args.out, exist_ok=True)
+    rows = []
+    for test in tests:
+        for t, base in test["images"]:
+            row = dict(test=test["name"], stage=os.path.basename(test["stage"]), time=t,
+                       baseline=os.path.basename(base))
+            start = time.perf_counter()
+            try:
+                storm = read_rgb(base)
+                rgba, info = render_one(test, t, storm.shape[:2], args.aa, not args.no_dof)
+                a, b = rgba[..., 3] > 0.5, storm_mask(storm, test["clear"])
+                row.update(iou=round(iou(a, b), 4), ours_px=int(a.sum()), storm_px=int(b.sum()),
+                           size=list(storm.shape[:2][::-1]), warnings=len(info.warnings))
+                side_by_side(os.path.join(args.out, os.path.splitext(row["baseline"])[0] + ".png"), storm, rgba, a, b)
+            except Exception as exc:  # noqa: BLE001 — a row per failure, the survey goes on
+                row.update(iou=None, error=f"{type(exc).__name__}: {exc}"[:300])
+            row["seconds"] = round(time.perf_counter() - start, 1)
+            rows.append(row)
+            print(f"{row['stage']:45s} {row['baseline']:60s} "
+                  f"{'ERR ' + row['error'] if row.get('iou') is None else format(row['iou'], '.4f')}", flush=True)
+            if args.jsonl:
+                with open(args.jsonl, "a") as f:
+                    f.write(json.dumps(row) + "\n")
+    ok = [r for r in rows if r.get("iou") is not None]
+    print(f"{len(rows)} images; IoU >= 0.95: {sum(r['iou'] >= 0.95 for r in ok)}; >= 0.9: "
+          f"{sum(r['iou'] >= 0.9 for r in ok)}; errors: {len(rows) - len(ok)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
