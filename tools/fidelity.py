@@ -9,7 +9,9 @@ Nothing is downloaded: OPENUSD_CHECKOUT is a checkout (or an extracted copy) of 
 ``testUsdImagingGLBasicDrawing`` command names a ``-camera`` (the exact-camera tests: the stage's own camera, not
 Storm's ``-frameAll`` framing) is a candidate; the scene-index duplicates, the volume tests (volumes are not drawn),
 AOV visualisations and the display/data-window framing tests are left out (:func:`wanted`). Each test is rendered
-in-process (``usd_io.load_stage`` + ``tracer.render``) at each of its ``-times`` with its camera, at the size of its
+in-process (``usd_io.load_stage`` + ``tracer.render``) at each of its ``-times`` with its camera conformed to the
+baseline's aspect as the test app conforms it (``-windowPolicy``, default matchVertically: the vertical aperture
+kept; passed to the reader as a RenderSettings' aspectRatioConformPolicy on the session layer), at the size of its
 baseline image, with a transparent film, and compared:
 
     silhouette  ours: alpha > 0.5; Storm's: pixels further than 24/255 from the test's clear colour (``-clear``,
@@ -82,7 +84,8 @@ def tests_of(root: str) -> list[dict]:
             base = os.path.join(testenv, "baseline", write if t is None else f"{stem}_{int(t):03d}{ext}")
             images.append((t, base))
         out.append(dict(name=name, stage=stage, camera=opt["-camera"][0], images=images, clear=clear,
-                        complexity=float(opt.get("-complexity", ["1.0"])[0])))
+                        complexity=float(opt.get("-complexity", ["1.0"])[0]),
+                        window_policy=opt.get("-windowPolicy", ["matchVertically"])[0]))
     seen, unique = set(), []
     for t in out:  # one row per (stage, camera, baseline)
         key = (t["stage"], t["camera"], tuple(b for _t, b in t["images"]))
@@ -115,15 +118,37 @@ def _complexity(c: float) -> str:
     return "low" if c < 1.1 else "medium" if c < 1.2 else "high" if c < 1.3 else "veryhigh"
 
 
+#: testUsdImagingGLBasicDrawing's ``-windowPolicy`` (CameraUtilConformWindowPolicy; default matchVertically) as
+#: UsdRender's aspectRatioConformPolicy: how the camera's aperture meets the baseline's aspect.
+WINDOW_POLICY = {"matchVertically": "adjustApertureWidth", "matchHorizontally": "adjustApertureHeight",
+                 "fit": "expandAperture", "crop": "cropAperture", "dontConform": "adjustPixelAspectRatio"}
+
+
+def reference_camera(path: str, camera: str, policy: str):
+    """The stage at ``path`` with a RenderSettings on its session layer that conforms ``camera`` as the test app
+    does (its window policy, :data:`WINDOW_POLICY`): (stage, settings prim path). The stage's own layers are not
+    touched."""
+    from pxr import Sdf, Usd, UsdRender
+
+    stage = Usd.Stage.Open(path)
+    with Usd.EditContext(stage, stage.GetSessionLayer()):
+        rs = UsdRender.Settings.Define(stage, "/FidelityReference")
+        rs.CreateCameraRel().SetTargets([Sdf.Path(camera)])
+        rs.CreateAspectRatioConformPolicyAttr(WINDOW_POLICY[policy])
+    return stage, "/FidelityReference"
+
+
 def render_one(test: dict, t, size, aa: int, dof: bool):
     import tracer
     from usd_io.reader import load_stage
 
     h, w = size
-    kw = dict(time=t, camera=test["camera"], width=w, height=h, complexity=_complexity(test["complexity"]))
+    stage, settings_prim = reference_camera(test["stage"], test["camera"], test["window_policy"])
+    kw = dict(time=t, camera=test["camera"], width=w, height=h, complexity=_complexity(test["complexity"]),
+              render_settings_prim=settings_prim)
     if not dof:
         kw["depth_of_field"] = False
-    scene, info = load_stage(test["stage"], **kw)
+    scene, info = load_stage(stage, **kw)
     settings = tracer.RenderSettings(width=info.width, height=info.height, samples=aa, transparent=True,
                                      light_samples=1, sky_samples=0, max_depth=1)
     image = render_quiet(scene, settings)
