@@ -142,14 +142,26 @@ def camera_from_blender(cam_obj, width: int, height: int, pixel_aspect: float = 
                          cam.clip_end, lens=depth_of_field(cam, m))
 
 
+def camera_dof_on(cam) -> bool:
+    """Blender's Camera > Depth of Field checkbox (``cam``: camera data): RenderSettings.depth_of_field of a
+    render through it (:func:`settings_from_scene`). Camera-shaped stand-ins without ``dof``: off."""
+    dof = getattr(cam, "dof", None)
+    return bool(dof is not None and dof.use_dof)
+
+
+def motion_blur_on(bpy_scene) -> bool:
+    """Blender's Render > Motion Blur checkbox: RenderSettings.motion_blur (:func:`settings_from_scene`)."""
+    return bool(getattr(bpy_scene.render, "use_motion_blur", False))
+
+
 def depth_of_field(cam, m: np.ndarray) -> dict:
     """The thin lens of a Blender camera with Depth of Field on (``tracer.Camera`` fields; {} when off), as Cycles
     reads it: radius from the f-stop and the lens in metres (scene units of 1 m; orthographic: focal length 1),
     focus distance along the view axis to the focus object's origin, else the Focus Distance; blades, rotation
     and ratio as they are."""
-    dof = getattr(cam, "dof", None)  # (camera-shaped stand-ins without one: no depth of field)
-    if dof is None or not dof.use_dof:
+    if not camera_dof_on(cam):
         return {}
+    dof = cam.dof
     f = 1.0 if cam.type == "ORTHO" else cam.lens * 1e-3
     focus = float(dof.focus_distance)
     if dof.focus_object is not None:
@@ -412,7 +424,7 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     warnings: list[str] = []
     # Motion blur: F12 and Explain Pixel; not the viewport (it passes a camera) nor a synced session (``objects``:
     # its edits have no motion)
-    blur = getattr(bpy_scene.render, "use_motion_blur", False)
+    blur = motion_blur_on(bpy_scene)
     if blur and objects is not None and camera is None:
         warnings.append("motion blur is not rendered with Persistent Data (turn it off for motion blur)")
     blur = blur and camera is None and objects is None
@@ -573,7 +585,9 @@ def settings_from_scene(bpy_scene, view_layer=None) -> "tracer.RenderSettings":
     """Render settings from a Blender scene: ``scene.whitted`` (every property addon/properties.py made from a
     RenderSettings field; the defaults where unregistered), the render size
     (resolution × percentage), the render border as ``region``, Film > Transparent, and the AOVs the view layer
-    and ``scene.whitted.ray_type_passes`` ask for (addon/passes.py: the one pass ↔ AOV table)."""
+    and ``scene.whitted.ray_type_passes`` ask for (addon/passes.py: the one pass ↔ AOV table). Blender's own
+    switches are ``depth_of_field`` (the scene camera's Depth of Field, :func:`camera_dof_on`) and ``motion_blur``
+    (Render > Motion Blur, :func:`motion_blur_on`): the export reads them through the same two functions."""
     r = bpy_scene.render
     w, h = render_size(bpy_scene)
     props = getattr(bpy_scene, "whitted", None)
@@ -585,8 +599,11 @@ def settings_from_scene(bpy_scene, view_layer=None) -> "tracer.RenderSettings":
     region = border_region(bpy_scene) if r.use_border else None
     layer = view_layer if view_layer is not None else (bpy_scene.view_layers[0] if bpy_scene.view_layers else None)
     aovs = [p.aov for p in passes.asked(layer, props)]
+    cam = bpy_scene.camera
+    dof = camera_dof_on(cam.data) if cam is not None and cam.type == "CAMERA" else False
     return tracer.RenderSettings(width=w, height=h, transparent=bool(r.film_transparent), region=region,
-                                 aovs=tuple(aovs), **kw).validate()
+                                 aovs=tuple(aovs), depth_of_field=dof, motion_blur=motion_blur_on(bpy_scene),
+                                 **kw).validate()
 
 
 def border_region(bpy_scene) -> tuple[int, int, int, int]:

@@ -227,3 +227,23 @@ def test_settings_from_scene(bpy_module):
         assert s.aovs == ("depth",)
     finally:
         addon.unregister()
+
+
+def test_blenders_own_switches_are_the_depth_of_field_and_motion_blur_settings(bpy_module):
+    """Blender's Camera > Depth of Field and Render > Motion Blur checkboxes are RenderSettings.depth_of_field and
+    motion_blur (what ``whitted render --no-dof/--no-motion-blur`` set), both off in a new Blender scene."""
+    import addon
+
+    addon.register()
+    try:
+        scene = bs.reset((40, 20))
+        assert export.settings_from_scene(scene).depth_of_field is False  # no camera: no lens
+        bs.add_camera()
+        s = export.settings_from_scene(scene)
+        assert (s.depth_of_field, s.motion_blur) == (False, False)
+        scene.camera.data.dof.use_dof = True
+        scene.render.use_motion_blur = True
+        s = export.settings_from_scene(scene)
+        assert (s.depth_of_field, s.motion_blur) == (True, True)
+    finally:
+        addon.unregister()

@@ -15,7 +15,8 @@ from tracer.settings import INTEGRATOR_FIELDS, SETTINGS, RenderSettings, default
 #: A valid value other than the default for every field (a new field fails the walk until it is listed here).
 CHANGED = {"width": 40, "height": 30, "samples": 3, "max_depth": 1, "epsilon": 1e-3, "fresnel": False,
            "shadows": False, "light_samples": 9, "sky_samples": 4, "terminal_rays": True, "shading": "classic",
-           "max_transparent": 0, "min_weight": 0.25, "transparent": True, "tile_size": 16, "threads": 1,
+           "max_transparent": 0, "min_weight": 0.25, "transparent": True, "depth_of_field": False,
+           "motion_blur": False, "tile_size": 16, "threads": 1,
            "aovs": ("depth", "objectid"), "region": (4, 4, 30, 20), "seed": 7, "progress": True,
            "extra": {"record_rays": True}}
 
@@ -54,8 +55,8 @@ def test_each_flag_reaches_render_explain_and_the_farm(name):
         assert getattr(settings_from_args(args), name) == value, args.command
     source = UsdSource.of(StageRequest.from_args(render_args, "x.usda"), settings_from_args(render_args))
     assert getattr(source.tracer_settings(), name) == value
-    if name in ("width", "height"):  # the size asked for: the stage's camera decides the missing side
-        assert getattr(source, name) == value
+    if name in ("width", "height", "depth_of_field", "motion_blur"):  # read by the stage reader too (the size
+        assert getattr(source, name) == value  # asked for; whether the camera's lens and shutter are taken)
 
 
 def test_bad_flag_values_name_the_flag():

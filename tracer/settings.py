@@ -121,6 +121,16 @@ class RenderSettings:
     transparent: bool = setting(False, "missed eye rays get alpha 0 and no background colour (Blender's Film > "
                                 "Transparent)", flag="--transparent", rebuilds_integrator=True,
                                 blender_from="Film > Transparent")
+    depth_of_field: bool = setting(True, "depth of field of a camera with a lens (USD: fStop > 0 with a "
+                                   "focusDistance, unless the RenderSettings' disableDepthOfField; Blender: the "
+                                   "camera's Depth of Field); off = every camera is a pinhole, as Storm draws it "
+                                   "(many exporters write fStop 5.6 on every camera). Read by the front ends as they "
+                                   "build the scene's camera", flag="--dof",
+                                   blender_from="the scene camera's Camera > Depth of Field checkbox")
+    motion_blur: bool = setting(True, "motion blur across the camera's shutter (USD: shutter:open/close, unless the "
+                                "RenderSettings' disableMotionBlur; Blender: Render > Motion Blur); off = everything "
+                                "where it is at the frame. Read by the front ends as they build the scene",
+                                flag="--motion-blur", blender_from="Render > Motion Blur")
     tile_size: int = setting(128, "pixel tile edge; memory is bounded by tile size × samples", unit="px", lo=4,
                              flag="--tile-size", metavar="PX", blender_from="the default (Blender shows no tiles)")
     threads: int | None = setting(None, "worker threads; unset = all cores (images are identical for any count)",

@@ -67,10 +67,17 @@ def read_camera(prim, time):
     )
 
 
-def fold_depth_of_field(raw: dict, warn) -> dict:
+def fold_depth_of_field(raw: dict, warn, enabled: bool = True, note=None) -> dict:
     """UsdGeomCamera's depth of field: ``fStop`` 0 (the default) is a pinhole; with fStop > 0 the plane of focus is
-    ``focusDistance`` stage units away. A positive fStop with no focus distance is ignored with one warning."""
+    ``focusDistance`` stage units away. A positive fStop with no focus distance is ignored with one warning.
+    ``enabled`` False (``--no-dof``, or the RenderSettings' ``disableDepthOfField``) makes every camera a pinhole
+    (``note`` receives one line when that drops a lens)."""
     out = dict(raw)
+    if not enabled:
+        if out.get("f_stop", 0.0) > 0 and note is not None:
+            note(f"{raw['path']}: fStop {out['f_stop']:g} ignored: depth of field is off")
+        out["f_stop"] = 0.0
+        return out
     if out.get("f_stop", 0.0) > 0 and not out.get("focus_distance", 0.0) > 0:
         warn(f"{raw['path']}: fStop {out['f_stop']:g} without a positive focusDistance: depth of field ignored")
         out["f_stop"] = 0.0

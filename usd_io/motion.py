@@ -8,7 +8,7 @@ Imports :mod:`usd_io.xform` (matrices), :mod:`usd_io.instancing` (instancers' mo
 from __future__ import annotations
 
 import numpy as np
-from pxr import Usd, UsdGeom, UsdRender
+from pxr import Usd, UsdGeom
 
 import tracer
 
@@ -23,20 +23,16 @@ from .xform import to_numpy, transform_points
 MOTION_STEPS = 3
 
 
-def shutter_interval(stage, camera_prim, settings_prim=None, time=None):
+def shutter_interval(camera_prim, time=None):
     """(open, close) time offsets from the frame of the render camera's ``shutter:open``/``shutter:close``
     (UsdGeomCamera: frame-relative, in time codes; both 0 by default, i.e. no motion blur), or None when there is
-    no interval: open >= close, no camera, or the RenderSettings switch motion blur off (``disableMotionBlur``, or
-    the deprecated ``instantaneousShutter``, which sets close = open). UsdRender has no shutter of its own: the
-    camera's interval is the one, and the settings can only turn it off."""
+    no interval: open >= close, or no camera. UsdRender has no shutter of its own: the camera's interval is the
+    one, and the RenderSettings can only turn it off (``disableMotionBlur``, or the deprecated
+    ``instantaneousShutter``: usd_io.render_settings reads them into ``RenderSpec.motion_blur``), as
+    ``--no-motion-blur`` does; :func:`stage_motion` takes the two together."""
     if camera_prim is None or not camera_prim.IsValid() or not camera_prim.IsA(UsdGeom.Camera):
         return None
     t = time if time is not None else Usd.TimeCode.Default()
-    if settings_prim is not None and settings_prim.IsValid():
-        base = UsdRender.SettingsBase(settings_prim)
-        for attr in (base.GetDisableMotionBlurAttr(), base.GetInstantaneousShutterAttr()):
-            if attr and attr.HasAuthoredValue() and attr.Get(t):
-                return None
     cam = UsdGeom.Camera(camera_prim)
     open_, close = cam.GetShutterOpenAttr().Get(t), cam.GetShutterCloseAttr().Get(t)
     if open_ is None or close is None or not float(close) > float(open_):
@@ -69,16 +65,16 @@ def _deformed_points(prim, times, base, level):
     return out
 
 
-def stage_motion(stage, scene, time, camera_path, settings_path=None, subdivision_level=1, warn=print) -> None:
-    """Motion blur of a stage read at ``time``: with a shutter interval (:func:`shutter_interval`), every prim's
+def stage_motion(stage, scene, time, camera_path, motion_blur=True, subdivision_level=1, warn=print) -> None:
+    """Motion blur of a stage read at ``time``: with ``motion_blur`` on (``--motion-blur`` and not the
+    RenderSettings' ``disableMotionBlur``) and a shutter interval (:func:`shutter_interval`), every prim's
     world matrix (``UsdGeom.XformCache``) at :data:`MOTION_STEPS` times across it — objects as
     ``scene.motion`` steps relative to where they were placed, native instances as instance steps, the camera as
     ``Camera.motion`` — and meshes whose points move (time samples, ``velocities``/``accelerations``) as vertex
     steps. Changes ``scene`` in place; nothing when the shutter is closed."""
     base = time if time is not None else Usd.TimeCode.Default()
     cam_prim = stage.GetPrimAtPath(camera_path) if camera_path else None
-    settings = stage.GetPrimAtPath(settings_path) if settings_path else None
-    interval = shutter_interval(stage, cam_prim, settings, base)
+    interval = shutter_interval(cam_prim, base) if motion_blur else None
     if interval is None:
         return
     if base.IsEarliestTime():  # no --time: the shutter opens about the stage's first frame (0 without a range)

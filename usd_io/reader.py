@@ -297,7 +297,7 @@ class _Reader:
         return np.stack([self.lo, self.hi])
 
 
-def _camera(stage, r, info, tc, camera, width, height, settings_prim) -> None:
+def _camera(stage, r, info, tc, camera, width, height, settings_prim, depth_of_field=True) -> None:
     """The render camera and image size (info.width/height/camera, r.b.camera): the stage camera (``camera``, the
     RenderSettings' camera, the first found) conformed by the RenderSettings' policy (expandAperture without one)
     and cropped to its data window, or the default framing camera."""
@@ -310,7 +310,8 @@ def _camera(stage, r, info, tc, camera, width, height, settings_prim) -> None:
     policy = CONFORM[spec.conform] if spec else CONFORM[DEFAULT_CONFORM]
     if cam_prim is not None:
         raw = cam.fold_arnold_camera(cam.read_camera(cam_prim, tc), cam_prim, tc, info.notes.append)
-        raw = cam.fold_depth_of_field(cam.fold_clipping_planes(raw, info.warn), info.warn)
+        lens = depth_of_field and (spec is None or spec.depth_of_field)  # --no-dof, disableDepthOfField
+        raw = cam.fold_depth_of_field(cam.fold_clipping_planes(raw, info.warn), info.warn, lens, info.notes.append)
         info.width, info.height = cam.image_size(raw, width, height, par)
         r.b.camera = cam.to_tracer(raw, info.width, info.height, policy, par)
         info.camera = str(cam_prim.GetPath())
@@ -436,7 +437,8 @@ def stage_up_axis(stage, warn) -> str:
 def load_stage(path_or_stage, time=None, camera: str | None = None, width: int | None = None,
                height: int | None = None, purposes=DEFAULT_PURPOSES, segments: int = DEFAULT_SEGMENTS,
                default_light: bool = True, variants=(), complexity: str = DEFAULT_COMPLEXITY,
-               render_settings_prim: str | None = None, light_units: str = "auto"):
+               render_settings_prim: str | None = None, light_units: str = "auto", depth_of_field: bool = True,
+               motion_blur: bool = True):
     """Read a USD stage (a path or an open ``Usd.Stage``) into a render-ready :class:`tracer.Scene`.
 
     time      time code (None: the earliest time, i.e. default values or the first time sample)
@@ -454,6 +456,10 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
               above are None; ``info.render_settings`` keeps its products and AOVs (usd_io.render_settings)
     light_units  "auto": lights in the units of the application that wrote the stage (usd_io.exporters; a note
               names it); "spec": as UsdLux says; or one of usd_io.exporters.UNITS
+    depth_of_field  False: the camera is a pinhole whatever its fStop (``--no-dof``; the RenderSettings'
+              ``disableDepthOfField`` does the same)
+    motion_blur  False: nothing moves across the shutter (``--no-motion-blur``; the RenderSettings'
+              ``disableMotionBlur`` does the same)
 
     Returns ``(scene, info)``; ``info.warnings`` lists what was skipped or approximated (each message once).
     Raises :class:`UsdInputError` (a ``ValueError``) for input the user can fix.
@@ -492,7 +498,7 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     _say_if_empty(r, info)
 
 
-    _camera(stage, r, info, tc, camera, width, height, render_settings_prim)
+    _camera(stage, r, info, tc, camera, width, height, render_settings_prim, depth_of_field)
     arnold_render_globals(stage, r.prims, info.warn)  # usd_io.arnold: Arnold backgrounds and atmospheres, named
     if default_light and not info.lights:
         sun, dome = default_lights(r.b.camera)
@@ -511,8 +517,8 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     try:
         scene = r.b.build()
         # motion blur across the camera's shutter (usd_io.motion.stage_motion; nothing when it is closed)
-        stage_motion(stage, scene, tc, info.camera, info.render_settings.path if info.render_settings else None,
-                     r.subdivision_level, info.warn)
+        blur = motion_blur and (info.render_settings is None or info.render_settings.motion_blur)
+        stage_motion(stage, scene, tc, info.camera, blur, r.subdivision_level, info.warn)
     except ValueError as exc:  # the tracer's validation of what was read (e.g. a NaN material input)
         raise UsdInputError(f"{label}: {exc}") from None
     scene.light_links = links

@@ -3,7 +3,7 @@ output files and AOVs.
 
 Which settings: the prim passed (``--render-settings PRIM``, usdrecord's flag), else the stage's
 ``renderSettingsPrimPath`` metadatum, else none. A product's own resolution, camera, pixelAspectRatio,
-aspectRatioConformPolicy and dataWindowNDC override the settings' (UsdRenderSettingsBase). The picture is the first
+aspectRatioConformPolicy, dataWindowNDC and switches override the settings' (UsdRenderSettingsBase). The picture is the first
 product's; ``--render-settings`` may also name a RenderProduct prim, which then renders with its own overrides on
 top of the settings that list it. Without ``-o`` the CLI writes every product: each is rendered with its own
 camera, size and RenderVars and written to its productName (``RenderSpec.product_paths`` lists them).
@@ -19,6 +19,9 @@ camera, size and RenderVars and written to its productName (``RenderSpec.product
         adjustPixelAspectRatio  keep both; the pixels stretch (non-square) to fit
     dataWindowNDC           (xmin, ymin, xmax, ymax) of the image in NDC (0, 0 lower left): only that part is
                             rendered, as an image of that part's size (the aperture and offsets cropped to it)
+    disableDepthOfField     every camera a pinhole (as ``--no-dof``: ``RenderSpec.depth_of_field``)
+    disableMotionBlur       no motion blur (as ``--no-motion-blur``; also the deprecated ``instantaneousShutter``:
+                            ``RenderSpec.motion_blur``)
     products                ``productName`` of each product: the files written (``--output`` wins)
     RenderVars              ``sourceName`` mapped to the tracer's AOVs where one exists (:data:`RENDER_VAR_AOVS`);
                             ``color``/``Ci``/``rgba`` is the beauty; others warn once
@@ -58,6 +61,8 @@ class RenderSpec:
     pixel_aspect: float = 1.0
     conform: str = DEFAULT_CONFORM
     data_window: tuple = (0.0, 0.0, 1.0, 1.0)
+    depth_of_field: bool = True  # not disableDepthOfField
+    motion_blur: bool = True  # not disableMotionBlur (nor the deprecated instantaneousShutter)
     products: list = field(default_factory=list)  # productName strings
     aovs: list = field(default_factory=list)  # tracer AOV names the rendered product's RenderVars map to
     product_paths: list = field(default_factory=list)  # every product's prim path, in order
@@ -153,6 +158,12 @@ def _read_base(base, spec: RenderSpec, time, authored_only: bool) -> None:
     dw = get(base.GetDataWindowNDCAttr())
     if dw is not None:
         spec.data_window = tuple(float(x) for x in dw)
+    off = get(base.GetDisableDepthOfFieldAttr())
+    if off is not None:
+        spec.depth_of_field = not off
+    blur = [get(a) for a in (base.GetDisableMotionBlurAttr(), base.GetInstantaneousShutterAttr())]
+    if any(v is not None for v in blur):
+        spec.motion_blur = not any(blur)
 
 
 def product_names(stage, path=None) -> list[str]:

@@ -16,7 +16,8 @@ makes the flag for every command, :meth:`StageRequest.from_args` reads it, :meth
                                                 help="the UsdRender.Settings prim to render with")
 
 A field with ``flags=()`` takes the flag of the RenderSettings field of the same name (width, height: the size
-asked for; the stage's camera aperture decides the missing side). This module imports neither pxr nor the
+asked for; the stage's camera aperture decides the missing side; depth_of_field, motion_blur: whether the reader
+takes the camera's lens and shutter). This module imports neither pxr nor the
 tracer's kernels: the parser is built before anything heavy loads.
 """
 
@@ -71,6 +72,8 @@ class StageRequest:
                                        help="camera prim path (default: the first camera in the stage)")
     width: int | None = request_field(None)
     height: int | None = request_field(None)
+    depth_of_field: bool | None = request_field(None)  # --dof/--no-dof: the camera's lens (tracer.settings)
+    motion_blur: bool | None = request_field(None)  # --motion-blur/--no-motion-blur: the camera's shutter
     purposes: tuple | None = request_field(None, "--purposes", parse=split_purposes, metavar="P[,P...]",
                                            help="purposes to render, comma-separated, e.g. render,proxy,guide "
                                            "(default: default,render)")

@@ -1,0 +1,83 @@
+"""tools/fidelity.py (issue #32): how our renders of OpenUSD's exact-camera imaging tests are compared with Storm's
+baselines. Each pattern that made a silhouette miss that was the comparison's, not the picture's, is pinned here on
+small inputs written by the test (no third-party file is read):
+
+- the test app conforms the camera by its ``-windowPolicy`` (default matchVertically: the vertical aperture kept),
+  not by UsdRender's fallback (expandAperture): pi_ni_xform's cubes were 2.8 % smaller and shifted;
+- Storm's multisampled edges are half-covered pixels blended with the clear colour: the silhouettes meet at half
+  coverage on both sides;
+- Storm writes the clear colour exactly where nothing is drawn: dark texels against a black clear colour are drawn.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "tools"))
+
+import fidelity  # noqa: E402
+
+ORANGE8 = np.array([255, 128, 25], np.float32) / 255  # (1, 0.5, 0.1) as an 8-bit PNG stores it
+
+
+def test_the_test_app_conforms_the_camera_by_its_window_policy(tmp_path):
+    """A 20.955 × 15.2908 mm aperture (UsdGeomCamera's default) on a 64 × 48 image: matchVertically keeps the
+    vertical aperture (the horizontal becomes 15.2908 · 64/48); UsdRender's fallback would keep the horizontal."""
+    from pxr import Gf, Usd, UsdGeom
+
+    from usd_io.reader import load_stage
+
+    path = str(tmp_path / "cam.usda")
+    stage = Usd.Stage.CreateNew(path)
+    cam = UsdGeom.Camera.Define(stage, "/cam")
+    cam.AddTranslateOp().Set(Gf.Vec3d(0, 0, 10))
+    UsdGeom.Cube.Define(stage, "/Cube")
+    stage.GetRootLayer().Save()
+    ref, prim = fidelity.reference_camera(path, "/cam", "matchVertically")
+    camera = load_stage(ref, camera="/cam", width=64, height=48, render_settings_prim=prim)[0].camera
+    assert camera.vertical_aperture == pytest.approx(15.2908, rel=1e-6)
+    assert camera.horizontal_aperture == pytest.approx(15.2908 * 64 / 48, rel=1e-6)
+    assert load_stage(path, camera="/cam", width=64, height=48)[0].camera.horizontal_aperture == \
+        pytest.approx(20.955, rel=1e-6)
+    assert not Usd.Stage.Open(path).GetPrimAtPath(prim)  # the stage's own layers are not touched
+
+
+def test_storm_silhouette_is_taken_at_half_coverage():
+    """A dark square on the 8-bit orange clear colour with a column blended 50 % (in) and one blended 20 % (out),
+    and a lit square on black with texels inside it as dark as 1/255 (in: nothing else is written there)."""
+    img = np.tile(ORANGE8, (12, 12, 1))
+    dark = np.array([0.1, 0.1, 0.1], np.float32)
+    img[3:9, 3:9] = dark
+    img[3:9, 9] = 0.5 * dark + 0.5 * ORANGE8
+    img[3:9, 2] = 0.2 * dark + 0.8 * ORANGE8
+    m = fidelity.storm_mask(img, fidelity.DEFAULT_CLEAR)
+    assert m[3:9, 3:10].all() and not m[:, 2].any() and m.sum() == 6 * 7
+    black = np.zeros((12, 12, 3), np.float32)
+    black[3:9, 3:9] = 0.5
+    black[5, 5] = black[6, 4] = 1 / 255
+    assert fidelity.storm_mask(black, (0, 0, 0)).sum() == 36
+
+
+def test_exact_camera_tests_are_read_from_the_cmake_file(tmp_path):
+    """Tests with ``-camera`` are kept (once: the scene-index twin and repeated -times drop), with their baselines
+    per time, clear colour and window policy; -frameAll-only tests are not."""
+    gl = tmp_path / "pxr" / "usdImaging" / "usdImagingGL"
+    (gl / "testenv" / "testA").mkdir(parents=True)
+    (gl / "testenv" / "testA" / "a.usda").write_text("#usda 1.0\n")
+    cmd = "${CMAKE_INSTALL_PREFIX}/tests/testUsdImagingGLBasicDrawing -offscreen EXTRA -stage a.usda -write a.png"
+    (gl / "CMakeLists.txt").write_text("\n".join(
+        f'pxr_register_test({name}\n    COMMAND "{cmd.replace("EXTRA", extra)}"\n    TESTENV testA\n)\n'
+        for name, extra in (("testA", "-camera /cam -times 1 2 1 2 -clear 0 0 0 1"),
+                            ("testA_SceneIndex", "-camera /cam -times 1 2"),
+                            ("testB", "-frameAll"),
+                            ("testC", "-camera /cam -windowPolicy crop"))))
+    tests = fidelity.tests_of(str(tmp_path))
+    assert [t["name"] for t in tests] == ["testA", "testC"]
+    a, c = tests
+    assert [(t, os.path.basename(b)) for t, b in a["images"]] == [(1.0, "a_001.png"), (2.0, "a_002.png")]
+    assert a["clear"] == (0.0, 0.0, 0.0) and a["window_policy"] == "matchVertically" and a["camera"] == "/cam"
+    assert c["images"][0][0] is None and c["window_policy"] == "crop" and c["clear"] == fidelity.DEFAULT_CLEAR
