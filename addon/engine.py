@@ -10,6 +10,7 @@ as Esc would with ``WhittedRenderEngine.break_hook``.
 
 from __future__ import annotations
 
+import queue
 import threading
 import time
 import weakref
@@ -26,6 +27,8 @@ from .export import viewport_camera
 PASSES = {p.aov: p.register_args for p in passes.PASSES}
 #: Depth Blender writes where nothing was hit.
 NO_DEPTH = 1.0e10
+#: Seconds between two polls of Esc (``test_break``) while the tracer builds and traces (:meth:`_Job.run`).
+POLL_SECONDS = 0.05
 
 
 class WhittedRenderEngine(bpy.types.RenderEngine):
@@ -73,15 +76,19 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
         try:
             scene, _ = export.scene_from_depsgraph(depsgraph, width=job.settings.width, height=job.settings.height,
                                                    cancelled=job.cancelled)
-            tracer.render(scene, job.settings, on_tile=job.tile_writer(scene), cancelled=job.cancelled)
+            job.run(lambda: tracer.render(scene, job.settings, on_tile=job.tile_writer(scene),
+                                          cancelled=job.cancelled))
         except (export.ExportCancelled, tracer.RenderCancelled):
-            pass
+            if not job.tiles_written:  # (Blender 5.0 crashes on a result no tile was written into)
+                self._write_empty(job.settings, job.layer)
         except Exception as exc:  # a scene we cannot export: say why, show grey
             self.report({"ERROR"}, f"Whitted: {exc}")
             self._fill_preview(export.render_size(depsgraph.scene))
 
     def _render_final(self, depsgraph):
-        """F12: export the evaluated depsgraph and render it (the one-off :func:`tracer.render`)."""
+        """F12: export the evaluated depsgraph, build its Embree scene and render it (a :class:`tracer.Session`
+        for one render, laid out as :func:`tracer.render` lays it out). Esc is looked at right before and right
+        after the build, besides while it runs: a build that finishes as Esc comes traces nothing."""
         job = _Job(self, depsgraph)
         try:
             scene, warnings = export.scene_from_depsgraph(depsgraph, width=job.settings.width,
@@ -92,8 +99,23 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
         except Exception as exc:  # a scene we cannot export: say why, leave an empty result
             return self.report({"ERROR"}, f"Whitted: {exc}")
         job.exported(warnings)
-        job.trace(lambda on_tile: tracer.render(scene, job.settings, on_tile=on_tile, cancelled=job.cancelled),
-                  scene)
+        if not job.ready():
+            return
+        try:
+            session = job.run(lambda: tracer.Session(scene, instanced=False, cancelled=job.cancelled))
+        except tracer.RenderCancelled:
+            return job.stopped("build")
+        except Exception as exc:
+            self._write_empty(job.settings, job.layer)
+            return self.report({"ERROR"}, f"Whitted: {exc}")
+        try:
+            if job.cancelled():  # Esc as the build finished: nothing traced
+                return job.stopped("build")
+            job.extra["bvh_seconds"] = session.stats["build_seconds"]
+            job.trace(lambda on_tile: session.render(job.settings, on_tile=on_tile, cancelled=job.cancelled),
+                      scene)
+        finally:
+            session.close()
 
     def _render_persistent(self, depsgraph):
         """F12 with Persistent Data (Render Properties > Performance > Final Render, as Cycles): Blender keeps this
@@ -110,8 +132,11 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
             if job.cancelled():
                 raise export.ExportCancelled("export cancelled")
             stage = "build"
-            self._final_session = sync.apply_edits(self._final_session, edits, quality="medium",
-                                                   cancelled=job.cancelled)
+            kept = self._final_session
+            self._final_session = job.run(lambda: sync.apply_edits(kept, edits, quality="medium",
+                                                                   cancelled=job.cancelled))
+            if job.cancelled():  # Esc right after the build: nothing traced, the (complete) session kept
+                return job.stopped("build")
         except (export.ExportCancelled, tracer.RenderCancelled):  # Esc: nothing traced, nothing half-synced kept
             self._drop_final_session()
             return job.stopped(stage)
@@ -201,10 +226,13 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
         gpu.state.blend_set("NONE")
 
     def __del__(self):
-        v = getattr(self, "_view", None)
+        try:
+            v = getattr(self, "_view", None)
+            s = getattr(self, "_final_session", None)
+        except ReferenceError:  # Blender freed the engine's RNA first (at unregister): Python keeps nothing to stop
+            return
         if v is not None:
             v.stop()
-        s = getattr(self, "_final_session", None)
         if s is not None:
             s.close()
 
@@ -212,8 +240,9 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
 @dataclass(frozen=True)
 class RenderReport:
     """What a final render did: the tracer's statistics (``image.stats``: rays per type, seconds; plus
-    ``export_seconds``, ``bvh_seconds``, ``persistent``, ``sync``; or ``{"cancelled": True, "cancelled_in":
-    "export" | "build"}`` when Esc stopped it before a tile) and the export's warnings."""
+    ``export_seconds``, ``bvh_seconds``, ``persistent``, ``sync``, ``tiles_written``, and ``cancelled: True`` when Esc
+    stopped it after some tiles were written; or ``{"cancelled": True, "cancelled_in": "export" | "kernels" | "build" |
+    "tiles"}`` when Esc stopped it before a tile was written: then the result is black) and the export's warnings."""
 
     stats: dict
     warnings: tuple = ()
@@ -221,7 +250,12 @@ class RenderReport:
 
 class _Job:
     """One render of the engine: its settings, Esc (``test_break``, and ``break_hook`` in tests), and the tiles
-    written into Blender's render result as they finish."""
+    written into Blender's render result as they finish.
+
+    Blender's API is called only from the thread Blender called ``render()`` on. The tracer's work (the Embree build
+    and the tiles) runs on a helper thread (:meth:`run`) while that thread polls Esc every :data:`POLL_SECONDS` and
+    writes the finished tiles: so Esc is seen during a long build or a long first tile, not only when the tracer
+    next asks, and no tile is written once Esc was seen."""
 
     def __init__(self, engine, depsgraph, settings=None):
         self.engine = engine
@@ -235,14 +269,56 @@ class _Job:
         self._main = threading.current_thread()
         self._t0 = time.perf_counter()
         self.export_seconds = 0.0
+        self.tiles_written = 0
+        self._tiles: queue.SimpleQueue = queue.SimpleQueue()  # tiles the tracer finished, for this thread to write
 
     def cancelled(self) -> bool:
-        # Blender's API is only called from the thread that runs render(); the tracer's worker threads read the
-        # flag (the tracer polls on the calling thread after every tile as well).
+        # Only the render thread asks Blender (test_break); the tracer's threads read the flag it sets.
         if not self._stop and threading.current_thread() is self._main:
             hook = type(self.engine).break_hook
             self._stop = bool(self.engine.test_break() or (hook is not None and hook()))
         return self._stop
+
+    def run(self, work):
+        """``work()`` (a build or a render: it calls :meth:`cancelled` and the tile writer) on a helper thread; this
+        thread polls Esc meanwhile and writes the tiles it hands over, until Esc (then it writes no more) or the end.
+        Returns what ``work`` returned, or raises what it raised (``RenderCancelled`` after Esc: the tracer polls the
+        flag between objects, inside Embree's builds, between tiles and between depths, so it ends promptly)."""
+        done = object()
+        box = {}
+
+        def body():
+            try:
+                box["value"] = work()
+            except BaseException as exc:  # handed to the render thread, raised there
+                box["error"] = exc
+            finally:
+                self._tiles.put(done)
+
+        helper = threading.Thread(target=body, name="whitted-render", daemon=True)
+        helper.start()
+        try:
+            while True:
+                try:
+                    item = self._tiles.get(timeout=POLL_SECONDS)
+                except queue.Empty:
+                    item = None
+                if self.cancelled():  # Esc: the queued and later tiles are dropped, the helper winds down
+                    if item is done:
+                        break
+                    continue
+                if item is done:
+                    break
+                if item is not None:
+                    self._write_tile(*item)
+        except BaseException:
+            self._stop = True  # (a failed tile write, say) the helper stops at its next poll
+            raise
+        finally:
+            helper.join()
+        if "error" in box:
+            raise box["error"]
+        return box.get("value")
 
     def stopped(self, stage: str) -> None:
         """Esc before the first tile (in the export or the Embree build): a black result, and the report."""
@@ -256,66 +332,94 @@ class _Job:
         for w in self.warnings:
             self.engine.report({"WARNING"}, f"Whitted: {w}")
 
+    def ready(self) -> bool:
+        """The kernels are ready and Esc was not pressed (else the render is recorded as stopped: False).
+
+        The first render of a new version waits for the kernels, prepared in a separate process since the add-on
+        was enabled (addon/kernels.py); sleeping here keeps Blender responsive and Esc works."""
+        if not kernels.wait(cancelled=self.cancelled, on_status=lambda text: self.engine.update_stats("", text)):
+            self.stopped("kernels")
+            return False
+        if self.cancelled():  # Esc before the Embree build (or before the tiles of a kept session): nothing traced
+            self.stopped("build")
+            return False
+        return True
+
     def trace(self, run, scene) -> None:
-        """``run(on_tile)`` renders (tracer.render or a kept session's render); the report is recorded."""
+        """``run(on_tile)`` renders (a session's render); the report is recorded."""
         engine = self.engine
-        # The first render of a new version waits for the kernels, prepared in a separate process since the add-on
-        # was enabled (addon/kernels.py); sleeping here keeps Blender responsive and Esc works.
-        if not kernels.wait(cancelled=self.cancelled, on_status=lambda text: engine.update_stats("", text)):
-            return self.stopped("kernels")
+        if not self.ready():
+            return
         engine.update_stats("", f"Whitted: tracing {len(scene.triangles):,} triangles, {len(scene.lights)} lights")
         try:
-            image = run(self.tile_writer(scene))
+            on_tile = self.tile_writer(scene)
+            image = self.run(lambda: run(on_tile))
         except tracer.RenderCancelled as stopped:
-            if stopped.image is None:  # during the Embree build: nothing traced
-                return self.stopped("build")
+            if stopped.image is None or not self.tiles_written:  # in the build, or before a tile was written
+                return self.stopped("build" if stopped.image is None else "tiles")
             image = stopped.image
             image.stats["cancelled"] = True
         except Exception as exc:
+            if not self.tiles_written:
+                self.engine._write_empty(self.settings, self.layer)
             return engine.report({"ERROR"}, f"Whitted: render failed: {exc}")
-        stats = dict(image.stats, export_seconds=self.export_seconds, persistent=self.persistent, **self.extra)
+        if self._stop and "cancelled" not in image.stats:  # Esc after the last tile was traced, before it was written
+            if not self.tiles_written:
+                return self.stopped("tiles")
+            image.stats["cancelled"] = True
+        stats = dict(image.stats, export_seconds=self.export_seconds, persistent=self.persistent,
+                     tiles_written=self.tiles_written, **self.extra)
         engine._record(RenderReport(stats, tuple(self.warnings)))
         engine.update_stats("", f"Whitted: {stats['rays']['total']:,} rays in {stats['seconds']:.2f} s")
 
     def tile_writer(self, scene):
-        """``on_tile(image, tile)``: the tile's pixels and passes into Blender's result, and the progress."""
-        engine, settings = self.engine, self.settings
-        x0, y0, x1, y1 = settings.region or (0, 0, settings.width, settings.height)
-        tiles_total = len(tracer.tiles_of(settings))
+        """``on_tile(image, tile)`` for the tracer (on :meth:`run`'s helper thread): the tile's pixels and passes,
+        copied, handed to the render thread, which writes them into Blender's result (:meth:`_write_tile`)."""
+        settings = self.settings
         pass_indices = self.pass_indices if self.pass_indices is not None else scene.object_pass_indices
         if pass_indices is None:
             pass_indices = np.arange(len(scene.object_names), dtype=np.int32)
-        done = [0]
+        self._tiles_total = len(tracer.tiles_of(settings))
 
         def on_tile(image, tile):
+            if self._stop:
+                return
             tx0, ty0, tx1, ty1 = tile
-            # Result coordinates: relative to the border, y up from the bottom.
-            result = engine.begin_result(tx0 - x0, y1 - ty1, tx1 - tx0, ty1 - ty0, layer=self.layer)
-            try:
-                passes = result.layers[0].passes
-                rgba = image.rgba[ty0:ty1, tx0:tx1][::-1]
-                passes["Combined"].rect.foreach_set(np.ascontiguousarray(rgba, np.float32).reshape(-1))
-                for aov, (pname, _, _, _) in PASSES.items():
-                    p = passes.get(pname)
-                    if p is None or aov not in image.aovs:
-                        continue
-                    data = image.aovs[aov][ty0:ty1, tx0:tx1][::-1]
-                    if aov == "depth":
-                        data = _tile_z(scene.camera, image.aovs["depth"], tile, settings.width,
-                                       settings.height)[::-1]
-                    elif aov == "objectid":
-                        ids = data
-                        data = np.zeros(ids.shape, np.float32)
-                        ok = (ids >= 0) & (ids < len(pass_indices))
-                        data[ok] = pass_indices[ids[ok]]
-                    p.rect.foreach_set(np.ascontiguousarray(data, np.float32).reshape(-1))
-            finally:
-                engine.end_result(result)
-            done[0] += 1
-            engine.update_progress(min(1.0, done[0] / max(tiles_total, 1)))
-            engine.update_stats("", f"Whitted: tile {done[0]}/{tiles_total}")
+            layers = {"Combined": np.ascontiguousarray(image.rgba[ty0:ty1, tx0:tx1][::-1], np.float32)}
+            for aov, (pname, _, _, _) in PASSES.items():
+                if aov not in image.aovs:
+                    continue
+                data = image.aovs[aov][ty0:ty1, tx0:tx1][::-1]
+                if aov == "depth":
+                    data = _tile_z(scene.camera, image.aovs["depth"], tile, settings.width, settings.height)[::-1]
+                elif aov == "objectid":
+                    ids = data
+                    data = np.zeros(ids.shape, np.float32)
+                    ok = (ids >= 0) & (ids < len(pass_indices))
+                    data[ok] = pass_indices[ids[ok]]
+                layers[pname] = np.ascontiguousarray(data, np.float32)
+            self._tiles.put((tile, layers))
 
         return on_tile
+
+    def _write_tile(self, tile, layers) -> None:
+        """One finished tile into Blender's render result (on the render thread), and the progress."""
+        engine = self.engine
+        x0, y0, x1, y1 = self.settings.region or (0, 0, self.settings.width, self.settings.height)
+        tx0, ty0, tx1, ty1 = tile
+        # Result coordinates: relative to the border, y up from the bottom.
+        result = engine.begin_result(tx0 - x0, y1 - ty1, tx1 - tx0, ty1 - ty0, layer=self.layer)
+        try:
+            passes = result.layers[0].passes
+            for pname, data in layers.items():
+                p = passes.get(pname)
+                if p is not None:
+                    p.rect.foreach_set(data.reshape(-1))
+        finally:
+            engine.end_result(result)
+        self.tiles_written += 1
+        engine.update_progress(min(1.0, self.tiles_written / max(self._tiles_total, 1)))
+        engine.update_stats("", f"Whitted: tile {self.tiles_written}/{self._tiles_total}")
 
 
 def viewport_settings(bpy_scene) -> "tracer.RenderSettings":
