@@ -235,3 +235,68 @@ def test_esc_then_next_f12_is_complete(bpy_module, whitted, monkeypatch, tmp_pat
         scene.render.use_persistent_data = False
     out = "".join(capfd.readouterr())
     assert "Traceback" not in out, out
+
+
+class _Rect:
+    def __init__(self, store, key):
+        self.store, self.key = store, key
+
+    def foreach_set(self, data):
+        self.store[self.key] = np.array(data, np.float32)
+
+
+class _PreviewEngine:
+    """A stand-in for the engine Blender makes for a material preview (bpy cannot start one headless): records the
+    results written, in the engine's own preview code."""
+
+    is_preview = True
+    break_hook = None
+    _render_preview = engine.WhittedRenderEngine._render_preview
+    _write_empty = engine.WhittedRenderEngine._write_empty
+    _fill_preview = engine.WhittedRenderEngine._fill_preview
+
+    def __init__(self, esc_after=None):
+        self.results, self.reports, self.esc_after = [], [], esc_after
+
+    def test_break(self):
+        return self.esc_after is not None and len(self.results) >= self.esc_after
+
+    def begin_result(self, x, y, w, h, layer=None):
+        store = {}
+        self.results.append(((x, y, w, h), store))
+
+        class Pass:
+            def __init__(self, name):
+                self.rect = _Rect(store, name)
+
+        passes = {"Combined": Pass("Combined")}
+        return type("Result", (), {"layers": [type("Layer", (), {"passes": passes})]})()
+
+    def end_result(self, result):
+        pass
+
+    def update_progress(self, value):
+        pass
+
+    def update_stats(self, a, b):
+        pass
+
+    def report(self, kind, text):
+        self.reports.append((kind, text))
+
+
+def test_material_preview_writes_every_tile_or_stops_at_esc(bpy_module, whitted, monkeypatch):
+    """The material preview path goes through the same helper thread: every tile is written when nothing stops it;
+    Esc after the first tile stops it with no later tile (and no half-written one)."""
+    esc_scene()
+    real_settings = export.settings_from_scene
+    monkeypatch.setattr(export, "settings_from_scene", lambda *a, **k: real_settings(*a, **k).with_(tile_size=TILE))
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    whole = _PreviewEngine()
+    whole._render_preview(depsgraph)
+    assert not whole.reports and len(whole.results) == N_TILES
+    assert all(store["Combined"].size == w * h * 4 and store["Combined"].any() for (_, _, w, h), store in whole.results)
+    stopped = _PreviewEngine(esc_after=1)
+    stopped._render_preview(depsgraph)
+    assert not stopped.reports and len(stopped.results) == 1
+    assert np.array_equal(stopped.results[0][1]["Combined"], whole.results[0][1]["Combined"])
