@@ -37,7 +37,7 @@ def test_shipped_plan_covers_the_bundled_example(tmp_path):
             for k in vars(module).values():
                 if isinstance(k, Kernel) and k._made is not None and not k._opts.get("no_cpython_wrapper"):
                     used += [(f"{k.__module__}.{k.__qualname__}", str(sig)) for sig in k._made.signatures]
-        plan = {(n, str(tuple(a))) for n, a, stage, _c in kernel_plan.load()["units"] if stage}
+        plan = {(n, str(tuple(a))) for n, a, _ in kernel_plan.load()["stages"]}
         print(json.dumps(sorted(set(used) - plan)))
     """
     cache = os.path.join(ROOT, ".cache", "kernels")  # the suite's own cache (tests/conftest.py)
@@ -52,27 +52,10 @@ def test_plan_loads_with_its_argument_types():
     from tracer import kernel_plan
 
     plan = kernel_plan.load()
-    assert plan is not None and plan["units"], "tracer/kernel_plan.json missing or made with another numba"
-    assert plan["total"] == len(plan["units"])  # every entry loads
-    stages = [n for n, _a, stage, _c in plan["units"] if stage]
-    assert "tracer.integrator._direct_light" in stages and "tracer.embree.intersect_rays" in stages
-    assert "tracer.bsdf.principled" in [n for n, _a, stage, _c in plan["units"] if not stage]  # helpers too
-    assert len(stages) < plan["total"]
-
-
-def test_the_second_process_starts_past_the_split_and_ends_with_the_rest():
-    """The second process starts where the plan's compile time passes SPLIT (the render compiles the units before
-    it) and still goes through every unit."""
-    from tracer import kernel_plan
-
-    plan = kernel_plan.load()
-    units, first = plan["units"], kernel_plan.order(plan)
-    assert sorted(map(repr, first)) == sorted(map(repr, units))
-    m = units.index(first[0])
-    total = sum(c for *_x, c in units)
-    before = sum(c for *_x, c in units[:m])
-    assert before >= kernel_plan.SPLIT * total > before - units[m - 1][3]
-    assert kernel_plan.order(plan, 0.0) == units
+    assert plan is not None and plan["stages"], "tracer/kernel_plan.json missing or made with another numba"
+    names = [n for n, _a, _u in plan["stages"]]
+    assert "tracer.integrator._direct_light" in names and "tracer.embree.intersect_rays" in names
+    assert plan["units"] == sum(u for *_x, u in plan["stages"]) > len(names)
 
 
 # A process that compiles one of the plan's cheap stages, as the "holder" (it takes the kernel's lock first and
@@ -83,7 +66,7 @@ COMPILE = """
     from tracer import kernel_cache, kernel_plan
     role, signal = sys.argv[1], sys.argv[2]
     name = "tracer.scene_kernels.unit_rows"
-    args = next(a for n, a, _s, _c in kernel_plan.load()["units"] if n == name)
+    args = next(a for n, a, _u in kernel_plan.load()["stages"] if n == name)
     k = kernel_plan._kernel(name)
     if role == "holder":  # takes the kernel's lock as a compiling process does, and waits for the other to queue
         cache = k.dispatcher._cache
@@ -141,18 +124,17 @@ def test_a_failed_compile_drops_its_lock():
 
 
 def test_second_process_goes_through_the_plan_and_marks_it_done(tmp_path):
-    """``python -m tracer.kernel_plan`` compiles the plan into an empty cache (here from its first unit, as if the
-    render had compiled none), counts its units in the status file and leaves the done marker; a render then
-    compiles nothing, and start() stays put."""
+    """``python -m tracer.kernel_plan`` compiles the plan into an empty cache (last stage first), counts its
+    units in the status file and leaves the done marker; a render then compiles nothing, and start() stays put."""
     cache = str(tmp_path / "kernels")
     code = """
         import os, subprocess, sys
         from tracer import kernel_plan
         status = sys.argv[1]
-        proc = subprocess.run([sys.executable, "-m", "tracer.kernel_plan", status, str(os.getpid()), "0"])
+        proc = subprocess.run([sys.executable, "-m", "tracer.kernel_plan", status, str(os.getpid())])
         assert proc.returncode == 0
         plan = kernel_plan.load()
-        print("units", open(status).read(), "of", plan["total"])
+        print("units", open(status).read(), "of", plan["units"])
         print("marker", os.path.exists(kernel_plan._done_marker(plan)))
         os.environ["WHITTED_COMPILE_PROCESSES"] = "2"
         print("start", kernel_plan.start())

@@ -1,9 +1,8 @@
 """``python -m tools.kernel_plan``: make tracer/kernel_plan.json again (see tracer/kernel_plan.py).
 
 Renders the bundled example (what ``make render`` renders) with an empty kernel cache in a child process, recording
-the units it compiles (stages and helpers), in order, with their argument types and compile time, and writes the
-plan. Run it after changing a kernel's arguments (tests/test_kernel_plan.py says when the shipped plan no longer
-covers the bundled example)."""
+the stages it compiles, in order, with their argument types, and writes the plan. Run it after changing a stage's
+arguments (tests/test_kernel_plan.py says when the shipped plan no longer covers the bundled example)."""
 
 from __future__ import annotations
 
@@ -47,9 +46,7 @@ def main(argv=None) -> int:
         with open(args.out, "w") as f:
             json.dump(doc, f, indent=1)
             f.write("\n")
-    stages = sum(u["stage"] for u in doc["units"])
-    cpu = sum(u["cpu"] for u in doc["units"])
-    print(f"{args.out}: {len(doc['units'])} units ({stages} stages), {cpu:.1f} s CPU, from {', '.join(SCENES)}")
+    print(f"{args.out}: {len(doc['stages'])} stages, {doc['units']} units, from {', '.join(SCENES)}")
     return 0
 
 

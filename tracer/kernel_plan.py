@@ -1,22 +1,21 @@
-"""The kernel plan: which compile units a render compiles, in order, with their argument types, so that an empty
+"""The kernel plan: which stage kernels a render compiles, in order, with their argument types, so that an empty
 kernel cache is filled by two processes at once and the first render's progress has a total.
 
 A render compiles its kernels as it first calls them (tracer/jit.py), one unit after another on one core: on a
 fresh machine that is nearly all of the first render's time (docs/benchmarks.md, "Ready at install"). numba compiles
-a function only when it sees the argument types, so nothing can compile a kernel ahead of the call, unless the
-types are known. The plan records them: ``kernel_plan.json`` beside this module lists the units (stages and the
-helpers they call, ``module.qualname``) that rendering the bundled example compiled, in the order they finished,
-with their argument types (numba types, pickled and compressed) and the CPU time each took. It is made by
-``python -m tools.kernel_plan`` with an empty cache.
+a function only when it sees the argument types, so nothing can compile a stage ahead of the call, unless the
+types are known. The plan records them: ``kernel_plan.json`` beside this module lists the stages
+(``module.qualname``) that rendering the bundled example compiled, first use first, with their argument types
+(numba types, pickled and compressed) and the compile units each brought in. It is made by ``python -m tools.kernel_plan`` with an
+empty cache.
 
-With a plan, :func:`start` runs :func:`prepare` in a second process, which compiles the plan's units from a split
-point on (:data:`SPLIT` of their compile time) while the render compiles from the first; a stage's helpers are units
-of their own, so one large stage (the lobe lights bring in 46 units) is shared between the two. They never compile
-the same unit twice: a process that misses a kernel in the cache takes that kernel's lock (tracer/kernel_cache.py)
-and looks again once it holds it, so it loads what the other one just saved. Where a render needs something the
-plan lacks (another scene's stages), it compiles that itself, as without a plan; where the plan no longer fits the
-code (a kernel's arguments changed and the plan was not made again), that unit is skipped in the second process,
-which costs only the time it would have saved.
+With a plan, :func:`start` runs :func:`prepare` in a second process, which compiles the plan's stages last one
+first while the render compiles from the first; the two meet in the middle. They never compile the same unit twice:
+a process that misses a kernel in the cache takes that kernel's lock (tracer/kernel_cache.py) and looks again once
+it holds it, so it loads what the other one just saved. Where a render needs something the plan lacks (another
+scene's stages), it compiles that itself, as without a plan; where the plan no longer fits the code (a stage's
+arguments changed and the plan was not made again), that stage is skipped in the second process, which costs only
+the time it would have saved.
 """
 
 from __future__ import annotations
@@ -32,7 +31,6 @@ import signal
 import subprocess
 import sys
 import threading
-import time
 import zlib
 
 from . import embree, jit, kernel_cache
@@ -55,9 +53,8 @@ class _Unpickler(pickle.Unpickler):
 
 
 def load(path: str = PLAN) -> dict | None:
-    """The plan in ``path``: ``{"units": [(kernel, argument types, is a stage, CPU seconds)], "total": n}`` in the
-    order the recorded render finished compiling them, or None where there is none, or it was made with another
-    numba or Python (argument types are numba's)."""
+    """The plan in ``path``: ``{"stages": [(kernel, argument types, units)], "units": total}``, or None where there is
+    none, or it was made with another numba or Python (argument types are numba's)."""
     try:
         with open(path) as f:
             doc = json.load(f)
@@ -65,14 +62,14 @@ def load(path: str = PLAN) -> dict | None:
         return None
     if doc.get("tools") != list(kernel_cache._TOOLS[:2]):
         return None
-    units = []
-    for entry in doc.get("units", ()):
+    stages = []
+    for entry in doc.get("stages", ()):
         try:
             args = _Unpickler(io.BytesIO(zlib.decompress(base64.b64decode(entry["args"])))).load()
-        except Exception:  # a class the plan names is gone: the unit is skipped (see the module)
+        except Exception:  # a class the plan names is gone: the stage is skipped (see the module)
             continue
-        units.append((entry["kernel"], args, bool(entry.get("stage")), float(entry.get("cpu", 0.0))))
-    return {"units": units, "total": len(doc.get("units", ())), "digest": _digest(doc)}
+        stages.append((entry["kernel"], args, int(entry.get("units", 1))))
+    return {"stages": stages, "units": int(doc.get("units", 0)), "digest": _digest(doc)}
 
 
 def _digest(doc: dict) -> str:
@@ -80,36 +77,30 @@ def _digest(doc: dict) -> str:
 
 
 class Recorder:
-    """Records the units compiled while it is installed (numba's ``numba:compile`` events), stages and helpers, in
-    the order they finish, with their argument types and the CPU time each took (without the units it compiled
-    inside it)."""
+    """Records the stages compiled while it is installed (numba's ``numba:compile`` events), in order, with their
+    argument types and the units each brought in (itself and the helpers it compiled first)."""
 
     def __init__(self):
         import numba.core.event
 
         self._event = numba.core.event
-        self.units: list = []
-        self._stack: list = []
+        self.stages: list = []
+        self._units = 0
 
     def on_start(self, event):
-        now = time.process_time()
-        if self._stack:
-            self._stack[-1][0] += now - self._stack[-1][1]
-        self._stack.append([0.0, now])
+        pass
 
     def on_end(self, event):
-        now = time.process_time()
-        spent, since = self._stack.pop()
-        spent += now - since
-        if self._stack:
-            self._stack[-1][1] = now
         d = event.data.get("dispatcher")
         f = getattr(d, "py_func", None)
         if f is None or not kernel_cache._ours(f.__module__) or getattr(event, "_exc_details", None) is not None:
             return
+        self._units += 1
+        if d.targetoptions.get("no_cpython_wrapper"):  # a helper: compiled by the stage that calls it
+            return
         name = f"{f.__module__}.{f.__qualname__}".replace(_PACKAGE + ".", "tracer.", 1)
-        stage = not d.targetoptions.get("no_cpython_wrapper")
-        self.units.append((name, tuple(event.data["args"]), stage, spent))
+        self.stages.append((name, tuple(event.data["args"]), self._units))
+        self._units = 0
 
     def __enter__(self):
         import numba.core.event
@@ -124,10 +115,10 @@ class Recorder:
 
     def document(self, made_from: list) -> dict:
         """The plan as written to :data:`PLAN`."""
-        units = [dict(kernel=k, stage=st, cpu=round(c, 3),
-                      args=base64.b64encode(zlib.compress(pickle.dumps(a, protocol=4), 9)).decode())
-                 for k, a, st, c in self.units]
-        return dict(tools=list(kernel_cache._TOOLS[:2]), made_from=made_from, units=units)
+        stages = [dict(kernel=k, args=base64.b64encode(zlib.compress(pickle.dumps(a, protocol=4), 9)).decode(), units=u)
+                  for k, a, u in self.stages]
+        return dict(tools=list(kernel_cache._TOOLS[:2]), made_from=made_from, units=sum(u for *_, u in self.stages),
+                    stages=stages)
 
 
 # ---------------------------------------------------------------------------------------------- the second process
@@ -136,40 +127,20 @@ def _kernel(name: str):
     return getattr(importlib.import_module(module), qualname)
 
 
-#: Where the second process starts in the plan's units: past this share of their compile time. The render's own
-#: process compiles the units before that point; a stage's helpers are units of their own, so a large stage is
-#: shared too. Chosen by measurement (docs/benchmarks.md: 0.42-0.75 all gave 15.6-16.6 s on the bundled example).
-SPLIT = 0.6
-
-
-def order(plan: dict, split: float = SPLIT) -> list:
-    """The second process's order: from the split point to the end, then the units before it (by then mostly
-    compiled by the render: loaded, or waited for)."""
-    units = plan["units"]
-    total = sum(c for *_x, c in units) or 1.0
-    done, m = 0.0, len(units)
-    for i, (*_x, c) in enumerate(units):
-        if done >= split * total:
-            m = i
-            break
-        done += c
-    return units[m:] + units[:m]
-
-
-def prepare(plan: dict, status: str | None = None, parent: int | None = None, split: float = SPLIT) -> bool:
-    """Compile (or load) the plan's units in :func:`order`; writes the number of units compiled so far to
-    ``status`` after each, and stops early when process ``parent`` has gone or on SIGTERM (between units: a unit's
-    files are written whole). True when it went through the whole plan."""
+def prepare(plan: dict, status: str | None = None, parent: int | None = None) -> bool:
+    """Compile (or load) the plan's stages, the last first; writes the number of units compiled so far to
+    ``status`` after each, and stops early when process ``parent`` has gone or on SIGTERM (between stages: a
+    stage's files are written whole). True when it went through the whole plan."""
     embree.library()  # the LLVM symbols Embree's calls in kernels link against
     stop = []
     signal.signal(signal.SIGTERM, lambda *a: stop.append(1))
     done = [0]
 
-    def count(n, *_):
+    def count(n, unit, *_):
         done[0] = n
 
     with jit.CompileProgress(count):
-        for name, args, _stage, _cpu in order(plan, split):
+        for name, args, _units in reversed(plan["stages"]):
             if stop or (parent is not None and os.getppid() != parent):
                 return False
             try:
@@ -242,7 +213,7 @@ def start() -> Helper | None:
     if os.path.isdir(kernel_cache.PACKAGED):  # an installed package with its kernels inside compiles nothing
         return None
     plan = load()
-    if plan is None or not plan["units"] or os.path.exists(_done_marker(plan)):
+    if plan is None or not plan["stages"] or os.path.exists(_done_marker(plan)):
         return None
     root = kernel_cache.cache_root()
     status = os.path.join(root, f".plan-status-{os.getpid()}")
@@ -254,18 +225,18 @@ def start() -> Helper | None:
     proc = subprocess.Popen([sys.executable, "-m", f"{_PACKAGE}.kernel_plan", status, str(os.getpid())],
                             stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                             start_new_session=True)
-    return Helper(proc, status, plan["total"])
+    return Helper(proc, status, plan["units"])
 
 
 def main(argv=None) -> int:
-    """``python -m tracer.kernel_plan STATUS PARENT_PID [SPLIT]``: :func:`prepare` the shipped plan (the second
-    process of :func:`start`); writes the done marker when the whole plan is in the cache."""
+    """``python -m tracer.kernel_plan STATUS PARENT_PID``: :func:`prepare` the shipped plan (the second process of
+    :func:`start`); writes the done marker when the whole plan is in the cache."""
     argv = sys.argv[1:] if argv is None else argv
     plan = load()
     if plan is None:
         return 0
     status, parent = argv[0], int(argv[1])
-    if prepare(plan, status, parent, float(argv[2]) if len(argv) > 2 else SPLIT):
+    if prepare(plan, status, parent):
         open(_done_marker(plan), "w").close()
     return 0
 
