@@ -8,6 +8,7 @@ import os
 import subprocess
 import sys
 import textwrap
+import time
 
 import pytest
 
@@ -71,6 +72,7 @@ COMPILE = """
     if role == "holder":  # takes the kernel's lock as a compiling process does, and waits for the other to queue
         cache = k.dispatcher._cache
         assert kernel_cache._lock(cache._cache_path, cache._impl.filename_base)
+        open(signal + ".locked", "w").close()  # the waiter starts only now
         deadline = time.monotonic() + 120
         while not os.path.exists(signal) and time.monotonic() < deadline:
             time.sleep(0.01)
@@ -96,6 +98,8 @@ def test_second_process_waits_for_the_first_and_loads_its_unit(tmp_path):
     holder = subprocess.Popen([sys.executable, "-c", textwrap.dedent(COMPILE), "holder", signal], env=env, cwd=ROOT,
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
+        while not os.path.exists(signal + ".locked") and holder.poll() is None:  # the holder has the lock first
+            time.sleep(0.01)
         waiter = _run(COMPILE, cache, "waiter", signal)
     finally:
         out, err = holder.communicate(timeout=600)
