@@ -45,8 +45,8 @@ _HELPER = dict(no_cpython_wrapper=True, no_cfunc_wrapper=True)
 _WARM_MARKER = ".all-kernels-compiled"
 
 
-def _marker() -> str:
-    """The marker of this version of the tracer's sources (any edit under tracer/ makes a new one)."""
+def sources_digest() -> str:
+    """A digest of this version of the tracer's sources (any edit under tracer/ makes a new one)."""
     import hashlib
 
     here = os.path.dirname(os.path.abspath(__file__))
@@ -56,7 +56,12 @@ def _marker() -> str:
         for name in sorted(f for f in files if f.endswith(".py")):
             with open(os.path.join(root, name), "rb") as f:
                 h.update(name.encode() + b"\0" + f.read())
-    return os.path.join(kernel_cache.cache_root(), f"{_WARM_MARKER}-{h.hexdigest()[:16]}")
+    return h.hexdigest()[:16]
+
+
+def _marker() -> str:
+    """The marker of this version of the tracer's sources."""
+    return os.path.join(kernel_cache.cache_root(), f"{_WARM_MARKER}-{sources_digest()}")
 
 
 def kernels_cached() -> bool:

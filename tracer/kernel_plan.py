@@ -160,19 +160,8 @@ def _write(path: str, n: int) -> None:
 
 
 def _done_marker(plan: dict) -> str:
-    return os.path.join(kernel_cache.cache_root(), f".plan-{plan['digest']}-{_sources_digest()}")
-
-
-def _sources_digest() -> str:
-    """A digest of the tracer's sources (the plan's work is done once per version of them)."""
-    here = os.path.dirname(os.path.abspath(__file__))
-    h = hashlib.sha256()
-    for root, dirs, files in sorted(os.walk(here)):
-        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
-        for name in sorted(f for f in files if f.endswith(".py")):
-            with open(os.path.join(root, name), "rb") as f:
-                h.update(name.encode() + b"\0" + f.read())
-    return h.hexdigest()[:16]
+    """Written once the plan has been worked through for this version of the tracer's sources."""
+    return os.path.join(kernel_cache.cache_root(), f".plan-{plan['digest']}-{jit.sources_digest()}")
 
 
 class Helper:
