@@ -201,39 +201,13 @@ def profile(path: str, width: int, height: int, runs: int = 2) -> dict:
     from usd_io import load_stage
 
     from .ours import replay
-    from .stages import STAGES
+    from .stages import stage_seconds
 
     scene, info = load_stage(path, width=width, height=height)
     settings = tracer.RenderSettings(width=info.width, height=info.height, samples=2, sky_samples=0, threads=1,
                                      progress=False)
     tracer.render(scene, settings)
-    spent = {label: 0.0 for label, _, _ in STAGES}
-    saved = [(owner, attr, getattr(owner, attr)) for _, owner, attr in STAGES]
-
-    def timed(label, fn):
-        def wrapper(*a, **kw):
-            c0 = time.thread_time()
-            try:
-                return fn(*a, **kw)
-            finally:
-                spent[label] += time.thread_time() - c0
-        return wrapper
-
-    best = {}
-    try:
-        for (label, owner, attr), (_, _, fn) in zip(STAGES, saved):
-            setattr(owner, attr, timed(label, fn))
-        for _ in range(runs):
-            for k in spent:
-                spent[k] = 0.0
-            c0 = time.thread_time()
-            img = tracer.render(scene, settings)
-            whole = time.thread_time() - c0
-            for k, v in list(spent.items()) + [("whole render (this thread)", whole)]:
-                best[k] = min(best.get(k, v), v)
-    finally:
-        for owner, attr, fn in saved:
-            setattr(owner, attr, fn)
+    best, img = stage_seconds(scene, settings, runs, whole="whole render (this thread)")
     rec = tracer.render(scene, settings.with_(extra={"record_rays": True}))
     rp = replay(tracer.instances.flatten(scene), rec.stats["ray_batches"], 1, runs)
     return {"cpu_seconds": best, "rays": img.stats["rays"], "bvh_seconds": img.stats["bvh_seconds"],
