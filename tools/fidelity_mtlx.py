@@ -60,7 +60,7 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 #: Bump when the scene or the reference's set-up changes (invalidates cached references).
-SCENE_VERSION = 3
+SCENE_VERSION = 5
 WITHIN = 5.0
 
 
@@ -432,6 +432,7 @@ def osl_source(path: str, material: str) -> str:
     src = src.replace("#define M_FLOAT_EPS", CYCLES_PRELUDE + "\n#define M_FLOAT_EPS", 1)
     src = re.sub(r"vector2\(\s*u\s*,\s*v\s*\)", "mx_cycles_uv()", src)
     src = re.sub(r"normalize\(\s*dPdu\s*\)", "mx_cycles_tangent()", src)
+    src = src.replace('"ggx"', '"multi_ggx"')  # MaterialX's GGX is energy-compensated; Cycles' only as multi_ggx
     return src
 
 

@@ -88,7 +88,6 @@ def build(spec: dict, mesh: dict, spp: int):
     mt = mat.node_tree
     mt.nodes.clear()
     script = mt.nodes.new("ShaderNodeScript")
-    script.mode = "EXTERNAL"
     out = mt.nodes.new("ShaderNodeOutputMaterial")
 
     cam = bpy.data.cameras.new("Camera")
@@ -117,8 +116,11 @@ def main(job_file: str) -> int:
     sc, mt, script, out = build(job["spec"], job["mesh"], job["spp"])
     for j in job["jobs"]:
         start = time.perf_counter()
-        for link in list(mt.links):
-            mt.links.remove(link)
+        # a new Script node per shader: an existing node keeps the sockets (and their values) of the parameters
+        # a new shader shares with the previous one, so every standard_surface would render with the first's values
+        mt.nodes.remove(script)
+        script = mt.nodes.new("ShaderNodeScript")
+        script.mode = "EXTERNAL"
         script.filepath = j["osl"]
         marker = j["out"] + ".started"
         open(marker, "w").close()  # a crash in Cycles' OSL compiler leaves it: the harness skips this job
