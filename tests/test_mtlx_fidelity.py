@@ -184,7 +184,7 @@ def test_tiled_circles_are_where_materialx_puts_them(tmp_path, staggered):
     <input name="specular" type="float" value="0" />
   </standard_surface>"""
     n = 64
-    img, warnings = render(quad_stage(str(tmp_path), document(body)), n=n, samples=1)
+    img, warnings = render(quad_stage(str(tmp_path), document(body)), n=n)
     st = (S.pixel_points(n) + 1) / 2
     want = tiled_circles(st, (3, 3), 0.8, staggered=staggered)
     eps = 1.0 / n  # half a pixel in st, times the tiling: pixels whose footprint a disc edge crosses

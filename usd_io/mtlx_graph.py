@@ -165,6 +165,16 @@ class Translator:
             x = self.add("combine_xyz", {"X": xyz[0], "Y": xyz[1], "Z": xyz[2]}, "Vector")
         return V(t, x, parts[3] if n == 4 and len(parts) > 3 else 1.0)
 
+    def flat2(self, v: V) -> V:
+        """A vector2 with its third lane 0 (the convention every vector2 value keeps): a float operand broadcast
+        over three lanes (``uv − 0.5``) would leave −0.5 there, and a dot product or length would count it."""
+        if v.t != "vector2" or v.wide != 2:
+            return v
+        if not hasattr(v.x, "node"):
+            x = tuple(float(c) for c in v.x)
+            return V(v.t, (x[0], x[1], 0.0), v.w)
+        return V(v.t, self.vmath("MULTIPLY", v.x, (1.0, 1.0, 0.0)), v.w)
+
     def cast(self, v: V, t: str) -> V:
         """``v`` as type ``t``: a float broadcast, a vector cut to its lanes, color3 ↔ vector3 as is."""
         if v.t == t or t not in WIDTH or v.t not in WIDTH:
@@ -218,7 +228,7 @@ class Translator:
         c = _Ctx(self, view, nd)
         fn = getattr(self, f"_n_{nd.getNodeString()}", None)
         if fn is not None:
-            return self.cast(fn(c, t, output), t)
+            return self.flat2(self.cast(fn(c, t, output), t))
         impl = nd.getImplementation()
         if isinstance(impl, mx.NodeGraph):
             go = impl.getOutput(output) or (impl.getOutputs()[0] if impl.getOutputs() else None)
