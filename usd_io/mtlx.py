@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import os
 
+import numpy as np
 from pxr import Sdf
 
 #: MaterialX type -> Sdf value type.
@@ -56,6 +57,48 @@ def definitions() -> mx.Document:
     """A document whose nodedef lookups see the libraries and every read document's own definitions."""
     _library()
     return _LIB["docs"]
+
+
+def linear_colour(value, space: str, unknown=None):
+    """A colour value authored in MaterialX colour space ``space`` (an input's ``colorspace``, its own or
+    inherited: what :func:`translate` writes as the attribute's ``colorSpace``) as linear Rec.709, the tracer's
+    working space (:func:`tracer.colorspace.to_lin_rec709`, MaterialX's own colour transforms). A space MaterialX's
+    default colour management does not know is left as is and reported through ``unknown(space)``; a value that
+    is not a colour (a scalar, a string) is returned unchanged."""
+    from tracer import colorspace
+
+    space = str(space or "")
+    if space in colorspace.NO_CONVERSION or value is None or isinstance(value, str):
+        return value
+    if colorspace.materialx_space(space) is None:
+        if unknown is not None:
+            unknown(space)
+        return value
+    v = np.asarray(value.asTuple() if hasattr(value, "asTuple") else value, np.float64).reshape(-1)
+    if v.size not in (3, 4):
+        return value
+    rgb = colorspace.to_lin_rec709(v[:3], space)
+    return tuple(float(x) for x in rgb) + tuple(float(x) for x in v[3:])
+
+
+def texture_colorspace(space: str) -> tuple[str, str | None]:
+    """How a MaterialX image whose file is in colour space ``space`` is decoded (usd_io.texture_files): "sRGB"
+    (srgb_texture: the sRGB curve), "raw" (no space, a linear Rec.709 alias, or a data texture), "mx:<space>" (read
+    raw, then MaterialX's transform into linear Rec.709), with a note for a space MaterialX does not know (read
+    raw, as MaterialX's own renderers read it)."""
+    from tracer import colorspace
+
+    space = str(space or "")
+    if space in colorspace.NO_CONVERSION:
+        return "raw", None
+    known = colorspace.materialx_space(space)
+    if known is None:
+        return "raw", f"colour space {space!r} is not one MaterialX's colour management knows (read as linear)"
+    if known == "srgb_texture":
+        return "sRGB", None
+    if known == "lin_rec709":
+        return "raw", None
+    return f"mx:{known}", None
 
 
 def nodedef(name: str):

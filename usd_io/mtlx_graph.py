@@ -71,7 +71,7 @@ class UsdNode:
         if is_out:
             return ("link", UsdNode(UsdShade.Shader(a.GetPrim()), self.time), UsdShade.Output(a).GetBaseName())
         v = a.Get() if self.time is None else a.Get(self.time)
-        return None if v is None else ("const", v, a)
+        return None if v is None else ("const", v, a, a.GetColorSpace())
 
 
 class MxNode:
@@ -93,7 +93,7 @@ class MxNode:
             return None if up is None else ("link", MxNode(up, self.outer), inp.getOutputString() or "out")
         if inp.getInterfaceName():
             return ("outer", self.outer, inp.getInterfaceName())
-        return ("const", inp.getValue(), None) if inp.getValueString() else None
+        return ("const", inp.getValue(), None, inp.getActiveColorSpace()) if inp.getValueString() else None
 
 
 class Outs:
@@ -120,6 +120,10 @@ class Translator:
         self._warned: set = set()
 
     # ------------------------------------------------------------------ plumbing
+    def unknown_space(self, space: str) -> None:
+        self.warn(f"space {space}", f"MaterialX colour space {space!r} is not one MaterialX's colour management "
+                                    "knows (values read as linear Rec.709)")
+
     def warn(self, key: str, message: str) -> None:
         if key not in self._warned:
             self._warned.add(key)
@@ -329,7 +333,7 @@ class Translator:
         return net.TextureLookup(node=c.view.name, asset=r[1], channel=0 if WIDTH.get(t, 1) == 1 else -1, uv=None,
                                  transform=np.eye(3), scale=(1.0, 1.0, 1.0, 1.0), bias=(0.0, 0.0, 0.0, 0.0),
                                  fallback=tuple(default) + (1.0,), wrap_s=wrap[0], wrap_t=wrap[1],
-                                 colorspace="sRGB" if a.GetColorSpace() == "srgb_texture" else "raw",
+                                 colorspace=mtlx.texture_colorspace(a.GetColorSpace())[0],
                                  layer=authoring_layer(a))
 
     def _n_image(self, c, t, o, tiled=False):
@@ -670,6 +674,8 @@ class _Ctx:
             ond = mtlx.nodedef(outer.sid)
             return self.tr.cast(_Ctx(self.tr, outer, ond).i(r[2]), t) if ond is not None else self.tr.const(0.0, t)
         if r is not None and r[0] == "const":
+            if t in ("color3", "color4") and len(r) > 3 and r[3]:  # a colour in a named colour space
+                return self.tr.const(mtlx.linear_colour(r[1], r[3], self.tr.unknown_space), t)
             return self.tr.const(r[1], t)
         if d is not None and d.getDefaultGeomPropString():
             return self.tr.geomprop(d.getDefaultGeomPropString(), t)
@@ -708,10 +714,12 @@ class MxProgram:
     def value(self, g, translators: dict) -> V:
         tr = self.translator(g, translators)
         v = tr.out(UsdNode(self.lookup.shader, self.table.time), self.lookup.output)
-        k = float(self.lookup.scale)
-        if k != 1.0:
-            v = tr._lanewise(v.t, "MULTIPLY", v, V("float", k)) if v.wide != 3 else \
-                V(v.t, tr.vmath("MULTIPLY", v.x, (k, k, k)))
+        k = np.broadcast_to(np.asarray(self.lookup.scale, np.float64), (3,))  # a weight, or an RGB factor
+        if not np.allclose(k, 1.0):
+            if v.wide == 3:
+                v = V(v.t, tr.vmath("MULTIPLY", v.x, tuple(float(x) for x in k)))
+            else:
+                v = tr._lanewise(v.t, "MULTIPLY", v, V("float", float(k.mean())))
         return v
 
     def write(self, g, translators: dict):

@@ -28,6 +28,7 @@ import tempfile
 import numpy as np
 from pxr import Ar
 
+from tracer.colorspace import to_lin_rec709
 from tracer.texture import srgb_to_linear
 
 WRAPS = ("repeat", "clamp", "mirror", "black")
@@ -82,13 +83,15 @@ def read_texture_file(resolved: str, colorspace: str = "auto", label: str | None
         rgba = px[..., :4]
     if colorspace == "sRGB":
         srgb = True
-    elif colorspace == "raw":
+    elif colorspace == "raw" or colorspace.startswith("mx:"):
         srgb = False
     else:  # auto: Storm's rule (HioOIIO_Image::IsColorSpaceSRGB)
         srgb = eight_bit and n in (3, 4)
     rgba = np.nan_to_num(rgba, nan=0.0, posinf=0.0, neginf=0.0).astype(np.float32)
     if srgb:
         rgba[..., :3] = srgb_to_linear(rgba[..., :3])
+    elif colorspace.startswith("mx:"):  # a MaterialX colour space: its transform into linear Rec.709
+        rgba[..., :3] = to_lin_rec709(rgba[..., :3], colorspace[3:]).astype(np.float32)
     return TextureFile(np.ascontiguousarray(rgba), wrap_meta, srgb, label)
 
 
