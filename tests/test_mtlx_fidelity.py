@@ -235,9 +235,9 @@ def test_colour_spaces_in_a_node_graph_and_on_an_image(tmp_path):
     """A constant node's value in g22_ap1 (inside a node graph) times an image whose file is in ACEScg: each
     converted as MaterialX converts it (the image's texels linear AP1, read raw and put through the matrix)."""
     d = str(tmp_path)
-    S.write_png(os.path.join(d, "tex.png"), np.tile(np.array([120, 200, 60], np.uint8), (4, 4, 1)))
+    S.write_png(os.path.join(d, "tex.png"), np.tile(np.array([200, 180, 150], np.uint8), (4, 4, 1)))
     body = """  <nodegraph name="NG">
-    <constant name="k" type="color3"><input name="value" type="color3" value="0.5, 0.8, 0.9" colorspace="g22_ap1" /></constant>
+    <constant name="k" type="color3"><input name="value" type="color3" value="0.8, 0.7, 0.6" colorspace="g22_ap1" /></constant>
     <image name="img" type="color3"><input name="file" type="filename" value="tex.png" colorspace="acescg" /></image>
     <multiply name="m" type="color3">
       <input name="in1" type="color3" nodename="k" /><input name="in2" type="color3" nodename="img" />
@@ -250,8 +250,8 @@ def test_colour_spaces_in_a_node_graph_and_on_an_image(tmp_path):
     <input name="specular" type="float" value="0" />
   </standard_surface>"""
     img, warnings = render(quad_stage(d, document(body)))
-    k = AP1_TO_REC709_ACES @ (np.array([0.5, 0.8, 0.9]) ** 2.2)
-    tex = AP1_TO_REC709_ACES @ (np.array([120, 200, 60]) / 255.0)
+    k = AP1_TO_REC709_ACES @ (np.array([0.8, 0.7, 0.6]) ** 2.2)
+    tex = AP1_TO_REC709_ACES @ (np.array([200, 180, 150]) / 255.0)
     assert np.abs(img.mean(axis=(0, 1)) - k * tex).max() < 3e-3, (img.mean(axis=(0, 1)), k * tex)
 
 
@@ -319,8 +319,8 @@ def test_gltf_pbr_reads_as_materialx_defines_it(tmp_path):
     img, warnings = render(quad_stage(str(d1), document(GLTF.format(metallic=0, specular=0, extra=""))))
     assert np.abs(img.mean(axis=(0, 1)) - (np.array([0.7, 0.3, 0.2]) + (0.1, 0.2, 0.0))).max() < 3e-3
     assert not not_supported(warnings), warnings
-    img, warnings = render(quad_stage(str(d2), document(GLTF.format(metallic=1, specular=1, extra=""))),
-                           light="dome")
+    img, warnings = render(quad_stage(str(d2), document(GLTF.format(metallic=1, specular=1, extra="")),
+                                      light="dome"))
     assert np.abs(img.mean(axis=(0, 1)) - (np.array([0.7, 0.3, 0.2]) + (0.1, 0.2, 0.0))).max() < 0.02
 
 
@@ -365,3 +365,36 @@ def test_surface_unlit_shows_its_emission(tmp_path):
     img, warnings = render(quad_stage(str(tmp_path), document(body)))
     np.testing.assert_allclose(img.mean(axis=(0, 1)), (0.4, 0.2, 0.1), atol=2e-3)
     assert not not_supported(warnings), warnings
+
+
+@pytest.mark.parametrize("world", ["constant", "environment"])
+@pytest.mark.parametrize("rough", [0.25, 0.4, 0.7])
+def test_a_sum_of_lobes_under_the_sky_is_lit_lobe_by_lobe(world, rough):
+    """The white furnace on the tracer's lobe slots (what a coat writes): 0.96 × a white metal + a black-based
+    dielectric lobe (F0 = 0.04) under a uniform white world reflect 0.96 + the coat's albedo ≈ 1. Before: the sky
+    stage lit the one-closure blend of the lobes' parameters (metallic 0.5, a white diffuse half), 1.45 at roughness
+    0.25 — as much too bright as the mirror share g(r) of the metal."""
+    from tracer import Camera, Environment, RenderSettings, SceneBuilder
+    from tracer import render as trace
+    from tracer.shader_compile import add_graph
+    from tracer.shader_graph import Graph
+
+    g = Graph("furnace")
+    metal = g.add("principled_bsdf", {"Base Color": (1.0, 1.0, 1.0), "Metallic": 1.0, "Roughness": rough})["BSDF"]
+    coat = g.add("principled_bsdf", {"Base Color": (0.0, 0.0, 0.0), "Roughness": rough})["BSDF"]
+    under = g.add("mix_closure", {"Fac": 0.96, "Shader_001": metal})["Shader"]
+    g.output(g.add("add_closure", {"Shader": coat, "Shader_001": under})["Shader"])
+    b = SceneBuilder()
+    m = add_graph(b, g, lambda *_: None)
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], np.float32)
+    b.add_mesh(v, [[0, 1, 2], [0, 2, 3]], material=m, uvs=v[:, :2], name="quad")
+    if world == "constant":
+        b.background = np.ones(3, np.float32)
+        b.ambient = np.ones(3, np.float32)
+    else:
+        b.environment = Environment(np.ones((16, 32, 3), np.float32))
+    b.camera = Camera.look_at((0.5, 0.5, 5), (0.5, 0.5, 0), up=(0, 1, 0), projection="orthographic",
+                              horizontal_aperture=1.0, vertical_aperture=1.0)
+    img = trace(b.build(), RenderSettings(width=12, height=12, samples=2, max_depth=4, sky_samples=16)).rgb
+    coat = 0.04 if rough < 0.5 else 0.03  # the coat lobe's albedo head-on (F0 = 0.04; less at roughness 0.7)
+    assert np.abs(img.mean(axis=(0, 1)) - (0.96 + coat)).max() < 0.01, img.mean(axis=(0, 1))
