@@ -433,6 +433,10 @@ def osl_source(path: str, material: str) -> str:
     src = re.sub(r"vector2\(\s*u\s*,\s*v\s*\)", "mx_cycles_uv()", src)
     src = re.sub(r"normalize\(\s*dPdu\s*\)", "mx_cycles_tangent()", src)
     src = src.replace('"ggx"', '"multi_ggx"')  # MaterialX's GGX is energy-compensated; Cycles' only as multi_ggx
+    # layer(bsdf, vdf) (a transmissive surface over its interior medium): Cycles' OSL renders it black; the surface
+    # alone is what both renderers can draw (the medium's absorption is measured by neither)
+    for vdf in re.findall(r"\bVDF\s+(\w+)\s*=", src):
+        src = re.sub(r"layer\(\s*(\w+)\s*,\s*" + vdf + r"\s*\)", r"\1", src)
     return src
 
 
