@@ -2,7 +2,8 @@
 documents on a sphere under a dome, against a ray-traced OSL reference, compared on the sphere's mean colour.
 
     python tools/fidelity.py materialx MATERIALX_CHECKOUT [--out /tmp/fidelity_mtlx] [--only SUBSTR[,SUBSTR...]]
-                             [--size 96] [--aa 4] [--spp 256] [--refs DIR] [--jsonl OUT.jsonl] [--sheet OUT.png]
+                             [--size 64] [--aa 3] [--spp 128] [--spp-unlit 16] [--refs DIR] [--no-graphs]
+                             [--jsonl OUT.jsonl] [--sheet OUT.png]
 
 Nothing is downloaded: MATERIALX_CHECKOUT is a checkout (or an extracted copy) of MaterialX holding
 ``resources/Materials/{Examples,TestSuite}`` and ``resources/Images``.
@@ -28,17 +29,21 @@ in-process (``usd_io.load_stage`` + ``tracer.render``) at ``--size`` with ``--aa
 implementation of every node and closure, its colour management to ``lin_rec709`` and its unit system) writes the
 material as an OSL shader, which Cycles (bpy 5.0, OSL shading on the CPU, path traced at ``--spp`` samples, default
 light paths) renders on the same sphere under the same dome (:mod:`fidelity_mtlx_cycles`, in its own process).
-Two adaptations of the generated code, both because Cycles' OSL globals differ from MaterialX's test renderer:
-``vector2(u, v)`` (the default texture coordinates) reads Cycles' UV map (``geom:uv``) — Cycles' ``u, v`` on a
-triangle are barycentric —, and ``normalize(dPdu)`` (the default tangent) is the sphere's analytic tangent along
-increasing u, (−y, x, 0) normalised, which is what a UV-derived tangent is on this sphere. Image lookups are
+Adaptations of the generated code: ``vector2(u, v)`` (the default texture coordinates: Cycles' ``u, v`` on a
+triangle are barycentric) and ``normalize(dPdu)`` (the default tangent) read two shader parameters the reference's
+material links to a UV Map node and a UV-map Tangent node (a script's ``getattribute`` finds no mesh attribute
+Cycles was not asked to load); GGX closures use Cycles' ``multi_ggx`` (MaterialX's GLSL/MSL implementations
+compensate GGX's multiple-scattering energy loss, Cycles' OSL closures only for that distribution name; a white
+conductor at roughness 0.9 reflects 0.47 of a white furnace with plain ``ggx``); and ``layer(bsdf, vdf)`` is the
+bsdf alone (Cycles renders MaterialX's surface-over-medium layering black; neither renderer measures the medium). Image lookups are
 flipped vertically as MaterialX's OSL renders do (``fileTextureVerticalFlip``). References are cached by the hash
 of the shader source and the scene (``--refs``).
 
 **The measure.** Over the pixels both renders fully cover (alpha = 1 in both, eroded by one pixel) the mean linear
 Rec.709 colour of each, converted to CIE L*a*b* (D65, Y = 1 for the dome's zenith white) and compared by
 **CIEDE2000** (ΔE00). A material is *within* when ΔE00 ≤ 5. One JSON line per material goes to ``--jsonl``; the
-summary gives the share within ΔE 5 and the median ΔE per family; ``--sheet`` writes a contact sheet (reference |
+summary gives the share within ΔE 5 and the median ΔE per family; ``OUT/pairs/`` holds one side-by-side PNG per
+material (reference | ours, tone-mapped by a 2.2 gamma) and ``--sheet`` writes a contact sheet (reference |
 ours per material, worst first).
 """
 
@@ -370,15 +375,13 @@ def corpus(root: str, out_dir: str, only=(), graphs: bool = True) -> list[dict]:
 # ---------------------------------------------------------------------------------------------- OSL reference
 INCLUDE_DIR_PARTS = ("libraries", "stdlib", "genosl", "include")
 
-#: Cycles' OSL globals differ from MaterialX's test renderer (module docstring): the default UV set and tangent.
+#: Cycles' OSL globals differ from MaterialX's test renderer (module docstring): the default UV set and tangent come
+#: in as two shader parameters the reference's material links (a UV Map node and a UV-map Tangent node): Cycles
+#: loads a mesh attribute only for the nodes that ask for it, so a script's getattribute("geom:uv") finds nothing.
+CYCLES_PARAMS = "\n    vector mx_uvmap = vector(0.0, 0.0, 0.0),\n    vector mx_tangent = vector(1.0, 0.0, 0.0),"
 CYCLES_PRELUDE = """
-vector2 mx_cycles_uv() { point p = point(0.0); getattribute("geom:uv", p); return vector2(p[0], p[1]); }
-vector mx_cycles_tangent() {
-    point o = transform("object", P);
-    vector t = vector(-o[1], o[0], 0.0);
-    if (length(t) < 1e-6) t = vector(1.0, 0.0, 0.0);
-    return normalize(transform("object", "world", t));
-}
+#define mx_cycles_uv() vector2(mx_uvmap[0], mx_uvmap[1])
+#define mx_cycles_tangent() normalize(mx_tangent)
 """
 
 
@@ -432,6 +435,9 @@ def osl_source(path: str, material: str) -> str:
     src = src.replace("#define M_FLOAT_EPS", CYCLES_PRELUDE + "\n#define M_FLOAT_EPS", 1)
     src = re.sub(r"vector2\(\s*u\s*,\s*v\s*\)", "mx_cycles_uv()", src)
     src = re.sub(r"normalize\(\s*dPdu\s*\)", "mx_cycles_tangent()", src)
+    head = re.search(r"\nshader\s+\w+\s*(\[\[.*?\]\])?\s*\(", src, re.S)
+    if head is not None:
+        src = src[:head.end()] + CYCLES_PARAMS + src[head.end():]
     src = src.replace('"ggx"', '"multi_ggx"')  # MaterialX's GGX is energy-compensated; Cycles' only as multi_ggx
     # layer(bsdf, vdf) (a transmissive surface over its interior medium): Cycles' OSL renders it black; the surface
     # alone is what both renderers can draw (the medium's absorption is measured by neither)
@@ -592,6 +598,16 @@ def _tonemap(rgb):
     return np.clip(np.clip(rgb, 0, None) ** (1 / 2.2), 0, 1)
 
 
+def write_png(path: str, rgb01: np.ndarray) -> None:
+    import OpenImageIO as oiio
+
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    h, w = rgb01.shape[:2]
+    out = oiio.ImageBuf(oiio.ImageSpec(w, h, 3, oiio.UINT8))
+    out.set_pixels(oiio.ROI(0, w, 0, h), (np.clip(rgb01, 0, 1) * 255 + 0.5).astype(np.uint8))
+    out.write(path)
+
+
 def contact_sheet(path: str, rows, per_row: int = 8, tile: int = 48) -> None:
     """Pairs (reference | ours) of the measured rows, worst ΔE first, small: one tile per image."""
     import OpenImageIO as oiio
@@ -686,6 +702,9 @@ def main(argv=None) -> int:
                 row.update(compare(ref, ours))
                 row["warnings"] = list(info.warnings)
                 row["_ref"], row["_ours"] = ref, ours
+                pair = os.path.join(args.out, "pairs", re.sub(r"[^\w.-]+", "_", name) + ".png")
+                write_png(pair, np.concatenate([_tonemap(ref[..., :3]), _tonemap(ours[..., :3])], axis=1))
+                row["pair"] = os.path.relpath(pair, args.out)
             except Exception as exc:  # noqa: BLE001 — a row per failure
                 row["error"] = f"{type(exc).__name__}: {exc}"[:300]
             row["seconds"] = round(time.perf_counter() - start, 1)

@@ -89,6 +89,11 @@ def build(spec: dict, mesh: dict, spp: int):
     mt.nodes.clear()
     script = mt.nodes.new("ShaderNodeScript")
     out = mt.nodes.new("ShaderNodeOutputMaterial")
+    uvmap = mt.nodes.new("ShaderNodeUVMap")
+    uvmap.uv_map = "UVMap"
+    tangent = mt.nodes.new("ShaderNodeTangent")
+    tangent.direction_type = "UV_MAP"
+    tangent.uv_map = "UVMap"
 
     cam = bpy.data.cameras.new("Camera")
     cam.lens = spec["camera"]["focal_mm"]
@@ -100,7 +105,7 @@ def build(spec: dict, mesh: dict, spp: int):
     co.rotation_euler = (math.pi / 2, 0.0, 0.0)
     sc.collection.objects.link(co)
     sc.camera = co
-    return sc, mt, script, out
+    return sc, mt, script, out, uvmap, tangent
 
 
 def main(job_file: str) -> int:
@@ -113,7 +118,7 @@ def main(job_file: str) -> int:
         job = json.load(f)
     import bpy
 
-    sc, mt, script, out = build(job["spec"], job["mesh"], job["spp"])
+    sc, mt, script, out, uvmap, tangent = build(job["spec"], job["mesh"], job["spp"])
     for j in job["jobs"]:
         start = time.perf_counter()
         # a new Script node per shader: an existing node keeps the sockets (and their values) of the parameters
@@ -132,6 +137,10 @@ def main(job_file: str) -> int:
             os.replace(marker, j["out"] + ".fail")
             continue
         mt.links.new(script.outputs["out"], out.inputs["Surface"])
+        if "mx_uvmap" in script.inputs:  # the mesh's UV map and UV tangent (fidelity_mtlx.CYCLES_PARAMS)
+            mt.links.new(uvmap.outputs["UV"], script.inputs["mx_uvmap"])
+        if "mx_tangent" in script.inputs:
+            mt.links.new(tangent.outputs["Tangent"], script.inputs["mx_tangent"])
         sc.cycles.samples = int(j.get("spp", job["spp"]))
         sc.render.filepath = j["out"] + ".tmp.exr"
         bpy.ops.render.render(write_still=True)
