@@ -398,3 +398,40 @@ def test_a_sum_of_lobes_under_the_sky_is_lit_lobe_by_lobe(world, rough):
     img = trace(b.build(), RenderSettings(width=12, height=12, samples=2, max_depth=4, sky_samples=16)).rgb
     coat = 0.04 if rough < 0.5 else 0.03  # the coat lobe's albedo head-on (F0 = 0.04; less at roughness 0.7)
     assert np.abs(img.mean(axis=(0, 1)) - (0.96 + coat)).max() < 0.01, img.mean(axis=(0, 1))
+
+
+# ---------------------------------------------------------------------------------------------- pbrlib closures
+def test_a_pbrlib_surface_of_layered_closures(tmp_path):
+    """pbrlib's ``surface`` over layer(dielectric_bsdf R (IOR 1.5), oren_nayar_diffuse_bsdf c): head-on under a
+    uniform white dome, F0 + (1 − F0)·c. Before: "not supported", the prim's display colour."""
+    body = """  <dielectric_bsdf name="spec" type="BSDF">
+    <input name="ior" type="float" value="1.5" />
+    <input name="roughness" type="vector2" value="0.04, 0.04" />
+    <input name="scatter_mode" type="string" value="R" />
+  </dielectric_bsdf>
+  <oren_nayar_diffuse_bsdf name="diff" type="BSDF">
+    <input name="color" type="color3" value="0.2, 0.5, 0.7" />
+  </oren_nayar_diffuse_bsdf>
+  <layer name="lay" type="BSDF">
+    <input name="top" type="BSDF" nodename="spec" /><input name="base" type="BSDF" nodename="diff" />
+  </layer>
+  <surface name="SR" type="surfaceshader"><input name="bsdf" type="BSDF" nodename="lay" /></surface>"""
+    img, warnings = render(quad_stage(str(tmp_path), document(body), light="dome"))
+    want = 0.04 + 0.96 * np.array([0.2, 0.5, 0.7])
+    assert np.abs(img.mean(axis=(0, 1)) - want).max() < 0.01, (img.mean(axis=(0, 1)), want)
+    assert not not_supported(warnings), warnings
+
+
+def test_a_conductor_bsdf_reflects_its_normal_incidence_fresnel(tmp_path):
+    """conductor_bsdf with gold's complex index: head-on it reflects ((n − 1)² + k²)/((n + 1)² + k²)."""
+    n, k = np.array([0.18, 0.42, 1.37]), np.array([3.42, 2.35, 1.77])
+    body = f"""  <conductor_bsdf name="au" type="BSDF">
+    <input name="ior" type="color3" value="{n[0]}, {n[1]}, {n[2]}" />
+    <input name="extinction" type="color3" value="{k[0]}, {k[1]}, {k[2]}" />
+    <input name="roughness" type="vector2" value="0.04, 0.04" />
+  </conductor_bsdf>
+  <surface name="SR" type="surfaceshader"><input name="bsdf" type="BSDF" nodename="au" /></surface>"""
+    img, warnings = render(quad_stage(str(tmp_path), document(body), light="dome"))
+    want = ((n - 1) ** 2 + k ** 2) / ((n + 1) ** 2 + k ** 2)
+    assert np.abs(img.mean(axis=(0, 1)) - want).max() < 0.01, (img.mean(axis=(0, 1)), want)
+    assert not not_supported(warnings), warnings

@@ -223,6 +223,7 @@ class MaterialTable:
         fields, needs = self.convert(mat)
         row = self.add_material(key, fields, needs)
         self.summary[key] = {k: (v.label if isinstance(v, UVLookup) else
+                                 repr(v) if k == "closure" else
                                  [dict(x) for x in v] if k == "layers" else
                                  tuple(round(float(x), 4) for x in np.ravel(v)) if np.ndim(v) else
                                  (round(float(v), 4) if isinstance(v, float) else v)) for k, v in fields.items()}
@@ -506,6 +507,9 @@ def principled_graph(name: str, f: dict, color_primvar: str = "displayColor") ->
     g = Graph(name)
     nodes: dict = {}  # id(lookup) -> (outputs, UV map name): each lookup written once
     translators: dict = {}  # the MaterialX networks' translator of this graph (usd_io.mtlx_graph)
+    if f.get("closure") is not None:  # a MaterialX closure network (usd_io.mtlx_closures): the surface itself
+        g.output(f["closure"].write(g, translators))
+        return g
 
     def tex(lk):
         if id(lk) not in nodes:

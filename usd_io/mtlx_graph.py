@@ -566,6 +566,31 @@ class Translator:
         k = int(_py(c.uniform("which", 0)) or 0) if which is None or which[0] != "link" else 0
         return c.i(f"in{min(max(k, 0), 9) + 1}", t)
 
+    def _n_artistic_ior(self, c, t, o):
+        """Gulbrandsen's artist-friendly metallic Fresnel (outputs ``ior`` and ``extinction``), lane by lane:
+        r = clamp(reflectivity, 0, 0.99), n = g·(1 − r)/(1 + r) + (1 − g)·(1 + √r)/(1 − √r),
+        k = √(((n + 1)²·r − (n − 1)²)/(1 − r))."""
+        r = self._lanewise("color3", "MINIMUM", self._lanewise("color3", "MAXIMUM", c.i("reflectivity"),
+                                                                V("float", 0.0)), V("float", 0.99))
+        g = c.i("edge_color")
+        lanes = []
+        for i in range(3):
+            ri, gi = self.lane(r, i), self.lane(g, i)
+            sr = self.math("SQRT", ri)
+            n_min = self.math("DIVIDE", self.math("SUBTRACT", 1.0, ri), self.math("ADD", 1.0, ri))
+            n_max = self.math("DIVIDE", self.math("ADD", 1.0, sr), self.math("SUBTRACT", 1.0, sr))
+            n = self.math("ADD", self.math("MULTIPLY", gi, n_min),
+                          self.math("MULTIPLY", self.math("SUBTRACT", 1.0, gi), n_max))
+            if o == "extinction":
+                np1, nm1 = self.math("ADD", n, 1.0), self.math("SUBTRACT", n, 1.0)
+                k2 = self.math("DIVIDE", self.math("SUBTRACT", self.math("MULTIPLY", self.math("MULTIPLY", np1, np1),
+                                                                               ri), self.math("MULTIPLY", nm1, nm1)),
+                               self.math("SUBTRACT", 1.0, ri))
+                lanes.append(self.math("SQRT", self.math("MAXIMUM", k2, 0.0)))
+            else:
+                lanes.append(n)
+        return self.pack("color3", lanes)
+
     def _n_constant(self, c, t, o):
         return c.i("value")
 

@@ -548,6 +548,11 @@ def read(table, s, fields: dict, label: str, needs, family: str | None = None) -
     sid = net.shader_id(s)
     family = family or family_of(sid)
     if family is None:
+        nd = mtlx.nodedef(sid) if sid.startswith("ND_") else None
+        if not fields and nd is not None and nd.getType() == "surfaceshader":  # pbrlib closures: mtlx_closures
+            from .mtlx_closures import MxClosureProgram
+
+            return {"closure": MxClosureProgram(table, s, label, needs)}
         if not fields:
             table.warn(f"{label}: MaterialX shader {sid!r} is not supported")
         return fields
