@@ -378,10 +378,21 @@ INCLUDE_DIR_PARTS = ("libraries", "stdlib", "genosl", "include")
 #: Cycles' OSL globals differ from MaterialX's test renderer (module docstring): the default UV set and tangent come
 #: in as two shader parameters the reference's material links (a UV Map node and a UV-map Tangent node): Cycles
 #: loads a mesh attribute only for the nodes that ask for it, so a script's getattribute("geom:uv") finds nothing.
+#: Inside the generated functions (node-graph implementations) the parameters are out of scope: there the sphere's
+#: own parameterisation (u the azimuth / 2π, v the polar angle / π from −Z; the tangent along increasing u).
 CYCLES_PARAMS = "\n    vector mx_uvmap = vector(0.0, 0.0, 0.0),\n    vector mx_tangent = vector(1.0, 0.0, 0.0),"
 CYCLES_PRELUDE = """
-#define mx_cycles_uv() vector2(mx_uvmap[0], mx_uvmap[1])
-#define mx_cycles_tangent() normalize(mx_tangent)
+vector2 mx_cycles_sphere_uv() {
+    point o = transform("object", P);
+    float a = atan2(o[1], o[0]) / (2.0 * M_PI);
+    return vector2(a < 0.0 ? a + 1.0 : a, acos(clamp(-o[2] / max(length(o), 1e-9), -1.0, 1.0)) / M_PI);
+}
+vector mx_cycles_sphere_tangent() {
+    point o = transform("object", P);
+    vector t = vector(-o[1], o[0], 0.0);
+    if (length(t) < 1e-6) t = vector(1.0, 0.0, 0.0);
+    return normalize(transform("object", "world", t));
+}
 """
 
 
@@ -433,11 +444,14 @@ def osl_source(path: str, material: str) -> str:
     src = _inline(src, inc, set()).replace("#pragma once", "")
     # after the includes' definitions, before the first use: just before the first function using vector2
     src = src.replace("#define M_FLOAT_EPS", CYCLES_PRELUDE + "\n#define M_FLOAT_EPS", 1)
-    src = re.sub(r"vector2\(\s*u\s*,\s*v\s*\)", "mx_cycles_uv()", src)
-    src = re.sub(r"normalize\(\s*dPdu\s*\)", "mx_cycles_tangent()", src)
     head = re.search(r"\nshader\s+\w+\s*(\[\[.*?\]\])?\s*\(", src, re.S)
-    if head is not None:
-        src = src[:head.end()] + CYCLES_PARAMS + src[head.end():]
+    if head is not None:  # the shader body reads the parameters, the functions before it the sphere's own
+        body, funcs = src[head.end():], src[:head.end()]
+        funcs = re.sub(r"vector2\(\s*u\s*,\s*v\s*\)", "mx_cycles_sphere_uv()", funcs)
+        funcs = re.sub(r"normalize\(\s*dPdu\s*\)", "mx_cycles_sphere_tangent()", funcs)
+        body = re.sub(r"vector2\(\s*u\s*,\s*v\s*\)", "vector2(mx_uvmap[0], mx_uvmap[1])", body)
+        body = re.sub(r"normalize\(\s*dPdu\s*\)", "normalize(mx_tangent)", body)
+        src = funcs + CYCLES_PARAMS + body
     src = src.replace('"ggx"', '"multi_ggx"')  # MaterialX's GGX is energy-compensated; Cycles' only as multi_ggx
     # layer(bsdf, vdf) (a transmissive surface over its interior medium): Cycles' OSL renders it black; the surface
     # alone is what both renderers can draw (the medium's absorption is measured by neither)
