@@ -12,7 +12,8 @@ other warns once and contributes nothing. A closure comes back with an estimate 
     oren_nayar_diffuse_bsdf, burley_diffuse_bsdf   Diffuse BSDF (color × weight; Lambert)            albedo: 0
     translucent_bsdf          Translucent BSDF                                                        0
     dielectric_bsdf           R: a Principled lobe with a black base, its Fresnel curve of ``ior``,   F(ior, n·v)
-                              Specular Tint ``tint``; T: Refraction BSDF; RT: Glass BSDF (tint)
+                              Specular Tint ``tint``; T: Refraction BSDF; RT: Glass BSDF (tint); as
+                              the top of a layer its R part only (its transmission lights the base)
     conductor_bsdf            a Principled metal of F0 = the conductor's normal-incidence Fresnel of  F0
                               (ior, extinction) (its F82 tint white: Schlick's curve)
     generalized_schlick_bsdf  R: color90 = 1 a Principled metal of F0 = color0 (Schlick), else a     mean(color0)
@@ -43,6 +44,7 @@ class Closures:
     def __init__(self, tr):
         self.tr, self.g = tr, tr.g
         self._cache: dict = {}
+        self.on_top = 0  # > 0 while the top of a layer is written: its transmission feeds the base (R only)
 
     # ------------------------------------------------------------------ plumbing
     def add_closures(self, a, b):
@@ -109,7 +111,7 @@ class Closures:
         """(IR closure or None, albedo estimate) of a closure node's output."""
         from .mtlx_graph import MxNode, _Ctx
 
-        key = (view.key, output)
+        key = (view.key, output, self.on_top > 0)
         if key in self._cache:
             return self._cache[key]
         nd = mtlx.nodedef(view.sid)
@@ -191,7 +193,9 @@ class Closures:
         ior = float(ior) if float(ior) > 0 else 1.5
         tint = self.tr.lanes3(c.i("tint"))
         mode = str(c.uniform("scatter_mode", "R"))
-        if mode == "R":
+        if mode == "T" and self.on_top:  # transmission through a layer's top is the base's light: nothing here
+            return None, 0.0
+        if mode == "R" or self.on_top:
             out = self.tr.add("principled_bsdf", {"Base Color": (0.0, 0.0, 0.0), "Metallic": 0.0, "Roughness": r,
                                                   "Specular IOR Level": 0.5, "IOR": ior,
                                                   "Specular Tint": tint if not hasattr(tint, "node") else
@@ -246,7 +250,11 @@ class Closures:
         return self.scaled(out, w), self.fmul(self.mean3(c0), w)
 
     def _c_layer(self, c):
-        top, a_top = self.closure_input(c, "top")
+        self.on_top += 1
+        try:
+            top, a_top = self.closure_input(c, "top")
+        finally:
+            self.on_top -= 1
         base, a_base = self.closure_input(c, "base")
         if top is None:
             return base, a_base
