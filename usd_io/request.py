@@ -30,7 +30,7 @@ from dataclasses import dataclass, field, fields
 
 from tracer.settings import INT_FIELDS, SETTINGS, RenderSettings, default_of
 
-from .complexity import COMPLEXITY, DEFAULT_COMPLEXITY
+from .geometry.complexity import COMPLEXITY, DEFAULT_COMPLEXITY
 from .errors import UsdInputError
 from .exporters import UNITS
 from .outputs import warn
