@@ -177,7 +177,6 @@ def measure(renderer, a) -> dict:
     if renderer == "whitted":
         import addon
         import tracer
-    import tracer.accel.accelerator
         from addon import engine
 
         tracer.compile_kernels()
@@ -220,6 +219,7 @@ def split(a) -> dict:
     import bpy
 
     import tracer
+    import tracer.accel.accelerator
     from addon import export
     from tracer.integrator import wavefront as ig
 
