@@ -11,8 +11,7 @@ import argparse
 import numpy as np
 import trimesh
 
-from tracer import Camera, PointLight, RenderSettings, SceneBuilder
-from tracer import render
+from tracer import Camera, PointLight, RenderSettings, SceneBuilder, render
 
 SKY = (0.12, 0.32, 0.85)
 #: Point-light radiant intensity in W/sr (a Blender point light of P watts has P / 4π).

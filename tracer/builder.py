@@ -19,8 +19,8 @@ import numpy as np
 from .camera import Camera
 from .heap import trim
 from .jit import kernel
-from .shading.materials import Materials
 from .scene import Instances, Scene, handed_over, singular
+from .shading.materials import Materials
 from .shading.texture import as_texture
 
 

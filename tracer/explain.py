@@ -15,14 +15,14 @@ import numpy as np
 
 from .accel.accelerator import Accelerator
 from .clip_planes import clip_eye_rays
+from .geometry.instances import world_frame
+from .geometry.motion import frames_at_time
+from .integrator.tiles import timed_eye_rays
 from .integrator.wavefront import Integrator, RayQueue, Tile
 from .jit import kernel
 from .lights import linking
 from .scene import Scene
 from .settings import RenderSettings
-from .geometry.instances import world_frame
-from .geometry.motion import frames_at_time
-from .integrator.tiles import timed_eye_rays
 
 RAY_KINDS = ("eye", "shadow", "reflection", "transmission", "sky")
 

@@ -39,9 +39,9 @@ import threading
 import time
 import types as pytypes
 
-import numpy as np
 import numba
 import numba.core.event
+import numpy as np
 from numba.core.caching import CompileResultCacheImpl, FunctionCache, _CacheLocator
 
 #: Environment variable naming the kernel cache folder (a render farm's shared disk, a test's temporary folder).

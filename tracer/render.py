@@ -8,11 +8,10 @@ import time
 
 from .accel.accelerator import Accelerator
 from .film import Image
+from .integrator.tiles import RenderCancelled, render_session, render_tile, tiles_of  # noqa: F401 — their former home
 from .scene import Scene
 from .session import Session
 from .settings import RenderSettings
-from .integrator.tiles import RenderCancelled, render_session, render_tile, tiles_of  # noqa: F401 — their former home
-
 
 
 def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None, cancelled=None,

@@ -15,10 +15,10 @@ import numpy as np
 
 from . import scene_kernels
 from .camera import Camera
-from .lights.environment import Environment
-from .lights.emitters import AreaLight, DistantLight, PointLight, SpotLight
-from .shading.materials import Materials
 from .geometry.motion import Motion
+from .lights.emitters import AreaLight, DistantLight, PointLight, SpotLight
+from .lights.environment import Environment
+from .shading.materials import Materials
 from .shading.texture import as_texture
 
 #: Triangles whose area is at most this fraction of the squared bounding-box diagonal are degenerate and skipped.

@@ -49,14 +49,14 @@ from .accel.accelerator import Accelerator
 from .accel.embree import BuildCancelled
 from .builder import _corner_extras, place_mesh
 from .camera import Camera
-from .lights.environment import Environment
 from .film import Image
+from .integrator.tiles import RenderCancelled, render_session
 from .integrator.wavefront import Integrator
 from .lights.emitters import AreaLight, DistantLight, PointLight, SpotLight
-from .shading.materials import Materials
+from .lights.environment import Environment
 from .scene import PER_TRIANGLE, Instances, Scene, non_degenerate, singular, unit_normals
 from .settings import RenderSettings, integrator_key
-from .integrator.tiles import RenderCancelled, render_session
+from .shading.materials import Materials
 
 #: Sentinel for ``update_world`` arguments that stay as they are.
 KEEP = object()

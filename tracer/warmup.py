@@ -15,9 +15,9 @@ import numpy as np
 
 from .builder import SceneBuilder
 from .camera import Camera
+from .geometry.motion import Motion, curve_table
 from .jit import mark_kernels_cached
 from .lights.emitters import AreaLight, DistantLight, PointLight, SpotLight
-from .geometry.motion import Motion, curve_table
 from .render import render
 from .settings import RenderSettings
 

@@ -13,8 +13,7 @@ import os
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
-from tracer import render
-from tracer import write_image
+from tracer import render, write_image
 from tracer.camera import ORTHOGRAPHIC
 from tracer.explain import RAY_KINDS, TYPE_COLORS, draw_overlay, explain_pixel, format_tree, segments
 

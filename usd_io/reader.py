@@ -18,25 +18,25 @@ from tracer import SceneBuilder
 from tracer.scene import instance_bounds
 
 from . import camera as cam
+from .diagnostics import summarize
+from .dome import environment
+from .exporters import light_units as exporter_light_units
 from .geometry.curves import read_curves, read_points
 from .geometry.gprims import DEFAULT_SEGMENTS, GPRIM_TYPES, read_gprim
 from .geometry.instancing import instance_matrices
-from .materials.arnold import render_globals as arnold_render_globals
-from .dome import environment
-from .layer_metadata import meters_per_unit
-from .diagnostics import summarize
-from .exporters import light_units as exporter_light_units
-from .lights import convert_light, default_lights, light_links
+from .geometry.mesh import COMPLEXITY, DEFAULT_COMPLEXITY, SUBDIVIDED, MeshData, read_mesh, read_subdivided
+from .geometry.motion import stage_motion
+from .geometry.nurbs import read_nurbs_curves, read_nurbs_patch, read_tet_mesh
+from .geometry.skel import Skinning
+from .geometry.xform import Transforms, transform_points
 from .holdout import holdout_flags
+from .layer_metadata import meters_per_unit
+from .lights import convert_light, default_lights, light_links
+from .materials.arnold import render_globals as arnold_render_globals
 from .materials.table import MaterialTable
 from .render_settings import CONFORM, DEFAULT_CONFORM, crop_to_data_window, read_render_settings
-from .geometry.nurbs import read_nurbs_curves, read_nurbs_patch, read_tet_mesh
-from .geometry.mesh import COMPLEXITY, DEFAULT_COMPLEXITY, SUBDIVIDED, MeshData, read_mesh, read_subdivided
-from .geometry.skel import Skinning
-from .stage import (DEFAULT_PURPOSES, captured_stderr, UsdInputError, check_purposes, composition_warnings,
-                    open_stage, renderable_prims, stage_messages, stage_time)
-from .geometry.motion import stage_motion
-from .geometry.xform import Transforms, transform_points
+from .stage import (DEFAULT_PURPOSES, UsdInputError, captured_stderr, check_purposes, composition_warnings, open_stage,
+                    renderable_prims, stage_messages, stage_time)
 
 
 @dataclass

@@ -16,8 +16,8 @@ import tempfile
 from pxr import Sdf, Usd, UsdGeom
 
 from .diagnostics import summarize
-from .materials.mtlx import resolve_mtlx_references
 from .errors import UsdInputError  # noqa: F401  (raised here; usd_io.stage.UsdInputError stays importable)
+from .materials.mtlx import resolve_mtlx_references
 
 #: The purposes a render includes by default (usdrecord's default is the same pair).
 DEFAULT_PURPOSES = ("default", "render")

@@ -30,11 +30,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import alpha, embree
-from ..lights import linking
-from ..heap import trim
 from ..geometry.motion import decompose
+from ..heap import trim
+from ..lights import linking
 from ..scene import Scene
+from . import alpha, embree
 
 #: "No hit" in ``prim``.
 NO_HIT = -1

@@ -38,18 +38,18 @@ import threading
 import time as clock
 from typing import NamedTuple
 
-import numpy as np
 import numba
+import numpy as np
 from numba import carray, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from . import embree
 from .. import jit, vec
 from ..geometry.instances import mat3_apply
 from ..jit import kernel
 from ..shading.compiler import pack_programs
 from ..shading.vm import cut, program_alpha
+from . import embree
 
 #: Use the filter where it applies (tests switch it off to compare with the round-by-round loop).
 ENABLED = True

@@ -34,8 +34,8 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import vec
-from ..lights.environment import env_radiance
 from ..jit import kernel
+from ..lights.environment import env_radiance
 from ..shading.graph import Out
 
 #: Columns of the per-sample compositing array (``Tile.compose``): catcher-only light (3), the matte's colour at

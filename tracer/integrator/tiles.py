@@ -16,16 +16,16 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from . import compose
 from ..camera import eye_ray
 from ..clip_planes import clip_eye_rays
 from ..film import Image, box_filter, majority
-from .wavefront import PATH_TYPES, NextQueue, RayCounts, ShadowQueue, SurfaceQueue
-from ..jit import kernel
 from ..geometry.motion import affine_at, decompose, time_sample
+from ..jit import kernel
 from ..sampling import multijitter, uniform2_1
 from ..scene import Scene
 from ..settings import RAY_TYPE_AOVS, RenderSettings
+from . import compose
+from .wavefront import PATH_TYPES, NextQueue, RayCounts, ShadowQueue, SurfaceQueue
 
 
 class RenderCancelled(Exception):

@@ -35,27 +35,25 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..accel import alpha
-from ..shading import bsdf, lobes, local as shading
-from . import compose
-from ..lights import linking, sky
 from .. import optics, vec
+from ..accel import alpha
 from ..accel.accelerator import Accelerator
-from ..lights.environment import env_radiance, pack_environment
-from ..jit import kernel
-from ..geometry.instances import mat3_apply, mat3_apply_transposed, pack_instances
-from ..geometry.instances import world_emitters
-from ..lights.emitters import MESH, pack_lights, sample_light
+from ..geometry.instances import mat3_apply, mat3_apply_transposed, pack_instances, world_emitters
 from ..geometry.motion import frames_at_time, pack_motion
+from ..geometry.surface import color_at, corner_normals, geometry_of, shading_frame
+from ..jit import kernel
+from ..lights import linking, sky
+from ..lights.emitters import MESH, pack_lights, sample_light
+from ..lights.environment import env_radiance, pack_environment
 from ..sampling import rotated_multijitter, uniform2_1
 from ..scene import Scene
 from ..settings import RenderSettings
+from ..shading import bsdf, lobes, local as shading
 from ..shading.compiler import pack_programs
 from ..shading.spaces import object_spaces, set_camera
-from ..shading.vm import cut as _cut
-from ..shading.vm import IN_GENERATED, OP_INPUT, shade_programs
-from ..geometry.surface import color_at, corner_normals, geometry_of, shading_frame
 from ..shading.texture import pack_textures
+from ..shading.vm import IN_GENERATED, OP_INPUT, cut as _cut, shade_programs
+from . import compose
 
 RAY_TYPES = ("eye", "shadow", "reflection", "transmission", "sky")
 

@@ -24,8 +24,8 @@ from __future__ import annotations
 import math
 
 from .. import vec
-from .environment import env_pdf, env_sample
 from ..jit import kernel
+from .environment import env_pdf, env_sample
 
 #: Fraction of the sky rays drawn from an environment's luminance CDF (the rest: cosine-weighted).
 ENV_SHARE = 0.5

@@ -29,14 +29,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import local as shading
 from .. import vec
-from .ggx_tables_data import E as _E
-from .ggx_tables_data import E_AVG as _E_AVG
-from .ggx_tables_data import FSS as _FSS
-from .ggx_tables_data import IOR_S as _IOR_S
-from .ggx_tables_data import SCHLICK_S as _SCHLICK_S
 from ..jit import kernel
+from . import local as shading
+from .ggx_tables_data import E_AVG as _E_AVG, FSS as _FSS, IOR_S as _IOR_S, SCHLICK_S as _SCHLICK_S, E as _E
 
 INV_PI = 1.0 / math.pi
 #: Below this α² a GGX lobe is a mirror: it has no value for a light direction, only the mirror ray (Cycles'

@@ -34,8 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import lobes as L
-from . import ops
+from . import lobes as L, ops
 from .graph import Node, Out
 from .nodes import FLOAT, IN_NORMAL, VECTOR, is_const, vec3
 

@@ -30,16 +30,14 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import nodes as N
-from . import ops
-from .lobes import MAX_LOBES
+from . import nodes as N, ops
 from .closures import ClosureLowering, LobeSlots
 from .graph import Graph, Implicit, Node, Out
-from .nodes import COLOR, FLOAT, NODE_TYPES, OPS, OPCODE, VECTOR, Reg, TextureUse, convert_constant
-from .nodes import is_const as _is_const
-from .nodes import vec3 as _vec
-from .texture import Texture, as_texture
+from .lobes import MAX_LOBES
 from .nodes import transform2d_matrix  # noqa: F401  (re-exported: the USD readers' UsdTransform2d)
+from .nodes import (COLOR, FLOAT, NODE_TYPES, OPCODE, OPS, VECTOR, Reg, TextureUse, convert_constant,
+                    is_const as _is_const, vec3 as _vec)
+from .texture import Texture, as_texture
 
 
 @dataclass

@@ -58,8 +58,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .nodes import (CLOSURE, COLOR, ENUMS, FLOAT, GENERATED, IMPLICIT, KINDS, NODE_TYPES, NORMAL, POSITION, TANGENT,  # noqa: F401
-                    UV, VECTOR, Implicit, NodeType, Socket, convert_constant)
+from .nodes import (CLOSURE, COLOR, ENUMS, FLOAT, GENERATED, IMPLICIT, KINDS, NODE_TYPES, NORMAL,  # noqa: F401
+                    POSITION, TANGENT, UV, VECTOR, Implicit, NodeType, Socket, convert_constant)
 from .texture import load_texture
 
 # Node types, their sockets, parameters and lowering: tracer.shading.nodes (the node table), re-exported here as the

@@ -34,9 +34,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import bsdf
 from .. import vec
 from ..jit import kernel
+from . import bsdf
 
 #: Lobe slots per hit. A tree with more reflecting leaves merges the lightest (one warning per material).
 MAX_LOBES = 4

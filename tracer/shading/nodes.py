@@ -34,14 +34,10 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-from . import ops
 from ..colorspace import REC709_LUMINANCE
+from . import ops
 from .materials import PRINCIPLED_DEFAULTS
-from .procedural import color as pcolor
-from .procedural import mx_noise as pmx
-from .procedural import noise as pnoise
-from .procedural import patterns as ppat
-from .procedural import voronoi as pvor
+from .procedural import color as pcolor, mx_noise as pmx, noise as pnoise, patterns as ppat, voronoi as pvor
 
 # ============================================================================================== sockets
 FLOAT, VECTOR, COLOR, CLOSURE = "float", "vector", "color", "closure"

@@ -24,33 +24,29 @@ import math
 
 import numpy as np
 
-from . import ops
 from .. import vec
-from ..geometry.instances import mat3_apply, mat3_apply_transposed
 from ..colorspace import REC709_LUMINANCE
-from ..jit import kernel
-from .procedural import color as pcolor
-from .procedural import mx_noise as pmx
-from .procedural import noise as pnoise
-from .procedural import patterns as ppat
-from .procedural import voronoi as pvor
+from ..geometry.instances import mat3_apply, mat3_apply_transposed
 from ..geometry.surface import areas_at, tangent_at, uv_at
-from .spaces import CAM_FILM, CAM_LENS, CAM_XF, HI, LO, LOC, NRM, XF
-from .texture import lookup_at, texel_density
+from ..jit import kernel
+from . import ops
 
 # Opcodes, hit inputs and closure outputs: the node table's (tracer.shading.nodes; numba reads these globals as
 # constants). The branches of execute and _procedural follow its OPS rows (tests/test_shader_vm.py checks them).
-from .nodes import (IN_BACKFACING, IN_CAMERA, IN_COLOR, IN_COLOR_ALPHA, IN_GENERATED, IN_INCOMING, IN_IS_CAMERA,  # noqa: E402,F401
-                    IN_IS_REFLECTION, IN_IS_SHADOW, IN_NORMAL, IN_OBJ_INDEX, IN_OBJ_LOCATION, IN_OBJ_RANDOM,
-                    IN_OBJECT, IN_PARAMETRIC, IN_POSITION, IN_RAY_DEPTH, IN_RAY_LENGTH, IN_REFLECTION, IN_TANGENT,
-                    IN_TRUE_NORMAL, IN_UV, IN_WINDOW, OP_AFFINE2, OP_AVG, OP_BLACKBODY, OP_BRICK, OP_BRIGHT, OP_BUMP,
-                    OP_BUMP_SETUP, OP_CHECKER, OP_CLAMP, OP_COMB_COLOR, OP_COMBINE, OP_COPY, OP_CURVE, OP_FRESNEL,
-                    OP_GAMMA, OP_GRADIENT, OP_HSV, OP_IMAGE, OP_INPUT, OP_INVERT, OP_LAYER_WEIGHT, OP_LUM, OP_MAGIC,
-                    OP_MAP_RANGE, OP_MAP_RANGE_V, OP_MAPPING, OP_MATH, OP_MIX_C, OP_MIX_F, OP_MIX_V, OP_MIX_VN,
-                    OP_MX_NOISE, OP_NAMES, OP_NOISE, OP_NOP, OP_NORMAL_MAP, OP_NORMALIZE_N, OP_RAMP, OP_SELECT,
-                    OP_SEP_COLOR, OP_VMATH, OP_VORONOI, OP_VROTATE, OP_VTRANSFORM, OP_WAVE, OP_WAVELENGTH,
+from .nodes import (IN_BACKFACING, IN_CAMERA, IN_COLOR, IN_COLOR_ALPHA, IN_GENERATED, IN_INCOMING,  # noqa: E402,F401
+                    IN_IS_CAMERA, IN_IS_REFLECTION, IN_IS_SHADOW, IN_NORMAL, IN_OBJ_INDEX, IN_OBJ_LOCATION,
+                    IN_OBJ_RANDOM, IN_OBJECT, IN_PARAMETRIC, IN_POSITION, IN_RAY_DEPTH, IN_RAY_LENGTH, IN_REFLECTION,
+                    IN_TANGENT, IN_TRUE_NORMAL, IN_UV, IN_WINDOW, OP_AFFINE2, OP_AVG, OP_BLACKBODY, OP_BRICK, OP_BRIGHT,
+                    OP_BUMP, OP_BUMP_SETUP, OP_CHECKER, OP_CLAMP, OP_COMB_COLOR, OP_COMBINE, OP_COPY, OP_CURVE,
+                    OP_FRESNEL, OP_GAMMA, OP_GRADIENT, OP_HSV, OP_IMAGE, OP_INPUT, OP_INVERT, OP_LAYER_WEIGHT, OP_LUM,
+                    OP_MAGIC, OP_MAP_RANGE, OP_MAP_RANGE_V, OP_MAPPING, OP_MATH, OP_MIX_C, OP_MIX_F, OP_MIX_V,
+                    OP_MIX_VN, OP_MX_NOISE, OP_NAMES, OP_NOISE, OP_NOP, OP_NORMAL_MAP, OP_NORMALIZE_N, OP_RAMP,
+                    OP_SELECT, OP_SEP_COLOR, OP_VMATH, OP_VORONOI, OP_VROTATE, OP_VTRANSFORM, OP_WAVE, OP_WAVELENGTH,
                     OP_WHITE_NOISE, OUT_ALPHA, OUT_BASE, OUT_EMIT, OUT_METAL, OUT_NORMAL, OUT_ROUGH, OUT_SLOTS,
                     OUT_SPEC, OUT_TRANS, WIDTH)
+from .procedural import color as pcolor, mx_noise as pmx, noise as pnoise, patterns as ppat, voronoi as pvor
+from .spaces import CAM_FILM, CAM_LENS, CAM_XF, HI, LO, LOC, NRM, XF
+from .texture import lookup_at, texel_density
 
 _LUM_R, _LUM_G, _LUM_B = REC709_LUMINANCE
 

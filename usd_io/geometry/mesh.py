@@ -24,8 +24,8 @@ import numpy as np
 from pxr import UsdGeom
 
 from tracer.builder import vertex_values
-from tracer.heap import trim
 from tracer.geometry.subdivision import refine, refine_batch
+from tracer.heap import trim
 
 #: Interpolations that are one value per point for a mesh.
 _PER_POINT = (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying)
@@ -142,6 +142,7 @@ def read_uvs(prim, tri: Triangulation, n_points, n_fv, time, name="st"):
 
 
 from .complexity import COMPLEXITY, DEFAULT_COMPLEXITY  # noqa: E402  (re-exported: usd_io.geometry.mesh.COMPLEXITY)
+
 #: Schemes refined at complexity medium and above (the rest, "none" and unknown tokens, stay polygons).
 SUBDIVIDED = (UsdGeom.Tokens.catmullClark, UsdGeom.Tokens.loop, UsdGeom.Tokens.bilinear)
 

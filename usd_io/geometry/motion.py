@@ -17,7 +17,6 @@ from .instancing import instancer_motion
 from .mesh import read_mesh
 from .xform import to_numpy, transform_points
 
-
 # ---------------------------------------------------------------------------------------------- motion blur
 #: Motion steps across the shutter (open, middle, close), as Blender's default; a rotation between two steps is
 #: interpolated along its arc (tracer.geometry.motion), so three steps carry any turn below 180° per half shutter.

@@ -37,12 +37,12 @@ import MaterialX as mx
 import numpy as np
 from pxr import Sdf, UsdShade
 
-from . import mtlx
-from . import network as net
+from . import mtlx, network as net
 from .arnold_patterns import graph_node as arnold_node
 from .primvars import DEFAULT_UV
 from .shade_types import WIDTH, V
 from .texture_assets import authoring_layer
+
 
 def _py(v):
     """A MaterialX or USD value as a float or a tuple of floats."""

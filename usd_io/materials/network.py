@@ -30,9 +30,9 @@ from pxr import Sdf, UsdShade
 
 from .arnold_patterns import upstream as arnold_upstream
 from .mtlx import nodedef
-from .shade_types import (CHANNELS, MX_ADDRESS, PRIMVAR_READERS, UV_TEXTURE_DEFAULTS, WIDTH, Const, GraphLookup,  # noqa: F401
-                          PrimvarLookup, TextureLookup, Unsupported, V, file_layer, floats, producer, shader_id,
-                          transform2d_matrix, value, varname)
+from .shade_types import (CHANNELS, MX_ADDRESS, PRIMVAR_READERS, UV_TEXTURE_DEFAULTS, WIDTH, Const,  # noqa: F401
+                          GraphLookup, PrimvarLookup, TextureLookup, Unsupported, V, file_layer, floats, producer,
+                          shader_id, transform2d_matrix, value, varname)
 
 #: MaterialX image nodes (``ND_image_color3``, ``ND_tiledimage_float``, ...) read as texture lookups.
 MX_IMAGES = ("ND_image_", "ND_tiledimage_")

@@ -33,8 +33,8 @@ from __future__ import annotations
 import numpy as np
 from pxr import Sdf
 
-from . import network as net
 from ..exporters import KIT_EV
+from . import network as net
 
 #: The inputs read, with OmniPBR.mdl's defaults.
 DEFAULTS = dict(diffuse_color_constant=(0.2, 0.2, 0.2), albedo_brightness=1.0, diffuse_tint=(1.0, 1.0, 1.0),

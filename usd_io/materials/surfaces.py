@@ -15,8 +15,7 @@ from __future__ import annotations
 
 from pxr import UsdShade
 
-from . import arnold, omnipbr
-from . import network as net
+from . import arnold, network as net, omnipbr
 
 #: MaterialX surfaces: input names and the defaults of their node definitions (base colour = weight × colour).
 MX_SURFACES = {

@@ -48,14 +48,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from pxr import UsdGeom, UsdShade
-from tracer.shading.materials import PRINCIPLED_DEFAULTS as _P
-from tracer.shading.materials import f0_from_ior as _f0_from_ior
+
 from tracer.shading.compiler import add_graph
 from tracer.shading.graph import Graph, ImageRef
+from tracer.shading.materials import PRINCIPLED_DEFAULTS as _P, f0_from_ior as _f0_from_ior
 
 from . import network as net
-from .primvars import DEFAULT_UV, find_primvar, mesh_primvars
 from .preview_ranges import clamp_preview_inputs
+from .primvars import DEFAULT_UV, find_primvar, mesh_primvars
 from .surfaces import MX_SURFACES, other_surface
 from .texture_assets import open_texture
 from .texture_files import TextureCache, resolve_wrap

@@ -27,8 +27,8 @@ import math
 import numpy as np
 
 from ...colorspace import REC709_LUMINANCE, XYZ_TO_REC709
-from .. import ops
 from ...jit import kernel
+from .. import ops
 
 #: Size of the tables Blender samples a Color Ramp or a curve into for Cycles in Blender 5.0: 257 entries
 #: (Blender's CM_TABLE + 1; measured: 257 matches Cycles to 130-160 dB, the 256 of older Cycles to 27-108 dB).

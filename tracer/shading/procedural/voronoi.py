@@ -26,9 +26,9 @@ import math
 import numpy as np
 
 from ...jit import kernel
-from .noise import _points4
 from .hash import (hash_float_to_float, hash_float_to_float3, hash_int2_to_float2, hash_int3_to_float3,
                    hash_int4_to_float4)
+from .noise import _points4
 
 F1, F2, SMOOTH_F1, DISTANCE_TO_EDGE, N_SPHERE_RADIUS = 0, 1, 2, 3, 4
 FEATURES = {"F1": F1, "F2": F2, "SMOOTH_F1": SMOOTH_F1, "DISTANCE_TO_EDGE": DISTANCE_TO_EDGE,
