@@ -17,12 +17,11 @@ hand-written document (no third-party file is read), checked against closed form
 
 from __future__ import annotations
 
-import math
 import os
 
 import numpy as np
 import pytest
-from pxr import Gf, Sdf, UsdLux, UsdShade
+from pxr import Sdf, UsdLux, UsdShade
 
 import usd_material_stages as S
 from test_usd_materials import render_stage
@@ -237,7 +236,9 @@ def test_colour_spaces_in_a_node_graph_and_on_an_image(tmp_path):
     d = str(tmp_path)
     S.write_png(os.path.join(d, "tex.png"), np.tile(np.array([200, 180, 150], np.uint8), (4, 4, 1)))
     body = """  <nodegraph name="NG">
-    <constant name="k" type="color3"><input name="value" type="color3" value="0.8, 0.7, 0.6" colorspace="g22_ap1" /></constant>
+    <constant name="k" type="color3">
+      <input name="value" type="color3" value="0.8, 0.7, 0.6" colorspace="g22_ap1" />
+    </constant>
     <image name="img" type="color3"><input name="file" type="filename" value="tex.png" colorspace="acescg" /></image>
     <multiply name="m" type="color3">
       <input name="in1" type="color3" nodename="k" /><input name="in2" type="color3" nodename="img" />
@@ -376,8 +377,8 @@ def test_a_sum_of_lobes_under_the_sky_is_lit_lobe_by_lobe(world, rough):
     0.25 — as much too bright as the mirror share g(r) of the metal."""
     from tracer import Camera, Environment, RenderSettings, SceneBuilder
     from tracer import render as trace
-    from tracer.shader_compile import add_graph
-    from tracer.shader_graph import Graph
+    from tracer.shading.compiler import add_graph
+    from tracer.shading.graph import Graph
 
     g = Graph("furnace")
     metal = g.add("principled_bsdf", {"Base Color": (1.0, 1.0, 1.0), "Metallic": 1.0, "Roughness": rough})["BSDF"]

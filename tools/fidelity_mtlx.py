@@ -22,8 +22,8 @@ elevation only (:func:`dome_radiance`: 0.2 at the nadir, 0.5 at the horizon, 1 a
 orientation cannot differ between the two.
 
 **Ours.** The material's document is referenced from a USD stage (``references = @doc.mtlx@</MaterialX/Materials/
-NAME>``, usd_io.mtlx translating it) bound to the sphere, with a DomeLight of the dome's lat-long EXR, and rendered
-in-process (``usd_io.load_stage`` + ``tracer.render``) at ``--size`` with ``--aa``×``--aa`` samples.
+NAME>``, usd_io.materials.mtlx translating it) bound to the sphere, with a DomeLight of the dome's lat-long EXR, and
+rendered in-process (``usd_io.load_stage`` + ``tracer.render``) at ``--size`` with ``--aa``×``--aa`` samples.
 
 **The reference.** MaterialX's own OSL code generator (``MaterialX.PyMaterialXGenOsl``, the library's
 implementation of every node and closure, its colour management to ``lin_rec709`` and its unit system) writes the
@@ -35,9 +35,10 @@ material links to a UV Map node and a UV-map Tangent node (a script's ``getattri
 Cycles was not asked to load); GGX closures use Cycles' ``multi_ggx`` (MaterialX's GLSL/MSL implementations
 compensate GGX's multiple-scattering energy loss, Cycles' OSL closures only for that distribution name; a white
 conductor at roughness 0.9 reflects 0.47 of a white furnace with plain ``ggx``); and ``layer(bsdf, vdf)`` is the
-bsdf alone (Cycles renders MaterialX's surface-over-medium layering black; neither renderer measures the medium). Image lookups are
-flipped vertically as MaterialX's OSL renders do (``fileTextureVerticalFlip``). References are cached by the hash
-of the shader source and the scene (``--refs``).
+bsdf alone (Cycles renders MaterialX's surface-over-medium layering black; neither renderer measures the medium).
+Inside the generated functions (out of the parameters' scope) the UV and tangent are the sphere's own
+parameterisation. Image lookups are flipped vertically as MaterialX's OSL renders do (``fileTextureVerticalFlip``).
+References are cached by the hash of the shader source and the scene (``--refs``).
 
 **The measure.** Over the pixels both renders fully cover (alpha = 1 in both, eroded by one pixel) the mean linear
 Rec.709 colour of each, converted to CIE L*a*b* (D65, Y = 1 for the dome's zenith white) and compared by

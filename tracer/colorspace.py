@@ -7,6 +7,9 @@ Y row of the Rec.709 (D65) → CIE XYZ matrix, (0.2126729, 0.7151522, 0.0721750)
 rounded 0.2126, 0.7152, 0.0722). Every colour → float conversion uses them: RGB to BW, a colour linked into a float
 socket, a colour given for a float input, the environment's importance-sampling luminance.
 
+The sRGB transfer function (IEC 61966-2-1) both ways: textures stored as sRGB are decoded with it, and PNG output
+is encoded with it (Blender's "Standard" view transform).
+
 A leaf module (numpy only): the tracer, the USD reader and the add-on all read it.
 """
 
@@ -26,6 +29,18 @@ def luminance(rgb) -> float:
     """The luminance of one linear Rec.709 colour (a 3-sequence)."""
     return REC709_LUMINANCE[0] * float(rgb[0]) + REC709_LUMINANCE[1] * float(rgb[1]) + REC709_LUMINANCE[2] * float(
         rgb[2])
+
+
+def srgb_to_linear(c):
+    """The sRGB electro-optical transfer function (IEC 61966-2-1), per channel."""
+    c = np.asarray(c, dtype=np.float32)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def linear_to_srgb(c):
+    """Inverse of :func:`srgb_to_linear` (Blender's "Standard" view transform); input clipped to [0, 1]."""
+    c = np.clip(np.asarray(c, dtype=np.float32), 0.0, 1.0)
+    return np.where(c <= 0.0031308, c * 12.92, 1.055 * np.power(c, 1 / 2.4) - 0.055).astype(np.float32)
 
 
 # ---------------------------------------------------------------------------------------------- colour spaces
@@ -80,12 +95,6 @@ def materialx_space(name: str) -> str | None:
     return name if name in MATERIALX_SPACES else None
 
 
-def srgb_to_linear(x):
-    """The sRGB transfer function decoded (IEC 61966-2-1; MaterialX's srgb_texture: x/12.92 below 0.04045)."""
-    x = np.asarray(x, np.float64)
-    return np.where(x > 0.04045, ((np.maximum(x, 0.0) + 0.055) / 1.055) ** 2.4, x / 12.92)
-
-
 def to_lin_rec709(rgb, space: str):
     """Colours (..., 3) in MaterialX colour space ``space`` as linear Rec.709 (numpy float64). A name MaterialX
     does not know, and the no-conversion names, return the values unchanged."""
@@ -94,8 +103,8 @@ def to_lin_rec709(rgb, space: str):
     if known is None or known == "lin_rec709":
         return x
     transfer, matrix = MATERIALX_SPACES[known]
-    if transfer == "srgb":
-        x = srgb_to_linear(x)
+    if transfer == "srgb":  # srgb_to_linear's curve, in float64
+        x = np.where(x > 0.04045, ((np.maximum(x, 0.0) + 0.055) / 1.055) ** 2.4, x / 12.92)
     elif transfer is not None:
         x = np.maximum(x, 0.0) ** transfer
     if matrix is not None:
