@@ -623,12 +623,15 @@ def write_png(path: str, rgb01: np.ndarray) -> None:
     out.write(path)
 
 
-def contact_sheet(path: str, rows, per_row: int = 8, tile: int = 48) -> None:
-    """Pairs (reference | ours) of the measured rows, worst ΔE first, small: one tile per image."""
+def contact_sheet(path: str, rows, per_row: int = 8, tile: int = 48, limit: int = 0) -> None:
+    """Pairs (reference | ours) of the measured rows, worst ΔE first, small: one tile per image (the first
+    ``limit`` pairs when ``limit`` > 0); a red bar over a pair beyond ΔE 5, green within."""
     import OpenImageIO as oiio
 
     done = [r for r in rows if r.get("de") is not None and r.get("_ref") is not None]
     done.sort(key=lambda r: -r["de"])
+    if limit > 0:
+        done = done[:limit]
     if not done:
         return
     n = len(done)
@@ -658,19 +661,24 @@ def contact_sheet(path: str, rows, per_row: int = 8, tile: int = 48) -> None:
 
 
 def summarise(rows) -> str:
+    """Per family (materials) and per test-suite folder (graph outputs): how many, how many measured, how many
+    within ΔE00 5, the median ΔE00; then the shares."""
     lines = []
-    ok = [r for r in rows if r.get("de") is not None]
-    fams = sorted({r["family"] for r in rows})
-    lines.append(f"{'family':20s} {'materials':>9s} {'measured':>8s} {'<=5':>5s} {'median dE00':>11s}")
-    for fam in fams + ["all"]:
-        rs = [r for r in rows if fam in ("all", r["family"])]
-        m = [r["de"] for r in rs if r.get("de") is not None]
-        within = sum(d <= WITHIN for d in m)
-        med = f"{np.median(m):.1f}" if m else "-"
-        lines.append(f"{fam:20s} {len(rs):9d} {len(m):8d} {within:5d} {med:>11s}")
-    if ok:
-        lines.append(f"within dE00 5: {sum(r['de'] <= WITHIN for r in ok)} of {len(ok)} measured "
-                     f"({100 * sum(r['de'] <= WITHIN for r in ok) / len(ok):.0f} %)")
+    for kind, title in (("material", "materials"), ("graph", "graph outputs")):
+        part = [r for r in rows if r.get("kind", "material") == kind]
+        if not part:
+            continue
+        lines.append(f"{title:28s} {'count':>5s} {'measured':>8s} {'<=5':>5s} {'median dE00':>11s}")
+        for fam in sorted({r["family"] for r in part}) + ["all"]:
+            rs = [r for r in part if fam in ("all", r["family"])]
+            m = [r["de"] for r in rs if r.get("de") is not None]
+            med = f"{np.median(m):.1f}" if m else "-"
+            lines.append(f"{fam:28s} {len(rs):5d} {len(m):8d} {sum(d <= WITHIN for d in m):5d} {med:>11s}")
+        ok = [r for r in part if r.get("de") is not None]
+        if ok:
+            n = sum(r["de"] <= WITHIN for r in ok)
+            lines.append(f"{title} within dE00 5: {n} of {len(ok)} measured ({100 * n / len(ok):.0f} %)")
+        lines.append("")
     return "\n".join(lines)
 
 
@@ -686,6 +694,9 @@ def main(argv=None) -> int:
     p.add_argument("--spp-unlit", type=int, default=16, help="... of surface_unlit materials (emission only)")
     p.add_argument("--jsonl", default=None)
     p.add_argument("--sheet", default=None, help="contact sheet PNG (reference | ours, worst first)")
+    p.add_argument("--sheet-tile", type=int, default=48, help="contact sheet tile size in pixels")
+    p.add_argument("--sheet-limit", type=int, default=0, help="at most this many pairs on the sheet (0: all)")
+    p.add_argument("--sheet-materials", action="store_true", help="the sheet shows materials only, not graphs")
     p.add_argument("--list", action="store_true")
     p.add_argument("--no-graphs", action="store_true", help="materials only (not the TestSuite's graph outputs)")
     args = p.parse_args(argv)
@@ -731,7 +742,8 @@ def main(argv=None) -> int:
                 f.write(json.dumps({k: v for k, v in row.items() if not k.startswith("_") and k != "path"}) + "\n")
     print(summarise(rows))
     if args.sheet:
-        contact_sheet(args.sheet, rows)
+        shown = [r for r in rows if not args.sheet_materials or r.get("kind") == "material"]
+        contact_sheet(args.sheet, shown, per_row=10, tile=args.sheet_tile, limit=args.sheet_limit)
     return 0
 
 
