@@ -436,3 +436,39 @@ def test_a_conductor_bsdf_reflects_its_normal_incidence_fresnel(tmp_path):
     want = ((n - 1) ** 2 + k ** 2) / ((n + 1) ** 2 + k ** 2)
     assert np.abs(img.mean(axis=(0, 1)) - want).max() < 0.01, (img.mean(axis=(0, 1)), want)
     assert not not_supported(warnings), warnings
+
+
+# ---------------------------------------------------------------------------------------------- more stdlib nodes
+def _screen(f, b, m):
+    return m * (1 - (1 - f) * (1 - b)) + (1 - m) * b
+
+
+NODES = [  # (node XML computing "x" of type color3, the closed form of MaterialX's GLSL implementation)
+    ('<screen name="x" type="color3"><input name="fg" type="color3" value="0.2, 0.4, 0.6" />'
+     '<input name="bg" type="color3" value="0.5, 0.5, 0.5" /><input name="mix" type="float" value="0.5" /></screen>',
+     _screen(np.array([0.2, 0.4, 0.6]), 0.5, 0.5)),
+    ('<difference name="x" type="color3"><input name="fg" type="color3" value="0.9, 0.1, 0.6" />'
+     '<input name="bg" type="color3" value="0.5, 0.5, 0.5" /></difference>', np.array([0.4, 0.4, 0.1])),
+    ('<fract name="f" type="float"><input name="in" type="float" value="2.75" /></fract>'
+     '<convert name="x" type="color3"><input name="in" type="float" nodename="f" /></convert>', np.full(3, 0.75)),
+    ('<rotate2d name="r" type="vector2"><input name="in" type="vector2" value="0.6, 0.2" />'
+     '<input name="amount" type="float" value="90" /></rotate2d>'
+     '<convert name="v" type="vector3"><input name="in" type="vector2" nodename="r" /></convert>'
+     '<add name="x0" type="vector3"><input name="in1" type="vector3" nodename="v" />'
+     '<input name="in2" type="vector3" value="0, 1, 0.5" /></add>'
+     '<convert name="x" type="color3"><input name="in" type="vector3" nodename="x0" /></convert>',
+     np.array([0.2, -0.6 + 1.0, 0.5])),  # (cos·x + sin·y, −sin·x + cos·y) at 90°, + (0, 1, 0.5)
+]
+
+
+@pytest.mark.parametrize("xml,want", NODES, ids=["screen", "difference", "fract", "rotate2d"])
+def test_stdlib_nodes_as_materialx_defines_them(tmp_path, xml, want):
+    """Nodes MaterialX's test suite uses, each through an unlit surface: the value of its GLSL implementation.
+    Before: "not supported", read as 0."""
+    body = f"""  <nodegraph name="NG">{xml}<output name="out" type="color3" nodename="x" /></nodegraph>
+  <surface_unlit name="SR" type="surfaceshader">
+    <input name="emission_color" type="color3" nodegraph="NG" output="out" />
+  </surface_unlit>"""
+    img, warnings = render(quad_stage(str(tmp_path), document(body)))
+    np.testing.assert_allclose(img.mean(axis=(0, 1)), want, atol=2e-3)
+    assert not not_supported(warnings), warnings

@@ -591,6 +591,181 @@ class Translator:
                 lanes.append(n)
         return self.pack("color3", lanes)
 
+    # ---- more arithmetic, logic and vectors (MaterialX's GLSL implementations)
+    _n_fract = lambda self, c, t, o: self._unary(c, t, "FRACT")  # noqa: E731
+    _n_round = lambda self, c, t, o: self._unary(c, t, "ROUND")  # noqa: E731
+
+    def _n_and(self, c, t, o):
+        return V(t, self.math("MULTIPLY", c.f("in1"), c.f("in2")))
+
+    def _n_or(self, c, t, o):
+        return V(t, self.math("MAXIMUM", c.f("in1"), c.f("in2")))
+
+    def _n_not(self, c, t, o):
+        return V(t, self.math("SUBTRACT", 1.0, c.f("in")))
+
+    def _n_rotate2d(self, c, t, o):
+        """(cos·x + sin·y, −sin·x + cos·y), ``amount`` in degrees (mx_rotate_vector2)."""
+        v, a = c.i("in", "vector2"), self.math("RADIANS", c.f("amount"))
+        sa, ca = self.math("SINE", a), self.math("COSINE", a)
+        x, y = self.lane(v, 0), self.lane(v, 1)
+        return self.pack(t, [self.math("ADD", self.math("MULTIPLY", ca, x), self.math("MULTIPLY", sa, y)),
+                             self.math("SUBTRACT", self.math("MULTIPLY", ca, y), self.math("MULTIPLY", sa, x))])
+
+    def _n_rotate3d(self, c, t, o):
+        """in·cos + (in × axis)·sin + axis·(axis·in)·(1 − cos), axis normalised, ``amount`` in degrees."""
+        v = self.lanes3(c.i("in", "vector3"))
+        axis = self.vmath("NORMALIZE", self.lanes3(c.i("axis", "vector3")))
+        a = self.math("RADIANS", c.f("amount"))
+        sa, ca = self.math("SINE", a), self.math("COSINE", a)
+        r = self.vmath("MULTIPLY", v, self._splat(ca))
+        r = self.vmath("ADD", r, self.vmath("MULTIPLY", self.vmath("CROSS_PRODUCT", v, axis), self._splat(sa)))
+        d = self.vmath("DOT_PRODUCT", axis, v, out="Value")
+        r = self.vmath("ADD", r, self.vmath("MULTIPLY", axis, self._splat(self.math("MULTIPLY", d,
+                                                                                    self.math("SUBTRACT", 1.0, ca)))))
+        return V(t, r)
+
+    def _splat(self, f):
+        return (float(f),) * 3 if not hasattr(f, "node") else self.add("combine_xyz", {"X": f, "Y": f, "Z": f},
+                                                                        "Vector")
+
+    def _n_viewdirection(self, c, t, o):
+        """The direction from the eye to the point (the negated Incoming of the hit)."""
+        return V(t, self.vmath("MULTIPLY", self.add("geometry", out="Incoming"), (-1.0, -1.0, -1.0)))
+
+    def _n_bitangent(self, c, t, o):
+        return self.geomprop("Bworld", t)
+
+    def _n_roughness_anisotropy(self, c, t, o):
+        """α = clamp(r², ε, 1), stretched by the anisotropy (mx_roughness_anisotropy): (α / a, α·a), a = √(1 −
+        clamp(anisotropy, 0, 0.98))."""
+        r = c.f("roughness")
+        alpha = self.math("MINIMUM", self.math("MAXIMUM", self.math("MULTIPLY", r, r), 1e-8), 1.0)
+        an = c.f("anisotropy")
+        if not hasattr(an, "node") and float(an) <= 0.0:
+            return self.pack(t, [alpha, alpha])
+        aspect = self.math("SQRT", self.math("SUBTRACT", 1.0, self.math("MINIMUM", self.math("MAXIMUM", an, 0.0),
+                                                                         0.98)))
+        return self.pack(t, [self.math("MINIMUM", self.math("DIVIDE", alpha, aspect), 1.0),
+                             self.math("MULTIPLY", alpha, aspect)])
+
+    def _n_roughness_dual(self, c, t, o):
+        v = c.i("roughness", "vector2")
+        x = self.lane(v, 0)
+        y = self.lane(v, 1)
+        if not hasattr(y, "node") and float(y) < 0:
+            y = x
+        sq = [self.math("MINIMUM", self.math("MAXIMUM", self.math("MULTIPLY", q, q), 1e-8), 1.0) for q in (x, y)]
+        return self.pack(t, sq)
+
+    def _transform(self, c, t, o):
+        a, b = str(c.uniform("fromspace", "") or ""), str(c.uniform("tospace", "") or "")
+        if a != b:
+            self.warn(c.view.key, f"MaterialX {c.view.name}: a transform from {a!r} to {b!r} space is read as the "
+                                  "identity")
+        return c.i("in", t)
+
+    _n_transformpoint = _n_transformvector = _n_transformnormal = _transform
+
+    def _pass_through(self, c, t, o, what):
+        self.warn(c.view.key, f"MaterialX {c.view.name}: {what}")
+        return c.i("in", t) if c.has("in") else self.const(0.0, t)
+
+    def _n_blur(self, c, t, o):
+        return self._pass_through(c, t, o, "blur is not rendered (its input unblurred: the same mean colour)")
+
+    def _n_heighttonormal(self, c, t, o):
+        self.warn(c.view.key, f"MaterialX {c.view.name}: heighttonormal is not rendered (a flat normal)")
+        return self.const((0.5, 0.5, 1.0), t)
+
+    def _n_time(self, c, t, o):
+        self.warn(c.view.key, f"MaterialX {c.view.name}: time is read as 0")
+        return V(t, 0.0)
+
+    def _n_frame(self, c, t, o):
+        self.warn(c.view.key, f"MaterialX {c.view.name}: frame is read as 1")
+        return V(t, 1.0)
+
+    # ---- compositing (MaterialX's GLSL, lane by lane: the blend mixed with bg by ``mix``)
+    def _blend(self, c, t, fn, alpha_lane=True):
+        fg, bg, m = c.i("fg", t), c.i("bg", t), c.f("mix")
+        parts = []
+        for i in range(WIDTH.get(t, 1)):
+            f_, b_ = self.lane(fg, i), self.lane(bg, i)
+            r = fn(f_, b_, fg, bg, i)
+            parts.append(self.math("ADD", self.math("MULTIPLY", m, r),
+                                   self.math("MULTIPLY", self.math("SUBTRACT", 1.0, m), b_)))
+        return self.pack(t, parts)
+
+    def _n_plus(self, c, t, o):
+        return self._blend(c, t, lambda f, b, *_: self.math("ADD", b, f))
+
+    def _n_minus(self, c, t, o):
+        return self._blend(c, t, lambda f, b, *_: self.math("SUBTRACT", b, f))
+
+    def _n_difference(self, c, t, o):
+        return self._blend(c, t, lambda f, b, *_: self.math("ABSOLUTE", self.math("SUBTRACT", b, f)))
+
+    def _n_screen(self, c, t, o):
+        return self._blend(c, t, lambda f, b, *_: self.math("SUBTRACT", 1.0, self.math(
+            "MULTIPLY", self.math("SUBTRACT", 1.0, f), self.math("SUBTRACT", 1.0, b))))
+
+    def _n_burn(self, c, t, o):
+        return self._blend(c, t, lambda f, b, *_: self.math("SUBTRACT", 1.0, self.math(
+            "DIVIDE", self.math("SUBTRACT", 1.0, b), f)))
+
+    def _n_dodge(self, c, t, o):
+        return self._blend(c, t, lambda f, b, *_: self.math("DIVIDE", b, self.math("SUBTRACT", 1.0, f)))
+
+    def _n_over(self, c, t, o):
+        return self._blend(c, t, lambda f, b, fg, bg, i: self.math("ADD", f, self.math(
+            "MULTIPLY", b, self.math("SUBTRACT", 1.0, self.lane(fg, 3)))))
+
+    def _n_in(self, c, t, o):
+        return self._blend(c, t, lambda f, b, fg, bg, i: self.math("MULTIPLY", f, self.lane(bg, 3)))
+
+    def _n_mask(self, c, t, o):
+        return self._blend(c, t, lambda f, b, fg, bg, i: self.math("MULTIPLY", b, self.lane(fg, 3)))
+
+    def _n_out(self, c, t, o):
+        return self._blend(c, t, lambda f, b, fg, bg, i: self.math("MULTIPLY", f, self.math(
+            "SUBTRACT", 1.0, self.lane(bg, 3))))
+
+    def _n_matte(self, c, t, o):
+        def fn(f, b, fg, bg, i):
+            fa = self.lane(fg, 3)
+            ff = self.math("MULTIPLY", f, fa) if i < 3 else f
+            return self.math("ADD", ff, self.math("MULTIPLY", b, self.math("SUBTRACT", 1.0, fa)))
+        return self._blend(c, t, fn)
+
+    def _n_disjointover(self, c, t, o):
+        def fn(f, b, fg, bg, i):
+            fa, ba = self.lane(fg, 3), self.lane(bg, 3)
+            if i == 3:
+                return self.math("MINIMUM", self.math("ADD", fa, ba), 1.0)
+            over = self.math("GREATER_THAN", self.math("ADD", fa, ba), 1.0)
+            x = self.math("DIVIDE", self.math("SUBTRACT", 1.0, fa), ba)
+            scaled = self.math("ADD", f, self.math("MULTIPLY", b, x))
+            return self.add("mix_float", {"Factor": over, "A": self.math("ADD", f, b), "B": scaled}, "Result",
+                            use_clamp=False)
+        return self._blend(c, t, fn)
+
+    def _n_inside(self, c, t, o):
+        return self._lanewise(t, "MULTIPLY", c.i("in"), c.i("mask"))
+
+    def _n_outside(self, c, t, o):
+        m = c.i("mask")
+        return self._lanewise(t, "MULTIPLY", c.i("in"), V(m.t, self.math("SUBTRACT", 1.0, m.x)) if m.wide == 1
+                              else m)
+
+    def _n_premult(self, c, t, o):
+        x = c.i("in")
+        return V(t, self.vmath("MULTIPLY", self.lanes3(x), self._splat(x.w)), x.w)
+
+    def _n_unpremult(self, c, t, o):
+        x = c.i("in")
+        return V(t, self.vmath("DIVIDE", self.lanes3(x), self._splat(x.w)), x.w)
+
     def _n_constant(self, c, t, o):
         return c.i("value")
 
