@@ -25,7 +25,7 @@ from __future__ import annotations
 import os
 
 import numpy as np
-from pxr import Sdf
+from pxr import Gf, Sdf, Tf
 
 from tracer import colorspace
 
@@ -138,6 +138,10 @@ def _value(mx_type: str, text: str, base_dir: str):
     nums = [float(x) for x in text.replace(",", " ").split()]
     if mx_type == "integer":
         return int(nums[0])
+    if mx_type in ("matrix33", "matrix44"):  # row-major rows, as MaterialX writes them
+        n = 3 if mx_type == "matrix33" else 4
+        rows = [nums[i * n:(i + 1) * n] for i in range(n)]
+        return Gf.Matrix3d(*rows) if n == 3 else Gf.Matrix4d(*rows)
     return nums[0] if len(nums) == 1 else tuple(nums)
 
 
@@ -222,7 +226,7 @@ class _Writer:
             base = os.path.dirname(src) if src and os.path.isabs(src) else self.base_dir
             try:
                 a.default = _value(mx_type, text, base)
-            except (ValueError, IndexError):
+            except (ValueError, IndexError, TypeError, Tf.ErrorException):  # a value USD cannot hold: unauthored
                 pass
 
     def graph(self, parent: Sdf.Path, g) -> Sdf.Path:
