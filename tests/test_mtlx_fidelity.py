@@ -472,3 +472,34 @@ def test_stdlib_nodes_as_materialx_defines_them(tmp_path, xml, want):
     img, warnings = render(quad_stage(str(tmp_path), document(body)))
     np.testing.assert_allclose(img.mean(axis=(0, 1)), want, atol=2e-3)
     assert not not_supported(warnings), warnings
+
+
+def test_a_switch_driven_by_a_network_selects_per_hit(tmp_path):
+    """switch(which = 2·s): in1 where 2s < 1, in2 from 1 on (the left and right halves of the quad). Before: in1
+    everywhere, with a warning."""
+    body = """  <nodegraph name="NG">
+    <texcoord name="uv" type="vector2" />
+    <extract name="s" type="float"><input name="in" type="vector2" nodename="uv" /><input name="index" type="integer" value="0" /></extract>
+    <multiply name="w" type="float"><input name="in1" type="float" nodename="s" /><input name="in2" type="float" value="2" /></multiply>
+    <switch name="x" type="color3">
+      <input name="in1" type="color3" value="0.8, 0.1, 0.1" /><input name="in2" type="color3" value="0.1, 0.1, 0.8" />
+      <input name="which" type="float" nodename="w" />
+    </switch>
+    <output name="out" type="color3" nodename="x" />
+  </nodegraph>
+  <surface_unlit name="SR" type="surfaceshader"><input name="emission_color" type="color3" nodegraph="NG" output="out" />
+  </surface_unlit>"""
+    img, warnings = render(quad_stage(str(tmp_path), document(body)))
+    np.testing.assert_allclose(img[:, : N // 2 - 1].mean(axis=(0, 1)), (0.8, 0.1, 0.1), atol=2e-3)
+    np.testing.assert_allclose(img[:, N // 2 + 1:].mean(axis=(0, 1)), (0.1, 0.1, 0.8), atol=2e-3)
+    assert not not_supported(warnings), warnings
+
+
+def test_a_top_level_node_reads_a_document_input(tmp_path):
+    """A node outside any node graph whose input names a document-level ``<input>`` (interfacename): its value.
+    Before: the input was dropped and the definition's default (white) shown."""
+    doc = document("""  <input name="tint" type="color3" value="0, 0.3, 0.9" />
+  <surface_unlit name="SR" type="surfaceshader"><input name="emission_color" type="color3" interfacename="tint" />
+  </surface_unlit>""")
+    img, _w = render(quad_stage(str(tmp_path), doc))
+    np.testing.assert_allclose(img.mean(axis=(0, 1)), (0.0, 0.3, 0.9), atol=2e-3)

@@ -220,6 +220,10 @@ class _Writer:
         if inp.getInterfaceName() and graph_path is not None:
             a.connectionPathList.Prepend(graph_path.AppendProperty(f"inputs:{inp.getInterfaceName()}"))
             return
+        if inp.getInterfaceName() and graph_path is None:  # a top-level node reading a document-level input
+            top = self.doc.getInput(inp.getInterfaceName())
+            if top is not None and top.getValueString():
+                inp = top
         if inp.getValueString():
             text = inp.getResolvedValueString() if mx_type == "filename" else inp.getValueString()
             src = inp.getActiveSourceUri()
@@ -250,7 +254,8 @@ class _Writer:
         out = Sdf.AttributeSpec(spec, "outputs:mtlx:surface", Sdf.ValueTypeNames.Token)
         for inp in m.getInputs():
             node = inp.getConnectedNode()
-            if inp.getType() == "surfaceshader" and node is not None:
+            # the front surface only: a backsurfaceshader (two-sided materials) is not one of usdMtlx's outputs
+            if inp.getType() == "surfaceshader" and node is not None and inp.getName() == "surfaceshader":
                 sh = self.shader(path, node, None)
                 out.connectionPathList.Prepend(sh.AppendProperty("outputs:surface"))
 

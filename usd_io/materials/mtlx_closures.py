@@ -149,9 +149,19 @@ class Closures:
         return self.tr.add("mix_closure", {"Fac": op, "Shader": clear, "Shader_001": out}, "Shader"), alb
 
     def _c_surface_unlit(self, c):
+        """emission · emission_color, and transmission · transmission_color passing through; ``opacity`` mixes
+        the whole with a clear surface (MaterialX's mx_surface_unlit)."""
         e = self.tr.lanes3(c.i("emission_color"))
-        em = self.tr.add("emission", {"Color": e, "Strength": c.f("emission")}, "Emission")
-        return em, 0.0
+        out = self.tr.add("emission", {"Color": e, "Strength": c.f("emission")}, "Emission")
+        tw = c.f("transmission")
+        if hasattr(tw, "node") or float(tw) > 0:
+            col = self.tr.vmath("MULTIPLY", self.tr.lanes3(c.i("transmission_color")), self.tr._splat(tw))
+            out = self.add_closures(out, self.tr.add("transparent_bsdf", {"Color": col}, "BSDF"))
+        op = c.f("opacity")
+        if hasattr(op, "node") or float(op) < 1.0:
+            clear = self.tr.add("transparent_bsdf", {"Color": (1.0, 1.0, 1.0)}, "BSDF")
+            out = self.tr.add("mix_closure", {"Fac": op, "Shader": clear, "Shader_001": out}, "Shader")
+        return out, 0.0
 
     def _diffuse(self, c):
         out = self.tr.add("diffuse_bsdf", {"Color": self.tr.lanes3(c.i("color"))}, "BSDF")
@@ -184,11 +194,9 @@ class Closures:
     def _c_dielectric_bsdf(self, c):
         self._thin_film(c)
         w, r = c.f("weight"), self.roughness(c)
-        ior = c.f("ior")
-        if hasattr(ior, "node"):
-            self.tr.warn(c.view.key + "ior", f"MaterialX {c.view.name}: a connected ior is read as 1.5")
-            ior = 1.5
-        ior = float(ior) if float(ior) > 0 else 1.5
+        ior = c.f("ior")  # a network: the shader compiler reads its constant estimate (one warning there)
+        if not hasattr(ior, "node"):
+            ior = float(ior) if float(ior) > 0 else 1.5
         tint = self.tr.lanes3(c.i("tint"))
         mode = str(c.uniform("scatter_mode", "R"))
         if mode == "T" and self.on_top:  # transmission through a layer's top is the base's light: nothing here

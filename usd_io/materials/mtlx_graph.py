@@ -557,14 +557,26 @@ class Translator:
         return V("float", self.lane(c.i("in"), int(c.uniform("index", 0) or 0)))
 
     def _n_switch(self, c, t, o):
-        """in{which + 1} (a constant ``which``, as real documents author it)."""
+        """in{which + 1}: a constant ``which`` picks its input; a connected one selects per hit (in1 below 1,
+        in2 below 2, ... MaterialX's switch on floor(which), clamped to the inputs the definition has)."""
         which = c.view.input("which")
         while which is not None and which[0] == "outer":
             which = which[1].input(which[2])
-        if which is not None and which[0] == "link":
-            self.warn(c.view.key, f"MaterialX switch {c.view.name}: a connected 'which' is not supported (in1 used)")
-        k = int(_py(c.uniform("which", 0)) or 0) if which is None or which[0] != "link" else 0
-        return c.i(f"in{min(max(k, 0), 9) + 1}", t)
+        n = len([i for i in c.nd.getActiveInputs() if i.getName().startswith("in")]) or 1
+        if which is None or which[0] != "link":
+            k = int(_py(c.uniform("which", 0)) or 0)
+            return c.i(f"in{min(max(k, 0), n - 1) + 1}", t)
+        w = c.f("which")
+        out = c.i("in1", t)
+        for k in range(1, n):  # from in1 upwards: which >= k takes in(k+1)
+            out = self.mix(t, out, c.i(f"in{k + 1}", t),
+                           V("float", self.math("SUBTRACT", 1.0, self.math("LESS_THAN", w, float(k)))))
+        return out
+
+    def _n_blackbody(self, c, t, o):
+        """The colour of a black body at ``temperature`` K (the tracer's Blackbody node, Cycles' table; MaterialX
+        normalises its own fit the same way, to a luminance of 1 at the white point)."""
+        return V(t, self.add("blackbody", {"Temperature": c.f("temperature")}, "Color"))
 
     def _n_artistic_ior(self, c, t, o):
         """Gulbrandsen's artist-friendly metallic Fresnel (outputs ``ior`` and ``extinction``), lane by lane:

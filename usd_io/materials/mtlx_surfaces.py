@@ -558,6 +558,11 @@ def read(table, s, fields: dict, label: str, needs, family: str | None = None) -
             table.warn(f"{label}: MaterialX shader {sid!r} is not supported")
         return fields
     inp = Inputs(table, s, label, needs, family)
+    if not fields and family == "surface_unlit" and any(inp.connected(n) for n in (
+            "emission", "emission_color", "transmission", "transmission_color", "opacity")):
+        from .mtlx_closures import MxClosureProgram  # networks on its weights too: the closure reading
+
+        return {"closure": MxClosureProgram(table, s, label, needs)}
     if not fields:
         return READERS[family](inp)
     out = dict(fields)
