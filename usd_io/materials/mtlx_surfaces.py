@@ -308,7 +308,7 @@ def standard_surface(inp: Inputs) -> dict:
     if metal is not None and metal > 0 and isinstance(inp.src("base_color"), net.Const):
         f82 = np.asarray(f82_tint(inp.c3("base_color") * base_w, inp.c3("specular_color") * spec, atten))
         tint = f82 if metal >= 1 else (1 - metal) * tint + metal * f82
-    t["specular_tint"] = tuple(float(x) for x in tint)
+    t["specular_tint"] = tuple(float(x) for x in np.maximum(tint, 0.0))  # a wide-gamut colour may come out < 0
     if metal is None:
         _scalar(t, "metallic", inp, "metalness", 0.0)
     else:
@@ -409,7 +409,7 @@ def open_pbr_surface(inp: Inputs) -> dict:
         f0 = np.clip(r * atten, 0.0, 1.0)
         metal_tint = np.clip(inp.c3("specular_color") * atten * (r + (1 - r) * s82) / (f0 + (1 - f0) * s82), 0, 1)
         tint = (1 - metal) * tint + metal * metal_tint
-    t["specular_tint"] = tuple(float(x) for x in tint)
+    t["specular_tint"] = tuple(float(x) for x in np.maximum(tint, 0.0))
     r_src = inp.src("specular_roughness", 0.3)
     if coat > 0 and isinstance(r_src, net.Const):
         r = float(net.floats(r_src.value, 1, (0.3,))[0])
@@ -464,7 +464,7 @@ def gltf_pbr(inp: Inputs) -> dict:
     t["ior"] = ior
     sc = inp.c3("specular_color")
     f0 = f0_from_ior(ior)
-    t["specular_tint"] = tuple(float(x) for x in np.minimum(f0 * sc, 1.0) / max(f0, 1e-9))
+    t["specular_tint"] = tuple(float(x) for x in np.maximum(np.minimum(f0 * sc, 1.0), 0.0) / max(f0, 1e-9))
     trans = inp.f("transmission", 0.0) if not inp.connected("transmission") else 0.0
     if trans > 0:
         t["transmission"] = float(np.clip(trans, 0.0, 1.0))
