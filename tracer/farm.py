@@ -261,20 +261,11 @@ class _TileRenderer:
         self.scene = session.scene
 
     def tile(self, settings: RenderSettings, tile):
-        from .integrator.tiles import empty_aovs, timed_eye_rays, uses_ray_types, write_tile
+        """(rgba, aovs) of the rectangle ``tile``: :func:`tracer.integrator.tiles.render_tile`, as a local render
+        traces it (adaptive sampling's rounds per tile of the renderer's grid, which the farm's tiles follow)."""
+        from .integrator.tiles import render_tile
 
-        settings = settings.validate()
-        integ = self.session.integrator(settings)
-        x0, y0, x1, y1 = tile
-        th, tw = y1 - y0, x1 - x0
-        o, d, keys, times = timed_eye_rays(self.scene, settings, x0, y0, x1, y1)
-        res = integ.trace(o, d, keys, ray_types=uses_ray_types(settings), times=times)
-        cam = self.scene.camera
-        if cam.near > 0:  # as tracer.render: depth from the eye (the film plane for orthographic cameras)
-            res.depth += (np.linalg.norm(o - cam.position.astype(np.float32), axis=1)
-                          if cam.projection == "perspective" else np.float32(cam.near))
-        img = Image(rgba=np.zeros((th, tw, 4), np.float32), aovs=empty_aovs(settings, th, tw))
-        write_tile(img, res, (0, 0, tw, th), settings.samples**2)
+        img = render_tile(self.session, settings, tile)
         return img.rgba, img.aovs
 
 

@@ -21,10 +21,10 @@ from ..clip_planes import clip_eye_rays
 from ..film import Image, box_filter, majority
 from ..geometry.motion import affine_at, decompose, time_sample
 from ..jit import kernel
-from ..sampling import multijitter, uniform2_1
+from ..sampling import multijitter, progressive_order, sample_class_a, uniform1, uniform2_1
 from ..scene import Scene
 from ..settings import RAY_TYPE_AOVS, RenderSettings
-from . import compose
+from . import adaptive, compose
 from .wavefront import PATH_TYPES, NextQueue, RayCounts, ShadowQueue, SurfaceQueue
 
 
@@ -139,6 +139,83 @@ def _tile_eye_rays_timed(cam, cam_dec, table, x0, y0, x1, y1, n, width, height, 
                 i += 1
 
 
+#: Sample stream of each pixel's turn of the progressive order (adaptive sampling).
+_STREAM_ORDER = 63
+
+
+@kernel(inline=True)
+def pixel_stratum(px, py, k, n, width, seed, order):
+    """The stratum s (the index :func:`pixel_sample` takes) of pixel (px, py)'s k-th sample under adaptive
+    sampling: position k of the progressive order ``order`` (:func:`tracer.sampling.progressive_order`), turned per
+    pixel so that neighbouring pixels start in different strata: k XOR r when N² is a power of two (an aligned
+    block of a (0, 2)-sequence stays a net), else (k + r) mod N², r a random position per pixel. A function of the
+    pixel and k alone: the round that traces a sample does not change it."""
+    nn = n * n
+    r = min(int(uniform1((py * width + px) & 0xFFFFFFFF, _STREAM_ORDER, seed) * nn), nn - 1)
+    if nn & (nn - 1) == 0:
+        return order[k ^ r]
+    return order[(k + r) % nn]
+
+
+@kernel
+def _list_eye_rays(cam, cam_dec, table, timed, xs, ys, ks, order, n, width, height, seed, o, d, keys, times, strata):
+    """Eye rays of a list of samples (pixel (xs[i], ys[i]), position ks[i] of the progressive order): the rays,
+    keys and times :func:`_tile_eye_rays_timed` (``timed``) or :func:`_tile_eye_rays` gives the same stratum, and
+    the stratum itself (``strata``: where the sample sits among its pixel's N² in the film's layout)."""
+    moving = cam_dec.shape[0] > 0
+    for i in range(xs.shape[0]):
+        px, py = xs[i], ys[i]
+        s = pixel_stratum(px, py, ks[i], n, width, seed, order)
+        strata[i] = s
+        u, v, key = pixel_sample(px, py, s, n, width, height, seed)
+        keys[i] = key
+        a, b = 0.0, 0.0
+        if cam.lens_radius > 0.0:
+            a, b = lens_sample(px, py, s, n, width, seed, key)
+        oi, di = eye_ray(cam, u, v, a, b)
+        if timed:
+            tau = time_sample(px, py, s, n, width, seed, key, table)
+            times[i] = tau
+            if moving:
+                r0, r1, r2 = affine_at(cam_dec, 0, tau)
+                oi = (r0[0] * oi[0] + r0[1] * oi[1] + r0[2] * oi[2] + r0[3],
+                      r1[0] * oi[0] + r1[1] * oi[1] + r1[2] * oi[2] + r1[3],
+                      r2[0] * oi[0] + r2[1] * oi[1] + r2[2] * oi[2] + r2[3])
+                wd = (r0[0] * di[0] + r0[1] * di[1] + r0[2] * di[2],
+                      r1[0] * di[0] + r1[1] * di[1] + r1[2] * di[2],
+                      r2[0] * di[0] + r2[1] * di[1] + r2[2] * di[2])
+                ln = math.sqrt(wd[0] * wd[0] + wd[1] * wd[1] + wd[2] * wd[2])
+                di = (wd[0] / ln, wd[1] / ln, wd[2] / ln)
+        o[i, 0], o[i, 1], o[i, 2] = oi
+        d[i, 0], d[i, 1], d[i, 2] = di
+
+
+def listed_eye_rays(scene: Scene, settings: RenderSettings, xs: np.ndarray, ys: np.ndarray, ks: np.ndarray):
+    """Adaptive sampling's eye rays: the samples at positions ``ks`` of the progressive order of pixels
+    (``xs``, ``ys``). Returns (o, d, keys, times, strata): as :func:`timed_eye_rays` gives them for the same
+    strata (times None for a scene without motion), and each sample's stratum."""
+    count = len(xs)
+    o, d, keys = np.empty((count, 3), np.float32), np.empty((count, 3), np.float32), np.empty(count, np.int64)
+    strata = np.empty(count, np.int64)
+    timed = has_motion(scene)
+    times = np.empty(count if timed else 0, np.float32)
+    cam = scene.camera
+    cam_dec = _NO_CAMERA_MOTION
+    packed = cam.packed()
+    table = _NO_CURVE
+    if timed:
+        if cam.motion is not None:  # as timed_eye_rays: camera-space rays placed by the camera at their time
+            packed = packed._replace(rotation=np.eye(3), eye=(0.0, 0.0, 0.0))
+            cam_dec = np.ascontiguousarray(decompose(cam.motion)[None])
+        if scene.motion is not None and len(scene.motion.curve):
+            table = scene.motion.curve
+    _list_eye_rays(packed, cam_dec, table, timed, np.ascontiguousarray(xs, np.int64),
+                   np.ascontiguousarray(ys, np.int64), np.ascontiguousarray(ks, np.int64),
+                   progressive_order(settings.samples), settings.samples, settings.width, settings.height,
+                   settings.seed, o, d, keys, times, strata)
+    return o, d, keys, (times if timed else None), strata
+
+
 def eye_samples(settings: RenderSettings, x0: int, y0: int, x1: int, y1: int):
     """Film positions (u, v) and hash keys of the N×N stratified samples of every pixel in a tile (array form of
     :func:`pixel_sample`). Samples of one pixel are consecutive."""
@@ -206,35 +283,67 @@ def _write_rgba(rgba, color, alpha, x0, y0, tw, th, spp):
             px[0], px[1], px[2], px[3] = cr / n, cg / n, cb / n, ca / n
 
 
+@kernel(refcounts=False)
+def _write_rgba_spent(rgba, color, alpha, x0, y0, tw, th, spp, spent):
+    """:func:`_write_rgba` of adaptive sampling's layout (``spp`` slots per pixel, the untraced ones 0): the same
+    float32 sum in slot order, divided by the samples each pixel took (``spent``). A pixel that took all its
+    samples gets exactly what :func:`_write_rgba` gives it (adding 0 changes no float)."""
+    for r in range(th):
+        for c in range(tw):
+            p = r * tw + c
+            i = p * spp
+            cr, cg, cb, ca = color[i, 0], color[i, 1], color[i, 2], alpha[i]
+            for k in range(1, spp):
+                cr += color[i + k, 0]
+                cg += color[i + k, 1]
+                cb += color[i + k, 2]
+                ca += alpha[i + k]
+            n = np.float32(max(spent[p], 1))
+            px = rgba[y0 + r, x0 + c]
+            px[0], px[1], px[2], px[3] = cr / n, cg / n, cb / n, ca / n
+
+
 def write_tile(image: Image, res, tile, spp: int) -> None:
-    """Box-filter a tile's samples into the image and its AOVs."""
+    """Box-filter a tile's samples into the image and its AOVs. With adaptive sampling (``res.spent``) each pixel
+    is divided by the samples it took, its untraced slots left out of every AOV."""
     x0, y0, x1, y1 = tile
     th, tw = y1 - y0, x1 - x0
-    _write_rgba(image.rgba, res.color, res.alpha, x0, y0, tw, th, spp)
+    spent, traced = res.spent, res.traced
+    if spent is None:
+        _write_rgba(image.rgba, res.color, res.alpha, x0, y0, tw, th, spp)
+        scale = None
+    else:
+        _write_rgba_spent(image.rgba, res.color, res.alpha, x0, y0, tw, th, spp, spent)
+        scale = (np.float32(spp) / np.maximum(spent, 1).astype(np.float32))[:, None]  # mean over slots -> over samples
     aovs = image.aovs
     if res.compose is not None:  # shadow catchers: Cycles' Combined (the matte) and Shadow Catcher pass
-        rgba, catcher = compose.composite(res.color, res.alpha, res.compose, spp, *res.compose_mode)
+        rgba, catcher = compose.composite(res.color, res.alpha, res.compose, spp, *res.compose_mode,
+                                          traced=traced, spent=spent)
         image.rgba[y0:y1, x0:x1] = rgba.reshape(th, tw, 4)
         if "shadow_catcher" in aovs:
             aovs["shadow_catcher"][y0:y1, x0:x1] = catcher.reshape(th, tw, 3)
-    if "depth" in aovs:
+    if "depth" in aovs:  # untraced slots hold inf: they count as misses, which the mean leaves out
         hit = np.isfinite(res.depth).reshape(-1, spp)
         dsum = np.where(hit, res.depth.reshape(-1, spp), 0).sum(axis=1)
         nhit = hit.sum(axis=1)
         aovs["depth"][y0:y1, x0:x1] = np.where(nhit > 0, dsum / np.maximum(nhit, 1), np.inf).reshape(th, tw)
-    if "normal" in aovs:
+    if "normal" in aovs:  # normalised: the untraced slots' zeros change nothing
         nm = box_filter(res.normal, spp)
         nm = nm / np.maximum(np.linalg.norm(nm, axis=1, keepdims=True), 1e-30)
         aovs["normal"][y0:y1, x0:x1] = nm.reshape(th, tw, 3)
     if "albedo" in aovs:
-        aovs["albedo"][y0:y1, x0:x1] = box_filter(res.albedo, spp).reshape(th, tw, 3)
+        al = box_filter(res.albedo, spp)
+        aovs["albedo"][y0:y1, x0:x1] = (al if scale is None else al * scale).reshape(th, tw, 3)
     if "objectid" in aovs:
-        aovs["objectid"][y0:y1, x0:x1] = majority(res.object_id, spp).reshape(th, tw)
+        aovs["objectid"][y0:y1, x0:x1] = majority(res.object_id, spp, valid=traced).reshape(th, tw)
     for i, name in enumerate(PATH_TYPES):
         if name in aovs:
-            aovs[name][y0:y1, x0:x1] = box_filter(res.by_type[:, i], spp).reshape(th, tw, 3)
-    if "raydepth" in aovs:
+            bt = box_filter(res.by_type[:, i], spp)
+            aovs[name][y0:y1, x0:x1] = (bt if scale is None else bt * scale).reshape(th, tw, 3)
+    if "raydepth" in aovs:  # untraced slots hold -1
         aovs["raydepth"][y0:y1, x0:x1] = res.deepest.reshape(th, tw, spp).max(axis=2)
+    if "sample_count" in aovs:
+        aovs["sample_count"][y0:y1, x0:x1] = (spp if spent is None else spent.reshape(th, tw))
 
 
 def empty_aovs(settings: RenderSettings, h: int, w: int) -> dict:
@@ -255,6 +364,8 @@ def empty_aovs(settings: RenderSettings, h: int, w: int) -> dict:
         aovs["raydepth"] = np.full((h, w), -1, np.int32)
     if "shadow_catcher" in settings.aovs:  # 1 where no catcher is seen (tracer.integrator.compose)
         aovs["shadow_catcher"] = np.ones((h, w, 3), np.float32)
+    if "sample_count" in settings.aovs:  # 0 where nothing was rendered
+        aovs["sample_count"] = np.zeros((h, w), np.int32)
     return aovs
 
 
@@ -370,18 +481,15 @@ def _joined_results(parts):
                                compose=join("compose"))
 
 
-def trace_tile(session, settings: RenderSettings, tile, cancelled=None):
-    """Trace one tile's eye samples through the session's integrator: the per-sample :class:`TileResult`."""
-    scene = session.scene
+def trace_eye(session, settings: RenderSettings, o, d, keys, times, cancelled):
+    """Trace eye samples (o, d, keys, times) through the session's integrator, as a tile's: the camera's clipping
+    planes, batches of bounded memory, depth measured from the eye. The per-sample :class:`TileResult`."""
     integ = session.integrator(settings)
-    x0, y0, x1, y1 = tile
-    o, d, keys, times = timed_eye_rays(scene, settings, x0, y0, x1, y1)
-    cam = scene.camera
+    cam = session.scene.camera
     t_max = None
     if cam.clipping_planes:  # each ray's valid interval (tracer.clip_planes): origin moved to its start
         o, t_max = clip_eye_rays(cam, o, d, cam.far - cam.near)
-    res = trace_batches(integ, o, d, keys, cancelled or (lambda: False), ray_types=uses_ray_types(settings),
-                        t_max=t_max, times=times)
+    res = trace_batches(integ, o, d, keys, cancelled, ray_types=uses_ray_types(settings), t_max=t_max, times=times)
     if cam.near > 0 or cam.clipping_planes:  # depth is measured from the eye (the film plane for orthographic)
         rel = o - cam.position.astype(np.float32)
         res.depth += (np.linalg.norm(rel, axis=1) if cam.projection == "perspective"
@@ -389,19 +497,105 @@ def trace_tile(session, settings: RenderSettings, tile, cancelled=None):
     return res
 
 
+def trace_tile(session, settings: RenderSettings, tile, cancelled=None):
+    """Trace one tile's eye samples through the session's integrator: the per-sample :class:`TileResult` (with
+    adaptive sampling, in rounds: :func:`trace_tile_adaptive`)."""
+    cancelled = cancelled or (lambda: False)
+    if adaptive.enabled(settings):
+        return trace_tile_adaptive(session, settings, tile, cancelled)
+    x0, y0, x1, y1 = tile
+    o, d, keys, times = timed_eye_rays(session.scene, settings, x0, y0, x1, y1)
+    return trace_eye(session, settings, o, d, keys, times, cancelled)
+
+
+def _empty_slots(res, n: int):
+    """A :class:`TileResult` of ``n`` empty slots shaped as ``res`` (adaptive sampling's layout: see
+    :attr:`TileResult.spent`)."""
+    return dataclasses.replace(
+        res, color=np.zeros((n, 3), np.float32), alpha=np.zeros(n, np.float32), depth=np.full(n, np.inf, np.float32),
+        normal=np.zeros((n, 3), np.float32), albedo=np.zeros((n, 3), np.float32),
+        object_id=np.full(n, -1, np.int32), counts=RayCounts(),
+        by_type=None if res.by_type is None else np.zeros((n,) + res.by_type.shape[1:], res.by_type.dtype),
+        deepest=None if res.deepest is None else np.full(n, -1, np.int32),
+        compose=None if res.compose is None else np.zeros((n,) + res.compose.shape[1:], res.compose.dtype),
+        traced=np.zeros(n, bool))
+
+
+_SLOT_FIELDS = ("color", "alpha", "depth", "normal", "albedo", "object_id", "by_type", "deepest", "compose")
+
+
+def trace_tile_adaptive(session, settings: RenderSettings, tile, cancelled):
+    """Adaptive sampling of one tile (:mod:`tracer.integrator.adaptive`): every pixel takes the schedule's first
+    samples, then rounds of ``step`` more for the pixels still sampling, each pixel's k-th sample always the same
+    (:func:`pixel_stratum`). The result holds N² slots per pixel, each sample in its stratum's slot (the
+    fixed-count layout), and ``spent``, the samples each pixel took."""
+    x0, y0, x1, y1 = tile
+    tw, th = x1 - x0, y1 - y0
+    npx = tw * th
+    sched = adaptive.schedule(settings)
+    nn = sched.budget
+    count = np.zeros(npx, np.int64)
+    count_a = np.zeros(npx, np.int64)
+    total = np.zeros((npx, 3))
+    total_a = np.zeros((npx, 3))
+    out = None
+    rays = RayCounts()
+    pixels = np.arange(npx)
+    stop = np.full(npx, sched.first, np.int64)
+    while True:
+        pix, k = adaptive.sample_list(pixels, count[pixels], stop)
+        o, d, keys, times, strata = listed_eye_rays(session.scene, settings, x0 + pix % tw, y0 + pix // tw, k)
+        res = trace_eye(session, settings, o, d, keys, times, cancelled)
+        if out is None:
+            out = _empty_slots(res, npx * nn)
+        slot = pix * nn + strata
+        for name in _SLOT_FIELDS:
+            part = getattr(res, name)
+            if part is not None:
+                getattr(out, name)[slot] = part
+        out.traced[slot] = True
+        rays.add(res.counts)
+        cls_a = sample_class_a(k)
+        for c in range(3):
+            total[:, c] += np.bincount(pix, weights=res.color[:, c], minlength=npx)
+            total_a[:, c] += np.bincount(pix[cls_a], weights=res.color[cls_a, c], minlength=npx)
+        count_a += np.bincount(pix[cls_a], minlength=npx)
+        count[pixels] = stop
+        if cancelled():
+            break
+        pixels = np.flatnonzero(adaptive.still_sampling(sched, total, count, total_a, count_a, (th, tw)))
+        if not len(pixels):
+            break
+        stop = np.minimum(count[pixels] + sched.step, nn)
+    out.counts = rays
+    out.spent = count.astype(np.int32)
+    return out
+
+
 def render_tile(session, settings: RenderSettings, tile) -> Image:
     """The pixels of one tile (x0, y0, x1, y1) of ``session``'s image under ``settings``: an
     :class:`~tracer.film.Image` of the tile's size (its AOVs too), identical to that rectangle of a whole
-    :meth:`tracer.Session.render`. Thread-safe: call it from several threads for different tiles."""
+    :meth:`tracer.Session.render`. Thread-safe: call it from several threads for different tiles.
+
+    With adaptive sampling the rectangle is traced in the parts of :func:`tiles_of`'s tiles it covers (the rounds
+    and their dilation run per tile): a rectangle made of whole tiles (the farm's) is identical to a whole render,
+    one that cuts tiles may sample the pixels near the cut differently."""
     settings = settings.validate()
     x0, y0, x1, y1 = (int(c) for c in tile)
     if not (0 <= x0 < x1 <= settings.width and 0 <= y0 < y1 <= settings.height):
         raise ValueError(f"tile {tile} must lie inside {settings.width}x{settings.height} and be non-empty")
-    res = trace_tile(session, settings, (x0, y0, x1, y1))
     th, tw = y1 - y0, x1 - x0
     img = Image(rgba=np.zeros((th, tw, 4), np.float32), aovs=empty_aovs(settings, th, tw))
-    write_tile(img, res, (0, 0, tw, th), settings.samples**2)
-    img.stats = {"rays": res.counts.as_dict()}
+    parts = [(x0, y0, x1, y1)]
+    if adaptive.enabled(settings):
+        parts = [(max(a, x0), max(b, y0), min(c, x1), min(d, y1)) for a, b, c, d in tiles_of(settings)
+                 if a < x1 and c > x0 and b < y1 and d > y0]
+    counts = RayCounts()
+    for part in parts:
+        res = trace_tile(session, settings, part)
+        write_tile(img, res, (part[0] - x0, part[1] - y0, part[2] - x0, part[3] - y0), settings.samples**2)
+        counts.add(res.counts)
+    img.stats = {"rays": counts.as_dict()}
     return img
 
 
@@ -455,7 +649,8 @@ def render_session(session, settings: RenderSettings | None = None, *, on_tile=N
     if bar is not None:
         bar.close()
     elapsed = time.perf_counter() - start
-    image.stats = {"rays": counts.as_dict(), "seconds": elapsed, "bvh_seconds": build_time, "threads": threads,
+    pixels = sum((t[2] - t[0]) * (t[3] - t[1]) for t in tiles)
+    image.stats = {"rays": counts.as_dict(), "samples_per_pixel": counts.eye / max(pixels, 1), "seconds": elapsed, "bvh_seconds": build_time, "threads": threads,
                    "rays_per_second": counts.total / elapsed if elapsed > 0 else 0.0, "epsilon": float(integ.eps),
                    "triangles": len(scene.triangles), "intersect_seconds": accel.seconds - isect_before}
     if getattr(accel, "record", False):
