@@ -397,6 +397,8 @@ class _Job:
                     data = np.zeros(ids.shape, np.float32)
                     ok = (ids >= 0) & (ids < len(pass_indices))
                     data[ok] = pass_indices[ids[ok]]
+                elif aov == "sample_count":  # Cycles' Debug Sample Count: the share of the N×N budget taken
+                    data = data.astype(np.float32) / np.float32(settings.samples ** 2)
                 layers[pname] = np.ascontiguousarray(data, np.float32)
             self._tiles.put((tile, layers))
 

@@ -11,6 +11,8 @@ passes and the Passes panel draws the checkboxes (addon/ui.py), all from :data:`
     objectid        Object Index           view layer: use_pass_object_index      ("IndexOB" before Blender 5.0)
     shadow_catcher  Shadow Catcher         Cycles' view layer: use_pass_shadow_catcher (one checkbox for both
                                            engines: Cycles' own setting)
+    sample_count    Debug Sample Count     Cycles' view layer: pass_debug_sample_count (as Cycles writes it: the
+                                           samples a pixel took divided by the most it may take, N×N)
     direct, reflection, transmission, raydepth
                     Whitted Direct, ...    scene.whitted.ray_type_passes (tracer.settings.RAY_TYPE_AOVS)
 
@@ -54,6 +56,7 @@ PASSES: tuple = (
     Pass("normal", "Normal", 3, "XYZ", "VECTOR", "layer", "use_pass_normal", "Normal"),
     Pass("objectid", OBJECT_INDEX, 1, "X", "VALUE", "layer", "use_pass_object_index", "Object Index"),
     Pass("shadow_catcher", "Shadow Catcher", 3, "RGB", "COLOR", "cycles", "use_pass_shadow_catcher"),
+    Pass("sample_count", "Debug Sample Count", 1, "X", "VALUE", "cycles", "pass_debug_sample_count", "Sample Count"),
 ) + tuple(Pass(aov, *_RAY_TYPE[aov], "whitted", "ray_type_passes", "") for aov in tracer.settings.RAY_TYPE_AOVS)
 #: {tracer AOV: its Pass}.
 BY_AOV = {p.aov: p for p in PASSES}

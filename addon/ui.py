@@ -41,9 +41,23 @@ def compat_panels():
 
 def draw_settings(layout, props, panel: str) -> None:
     """Every ``scene.whitted`` property whose setting is drawn under ``panel`` (``Setting.panel``,
-    tracer/settings.py), in field order: a new setting shows up by itself."""
+    tracer/settings.py), in field order: a new setting shows up by itself. A setting with a ``toggle`` is drawn
+    as Cycles draws Noise Threshold (checkbox, then the value, greyed out when unticked); one ``active_with``
+    such a setting is greyed out with it."""
     for name, s in SETTINGS.items():
-        if s.blender is not None and s.panel == panel:
+        if s.blender is None or s.panel != panel:
+            continue
+        if s.toggle:
+            row = layout.row(heading=s.toggle[1])
+            row.prop(props, s.toggle[0], text="")
+            sub = row.row()
+            sub.active = getattr(props, s.toggle[0])
+            sub.prop(props, name, text="")
+        elif s.active_with:
+            row = layout.row()
+            row.active = getattr(props, SETTINGS[s.active_with].toggle[0])
+            row.prop(props, name)
+        else:
             layout.prop(props, name)
 
 

@@ -10,7 +10,8 @@ scene work at all and a material edit only a repack.
 
 The worker refines progressively: coarse pixels first (:func:`levels`: as Cycles' viewport, the first pass is about
 :data:`START_RESOLUTION` pixels across, at least every 8th pixel; then every 4th, 2nd pixel, then all), then more
-anti-aliasing samples (:data:`AA_PASSES`). Any change (camera, size, edits, settings) cancels the pass in
+anti-aliasing samples (:data:`AA_PASSES`), each pass a fixed N×N per pixel (the scene's adaptive sampling is for
+F12: a pass of at most 3×3 samples leaves a round nothing to skip). Any change (camera, size, edits, settings) cancels the pass in
 flight (the tracer polls ``cancelled`` between tiles and depths) and starts again from the coarsest level. Each
 finished pass replaces the frame and calls ``on_frame`` (the engine's ``tag_redraw``: as Cycles' session does from
 its thread, it only sets a flag Blender's main loop polls).
@@ -221,7 +222,9 @@ class ViewportRender:
                 if self._generation != gen:
                     break
                 w, h = max(1, size[0] // level), max(1, size[1] // level)
-                settings = base.with_(width=w, height=h, samples=samples, region=None, aovs=(), progress=False)
+                # Fixed counts: each pass is a whole N×N (1, 2, 3), too few samples for adaptive sampling's rounds
+                settings = base.with_(width=w, height=h, samples=samples, region=None, aovs=(), progress=False,
+                                      adaptive_threshold=0.0)
                 try:
                     image = session.render(settings, cancelled=lambda g=gen: self._generation != g)
                 except tracer.RenderCancelled:

@@ -13,7 +13,8 @@ import pytest
 from tracer.settings import INTEGRATOR_FIELDS, SETTINGS, RenderSettings, default_of, integrator_key
 
 #: A valid value other than the default for every field (a new field fails the walk until it is listed here).
-CHANGED = {"width": 40, "height": 30, "samples": 3, "max_depth": 1, "epsilon": 1e-3, "fresnel": False,
+CHANGED = {"width": 40, "height": 30, "samples": 3, "adaptive_threshold": 0.05, "adaptive_min_samples": 8,
+           "max_depth": 1, "epsilon": 1e-3, "fresnel": False,
            "shadows": False, "light_samples": 9, "sky_samples": 4, "terminal_rays": True, "shading": "classic",
            "max_transparent": 0, "min_weight": 0.25, "transparent": True, "depth_of_field": False,
            "motion_blur": False, "tile_size": 16, "threads": 1,
@@ -101,8 +102,13 @@ def test_every_blender_property_reaches_f12_settings(bpy_module):
             s = SETTINGS[name]
             stored = CHANGED[name]
             setattr(props, name, stored)
+            if s.toggle:  # a value under a checkbox (Noise Threshold): unticked, the field keeps its default
+                assert getattr(export.settings_from_scene(scene), name) == default_of(name), name
+                setattr(props, s.toggle[0], True)
             assert getattr(export.settings_from_scene(scene), name) == pytest.approx(CHANGED[name]), name
             setattr(props, name, s.none_as if default_of(name) is None else default_of(name))
+            if s.toggle:
+                setattr(props, s.toggle[0], False)
         assert dataclasses.asdict(export.settings_from_scene(scene)) == dataclasses.asdict(defaults)
     finally:
         addon.unregister()
@@ -137,3 +143,25 @@ def test_every_blender_setting_is_drawn_in_a_panel():
     for name, s in SETTINGS.items():
         if s.blender:
             assert s.panel in ui.HEADINGS, name
+
+
+def test_noise_threshold_is_a_checkbox_and_a_value_as_in_cycles(bpy_module):
+    """Render Properties → Sampling → Noise Threshold: Cycles' checkbox (``use_adaptive_sampling``) and value
+    (starting at Cycles' 0.01); unticked, F12 samples every pixel fully; Min Samples reaches F12 as it is."""
+    import addon
+    from addon import export
+
+    addon.register()
+    try:
+        scene = bpy_module.context.scene
+        props = scene.whitted
+        assert props.use_adaptive_sampling is False
+        assert props.adaptive_threshold == pytest.approx(0.01)
+        assert export.settings_from_scene(scene).adaptive_threshold == 0.0
+        props.use_adaptive_sampling = True
+        props.adaptive_min_samples = 12
+        got = export.settings_from_scene(scene)
+        assert got.adaptive_threshold == pytest.approx(0.01) and got.adaptive_min_samples == 12
+        props.use_adaptive_sampling = False
+    finally:
+        addon.unregister()
