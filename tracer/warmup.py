@@ -5,7 +5,8 @@ from the cache (tracer/kernel_cache.py). :func:`compile_kernels` is for preparin
 warmup``, the Blender add-on's child process, and the kernels shipped in the add-on's zip (tracer/kernel_bundle.py).
 It renders a tiny scene that takes every path through the kernels (all light kinds with and without extent, shading
 normals, a texture, mirror, glass, alpha, emission, sky visibility), then the same scene with motion blur (a moving
-and a deforming object, a moving camera, a shutter curve: tracer/geometry/motion.py's kernels and the stages' timed paths).
+and a deforming object, a moving camera, a shutter curve: tracer/geometry/motion.py's kernels and the stages' timed paths),
+each also with adaptive sampling (its eye rays of listed samples and its film).
 docs/benchmarks.md ("Ready at install") has what that costs, measured.
 """
 
@@ -51,6 +52,9 @@ def compile_kernels() -> None:
                               aovs=("depth",), transparent=True)
     render(b.build(), settings)
     render(_with_motion(b), settings)
+    adaptive = settings.with_(samples=3, adaptive_threshold=0.5, adaptive_min_samples=4)  # rounds of listed samples
+    render(b.build(), adaptive)
+    render(_with_motion(b), adaptive)
     b.materials[glass]["alpha"] = 1.0  # nothing see-through: shadow rays take plain occlusion (tracer/accel/alpha.py)
     render(b.build(), settings)
     mark_kernels_cached()
