@@ -162,6 +162,25 @@ def test_noise_threshold_is_a_checkbox_and_a_value_as_in_cycles(bpy_module):
         props.adaptive_min_samples = 12
         got = export.settings_from_scene(scene)
         assert got.adaptive_threshold == pytest.approx(0.01) and got.adaptive_min_samples == 12
+
+        class Layout:  # records what the Sampling panel draws, and what it greys out
+            drawn: list = []
+
+            def row(self, **kw):
+                return self
+
+            def prop(self, holder, name, **kw):
+                self.drawn.append((name, getattr(self, "active", True)))
+
+        from addon import ui
+
+        ui.draw_settings(Layout(), props, "Sampling")
+        names = [n for n, _ in Layout.drawn]
+        assert names[:4] == ["samples", "use_adaptive_sampling", "adaptive_threshold", "adaptive_min_samples"], names
         props.use_adaptive_sampling = False
+        props.adaptive_min_samples = 0
+        Layout.drawn.clear()
+        ui.draw_settings(Layout(), props, "Sampling")
+        assert ("adaptive_min_samples", False) in Layout.drawn  # greyed out with the checkbox unticked
     finally:
         addon.unregister()
