@@ -124,7 +124,11 @@ def scene_glass_mirror(bs):
     bs.add_uv_sphere((1.1, -0.6, 0.8), 0.8, segments=64, rings=32, name="Glass",
                      material=bs.principled_material("Glass", base_color=(1.0, 1.0, 1.0), transmission=1.0,
                                                      roughness=0.0, ior=1.5))
-    bs.add_area_light((0.5, -1.5, 4.5), (0.0, 0.0, 0.0), power=800.0, size=1.5)
+    lamp = bs.add_area_light((0.5, -1.5, 4.5), (0.0, 0.0, 0.0), power=800.0, size=1.5)
+    # Whitted's light paths: a lamp is not a surface, so neither renderer sees it in the mirror or through the
+    # glass (Cycles shows a Blender light to glossy and transmission rays; measured: 31.5 dB with it, the lamp's
+    # reflection being 98 % of the squared error)
+    lamp.visible_glossy = lamp.visible_transmission = False
     bs.set_world((0.05, 0.05, 0.08), 1.0)
     _camera(bs)
 

@@ -194,3 +194,26 @@ def test_schedule_follows_cycles_min_samples():
     assert adaptive.min_samples(RenderSettings(samples=8, adaptive_threshold=0.01, adaptive_min_samples=2)) == 4
     sched = adaptive.schedule(RenderSettings(samples=16, adaptive_threshold=0.1))
     assert (sched.budget, sched.first, sched.step) == (256, 32, 16)
+
+
+@pytest.mark.parametrize("transparent", [True, False])
+def test_shadow_catcher_means_are_over_the_samples_taken(scene, transparent):
+    """Cycles' Combined and Shadow Catcher pass (tracer.integrator.compose) average each pixel's samples: with
+    adaptive sampling, over the slots it traced. A budget every pixel spends gives the fixed-count pixels (to
+    float rounding: the masked mean sums in another order); fewer samples, pixels close to them."""
+    st = BASE.with_(width=40, height=30, samples=4, tile_size=16, transparent=transparent, aovs=("shadow_catcher",))
+    scene.object_shadow_catcher = np.array([True, False])  # the floor catches the ball's soft shadow
+    try:
+        with tracer.Session(scene) as s:
+            fixed = s.render(st)
+            every = s.render(st.with_(adaptive_threshold=0.01, adaptive_min_samples=16))
+            fewer = s.render(st.with_(adaptive_threshold=0.05, adaptive_min_samples=4, aovs=("shadow_catcher",
+                                                                                          "sample_count")))
+    finally:
+        scene.object_shadow_catcher = None
+    np.testing.assert_allclose(every.rgba, fixed.rgba, atol=1e-6)
+    np.testing.assert_allclose(every.aovs["shadow_catcher"], fixed.aovs["shadow_catcher"], atol=1e-6)
+    assert fewer.aovs["sample_count"].min() == 4 and fewer.aovs["sample_count"].mean() < 12
+    catcher = fewer.aovs["shadow_catcher"]
+    assert catcher.min() >= -1e-4 and catcher.max() <= 1 + 1e-4  # (a ratio: float rounding around 1)
+    assert psnr(fewer.rgba, fixed.rgba) > 35 and psnr(catcher, fixed.aovs["shadow_catcher"]) > 30

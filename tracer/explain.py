@@ -122,7 +122,7 @@ def _adaptive_samples(scene: Scene, settings: RenderSettings, integ: Integrator,
         t for t in tiles_of(settings.with_(region=None)) if inside(t))
     session = SimpleNamespace(scene=scene, integrator=lambda _settings: integ)
     res = trace_tile_adaptive(session, settings, (x0, y0, x1, y1), lambda: False)
-    count = int(res.spent[(y - y0) * (x1 - x0) + (x - x0)])
+    count = settings.samples ** 2 if res.spent is None else int(res.spent[(y - y0) * (x1 - x0) + (x - x0)])
     o, d, keys, times, _ = listed_eye_rays(scene, settings, np.full(count, x), np.full(count, y),
                                            np.arange(count))
     return o, d, keys, times

@@ -42,19 +42,19 @@ def box_filter(values: np.ndarray, spp: int) -> np.ndarray:
     return values.reshape((-1, spp) + values.shape[1:]).mean(axis=1)
 
 
-def majority(ids: np.ndarray, spp: int, limit: int = 16, valid: np.ndarray | None = None) -> np.ndarray:
-    """Per pixel, the id seen by most of its samples (ties: the smaller id); at most ``limit`` samples vote.
-    ``valid`` (adaptive sampling's slots: the ones traced) leaves the other slots out: the first ``limit`` valid
-    ones vote."""
-    g = ids.reshape(-1, spp)
-    if valid is None:
-        g = g[:, :limit]
-        votes = (g[:, :, None] == g[:, None, :]).sum(axis=2)
+def majority(ids: np.ndarray, spp: int, limit: int = 16) -> np.ndarray:
+    """Per pixel, the id seen by most of its samples (ties: the smaller id); at most ``limit`` samples vote."""
+    return vote(ids.reshape(-1, spp)[:, :limit])
+
+
+def vote(g: np.ndarray, ok: np.ndarray | None = None) -> np.ndarray:
+    """Per row of ``g`` (P, L), the id most of its entries hold (ties: the smaller id); ``ok`` (P, L), where given,
+    says which entries vote (adaptive sampling: a pixel's samples, fewer than L)."""
+    same = g[:, :, None] == g[:, None, :]
+    if ok is None:
+        votes = same.sum(axis=2)
     else:
-        first = np.argsort(~valid.reshape(-1, spp), axis=1, kind="stable")[:, :limit]  # valid slots, in order
-        g = np.take_along_axis(g, first, axis=1)
-        ok = np.take_along_axis(valid.reshape(-1, spp), first, axis=1)
-        votes = np.where(ok, ((g[:, :, None] == g[:, None, :]) & ok[:, None, :]).sum(axis=2), 0)
+        votes = np.where(ok, (same & ok[:, None, :]).sum(axis=2), 0)
     best = np.max(votes, axis=1, keepdims=True)
     return np.where(votes == best, g, np.iinfo(np.int32).max).min(axis=1).astype(np.int32)
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..camera import eye_ray
 from ..clip_planes import clip_eye_rays
-from ..film import Image, box_filter, majority
+from ..film import Image, box_filter, majority, vote
 from ..geometry.motion import affine_at, decompose, time_sample
 from ..jit import kernel
 from ..sampling import multijitter, progressive_order, sample_class_a, uniform1, uniform2_1
@@ -284,66 +284,102 @@ def _write_rgba(rgba, color, alpha, x0, y0, tw, th, spp):
 
 
 @kernel(refcounts=False)
-def _write_rgba_spent(rgba, color, alpha, x0, y0, tw, th, spp, spent):
-    """:func:`_write_rgba` of adaptive sampling's layout (``spp`` slots per pixel, the untraced ones 0): the same
-    float32 sum in slot order, divided by the samples each pixel took (``spent``). A pixel that took all its
-    samples gets exactly what :func:`_write_rgba` gives it (adding 0 changes no float)."""
+def _write_rgba_spent(rgba, color, alpha, x0, y0, tw, th, starts, spent):
+    """:func:`_write_rgba` of adaptive sampling's layout: pixel p's ``spent[p]`` samples from ``starts[p]`` on,
+    summed in float32 in stratum order and divided by their count."""
     for r in range(th):
         for c in range(tw):
             p = r * tw + c
-            i = p * spp
+            i = starts[p]
             cr, cg, cb, ca = color[i, 0], color[i, 1], color[i, 2], alpha[i]
-            for k in range(1, spp):
+            for k in range(1, spent[p]):
                 cr += color[i + k, 0]
                 cg += color[i + k, 1]
                 cb += color[i + k, 2]
                 ca += alpha[i + k]
-            n = np.float32(max(spent[p], 1))
+            n = np.float32(spent[p])
             px = rgba[y0 + r, x0 + c]
             px[0], px[1], px[2], px[3] = cr / n, cg / n, cb / n, ca / n
 
 
 def write_tile(image: Image, res, tile, spp: int) -> None:
-    """Box-filter a tile's samples into the image and its AOVs. With adaptive sampling (``res.spent``) each pixel
-    is divided by the samples it took, its untraced slots left out of every AOV."""
+    """Box-filter a tile's samples into the image and its AOVs. With adaptive sampling (``res.spent``: pixels that
+    took different counts) each pixel averages the samples it took."""
+    if res.spent is not None:
+        return _write_tile_spent(image, res, tile)
     x0, y0, x1, y1 = tile
     th, tw = y1 - y0, x1 - x0
-    spent, traced = res.spent, res.traced
-    if spent is None:
-        _write_rgba(image.rgba, res.color, res.alpha, x0, y0, tw, th, spp)
-        scale = None
-    else:
-        _write_rgba_spent(image.rgba, res.color, res.alpha, x0, y0, tw, th, spp, spent)
-        scale = (np.float32(spp) / np.maximum(spent, 1).astype(np.float32))[:, None]  # mean over slots -> over samples
+    _write_rgba(image.rgba, res.color, res.alpha, x0, y0, tw, th, spp)
     aovs = image.aovs
     if res.compose is not None:  # shadow catchers: Cycles' Combined (the matte) and Shadow Catcher pass
-        rgba, catcher = compose.composite(res.color, res.alpha, res.compose, spp, *res.compose_mode,
-                                          traced=traced, spent=spent)
+        rgba, catcher = compose.composite(res.color, res.alpha, res.compose, spp, *res.compose_mode)
         image.rgba[y0:y1, x0:x1] = rgba.reshape(th, tw, 4)
         if "shadow_catcher" in aovs:
             aovs["shadow_catcher"][y0:y1, x0:x1] = catcher.reshape(th, tw, 3)
-    if "depth" in aovs:  # untraced slots hold inf: they count as misses, which the mean leaves out
+    if "depth" in aovs:
         hit = np.isfinite(res.depth).reshape(-1, spp)
         dsum = np.where(hit, res.depth.reshape(-1, spp), 0).sum(axis=1)
         nhit = hit.sum(axis=1)
         aovs["depth"][y0:y1, x0:x1] = np.where(nhit > 0, dsum / np.maximum(nhit, 1), np.inf).reshape(th, tw)
-    if "normal" in aovs:  # normalised: the untraced slots' zeros change nothing
+    if "normal" in aovs:
         nm = box_filter(res.normal, spp)
         nm = nm / np.maximum(np.linalg.norm(nm, axis=1, keepdims=True), 1e-30)
         aovs["normal"][y0:y1, x0:x1] = nm.reshape(th, tw, 3)
     if "albedo" in aovs:
-        al = box_filter(res.albedo, spp)
-        aovs["albedo"][y0:y1, x0:x1] = (al if scale is None else al * scale).reshape(th, tw, 3)
+        aovs["albedo"][y0:y1, x0:x1] = box_filter(res.albedo, spp).reshape(th, tw, 3)
     if "objectid" in aovs:
-        aovs["objectid"][y0:y1, x0:x1] = majority(res.object_id, spp, valid=traced).reshape(th, tw)
+        aovs["objectid"][y0:y1, x0:x1] = majority(res.object_id, spp).reshape(th, tw)
     for i, name in enumerate(PATH_TYPES):
         if name in aovs:
-            bt = box_filter(res.by_type[:, i], spp)
-            aovs[name][y0:y1, x0:x1] = (bt if scale is None else bt * scale).reshape(th, tw, 3)
-    if "raydepth" in aovs:  # untraced slots hold -1
+            aovs[name][y0:y1, x0:x1] = box_filter(res.by_type[:, i], spp).reshape(th, tw, 3)
+    if "raydepth" in aovs:
         aovs["raydepth"][y0:y1, x0:x1] = res.deepest.reshape(th, tw, spp).max(axis=2)
     if "sample_count" in aovs:
-        aovs["sample_count"][y0:y1, x0:x1] = (spp if spent is None else spent.reshape(th, tw))
+        aovs["sample_count"][y0:y1, x0:x1] = spp
+
+
+#: Samples of a pixel that vote for its object id (tracer.film.majority's limit).
+_VOTERS = 16
+
+
+def _write_tile_spent(image: Image, res, tile) -> None:
+    """:func:`write_tile` of pixels that took different counts (``res.spent``), each pixel's samples consecutive:
+    the same means, over each pixel's own samples."""
+    x0, y0, x1, y1 = tile
+    th, tw = y1 - y0, x1 - x0
+    spent = res.spent
+    starts = np.cumsum(spent) - spent
+    _write_rgba_spent(image.rgba, res.color, res.alpha, x0, y0, tw, th, starts, spent)
+    mean = lambda a: np.add.reduceat(a, starts, axis=0) / spent[:, None].astype(np.float32)  # noqa: E731
+    aovs = image.aovs
+    if res.compose is not None:
+        rgba, catcher = compose.composite(res.color, res.alpha, res.compose, 0, *res.compose_mode, spent=spent)
+        image.rgba[y0:y1, x0:x1] = rgba.reshape(th, tw, 4)
+        if "shadow_catcher" in aovs:
+            aovs["shadow_catcher"][y0:y1, x0:x1] = catcher.reshape(th, tw, 3)
+    if "depth" in aovs:
+        hit = np.isfinite(res.depth)
+        dsum = np.add.reduceat(np.where(hit, res.depth, 0), starts)
+        nhit = np.add.reduceat(hit.astype(np.int32), starts)
+        aovs["depth"][y0:y1, x0:x1] = np.where(nhit > 0, dsum / np.maximum(nhit, 1), np.inf).reshape(th, tw)
+    if "normal" in aovs:
+        nm = np.add.reduceat(res.normal, starts, axis=0)
+        nm = nm / np.maximum(np.linalg.norm(nm, axis=1, keepdims=True), 1e-30)
+        aovs["normal"][y0:y1, x0:x1] = nm.reshape(th, tw, 3)
+    if "albedo" in aovs:
+        aovs["albedo"][y0:y1, x0:x1] = mean(res.albedo).reshape(th, tw, 3)
+    if "objectid" in aovs:  # the first _VOTERS samples of each pixel vote
+        j = np.arange(_VOTERS)
+        ok = j[None, :] < spent[:, None]
+        g = res.object_id[np.where(ok, starts[:, None] + j[None, :], starts[:, None])]
+        aovs["objectid"][y0:y1, x0:x1] = vote(g, ok).reshape(th, tw)
+    for i, name in enumerate(PATH_TYPES):
+        if name in aovs:
+            aovs[name][y0:y1, x0:x1] = mean(res.by_type[:, i]).reshape(th, tw, 3)
+    if "raydepth" in aovs:
+        aovs["raydepth"][y0:y1, x0:x1] = np.maximum.reduceat(res.deepest, starts).reshape(th, tw)
+    if "sample_count" in aovs:
+        aovs["sample_count"][y0:y1, x0:x1] = spent.reshape(th, tw)
 
 
 def empty_aovs(settings: RenderSettings, h: int, w: int) -> dict:
@@ -508,53 +544,29 @@ def trace_tile(session, settings: RenderSettings, tile, cancelled=None):
     return trace_eye(session, settings, o, d, keys, times, cancelled)
 
 
-def _empty_slots(res, n: int):
-    """A :class:`TileResult` of ``n`` empty slots shaped as ``res`` (adaptive sampling's layout: see
-    :attr:`TileResult.spent`)."""
-    return dataclasses.replace(
-        res, color=np.zeros((n, 3), np.float32), alpha=np.zeros(n, np.float32), depth=np.full(n, np.inf, np.float32),
-        normal=np.zeros((n, 3), np.float32), albedo=np.zeros((n, 3), np.float32),
-        object_id=np.full(n, -1, np.int32), counts=RayCounts(),
-        by_type=None if res.by_type is None else np.zeros((n,) + res.by_type.shape[1:], res.by_type.dtype),
-        deepest=None if res.deepest is None else np.full(n, -1, np.int32),
-        compose=None if res.compose is None else np.zeros((n,) + res.compose.shape[1:], res.compose.dtype),
-        traced=np.zeros(n, bool))
-
-
-_SLOT_FIELDS = ("color", "alpha", "depth", "normal", "albedo", "object_id", "by_type", "deepest", "compose")
-
-
 def trace_tile_adaptive(session, settings: RenderSettings, tile, cancelled):
     """Adaptive sampling of one tile (:mod:`tracer.integrator.adaptive`): every pixel takes the schedule's first
     samples, then rounds of ``step`` more for the pixels still sampling, each pixel's k-th sample always the same
-    (:func:`pixel_stratum`). The result holds N² slots per pixel, each sample in its stratum's slot (the
-    fixed-count layout), and ``spent``, the samples each pixel took."""
+    (:func:`pixel_stratum`). The result holds each pixel's samples consecutively in stratum order and ``spent``,
+    how many; when every pixel took all N², it is the fixed-count result itself (``spent`` None)."""
     x0, y0, x1, y1 = tile
     tw, th = x1 - x0, y1 - y0
     npx = tw * th
     sched = adaptive.schedule(settings)
-    nn = sched.budget
     count = np.zeros(npx, np.int64)
     count_a = np.zeros(npx, np.int64)
     total = np.zeros((npx, 3))
     total_a = np.zeros((npx, 3))
-    out = None
-    rays = RayCounts()
+    parts, pixel_of, stratum_of = [], [], []
     pixels = np.arange(npx)
     stop = np.full(npx, sched.first, np.int64)
     while True:
         pix, k = adaptive.sample_list(pixels, count[pixels], stop)
         o, d, keys, times, strata = listed_eye_rays(session.scene, settings, x0 + pix % tw, y0 + pix // tw, k)
         res = trace_eye(session, settings, o, d, keys, times, cancelled)
-        if out is None:
-            out = _empty_slots(res, npx * nn)
-        slot = pix * nn + strata
-        for name in _SLOT_FIELDS:
-            part = getattr(res, name)
-            if part is not None:
-                getattr(out, name)[slot] = part
-        out.traced[slot] = True
-        rays.add(res.counts)
+        parts.append(res)
+        pixel_of.append(pix)
+        stratum_of.append(strata)
         cls_a = sample_class_a(k)
         for c in range(3):
             total[:, c] += np.bincount(pix, weights=res.color[:, c], minlength=npx)
@@ -566,10 +578,20 @@ def trace_tile_adaptive(session, settings: RenderSettings, tile, cancelled):
         pixels = np.flatnonzero(adaptive.still_sampling(sched, total, count, total_a, count_a, (th, tw)))
         if not len(pixels):
             break
-        stop = np.minimum(count[pixels] + sched.step, nn)
-    out.counts = rays
-    out.spent = count.astype(np.int32)
-    return out
+        stop = np.minimum(count[pixels] + sched.step, sched.budget)
+    res = _joined_results(parts) if len(parts) > 1 else parts[0]
+    order = np.lexsort((np.concatenate(stratum_of), np.concatenate(pixel_of)))  # by pixel, then stratum
+    res = _taken(res, order)
+    if not (count == sched.budget).all():
+        res.spent = count.astype(np.int32)
+    return res
+
+
+def _taken(res, order):
+    """``res`` with its per-sample arrays in ``order``."""
+    take = lambda name: None if getattr(res, name) is None else getattr(res, name)[order]  # noqa: E731
+    return dataclasses.replace(res, **{name: take(name) for name in ("color", "alpha", "depth", "normal", "albedo",
+                                                                     "object_id", "by_type", "deepest", "compose")})
 
 
 def render_tile(session, settings: RenderSettings, tile) -> Image:

@@ -106,11 +106,10 @@ class TileResult:
     deepest: np.ndarray | None = None  # (S,) depth of the deepest ray (0 = the eye ray only) (with ray_types)
     compose: np.ndarray | None = None  # (S, compose.COLUMNS) shadow-catcher sums (scenes with a catcher)
     compose_mode: tuple = (False, True)  # (transparent film, approximate shadow catcher) for tracer.integrator.compose
-    # (P,) samples each pixel of the tile took (adaptive sampling); None: every pixel took all its spp. With it the
-    # per-sample arrays hold spp slots per pixel, slot s = stratum s, the slots not traced left empty (colour,
-    # alpha, normal, albedo, compose 0; depth inf; object id and deepest -1): tracer.integrator.tiles.write_tile
+    # (P,) samples each pixel of the tile took (adaptive sampling), when they differ; None: every pixel took its
+    # spp. With it the per-sample arrays hold each pixel's samples consecutively, in stratum order, spent[p] of
+    # them (tracer.integrator.tiles.write_tile)
     spent: np.ndarray | None = None
-    traced: np.ndarray | None = None  # (P·spp,) bool: the slots traced (with ``spent``)
 
 
 class MaterialArrays(NamedTuple):
