@@ -1,7 +1,9 @@
 """The tile loop under :class:`tracer.Session`: tiles on a thread pool, eye rays per tile, the film written.
 
 Each tile is traced independently with sample patterns keyed by pixel, so images do not depend on the number of
-threads or on tile order. Memory per tile is bounded by ``tile_size² × samples²`` rays. :func:`render_session` is
+threads or on tile order. Memory per tile is bounded by ``tile_size² × samples²`` rays. With adaptive sampling
+(:mod:`.adaptive`) a tile is traced in rounds (:func:`trace_tile_adaptive`) and the film averages each pixel over
+the samples it took (:func:`write_tile`). :func:`render_session` is
 :meth:`tracer.Session.render`; :func:`render_tile` one tile of it (the farm's tasks); :func:`tracer.render` makes a
 session for one render. This module never imports the session (it takes one), so the session sits above it.
 """
