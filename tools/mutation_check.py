@@ -21,7 +21,7 @@ import time
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 #: The tests that guard the mutated code (fast: no Cycles references, no Blender).
-TESTS = ["tests/test_optics.py", "tests/test_closed_forms.py", "tests/test_bsdf.py", "tests/test_render.py", "tests/test_explain.py",
+TESTS = ["tests/test_adaptive.py", "tests/test_optics.py", "tests/test_closed_forms.py", "tests/test_bsdf.py", "tests/test_render.py", "tests/test_explain.py",
          "tests/test_usd_lights.py", "tests/test_environment.py", "tests/test_emitters.py"]
 
 #: (name, file, original text, mutated text). Each original must occur in the file exactly once.
@@ -109,6 +109,14 @@ MUTATIONS = [
      "    b = vec.scale(vec.cross(nf, tg), sign)", "    b = vec.scale(vec.cross(nf, tg), -sign)"),
     ("area light: the emitter's cosine dropped", "tracer/lights/emitters.py",
      "cos_l * table[j, _AREA] / d2 / kk", "table[j, _AREA] / d2 / kk"),
+    # Fourth round: adaptive sampling (issue #33), guarded by tests/test_adaptive.py.
+    ("adaptive: no dilation of unconverged pixels", "tracer/integrator/adaptive.py",
+     "    return dilate(unconverged.reshape(shape)).reshape(-1) & (count < sched.budget)",
+     "    return unconverged & (count < sched.budget)"),
+    ("adaptive: the film divides by the tile's first pixel's count", "tracer/integrator/tiles.py",
+     "            n = np.float32(spent[p])\n", "            n = np.float32(spent[0])\n"),
+    ("adaptive: a pixel's sample positions restart each round", "tracer/integrator/adaptive.py",
+     " + np.repeat(start.astype(np.int64), m)", ""),
 ]
 
 
