@@ -16,7 +16,8 @@ particles are included):
   orthographic scale, clip start/end.
 - Lights, in Blender's units: point P W -> intensity P/(4π)·colour, radius = ``shadow_soft_size``; spot: the same
   with cone half-angle ``spot_size/2`` and ``spot_blend``; sun strength S -> irradiance S·colour, ``angle``; area
-  power P -> radiance P/(π·A)·colour (A in world units, emitting along the light's -Z). ``2^exposure`` multiplies.
+  power P -> radiance P/(π·A)·colour (A in world units, emitting along the light's -Z; its Spread as Cycles' soft box;
+  a Portal is skipped: it only guides Cycles' world sampling). ``2^exposure`` multiplies.
 - Ray visibility and linking (:func:`links_from_blender`): each object's ``visible_camera`` / ``visible_glossy`` /
   ``visible_transmission`` / ``visible_shadow`` as ``scene.object_visibility``; each light's
   ``light_linking.receiver_collection`` / ``blocker_collection`` (include / exclude states), ``use_shadow`` and
@@ -226,13 +227,18 @@ def light_from_blender(obj, warnings: list):
         return tracer.DistantLight(direction=-axis_z, irradiance=colour * power,
                                    angle=min(float(light.angle), math.pi - 1e-6), name=name)
     if light.type == "AREA":
+        if getattr(getattr(light, "cycles", None), "is_portal", False):
+            warnings.append(f"light {name!r}: a Portal guides Cycles' sampling of the world and emits nothing; "
+                            "skipped")
+            return None
         (sx, sy), shape = area_shape(light, m)
         area = tracer.AreaLight.area_of((sx, sy), shape)
         if area <= 0:
             warnings.append(f"light {name!r}: zero-size area light skipped")
             return None
         return tracer.AreaLight(position=pos, u_axis=m[:3, 0], v_axis=m[:3, 1], normal=-axis_z, size=(sx, sy),
-                                radiance=colour * power / (math.pi * area), shape=shape, name=name)
+                                radiance=colour * power / (math.pi * area), shape=shape, name=name,
+                                spread=min(max(float(getattr(light, "spread", math.pi)), 0.0), math.pi))
     warnings.append(f"light {name!r}: {light.type} lights are not supported")
     return None
 
