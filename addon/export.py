@@ -54,13 +54,17 @@ def image_pixels(image) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------------------- geometry
-def mesh_arrays(mesh) -> dict:
+def mesh_arrays(mesh, attributes=()) -> dict:
     """Object-space triangle arrays of a Blender mesh: vertices (V, 3), triangles (T, 3), per-corner normals
     (T, 3, 3) from ``corner_normals`` (split/custom normals, flat faces included), per-corner UVs (T, 3, 2) of
     every UV map by name (``uv_layers``; ``uv_default`` = the active render map, ``uvs`` its UVs or None),
     per-corner RGBA (T, 3, 4) of every point- or corner-domain Color Attribute (``colors``; ``color_default`` =
     the render colour), per-triangle material slot indices (T,). All numpy (``foreach_get``), no Python loop
-    over vertices."""
+    over vertices.
+
+    ``attributes``: names a material reads (Attribute node) that are not Color Attributes: any generic attribute
+    of that name, on any domain and of any numeric type, is read into ``colors`` too, as Cycles reads it
+    (:func:`attribute_corners`); ``attributes_read`` records the names asked for."""
     mesh.calc_loop_triangles()
     nv, nt = len(mesh.vertices), len(mesh.loop_triangles)
     verts = np.empty(nv * 3, np.float32)
@@ -100,15 +104,83 @@ def mesh_arrays(mesh) -> dict:
     if colors:
         render = getattr(attrs, "default_color_name", "") or getattr(attrs, "active_color_name", "")
         color_default = render if render in colors else next(iter(colors))
+    tri_faces = None
+    for name in attributes:
+        if not name or name in colors or name in layers:
+            continue
+        attr = getattr(mesh, "attributes", {}).get(name)
+        if attr is None:
+            continue
+        if tri_faces is None:
+            tri_faces = np.empty(nt, np.int32)
+            mesh.loop_triangles.foreach_get("polygon_index", tri_faces)
+        c = attribute_corners(mesh, attr, tris, loops, tri_faces)
+        if c is not None:
+            colors[name] = c
     return {"vertices": verts.reshape(nv, 3), "triangles": tris.reshape(nt, 3), "normals": normals,
             "uvs": layers.get(default), "uv_layers": layers, "uv_default": default, "colors": colors,
-            "color_default": color_default, "material_index": mat}
+            "color_default": color_default, "material_index": mat, "attributes_read": frozenset(attributes)}
 
 
-def _object_mesh_arrays(obj, depsgraph):
+#: Generic attribute types -> (the ``foreach_get`` property, components): what an Attribute node can read.
+ATTRIBUTE_TYPES = {"FLOAT": ("value", 1, np.float32), "INT": ("value", 1, np.int32), "INT8": ("value", 1, np.int32),
+                   "BOOLEAN": ("value", 1, bool), "FLOAT2": ("vector", 2, np.float32),
+                   "INT32_2D": ("value", 2, np.int32), "FLOAT_VECTOR": ("vector", 3, np.float32),
+                   "FLOAT_COLOR": ("color", 4, np.float32), "BYTE_COLOR": ("color", 4, np.float32),
+                   "QUATERNION": ("value", 4, np.float32)}
+
+
+def attribute_corners(mesh, attr, tris: np.ndarray, loops: np.ndarray, tri_faces: np.ndarray):
+    """Per-corner RGBA (T, 3, 4) of a generic attribute as Cycles' Attribute node reads it (measured: Blender's
+    sync): a float f as (f, f, f), a 2D vector as (x, y, 0), a 3D vector as it is, a colour with its alpha (else 1);
+    point, corner and face domains as they are, an edge-domain value averaged over each vertex's edges (Blender's
+    edge -> point interpolation). None for a type or domain that has no such reading."""
+    kind = ATTRIBUTE_TYPES.get(attr.data_type)
+    if kind is None or attr.domain not in ("POINT", "EDGE", "FACE", "CORNER"):
+        return None
+    prop, k, dtype = kind
+    n = len(attr.data)
+    raw = np.empty(n * k, dtype)
+    try:
+        attr.data.foreach_get(prop, raw)
+    except (TypeError, RuntimeError):
+        try:  # a bpy whose buffer checks refuse the dtype: the slow, sequence path
+            raw = np.asarray([getattr(d, prop) for d in attr.data], np.float64).reshape(-1)
+        except (TypeError, AttributeError):
+            return None
+    raw = raw.reshape(n, k).astype(np.float32)
+    rgba = np.zeros((n, 4), np.float32)
+    rgba[:, 3] = 1.0
+    if k == 1:
+        rgba[:, :3] = raw
+    elif k == 4 and prop == "color":
+        rgba[:] = raw
+    else:
+        rgba[:, :min(k, 3)] = raw[:, :3]
+    nt = len(tri_faces)
+    if attr.domain == "POINT":
+        out = rgba[tris]
+    elif attr.domain == "CORNER":
+        out = rgba[loops]
+    elif attr.domain == "FACE":
+        out = np.repeat(rgba[tri_faces], 3, axis=0)
+    else:  # EDGE: the mean over the edges that meet at each vertex
+        ev = np.empty(len(mesh.edges) * 2, np.int32)
+        mesh.edges.foreach_get("vertices", ev)
+        ev = ev.reshape(-1, 2)
+        acc = np.zeros((len(mesh.vertices), 4), np.float64)
+        cnt = np.zeros(len(mesh.vertices), np.float64)
+        for side in (0, 1):
+            np.add.at(acc, ev[:, side], rgba)
+            np.add.at(cnt, ev[:, side], 1.0)
+        out = (acc / np.maximum(cnt, 1.0)[:, None]).astype(np.float32)[tris]
+    return np.ascontiguousarray(out.reshape(nt, 3, 4), np.float32)
+
+
+def _object_mesh_arrays(obj, depsgraph, attributes=()):
     mesh = obj.to_mesh(preserve_all_data_layers=False, depsgraph=depsgraph)
     try:
-        return None if mesh is None else mesh_arrays(mesh)
+        return None if mesh is None else mesh_arrays(mesh, attributes)
     finally:
         obj.to_mesh_clear()
 
@@ -330,19 +402,25 @@ def export_objects(depsgraph, writer: MaterialWriter, warnings: list, lights: li
             continue
         if obj.type not in GEOMETRY_TYPES or not inst.show_self or obj.get(RAYS_PROPERTY):
             continue
+        slots = tuple(writer.row(s.material) for s in obj.material_slots)
+        wanted = writer.attribute_names(slots)  # generic attributes the materials read by name
         key = obj.data.as_pointer() if obj.type == "MESH" and obj.data is not None else obj.as_pointer()
         key = (key, obj.original.name if obj.type != "MESH" else "")
+        named = _geometry_key(obj)
         if key not in geometry:
-            named = _geometry_key(obj)
             if geometry_cache is not None and named in geometry_cache:
                 geometry[key] = geometry_cache[named]
             else:
                 if cancelled is not None and cancelled():
                     raise ExportCancelled("export cancelled")
-                geometry[key] = _object_mesh_arrays(obj, depsgraph)
+                geometry[key] = _object_mesh_arrays(obj, depsgraph, wanted)
                 if geometry_cache is not None:
                     geometry_cache[named] = geometry[key]
         g = geometry[key]
+        if g is not None and not wanted <= g.get("attributes_read", frozenset()):  # other materials, more names
+            g = geometry[key] = _object_mesh_arrays(obj, depsgraph, wanted | g.get("attributes_read", frozenset()))
+            if geometry_cache is not None:
+                geometry_cache[named] = g
         if g is None or not len(g["triangles"]):
             continue
         mw = inst.matrix_world
@@ -354,7 +432,6 @@ def export_objects(depsgraph, writer: MaterialWriter, warnings: list, lights: li
         if tracer.scene.singular(det, max(m3.to_scale())):
             warnings.append(f"object {obj.name!r}: zero scale (nothing to render); skipped")
             continue
-        slots = tuple(writer.row(s.material) for s in obj.material_slots)
         if (key, slots) not in inputs:  # material rows and baked UVs: once per mesh and slot materials
             if slots:
                 mats = np.asarray(slots, np.int32)[np.clip(g["material_index"], 0, len(slots) - 1)]

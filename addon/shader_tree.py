@@ -356,13 +356,41 @@ def _light_path(t, node, ctx):
     return res
 
 
+#: UV-set names that carry a colour attribute's alpha (the tracer keeps RGB per corner): ALPHA_UV + kind + ":" +
+#: attribute name, kind "vc" (Color Attribute node: a missing attribute's alpha is 0) or "attr" (Attribute node:
+#: 1). addon/model.py fills these sets with (alpha, 0) per corner from the mesh.
+ALPHA_UV = "\u241fwhitted-alpha:"
+
+
+def alpha_uv_name(kind: str, attribute: str) -> str:
+    return f"{ALPHA_UV}{kind}:{attribute}"
+
+
+def _alpha_output(t: Translator, node, ctx, kind: str, attribute: str) -> Value:
+    """A colour attribute's alpha, read through its pseudo UV set (:data:`ALPHA_UV`)."""
+    uv = t.g.add("uvmap", attribute=alpha_uv_name(kind, attribute), name=t.name(node, ctx) + ".alpha_uv")
+    x = t.g.add("separate_xyz", {"Vector": uv["UV"]}, name=t.name(node, ctx) + ".alpha")
+    return Value(x["X"], FLOAT)
+
+
 def _attribute(t, node, ctx):
     if node.attribute_type != "GEOMETRY":
         t.warn(node, f"Attribute {node.name!r}: {node.attribute_type} attributes are not supported; white stands "
                      "in", "type")
         return {"Color": Value((1.0, 1.0, 1.0), COLOR), "Vector": Value((1.0, 1.0, 1.0), VECTOR),
                 "Fac": Value(1.0, FLOAT), "Alpha": Value(1.0, FLOAT)}
-    return t.add(node, ctx, "attribute", attribute=node.attribute_name, attribute_type="GEOMETRY")
+    res = t.add(node, ctx, "attribute", attribute=node.attribute_name, attribute_type="GEOMETRY")
+    if node.outputs["Alpha"].is_linked:
+        res["Alpha"] = _alpha_output(t, node, ctx, "attr", node.attribute_name)
+    return res
+
+
+def _vertex_color(t, node, ctx):
+    """Color Attribute: its colour per corner, and its alpha (0 where the mesh lacks it, as Cycles)."""
+    res = t.add(node, ctx, "vertex_color", layer_name=node.layer_name)
+    if node.outputs["Alpha"].is_linked:
+        res["Alpha"] = _alpha_output(t, node, ctx, "vc", node.layer_name)
+    return res
 
 
 def _uvmap(t, node, ctx):
@@ -594,7 +622,7 @@ HANDLERS = {
     "ShaderNodeNewGeometry": _geometry,
     "ShaderNodeObjectInfo": _simple("object_info"),
     "ShaderNodeAttribute": _attribute,
-    "ShaderNodeVertexColor": lambda t, n, c: t.add(n, c, "vertex_color", layer_name=n.layer_name),
+    "ShaderNodeVertexColor": _vertex_color,
     "ShaderNodeUVMap": _uvmap,
     "ShaderNodeLayerWeight": _simple("layer_weight"),
     "ShaderNodeFresnel": _simple("fresnel"),

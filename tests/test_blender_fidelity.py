@@ -5,6 +5,12 @@ here with bpy (no third-party file is read) and held to a closed form where one 
 - **Area lights**: irradiance from a one-sided rectangular Lambertian emitter (Lambert's polygon formula) and its
   Spread, Cycles' soft-box grid ``max((tan(s/2) − tan θ)·N, 0)``, N = 1/(tan(s/2) − s/2), which keeps the power.
   A room under a narrow-spread ceiling light leaves its walls dark; a Portal lights nothing itself.
+- **Attributes** (Attribute / Color Attribute nodes), as Cycles reads them (measured with emission probes): a
+  name the mesh lacks reads black (Color Attribute Alpha 0, Attribute Alpha 1); any generic attribute of that
+  name on any domain is read (a face-domain float: one value per face, "speckled"); a UV map's name reads
+  (u, v, 0); Fac is the mean of the components.
+- **glTF-style meshes**: one mesh, one material per primitive, each reading its own Color Attribute, and a
+  Color Attribute's alpha cutting the surface out (the glTF importer's vertex-colour alpha).
 """
 
 from __future__ import annotations
@@ -234,3 +240,136 @@ def test_a_room_under_a_narrow_spread_lamp_matches_cycles(bpy_module, tmp_path):
     scene = room_scene()
     ours, _warnings = ours_render(scene)
     H.check_images({"name": "room_spread_portal"}, ours, ref, tmp_path, min_psnr=33.0, max_mae=0.004)
+
+
+# ---------------------------------------------------------------------------------------------------- attributes
+def node_material(name):
+    import bpy
+
+    mat = bpy.data.materials.new(name)
+    nt = mat.node_tree
+    for n in list(nt.nodes):
+        if n.type != "OUTPUT_MATERIAL":
+            nt.nodes.remove(n)
+    return mat, nt, next(n for n in nt.nodes if n.type == "OUTPUT_MATERIAL")
+
+
+def grid_object(name, location, size=1.8, n=6, material=None):
+    import bmesh
+
+    mesh = bs._bmesh_mesh(name, lambda bm: bmesh.ops.create_grid(bm, x_segments=n, y_segments=n, size=size / 2,
+                                                                   calc_uvs=True))
+    return bs._mesh_object(name, mesh, location, material, False)
+
+
+def attribute_scene(size=(80, 80)):
+    """Four 6 × 6-quad tiles seen from above under a sun, each a Diffuse BSDF whose colour comes from an
+    attribute: 'Col' (not on the mesh: Cycles reads black), 'speckle' (a face-domain float, a value per face),
+    'UVMap' (a UV map's name: (u, v, 0)); the fourth is Mix Shader(Transparent, Diffuse) by the Alpha of a Color
+    Attribute 'Gone' the mesh lacks (alpha 0: Cycles sees the red floor through it)."""
+    import bpy
+
+    scene = bs.reset(size)
+    bs.add_camera((0.0, 0.0, 5.0), target=(0.0, 0.0, 0.0), ortho_scale=4.0)
+    bs.set_world((0.0, 0.0, 0.0))
+    bs.add_sun((0.0, 0.0, -1.0), strength=3.0)
+    floor = bs.principled_material("Red", base_color=(0.7, 0.1, 0.1), specular=0.0)
+    grid_object("Floor", (0.0, 0.0, -0.3), size=4.0, n=1, material=floor)
+    spots = {"Col": (-1.0, 1.0), "speckle": (1.0, 1.0), "UVMap": (-1.0, -1.0), "Gone": (1.0, -1.0)}
+    rng = np.random.default_rng(7)
+    for attr, (x, y) in spots.items():
+        mat, nt, out = node_material(f"reads {attr}")
+        diff = nt.nodes.new("ShaderNodeBsdfDiffuse")
+        if attr == "Gone":
+            node = nt.nodes.new("ShaderNodeVertexColor")
+            node.layer_name = attr
+            diff.inputs["Color"].default_value = (0.2, 0.5, 0.9, 1.0)
+            mix = nt.nodes.new("ShaderNodeMixShader")
+            transparent = nt.nodes.new("ShaderNodeBsdfTransparent")
+            nt.links.new(node.outputs["Alpha"], mix.inputs["Fac"])
+            nt.links.new(transparent.outputs[0], mix.inputs[1])
+            nt.links.new(diff.outputs[0], mix.inputs[2])
+            nt.links.new(mix.outputs[0], out.inputs["Surface"])
+        else:
+            node = nt.nodes.new("ShaderNodeAttribute")
+            node.attribute_name = attr
+            nt.links.new(node.outputs["Color"], diff.inputs["Color"])
+            nt.links.new(diff.outputs[0], out.inputs["Surface"])
+        ob = grid_object(f"tile {attr}", (x, y, 0.0), material=mat)
+        if attr == "speckle":
+            a = ob.data.attributes.new("speckle", "FLOAT", "FACE")
+            a.data.foreach_set("value", rng.uniform(0.05, 0.9, len(a.data)).astype(np.float32))
+    bpy.context.view_layer.update()
+    return scene
+
+
+def gltf_scene(size=(96, 72)):
+    """A glTF import's shapes: one mesh (a cube) of two primitives, each with its own material reading its own
+    Color Attribute ('Color' on points, 'Color.001' on corners), beside a cube whose Principled Alpha is its Color
+    Attribute's alpha (0 on the upper vertices: its top fades out), in front of a red wall, under a point light."""
+    import bmesh
+    import bpy
+
+    scene = bs.reset(size)
+    bs.set_world((0.02, 0.02, 0.02))
+    bs.add_point_light((2.0, -4.0, 5.0), power=1500.0)
+    bs.add_camera((0.5, -7.0, 3.0), target=(0.5, 0.0, 0.3), lens=40.0)
+    wall = bs.principled_material("Wall", base_color=(0.8, 0.1, 0.1), specular=0.0)
+    bs.add_plane((0.5, 2.5, 1.0), 8.0, material=wall, name="Wall").rotation_euler = (math.pi / 2, 0, 0)
+    bs.add_plane((0.5, 0.0, -1.0), 8.0, material=bs.principled_material("Floor", base_color=(0.5, 0.5, 0.5),
+                                                                        specular=0.0), name="Floor")
+    mats = []
+    for i, attr in enumerate(("Color", "Color.001")):
+        mat, nt, out = node_material(f"primitive {i}")
+        bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
+        bsdf.inputs["Specular IOR Level"].default_value = 0.0
+        vc = nt.nodes.new("ShaderNodeVertexColor")
+        vc.layer_name = attr
+        nt.links.new(vc.outputs["Color"], bsdf.inputs["Base Color"])
+        nt.links.new(bsdf.outputs[0], out.inputs["Surface"])
+        mats.append(mat)
+    mesh = bs._bmesh_mesh("Primitives", lambda bm: bmesh.ops.create_cube(bm, size=1.6, calc_uvs=True))
+    for m in mats:
+        mesh.materials.append(m)
+    fn = np.empty(len(mesh.polygons) * 3, np.float32)
+    mesh.polygons.foreach_get("normal", fn)
+    fn = fn.reshape(-1, 3)  # the top and the sides facing ±X are primitive 1, the front and back primitive 0
+    mesh.polygons.foreach_set("material_index", (np.abs(fn[:, 1]) < 0.5).astype(np.int32))
+    c0 = mesh.color_attributes.new("Color", "FLOAT_COLOR", "POINT")
+    co = np.empty(len(mesh.vertices) * 3, np.float32)
+    mesh.vertices.foreach_get("co", co)
+    co = co.reshape(-1, 3)
+    c0.data.foreach_set("color", np.concatenate([0.5 + 0.3 * np.sign(co), np.ones((len(co), 1))], 1)
+                        .astype(np.float32).ravel())
+    c1 = mesh.color_attributes.new("Color.001", "FLOAT_COLOR", "CORNER")
+    c1.data.foreach_set("color", np.tile(np.array([0.9, 0.8, 0.1, 1.0], np.float32), len(c1.data)))
+    bs._mesh_object("Primitives", mesh, (-1.0, 0.0, 0.0), None, False)
+    mat, nt, out = node_material("vertex alpha")
+    bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    bsdf.inputs["Specular IOR Level"].default_value = 0.0
+    vc = nt.nodes.new("ShaderNodeVertexColor")
+    nt.links.new(vc.outputs["Color"], bsdf.inputs["Base Color"])
+    nt.links.new(vc.outputs["Alpha"], bsdf.inputs["Alpha"])
+    nt.links.new(bsdf.outputs[0], out.inputs["Surface"])
+    mesh = bs._bmesh_mesh("Faded", lambda bm: bmesh.ops.create_cube(bm, size=1.6, calc_uvs=True))
+    mesh.materials.append(mat)
+    ca = mesh.color_attributes.new("Col", "FLOAT_COLOR", "POINT")
+    co = np.empty(len(mesh.vertices) * 3, np.float32)
+    mesh.vertices.foreach_get("co", co)
+    alpha = (co.reshape(-1, 3)[:, 2] < 0).astype(np.float32)
+    ca.data.foreach_set("color", np.stack([np.full_like(alpha, 0.2), np.full_like(alpha, 0.4),
+                                           np.full_like(alpha, 0.9), alpha], 1).ravel())
+    bs._mesh_object("Faded", mesh, (1.8, 0.0, 0.0), None, False)
+    bpy.context.view_layer.update()
+    return scene
+
+
+@pytest.mark.cycles
+@pytest.mark.parametrize("name", ["attributes", "gltf_primitives"])
+def test_attribute_scenes_match_cycles(bpy_module, tmp_path, name):
+    build = {"attributes": attribute_scene, "gltf_primitives": gltf_scene}[name]
+    ref = H.cycles_render(f"attr_{name}", build, source_of(build, node_material, grid_object),
+                          dict(depth=2, samples=64))
+    scene = build()
+    ours, warnings = ours_render(scene)
+    H.check_images({"name": name}, ours, ref, tmp_path, min_psnr=35.0, max_mae=0.006)

@@ -593,13 +593,15 @@ def _attribute(cx, node, var):
         cx.warn(node.name, f"Attribute {node.name!r}: {node.param('attribute_type')} attributes are not "
                              "supported; white is used")
         return {"Color": (1.0, 1.0, 1.0), "Vector": (1.0, 1.0, 1.0), "Fac": 1.0, "Alpha": 1.0}
-    if cx.uv_index(name) is not None and name and name in getattr(cx.uv_index, "names", ()):
+    # (the name test first: asking uv_index for a name reserves a UV set for it, which no mesh would fill)
+    if name and name in getattr(cx.uv_index, "names", ()) and cx.uv_index(name) is not None:
         uvv = cx.uv(name, var)
         return {"Color": uvv, "Vector": uvv, "Fac": cx.convert(uvv, VECTOR, FLOAT), "Alpha": 1.0}
     if name not in cx.vertex_colors:
         cx.vertex_colors.append(name)
     c = cx.hit(IN_COLOR, variant=var)
-    return {"Color": c, "Vector": c, "Fac": cx.convert(c, COLOR, FLOAT), "Alpha": 1.0}
+    # Fac: the mean of the components, as Cycles' svm_node_attr_store (not the colour's luminance)
+    return {"Color": c, "Vector": c, "Fac": cx.convert(c, VECTOR, FLOAT), "Alpha": 1.0}
 
 
 @node('vertex_color', [], [_c("Color"), _f("Alpha")], layer_name="")
