@@ -271,7 +271,8 @@ class Translator:
                 self.images[image.name] = image_rgba(image)
             except Exception as exc:  # missing file, unreadable pixels
                 self.images[image.name] = None
-                self.warn(node, f"image {image.name!r} not loaded ({exc})", "load")
+                self.warn(node, f"image {image.name!r} not loaded ({exc}); magenta stands in, as in Cycles",
+                          "load")
         px = self.images[image.name]
         if px is None:
             return None
@@ -471,13 +472,16 @@ def _light_falloff(t, node, ctx):
             "Constant": Value(mul(strength, l2, ".constant"), FLOAT)}
 
 
+#: What Cycles renders for an image it cannot read (TEX_IMAGE_MISSING_R/G/B/A): magenta, alpha 1.
+MISSING_IMAGE = (1.0, 0.0, 1.0)
+
+
 def _image(t: Translator, node, ctx):
     ref = t.image_ref(node, node.image, node.extension, node.interpolation)
     if ref is None:
         if node.image is None:
-            t.warn(node, f"Image Texture {node.name!r} has no image (Cycles renders it pink); black stands in",
-                   "none")
-        return {"Color": Value((0.0, 0.0, 0.0), COLOR), "Alpha": Value(0.0, FLOAT)}
+            t.warn(node, f"Image Texture {node.name!r} has no image; magenta stands in, as in Cycles", "none")
+        return {"Color": Value(MISSING_IMAGE, COLOR), "Alpha": Value(1.0, FLOAT)}
     return t.add(node, ctx, "image_texture", image=ref, projection=node.projection,
                  projection_blend=float(node.projection_blend), interpolation=node.interpolation,
                  extension=node.extension)
@@ -486,9 +490,9 @@ def _image(t: Translator, node, ctx):
 def _environment(t: Translator, node, ctx):
     ref = t.image_ref(node, node.image, "REPEAT", node.interpolation)
     if ref is None:
-        t.warn(node, f"Environment Texture {node.name!r} has no image (Cycles renders it pink); black stands in",
-               "none")
-        return {"Color": Value((0.0, 0.0, 0.0), COLOR), "Alpha": Value(0.0, FLOAT)}
+        if node.image is None:
+            t.warn(node, f"Environment Texture {node.name!r} has no image; magenta stands in, as in Cycles", "none")
+        return {"Color": Value(MISSING_IMAGE, COLOR), "Alpha": Value(1.0, FLOAT)}
     return t.add(node, ctx, "environment_texture", image=ref, projection=node.projection,
                  interpolation=node.interpolation)
 

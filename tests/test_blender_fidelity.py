@@ -9,6 +9,8 @@ here with bpy (no third-party file is read) and held to a closed form where one 
   name the mesh lacks reads black (Color Attribute Alpha 0, Attribute Alpha 1); any generic attribute of that
   name on any domain is read (a face-domain float: one value per face, "speckled"); a UV map's name reads
   (u, v, 0); Fac is the mean of the components.
+- **Missing images** (a file that is not there: glTF test scenes name an HDR they do not ship): Cycles renders
+  them magenta, in a material and in the world.
 - **glTF-style meshes**: one mesh, one material per primitive, each reading its own Color Attribute, and a
   Color Attribute's alpha cutting the surface out (the glTF importer's vertex-colour alpha).
 """
@@ -373,3 +375,46 @@ def test_attribute_scenes_match_cycles(bpy_module, tmp_path, name):
     scene = build()
     ours, warnings = ours_render(scene)
     H.check_images({"name": name}, ours, ref, tmp_path, min_psnr=35.0, max_mae=0.006)
+
+
+# ---------------------------------------------------------------------------------------------------- images
+def missing_image(name):
+    """An image datablock naming a file that is not there (as a .blend whose textures were not shipped)."""
+    import bpy
+
+    img = bpy.data.images.new(name, 4, 4)
+    img.source = "FILE"
+    img.filepath = os.path.join(os.sep, "nonexistent-whitted-test", name)
+    img.reload()
+    return img
+
+
+def missing_image_scene(size=(64, 48)):
+    """A sphere whose Base Color is an Image Texture of a file that does not exist, under a world whose
+    Environment Texture names another missing file (the world lights the sphere too), and a point light."""
+    import bpy
+
+    scene = bs.reset(size)
+    bs.add_camera((0.0, -5.0, 0.0), target=(0.0, 0.0, 0.0), lens=50.0)
+    bs.add_point_light((3.0, -3.0, 4.0), power=500.0)
+    mat = bs.principled_material("Textured", specular=0.0)
+    nt = mat.node_tree
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = missing_image("no_such_texture.png")
+    nt.links.new(tex.outputs["Color"], bs.principled_node(mat).inputs["Base Color"])
+    bs.add_uv_sphere((0.0, 0.0, 0.0), 1.0, material=mat)
+    world = bs.set_world((0.05, 0.05, 0.05), strength=0.5)
+    env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
+    env.image = missing_image("no_such_sky.hdr")
+    bg = next(n for n in world.node_tree.nodes if n.type == "BACKGROUND")
+    world.node_tree.links.new(env.outputs["Color"], bg.inputs["Color"])
+    return scene
+
+
+@pytest.mark.cycles
+def test_missing_images_are_magenta_as_in_cycles(bpy_module, tmp_path):
+    ref = H.cycles_render("missing_images", missing_image_scene, source_of(missing_image_scene, missing_image),
+                          dict(depth=2, samples=64))
+    ours, warnings = ours_render(missing_image_scene())
+    assert sum("magenta" in w for w in warnings) == 2, warnings
+    H.check_images({"name": "missing_images"}, ours, ref, tmp_path, min_psnr=35.0, max_mae=0.006)
