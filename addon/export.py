@@ -25,7 +25,8 @@ particles are included):
 - World: :func:`addon.world.world_from_blender` (Background colour × strength, an Environment Texture as
   ``tracer.Environment``, anything else baked to a lat-long image by Cycles).
 - Materials: node trees translated by :mod:`addon.shader_tree` into the tracer's shader graph, compiled into rows
-  by :mod:`addon.model` (the node table is in docs/addon.md).
+  by :mod:`addon.model` (the node table is in docs/addon.md); a Volume output as a homogeneous medium
+  (:mod:`addon.volume`, ``scene.material_volumes``).
 """
 
 from __future__ import annotations
@@ -533,6 +534,11 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     pass_indices[:len(exported)] = [o.pass_index for o in exported]
     b.object_pass_indices = pass_indices
     scene = b.build()
+    if writer.volumes:  # media inside objects (a material's Volume output: addon/volume.py)
+        vols = np.zeros((len(scene.materials.names), 6), np.float32)
+        for row, v in writer.volumes.items():
+            vols[row] = v
+        scene.material_volumes = vols
     scene.object_visibility, scene.light_links, scene.emitter_links = links_from_blender(
         depsgraph, exported, scene.lights, len(b.object_names), warnings)
     scene.object_holdout, scene.object_shadow_catcher = compose_flags(depsgraph, exported, len(b.object_names))

@@ -25,6 +25,7 @@ import numpy as np
 from typing import NamedTuple
 
 from .shader_tree import ALPHA_UV, material_graph
+from .volume import volume_of
 
 from .bundled import tracer_module
 
@@ -71,6 +72,7 @@ class MaterialWriter:
         self.fields: dict[int, tuple[str, dict]] = {}  # row -> (material name, {"graph": its Graph})
         self.uv_sets: dict[str, int] = {"": 0}  # UV map name ('' = the mesh's active render map) -> UV set
         self._rows: dict[str, int] = {}
+        self.volumes: dict[int, np.ndarray] = {}  # row -> (σ RGB, E RGB) of its Volume output (addon/volume.py)
         self._said: set = set()
         self.default_row = self._add("__default__", default_surface())
 
@@ -85,6 +87,9 @@ class MaterialWriter:
             return self.default_row
         if material.name not in self._rows:
             self._rows[material.name] = self._add(material.name, material_graph(material, self.warn, self.images))
+            vol = volume_of(material, self.warn)
+            if vol is not None:
+                self.volumes[self._rows[material.name]] = vol
         return self._rows[material.name]
 
     def _add(self, name: str, graph) -> int:

@@ -402,6 +402,7 @@ class Integrator:
         self.see_through = bool(np.any(used & ((m.alpha < 1) | self.programs.alpha_varies)))
         #: Holdouts and shadow catchers (tracer.compose)
         self.compose = compose.pack(scene)
+        self.volumes = _pack_volumes(getattr(scene, "material_volumes", None), len(m.names))
         self._local = threading.local()
         self._camera_lock = threading.Lock()
 
@@ -442,6 +443,8 @@ class Integrator:
                            surf.transmission, m.alpha_threshold, g.uv_sets, g.colors, g.has_colors, g.vertices,
                            g.triangles, g.face_normals, g.object_ids, self.spaces, x.data, x.params, it.linear,
                            it.mirrored, it.object_ids, eye, spread, flat, pt.lobes, surf.lobe_arrays)
+        if self.volumes is not None:  # rays leaving a medium: Beer–Lambert and its emission over their length
+            weight = _through_media(self.volumes, surf, t, sample, weight, out.color, n)
         split = None  # the eye samples whose first catcher hit is in this batch (tracer.compose)
         cp = self.compose
         if depth == 0 and (cp.has_holdout or cp.has_catcher):
@@ -642,6 +645,43 @@ class Integrator:
 
 
 # ---------------------------------------------------------------------------------------------- helpers
+def _pack_volumes(vol, n_materials: int):
+    """Scene.material_volumes as (n_materials, 6) float64 (σ ≥ 0, E ≥ 0), or None when no material has a medium."""
+    if vol is None:
+        return None
+    vol = np.asarray(vol, np.float64)
+    if vol.ndim != 2 or vol.shape[1] != 6:
+        raise ValueError(f"scene.material_volumes must have shape (M, 6), got {vol.shape}")
+    out = np.zeros((max(n_materials, len(vol)), 6))
+    out[:len(vol)] = np.maximum(np.nan_to_num(vol, nan=0.0, posinf=0.0), 0.0)
+    return out if out.any() else None
+
+
+def _through_media(volumes, surf, t, sample, weight, color, n):
+    """Rays that hit the back face of an object whose material holds a medium (:attr:`Scene.material_volumes`)
+    travelled the length t inside it: their weight × exp(−σ·t), and the medium's emission along that length,
+    weight·E/σ·(1 − exp(−σ·t)) (E·t where σ = 0), added to their samples. Returns the new weights."""
+    back = surf.hit[:n] & ~surf.front[:n]
+    rows = np.flatnonzero(back)
+    if not len(rows):
+        return weight
+    mats = surf.mat[rows]
+    v = volumes[np.minimum(mats, len(volumes) - 1)]
+    live = (mats < len(volumes)) & (v > 0).any(axis=1)
+    rows, v = rows[live], v[live]
+    if not len(rows):
+        return weight
+    tt = np.asarray(t, np.float64)[rows][:, None]
+    sigma, em = v[:, :3], v[:, 3:]
+    att = np.exp(-sigma * tt)
+    glow = np.where(sigma > 0, em / np.maximum(sigma, 1e-30) * (1.0 - att), em * tt)
+    w = np.asarray(weight, np.float64)[rows]
+    np.add.at(color, sample[rows], (w * glow).astype(color.dtype))
+    weight = weight.copy()
+    weight[rows] = (w * att).astype(weight.dtype)
+    return weight
+
+
 @kernel(inline=True)
 def spawn_ray(p, ng, direction, eps):
     """The origin of a ray leaving surface point p along ``direction``: p moved ε along the geometric normal ng, to
