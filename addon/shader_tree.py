@@ -315,6 +315,21 @@ def _bsdf(ir_type, distribution=False):
     return handler
 
 
+def _sheen(t: Translator, node, ctx):
+    """Sheen BSDF (Blender 4+; Velvet before): microfiber or Ashikhmin, as Cycles (tracer.sheen)."""
+    d = getattr(node, "distribution", "MICROFIBER")
+    return t.add(node, ctx, "sheen_bsdf", distribution=d if d in ("MICROFIBER", "ASHIKHMIN") else "MICROFIBER")
+
+
+def _subsurface(t: Translator, node, ctx):
+    """Subsurface Scattering: a Diffuse BSDF of its Color (Cycles' picture at Whitted-limited paths is within a few
+    per cent of it: the light that travels under the surface is what a Whitted tracer lacks; one warning)."""
+    t.warn(node, f"Subsurface Scattering {node.name!r} is rendered as diffuse reflection of its Color (the "
+                 "scattering radius is not modelled)")
+    return t.add(node, ctx, "diffuse_bsdf", {"Scale": None, "Radius": None, "IOR": None, "Roughness": None,
+                                             "Anisotropy": None}, {"BSSRDF": "BSDF"})
+
+
 def _value(t, node, ctx):
     return {node.outputs[0].identifier: Value(float(node.outputs[0].default_value), FLOAT)}
 
@@ -614,6 +629,8 @@ HANDLERS = {
     "ShaderNodeBsdfGlass": _bsdf("glass_bsdf", True),
     "ShaderNodeBsdfRefraction": _bsdf("refraction_bsdf", True),
     "ShaderNodeBsdfTranslucent": _bsdf("translucent_bsdf"),
+    "ShaderNodeBsdfSheen": _sheen,
+    "ShaderNodeSubsurfaceScattering": _subsurface,
     "ShaderNodeBsdfTransparent": _bsdf("transparent_bsdf"),
     "ShaderNodeEmission": _bsdf("emission"),
     "ShaderNodeHoldout": _bsdf("holdout"),

@@ -478,7 +478,8 @@ define('material_output', [_s("Surface"), _v("Displacement")], [])
 
 
 define('principled_bsdf', [(_c if np.ndim(d) else _f)(k, d) for k, d in PRINCIPLED_DEFAULTS.items()] + [
-      _N, _f("Coat Weight"), _f("Sheen Weight"), _f("Subsurface Weight"), _f("Anisotropic"),
+      _N, _f("Coat Weight"), _f("Sheen Weight"), _f("Sheen Roughness", 0.5), _c("Sheen Tint", (1, 1, 1)),
+      _f("Subsurface Weight"), _f("Anisotropic"),
       _f("Alpha Threshold")],  # Alpha Threshold: USD's opacityThreshold (not in Blender)
       [_s("BSDF")], transmission_tint=None, proof='tests/cycles/test_cycles_addon_materials.py, tests/cycles/test_cycles_usd_materials.py')
 
@@ -499,6 +500,10 @@ define('refraction_bsdf', [_c("Color", (1, 1, 1)), _f("Roughness"), _f("IOR", 1.
 
 
 define('translucent_bsdf', [_c("Color"), _N], [_s("BSDF")], proof='tests/cycles/test_cycles_nodes.py (closures)')
+
+
+define('sheen_bsdf', [_c("Color"), _f("Roughness", 0.5), _N], [_s("BSDF")], distribution="MICROFIBER",
+       proof='tests/test_blender_fidelity.py (sheen)')
 
 
 define('transparent_bsdf', [_c("Color", (1, 1, 1))], [_s("BSDF")], proof='tests/cycles/test_cycles_nodes.py (closures)')
