@@ -19,7 +19,7 @@ import numpy as np
 from .bundled import tracer_module
 from .image_cache import cached_pixels
 
-srgb_to_linear = tracer_module("texture").srgb_to_linear
+srgb_to_linear = tracer_module("colorspace").srgb_to_linear
 
 #: What Cycles renders for an image it cannot read (TEX_IMAGE_MISSING_R/G/B): magenta.
 MISSING_IMAGE = (1.0, 0.0, 1.0)

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .shader_tree import output_node
+
 _ZERO = np.zeros(3)
 
 
@@ -123,8 +125,6 @@ def volume_of(material, warn) -> np.ndarray | None:
     tree = getattr(material, "node_tree", None)
     if tree is None:
         return None
-    from .shader_tree import output_node
-
     out = output_node(tree)
     if out is None or "Volume" not in out.inputs or not out.inputs["Volume"].is_linked:
         return None

@@ -15,7 +15,7 @@ here with bpy (no third-party file is read) and held to a closed form where one 
   Beer–Lambert over the length inside, exp(−(1 − Color)·Density·t), and Emission inside adds E/σ·(1 − exp(−σ·t)):
   against the closed form through a sphere of IOR 1 (no refraction) and against Cycles.
 - **Sheen** (Sheen BSDF Ashikhmin = the old Velvet, Sheen BSDF microfiber, Principled Sheen Weight): the lobe
-  as Cycles evaluates it (tracer.sheen), not a Diffuse stand-in (3× too bright); **subsurface** (Principled weight,
+  as Cycles evaluates it (tracer.shading.sheen), not a Diffuse stand-in (3× too bright); **subsurface** (Principled weight,
   Subsurface Scattering node) as diffuse of its colour: spheres against Cycles.
 - **glTF-style meshes**: one mesh, one material per primitive, each reading its own Color Attribute, and a
   Color Attribute's alpha cutting the surface out (the glTF importer's vertex-colour alpha).

@@ -1,7 +1,7 @@
 """Measure Cycles' microfiber Sheen BSDF (Zeltner et al. 2022, as Cycles 5.0 evaluates it from its LTC table)
-and write the tracer's table of it, ``tracer/sheen_table_data.py``.
+and write the tracer's table of it, ``tracer/shading/sheen_table_data.py``.
 
-    python tools/sheen_table.py [--out tracer/sheen_table_data.py] [--size 96] [--suns 40]
+    python tools/sheen_table.py [--out tracer/shading/sheen_table_data.py] [--size 96] [--suns 40]
 
 Cycles evaluates the sheen lobe as albedo(μ, r) × D(ω_o), D the linearly transformed cosine
 D = z·a² / (π·((a·x + b·z)² + (a·y)² + z²)²) in the frame (T, B, N) with T towards the view direction; a, b and
@@ -15,7 +15,7 @@ orthographically,
   sun's strength, for its (view, light) pair in its own frame;
 
 and fits (a, b) per roughness and μ by least squares on D (E from the furnace). The table is MU × ROUGHNESS; the
-tracer resamples it to its grids and interpolates bilinearly (tracer/sheen.py).
+tracer resamples it to its grids and interpolates bilinearly (tracer/shading/sheen.py).
 """
 
 from __future__ import annotations
@@ -219,7 +219,7 @@ def fit_tables(furnace: np.ndarray, suns: dict, min_mu: float = 0.22):
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", default=os.path.join(ROOT, "tracer", "sheen_table_data.py"))
+    ap.add_argument("--out", default=os.path.join(ROOT, "tracer", "shading", "sheen_table_data.py"))
     ap.add_argument("--size", type=int, default=96)
     ap.add_argument("--suns", type=int, default=24)
     ap.add_argument("--furnace-samples", type=int, default=256)
@@ -238,7 +238,7 @@ def main(argv=None) -> int:
     with open(args.out, "w") as f:
         f.write('"""Cycles\' microfiber Sheen BSDF as measured through bpy by tools/sheen_table.py (do not edit: run it '
                 'again).\n\nMU: view cosines, ROUGHNESS: sheen roughness; ALBEDO, A, B: (MU, ROUGHNESS) tables of the '
-                'directional\nalbedo and the LTC parameters (tracer.sheen); RMS: each fit\'s relative residual (nan: '
+                'directional\nalbedo and the LTC parameters (tracer.shading.sheen); RMS: each fit\'s relative residual (nan: '
                 'not fitted, held\nfrom the nearest fitted view cosine).\n"""\n\n')
         f.write("import numpy as np\n\nnan = np.nan\n\n")
         f.write(f"MU = np.array({list(FURNACE_MU)})\n")

@@ -261,7 +261,7 @@ class _TileRenderer:
         self.scene = session.scene
 
     def tile(self, settings: RenderSettings, tile):
-        from .tiles import empty_aovs, timed_eye_rays, uses_ray_types, write_tile
+        from .integrator.tiles import empty_aovs, timed_eye_rays, uses_ray_types, write_tile
 
         settings = settings.validate()
         integ = self.session.integrator(settings)
@@ -327,7 +327,7 @@ def render_tiled(client, source, frame=None, *, tile_size: int = DEFAULT_FARM_TI
     settings = client.submit(_settings_task, source, frame, shipped, pure=False).result()
     tiles = frame_tiles(settings, tile_size)
     h, w = settings.height, settings.width
-    from .tiles import empty_aovs
+    from .integrator.tiles import empty_aovs
 
     image = Image(rgba=np.zeros((h, w, 4), np.float32), aovs=empty_aovs(settings, h, w))
     start = time.perf_counter()
