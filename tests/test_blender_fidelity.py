@@ -17,6 +17,9 @@ here with bpy (no third-party file is read) and held to a closed form where one 
 - **Sheen** (Sheen BSDF Ashikhmin = the old Velvet, Sheen BSDF microfiber, Principled Sheen Weight): the lobe
   as Cycles evaluates it (tracer.shading.sheen), not a Diffuse stand-in (3× too bright); **subsurface** (Principled weight,
   Subsurface Scattering node) as diffuse of its colour: spheres against Cycles.
+- **World colour behind procedural materials** (pattern 4): a render (F12) sees what Cycles sees: the world's
+  Background colour × strength where rays leave, and no object hidden from renders (a backdrop plane with
+  ``hide_render``, as the plaster/water material library files carry, is drawn in the viewport only).
 - **glTF-style meshes**: one mesh, one material per primitive, each reading its own Color Attribute, and a
   Color Attribute's alpha cutting the surface out (the glTF importer's vertex-colour alpha).
 """
@@ -597,3 +600,60 @@ def test_sheen_and_subsurface_spheres_match_cycles(bpy_module, tmp_path, kind):
     m = H.metrics(ours, ref)
     print(f"[cycles] sheen_{kind}: {m['psnr']:.2f} dB, mean ours/Cycles {m['mean_ours'] / m['mean_cycles']:.3f}")
     H.check_images({"name": f"sheen_{kind}"}, ours, ref, tmp_path, min_psnr=SHEEN_BARS[kind], max_mae=0.01)
+
+
+# ---------------------------------------------------------------------------------------------------- world
+def world_backdrop_scene(size=(80, 60)):
+    """A noise-textured sphere under a world of colour (0.2, 0.25, 0.3) × strength 1.5, a sun, and a red emissive
+    backdrop behind it that is hidden from renders (Object ▸ Visibility ▸ Renders off)."""
+    import bpy
+
+    scene = bs.reset(size)
+    bs.add_camera((0.0, -6.0, 1.0), target=(0.0, 0.0, 0.0), lens=50.0)
+    bs.set_world((0.2, 0.25, 0.3), 1.5)
+    bs.add_sun((0.5, 0.6, -0.6), strength=2.0)
+    mat, nt, out = node_material("Plaster")
+    bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    bsdf.inputs["Specular IOR Level"].default_value = 0.0
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 4.0
+    ramp = nt.nodes.new("ShaderNodeValToRGB")
+    nt.links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
+    nt.links.new(ramp.outputs["Color"], bsdf.inputs["Base Color"])
+    nt.links.new(bsdf.outputs[0], out.inputs["Surface"])
+    bs.add_uv_sphere((0.0, 0.0, 0.0), 1.2, material=mat)
+    back, nt, out = node_material("Backdrop")
+    em = nt.nodes.new("ShaderNodeEmission")
+    em.inputs["Color"].default_value = (0.8, 0.1, 0.1, 1.0)
+    nt.links.new(em.outputs[0], out.inputs["Surface"])
+    plane = bs.add_plane((0.0, 4.0, 0.0), 20.0, material=back, name="BG")
+    plane.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    plane.hide_render = True
+    bpy.context.view_layer.update()
+    return scene
+
+
+@pytest.fixture
+def whitted_engine(bpy_module):
+    import addon
+
+    addon.register()
+    yield
+    addon.unregister()
+
+
+@pytest.mark.cycles
+def test_world_colour_behind_a_procedural_material_matches_cycles_in_a_render(whitted_engine, tmp_path):
+    """F12 with the add-on's engine (the render depsgraph: BG is not there) against Cycles. Ours through the
+    viewport's depsgraph would draw the red backdrop: that, not the world colour, was the "background differs"."""
+    from addon import engine
+
+    ref = H.cycles_render("world_backdrop", world_backdrop_scene, source_of(world_backdrop_scene, node_material),
+                          dict(depth=2, samples=128))
+    scene = world_backdrop_scene()
+    scene.whitted.samples = 4
+    ours = bs.render_exr(scene, engine="WHITTED")["rgba"][..., :3]
+    assert engine.WhittedRenderEngine.last_render is not None
+    H.check_images({"name": "world_backdrop"}, ours, ref, tmp_path, min_psnr=35.0, max_mae=0.006)
+    corner = ours[:4, :4].reshape(-1, 3).mean(0)
+    assert np.allclose(corner, np.array([0.2, 0.25, 0.3]) * 1.5, rtol=0.01), corner
