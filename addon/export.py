@@ -534,17 +534,24 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     pass_indices[:len(exported)] = [o.pass_index for o in exported]
     b.object_pass_indices = pass_indices
     scene = b.build()
-    if writer.volumes:  # media inside objects (a material's Volume output: addon/volume.py)
-        vols = np.zeros((len(scene.materials.names), 6), np.float32)
-        for row, v in writer.volumes.items():
-            vols[row] = v
-        scene.material_volumes = vols
+    scene.material_volumes = material_volumes(writer, len(scene.materials.names))
     scene.object_visibility, scene.light_links, scene.emitter_links = links_from_blender(
         depsgraph, exported, scene.lights, len(b.object_names), warnings)
     scene.object_holdout, scene.object_shadow_catcher = compose_flags(depsgraph, exported, len(b.object_names))
     if blur:  # last: it evaluates the scene at other sub-frames (and puts the frame back)
         apply_motion(scene, exported, sample_motion(depsgraph, exported, warnings, frame_set))
     return scene, warnings
+
+
+def material_volumes(writer: MaterialWriter, n_materials: int) -> np.ndarray | None:
+    """``Scene.material_volumes`` of the materials a writer read (a material's Volume output: addon/volume.py), or
+    None when none holds a medium."""
+    if not writer.volumes:
+        return None
+    vols = np.zeros((n_materials, 6), np.float32)
+    for row, v in writer.volumes.items():
+        vols[row] = v
+    return vols
 
 
 def links_from_blender(depsgraph, exported: list, lights: list, n_objects: int, warnings: list) -> tuple:

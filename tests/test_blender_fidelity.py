@@ -657,3 +657,24 @@ def test_world_colour_behind_a_procedural_material_matches_cycles_in_a_render(wh
     H.check_images({"name": "world_backdrop"}, ours, ref, tmp_path, min_psnr=35.0, max_mae=0.006)
     corner = ours[:4, :4].reshape(-1, 3).mean(0)
     assert np.allclose(corner, np.array([0.2, 0.25, 0.3]) * 1.5, rtol=0.01), corner
+
+
+def test_a_synced_session_follows_a_changed_medium(bpy_module):
+    """Persistent Data / the viewport (addon/sync.py): changing a Volume Absorption's density re-exports the scene
+    with the new medium (the material edit alone would keep the old one)."""
+    import bpy
+
+    from addon import sync
+
+    medium_scene()
+    s = sync.SceneSync()
+    first = s.update(bpy.context.evaluated_depsgraph_get())
+    vols = first[0].args[0].material_volumes
+    row = int(np.flatnonzero(vols[:, :3].any(1))[0])
+    assert np.allclose(vols[row, :3], (1 - np.array(VOLUME_COLOUR)) * VOLUME_DENSITY)
+    mat = bpy.data.materials["Juice glass"]
+    next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeVolumeAbsorption").inputs["Density"]\
+        .default_value = 0.5
+    edits = s.update(bpy.context.evaluated_depsgraph_get())
+    assert [e.kind for e in edits] == ["rebuild"]
+    assert np.allclose(edits[0].args[0].material_volumes[row, :3], (1 - np.array(VOLUME_COLOUR)) * 0.5)
