@@ -17,7 +17,8 @@ particles are included):
 - Lights, in Blender's units: point P W -> intensity P/(4π)·colour, radius = ``shadow_soft_size``; spot: the same
   with cone half-angle ``spot_size/2`` and ``spot_blend``; sun strength S -> irradiance S·colour, ``angle``; area
   power P -> radiance P/(π·A)·colour (A in world units, emitting along the light's -Z; its Spread as Cycles' soft box;
-  a Portal is skipped: it only guides Cycles' world sampling). ``2^exposure`` multiplies.
+  a Portal is skipped: it only guides Cycles' world sampling). ``2^exposure`` multiplies; a light's own node tree
+  (Emission Color × Strength, a Light Falloff's Quadratic as its Strength) multiplies its colour.
 - Ray visibility and linking (:func:`links_from_blender`): each object's ``visible_camera`` / ``visible_glossy`` /
   ``visible_transmission`` / ``visible_shadow`` as ``scene.object_visibility``; each light's
   ``light_linking.receiver_collection`` / ``blocker_collection`` (include / exclude states), ``use_shadow`` and
@@ -284,6 +285,7 @@ def light_from_blender(obj, warnings: list):
     colour = np.asarray(light.color[:3], np.float64) * 2.0 ** float(getattr(light, "exposure", 0.0))
     power = float(light.energy)
     name = obj.name
+    colour = colour * light_node_factor(light, name, warnings)
     if not getattr(light, "normalize", True):
         power *= unnormalized_factor(light, m)
     if light.type in ("POINT", "SPOT"):
@@ -314,6 +316,38 @@ def light_from_blender(obj, warnings: list):
                                 spread=min(max(float(getattr(light, "spread", math.pi)), 0.0), math.pi))
     warnings.append(f"light {name!r}: {light.type} lights are not supported")
     return None
+
+
+def light_node_factor(light, name: str, warnings: list) -> np.ndarray:
+    """What a light's own node tree (Use Nodes, Cycles) multiplies its colour by: the Emission at its Light Output,
+    Color × Strength (constants; a Light Falloff's Quadratic output is its Strength, the light's own falloff). (1,
+    1, 1) without a tree; anything else is named in one warning and left at 1."""
+    tree = getattr(light, "node_tree", None)
+    if tree is None or not getattr(light, "use_nodes", False):
+        return np.ones(3)
+    outs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputLight"
+            and getattr(n, "target", "ALL") in ("ALL", "CYCLES")]
+    out = next((n for n in outs if n.is_active_output), outs[0] if outs else None)
+    if out is None or not out.inputs["Surface"].is_linked:
+        return np.ones(3) if out is None else np.zeros(3)
+    em = out.inputs["Surface"].links[0].from_node
+    if em.bl_idname != "ShaderNodeEmission" or em.inputs["Color"].is_linked:
+        warnings.append(f"light {name!r}: its node tree is not read (only a constant Emission is); plain light used")
+        return np.ones(3)
+    strength = em.inputs["Strength"]
+    s = float(strength.default_value)
+    if strength.is_linked:
+        link = strength.links[0]
+        src = link.from_node
+        if src.bl_idname == "ShaderNodeLightFalloff" and not src.inputs["Strength"].is_linked:
+            s = float(src.inputs["Strength"].default_value)
+            if link.from_socket.name != "Quadratic":
+                warnings.append(f"light {name!r}: Light Falloff {link.from_socket.name} is rendered as Quadratic "
+                                "(the light's own falloff)")
+        else:
+            warnings.append(f"light {name!r}: a linked Emission Strength in its node tree is read as "
+                            f"{s:g}")
+    return np.asarray(em.inputs["Color"].default_value[:3], np.float64) * s
 
 
 def area_shape(light, m: np.ndarray) -> tuple[tuple[float, float], str]:

@@ -678,3 +678,36 @@ def test_a_synced_session_follows_a_changed_medium(bpy_module):
     edits = s.update(bpy.context.evaluated_depsgraph_get())
     assert [e.kind for e in edits] == ["rebuild"]
     assert np.allclose(edits[0].args[0].material_volumes[row, :3], (1 - np.array(VOLUME_COLOUR)) * 0.5)
+
+
+# ---------------------------------------------------------------------------------------------------- light nodes
+def light_nodes_scene(size=(64, 48)):
+    """A grey cube under a point light (colour (0.5, 1, 0), 100 W, radius 0.1) whose own node tree is Emission
+    (red) with its Strength from a Light Falloff's Quadratic output (Strength 3), as the glTF exporter's lamp test
+    file has it: Cycles lights the cube red, × 3."""
+    import bpy
+
+    scene = bs.reset(size)
+    bs.add_camera((4.0, -5.0, 3.0), target=(0.0, 0.0, 0.0), lens=50.0)
+    bs.set_world((0.05, 0.05, 0.05))
+    bs.add_cube((0.0, 0.0, 0.0), 2.0, material=bs.principled_material("Grey", base_color=(0.6, 0.6, 0.6),
+                                                                       specular=0.0))
+    light = bs.add_point_light((3.0, -2.0, 4.0), power=100.0, color=(0.5, 1.0, 0.0), radius=0.1)
+    data = light.data
+    data.use_nodes = True
+    nt = data.node_tree
+    em = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeEmission")
+    em.inputs["Color"].default_value = (1.0, 0.0, 0.0, 1.0)
+    fall = nt.nodes.new("ShaderNodeLightFalloff")
+    fall.inputs["Strength"].default_value = 3.0
+    nt.links.new(fall.outputs["Quadratic"], em.inputs["Strength"])
+    bpy.context.view_layer.update()
+    return scene
+
+
+@pytest.mark.cycles
+def test_a_lights_own_node_tree_matches_cycles(bpy_module, tmp_path):
+    ref = H.cycles_render("light_nodes", light_nodes_scene, source_of(light_nodes_scene), dict(depth=2, samples=128))
+    ours, warnings = ours_render(light_nodes_scene())
+    assert not warnings, warnings
+    H.check_images({"name": "light_nodes"}, ours, ref, tmp_path, min_psnr=35.0, max_mae=0.006)
