@@ -580,10 +580,11 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
 def material_volumes(writer: MaterialWriter, n_materials: int) -> np.ndarray | None:
     """``Scene.material_volumes`` of the materials a writer read (a material's Volume output: addon/volume.py), or
     None when none holds a medium."""
-    if not writer.volumes:
+    rows = {r: v for r, v in writer.volumes.items() if r not in writer.open_media}
+    if not rows:
         return None
     vols = np.zeros((n_materials, 6), np.float32)
-    for row, v in writer.volumes.items():
+    for row, v in rows.items():
         vols[row] = v
     return vols
 

@@ -73,6 +73,7 @@ class MaterialWriter:
         self.uv_sets: dict[str, int] = {"": 0}  # UV map name ('' = the mesh's active render map) -> UV set
         self._rows: dict[str, int] = {}
         self.volumes: dict[int, np.ndarray] = {}  # row -> (σ RGB, E RGB) of its Volume output (addon/volume.py)
+        self.open_media: set = set()  # rows whose medium is on a mesh that is not closed (dropped)
         self._said: set = set()
         self.default_row = self._add("__default__", default_surface())
 
@@ -129,7 +130,24 @@ class MaterialWriter:
                 self.warn(f"{label}: UV map {name!r} not found; the active one ({default!r}) is used")
                 sets[k] = active
         colors = self._colors(label, rows, g)
+        if self.volumes:
+            self._open_media(label, rows, g)
         return rows, Corners(sets, colors)
+
+    def _open_media(self, label: str, rows, g: dict) -> None:
+        """A medium needs a closed mesh with outward normals (Cycles: "volumes need closed meshes"): a mesh with open
+        edges (a water plane) or turned inside out (a water box whose normals point in: Cycles' rays then enter it
+        on the way out) has no inside the tracer's rule (a back-face hit leaves the medium) can find; its
+        material's medium is dropped, one warning."""
+        media = set(int(r) for r in np.unique(rows)) & self.volumes.keys()
+        media -= self.open_media
+        if not media or closed_mesh(g):
+            return
+        for row in media:
+            self.open_media.add(row)
+            self.warn(f"material {self.fields.get(row, ('?',))[0]!r}: its Volume output is on {label!r}, a mesh "
+                      "that is not closed (or whose normals point inwards); the medium is not rendered (a volume "
+                      "needs a closed mesh)")
 
     def attribute_names(self, rows) -> frozenset:
         """The attribute names the materials of ``rows`` read by name (Attribute and Color Attribute nodes; '' =
@@ -182,6 +200,27 @@ class MaterialWriter:
             if "graph" in f and k in _graph_uv_sets(f["graph"], self.uv_sets):
                 return True
         return False
+
+
+def closed_mesh(g: dict) -> bool:
+    """The mesh bounds a volume with its normals outwards: every edge of its triangles (vertices welded by position:
+    importers split them at seams) is shared by exactly two, and the signed volume is positive. Cached in ``g``."""
+    if "closed" not in g:
+        v = np.asarray(g["vertices"], np.float64)
+        t = np.asarray(g["triangles"], np.int64)
+        ok = len(t) > 0
+        if ok:
+            span = float(np.ptp(v, axis=0).max()) or 1.0
+            _, weld = np.unique(np.round(v / (span * 1e-6)).astype(np.int64), axis=0, return_inverse=True)
+            w = weld.reshape(-1)[t]
+            e = np.sort(np.concatenate([w[:, [0, 1]], w[:, [1, 2]], w[:, [2, 0]]]), axis=1)
+            _, counts = np.unique(e[:, 0] * (int(w.max()) + 1) + e[:, 1], return_counts=True)
+            ok = bool(np.all(counts == 2))
+            if ok:
+                a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
+                ok = float(np.einsum("ij,ij->", a, np.cross(b, c))) > 0.0
+        g["closed"] = ok
+    return g["closed"]
 
 
 def _alpha_set(name: str, g: dict, n: int) -> np.ndarray:

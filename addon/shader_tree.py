@@ -330,6 +330,12 @@ def _subsurface(t: Translator, node, ctx):
                                              "Anisotropy": None}, {"BSSRDF": "BSDF"})
 
 
+def _volume_shader(t: Translator, node, ctx):
+    """A volume shader (Absorption, Scatter, Principled Volume) reached from a Surface socket: Cycles evaluates
+    nothing of it there (a volume closure has no surface part); the Volume output is addon/volume.py's."""
+    return {}
+
+
 def _value(t, node, ctx):
     return {node.outputs[0].identifier: Value(float(node.outputs[0].default_value), FLOAT)}
 
@@ -630,6 +636,9 @@ HANDLERS = {
     "ShaderNodeBsdfRefraction": _bsdf("refraction_bsdf", True),
     "ShaderNodeBsdfTranslucent": _bsdf("translucent_bsdf"),
     "ShaderNodeBsdfSheen": _sheen,
+    "ShaderNodeVolumeAbsorption": _volume_shader,
+    "ShaderNodeVolumeScatter": _volume_shader,
+    "ShaderNodeVolumePrincipled": _volume_shader,
     "ShaderNodeSubsurfaceScattering": _subsurface,
     "ShaderNodeBsdfTransparent": _bsdf("transparent_bsdf"),
     "ShaderNodeEmission": _bsdf("emission"),

@@ -711,3 +711,18 @@ def test_a_lights_own_node_tree_matches_cycles(bpy_module, tmp_path):
     ours, warnings = ours_render(light_nodes_scene())
     assert not warnings, warnings
     H.check_images({"name": "light_nodes"}, ours, ref, tmp_path, min_psnr=35.0, max_mae=0.006)
+
+
+def test_a_medium_on_an_open_mesh_is_dropped(bpy_module):
+    """A water plane with Volume Absorption and Emission has no inside: its medium is not rendered (one warning);
+    before, rays meeting the plane's back face gained its emission over their whole length (the water file: 4 dB)."""
+    import bpy
+
+    from addon import export
+
+    medium_scene(emission=True)
+    glass = bpy.data.materials["Juice glass"]
+    bs.add_plane((0.0, 0.0, -1.5), 4.0, material=glass, name="Water")
+    ts, warnings = export.scene_from_depsgraph(bpy.context.evaluated_depsgraph_get())
+    assert ts.material_volumes is None
+    assert any("not closed" in w and "'Water'" in w for w in warnings), warnings
