@@ -726,3 +726,41 @@ def test_a_medium_on_an_open_mesh_is_dropped(bpy_module):
     ts, warnings = export.scene_from_depsgraph(bpy.context.evaluated_depsgraph_get())
     assert ts.material_volumes is None
     assert any("not closed" in w and "'Water'" in w for w in warnings), warnings
+
+
+# ---------------------------------------------------------------------------------------------------- the survey tool
+def test_the_survey_tool_measures_a_scene_and_a_material_library(bpy_module, tmp_path, monkeypatch):
+    """tools/blender_fidelity.py on two files written here: a scene without a camera (framed by the tool) and a
+    material library (materials, no geometry: each on the tool's sphere); rows with PSNR and a side-by-side each,
+    a contact sheet under 300 KB."""
+    import json
+
+    import bpy
+
+    sys.path.insert(0, os.path.join(os.path.dirname(HERE), "tools"))
+    import blender_fidelity as BF
+
+    monkeypatch.setattr(BF, "CACHE", str(tmp_path / "cache"))
+    bs.reset((64, 48))
+    bs.add_point_light((2.0, -3.0, 4.0), power=500.0)
+    bs.add_cube((0.0, 0.0, 0.0), 1.0, material=bs.principled_material("Red", base_color=(0.8, 0.1, 0.1)))
+    scene_file = str(tmp_path / "scene.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=scene_file)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    for name, colour in (("Blue", (0.1, 0.2, 0.8)), ("Green", (0.1, 0.7, 0.2))):
+        bs.principled_material(name, base_color=colour).use_fake_user = True
+    lib_file = str(tmp_path / "library.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=lib_file)
+    out = tmp_path / "out"
+    try:
+        assert BF.main([scene_file, lib_file, "--width", "48", "--samples", "16", "--aa", "2", "--out", str(out),
+                        "--jsonl", str(tmp_path / "rows.jsonl"), "--sheet", str(tmp_path / "sheet.png")]) == 0
+    finally:  # the tool registers the add-on to render with it
+        import addon
+
+        if hasattr(bpy.types.Scene, "whitted"):
+            addon.unregister()
+    rows = [json.loads(x) for x in open(tmp_path / "rows.jsonl")]
+    assert [r["name"] for r in rows] == ["library.blend::Blue", "library.blend::Green", "scene.blend"]
+    assert all(r["psnr"] > 25 and os.path.exists(r["png"]) for r in rows), rows
+    assert os.path.getsize(tmp_path / "sheet.png") < 300_000
