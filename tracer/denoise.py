@@ -150,7 +150,11 @@ class _Library:
     def __init__(self, path: str):
         t0 = time.perf_counter()
         try:
-            lib = ctypes.CDLL(path)
+            if sys.platform == "win32":  # its DLLs (core, devices, TBB) sit beside it: search that folder too
+                os.add_dll_directory(os.path.dirname(os.path.abspath(path)))
+                lib = ctypes.CDLL(path, winmode=0)
+            else:
+                lib = ctypes.CDLL(path)
         except OSError as exc:
             raise DenoiseUnavailable(f"cannot load Open Image Denoise from {path}: {exc}") from None
         for name, (res, args) in _SIGNATURES.items():
