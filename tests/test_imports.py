@@ -34,6 +34,7 @@ DEFERRED: dict = {
     ("usd_io.cli", "tracer.tiles"): "start-up", ("usd_io.cli", "usd_io.explain"): "start-up (pxr, the tracer)",
     ("usd_io.cli", "usd_io.farm"): "dask only with --scheduler", ("usd_io.cli", "usd_io.render_settings"): "pxr",
     ("usd_io.cli", "usd_io.stage"): "pxr", ("usd_io.cli", "tracer.kernel_plan"): "start-up",
+    ("usd_io.cli", "tracer.denoise"): "start-up",
     ("usd_io.outputs", "tracer"): "start-up", ("usd_io.outputs", "tracer.film"): "start-up",
     ("usd_io.outputs", "tracer.png_stream"): "start-up",
     ("usd_io.request", "usd_io.reader"): "start-up (pxr, the tracer: the CLI parses flags with request.py)",

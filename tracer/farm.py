@@ -34,6 +34,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .denoise import denoise_image
 from .film import Image
 from .settings import RenderSettings
 
@@ -350,8 +351,6 @@ def render_tiled(client, source, frame=None, *, tile_size: int = DEFAULT_FARM_TI
             on_tile((x0, y0, x1, y1))
     image.stats = {"seconds": time.perf_counter() - start, "tiles": len(tiles)}
     if settings.denoise:
-        from .denoise import denoise_image  # (OIDN loads only for a frame that denoises)
-
         prefilter = client.submit(_prefilter_task, source, frame, shipped, pure=False).result()
         denoise_image(image, settings, prefilter=prefilter)
         image.stats["seconds"] = time.perf_counter() - start

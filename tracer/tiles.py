@@ -19,6 +19,7 @@ import numpy as np
 from . import compose
 from .camera import eye_ray
 from .clip_planes import clip_eye_rays
+from .denoise import denoise_image
 from .film import Image, box_filter, majority
 from .integrator import PATH_TYPES, NextQueue, RayCounts, ShadowQueue, SurfaceQueue
 from .jit import kernel
@@ -476,8 +477,6 @@ def render_session(session, settings: RenderSettings | None = None, *, on_tile=N
     if was_cancelled:
         raise RenderCancelled(image)
     if settings.denoise:  # the whole frame (or region) at once: the filter looks across tile borders
-        from .denoise import denoise_image  # (OIDN loads only for a render that denoises)
-
         denoise_image(image, settings, prefilter=guide_prefilter(scene))
         image.stats["seconds"] = time.perf_counter() - start
         if on_tile is not None:  # the frame changed everywhere: hand it over once more, whole
