@@ -13,7 +13,8 @@ Per candidate: seconds to import and make the device ("load"), the first denoise
 albedo and normal guides (the filter's set-up included), and the best of three more ("denoise", wall seconds, and
 "cpu", the process's CPU seconds over all OIDN threads: the figure other jobs on a shared machine move least). Ours is timed with
 one RT filter and ``cleanAux`` (the same work as pyoidn's call) and with Cycles' "accurate" prefilter (the guides
-filtered first: three filters). ``--site DIR`` adds a folder of scratch installs (``pip install --target DIR``) to
+filtered first: three filters) and as the viewport uses it ("viewport": albedo only, no prefilter, "balanced"
+quality). ``--site DIR`` adds a folder of scratch installs (``pip install --target DIR``) to
 the children's path. Prints one table; the figures in docs/benchmarks.md ("Denoising") come from it.
 """
 
@@ -46,15 +47,17 @@ from tracer import denoise as dn
 dn.check()
 load = time.perf_counter() - t0
 {inputs}
-def once(prefilter):
+def once(prefilter, quality="high", normal=normal):
     t, c = time.perf_counter(), time.process_time()
-    dn.denoise(color, albedo, normal, prefilter=prefilter)
+    dn.denoise(color, albedo, normal, prefilter=prefilter, quality=quality)
     return time.perf_counter() - t, time.process_time() - c
 first = once("none")[0]
 best = min(once("none") for _ in range(3))
 accurate = min(once("accurate") for _ in range(2))
+viewport = min(once("fast", "balanced", None) for _ in range(3))
 print(json.dumps(dict(version=dn.version(), library=dn.library().path, load=load, first=first, denoise=best[0],
-                      cpu=best[1], accurate=accurate[0], accurate_cpu=accurate[1])))
+                      cpu=best[1], accurate=accurate[0], accurate_cpu=accurate[1], viewport=viewport[0],
+                      viewport_cpu=viewport[1])))
 """
 
 _PYOIDN = """
@@ -102,6 +105,29 @@ print(json.dumps(dict(version="oidn " + md.version("oidn") + " (OIDN 1.4)", libr
 """
 
 
+_GUIDES = """
+import time
+import usd_io, tracer
+from tracer import RenderSettings, render
+scene, info = usd_io.load_stage("examples/whitted_1980.usda", width={w})
+base = RenderSettings(width=info.width, height=info.height, threads=1)
+render(scene, base.with_(width=64, height=36, aovs=tracer.denoise.GUIDE_AOVS, denoise=True))  # compile, load OIDN
+def cpu(settings):
+    best = None
+    for _ in range(3):
+        c = time.process_time()
+        img = render(scene, settings)
+        t = time.process_time() - c
+        best = t if best is None else min(best, t)
+    return best, img
+plain, _ = cpu(base)
+guided, _ = cpu(base.with_(aovs=tracer.denoise.GUIDE_AOVS))
+denoised, img = cpu(base.with_(denoise=True))
+print(json.dumps(dict(size=f"{{info.width}}x{{info.height}}", plain=plain, guided=guided, denoised=denoised,
+                      filter=img.stats["denoise"]["seconds"], prefilter=img.stats["denoise"]["prefilter"])))
+"""
+
+
 def _run(code: str, sites, env=None) -> dict | str:
     full = dict(os.environ, **(env or {}))
     full["PYTHONPATH"] = os.pathsep.join([*sites, ROOT])
@@ -138,15 +164,23 @@ def main(argv=None) -> int:
     rows.append(("pyoidn (cffi)", _run(_PYOIDN.format(inputs=inputs), args.site)))
     rows.append(("oidn 0.2 (ctypes)", _run(_OIDN.format(inputs=inputs), args.site)))
     print(f"{args.width}x{args.height}, colour + albedo + normal, {os.cpu_count()} cores; seconds")
-    print(f"{'binding':34} {'OIDN':22} {'load':>6} {'first':>6} {'denoise':>8} {'cpu':>6} {'accurate':>9} {'cpu':>6}")
+    print(f"{'binding':34} {'OIDN':22} {'load':>6} {'first':>6} {'denoise':>8} {'cpu':>6} {'accurate':>9} {'cpu':>6} "
+          f"{'viewport':>9} {'cpu':>6}")
     for name, r in rows:
         if isinstance(r, str):
             print(f"{name:34} unavailable: {r}")
             continue
-        acc = (f"{r['accurate']:9.3f} {r['accurate_cpu']:6.2f}" if r["accurate"] is not None
-               else f"{'-':>9} {'-':>6}")
+        acc = (f"{r['accurate']:9.3f} {r['accurate_cpu']:6.2f} {r['viewport']:9.3f} {r['viewport_cpu']:6.2f}"
+               if r["accurate"] is not None else f"{'-':>9} {'-':>6} {'-':>9} {'-':>6}")
         print(f"{name:34} {r['version']:22} {r['load']:6.3f} {r['first']:6.3f} {r['denoise']:8.3f} {r['cpu']:6.2f} "
               f"{acc}")
+    g = _run(_GUIDES.format(w=args.width), args.site)
+    if isinstance(g, str):
+        print(f"guides' cost: failed: {g}")
+        return 1
+    print(f"\nexamples/whitted_1980.usda at {g['size']}, AA 2, one tile thread; process CPU seconds, best of 3:")
+    print(f"  render {g['plain']:.2f}; with the guides {g['guided']:.2f} (+{100 * (g['guided'] / g['plain'] - 1):.1f} %); "
+          f"denoised {g['denoised']:.2f} (filter {g['filter']:.2f} s wall, prefilter {g['prefilter']})")
     return 0
 
 

@@ -191,22 +191,42 @@ def camera_rows(camera) -> np.ndarray:
     return np.ascontiguousarray(np.stack([cols[:, 0], cols[:, 1], -cols[:, 2]]))
 
 
+@kernel
+def _add_shares(par, w, total):
+    """total[parent] += each child's share (its mean weight)."""
+    for j in range(par.shape[0]):
+        total[par[j]] += (w[j, 0] + w[j, 1] + w[j, 2]) / 3.0
+
+
+@kernel
+def _hand_on(feature, carry, par, w, total, out):
+    """out[j] = the features child j carries (:func:`propagate`)."""
+    for j in range(par.shape[0]):
+        i = par[j]
+        c0, c1, c2 = carry[i, 0], carry[i, 1], carry[i, 2]
+        if total[i] <= 0.0 or (c0 <= 0.0 and c1 <= 0.0 and c2 <= 0.0):
+            out[j, 0], out[j, 1], out[j, 2], out[j, 3] = 0.0, 0.0, 0.0, 0.0
+            continue
+        pc = (w[j, 0] + w[j, 1] + w[j, 2]) / 3.0 / total[i]
+        out[j, 0] = feature[i, 0] * c0 * pc
+        out[j, 1] = feature[i, 1] * c1 * pc
+        out[j, 2] = feature[i, 2] * c2 * pc
+        out[j, 3] = feature[i, 3] * pc
+
+
 def propagate(feature: np.ndarray, carry: np.ndarray, children) -> list:
     """The features of the rays a batch of hits spawned: ``children`` is a list of (parent rows, weights) of the
     spawned rays (reflections, transmissions, pass-through rays). A child of hit i gets P_c = its share of the
     average weight among i's children (the chance Cycles' path takes it) and carries (P·T·S_i·P_c, P·P_c); the
     children of hits that wrote their guides (S = 0) carry nothing. Returns one (k, 4) float32 array per entry."""
-    n = len(feature)
-    share = [np.asarray(w, np.float32).mean(axis=1) if len(w) else np.zeros(0, np.float32) for _, w in children]
-    total = np.zeros(n, np.float64)
-    for (par, _), sh in zip(children, share):
-        np.add.at(total, par, sh)
-    out = []
-    for (par, _), sh in zip(children, share):
-        f = np.zeros((len(par), 4), np.float32)
+    total = np.zeros(len(feature), np.float64)
+    for par, w in children:
         if len(par):
-            pc = np.where(total[par] > 0, sh / np.maximum(total[par], 1e-30), 0.0).astype(np.float32)
-            f[:, :3] = feature[par, :3] * carry[par] * pc[:, None]
-            f[:, 3] = np.where(np.any(carry[par] > 0, axis=1), feature[par, 3] * pc, 0.0)
+            _add_shares(par, w, total)
+    out = []
+    for par, w in children:
+        f = np.empty((len(par), 4), np.float32)
+        if len(par):
+            _hand_on(feature, carry, par, w, total, f)
         out.append(f)
     return out
