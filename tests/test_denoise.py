@@ -96,6 +96,11 @@ def test_a_missing_library_is_one_clear_exception(monkeypatch):
     monkeypatch.setattr(dn.ctypes.util, "find_library", lambda name: None)
     with pytest.raises(dn.DenoiseUnavailable, match=r"pip install 'whitted\[denoise\]'"):
         dn.denoise(np.zeros((4, 4, 3), np.float32))
+    traced = []  # a render that would denoise fails before it traces anything
+    monkeypatch.setattr(tracer.tiles, "trace_tile", lambda *a, **k: traced.append(1))
+    with pytest.raises(dn.DenoiseUnavailable):
+        render(soft_shadow_scene(), RenderSettings(width=8, height=6, denoise=True))
+    assert not traced
 
 
 # ---------------------------------------------------------------------------------------------- renders

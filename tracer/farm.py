@@ -34,6 +34,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .denoise import check as check_denoiser
 from .denoise import denoise_image
 from .film import Image
 from .settings import RenderSettings
@@ -328,6 +329,8 @@ def render_tiled(client, source, frame=None, *, tile_size: int = DEFAULT_FARM_TI
 
     shipped = _ship(client, assets)
     settings = client.submit(_settings_task, source, frame, shipped, pure=False).result()
+    if settings.denoise:  # the client denoises the assembled frame: no library here is an error before the tiles
+        check_denoiser()
     tiles = frame_tiles(settings, tile_size)
     h, w = settings.height, settings.width
     from .tiles import empty_aovs

@@ -19,6 +19,7 @@ import numpy as np
 from . import compose
 from .camera import eye_ray
 from .clip_planes import clip_eye_rays
+from .denoise import check as check_denoiser
 from .denoise import denoise_image
 from .film import Image, box_filter, majority
 from .integrator import PATH_TYPES, NextQueue, RayCounts, ShadowQueue, SurfaceQueue
@@ -424,6 +425,8 @@ def render_session(session, settings: RenderSettings | None = None, *, on_tile=N
     """:meth:`tracer.Session.render`: every tile of ``settings`` on a thread pool, written into one image."""
     settings = (settings or RenderSettings()).validate()
     check_memory(settings)  # an impossible size is one clear error, not numpy's allocation failure midway
+    if settings.denoise:  # no OIDN library: DenoiseUnavailable now, not after the render
+        check_denoiser()
     cancelled = cancelled or (lambda: False)
     start = started if started is not None else time.perf_counter()
     scene = session.scene
