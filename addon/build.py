@@ -8,7 +8,7 @@ copy of ``tracer/`` — the repository keeps one tracer — and ``wheels/``) and
 cli/blender_ext.py``, inside the bpy wheel of the test extra; ``BLENDER_EXT_PY`` overrides). It validates the
 manifest as Blender's extension platform does and writes, per platform, a zip with that platform's wheels and a
 ``[build.generated]`` table naming them. The wheels are those Blender's Python lacks: ``embreex`` (its Embree 4
-library, which tracer/embree.py loads), ``numba`` and ``llvmlite`` (the tracer's JIT kernels). Blender 5.0 ships numpy (1.26.x, as bpy 5.0.1 requires ``numpy>=1.26,<2``)
+library, which tracer/accel/embree.py loads), ``numba`` and ``llvmlite`` (the tracer's JIT kernels). Blender 5.0 ships numpy (1.26.x, as bpy 5.0.1 requires ``numpy>=1.26,<2``)
 and OpenImageIO; its Python is 3.11. The versions are pinned in ``WHEELS``; the numba pin must accept Blender's
 numpy and the llvmlite pin must be the one that numba wants. Wheels are downloaded once with pip into
 ``.cache/wheels`` and reused offline afterwards:

@@ -2,7 +2,7 @@
 add-on (``addon/build.py`` copies ``tracer/`` in), in the repository it is the top-level ``tracer`` package.
 
     from .bundled import tracer, tracer_module
-    add_graph = tracer_module("shader_compile").add_graph
+    add_graph = tracer_module("shading.compiler").add_graph
 """
 
 import importlib
@@ -15,7 +15,7 @@ except ImportError:  # the repository's ``addon`` package uses the top-level tra
 
 
 def tracer_module(name: str):
-    """The submodule ``name`` of that tracer (``tracer_module("shader_graph")``)."""
+    """The submodule ``name`` of that tracer (``tracer_module("shading.graph")``)."""
     return importlib.import_module(f"{tracer.__name__}.{name}")
 
 

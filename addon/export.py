@@ -20,7 +20,7 @@ particles are included):
 - Ray visibility and linking (:func:`links_from_blender`): each object's ``visible_camera`` / ``visible_glossy`` /
   ``visible_transmission`` / ``visible_shadow`` as ``scene.object_visibility``; each light's
   ``light_linking.receiver_collection`` / ``blocker_collection`` (include / exclude states), ``use_shadow`` and
-  ``visible_diffuse`` / ``visible_glossy`` as ``scene.light_links`` (tracer/linking.py).
+  ``visible_diffuse`` / ``visible_glossy`` as ``scene.light_links`` (tracer/lights/linking.py).
 - World: :func:`addon.world.world_from_blender` (Background colour × strength, an Environment Texture as
   ``tracer.Environment``, anything else baked to a lat-long image by Cycles).
 - Materials: node trees translated by :mod:`addon.shader_tree` into the tracer's shader graph, compiled into rows
@@ -34,7 +34,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .bundled import tracer
+from .bundled import tracer, tracer_module
 
 from . import passes
 from .model import Corners, MaterialWriter
@@ -465,7 +465,7 @@ def links_from_blender(depsgraph, exported: list, lights: list, n_objects: int, 
     each included or excluded: only included objects when there are any, minus the excluded; everything but the
     excluded otherwise), of lamps and of mesh objects (an emissive mesh's links; every exported id of the object
     gets them, the tracer ignores those that do not emit)."""
-    linking = tracer.linking  # (here, not at import: it loads the kernel machinery)
+    linking = tracer_module("lights.linking")  # (here, not at import: it loads the kernel machinery)
     ray_visibility = (("visible_camera", linking.CAMERA), ("visible_glossy", linking.GLOSSY),
                       ("visible_transmission", linking.TRANSMISSION), ("visible_shadow", linking.SHADOW))
     by_name = {o.name: o for o in depsgraph.objects}
@@ -525,7 +525,7 @@ def links_from_blender(depsgraph, exported: list, lights: list, n_objects: int, 
 def compose_flags(depsgraph, exported: list, n: int) -> tuple:
     """Per tracer object id (None where no object has it): holdout (the object's Holdout or its collection's, as
     ``Object.holdout_get`` answers for the view layer) and shadow catcher (``Object.is_shadow_catcher``); an
-    instance takes its object's flags (tracer.compose)."""
+    instance takes its object's flags (tracer.integrator.compose)."""
     hold, catch = np.zeros(n, bool), np.zeros(n, bool)
     view_layer = getattr(depsgraph, "view_layer", None)
     seen: dict = {}

@@ -1,5 +1,5 @@
-"""The materials :mod:`addon.shader_tree` translates, written as the tracer's shader graphs (tracer.shader_graph, the
-IR of docs/materials-api.md) and compiled into rows (tracer.shader_compile.add_graph).
+"""The materials :mod:`addon.shader_tree` translates, written as the tracer's shader graphs (tracer.shading.graph, the
+IR of docs/materials-api.md) and compiled into rows (tracer.shading.compiler.add_graph).
 
 Every material is a graph (written as it is), the default surface (no material) too: one ``principled_bsdf`` with
 Blender's defaults (:func:`default_surface`). What a material's nodes become (addon/shader_tree.py):
@@ -27,13 +27,13 @@ from .shader_tree import material_graph
 
 from .bundled import tracer_module
 
-add_graph = tracer_module("shader_compile").add_graph
-Graph = tracer_module("shader_graph").Graph
+add_graph = tracer_module("shading.compiler").add_graph
+Graph = tracer_module("shading.graph").Graph
 
 
 def default_surface(name: str = "__default__") -> Graph:
     """Blender's surface for geometry without a material: a Principled BSDF left at its defaults
-    (tracer.materials.PRINCIPLED_DEFAULTS, Blender's own)."""
+    (tracer.shading.materials.PRINCIPLED_DEFAULTS, Blender's own)."""
     g = Graph(name)
     g.output(g.add("principled_bsdf")["BSDF"])
     return g

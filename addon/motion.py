@@ -1,8 +1,8 @@
-"""Blender's motion blur → ``tracer.motion.Motion`` and camera motion, sampled as Cycles samples it.
+"""Blender's motion blur → ``_motion().Motion`` and camera motion, sampled as Cycles samples it.
 
 With Render Properties → Motion Blur on (``render.use_motion_blur``, off by default), the shutter is
 ``motion_blur_shutter`` frames long and sits at ``motion_blur_position`` (START / CENTER / END) around the current
-frame (:func:`tracer.motion.blender_shutter`). The scene is evaluated at S sub-frames evenly spread over it
+frame (:func:`_motion().blender_shutter`). The scene is evaluated at S sub-frames evenly spread over it
 (``frame_set(frame, subframe=...)``: the render engine's own, so the render depsgraph follows) and, per step:
 
 - every exported object's ``matrix_world`` (object motion; Cycles' object property ``use_motion_blur`` off keeps
@@ -23,10 +23,15 @@ import math
 
 import numpy as np
 
-from .bundled import tracer
+from .bundled import tracer_module
 
 #: Sub-frame samples of a non-flat shutter curve.
 CURVE_SAMPLES = 64
+
+
+def _motion():
+    """tracer.geometry.motion (here, not at import: it loads the kernel machinery)."""
+    return tracer_module("geometry.motion")
 
 
 def _cycles(obj, name, default):
@@ -35,7 +40,7 @@ def _cycles(obj, name, default):
 
 
 def _shutter_curve(render) -> np.ndarray:
-    """The shutter curve as a :func:`tracer.motion.curve_table` (empty when it is flat: the default)."""
+    """The shutter curve as a :func:`_motion().curve_table` (empty when it is flat: the default)."""
     cm = getattr(render, "motion_blur_shutter_curve", None)
     if cm is None:
         return np.zeros(0, np.float32)
@@ -47,7 +52,7 @@ def _shutter_curve(render) -> np.ndarray:
         return np.zeros(0, np.float32)
     if np.allclose(values, values[0]):
         return np.zeros(0, np.float32)
-    return tracer.motion.curve_table(values)
+    return _motion().curve_table(values)
 
 
 def _key(inst) -> tuple:
@@ -86,7 +91,7 @@ def sample_motion(depsgraph, exported: list, warnings: list, frame_set=None):
     r = scene.render
     if not getattr(r, "use_motion_blur", False):
         return None
-    open_, close = tracer.motion.blender_shutter(r.motion_blur_shutter, r.motion_blur_position)
+    open_, close = _motion().blender_shutter(r.motion_blur_shutter, r.motion_blur_position)
     if not close > open_:
         return None
     moving = {o.key for o in exported}
@@ -96,7 +101,7 @@ def sample_motion(depsgraph, exported: list, warnings: list, frame_set=None):
             steps = max(steps, 2 * int(_cycles(inst.object, "motion_steps", 1)) + 1)
     frame, sub = scene.frame_current, scene.frame_subframe
     frame_set = frame_set or scene.frame_set
-    times = tracer.motion.step_times(frame + sub + open_, frame + sub + close, steps)
+    times = _motion().step_times(frame + sub + open_, frame + sub + close, steps)
     mats = {k: [] for k in moving}
     verts: dict = {}
     cams = []
@@ -173,7 +178,7 @@ def apply_motion(scene, exported: list, sampled) -> None:
         if steps is not None and _moves(steps):
             object_ids.append(i)
             object_motion.append(steps @ np.linalg.inv(placed))
-    motion = tracer.motion.Motion(
+    motion = _motion().Motion(
         steps=s, object_ids=np.asarray(object_ids, np.int32),
         object_motion=np.stack(object_motion) if object_motion else np.zeros((0, s, 4, 4)),
         instance_motion=instance_motion, vertices=vertices, deforming=np.asarray(deforming, np.int32),

@@ -19,7 +19,7 @@ import numpy as np
 from .bundled import tracer_module
 from .image_cache import cached_pixels
 
-srgb_to_linear = tracer_module("texture").srgb_to_linear
+srgb_to_linear = tracer_module("colorspace").srgb_to_linear
 
 #: Blender's Extension (Image Texture) -> the tracer's wrap mode.
 WRAP = {"REPEAT": "repeat", "EXTEND": "clamp", "CLIP": "black", "MIRROR": "mirror"}

@@ -1,4 +1,4 @@
-"""Blender shader node trees -> the tracer's shader graph IR (:mod:`tracer.shader_graph`), with Cycles' semantics.
+"""Blender shader node trees -> the tracer's shader graph IR (:mod:`tracer.shading.graph`), with Cycles' semantics.
 
     graph = material_graph(material, warn, images)      # the evaluated material (from the depsgraph)
 
@@ -21,7 +21,7 @@ What Cycles' own export does before its ``ShaderGraph::simplify``, this module d
   shader stands in as a Diffuse BSDF of its colour. docs/addon.md lists every node and its stand-in.
 
 Images are shared per export (``images``: image name -> (H, W, 4) linear pixels, the decoding of
-:func:`addon.nodes.image_rgba`), each wrapped once per Extension in an :class:`~tracer.shader_graph.ImageRef`.
+:func:`addon.nodes.image_rgba`), each wrapped once per Extension in an :class:`~tracer.shading.graph.ImageRef`.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ import numpy as np
 from .bundled import tracer_module
 from .nodes import image_rgba
 
-_ir = tracer_module("shader_graph")
+_ir = tracer_module("shading.graph")
 CLOSURE, COLOR, FLOAT, NODE_TYPES, VECTOR = _ir.CLOSURE, _ir.COLOR, _ir.FLOAT, _ir.NODE_TYPES, _ir.VECTOR
 Graph, ImageRef, Out, constant_material = _ir.Graph, _ir.ImageRef, _ir.Out, _ir.constant_material
 #: A constant of one socket kind as another (Blender's implicit conversions; the tracer's one rule).

@@ -7,7 +7,7 @@
 - Anything else a world can be (gradients, noise on the direction, mixes of backgrounds, a linked strength, an
   Environment Texture behind other nodes): the world's node tree is translated like a material's
   (addon/shader_tree.py, Background as the emission) and **evaluated by the tracer's shader VM per direction**
-  into a :data:`PROGRAM_SIZE` lat-long environment (tracer.shader_world), cached by the tree's hash.
+  into a :data:`PROGRAM_SIZE` lat-long environment (tracer.shading.world), cached by the tree's hash.
 - What the VM does not evaluate (Sky Texture, Light Path, a Mirror Ball environment, …): **baked with Blender
   itself** — Cycles renders the world alone through an equirectangular panoramic camera at
   the world's origin looking along +X with +Z up (:data:`BAKE_SIZE`, :data:`BAKE_SAMPLES`), which is exactly the
@@ -71,7 +71,7 @@ def world_from_blender(world, warnings: list, images: dict | None = None):
 
 
 # ---------------------------------------------------------------------------------------------------- the VM
-#: Size of a world evaluated by the VM (tracer.shader_world): 0.35° per texel.
+#: Size of a world evaluated by the VM (tracer.shading.world): 0.35° per texel.
 PROGRAM_SIZE = (1024, 512)
 
 
@@ -88,7 +88,7 @@ def program_world(world, images: dict, size=PROGRAM_SIZE) -> np.ndarray | None:
             g = None
         image = None
         if g is not None and not said:
-            image = tracer_module("shader_world").world_image(g, size[0], size[1])
+            image = tracer_module("shading.world").world_image(g, size[0], size[1])
         _BAKES[key] = image
     return _BAKES[key]
 

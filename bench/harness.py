@@ -106,7 +106,7 @@ def machine_info(cycles_version: str | None) -> dict:
                 break
     except OSError:
         pass
-    from tracer import embree
+    from tracer.accel import embree
 
     try:
         from importlib.metadata import version

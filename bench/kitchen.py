@@ -6,10 +6,10 @@ fresh child process that imports the tracer and usd_io, then times, phase by pha
 whole process, every thread):
 
     usd read     load_stage minus the phases below (pxr reads, primvars, materials, the reader's own numpy)
-    subdivision  time inside tracer.subdivision's entry points (refine, refine_batch)
+    subdivision  time inside tracer.geometry.subdivision's entry points (refine, refine_batch)
     validation   time inside Scene.validate
     builder      SceneBuilder.add_mesh / add_meshes / build, minus the validation they run
-    bvh          the Embree scene: tracer.accel.Accelerator(scene)
+    bvh          the Embree scene: tracer.accel.accelerator.Accelerator(scene)
     render       tracer.render at --width × --height with that Accelerator (--no-render skips it)
 
 and the peak RSS (ru_maxrss) after loading and after the BVH build, as bytes per refined triangle (the whole
@@ -83,8 +83,8 @@ def child(path: str, complexity: str, width: int, height: int, render: bool) -> 
     import numpy as np  # noqa: F401
 
     import tracer
-    import tracer.subdivision as subdivision
-    from tracer.accel import Accelerator
+    import tracer.geometry.subdivision as subdivision
+    from tracer.accel.accelerator import Accelerator
     from tracer.builder import SceneBuilder
     from tracer.scene import Scene
     from usd_io import load_stage

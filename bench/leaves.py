@@ -168,7 +168,7 @@ def measure(renderer, a) -> dict:
 
     sc = build_scene(a.width, a.height, a.variant, a.leaves)
     if a.no_filter:
-        from tracer import alpha
+        from tracer.accel import alpha
 
         alpha.ENABLED = False
     depsgraph = bpy.context.evaluated_depsgraph_get()  # Blender evaluates the node tree outside the timings
@@ -220,8 +220,9 @@ def split(a) -> dict:
     import bpy
 
     import tracer
+    import tracer.accel.accelerator
     from addon import export
-    from tracer import integrator as ig
+    from tracer.integrator import wavefront as ig
 
     tracer.compile_kernels()
     t0 = time.perf_counter()
@@ -247,14 +248,14 @@ def split(a) -> dict:
                                      len(args[1].o) if count == "filtered_rays" else 1)
         return wrapper
 
-    Acc = type(acc) if acc is not None else tracer.accel.Accelerator
+    Acc = type(acc) if acc is not None else tracer.accel.accelerator.Accelerator
     orig = (Acc.closest_hits, Acc.occluded, ig.Integrator._through_shadows, ig.Integrator._shade)
     Acc.closest_hits = timed("intersect", orig[0])
     Acc.occluded = timed("occluded", orig[1], "occluded_rays")
     ig.Integrator._through_shadows = timed("through_shadows", orig[2], "through_calls")
     ig.Integrator._shade = timed("shade", orig[3])
     try:  # the transparent-shadow filter (absent before it)
-        from tracer import alpha
+        from tracer.accel import alpha
     except ImportError:
         alpha = None
     if alpha is not None:
@@ -298,7 +299,7 @@ def main(argv=None):
     ap.add_argument("--leaves", type=int, default=4800)
     ap.add_argument("--only", default="whitted,cycles,split")
     ap.add_argument("--no-filter", action="store_true",
-                    help="ours with the round-by-round transparent-shadow loop (tracer.alpha.ENABLED = False)")
+                    help="ours with the round-by-round transparent-shadow loop (tracer.accel.alpha.ENABLED = False)")
     ap.add_argument("--save", default="", help="write each F12's picture to SAVE_<renderer>.png")
     ap.add_argument("--child", choices=("whitted", "cycles", "split"))
     a = ap.parse_args(argv)

@@ -16,7 +16,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 
 
 def _scene(moving: bool, width: int, height: int):
-    from tracer.motion import Motion
+    from tracer.geometry.motion import Motion
     from usd_io.reader import load_stage
 
     scene, _ = load_stage(os.path.join(HERE, "..", "examples", "whitted_1980.usda"), width=width, height=height)

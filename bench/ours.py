@@ -3,7 +3,7 @@
 Timed runs call :func:`tracer.render` without recording, after one untimed 64×36 render that loads the kernels. A
 separate run with ``extra={"record_rays": True}`` captures the ray batches exactly as the integrator traced them, and
 :func:`replay` sends the same batches through a bare Embree scene on the same number of threads (batches handed to a
-thread pool, as our tiles are): raw Embree through our binding (:mod:`tracer.embree`: one triangle geometry over all
+thread pool, as our tiles are): raw Embree through our binding (:mod:`tracer.accel.embree`: one triangle geometry over all
 triangles, the same compiled loops), twice —
 
 - **single-ray**: ``rtcIntersect1`` / ``rtcOccluded1``, one ray per call (Embree's default, incoherent): the
@@ -44,8 +44,9 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import tracer
-from tracer import RenderSettings, embree
-from tracer.integrator import Integrator
+from tracer import RenderSettings
+from tracer.accel import embree
+from tracer.integrator.wavefront import Integrator
 
 from . import scenes
 
@@ -122,7 +123,7 @@ def build_embreex(scene) -> dict | None:
 def replay(scene, batches, threads: int, runs: int = 3) -> dict:
     """Trace ``batches`` [(query, origins, directions, t_max, packet query)] with raw Embree through our binding,
     ``runs`` times, two ways: ``packet`` — each batch in the packets our tracer made of it (its recorded
-    :func:`tracer.embree.query`: width, coherent or not), and ``single`` — one ray per ``rtcIntersect1`` /
+    :func:`tracer.accel.embree.query`: width, coherent or not), and ``single`` — one ray per ``rtcIntersect1`` /
     ``rtcOccluded1`` call (incoherent, Embree's default), the anchor issue 23 names.
 
     Each run first sets up a fresh bare Embree scene (:func:`build_embree`, timed on its own: ``build_seconds``),
@@ -245,7 +246,7 @@ def measure(name: str, width: int, height: int, threads: int, runs: int, samples
         rec = tracer.render(scene, settings.with_(extra={"record_rays": True}))
         batches = rec.stats["ray_batches"]
         # raw Embree traces the same rays through one flat geometry of every drawn triangle
-        out["replay"] = replay(tracer.instances.flatten(scene), batches, threads, runs)
+        out["replay"] = replay(tracer.scene.flatten(scene), batches, threads, runs)
         recorded = int(sum(len(b[1]) for b in batches))
         out["recorded_rays"] = recorded
         del batches, rec

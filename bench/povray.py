@@ -3,7 +3,7 @@
 Same triangles: every mesh becomes one ``mesh2`` (smooth meshes carry their normals) declared once; every instance
 is an ``object`` of it with a ``matrix`` and a texture, so POV-Ray instances where we flatten.
 
-Mapping of our model (``tracer.shading``) onto POV-Ray's finish, with our light of intensity I (W/sr) written as a
+Mapping of our model (``tracer.shading.local``) onto POV-Ray's finish, with our light of intensity I (W/sr) written as a
 ``light_source`` of colour I/(2π) and ``fade_distance 1 fade_power 2`` (POV-Ray's attenuation 2/(1 + d²) ≈ 2/d², so
 a surface facing it receives I/(π d²) = E/π, our Lambert term R_d/π·E):
 
@@ -32,7 +32,7 @@ import time
 
 import numpy as np
 
-from tracer.materials import roughness_to_exponent
+from tracer.shading.materials import roughness_to_exponent
 
 from .scenes import BenchScene
 

@@ -188,7 +188,7 @@ def child(path: str, width: int, height: int, runs: int, threads: int = 2, recor
            "ray_kinds": {k: v for k, v in img.stats["rays"].items() if k != "total"}}
     if record:
         rec = tracer.render(scene, settings.with_(extra={"record_rays": True}))
-        out["replay"] = replay(tracer.instances.flatten(scene), rec.stats["ray_batches"], threads, runs)
+        out["replay"] = replay(tracer.scene.flatten(scene), rec.stats["ray_batches"], threads, runs)
     return out
 
 
@@ -209,7 +209,7 @@ def profile(path: str, width: int, height: int, runs: int = 2) -> dict:
     tracer.render(scene, settings)
     best, img = stage_seconds(scene, settings, runs, whole="whole render (this thread)")
     rec = tracer.render(scene, settings.with_(extra={"record_rays": True}))
-    rp = replay(tracer.instances.flatten(scene), rec.stats["ray_batches"], 1, runs)
+    rp = replay(tracer.scene.flatten(scene), rec.stats["ray_batches"], 1, runs)
     return {"cpu_seconds": best, "rays": img.stats["rays"], "bvh_seconds": img.stats["bvh_seconds"],
             "raw_single_cpu": rp["single_replay_cpu_seconds"], "raw_packet_cpu": rp["replay_cpu_seconds"],
             "raw_build": rp["build_seconds"]}

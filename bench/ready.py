@@ -6,7 +6,7 @@ Each measure runs in fresh processes with an empty kernel cache of its own (``WH
   kernel it uses compiled) and warm (loaded), wall and CPU time of the whole process (``os.wait4``), with the
   number of compile units and the CPU time numba spent compiling them (numba's event API, in the process).
 - ``edits``: in a copy of the tracer, after a warm render, an edit of a file that defines no kernel
-  (tracer/settings.py) and an edit of one kernel in tracer/procedural/noise.py: the compile units the next render
+  (tracer/settings.py) and an edit of one kernel in tracer/shading/procedural/noise.py: the compile units the next render
   of a noise-textured scene compiles.
 - ``addon``: the Linux extension zip installed into a temporary Blender profile (bpy, headless), from enabling it to
   the first F12 of the default cube, with the zip's kernels (this machine is in their CPU family) and without them
@@ -137,7 +137,7 @@ def bench_edits(args):
         with open(os.path.join(tree, "tracer", "settings.py"), "a") as f:
             f.write("\n# an edit of a file that defines no kernel\n")
         results["settings.py"] = render_once(cache, tree, plain)["units"] + render_once(cache, tree, noise)["units"]
-        path = os.path.join(tree, "tracer", "procedural", "noise.py")
+        path = os.path.join(tree, "tracer", "shading", "procedural", "noise.py")
         with open(path) as f:
             text = f.read()
         i = text.index("def perlin3(")

@@ -31,7 +31,7 @@ def main(argv=None):
     w, h = (int(x) for x in a.size.split("x"))
 
     import tracer
-    from tracer.accel import Accelerator
+    from tracer.accel.accelerator import Accelerator
 
     from .ours import build_embreex
     from .scenes import build, to_tracer

@@ -60,9 +60,9 @@ if variant == "textured":
     m.roughness_channel[:] = 0
     m.normal_texture[:] = first + 2
     scene.validate()
-if variant == "procedural":  # every material a dozen-node program (tracer.shader_graph), bump included
-    from tracer.shader_compile import BoundGraph, compile_graph
-    from tracer.shader_graph import Graph
+if variant == "procedural":  # every material a dozen-node program (tracer.shading.graph), bump included
+    from tracer.shading.compiler import BoundGraph, compile_graph
+    from tracer.shading.graph import Graph
     m = scene.materials
     programs, n_ops = [], 0
     for i in range(len(m)):

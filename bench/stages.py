@@ -1,7 +1,7 @@
 """``python -m bench.stages --scene S``: where one thread's CPU time goes in a render, stage by stage.
 
 Renders a bench scene on one thread (the tiles then run on the calling thread) with each stage of
-:mod:`tracer.integrator`, the Embree queries, eye-ray generation and the film write wrapped to sum
+:mod:`tracer.integrator.wavefront`, the Embree queries, eye-ray generation and the film write wrapped to sum
 ``time.thread_time`` (CPU seconds of this thread: other jobs on a shared machine do not count). Best of ``--runs``
 per row. The docs' profile tables ("Where our time goes", docs/benchmarks.md) come from this.
 """
@@ -13,7 +13,9 @@ import json
 import time
 
 import tracer
-from tracer import RenderSettings, accel, integrator, tiles
+from tracer import RenderSettings
+from tracer.accel import accelerator as accel
+from tracer.integrator import wavefront as integrator, tiles
 
 from . import scenes
 

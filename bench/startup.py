@@ -39,7 +39,7 @@ def mark(name):
 import numpy; mark("import numpy")
 import usd_io.cli as cli; parser = cli.build_parser(); mark("import usd_io.cli + argparse")
 from pxr import Sdf, Usd, UsdGeom, UsdLux, UsdShade; mark("import pxr")
-import trimesh; mark("import trimesh (usd_io.gprims)")
+import trimesh; mark("import trimesh (usd_io.geometry.gprims)")
 import numba; mark("import numba (llvmlite)")
 import tracer.jit; mark("tracer.jit (source hash)")
 import tracer.render; mark("import tracer.render (kernel modules)")

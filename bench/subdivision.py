@@ -2,7 +2,7 @@
 same run.
 
 Cages: a bumpy 317×317 quad grid (100 489 quads, with a boundary) and the same grid split into 100 352 triangles
-(224×224×2). Ours: ``tracer.subdivision.refine`` at levels 1 and 2 (Catmull-Clark with per-corner limit normals,
+(224×224×2). Ours: ``tracer.geometry.subdivision.refine`` at levels 1 and 2 (Catmull-Clark with per-corner limit normals,
 again with a face-varying UV channel; Loop with normals). Peers: Blender's Subdivision Surface modifier
 (OpenSubdiv in C++, on all cores; levels 1 and 2, limit surface off, through bpy: the depsgraph evaluation of the
 modifier, normals included) and trimesh's ``remesh.subdivide_loop`` (numpy, no normals). The median of REPEAT
@@ -43,7 +43,7 @@ def _median(fn):
 
 
 def ours(v, f, level, scheme="catmullClark", uv=False):
-    from tracer.subdivision import refine
+    from tracer.geometry.subdivision import refine
 
     fv = (v[f.ravel(), :2] / v[:, :2].max(),) if uv else ()
     return _median(lambda: refine(v, np.full(len(f), f.shape[1]), f.ravel(), level, scheme, face_varying=fv))

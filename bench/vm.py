@@ -1,11 +1,11 @@
 """What the shader VM costs per hit and per op: a lit plane seen head-on (every eye ray hits it), rendered with an
-untextured material and with a dozen-node procedural material (tracer.shader_graph), warm, CPU time, best of runs.
+untextured material and with a dozen-node procedural material (tracer.shading.graph), warm, CPU time, best of runs.
 
     python -m bench.vm [--size 384] [--runs 5]
 
 ns per op = (procedural − untextured) / (hits × the program's ops); the untextured render's own time per hit is the
 "shading time of an untextured hit" the issue compares against (it includes the light sample and its shadow ray).
-"textures stage" is the CPU time inside the VM's stage (tracer.shader_vm.shade_programs) per hit, timed around its
+"textures stage" is the CPU time inside the VM's stage (tracer.shading.vm.shade_programs) per hit, timed around its
 call: what the program itself costs, apart from what a program material costs the other stages; "with the untextured
 hit" is (untextured render + textures stage) / untextured render. The three scenes render in rounds (best of
 ``--runs``), so that the shared machine's load swings touch them alike.
@@ -45,8 +45,8 @@ def material(g, noise: bool):
 
 def scene(kind: str):
     import tracer
-    from tracer.shader_compile import add_graph
-    from tracer.shader_graph import Graph
+    from tracer.shading.compiler import add_graph
+    from tracer.shading.graph import Graph
 
     b = tracer.SceneBuilder()
     if kind == "plain":
@@ -65,8 +65,8 @@ def scene(kind: str):
 
 def main(argv=None) -> None:
     import tracer
-    from tracer.shader_compile import compile_graph
-    from tracer.shader_graph import Graph
+    from tracer.shading.compiler import compile_graph
+    from tracer.shading.graph import Graph
 
     ap = argparse.ArgumentParser(prog="python -m bench.vm", description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=int, default=384)
@@ -75,7 +75,7 @@ def main(argv=None) -> None:
     settings = tracer.RenderSettings(width=a.size, height=a.size, samples=1, max_depth=0, threads=1)
     hits = a.size * a.size
     vm_time = [0.0]
-    integrator = __import__("tracer.integrator", fromlist=["shade_programs"])
+    integrator = __import__("tracer.integrator.wavefront", fromlist=["shade_programs"])
     shade = integrator.shade_programs
 
     def timed(*args):  # the textures stage, timed around its call
@@ -116,7 +116,8 @@ def main(argv=None) -> None:
 def op_kinds(s, settings, shade, runs: int) -> dict:
     """ns per hit and per op of the stage's parts (module docstring), from one render's calls of the stage."""
     import tracer
-    from tracer import integrator, shader_vm as vm
+    from tracer.integrator import wavefront as integrator
+    from tracer.shading import vm
 
     calls = []
     integrator.shade_programs = lambda *args: (calls.append(args), shade(*args))

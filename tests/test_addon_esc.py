@@ -28,7 +28,9 @@ import bpy  # noqa: E402
 import addon  # noqa: E402
 import tracer  # noqa: E402
 from addon import engine, export  # noqa: E402
-from tracer import embree, integrator  # noqa: E402
+from tracer.accel import embree
+from tracer.integrator import tiles  # noqa: E402
+from tracer.integrator import wavefront as integrator  # noqa: E402
 
 THREADS = 2
 TILE = 32
@@ -100,14 +102,14 @@ class Esc:
             return real_step(integ, *a, **k)
 
         monkeypatch.setattr(integrator.Integrator, "step", step)
-        real_trace_tile = tracer.tiles.trace_tile
+        real_trace_tile = tiles.trace_tile
 
         def trace_tile(*a, **k):
             if esc.seen.is_set():
                 esc.tiles_started_after_seen += 1
             return real_trace_tile(*a, **k)
 
-        monkeypatch.setattr(tracer.tiles, "trace_tile", trace_tile)
+        monkeypatch.setattr(tiles, "trace_tile", trace_tile)
         real_commit = embree.EmbreeScene.commit
 
         def commit(scene, cancelled=None):
@@ -134,7 +136,7 @@ class Esc:
             return real_update(sync, depsgraph, **k)
 
         monkeypatch.setattr(addon.sync.SceneSync, "update", update)
-        real_write = tracer.tiles.write_tile
+        real_write = tiles.write_tile
 
         def write_tile(*a, **k):
             out = real_write(*a, **k)
@@ -143,7 +145,7 @@ class Esc:
                 esc.pressed = True  # Esc once the third tile is finished and handed to the engine
             return out
 
-        monkeypatch.setattr(tracer.tiles, "write_tile", write_tile)
+        monkeypatch.setattr(tiles, "write_tile", write_tile)
         self.phase = None
 
     def press(self):

@@ -13,7 +13,7 @@ from blender_kit import scene as bs
 import bpy  # noqa: E402  (the test extra installs bpy; a missing bpy must fail, not skip)
 
 from addon import export, nodes, shader_tree, world  # noqa: E402
-from tracer.shader_compile import compile_graph  # noqa: E402
+from tracer.shading.compiler import compile_graph  # noqa: E402
 
 
 def depsgraph():
@@ -188,7 +188,7 @@ def test_world_of_procedural_nodes_is_evaluated_by_the_vm(bpy_module, monkeypatc
     warnings = []
     _bgc, _amb, env = world.world_from_blender(w, warnings)
     assert env is not None and not warnings
-    from tracer.shader_world import latlong_directions
+    from tracer.shading.world import latlong_directions
 
     h, wd = env.image.shape[:2]
     want = 2.0 * np.clip(latlong_directions(wd, h)[:, 0], 0.0, 1.0).reshape(h, wd)
@@ -196,14 +196,14 @@ def test_world_of_procedural_nodes_is_evaluated_by_the_vm(bpy_module, monkeypatc
 
 
 def test_principled_defaults_are_blenders():
-    """The Principled defaults written once (tracer.materials.PRINCIPLED_DEFAULTS) are those of Blender's own
+    """The Principled defaults written once (tracer.shading.materials.PRINCIPLED_DEFAULTS) are those of Blender's own
     Principled BSDF node (read from bpy, the independent reference), and a surface that leaves a parameter out (the
     add-on's default surface, a USD reader's description) gets that default: Specular IOR Level 0.5, i.e. the
     dielectric F0 of IOR 1.5, ((1.5 − 1)/(1.5 + 1))² = 0.04 (before: 0.0, no highlight at all); the USD reader's
     base colour is UsdPreviewSurface's own fallback, 0.18."""
     from addon.model import default_surface
-    from tracer.materials import PRINCIPLED_DEFAULTS, f0_from_ior
-    from usd_io.material import principled_graph
+    from tracer.shading.materials import PRINCIPLED_DEFAULTS, f0_from_ior
+    from usd_io.materials.table import principled_graph
 
     mat, _nt, _out, bsdf = node_material("defaults")
     for name, want in PRINCIPLED_DEFAULTS.items():

@@ -119,7 +119,7 @@ def check_zip(path, platform):
         text = z.read("blender_manifest.toml").decode()
         tracer_render = z.read("tracer/render.py")
     assert {"__init__.py", "engine.py", "export.py", "properties.py", "ui.py", "sync.py", "viewport.py",
-            "tracer/__init__.py", "tracer/integrator.py", "tracer/session.py"} <= names
+            "tracer/__init__.py", "tracer/integrator/wavefront.py", "tracer/session.py"} <= names
     assert "build.py" not in names and not any("__pycache__" in n for n in names)
     assert manifest["id"] == "whitted" and manifest["type"] == "add-on"
     assert manifest["schema_version"] == "1.0.0" and manifest["blender_version_min"] == "4.2.0"

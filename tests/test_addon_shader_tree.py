@@ -11,7 +11,7 @@ import pytest
 import bpy  # noqa: E402  (the test extra installs bpy)
 
 from addon import shader_tree as st  # noqa: E402
-from tracer.shader_graph import Out  # noqa: E402
+from tracer.shading.graph import Out  # noqa: E402
 
 
 @pytest.fixture

@@ -44,7 +44,8 @@ def build_scene():
 
 
 def test_addon_and_usd_export_give_the_same_pixels(bpy_module, tmp_path):
-    from tracer import RenderSettings, render
+    from tracer import RenderSettings
+    from tracer import render
     from usd_io.reader import load_stage
 
     scene = build_scene()

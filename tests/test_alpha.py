@@ -1,4 +1,4 @@
-"""Transparent shadows and cut-outs tested inside Embree's traversal (tracer/alpha.py) against closed forms and
+"""Transparent shadows and cut-outs tested inside Embree's traversal (tracer/accel/alpha.py) against closed forms and
 against the tracer's own round-by-round loop (the path it replaces, still used where the filter cannot be).
 
 Scenes: a grey floor (Lambert only: Specular 0) under horizontal cards, lit by a sun straight down (irradiance E,
@@ -12,9 +12,11 @@ import numpy as np
 import pytest
 
 import tracer
-from tracer import alpha, integrator
+import tracer.accel.accelerator
+from tracer.accel import alpha
+from tracer.integrator import wavefront as integrator
 from tracer.camera import Camera
-from tracer.lights import DistantLight
+from tracer.lights.emitters import DistantLight
 
 E = 3.0  # the sun's irradiance, W/m²
 BASE = 0.5  # the floor's albedo
@@ -132,6 +134,6 @@ def test_more_surfaces_than_max_transparent_block(monkeypatch):
 def test_opaque_scenes_keep_their_geometry_off_the_filter():
     """Only objects with a see-through material enable the filter (the rest stay on plain rtcOccluded)."""
     scene = card_scene((1.0, 0.5))
-    acc = tracer.accel.Accelerator(scene)
+    acc = tracer.accel.accelerator.Accelerator(scene)
     names = [scene.object_names[i] for i in acc.filtered]
     assert names == ["card1"], names

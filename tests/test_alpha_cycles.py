@@ -1,5 +1,5 @@
 """The alpha-cut leaf tree of bench/leaves.py (Geometry Nodes instancing leaf cards whose image alpha cuts them
-out), small, through the add-on against Cycles, and the transparent-shadow filter (tracer/alpha.py) against the
+out), small, through the add-on against Cycles, and the transparent-shadow filter (tracer/accel/alpha.py) against the
 round-by-round loop it replaced on the same exported scene.
 
 Lit by the sun alone (a black world), so Cycles' reference has only anti-aliasing noise: its leaf edges are jittered
@@ -41,7 +41,7 @@ def build(variant):
 def test_leaf_tree_matches_cycles_and_the_loop(bpy_module, tmp_path, monkeypatch, variant):
     import tracer
     from addon import export
-    from tracer import alpha
+    from tracer.accel import alpha
 
     source = inspect.getsource(L) + inspect.getsource(build)
     ref = H.cycles_render(f"leaves_{variant}", build(variant), source, PARAMS)

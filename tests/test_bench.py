@@ -218,9 +218,10 @@ def test_production_stage_is_many_display_colour_meshes(tmp_path, monkeypatch):
     one object each with vertex colours; the render's texture spaces are skipped (no program reads Generated) and
     the picture equals one with them computed."""
     from bench.production import write_stage
-    from tracer import RenderSettings, render
-    from tracer.integrator import Integrator, reads_input
-    from tracer.shader_vm import IN_GENERATED
+    from tracer import RenderSettings
+    from tracer import render
+    from tracer.integrator.wavefront import Integrator, reads_input
+    from tracer.shading.vm import IN_GENERATED
     from usd_io import load_stage
 
     path = str(tmp_path / "production.usda")
@@ -233,7 +234,7 @@ def test_production_stage_is_many_display_colour_meshes(tmp_path, monkeypatch):
     assert integ.programs.has.any() and not reads_input(integ.programs, IN_GENERATED)
     image = render(scene, settings)
     assert image.rgba[..., :3].max() > 0.05
-    import tracer.integrator
+    import tracer.integrator.wavefront
 
-    monkeypatch.setattr(tracer.integrator, "reads_input", lambda programs, what: True)  # computed, as before
+    monkeypatch.setattr(tracer.integrator.wavefront, "reads_input", lambda programs, what: True)  # computed, as before
     assert np.array_equal(render(scene, settings).rgba, image.rgba)

@@ -1,4 +1,4 @@
-"""Closed forms of the Principled model (tracer/bsdf.py), independent of Cycles and of the model's own tables.
+"""Closed forms of the Principled model (tracer/shading/bsdf.py), independent of Cycles and of the model's own tables.
 
 - White furnace: a white metal (F0 = 1) under multiple-scattering GGX reflects all the light it receives, at any
   roughness and view angle: ∫ f·cos dω = 1 (Kulla & Conty 2017, the property the multiscatter term exists for);
@@ -17,7 +17,7 @@ import numba
 import numpy as np
 import pytest
 
-from tracer import bsdf
+from tracer.shading import bsdf
 
 N = (0.0, 0.0, 1.0)
 

@@ -7,7 +7,7 @@ from pxr import Gf
 
 from tracer import Camera, RenderSettings
 from tracer.camera import fit_apertures
-from tracer.tiles import eye_samples
+from tracer.integrator.tiles import eye_samples
 
 W, H = 64, 48
 
@@ -121,7 +121,7 @@ def test_render_tile_rays_are_the_public_eye_rays(name, cam):
     """The renderer's fused per-tile kernel (samples + eye rays) gives exactly what eye_samples + generate_rays give,
     for a tile away from the origin, with stratified jitter and a near plane."""
     from tracer import PointLight, SceneBuilder
-    from tracer.tiles import eye_rays
+    from tracer.integrator.tiles import eye_rays
 
     cam.near = 0.25
     b = SceneBuilder()

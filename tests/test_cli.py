@@ -187,7 +187,8 @@ def test_shading_flag_chooses_the_local_model(tmp_path):
     as RenderSettings(shading=...) through the API."""
     from pxr import Sdf, UsdShade
 
-    from tracer import RenderSettings, render
+    from tracer import RenderSettings
+    from tracer import render
     from usd_io import load_stage
 
     path = tmp_path / "gold.usda"

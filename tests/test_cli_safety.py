@@ -171,7 +171,7 @@ def test_an_impossible_size_is_refused_before_anything_is_allocated(tmp_path):
 
 def test_the_api_raises_a_clear_error_for_an_impossible_size():
     import tracer
-    from tracer.tiles import check_memory, memory_estimate
+    from tracer.integrator.tiles import check_memory, memory_estimate
 
     b = tracer.SceneBuilder()
     b.add_mesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32), np.array([[0, 1, 2]]))
@@ -188,7 +188,7 @@ def test_the_api_raises_a_clear_error_for_an_impossible_size():
 def test_the_estimate_counts_what_a_render_allocates_for_its_image_and_aovs():
     """Independent of the estimate's arithmetic: the film and AOV arrays a real render returns."""
     import tracer
-    from tracer.tiles import memory_estimate
+    from tracer.integrator.tiles import memory_estimate
 
     b = tracer.SceneBuilder()
     b.add_mesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32), np.array([[0, 1, 2]]))

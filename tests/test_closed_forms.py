@@ -8,8 +8,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tracer import Camera, PointLight, RenderSettings, SceneBuilder, render
-from tracer.texture import sample_bilinear
+from tracer import Camera, PointLight, RenderSettings, SceneBuilder
+from tracer import render
+from tracer.shading.texture import sample_bilinear
 
 from tracer_scenes import quad
 
@@ -244,7 +245,7 @@ def test_png_is_srgb_encoded_as_opencolorio_does_it(tmp_path):
 
 def test_srgb_textures_decode_as_opencolorio_does_it():
     """Each 8-bit sRGB code decodes to OCIO's linear value (OCIO's own evaluation differs by < 0.03 %)."""
-    from tracer.texture import srgb_to_linear
+    from tracer.colorspace import srgb_to_linear
 
     codes = (np.arange(256, dtype=np.float32) / 255)[None, :, None].repeat(3, axis=2)
     np.testing.assert_allclose(srgb_to_linear(codes), _ocio(codes, SRGB, LINEAR), rtol=1e-3, atol=1e-7)

@@ -1,4 +1,4 @@
-"""Holdouts and shadow catchers (tracer.compose) against references that do not use them: the same scene rendered
+"""Holdouts and shadow catchers (tracer.integrator.compose) against references that do not use them: the same scene rendered
 without the flag, its object-id AOV, and the closed forms of a point light's hard shadow (no Blender needed)."""
 
 import os
@@ -8,7 +8,8 @@ import sys
 import numpy as np
 import pytest
 
-from tracer import RenderSettings, render
+from tracer import RenderSettings
+from tracer import render
 from tracer_scenes import lit_sphere_on_floor
 
 FLOOR, BALL = 0, 1

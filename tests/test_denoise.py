@@ -1,5 +1,5 @@
 """Denoising (issue #33): tracer/denoise.py (Open Image Denoise through our ctypes binding), the guides of
-tracer/guides.py, ``RenderSettings.denoise`` through the API and ``whitted render --denoise``.
+tracer/integrator/guides.py, ``RenderSettings.denoise`` through the API and ``whitted render --denoise``.
 
 The denoiser is judged against a converged render of the same scene, never against itself: a soft-shadow scene
 under a sky at AA 1 with 4 light and 4 sky samples is noisy; the same scene with 400 of each is the reference (same
@@ -97,7 +97,9 @@ def test_a_missing_library_is_one_clear_exception(monkeypatch):
     with pytest.raises(dn.DenoiseUnavailable, match=r"pip install 'whitted\[denoise\]'"):
         dn.denoise(np.zeros((4, 4, 3), np.float32))
     traced = []  # a render that would denoise fails before it traces anything
-    monkeypatch.setattr(tracer.tiles, "trace_tile", lambda *a, **k: traced.append(1))
+    import tracer.integrator.tiles as tiles_module
+
+    monkeypatch.setattr(tiles_module, "trace_tile", lambda *a, **k: traced.append(1))
     with pytest.raises(dn.DenoiseUnavailable):
         render(soft_shadow_scene(), RenderSettings(width=8, height=6, denoise=True))
     assert not traced

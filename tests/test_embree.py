@@ -1,4 +1,4 @@
-"""Our Embree 4 binding (tracer/embree.py): struct layouts against closed-form hits, instances, tnear/tfar,
+"""Our Embree 4 binding (tracer/accel/embree.py): struct layouts against closed-form hits, instances, tnear/tfar,
 errors raised as exceptions, and a clear message when the library cannot be found or is not Embree 4."""
 
 from __future__ import annotations
@@ -10,9 +10,9 @@ import os
 import numpy as np
 import pytest
 
-from tracer import embree
+from tracer.accel import embree
 from tracer import Camera, Materials, Scene, SceneBuilder
-from tracer.accel import Accelerator
+from tracer.accel.accelerator import Accelerator
 
 
 def _triangle_scene(instanced, transforms=None):

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tracer import AreaLight, Camera, RenderSettings, SceneBuilder, render
+from tracer import AreaLight, Camera, RenderSettings, SceneBuilder
+from tracer import render
 
 from tracer_scenes import quad
 

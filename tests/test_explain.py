@@ -11,7 +11,8 @@ import sys
 import numpy as np
 import pytest
 
-from tracer import Camera, PointLight, RenderSettings, SceneBuilder, render
+from tracer import Camera, PointLight, RenderSettings, SceneBuilder
+from tracer import render
 from tracer.explain import explain_pixel, format_tree
 
 from tracer_scenes import quad, sphere
@@ -229,7 +230,7 @@ def test_cli_ray_type_aovs_and_raydepth_heat_map(tmp_path):
     assert r.returncode == 0, r.stderr
     parts = [read_image(tmp_path / f"r.{k}.exr")[..., :3] for k in ("direct", "reflection", "transmission")]
     beauty = read_image(out)[..., :3]  # sRGB-encoded 8-bit
-    from tracer.texture import linear_to_srgb
+    from tracer.colorspace import linear_to_srgb
 
     assert np.abs(linear_to_srgb(sum(parts)) - beauty).max() < 3 / 255  # half-float EXRs, 8-bit PNG
     depth = read_image(tmp_path / "r.raydepth.exr")[..., 0]

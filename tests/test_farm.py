@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 from pxr import Gf, Usd, UsdGeom, UsdLux
 
-from tracer import read_image, render
+from tracer import read_image
+from tracer import render
 
 distributed = pytest.importorskip("distributed", reason="the farm needs dask[distributed] (test extra)")
 

@@ -4,8 +4,9 @@ with ``ast``. Imports inside functions remain only where they defer a heavy or o
 MaterialX, dask, OpenImageIO) for start-up time; those are outside the three packages and not in this graph. The
 few imports of the three packages still written inside a function are listed in ``DEFERRED``, each with its reason.
 
-``KNOWN_CYCLES`` lists the cycles not yet broken, each as its sorted modules: a new cycle fails the test, and so does
-a listed one that is gone (the list only shrinks)."""
+``LAYERS`` is the architecture of the tree (README "Where things live"): each package's modules and subpackages in
+layers, bottom first. A module imports only from its own layer or one below; an import that points up fails
+:func:`test_imports_flow_down_the_layers`."""
 
 from __future__ import annotations
 
@@ -17,11 +18,34 @@ import pytest
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PACKAGES = ("tracer", "usd_io", "addon")
 
-#: Cycles still to break (issue #31), each the sorted tuple of its modules.
-KNOWN_CYCLES: set = {
-    # kernel_cache imports jit.Kernel inside _feed_value; both files belong to the kernel work, not touched here
-    ("tracer.jit", "tracer.kernel_cache"),
+#: Each package's layers, bottom first: a module imports only from its own layer or one below it. An entry names a
+#: module or a subpackage (all of its modules). tracer/ comes below usd_io/ and addon/ (the tracer imports neither).
+LAYERS: dict = {
+    "tracer": [
+        # leaves: the vector maths, the numba kernels and their cache, settings and colour facts
+        {"tracer.settings", "tracer.vec", "tracer.colorspace", "tracer.sampling", "tracer.heap", "tracer.optics",
+         "tracer.jit", "tracer.kernel_cache", "tracer.kernel_bundle"},
+        {"tracer.geometry", "tracer.camera", "tracer.clip_planes", "tracer.lights"},
+        {"tracer.shading"},  # the VM reads surface attributes (geometry)
+        {"tracer.scene", "tracer.scene_kernels", "tracer.builder"},  # the container of all of the above
+        {"tracer.accel", "tracer.film", "tracer.png_stream", "tracer.denoise"},
+        {"tracer.integrator"},
+        # the front doors
+        {"tracer", "tracer.render", "tracer.session", "tracer.farm", "tracer.explain", "tracer.warmup",
+         "tracer.kernel_plan"},
+    ],
+    "usd_io": [
+        {"usd_io", "usd_io.errors", "usd_io.diagnostics", "usd_io.exporters", "usd_io.layer_metadata",
+         "usd_io.holdout", "usd_io.render_settings"},
+        {"usd_io.geometry"},
+        {"usd_io.materials"},
+        {"usd_io.stage", "usd_io.dome", "usd_io.lights", "usd_io.camera"},
+        {"usd_io.reader"},
+        {"usd_io.outputs", "usd_io.request", "usd_io.explain", "usd_io.farm", "usd_io.cli"},
+    ],
 }
+#: Packages in order: tracer below usd_io below addon.
+PACKAGE_ORDER = ("tracer", "usd_io", "addon")
 
 
 #: Imports of the three packages still written inside a function, each for a reason that is not a cycle (start-up
@@ -31,7 +55,7 @@ DEFERRED: dict = {
     # the `whitted` command answers --version, --help and a bad flag before pxr, numba or the tracer load
     ("usd_io.cli", "tracer"): "start-up", ("usd_io.cli", "tracer.jit"): "start-up",
     ("usd_io.cli", "tracer.png_stream"): "start-up", ("usd_io.cli", "tracer.render"): "start-up",
-    ("usd_io.cli", "tracer.tiles"): "start-up", ("usd_io.cli", "usd_io.explain"): "start-up (pxr, the tracer)",
+    ("usd_io.cli", "tracer.integrator.tiles"): "start-up", ("usd_io.cli", "usd_io.explain"): "start-up (pxr, the tracer)",
     ("usd_io.cli", "usd_io.farm"): "dask only with --scheduler", ("usd_io.cli", "usd_io.render_settings"): "pxr",
     ("usd_io.cli", "usd_io.stage"): "pxr", ("usd_io.cli", "tracer.kernel_plan"): "start-up",
     ("usd_io.cli", "tracer.denoise"): "start-up",
@@ -39,14 +63,13 @@ DEFERRED: dict = {
     ("usd_io.outputs", "tracer.png_stream"): "start-up",
     ("usd_io.request", "usd_io.reader"): "start-up (pxr, the tracer: the CLI parses flags with request.py)",
     # MaterialX loads only for a material with a MaterialX network
-    ("usd_io.material", "usd_io.mtlx_graph"): "MaterialX",
+    ("usd_io.materials.table", "usd_io.materials.mtlx_graph"): "MaterialX",
     # properties.py imports bpy; export.py also runs where only its scene conversion is wanted
     ("addon.export", "addon.properties"): "bpy",
     # building a zip without kernels does not load the tracer (numba)
     ("addon.build", "tracer"): "numba", ("addon.build", "tracer.kernel_bundle"): "numba",
     # files of the kernel and farm work, not edited in the cycle work (issue #31)
-    ("tracer.kernel_cache", "tracer.jit"): "cycle (KNOWN_CYCLES)",
-    ("tracer.farm", "tracer.tiles"): "dask workers", ("tracer.farm", "tracer.session"): "dask workers",
+    ("tracer.farm", "tracer.integrator.tiles"): "dask workers", ("tracer.farm", "tracer.session"): "dask workers",
     ("usd_io.farm", "tracer"): "dask workers", ("usd_io.farm", "tracer.farm"): "dask workers",
     ("usd_io.farm", "usd_io.stage"): "dask workers",
 }
@@ -150,10 +173,39 @@ def cycles(graph: dict[str, set]) -> set:
 
 def test_no_import_cycles():
     found = cycles(import_graph())
-    new = found - KNOWN_CYCLES
-    assert not new, "import cycles: " + "; ".join(" <-> ".join(c) for c in sorted(new))
-    gone = KNOWN_CYCLES - found
-    assert not gone, f"cycles broken, remove them from KNOWN_CYCLES: {sorted(gone)}"
+    assert not found, "import cycles: " + "; ".join(" <-> ".join(c) for c in sorted(found))
+
+
+def layer_of(module: str) -> tuple:
+    """(package rank, layer index) of a module: its longest LAYERS entry."""
+    pkg = module.split(".")[0]
+    best = None
+    for i, layer in enumerate(LAYERS.get(pkg, [])):
+        for entry in layer:
+            if (module == entry or module.startswith(entry + ".")) and (best is None or len(entry) > len(best[1])):
+                best = (i, entry)
+    if best is None and pkg in LAYERS:
+        raise AssertionError(f"{module} is in no layer of LAYERS: put it in one")
+    return PACKAGE_ORDER.index(pkg), best[0] if best else 0
+
+
+def upward_imports(graph: dict) -> list:
+    """(importer, imported) pairs that point up the layers."""
+    return sorted((m, t) for m, ts in graph.items() for t in ts if layer_of(t) > layer_of(m))
+
+
+def test_imports_flow_down_the_layers():
+    up = upward_imports(import_graph())
+    assert not up, "imports that point up the layers (move the shared piece down): " + \
+        "; ".join(f"{a} -> {b}" for a, b in up)
+
+
+def test_an_upward_import_is_caught():
+    """The layer check fails on an import it should refuse: geometry reaching up into the scene container."""
+    assert upward_imports({"tracer.geometry.instances": {"tracer.scene"}}) == [
+        ("tracer.geometry.instances", "tracer.scene")]
+    assert upward_imports({"tracer.shading.vm": {"usd_io.reader"}})
+    assert not upward_imports({"tracer.scene": {"tracer.geometry.instances"}})
 
 
 def test_imports_inside_functions_have_a_reason():
@@ -169,10 +221,19 @@ def test_imports_inside_functions_have_a_reason():
 def test_the_graph_sees_function_level_imports(tmp_path, monkeypatch):
     """The reader counts an import written inside a function (a cycle dodged that way is still found)."""
     g = import_graph()
-    assert "tracer.shader_compile" in g["tracer.integrator"]  # a top-level `from .shader_compile import`
-    assert "usd_io.mtlx_graph" in g["usd_io.material"]  # written inside MaterialTable._graph
+    assert "tracer.shading.compiler" in g["tracer.integrator.wavefront"]  # a top-level `from ..shading.compiler import`
+    assert "usd_io.materials.mtlx_graph" in g["usd_io.materials.table"]  # written inside MaterialTable._graph
 
 
 @pytest.mark.parametrize("pkg", PACKAGES)
 def test_packages_are_read(pkg):
     assert any(m.startswith(pkg + ".") for m in import_graph())
+
+
+def test_each_subpackage_says_what_it_holds_and_may_import():
+    """Every subpackage's docstring names what it holds and what it may import (the layers, in words)."""
+    for m, path in modules().items():
+        if path.endswith("__init__.py") and m.count(".") == 1:
+            with open(path, encoding="utf-8") as f:
+                doc = ast.get_docstring(ast.parse(f.read())) or ""
+            assert "May import" in doc, f"{m}/__init__.py: say what it holds and what it may import"

@@ -13,7 +13,8 @@ import pytest
 import trimesh
 
 import tracer
-from tracer import Camera, Instances, PointLight, RenderSettings, Scene, SceneBuilder, Session, render
+from tracer import Camera, Instances, PointLight, RenderSettings, Scene, SceneBuilder, Session
+from tracer import render
 
 # Instanced vs flattened: Embree intersects an instance in object space (the ray taken there by M⁻¹), the flat copy
 # in world space, so t and the hit point differ by float32 rounding. That moves a few shadow-terminator and

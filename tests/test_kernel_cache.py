@@ -91,7 +91,7 @@ def test_editing_a_file_that_no_kernel_reaches_changes_no_key(tree):
 
 def test_editing_one_noise_function_changes_only_the_keys_of_the_kernels_that_reach_it(tree):
     before = _keys(tree)
-    path = tree / "tracer" / "procedural" / "noise.py"
+    path = tree / "tracer" / "shading" / "procedural" / "noise.py"
     text = path.read_text()
     i = text.index("def perlin3(")
     j = text.index('"""', text.index('"""', i) + 3) + 3  # after perlin3's docstring
@@ -99,14 +99,14 @@ def test_editing_one_noise_function_changes_only_the_keys_of_the_kernels_that_re
     after = _keys(tree)
     changed = {k for k in before if before[k] != after[k]}
     # the edited kernel, the noise functions that call it, the VM that calls them and the stages above the VM
-    assert {"tracer.procedural.noise.perlin3", "tracer.procedural.noise.noise_texture",
-            "tracer.shader_vm._procedural", "tracer.shader_vm.execute", "tracer.shader_vm.shade_programs"} <= changed
+    assert {"tracer.shading.procedural.noise.perlin3", "tracer.shading.procedural.noise.noise_texture",
+            "tracer.shading.vm._procedural", "tracer.shading.vm.execute", "tracer.shading.vm.shade_programs"} <= changed
     # ... and nothing in a module that does not import noise.py, directly or through others
-    reach = _importers(tree, "tracer.procedural.noise")
+    reach = _importers(tree, "tracer.shading.procedural.noise")
     outside = {k for k in changed if k.rsplit(".", 1)[0] not in reach}
     assert not outside, outside
-    for k in ("tracer.integrator._direct_light", "tracer.integrator._spawn_secondary", "tracer.tiles._tile_eye_rays",
-              "tracer.embree.intersect_rays", "tracer.bsdf.principled", "tracer.procedural.voronoi.voronoi_texture"):
+    for k in ("tracer.integrator.wavefront._direct_light", "tracer.integrator.wavefront._spawn_secondary", "tracer.integrator.tiles._tile_eye_rays",
+              "tracer.accel.embree.intersect_rays", "tracer.shading.bsdf.principled", "tracer.shading.procedural.voronoi.voronoi_texture"):
         assert before[k] == after[k], k
     assert len(changed) < len(before) // 4
 

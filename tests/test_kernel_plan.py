@@ -55,7 +55,7 @@ def test_plan_loads_with_its_argument_types():
     plan = kernel_plan.load()
     assert plan is not None and plan["stages"], "tracer/kernel_plan.json missing or made with another numba"
     names = [n for n, _a, _u in plan["stages"]]
-    assert "tracer.integrator._direct_light" in names and "tracer.embree.intersect_rays" in names
+    assert "tracer.integrator.wavefront._direct_light" in names and "tracer.accel.embree.intersect_rays" in names
     assert plan["units"] == sum(u for *_x, u in plan["stages"]) > len(names)
 
 

@@ -1,4 +1,4 @@
-"""Light linking, shadow linking and ray visibility (tracer/linking.py): the Embree masks against closed-form hits,
+"""Light linking, shadow linking and ray visibility (tracer/lights/linking.py): the Embree masks against closed-form hits,
 and renders of a lit floor against the closed form E = I·cos θ / r² (a Lambert floor of albedo ρ reads ρ/π·E)."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from tracer import Camera, PointLight, RenderSettings, SceneBuilder
-from tracer.accel import Accelerator
-from tracer.linking import ALL_VISIBLE, CAMERA, GLOSSY, SHADOW, LightLink, pack
+from tracer.accel.accelerator import Accelerator
+from tracer.lights.linking import ALL_VISIBLE, CAMERA, GLOSSY, SHADOW, LightLink, pack
 from tracer import render
 
 

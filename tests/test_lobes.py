@@ -1,4 +1,4 @@
-"""A Mix Shader / Add Shader tree as a weighted sum of BSDF lobes (tracer.lobes, tracer.shader_closures) against
+"""A Mix Shader / Add Shader tree as a weighted sum of BSDF lobes (tracer.shading.lobes, tracer.shading.closures) against
 closed forms.
 
 The probe: a unit quad seen head-on by an orthographic camera (one sample per pixel), lit straight on by a distant
@@ -13,10 +13,11 @@ import math
 import numpy as np
 import pytest
 
-from tracer import Camera, DistantLight, RenderSettings, SceneBuilder, render
-from tracer import lobes as L
-from tracer.shader_compile import add_graph, compile_graph
-from tracer.shader_graph import Graph
+from tracer import Camera, DistantLight, RenderSettings, SceneBuilder
+from tracer import render
+from tracer.shading import lobes as L
+from tracer.shading.compiler import add_graph, compile_graph
+from tracer.shading.graph import Graph
 
 N = 6
 L_B = np.array([0.2, 0.5, 0.9])  # the radiance of the quad behind

@@ -4,8 +4,9 @@ moving things against closed forms."""
 import numpy as np
 import pytest
 
-from tracer import Camera, RenderSettings, SceneBuilder, render
-from tracer.motion import Motion, blender_shutter, curve_table, decompose, matrix_at
+from tracer import Camera, RenderSettings, SceneBuilder
+from tracer import render
+from tracer.geometry.motion import Motion, blender_shutter, curve_table, decompose, matrix_at
 
 
 def _rot_z(a):
@@ -31,7 +32,7 @@ def test_interpolation_is_embrees():
     """Our interpolation at any time equals the matrix Embree itself places the instance with
     (rtcGetGeometryTransform on the same quaternion-decomposed steps): rotation, translation, non-uniform scale,
     skew and a mirror."""
-    from tracer import embree
+    from tracer.accel import embree
 
     steps = np.stack([_translate(0, 0, 0) @ _rot_z(0.0) @ np.diag([1, 2, 1, 1]),
                       _translate(1, 2, 0) @ _rot_z(1.2) @ np.diag([1.5, 1, 1, 1]),
@@ -127,7 +128,7 @@ def test_sliding_card_covers_pixels_as_the_closed_form(how):
 
 
 def test_a_shutter_curve_weights_the_times():
-    """A shutter curve open only in the last tenth of the interval (a table from tracer.motion.curve_table) shows
+    """A shutter curve open only in the last tenth of the interval (a table from tracer.geometry.motion.curve_table) shows
     the card where it is then: coverage as the closed form for a card sliding from a + 0.9·v to a + v."""
     a, v, w = -1.3, 1.7, 0.9
     weights = (np.linspace(0, 1, 1001) >= 0.9).astype(float)

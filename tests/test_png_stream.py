@@ -11,7 +11,8 @@ import os
 import numpy as np
 import pytest
 
-from tracer import RenderSettings, render, write_image
+from tracer import RenderSettings, write_image
+from tracer import render
 from tracer.film import to_display
 from tracer.png_stream import StreamedPNG, display_thresholds, to_display_fast
 from usd_io.outputs import Outputs

@@ -1,4 +1,4 @@
-"""tracer.procedural against closed forms and independent references (the Cycles comparison is
+"""tracer.shading.procedural against closed forms and independent references (the Cycles comparison is
 tests/cycles/test_cycles_procedural.py; these catch a broken building block without Blender)."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import colorsys
 import numpy as np
 import pytest
 
-from tracer.procedural import color, noise, patterns, voronoi
+from tracer.shading.procedural import color, noise, patterns, voronoi
 
 RNG = np.random.default_rng(7)
 

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from tests.tracer_scenes import lit_sphere_on_floor, quad, sphere
-from tracer import Camera, DistantLight, PointLight, RenderSettings, SceneBuilder, render
+from tracer import Camera, DistantLight, PointLight, RenderSettings, SceneBuilder
+from tracer import render
 
 W, H = 64, 48
 
@@ -189,10 +190,10 @@ def test_same_pixels_for_any_thread_count_and_tile_size():
 
 
 def test_a_tile_traced_in_batches_of_eye_samples_gives_the_same_pixels(monkeypatch):
-    """tracer.tiles bounds the shadow queue by tracing a tile's eye samples in batches: each sample's whole path
+    """tracer.integrator.tiles bounds the shadow queue by tracing a tile's eye samples in batches: each sample's whole path
     (glass: reflection and transmission, soft shadows) stays in one batch, so every pixel and AOV is that of one
     batch, and so are the ray counts."""
-    import tracer.tiles as tiles
+    import tracer.integrator.tiles as tiles
 
     b = lit_sphere_on_floor()
     b.lights[0] = PointLight(position=b.lights[0].position, intensity=b.lights[0].intensity, radius=1.0)
@@ -243,7 +244,7 @@ def test_png_and_exr_output(tmp_path):
     png, exr = read_image(tmp_path / "a.png"), read_image(tmp_path / "a.exr")
     assert png.shape == (H, W, 4) and exr.shape == (H, W, 4)
     np.testing.assert_allclose(exr[..., :3], img.rgb, rtol=2e-3, atol=1e-4)  # half floats
-    from tracer.texture import linear_to_srgb
+    from tracer.colorspace import linear_to_srgb
 
     np.testing.assert_allclose(png[..., :3], linear_to_srgb(img.rgb), atol=1 / 255 + 1e-6)
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []  # no temporary left behind

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from tracer import (Camera, DistantLight, Materials, PointLight, RenderSettings, Scene, SceneBuilder, SpotLight,
-                    render)
+from tracer import Camera, DistantLight, Materials, PointLight, RenderSettings, Scene, SceneBuilder, SpotLight
+from tracer import render
 
 TRI = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32)
 

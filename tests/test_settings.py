@@ -74,7 +74,7 @@ def test_bad_flag_values_name_the_flag():
 def test_integrator_key_holds_the_fields_its_packed_tables_read():
     """The Integrator's Options (what the kernels get as constants) and its light table are made once per session
     and settings: every setting they read must be in the key (shading once was not: the old model rendered)."""
-    from tracer.integrator import Options
+    from tracer.integrator.wavefront import Options
 
     read = {n for n in Options._fields if n in SETTINGS} | {"epsilon", "shading", "light_samples"}  # eps, principled
     assert read <= set(INTEGRATOR_FIELDS), sorted(read - set(INTEGRATOR_FIELDS))

@@ -1,4 +1,4 @@
-"""The shader graph compiler and VM (tracer.shader_graph / shader_compile / shader_vm): folding, the program's
+"""The shader graph compiler and VM (tracer.shading.graph / shader_compile / shader_vm): folding, the program's
 shape, and each op's value against its closed form.
 
 Values are read as pictures: an emission-only unit quad seen head-on by an orthographic camera with one sample per
@@ -12,10 +12,11 @@ import colorsys
 import numpy as np
 import pytest
 
-from tracer import Camera, RenderSettings, SceneBuilder, render
-from tracer import shader_vm as vm
-from tracer.shader_compile import add_graph, compile_graph
-from tracer.shader_graph import Graph, ImageRef
+from tracer import Camera, RenderSettings, SceneBuilder
+from tracer import render
+from tracer.shading import vm
+from tracer.shading.compiler import add_graph, compile_graph
+from tracer.shading.graph import Graph, ImageRef
 
 N = 12
 _j, _i = np.meshgrid(np.arange(N), np.arange(N))
@@ -271,7 +272,7 @@ def _generated():
 
 
 def test_noise_texture_4d_reads_w_per_hit_and_its_parameters():
-    from tracer.procedural.noise import noise_texture_array
+    from tracer.shading.procedural.noise import noise_texture_array
 
     def build(g, uv):
         u, _v = xyz(g, uv)
@@ -284,7 +285,7 @@ def test_noise_texture_4d_reads_w_per_hit_and_its_parameters():
 
 
 def test_voronoi_outputs_and_enums():
-    from tracer.procedural.voronoi import voronoi_texture_array
+    from tracer.shading.procedural.voronoi import voronoi_texture_array
 
     def build(g, uv):
         v = g.add("voronoi_texture", {"Scale": 4.0, "Randomness": 0.8}, feature="F2", distance="MANHATTAN")
@@ -299,7 +300,7 @@ def test_voronoi_outputs_and_enums():
 
 
 def test_wave_magic_and_brick_factors():
-    from tracer.procedural.patterns import brick_array, magic_array, wave_array
+    from tracer.shading.procedural.patterns import brick_array, magic_array, wave_array
 
     def build(g, uv):
         w = g.add("wave_texture", {"Scale": 2.0, "Distortion": 1.5}, wave_type="RINGS", rings_direction="SPHERICAL",
@@ -335,7 +336,7 @@ def test_a_texture_column_multiplies_its_constant():
 
 # ---------------------------------------------------------------------------------------------- the node table
 def _branches(fn_name: str) -> list[str]:
-    """The OP_* names compared with ``op`` in the if/elif chain of ``tracer.shader_vm.<fn_name>``, in order."""
+    """The OP_* names compared with ``op`` in the if/elif chain of ``tracer.shading.vm.<fn_name>``, in order."""
     import ast
     import inspect
 
@@ -352,7 +353,7 @@ def _branches(fn_name: str) -> list[str]:
 def test_vm_dispatch_follows_the_op_table():
     """Every instruction of the node table has exactly one branch in the VM (execute, or _procedural for the
     procedural textures, numbered last from OP_NOISE), and no branch names an instruction the table lacks."""
-    from tracer import shader_nodes as nodes
+    from tracer.shading import nodes
 
     main, proc = _branches("execute"), _branches("_procedural")
     assert len(main) == len(set(main)) and len(proc) == len(set(proc)), "an instruction with two branches"
@@ -365,7 +366,7 @@ def test_vm_dispatch_follows_the_op_table():
 
 def test_node_table_entries_are_whole():
     """Each node type has sockets of known kinds, its lowering (closures: the closure lowering) and a proof."""
-    from tracer import shader_nodes as nodes
+    from tracer.shading import nodes
 
     closures = {n for n, t in nodes.NODE_TYPES.items() if any(s.kind == nodes.CLOSURE for s in t.outputs)}
     for name, t in nodes.NODE_TYPES.items():
@@ -375,7 +376,7 @@ def test_node_table_entries_are_whole():
 
 
 def _fold_cases():
-    from tracer import shader_nodes as nodes
+    from tracer.shading import nodes
 
     imms = {"math": [k | c for k in range(41) for c in (0, 256)], "vmath": list(range(29)),
             "mix_f": [0, 1], "mix_v": [0, 1], "mix_vn": [0, 1], "mix_c": [k | c for k in range(19) for c in (0, 768)],
@@ -388,9 +389,9 @@ def _fold_cases():
 def test_every_fold_matches_the_vm():
     """The compiler's constant folding (each OPS row's ``fold``) gives what the VM computes for the same
     instruction, for every instruction that folds and every mode: one-instruction programs run through the world
-    stage (tracer.shader_vm.shade_directions, whose register file is left holding the results)."""
-    from tracer import shader_nodes as nodes
-    from tracer.texture import pack_textures
+    stage (tracer.shading.vm.shade_directions, whose register file is left holding the results)."""
+    from tracer.shading import nodes
+    from tracer.shading.texture import pack_textures
 
     rng = np.random.default_rng(7)
     tex = pack_textures([])

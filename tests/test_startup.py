@@ -96,11 +96,11 @@ def test_run_runs_atexit_handlers_and_joins_threads(ball, tmp_path):
 
 
 def test_tracer_kernels_use_the_content_keyed_cache_with_the_light_loader():
-    import tracer.integrator
+    import tracer.integrator.wavefront
     import tracer.jit
     from tracer.kernel_cache import KernelCache
 
-    kernels = [k for k in vars(tracer.integrator).values()
+    kernels = [k for k in vars(tracer.integrator.wavefront).values()
                if isinstance(k, tracer.jit.Kernel) and k._opts.get("inline") != "always"]
     assert kernels
     assert all(type(k.dispatcher._cache) is KernelCache for k in kernels)

@@ -1,4 +1,4 @@
-"""Subdivision surfaces (tracer.subdivision) against Blender's Subdivision Surface modifier (OpenSubdiv inside
+"""Subdivision surfaces (tracer.geometry.subdivision) against Blender's Subdivision Surface modifier (OpenSubdiv inside
 Blender, through bpy), closed forms and trimesh's Loop; and subdivision surfaces read from USD (usd_io,
 ``--complexity``), rendered and compared with the analytic shape.
 
@@ -17,8 +17,9 @@ import numpy as np
 import pytest
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, Vt
 
-from tracer import RenderSettings, render
-from tracer.subdivision import catmull_clark, refine
+from tracer import RenderSettings
+from tracer import render
+from tracer.geometry.subdivision import catmull_clark, refine
 
 #: Blender stores points as float32: equal refinements agree to its rounding (measured ≤ 5e-7 on these cages).
 #: The issue's bar is 1e-4.
@@ -583,8 +584,8 @@ def test_usd_colours_and_uv_sets_ride_through_refinement():
     refined points (vertex data by the points' rules, faceVarying by face-varying rules)."""
     from types import SimpleNamespace
 
-    from usd_io.material_primvars import mesh_primvars
-    from usd_io.mesh import read_mesh
+    from usd_io.materials.primvars import mesh_primvars
+    from usd_io.geometry.mesh import read_mesh
 
     s = Usd.Stage.CreateInMemory()
     g, f = _grid(3, lambda x, y: 0.0)
@@ -752,7 +753,7 @@ def test_refine_batch_is_refine_mesh_by_mesh(level, limit):
     """refine_batch (meshes of one topology refined once as columns of one refinement, the rest joined into one
     mesh) gives every mesh exactly the arrays refine gives it alone (which the tests above check against
     OpenSubdiv through Blender and closed forms), and each mesh its own warnings."""
-    from tracer.subdivision import refine_batch
+    from tracer.geometry.subdivision import refine_batch
 
     cases = [dict(c, levels=level, limit=limit) for c in _batch_cases()]
     batch = refine_batch(cases)

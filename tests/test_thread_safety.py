@@ -1,5 +1,5 @@
 """Tile threads must not share what they write (issue #30: ``whitted render`` of a stage with cut-out plants died
-with SIGSEGV, two tile threads inside tracer/alpha.py's ``occluded``).
+with SIGSEGV, two tile threads inside tracer/accel/alpha.py's ``occluded``).
 
 The scene is the McUsd pattern, built here: many leaves over a ground, each leaf its own material whose alpha is a
 program (an alpha texture times a constant, some cut out by a threshold), so every shadow ray that crosses a leaf
@@ -18,7 +18,7 @@ import pytest
 
 import tracer
 from tracer.camera import Camera
-from tracer.lights import DistantLight, PointLight
+from tracer.lights.emitters import DistantLight, PointLight
 
 RUNS = 30
 THREADS = 8

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade
 
-from tracer import RenderSettings, render
+from tracer import RenderSettings
+from tracer import render
 from usd_io import load_stage
 
 A = 0.5  # albedo

@@ -13,8 +13,9 @@ import pytest
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade, UsdUtils
 
 import usd_material_stages as S
-from tracer import RenderSettings, render
-from tracer.texture import srgb_to_linear
+from tracer import RenderSettings
+from tracer import render
+from tracer.colorspace import srgb_to_linear
 from usd_io import load_stage
 
 N = 48
@@ -535,7 +536,7 @@ def test_principled_fields_for_channels_uv_sets_and_vertex_colours(tmp_path, pri
     S.bind(q, mat)
     b, info = load_stage(S.save(s), width=8, height=8)
     (row_fields,) = [m for m in b.materials if m["name"] == "/Looks/M"]
-    g = row_fields["program"].graph  # the shader graph the reader wrote (tracer.shader_graph)
+    g = row_fields["program"].graph  # the shader graph the reader wrote (tracer.shading.graph)
     (bsdf,) = [n for n in g.nodes.values() if n.type == "principled_bsdf"]
 
     def src(node, socket):

@@ -14,7 +14,7 @@ from pxr import Gf, Sdf, UsdShade
 
 import usd_material_stages as S
 from test_usd_materials import N, render_stage
-from tracer.procedural import mx_noise as mxn
+from tracer.shading.procedural import mx_noise as mxn
 
 #: tools/mx_noise_reference.py: OSL's ``noise("snoise", p)``, ``cellnoise(p)`` (float and vector; 3D at p, 2D at
 #: (p.x, p.y)) evaluated by OSL inside Cycles (float32 values).
@@ -207,8 +207,8 @@ def surface(node, **inputs):
 
 def test_one_material_s_networks_share_their_nodes(tmp_path, monkeypatch):
     """Two inputs driven by one MaterialX node: it is written once into the material's graph (one translator per
-    graph, kept by the writer, usd_io.material.principled_graph, not on the Graph object)."""
-    import usd_io.material as M
+    graph, kept by the writer, usd_io.materials.table.principled_graph, not on the Graph object)."""
+    import usd_io.materials.table as M
     from usd_io import load_stage
 
     graphs = []

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from pxr import Gf, Sdf, UsdGeom, UsdLux, UsdShade
 
-from tracer import RenderSettings, read_image, render
+from tracer import RenderSettings, read_image
+from tracer import render
 from usd_io import load_stage
 
 import usd_pipeline_stages as st
@@ -96,7 +97,7 @@ def test_preview_surface_out_of_range_is_clamped_not_refused():
 
 # ---------------------------------------------------------------- instancing, every combination
 def _cube_centres(scene):
-    from tracer.instances import flatten
+    from tracer.scene import flatten
 
     f = flatten(scene)
     c = f.vertices[f.triangles].reshape(-1, 36, 3).mean(axis=1)  # 12 triangles per cube
@@ -811,7 +812,7 @@ def test_cubic_basis_curves_follow_the_curve_not_the_hull(basis):
 @pytest.mark.parametrize("basis", ["bezier", "bspline", "catmullRom"])
 def test_open_cubic_curves_vectorised_equal_curve_by_curve(basis):
     """The all-at-once evaluation of open curves (hair) equals the curve-by-curve one, curves of 2 to 9 points."""
-    from usd_io import cubic_curves as cc
+    from usd_io.geometry import cubic_curves as cc
 
     rng = np.random.default_rng(7)
     counts = rng.integers(2, 10, 300)

@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade, Vt
 
-from tracer.instances import flatten
-from tracer import RenderSettings, render
+from tracer.scene import flatten
+from tracer import RenderSettings
+from tracer import render
 from usd_io import UsdInputError, load_stage
 
 
@@ -375,7 +376,7 @@ def test_texture_and_display_color(tmp_path):
     scene, info = load_stage(s, width=16)
     assert scene.uvs is not None
     np.testing.assert_allclose(scene.corner_uvs()[0], [[0, 0], [0.5, 0], [0.5, 1]])
-    # the texture is an image of the material's graph (tracer.shader_graph), read per hit
+    # the texture is an image of the material's graph (tracer.shading.graph), read per hit
     graph = scene.materials.programs[scene.material_ids[0]].graph
     (tex,) = [n for n in graph.nodes.values() if n.type == "usd_uv_texture"]
     np.testing.assert_allclose(tex.param("image").rgba()[0, 0][:3], (1, 0, 0))

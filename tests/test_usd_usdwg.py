@@ -162,7 +162,7 @@ def mtlx_quad_stage(d, document: str, material: str) -> str:
 
 def test_mtlx_document_reference_renders_its_image_node_in_srgb(tmp_path):
     """Closed form (as the texture-orientation test): a Lambert quad under a π W/m² sun at normal incidence shows
-    its albedo, so every pixel is the sRGB-decoded texel under it. Before usd_io.mtlx: the reference does not
+    its albedo, so every pixel is the sRGB-decoded texel under it. Before usd_io.materials.mtlx: the reference does not
     compose, the quad is unbound and 0.5 grey; a raw (not sRGB) read or a flipped lookup moves every block."""
     import usd_material_stages as S
     from test_usd_materials import N, assert_blocks, render_stage, st_of_pixels
@@ -190,7 +190,7 @@ def test_mtlx_standard_surface_weights_textures_and_normal_map(tmp_path):
     assert "r.png" in f["roughness_texture"] and f["roughness_channel"] == 0
     assert "n.png" in f["normal_texture"]
     assert [w for w in info.warnings if "coat is not supported" in w]
-    from usd_io.shade_network import source
+    from usd_io.materials.network import source
 
     stage = Usd.Stage.Open(path)
     from usd_io.stage import open_stage

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdSkel
 
-from tracer.instances import flatten
-from tracer import RenderSettings, read_image, render
+from tracer.scene import flatten
+from tracer import RenderSettings, read_image
+from tracer import render
 from usd_io import load_stage
 from usd_io.lights import DEFAULT_DOME, DEFAULT_HEADLIGHT_IRRADIANCE
 

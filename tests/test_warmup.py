@@ -26,11 +26,11 @@ def _kernels():
     from tracer.jit import Kernel
 
     found = {}
-    for info in pkgutil.iter_modules(tracer.__path__):
-        module = importlib.import_module(f"tracer.{info.name}")
+    for info in pkgutil.walk_packages(tracer.__path__, "tracer."):
+        module = importlib.import_module(info.name)
         for name, obj in vars(module).items():
             if isinstance(obj, Kernel) and obj.__module__ == module.__name__:
-                found[f"{info.name}.{name}"] = obj
+                found[f"{info.name.removeprefix('tracer.')}.{name}"] = obj
     return found
 
 
@@ -55,9 +55,10 @@ def test_compile_kernels_covers_the_kernels_a_render_uses():
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr[-2000:]
     before, after = json.loads(r.stdout.strip().splitlines()[-1])
-    for hot in ("integrator._surfaces", "integrator._direct_light", "integrator._spawn_secondary",
-                "integrator._add_unoccluded", "tiles._tile_eye_rays", "tiles._tile_eye_rays_timed",
-                "motion.frames_at_time"):
+    for hot in ("integrator.wavefront._surfaces", "integrator.wavefront._direct_light",
+                "integrator.wavefront._spawn_secondary", "integrator.wavefront._add_unoccluded",
+                "integrator.tiles._tile_eye_rays", "integrator.tiles._tile_eye_rays_timed",
+                "geometry.motion.frames_at_time"):
         assert before[hot] > 0, f"compile_kernels left {hot} uncompiled: {before}"
     grew = {k: (before[k], n) for k, n in after.items() if n != before.get(k, 0)}
     assert not grew, f"renders after compile_kernels compiled new kernel specialisations: {grew}"
@@ -65,8 +66,8 @@ def test_compile_kernels_covers_the_kernels_a_render_uses():
 
 def _moving_sphere():
     """lit_sphere_on_floor with motion blur: the floor slides, the sphere's vertices move, the camera turns, and the
-    shutter has a curve (tracer/motion.py's kernels and the stages' timed paths)."""
-    from tracer.motion import Motion, curve_table
+    shutter has a curve (tracer/geometry/motion.py's kernels and the stages' timed paths)."""
+    from tracer.geometry.motion import Motion, curve_table
 
     b = lit_sphere_on_floor()
     eye = b.camera.camera_to_world
@@ -125,6 +126,6 @@ def test_whitted_warmup_compiles_the_kernels():
     assert r.returncode == 0, r.stderr[-2000:]
     exit_code, signatures = json.loads(r.stdout.strip().splitlines()[-1])
     assert exit_code == 0 and "whitted: kernels" in r.stderr
-    for hot in ("integrator._surfaces", "tiles._tile_eye_rays", "scene_kernels.non_degenerate_rows",
-                "builder._affine_rows"):
+    for hot in ("integrator.wavefront._surfaces", "integrator.tiles._tile_eye_rays",
+                "scene_kernels.non_degenerate_rows", "builder._affine_rows"):
         assert signatures[hot] > 0, f"whitted warmup left {hot} unprepared"

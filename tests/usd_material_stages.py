@@ -43,7 +43,7 @@ def write_png(path: str, rgba8: np.ndarray) -> str:
 def block_texture(path: str, alpha_left: bool = False) -> np.ndarray:
     """Write the 64×64 block texture as an 8-bit PNG holding the *sRGB encoding* of BLOCKS; returns the linear
     block colours (4, 4, 3) that an sRGB read gives back (quantised as the file holds them)."""
-    from tracer.texture import linear_to_srgb, srgb_to_linear
+    from tracer.colorspace import linear_to_srgb, srgb_to_linear
 
     enc = np.round(linear_to_srgb(BLOCKS) * 255).astype(np.uint8)
     img = np.repeat(np.repeat(enc, BLOCK, axis=0), BLOCK, axis=1)

@@ -6,7 +6,7 @@ the table that tests/test_usd_mtlx.py holds (``OSL_REFERENCE``).
     python tools/mx_noise_reference.py
 
 (bpy's wheel has no ``oslquery`` module, so the script node's output sockets are added by hand after Cycles
-compiles the shader.) The values are float32; tracer.procedural.mx_noise agrees with them to ~2e-6.
+compiles the shader.) The values are float32; tracer.shading.procedural.mx_noise agrees with them to ~2e-6.
 """
 
 from __future__ import annotations

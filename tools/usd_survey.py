@@ -127,7 +127,8 @@ def blank_reason(scene, info, image) -> str | None:
     """Why a uniform (or empty) frame is what the scene says, or None: a warning naming what it lacks
     (:data:`SAID`); no eye ray meeting a gprim (the objectid AOV, rendered once more); or gprims in view but every
     pixel darker than 1/255 (the authored lights do not reach what the camera sees)."""
-    from tracer import RenderSettings, render
+    from tracer import RenderSettings
+    from tracer import render
 
     for w in info.warnings:
         for key, reason in SAID.items():
@@ -149,7 +150,8 @@ def blank_reason(scene, info, image) -> str | None:
 def examine(path: str, width: int, png: str | None) -> dict:
     from pxr import Usd
 
-    from tracer import RenderSettings, render
+    from tracer import RenderSettings
+    from tracer import render
     from usd_io import UsdInputError, load_stage
 
     rec = dict(file=path, flags=[], warnings=0)

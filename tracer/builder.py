@@ -19,9 +19,9 @@ import numpy as np
 from .camera import Camera
 from .heap import trim
 from .jit import kernel
-from .materials import Materials
 from .scene import Instances, Scene, handed_over, singular
-from .texture import as_texture
+from .shading.materials import Materials
+from .shading.texture import as_texture
 
 
 class SceneBuilder:
@@ -50,7 +50,7 @@ class SceneBuilder:
 
     # ---------------------------------------------------------------- tables
     def add_material(self, name: str | None = None, **fields) -> int:
-        """Add a material row (fields of :data:`tracer.materials.DEFAULT_MATERIAL`, or ``roughness``); returns
+        """Add a material row (fields of :data:`tracer.shading.materials.DEFAULT_MATERIAL`, or ``roughness``); returns
         its index. A name already added returns the existing index."""
         if name is not None and name in self._material_index:
             return self._material_index[name]

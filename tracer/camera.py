@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-
 from typing import NamedTuple
 
 import numpy as np
@@ -56,7 +55,7 @@ class Camera:
     #: Extra clipping planes (a, b, c, d) in camera space keeping a·x + b·y + c·z + d >= 0 (tracer.clip_planes).
     clipping_planes: tuple = ()
     #: Camera motion (motion blur): (S, 4, 4) camera-to-world matrices at S ≥ 2 evenly spaced times of the shutter,
-    #: interpolated as :mod:`tracer.motion` does; None: the camera stands still at ``camera_to_world``.
+    #: interpolated as :mod:`tracer.geometry.motion` does; None: the camera stands still at ``camera_to_world``.
     motion: np.ndarray | None = None
 
     def __post_init__(self):

@@ -4,7 +4,7 @@
 feeds it (``intern/cycles/integrator/denoiser_oidn.cpp``): ``hdr`` on, ``srgb`` off, and by default the guides
 prefiltered first with the same filter ("accurate", Cycles' default) and then trusted as clean (``cleanAux``).
 :func:`denoise_image` denoises a rendered :class:`tracer.film.Image` in place from its ``denoising_albedo`` /
-``denoising_normal`` AOVs (tracer/guides.py computes them as Cycles' Denoising Data passes): always a whole frame
+``denoising_normal`` AOVs (tracer/integrator/guides.py computes them as Cycles' Denoising Data passes): always a whole frame
 (or the render region), never a tile, since the filter looks across tile borders.
 
 Why a binding of our own (docs/benchmarks.md, "Denoising"): the C API we need is eight functions, and a ctypes
@@ -38,7 +38,7 @@ import numpy as np
 
 #: Environment variable naming the OIDN library to use before any other.
 LIBRARY_ENV = "WHITTED_OIDN_LIBRARY"
-#: The AOVs that guide the denoiser (tracer/guides.py): Cycles' Denoising Albedo and Denoising Normal.
+#: The AOVs that guide the denoiser (tracer/integrator/guides.py): Cycles' Denoising Albedo and Denoising Normal.
 GUIDE_AOVS = ("denoising_albedo", "denoising_normal")
 #: OIDN major version the binding is written for (oidn.h of OIDN 2.x).
 REQUIRED_MAJOR = 2

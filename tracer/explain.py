@@ -13,16 +13,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .accel import Accelerator
+from .accel.accelerator import Accelerator
 from .clip_planes import clip_eye_rays
-from .integrator import Integrator, RayQueue, Tile
+from .geometry.instances import world_frame
+from .geometry.motion import frames_at_time
+from .integrator.tiles import timed_eye_rays
+from .integrator.wavefront import Integrator, RayQueue, Tile
 from .jit import kernel
-from . import linking
+from .lights import linking
 from .scene import Scene
 from .settings import RenderSettings
-from .instances import world_frame
-from .motion import frames_at_time
-from .tiles import timed_eye_rays
 
 RAY_KINDS = ("eye", "shadow", "reflection", "transmission", "sky")
 
@@ -122,7 +122,7 @@ def explain_pixel(scene: Scene, settings: RenderSettings, x: int, y: int, accel:
     rays_of = [[] for _ in range(spp)]
     t_max = (np.full(spp, scene.camera.far - scene.camera.near, np.float32) if np.isfinite(scene.camera.far)
              else None)
-    if scene.camera.clipping_planes:  # as tracer.tiles.trace_tile does
+    if scene.camera.clipping_planes:  # as tracer.integrator.tiles.trace_tile does
         o, t_max = clip_eye_rays(scene.camera, o, d, scene.camera.far - scene.camera.near)
     queue = RayQueue(o=o, d=d, weight=np.ones((spp, 3), np.float32), sample=np.arange(spp, dtype=np.int32),
                      t_max=t_max, time=times)

@@ -263,7 +263,7 @@ class _TileRenderer:
         self.scene = session.scene
 
     def tile(self, settings: RenderSettings, tile):
-        from .tiles import empty_aovs, timed_eye_rays, uses_guides, uses_ray_types, write_tile
+        from .integrator.tiles import empty_aovs, timed_eye_rays, uses_guides, uses_ray_types, write_tile
 
         settings = settings.validate()
         integ = self.session.integrator(settings)
@@ -333,7 +333,7 @@ def render_tiled(client, source, frame=None, *, tile_size: int = DEFAULT_FARM_TI
         check_denoiser()
     tiles = frame_tiles(settings, tile_size)
     h, w = settings.height, settings.width
-    from .tiles import empty_aovs
+    from .integrator.tiles import empty_aovs
 
     image = Image(rgba=np.zeros((h, w, 4), np.float32), aovs=empty_aovs(settings, h, w))
     start = time.perf_counter()
@@ -365,8 +365,9 @@ def _settings_task(source, frame, assets=None) -> RenderSettings:
 
 
 def _prefilter_task(source, frame, assets=None) -> str:
-    """How the client's denoise treats the frame's guides (tracer.tiles.guide_prefilter of the worker's scene)."""
-    from .tiles import guide_prefilter
+    """How the client's denoise treats the frame's guides (tracer.integrator.tiles.guide_prefilter of the worker's
+    scene)."""
+    from .integrator.tiles import guide_prefilter
 
     return guide_prefilter(prepared(_with_assets(source, assets), frame)[0])
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .texture import linear_to_srgb, srgb_to_linear
+from .colorspace import linear_to_srgb, srgb_to_linear
 
 LINEAR_EXTENSIONS = (".exr", ".hdr")
 

@@ -55,7 +55,7 @@ def sources_digest() -> str:
         dirs[:] = sorted(d for d in dirs if d != "__pycache__")
         for name in sorted(f for f in files if f.endswith(".py")):
             with open(os.path.join(root, name), "rb") as f:
-                h.update(name.encode() + b"\0" + f.read())
+                h.update(os.path.relpath(os.path.join(root, name), here).encode() + b"\0" + f.read())
     return h.hexdigest()[:16]
 
 
@@ -195,6 +195,9 @@ class Kernel:
     numba types a global by its ``_numba_type_`` and inlines a callee by its ``targetoptions`` and ``py_func``
     (duck-typed in both places), so a kernel that calls this one compiles as with the dispatcher itself; machine
     code loaded from the cache never looks at its callees at all."""
+
+    #: How :mod:`tracer.kernel_cache` tells a kernel among a function's globals (it does not import this module).
+    is_tracer_kernel = True
 
     def __init__(self, fn, opts: dict):
         functools.update_wrapper(self, fn)

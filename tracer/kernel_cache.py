@@ -39,9 +39,9 @@ import threading
 import time
 import types as pytypes
 
-import numpy as np
 import numba
 import numba.core.event
+import numpy as np
 from numba.core.caching import CompileResultCacheImpl, FunctionCache, _CacheLocator
 
 #: Environment variable naming the kernel cache folder (a render farm's shared disk, a test's temporary folder).
@@ -160,9 +160,7 @@ def _feed_function(h, fn, visiting: set, calls: list) -> None:
 
 def _feed_value(h, v, names: set, visiting: set, calls: list) -> None:
     """What of global ``v`` can change the machine code of a kernel that reads it."""
-    from .jit import Kernel  # (tracer.jit imports this module)
-
-    if isinstance(v, Kernel):
+    if getattr(type(v), "is_tracer_kernel", False):  # a tracer.jit.Kernel (tracer.jit imports this module)
         h.update(f"{_rel(v.__module__)}.{v.__qualname__}".encode())
         calls.append(v)
         return
@@ -203,7 +201,7 @@ def _ours(module: str | None) -> bool:
 
 
 def _rel(module: str) -> str:
-    """A tracer module's name as in the repository (``tracer.integrator``), wherever this copy is imported from:
+    """A tracer module's name as in the repository (``tracer.integrator.wavefront``), wherever this copy is imported from:
     keys and file names are the same for the add-on's copy, a bundle built from the repository and the CLI."""
     return "tracer" + module[len(_PKG):] if _ours(module) else module
 

@@ -33,7 +33,8 @@ import sys
 import threading
 import zlib
 
-from . import embree, jit, kernel_cache
+from . import jit, kernel_cache
+from .accel import embree
 
 #: The plan shipped with the tracer (made by ``python -m tools.kernel_plan``).
 PLAN = os.path.join(os.path.dirname(os.path.abspath(__file__)), "kernel_plan.json")

@@ -1,7 +1,7 @@
 """PNG files written while the render runs: finished bands of rows are encoded on a writer thread.
 
 :class:`StreamedPNG` is handed to :func:`tracer.render` as its ``on_tile`` callback. Tiles arrive row by row
-(:func:`tracer.tiles.tiles_of`); once every tile of a band of rows is in the film, the band is queued, and a
+(:func:`tracer.integrator.tiles.tiles_of`); once every tile of a band of rows is in the film, the band is queued, and a
 writer thread turns it into 8-bit sRGB and passes it to libpng through OpenImageIO (``write_scanlines``, which
 runs without the GIL), while the tile threads trace the next rows. When the render returns only the last band is
 left to encode. The file is the one :func:`tracer.film.write_image` writes (same OpenImageIO settings, same

@@ -1,18 +1,17 @@
 """``tracer.render(scene, settings)``: a :class:`tracer.Session` made for one render (the tile loop is
-:mod:`tracer.tiles`, under the session).
+:mod:`tracer.integrator.tiles`, under the session).
 """
 
 from __future__ import annotations
 
 import time
 
-from .accel import Accelerator
+from .accel.accelerator import Accelerator
 from .film import Image
+from .integrator.tiles import RenderCancelled, render_session, render_tile, tiles_of  # noqa: F401 — their former home
 from .scene import Scene
 from .session import Session
 from .settings import RenderSettings
-from .tiles import RenderCancelled, render_session, render_tile, tiles_of  # noqa: F401 — their former home
-
 
 
 def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None, cancelled=None,
@@ -22,7 +21,7 @@ def render(scene: Scene, settings: RenderSettings | None = None, *, on_tile=None
     on_tile(image, (x0, y0, x1, y1)) is called after each tile is written (in the calling thread), for progressive
     display; cancelled() is polled while the Embree scene is built and then between tiles and depths, and a True
     ends the render with :class:`RenderCancelled` (its ``image`` the tiles done so far, or None when it came
-    during the build). ``accel``: an :class:`~tracer.accel.Accelerator` already built over this scene (kept for
+    during the build). ``accel``: an :class:`~tracer.accel.accelerator.Accelerator` already built over this scene (kept for
     callers that hold one; a :class:`tracer.Session` is the way to keep a prepared scene across renders).
     """
     if not isinstance(scene, Scene):

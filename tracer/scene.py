@@ -15,11 +15,11 @@ import numpy as np
 
 from . import scene_kernels
 from .camera import Camera
-from .environment import Environment
-from .lights import AreaLight, DistantLight, PointLight, SpotLight
-from .materials import Materials
-from .motion import Motion
-from .texture import as_texture
+from .geometry.motion import Motion
+from .lights.emitters import AreaLight, DistantLight, PointLight, SpotLight
+from .lights.environment import Environment
+from .shading.materials import Materials
+from .shading.texture import as_texture
 
 #: Triangles whose area is at most this fraction of the squared bounding-box diagonal are degenerate and skipped.
 DEGENERATE_AREA = 1e-14
@@ -216,22 +216,22 @@ class Scene:
     object_transforms: np.ndarray | None = None
     #: Optional shared-mesh instances (see :class:`Instances`); None: a triangle soup in world space.
     instances: Instances | None = None
-    #: Optional :class:`tracer.motion.Motion`: what moves across the shutter (motion blur); None: nothing moves.
+    #: Optional :class:`tracer.geometry.motion.Motion`: what moves across the shutter (motion blur); None: nothing moves.
     motion: object | None = None
-    #: Optional (O,) uint8 per object id: the ray types that see it (tracer.linking: CAMERA | GLOSSY |
+    #: Optional (O,) uint8 per object id: the ray types that see it (tracer.lights.linking: CAMERA | GLOSSY |
     #: TRANSMISSION | SHADOW); None = every object seen by every ray.
     object_visibility: np.ndarray | None = None
-    #: One tracer.linking.LightLink per light of ``lights`` (receivers, blockers, cast shadow, diffuse / glossy),
+    #: One tracer.lights.linking.LightLink per light of ``lights`` (receivers, blockers, cast shadow, diffuse / glossy),
     #: or empty: no light is linked.
     light_links: list = field(default_factory=list)
-    #: {object id: tracer.linking.LightLink} for light-linked emitting objects (receivers, blockers): each becomes a
-    #: MESH light of its own (tracer.lights.pack_lights); empty: every emitting triangle is one light.
+    #: {object id: tracer.lights.linking.LightLink} for light-linked emitting objects (receivers, blockers): each becomes a
+    #: MESH light of its own (tracer.lights.emitters.pack_lights); empty: every emitting triangle is one light.
     emitter_links: dict = field(default_factory=dict)
     #: Optional (O,) bool per object id: the object is a holdout (Cycles' object / collection holdout): where the
-    #: eye path meets it, the pixel is cut out (alpha reduced, colour zero; tracer.compose). Ids past the end: False.
+    #: eye path meets it, the pixel is cut out (alpha reduced, colour zero; tracer.integrator.compose). Ids past the end: False.
     object_holdout: np.ndarray | None = None
     #: Optional (O,) bool per object id: the object is a shadow catcher (Blender's ``is_shadow_catcher``): invisible
-    #: in the beauty except for the shadows other objects cast on it (tracer.compose). Ids past the end: False.
+    #: in the beauty except for the shadows other objects cast on it (tracer.integrator.compose). Ids past the end: False.
     object_shadow_catcher: np.ndarray | None = None
 
     def __post_init__(self):
@@ -358,7 +358,7 @@ class Scene:
         if self.motion is None:
             return
         if not isinstance(self.motion, Motion):
-            raise ValueError("scene.motion must be a tracer.motion.Motion or None")
+            raise ValueError("scene.motion must be a tracer.geometry.motion.Motion or None")
         self.motion.validate(len(self.vertices), len(self.instances) if self.instances is not None else 0)
         if self.motion.empty:
             self.motion = None
@@ -511,3 +511,73 @@ class Scene:
 
     def object_name(self, object_id: int) -> str:
         return self.object_names[object_id] if 0 <= object_id < len(self.object_names) else f"object{object_id}"
+
+
+# ------------------------------------------------------------------------------------------------ flattening
+def flatten(scene, chunk: int = 1024):
+    """``scene`` with every instance copied out into world-space triangles (the triangle soup of a scene built
+    with ``SceneBuilder.add_mesh(transform=M)`` per instance): positions by M, per-corner normals by the inverse
+    transpose, corners 1 and 2 swapped under a mirroring M (every per-corner field: normals, UV sets, colours),
+    each copy carrying its instance's object id and material override; prototypes are dropped. A scene without
+    instances is returned as it is. For tools and tests that want the flat arrays (the renderer never flattens)."""
+
+    inst = scene.instances
+    if inst is None or not len(inst):
+        return scene
+    world = np.flatnonzero(~scene.prototype_rows())
+    verts = [np.asarray(scene.vertices, np.float32)]
+    tris = [scene.triangles[world]]
+
+    def arrays(f):  # a per-triangle field as a list of arrays (list-valued fields have several), or None
+        a = getattr(scene, f)
+        return None if a is None else (list(a) if isinstance(a, list) else [a])
+
+    fields = {f: arrays(f) for f in PER_TRIANGLE}
+    if scene.normals_per_vertex:  # rows of triangles: per corner
+        fields["normals"] = [scene.corner_normals()]
+    if scene.uvs_per_vertex:
+        fields["uv_sets"] = [scene.corner_uvs(k) for k in range(len(scene.uv_sets))]
+    parts = {f: None if a is None else [[x[world]] for x in a] for f, a in fields.items()}
+    n_v = len(scene.vertices)
+    overrides = inst.material_overrides()
+    for p in np.unique(inst.prototypes):
+        prow = np.flatnonzero(scene.object_ids == p)
+        sel_all = np.flatnonzero(inst.prototypes == p)
+        if not len(prow):
+            continue
+        used, local = np.unique(scene.triangles[prow], return_inverse=True)
+        local = local.reshape(-1, 3)
+        pv = np.asarray(scene.vertices[used], np.float64)
+        for c in range(0, len(sel_all), chunk):
+            sel = sel_all[c:c + chunk]
+            m = inst.transforms[sel]
+            k = len(sel)
+            placed = np.einsum("kij,vj->kvi", m[:, :3, :3], pv) + m[:, None, :3, 3]
+            mirrored = np.linalg.det(m[:, :3, :3]) < 0
+            t = local[None] + (n_v + np.arange(k) * len(pv))[:, None, None]
+            t[mirrored] = t[mirrored][:, :, [0, 2, 1]]
+            verts.append(placed.reshape(-1, 3).astype(np.float32))
+            tris.append(t.reshape(-1, 3))
+            n_v += k * len(pv)
+            for f, arrs in fields.items():
+                for a, out in zip(arrs or [], parts[f] or []):
+                    rows = np.broadcast_to(a[prow], (k,) + a[prow].shape).copy()
+                    if f == "object_ids":
+                        rows[:] = inst.object_ids[sel][:, None]
+                    elif f == "material_ids":
+                        rows = np.where(overrides[sel][:, None] >= 0, overrides[sel][:, None], rows)
+                    elif f == "normals":
+                        nm = np.linalg.inv(m[:, :3, :3]).transpose(0, 2, 1)
+                        rows = np.einsum("kij,ktcj->ktci", nm, rows.astype(np.float64)).astype(np.float32)
+                    if rows.ndim >= 3 and rows.shape[2] == 3:  # per-corner data: corners turned with the winding
+                        rows[mirrored] = rows[mirrored][:, :, [0, 2, 1]]
+                    out.append(rows.reshape((-1,) + a.shape[1:]))
+    flat = {f: None if p is None else [np.concatenate(x) for x in p] for f, p in parts.items()}
+    flat = {f: (v if isinstance(getattr(scene, f), list) or v is None else v[0]) for f, v in flat.items()}
+    if "uv_sets" in flat:
+        flat["uv_sets"] = flat["uv_sets"] or []
+    return Scene(vertices=np.concatenate(verts), triangles=np.concatenate(tris).astype(np.int32),
+                 materials=scene.materials, camera=scene.camera, lights=list(scene.lights),
+                 textures=list(scene.textures), background=scene.background, ambient=scene.ambient,
+                 object_names=list(scene.object_names), object_pass_indices=scene.object_pass_indices,
+                 environment=scene.environment, object_transforms=scene.object_transforms, **flat)

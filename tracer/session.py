@@ -45,18 +45,18 @@ import warnings
 
 import numpy as np
 
-from .accel import Accelerator
-from .embree import BuildCancelled
+from .accel.accelerator import Accelerator
+from .accel.embree import BuildCancelled
 from .builder import _corner_extras, place_mesh
 from .camera import Camera
-from .environment import Environment
 from .film import Image
-from .integrator import Integrator
-from .lights import AreaLight, DistantLight, PointLight, SpotLight
-from .materials import Materials
+from .integrator.tiles import RenderCancelled, render_session
+from .integrator.wavefront import Integrator
+from .lights.emitters import AreaLight, DistantLight, PointLight, SpotLight
+from .lights.environment import Environment
 from .scene import PER_TRIANGLE, Instances, Scene, non_degenerate, singular, unit_normals
 from .settings import RenderSettings, integrator_key
-from .tiles import RenderCancelled, render_session
+from .shading.materials import Materials
 
 #: Sentinel for ``update_world`` arguments that stay as they are.
 KEEP = object()
@@ -70,7 +70,7 @@ class Session:
     RTC_BUILD_QUALITY_*; "high" traces fastest, "low" builds fastest, for scenes edited while they are looked at).
     ``instanced``: every object an Embree instance of its own mesh (edits touch only that object; the default),
     or one flat BVH over all triangles (a little faster to trace, but every geometry edit rebuilds it all: what
-    the one-off :func:`tracer.render` uses). ``accel``: an already built :class:`~tracer.accel.Accelerator`.
+    the one-off :func:`tracer.render` uses). ``accel``: an already built :class:`~tracer.accel.accelerator.Accelerator`.
     ``cancelled``: polled while the Embree scene is built (between objects and inside Embree's builds); True
     stops the construction with :class:`tracer.RenderCancelled` (its ``image`` is None).
     """
@@ -246,7 +246,7 @@ class Session:
         return render_session(self, settings, on_tile=on_tile, cancelled=cancelled)
 
     def integrator(self, settings: RenderSettings):
-        """The :class:`tracer.integrator.Integrator` for ``settings`` (packed tables), made once per settings
+        """The :class:`tracer.integrator.wavefront.Integrator` for ``settings`` (packed tables), made once per settings
         until an edit other than the camera drops it."""
         key = integrator_key(settings)
         with self._lock:

@@ -22,7 +22,7 @@ from dataclasses import MISSING, dataclass, field, fields, replace
 
 AOV_NAMES = ("depth", "normal", "albedo", "objectid", "direct", "reflection", "transmission", "raydepth",
              "shadow_catcher", "denoising_albedo", "denoising_normal")
-#: The denoiser's guides (tracer/guides.py), Cycles' Denoising Albedo and Denoising Normal passes: made whenever
+#: The denoiser's guides (tracer/integrator/guides.py), Cycles' Denoising Albedo and Denoising Normal passes: made whenever
 #: ``RenderSettings.denoise`` is on, written as AOVs when asked.
 GUIDE_AOVS = ("denoising_albedo", "denoising_normal")
 #: AOVs that split the beauty by the ray type light arrived through (they sum to it), and the deepest ray per pixel.

@@ -5,8 +5,8 @@ from the cache (tracer/kernel_cache.py). :func:`compile_kernels` is for preparin
 warmup``, the Blender add-on's child process, and the kernels shipped in the add-on's zip (tracer/kernel_bundle.py).
 It renders a tiny scene that takes every path through the kernels (all light kinds with and without extent, shading
 normals, a texture, mirror, glass, alpha, emission, sky visibility, the denoiser's guides: F12 denoises by default),
-then the same scene with motion blur (a moving
-and a deforming object, a moving camera, a shutter curve: tracer/motion.py's kernels and the stages' timed paths).
+then the same scene with motion blur (a moving and a deforming object, a moving camera, a shutter curve:
+tracer/geometry/motion.py's kernels and the stages' timed paths).
 docs/benchmarks.md ("Ready at install") has what that costs, measured.
 """
 
@@ -16,9 +16,9 @@ import numpy as np
 
 from .builder import SceneBuilder
 from .camera import Camera
+from .geometry.motion import Motion, curve_table
 from .jit import mark_kernels_cached
-from .lights import AreaLight, DistantLight, PointLight, SpotLight
-from .motion import Motion, curve_table
+from .lights.emitters import AreaLight, DistantLight, PointLight, SpotLight
 from .render import render
 from .settings import RenderSettings
 
@@ -52,7 +52,7 @@ def compile_kernels() -> None:
                               aovs=("depth", "denoising_albedo", "denoising_normal"), transparent=True)
     render(b.build(), settings)
     render(_with_motion(b), settings)
-    b.materials[glass]["alpha"] = 1.0  # nothing see-through: shadow rays take plain occlusion (tracer/alpha.py)
+    b.materials[glass]["alpha"] = 1.0  # nothing see-through: shadow rays take plain occlusion (tracer/accel/alpha.py)
     render(b.build(), settings)
     mark_kernels_cached()
 

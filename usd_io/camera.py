@@ -19,8 +19,8 @@ from tracer import ORTHOGRAPHIC, PERSPECTIVE, Camera, fit_apertures
 from tracer.camera import lens_radius
 from tracer.settings import default_of
 
+from .geometry.xform import to_numpy
 from .stage import UsdInputError
-from .xform import to_numpy
 
 #: UsdRender's fallback aspectRatioConformPolicy (expandAperture), as Arnold renders a stage camera: the
 #: aperture's short side grows until it has the image's aspect (usd_io.render_settings has all five policies).

@@ -37,8 +37,7 @@ import numpy as np
 
 from .errors import UsdInputError
 from .outputs import BadInput, Outputs, check_output, frame_path, output_for, print_warnings, product_path, warn
-from .request import (StageRequest, add_request_flags, add_settings_flags, settings_from_args,
-                      split_purposes)
+from .request import StageRequest, add_request_flags, add_settings_flags, settings_from_args, split_purposes
 
 __all__ = ["main", "run", "build_parser", "parse_frames", "BadInput", "UsdInputError", "split_purposes",
            "frame_path", "output_for"]
@@ -312,8 +311,8 @@ def render_file(request: StageRequest, settings, output: str, frames, outputs: O
 
 
 def check_size(scene_path: str, settings) -> None:
-    """BadInput when the render needs more memory than the machine has (tracer.tiles.check_memory's estimate)."""
-    from tracer.tiles import RenderTooLarge, check_memory
+    """BadInput when the render needs more memory than the machine has (tracer.integrator.tiles.check_memory's estimate)."""
+    from tracer.integrator.tiles import RenderTooLarge, check_memory
 
     try:
         check_memory(settings)
@@ -441,7 +440,7 @@ def cmd_info(args) -> int:
         print(f"render settings: {rs.path}: {info.width}x{info.height}, {rs.conform}, products "
               f"{', '.join(rs.products) or 'none'}, AOVs {', '.join(rs.aovs) or 'none'}", file=out)
     from tracer import RenderSettings
-    from tracer.tiles import available_memory, describe_memory, format_bytes
+    from tracer.integrator.tiles import available_memory, describe_memory, format_bytes
 
     size = RenderSettings(width=info.width, height=info.height)
     free = available_memory()
@@ -528,7 +527,7 @@ def main(argv=None) -> int:
     except SystemExit as exc:  # --help
         return int(exc.code or 0)
     except Exception as exc:  # noqa: BLE001 — a real fault: show where
-        tiles = sys.modules.get("tracer.tiles")
+        tiles = sys.modules.get("tracer.integrator.tiles")
         if tiles is not None and isinstance(exc, tiles.RenderTooLarge):  # a size no command can render (explain)
             print(f"whitted: error: {' '.join(str(exc).split())}", file=sys.stderr)
             return EXIT_BAD_INPUT

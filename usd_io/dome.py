@@ -35,7 +35,7 @@ from pxr import Sdf, UsdGeom, UsdLux
 
 import tracer
 
-from .texture_files import read_texture_file
+from .materials.texture_files import read_texture_file
 
 #: Dome-local (pole +Y, centre +Z) -> Cycles equirect frame (pole +Z, centre +X).
 USD_TO_CYCLES = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])

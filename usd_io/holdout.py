@@ -1,7 +1,7 @@
 """Holdouts from USD: ``primvars:arnold:matte`` (bool, constant; inherited from an ancestor as constant primvars
 are), the one convention real files carry (Arnold's USD schema; Houdini and production pipelines author it to
 turn objects into holdouts). USD has no renderer-neutral holdout or shadow-catcher schema, so shadow catchers are
-not read from USD. A matte object is a holdout object in the tracer (``Scene.object_holdout``, tracer.compose)."""
+not read from USD. A matte object is a holdout object in the tracer (``Scene.object_holdout``, tracer.integrator.compose)."""
 
 from __future__ import annotations
 

@@ -33,7 +33,7 @@ Blender writes ``enableColorTemperature = 1`` on every light without a temperatu
 6500 K fallback would tint every light by (1.04, 0.98, 1.03). An authored temperature is USD's blackbody colour
 divided by its 6500 K value, so 6500 K is white as in Blender.
 
-Linking (:func:`light_links`, tracer/linking.py): ``collection:lightLink`` (the objects a light lights) and
+Linking (:func:`light_links`, tracer/lights/linking.py): ``collection:lightLink`` (the objects a light lights) and
 ``collection:shadowLink`` (the objects that shadow it), UsdCollectionAPI membership as pxr computes it
 (``ComputeMembershipQuery`` / ``IsPathIncluded``: includeRoot, includes, excludes, expansion rule, membership
 expressions) over each object's prim path (a PointInstancer's instances: the instancer's path);
@@ -51,7 +51,7 @@ import numpy as np
 from pxr import Sdf, UsdGeom, UsdLux
 
 from tracer import AreaLight, DistantLight, PointLight, SpotLight
-from tracer.linking import LightLink
+from tracer.lights.linking import LightLink
 
 from .dome import dome_texture
 from .exporters import KIT_EV, NITS_TO_W_PER_M2, detect
@@ -326,7 +326,7 @@ def _members(collection, paths: list) -> np.ndarray | None:
 
 
 def light_links(prims: list, object_names: list, time) -> list:
-    """One :class:`tracer.linking.LightLink` per light prim (None: a light of no prim, e.g. the default light);
+    """One :class:`tracer.lights.linking.LightLink` per light prim (None: a light of no prim, e.g. the default light);
     ``object_names`` are the scene's object names, prim paths (``path[...]`` for a PointInstancer's pieces and
     instances). Empty when no light is linked."""
     paths = [str(n).split("[", 1)[0] if str(n).startswith("/") else "/" for n in object_names]

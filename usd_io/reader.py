@@ -18,25 +18,25 @@ from tracer import SceneBuilder
 from tracer.scene import instance_bounds
 
 from . import camera as cam
-from .curves import read_curves, read_points
-from .gprims import DEFAULT_SEGMENTS, GPRIM_TYPES, read_gprim
-from .instancing import instance_matrices
-from .arnold import render_globals as arnold_render_globals
-from .dome import environment
-from .layer_metadata import meters_per_unit
 from .diagnostics import summarize
+from .dome import environment
 from .exporters import light_units as exporter_light_units
-from .lights import convert_light, default_lights, light_links
+from .geometry.curves import read_curves, read_points
+from .geometry.gprims import DEFAULT_SEGMENTS, GPRIM_TYPES, read_gprim
+from .geometry.instancing import instance_matrices
+from .geometry.mesh import COMPLEXITY, DEFAULT_COMPLEXITY, SUBDIVIDED, MeshData, read_mesh, read_subdivided
+from .geometry.motion import stage_motion
+from .geometry.nurbs import read_nurbs_curves, read_nurbs_patch, read_tet_mesh
+from .geometry.skel import Skinning
+from .geometry.xform import Transforms, transform_points
 from .holdout import holdout_flags
-from .material import MaterialTable
+from .layer_metadata import meters_per_unit
+from .lights import convert_light, default_lights, light_links
+from .materials.arnold import render_globals as arnold_render_globals
+from .materials.table import MaterialTable
 from .render_settings import CONFORM, DEFAULT_CONFORM, crop_to_data_window, read_render_settings
-from .nurbs import read_nurbs_curves, read_nurbs_patch, read_tet_mesh
-from .mesh import COMPLEXITY, DEFAULT_COMPLEXITY, SUBDIVIDED, MeshData, read_mesh, read_subdivided
-from .skel import Skinning
-from .stage import (DEFAULT_PURPOSES, captured_stderr, UsdInputError, check_purposes, composition_warnings, open_stage,
+from .stage import (DEFAULT_PURPOSES, UsdInputError, captured_stderr, check_purposes, composition_warnings, open_stage,
                     renderable_prims, stage_messages, stage_time)
-from .motion import stage_motion
-from .xform import Transforms, transform_points
 
 
 @dataclass
@@ -87,7 +87,7 @@ class _Reader:
         self._todo, self._todo_at = [], {}  # meshes to refine ahead, and the position of each
 
     def prefetch_subdivided(self, prims) -> None:
-        """Refine the subdivision meshes among ``prims`` in batches of PREFETCH_MESHES (usd_io.mesh.read_subdivided:
+        """Refine the subdivision meshes among ``prims`` in batches of PREFETCH_MESHES (usd_io.geometry.mesh.read_subdivided:
         the meshes of one topology in a batch refined once) ahead of adding them one by one: geometry() takes them
         from here, refining the next batch when it reaches a mesh not yet refined. Skinned meshes (posed before
         refinement) and all but one proxy of each instance prototype are left out."""
@@ -387,7 +387,7 @@ def _is_points_or_curves(prim) -> bool:
     return any(prim.IsA(t) for t in OTHER_GPRIMS)
 
 
-#: Gprim schemas besides Mesh and the implicit shapes of usd_io.gprims, each with its reader in geometry().
+#: Gprim schemas besides Mesh and the implicit shapes of usd_io.geometry.gprims, each with its reader in geometry().
 OTHER_GPRIMS = (UsdGeom.Points, UsdGeom.BasisCurves, UsdGeom.NurbsCurves, UsdGeom.NurbsPatch, UsdGeom.TetMesh)
 
 
@@ -499,7 +499,7 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
 
 
     _camera(stage, r, info, tc, camera, width, height, render_settings_prim, depth_of_field)
-    arnold_render_globals(stage, r.prims, info.warn)  # usd_io.arnold: Arnold backgrounds and atmospheres, named
+    arnold_render_globals(stage, r.prims, info.warn)  # usd_io.materials.arnold: Arnold backgrounds and atmospheres, named
     if default_light and not info.lights:
         sun, dome = default_lights(r.b.camera)
         r.b.add_light(sun)
@@ -516,7 +516,7 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
         links = []
     try:
         scene = r.b.build()
-        # motion blur across the camera's shutter (usd_io.motion.stage_motion; nothing when it is closed)
+        # motion blur across the camera's shutter (usd_io.geometry.motion.stage_motion; nothing when it is closed)
         blur = motion_blur and (info.render_settings is None or info.render_settings.motion_blur)
         stage_motion(stage, scene, tc, info.camera, blur, r.subdivision_level, info.warn)
     except ValueError as exc:  # the tracer's validation of what was read (e.g. a NaN material input)

@@ -16,8 +16,8 @@ import tempfile
 from pxr import Sdf, Usd, UsdGeom
 
 from .diagnostics import summarize
-from .mtlx import resolve_mtlx_references
 from .errors import UsdInputError  # noqa: F401  (raised here; usd_io.stage.UsdInputError stays importable)
+from .materials.mtlx import resolve_mtlx_references
 
 #: The purposes a render includes by default (usdrecord's default is the same pair).
 DEFAULT_PURPOSES = ("default", "render")
@@ -61,7 +61,7 @@ def open_stage(path_or_stage) -> Usd.Stage:
         except Exception as exc:  # pxr raises Tf.ErrorException with a multi-line message
             detail = _first_reason(str(exc))
         if stage is not None:
-            resolve_mtlx_references(stage)  # .mtlx references: usd-core cannot read them (usd_io.mtlx)
+            resolve_mtlx_references(stage)  # .mtlx references: usd-core cannot read them (usd_io.materials.mtlx)
     if stage is None:
         detail = detail or _first_reason("".join(text))
         raise UsdInputError(f"{path}: not a readable USD file" + (f" ({detail})" if detail else ""))

@@ -1,7 +1,7 @@
 """Compositing against Cycles through the add-on: a shadow catcher plane under a ball (Combined with a transparent
 and an opaque film, and the Shadow Catcher pass) and a holdout card in front of a lit ball (object holdout,
 collection holdout, the Holdout shader and a Mix Shader of Holdout and the card's BSDF): colour and alpha
-(tracer.compose)."""
+(tracer.integrator.compose)."""
 
 import math
 

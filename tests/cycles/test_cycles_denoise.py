@@ -4,7 +4,7 @@ tracer's API (the scene built from the numbers) and through F12 of the add-on (B
 denoised), issue #33.
 
 Cycles takes one random ray per bounce, so its passes are noisy where the chain splits (glass); ours are their
-expectation (tracer/guides.py). The bars are in cycles_thresholds.py."""
+expectation (tracer/integrator/guides.py). The bars are in cycles_thresholds.py."""
 
 import os
 

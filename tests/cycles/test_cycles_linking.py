@@ -1,4 +1,4 @@
-"""Light linking, shadow linking and ray visibility (tracer/linking.py) against Cycles, through the add-on: the same
+"""Light linking, shadow linking and ray visibility (tracer/lights/linking.py) against Cycles, through the add-on: the same
 Blender scene with the same links rendered by both. And through USD: Blender's USD export of the scene (which
 writes no linking) with the links authored as UsdLux ``collection:lightLink`` / ``collection:shadowLink`` and
 ``inputs:diffuse`` / ``inputs:specular``, read by usd_io, within 1 dB of the add-on's render.
@@ -37,7 +37,7 @@ def _desc(name, objects=None, depth=0, lights=LIGHTS, samples=64):
                  depth=depth, samples=samples, ours_samples=4, width=64, height=48)
 
 
-#: An emissive panel facing down over the objects (a mesh light of its own once linked: tracer/lights.py).
+#: An emissive panel facing down over the objects (a mesh light of its own once linked: tracer/lights/emitters.py).
 PANEL = obj("Panel", "plane", "glow", matrix=trs((0.0, 0.3, 3.2), (np.pi, 0, 0)), params=dict(size=(2.0, 1.2)),
             pass_index=5)
 
@@ -164,7 +164,7 @@ def _ours_usd(desc, links, workdir):
     return scene_
 
 
-#: Object ray visibility and emissive meshes' links have no renderer-neutral USD form (tracer/linking.py,
+#: Object ray visibility and emissive meshes' links have no renderer-neutral USD form (tracer/lights/linking.py,
 #: usd_io/lights.py): not in USD.
 USD_CASES = [k for k, (_, links) in CASES.items() if "objects" not in links and not k.startswith("emitter")]
 

@@ -5,7 +5,7 @@ value (the picture *is* the program's value: orthographic camera looking straigh
 plane edges on pixel edges), all in one Blender scene and one render; each plane's pixels are compared on their
 own (>= 40 dB). Lit grid: spheres under a sun for what needs light and a view (Bump, Layer Weight / Fresnel mixes,
 Add Shader, Object Info Random) and artist-style materials built as node trees (>= 33 dB). Closure grid: Mix / Add
-Shader trees summed as lobes (tracer.lobes) with secondary rays: coats mixed by Fresnel / Layer Weight reflecting a
+Shader trees summed as lobes (tracer.shading.lobes) with secondary rays: coats mixed by Fresnel / Layer Weight reflecting a
 floor, Diffuse + Glass, Diffuse + tinted Transparent, Emission + Diffuse (>= 33 dB). Group / mute / reroute
 plumbing is part of the emission grid; planes that read object space are turned and scaled (:data:`TURNED`). World:
 a world-only view of a procedural world tree, which the add-on evaluates with the VM per direction (>= 40 dB).
@@ -959,7 +959,7 @@ def test_lit_material_matches_cycles(lit_pair, tmp_path, name):
 
 @pytest.mark.parametrize("name", list(CLOSURES))
 def test_closure_sum_matches_cycles(closure_pair, tmp_path, name):
-    """Mix / Add Shader trees as weighted sums of lobes (tracer.lobes), with secondary rays (depth 4)."""
+    """Mix / Add Shader trees as weighted sums of lobes (tracer.shading.lobes), with secondary rays (depth 4)."""
     ours, ref, _warnings = closure_pair
     rs, cs = tiles(list(CLOSURES), CLOSURE_COLS, LIT_TILE, 1)[name]
     H.check_images({"name": name}, ours[rs, cs], ref[rs, cs], tmp_path, min_psnr=LIT_PSNR_MIN, max_mae=0.02,

@@ -1,4 +1,4 @@
-"""tracer.procedural against Cycles: every texture and colour function, one emission-only tile per variant.
+"""tracer.shading.procedural against Cycles: every texture and colour function, one emission-only tile per variant.
 
 One Blender scene holds a grid of 2 × 2 planes, one per variant, seen from above by an orthographic camera at 64 × 64
 pixels a tile. Each plane's material reads Object coordinates, snaps them to its pixel's centre inside the shader
@@ -23,8 +23,8 @@ import pytest
 import cycles_harness as H
 
 from blender_kit import scene as bs
-from tracer import shader_ops
-from tracer.procedural import color, noise, patterns, voronoi
+from tracer.shading import ops as shader_ops
+from tracer.shading.procedural import color, noise, patterns, voronoi
 
 pytestmark = pytest.mark.cycles
 

@@ -1,7 +1,7 @@
 """The shader VM's ops against Cycles: emission-only planes whose colour is a small node program of the UVs.
 
 Each case is one description of a node tree, built twice: as Blender nodes (rendered by Cycles, cached by content
-hash) and as the tracer's IR (tracer.shader_graph; the same node types and socket names), evaluated by the VM on
+hash) and as the tracer's IR (tracer.shading.graph; the same node types and socket names), evaluated by the VM on
 the same plane, camera and UVs (the add-on's export of the Blender scene, its material replaced by the IR graph).
 The picture is the program's value at each pixel, so agreement is that of the arithmetic (≥ 40 dB).
 """
@@ -159,7 +159,7 @@ def _blender_tree(nodes: dict, output):
 
 
 def _ir_graph(nodes: dict, output):
-    from tracer.shader_graph import Graph
+    from tracer.shading.graph import Graph
 
     g = Graph("probe")
     made = {"uv": g.add("uvmap")}
@@ -200,7 +200,7 @@ def test_op_matches_cycles(bpy_module, tmp_path, name):
     import tracer
     from addon import export
     from blender_kit.cycles import whitted_cycles_settings
-    from tracer.shader_compile import BoundGraph, compile_graph
+    from tracer.shading.compiler import BoundGraph, compile_graph
 
     nodes, output = CASES[name]
     scene = _scene(nodes, output)
@@ -271,7 +271,7 @@ def test_bump_matches_cycles(bpy_module, tmp_path, name):
     import tracer
     from addon import export
     from blender_kit.cycles import whitted_cycles_settings
-    from tracer.shader_compile import BoundGraph, compile_graph
+    from tracer.shading.compiler import BoundGraph, compile_graph
 
     nodes, height, bump = BUMP_CASES[name]
 

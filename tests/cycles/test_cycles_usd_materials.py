@@ -18,7 +18,8 @@ import cycles_harness as H
 import usd_material_stages as S
 from cycles_thresholds import usd_material_bar
 from cycles_usd_import import cycles_reference_usd
-from tracer import RenderSettings, render
+from tracer import RenderSettings
+from tracer import render
 from usd_io import load_stage
 
 pytestmark = pytest.mark.cycles
@@ -175,7 +176,7 @@ def test_dome_orientation_matches_blender_import(bpy_module, tmp_path, name):
     from pxr import Usd
 
     from usd_io.dome import world_to_environment
-    from usd_io.xform import Transforms
+    from usd_io.geometry.xform import Transforms
 
     path = SCENES[name](str(tmp_path / name))
     ref = cycles_reference_usd(path, name, SIZE, SIZE, CYCLES_SAMPLES, depth=2)["rgb"]

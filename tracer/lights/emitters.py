@@ -1,0 +1,389 @@
+"""Light sources and what they deliver to a surface point.
+
+Every light answers one question for a point p: for each of its K samples, the unit direction l towards the
+light, the distance to it (the shadow ray's t_max), and E, the irradiance it delivers on a surface facing it, already
+divided by K. The shading of the seed then multiplies E by the BRDF and max(0, n·l); shadow rays decide which
+samples count. The light classes validate and hold a light; :func:`pack_lights` turns a scene's lights into one
+set of tables, and :func:`sample_light` (a kernel) answers the question for one point and one sample.
+
+Units are Blender's and Cycles' (measured in ``docs/units.md``):
+
+- :class:`PointLight`: radiant ``intensity`` I in W/sr per channel (a Blender point light of power P has
+  I = P / 4π). E = I / (r² + R²), Blender's soft falloff for radius R (R = 0: the inverse-square law).
+  A radius > 0 gives soft shadows by sampling points on the light's sphere.
+- :class:`SpotLight`: a point light whose E is multiplied by smoothstep of the cosine (Blender's spot blend).
+- :class:`DistantLight`: ``irradiance`` in W/m² on a surface facing the light (Blender's sun strength).
+- :class:`AreaLight`: a one-sided Lambertian rectangle or disk of ``radiance`` Le (W/m²/sr), sampled.
+- Emissive triangles (materials with ``emission``): one light made of every emitting triangle of the scene, each a
+  two-sided Lambertian emitter of radiance Le = the material's emission (Cycles' Emission shader: colour ×
+  strength). Its K samples pick triangles in proportion to their power (area × mean Le) and a uniform point on
+  the chosen one; E = Le·cos θ_l·A/(p·r²) per sample (p the triangle's pick probability), averaged over K.
+  When some emitting object is light-linked (``Scene.emitter_links``), each linked object's triangles are a MESH
+  light of their own (its own slice of the triangle tables and of the CDF) and the unlinked ones one more.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from .. import vec
+from ..jit import kernel
+from ..sampling import rotated_multijitter, stratum
+
+
+def _vec3(v, name):
+    a = np.asarray(v, dtype=np.float64).reshape(-1)
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise ValueError(f"light {name} must be 3 finite numbers, got {v!r}")
+    return a
+
+
+def _normalize(v, name):
+    a = _vec3(v, name)
+    n = np.linalg.norm(a)
+    if n == 0:
+        raise ValueError(f"light {name} must not be the zero vector")
+    return a / n
+
+
+@dataclass
+class PointLight:
+    position: np.ndarray
+    intensity: np.ndarray
+    radius: float = 0.0
+    name: str = "point"
+
+    def __post_init__(self):
+        self.position = _vec3(self.position, "position")
+        self.intensity = _vec3(self.intensity, "intensity")
+        self.radius = float(self.radius)
+        if not np.isfinite(self.radius) or self.radius < 0:
+            raise ValueError(f"light {self.name}: radius must be >= 0, got {self.radius}")
+
+    def sample_count(self, requested: int) -> int:
+        return 1 if self.radius == 0 else max(1, requested)
+
+    def uses_random(self, requested: int) -> bool:
+        return self.sample_count(requested) > 1
+
+
+@dataclass
+class SpotLight(PointLight):
+    direction: np.ndarray = None
+    cone_angle: float = np.pi / 4
+    blend: float = 0.15
+    name: str = "spot"
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.direction is None:
+            raise ValueError(f"light {self.name}: a spot light needs a direction")
+        self.direction = _normalize(self.direction, "direction")
+        self.cone_angle = float(self.cone_angle)
+        self.blend = float(self.blend)  # NaN fails the range checks below (comparisons with NaN are False)
+        if not (0 < self.cone_angle <= np.pi):
+            raise ValueError(f"light {self.name}: cone_angle must be in (0, π], got {self.cone_angle}")
+        if not (0 <= self.blend <= 1):
+            raise ValueError(f"light {self.name}: blend must be in [0, 1], got {self.blend}")
+
+
+@dataclass
+class DistantLight:
+    direction: np.ndarray
+    irradiance: np.ndarray
+    angle: float = 0.0
+    name: str = "sun"
+
+    def __post_init__(self):
+        self.direction = _normalize(self.direction, "direction")
+        self.irradiance = _vec3(self.irradiance, "irradiance")
+        self.angle = float(self.angle)
+        if not (0 <= self.angle < np.pi):
+            raise ValueError(f"light {self.name}: angle must be in [0, π), got {self.angle}")
+
+    def sample_count(self, requested: int) -> int:
+        return 1 if self.angle == 0 else max(1, requested)
+
+    def uses_random(self, requested: int) -> bool:
+        return self.sample_count(requested) > 1
+
+
+@dataclass
+class AreaLight:
+    """A one-sided Lambertian emitter centred at ``position``, spanning ``size`` along ``u_axis`` and ``v_axis``,
+    emitting along ``normal`` (Blender: the light's −Z). ``shape`` is "rect" or "disk" (an ellipse for unequal sizes)."""
+
+    position: np.ndarray
+    u_axis: np.ndarray
+    v_axis: np.ndarray
+    normal: np.ndarray
+    size: tuple = (1.0, 1.0)
+    radiance: np.ndarray = None
+    shape: str = "rect"
+    name: str = "area"
+
+    def __post_init__(self):
+        self.position = _vec3(self.position, "position")
+        self.u_axis = _normalize(self.u_axis, "u_axis")
+        self.v_axis = _normalize(self.v_axis, "v_axis")
+        self.normal = _normalize(self.normal, "normal")
+        self.size = (float(self.size[0]), float(self.size[1]))
+        if not all(np.isfinite(self.size)) or min(self.size) <= 0:
+            raise ValueError(f"light {self.name}: size must be > 0, got {self.size}")
+        if self.radiance is None:
+            raise ValueError(f"light {self.name}: an area light needs a radiance")
+        self.radiance = _vec3(self.radiance, "radiance")
+        if self.shape not in ("rect", "disk"):
+            raise ValueError(f"light {self.name}: shape must be 'rect' or 'disk', got {self.shape!r}")
+
+    @property
+    def area(self) -> float:
+        return AreaLight.area_of(self.size, self.shape)
+
+    @staticmethod
+    def area_of(size, shape: str = "rect") -> float:
+        """The emitting area of a ``size`` (sx, sy) light: a rectangle sx·sy, a disk (ellipse) π/4·sx·sy. The one
+        place this is written (the add-on's power conversion and its unnormalized lights use it)."""
+        sx, sy = size
+        return sx * sy if shape == "rect" else np.pi / 4 * sx * sy
+
+    def sample_count(self, requested: int) -> int:
+        return max(1, requested)
+
+    def uses_random(self, requested: int) -> bool:
+        return True
+
+
+Light = PointLight | SpotLight | DistantLight | AreaLight
+
+# ---------------------------------------------------------------------- the packed light tables
+#: Light kinds in the packed tables.
+POINT, SPOT, DISTANT, RECT, DISK, MESH = 0, 1, 2, 3, 4, 5
+
+
+class LightTables(NamedTuple):
+    """The scene's lights as the kernels read them, one row per light in each field (the fields a kind does not use
+    stay 0); the emissive triangles of the MESH lights (if any: the last rows, each a slice tri_start:tri_end) as
+    vertices, radiance and the cumulative distribution of their power within each slice."""
+
+    kind: np.ndarray  # (L,) int64: POINT, SPOT, DISTANT, RECT, DISK or MESH
+    side: np.ndarray  # (L,) int64: √ of the light's sample count
+    position: np.ndarray  # (L, 3) float64: point, spot, area centre
+    color: np.ndarray  # (L, 3) float64: intensity (W/sr), irradiance (W/m²) or radiance (W/m²/sr)
+    radius: np.ndarray  # (L,) float64: point and spot radius
+    direction: np.ndarray  # (L, 3) float64: spot axis, sun direction (travel), area normal (emitting side)
+    cos_cone: np.ndarray  # (L,) float64: spot, cos(size/2)
+    blend: np.ndarray  # (L,) float64: spot blend
+    cos_max: np.ndarray  # (L,) float64: sun, cos(angle/2)
+    u_axis: np.ndarray  # (L, 3) float64: area, unit edge directions
+    v_axis: np.ndarray  # (L, 3) float64
+    size: np.ndarray  # (L, 2) float64: area, extents along u and v
+    area: np.ndarray  # (L,) float64: area, its area
+    tri: np.ndarray  # (N, 3, 3) float64 emitting triangles, world space
+    tri_le: np.ndarray  # (N, 3) float64 their radiance
+    tri_cdf: np.ndarray  # (N,) float64 cumulative pick probability (power-proportional) within each light's slice
+    tri_start: np.ndarray  # (L,) int64: a MESH light's triangles are rows tri_start:tri_end (its CDF ends at 1)
+    tri_end: np.ndarray  # (L,) int64
+    emitter_object: np.ndarray  # (L,) int64: a MESH light's object id (-1: the unlinked emitters, or no MESH)
+
+
+def emitting_triangles(vertices, triangles, material_ids, emission):
+    """(tri (N, 3, 3), Le (N, 3)) of the triangles whose material emits."""
+    emission = np.asarray(emission, np.float64)
+    glowing = np.flatnonzero(emission.max(axis=1) > 0) if len(emission) else np.zeros(0, np.int64)
+    sel = np.flatnonzero(np.isin(material_ids, glowing))
+    tri = np.asarray(vertices, np.float64)[np.asarray(triangles)[sel]]
+    return tri, emission[np.asarray(material_ids)[sel]]
+
+
+def _canonical_order(tri: np.ndarray) -> np.ndarray:
+    """An order of emitting triangles that does not depend on how the scene listed them (flat or instanced, objects
+    in any order): by centroid, quantised to 1e-6 of the emitters' extent so that float rounding of the same
+    triangle placed two ways does not reorder it. The power CDF maps strata to triangles in this order."""
+    c = tri.mean(axis=1)
+    extent = float(np.ptp(c, axis=0).max()) if len(c) > 1 else 0.0
+    q = np.round(c / (extent * 1e-6)).astype(np.int64) if extent > 0 else np.zeros_like(c, np.int64)
+    return np.lexsort((q[:, 2], q[:, 1], q[:, 0]))
+
+
+def _emitter_groups(tri, tri_le, objects, linked) -> tuple:
+    """The emitting triangles with power > 0 as (tri, Le, cdf, groups): triangles of each group contiguous and in
+    canonical order, cdf the power CDF within each group (its last entry 1), groups a list of (object id or -1,
+    start, end). One group (-1) unless ``linked`` names emitting objects: then each of those its own group, after
+    the group of all the others."""
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    power = area * tri_le.mean(axis=1)
+    keep = power > 0
+    tri, tri_le, power = tri[keep], tri_le[keep], power[keep]
+    key = np.full(len(tri), -1, np.int64)
+    if objects is not None and len(linked):
+        obj = np.asarray(objects, np.int64)[keep]
+        own = np.isin(obj, np.asarray(sorted(linked), np.int64))
+        key[own] = obj[own]
+    rows, groups, cdfs = [], [], []
+    start = 0
+    for g in np.unique(key):
+        sel = np.flatnonzero(key == g)
+        sel = sel[_canonical_order(tri[sel])]  # the same emitters listed in another order sample the same points
+        c = np.cumsum(power[sel]) / power[sel].sum()
+        c[-1:] = 1.0
+        rows.append(sel)
+        cdfs.append(c)
+        groups.append((int(g), start, start + len(sel)))
+        start += len(sel)
+    order = np.concatenate(rows) if rows else np.zeros(0, np.int64)
+    cdf = np.concatenate(cdfs) if cdfs else np.zeros(0, np.float64)
+    return tri[order], tri_le[order], cdf, groups
+
+
+def pack_lights(lights: list, light_samples: int, emitters=None, linked=()) -> LightTables:
+    """The lights as a :class:`LightTables`, read by :func:`sample_light`. A light with an extent takes side×side
+    stratified samples, side = round(√light_samples). ``emitters`` = (tri (N, 3, 3), Le (N, 3)) or (tri, Le,
+    object id (N,)) adds the emissive triangles as one more light (see :func:`emitting_triangles`), or, for the
+    object ids in ``linked`` that emit, one light per such object after the one of all the others."""
+    tri = np.zeros((0, 3, 3), np.float64)
+    tri_le = np.zeros((0, 3), np.float64)
+    cdf = np.zeros(0, np.float64)
+    groups = []
+    if emitters is not None and len(emitters[0]):
+        tri, tri_le, cdf, groups = _emitter_groups(
+            np.ascontiguousarray(emitters[0], np.float64), np.ascontiguousarray(emitters[1], np.float64),
+            emitters[2] if len(emitters) > 2 else None, linked)
+    n = len(lights) + len(groups)
+    f1, f2, f3 = (lambda: np.zeros(n, np.float64)), (lambda: np.zeros((n, 2))), (lambda: np.zeros((n, 3)))
+    t = LightTables(kind=np.zeros(n, np.int64), side=np.ones(n, np.int64), position=f3(), color=f3(), radius=f1(),
+                    direction=f3(), cos_cone=f1(), blend=f1(), cos_max=f1(), u_axis=f3(), v_axis=f3(), size=f2(),
+                    area=f1(), tri=tri, tri_le=tri_le, tri_cdf=cdf, tri_start=np.zeros(n, np.int64),
+                    tri_end=np.zeros(n, np.int64), emitter_object=np.full(n, -1, np.int64))
+    for i, (obj, start, end) in enumerate(groups, start=len(lights)):
+        t.kind[i] = MESH
+        t.side[i] = max(1, int(round(np.sqrt(max(1, light_samples)))))
+        t.tri_start[i], t.tri_end[i], t.emitter_object[i] = start, end, obj
+    for i, light in enumerate(lights):
+        t.side[i] = max(1, int(round(np.sqrt(light.sample_count(light_samples)))))
+        if isinstance(light, PointLight):  # SpotLight included
+            t.kind[i] = SPOT if isinstance(light, SpotLight) else POINT
+            t.position[i], t.color[i], t.radius[i] = light.position, light.intensity, light.radius
+            if t.kind[i] == SPOT:
+                t.direction[i], t.cos_cone[i], t.blend[i] = light.direction, np.cos(light.cone_angle), light.blend
+        elif isinstance(light, DistantLight):
+            t.kind[i] = DISTANT
+            t.direction[i], t.color[i], t.cos_max[i] = light.direction, light.irradiance, np.cos(light.angle / 2)
+        else:
+            t.kind[i] = RECT if light.shape == "rect" else DISK
+            t.position[i], t.color[i], t.direction[i] = light.position, light.radiance, light.normal
+            t.u_axis[i], t.v_axis[i], t.size[i], t.area[i] = light.u_axis, light.v_axis, light.size, light.area
+    return t
+
+
+@kernel(inline=True)
+def _sample_emitters(tri, tri_le, cdf, start, end, k, sd, kk, p, r0, r1):
+    """Stratum k of the emissive triangles start:end (one MESH light): the first coordinate picks a triangle by the power CDF (its remainder,
+    rescaled, and the second place a uniform point on it), E = Le·|cos θ_l|·A/(p_pick·r²)/K (two-sided). The points
+    are multi-jittered (side² distinct values of the first coordinate: each triangle of a small emitter gets its own
+    strata, and a large one well spread points)."""
+    s0, s1 = rotated_multijitter(k, sd, r0, r1)
+    lo, hi = start, end - 1
+    while lo < hi:  # the first triangle whose cumulative probability exceeds s0
+        mid = (lo + hi) // 2
+        if cdf[mid] > s0:
+            hi = mid
+        else:
+            lo = mid + 1
+    before = cdf[lo - 1] if lo > start else 0.0
+    pick = max(cdf[lo] - before, 1e-30)
+    u = min(max((s0 - before) / pick, 0.0), 1.0 - 1e-7)
+    su = math.sqrt(u)
+    a = (tri[lo, 0, 0], tri[lo, 0, 1], tri[lo, 0, 2])
+    b = (tri[lo, 1, 0], tri[lo, 1, 1], tri[lo, 1, 2])
+    c = (tri[lo, 2, 0], tri[lo, 2, 1], tri[lo, 2, 2])
+    e1, e2 = vec.sub(b, a), vec.sub(c, a)
+    pt = vec.madd(vec.madd(a, e1, su * (1.0 - s1)), e2, su * s1)
+    cr = vec.cross(e1, e2)
+    twice_area = vec.length(cr)
+    to_l = vec.sub(pt, p)
+    d2 = max(vec.dot(to_l, to_l), 1e-30)
+    dist = math.sqrt(d2)
+    l = vec.scale(to_l, 1.0 / dist)
+    cos_l = abs(vec.dot(l, cr)) / max(twice_area, 1e-30)
+    le = (tri_le[lo, 0], tri_le[lo, 1], tri_le[lo, 2])
+    return l, dist, vec.scale(le, cos_l * 0.5 * twice_area / pick / d2 / kk)
+
+
+@kernel(inline=True)
+def spot_falloff(cos_a, cos_cone, blend):
+    """Blender's spot: smoothstep(x), x = (cos α − cos(size/2)) / ((1 − cos(size/2))·blend), in cosine."""
+    if blend <= 0.0:
+        return 1.0 if cos_a > cos_cone else 0.0
+    x = min(max((cos_a - cos_cone) / ((1.0 - cos_cone) * blend), 0.0), 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+@kernel(inline=True)
+def sample_light(lights, j, k, p, r0, r1):
+    """Sample ``k`` (of side²) of light ``j`` of a :class:`LightTables` seen from point p: (l, dist, E) with l the
+    unit direction to the light, dist the shadow ray's length and E the irradiance on a surface facing the light,
+    divided by side². (r0, r1) in [0,1)² rotate the stratified pattern of lights with an extent. (Called from
+    kernels compiled without reference counting, ``kernel(refcounts=False)``: a NamedTuple of arrays handed to an
+    inlined helper costs nothing there.)"""
+    sd = lights.side[j]
+    kk = sd * sd
+    kd = lights.kind[j]
+    if kd == MESH:
+        return _sample_emitters(lights.tri, lights.tri_le, lights.tri_cdf, lights.tri_start[j], lights.tri_end[j],
+                                k, sd, kk, p, r0, r1)
+    if kd == POINT or kd == SPOT:
+        pos = vec.row(lights.position, j)
+        radius = lights.radius[j]
+        to_c = vec.sub(pos, p)
+        d2 = vec.dot(to_c, to_c)
+        # Blender's soft falloff: irradiance I / (r² + R²), measured against Cycles.
+        inv = 1.0 / (d2 + radius * radius)
+        dist = math.sqrt(d2)
+        if kd == SPOT:
+            cos_a = -vec.dot(to_c, vec.row(lights.direction, j)) / math.sqrt(max(d2, 1e-30))
+            inv *= spot_falloff(cos_a, lights.cos_cone[j], lights.blend[j])
+        e = vec.scale(vec.row(lights.color, j), inv / kk)
+        if kk == 1:
+            return vec.scale(to_c, 1.0 / max(dist, 1e-30)), dist, e
+        # Soft shadows: stratified points on the disk of the sphere that faces p.
+        u, v = vec.orthonormal_basis(vec.scale(to_c, -1.0 / max(dist, 1e-30)))
+        s0, s1 = stratum(k, sd, r0, r1)
+        r = radius * math.sqrt(s0)
+        phi = 2.0 * math.pi * s1
+        to_l = vec.sub(vec.madd(vec.madd(pos, u, r * math.cos(phi)), v, r * math.sin(phi)), p)
+        ld = vec.length(to_l)
+        return vec.scale(to_l, 1.0 / max(ld, 1e-30)), ld, e
+    if kd == DISTANT:
+        to_light = vec.scale(vec.row(lights.direction, j), -1.0)
+        e = vec.scale(vec.row(lights.color, j), 1.0 / kk)
+        if kk == 1:
+            return to_light, math.inf, e
+        # A disk of angular diameter `angle` around the direction to the sun, sampled uniformly in solid angle.
+        u, v = vec.orthonormal_basis(to_light)
+        s0, s1 = stratum(k, sd, r0, r1)
+        cos_t = 1.0 - s0 * (1.0 - lights.cos_max[j])
+        sin_t = math.sqrt(max(0.0, 1.0 - cos_t * cos_t))
+        phi = 2.0 * math.pi * s1
+        l = vec.madd(vec.madd(vec.scale(to_light, cos_t), u, sin_t * math.cos(phi)), v, sin_t * math.sin(phi))
+        return l, math.inf, e
+    # Area light: a point on the rectangle, or on the (elliptical) disk by a polar mapping.
+    s0, s1 = stratum(k, sd, r0, r1)
+    if kd == RECT:
+        a, b = s0 - 0.5, s1 - 0.5
+    else:
+        r = 0.5 * math.sqrt(s0)
+        a, b = r * math.cos(2.0 * math.pi * s1), r * math.sin(2.0 * math.pi * s1)
+    pt = vec.madd(vec.madd(vec.row(lights.position, j), vec.row(lights.u_axis, j), a * lights.size[j, 0]),
+                  vec.row(lights.v_axis, j), b * lights.size[j, 1])
+    to_l = vec.sub(pt, p)
+    d2 = max(vec.dot(to_l, to_l), 1e-30)
+    dist = math.sqrt(d2)
+    l = vec.scale(to_l, 1.0 / dist)
+    cos_l = max(0.0, -vec.dot(l, vec.row(lights.direction, j)))
+    # E from a sample of a Lambertian emitter: Le · cosθ_l · A / r², averaged over the K samples.
+    return l, dist, vec.scale(vec.row(lights.color, j), cos_l * lights.area[j] / d2 / kk)

@@ -1,0 +1,319 @@
+"""The closure side of the shader compiler: a material's Mix Shader / Add Shader tree as a weighted list of lobes,
+lowered to the tracer's closure inputs and, where one closure cannot hold it, to lobe slots (:mod:`tracer.shading.lobes`).
+
+1. **Closures flatten** into a weighted list of lobes: ``mix_closure`` (Fac) gives (1 − Fac)·A + Fac·B,
+   ``add_closure`` A + B, to any depth; weights are values like any other (constant or per hit).
+2. **Each lobe** is read as a Principled set (for the one-closure outputs) and a lobe kind (for the slots):
+
+   ============== ===================================================================================
+   principled     its inputs (emission = Emission Color × Strength; Alpha mixes with transparency)
+   diffuse        base = Color, specular 0, roughness 1                        (slot DIFFUSE)
+   glossy         base = Color, metallic 1, roughness (Anisotropic: isotropic)  (slot GLOSSY)
+   glass          transmission 1, tinted by Color, ior; smooth                  (slot GLASS)
+   refraction     as glass without its reflection                               (slot REFRACTION)
+   translucent    as diffuse, lit from behind                                   (slot TRANSLUCENT)
+   transparent    coverage: its weight × Color passes straight through
+   emission       emission += weight × Color × Strength, reflects nothing
+   holdout        a black, opaque surface; its weight is the hit's ``holdout`` (tracer.integrator.compose: alpha)
+   ============== ===================================================================================
+
+3. **The one-closure outputs** (:data:`tracer.shading.nodes.OUTPUTS`) blend the lobes' parameters: transparency
+   T = Σ transparent weights × mean(Color) + Σ wᵢ(1 − alphaᵢ); alpha = 1 − T; emission = Σ wᵢ·Eᵢ / alpha (the
+   tracer adds emission × alpha); the reflecting lobes' weights sᵢ = wᵢ·alphaᵢ give base = Σ sᵢ·baseᵢ / alpha,
+   specular level likewise, roughness, metallic and transmission as sᵢ-weighted means. Exact for one lobe with
+   transparency or emission; they are what AOVs, coverage, shadows through the surface and emission read.
+4. **Lobe slots** (:func:`ClosureLowering.slots`): a tree with two or more reflecting lobes, or a Glossy,
+   Translucent, Refraction, Holdout or tinted Transparent leaf, also gets up to :data:`tracer.shading.lobes.MAX_LOBES`
+   slots of (kind, weight RGB, colour, roughness, metallic, specular, transmission), the pass-through colour
+   Σ transparent wⱼ·Colorⱼ + Σ wᵢ(1 − alphaᵢ) and the holdout weight, which the direct-light and spawn stages use
+   in place of the blended closure. More reflecting lobes than slots: the lightest are merged into one Principled
+   lobe of blended parameters (one warning).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import lobes as L, ops
+from .graph import Node, Out
+from .nodes import FLOAT, IN_NORMAL, VECTOR, is_const, vec3
+
+_KIND = {"principled_bsdf": L.PRINCIPLED, "diffuse_bsdf": L.DIFFUSE, "glossy_bsdf": L.GLOSSY, "glass_bsdf": L.GLASS,
+         "refraction_bsdf": L.REFRACTION, "translucent_bsdf": L.TRANSLUCENT}
+
+
+class LobeSlots:
+    """A material's lobe slots as registers: ``kinds`` (MAX_LOBES,) int32 (-1: unused), ``regs`` (MAX_LOBES, 6)
+    the registers of weight (3), colour (3), roughness, metallic, specular, transmission; ``extra`` (2,) the
+    registers of the pass-through colour (3) and the holdout weight."""
+
+    def __init__(self, kinds, regs, extra, live):
+        self.kinds, self.regs, self.extra, self.live = kinds, regs, extra, live
+
+
+class ClosureLowering:
+    """The closure methods of :class:`tracer.shading.compiler.Compiler`."""
+
+    def closure(self, ref, weight=1.0) -> list:
+        """[(weight, lobe node)] of a closure output (a flattened Mix / Add Shader tree)."""
+        if ref is None:
+            return []
+        node = self.g.node(ref)
+        if node.type == "mix_closure":
+            f = self.inp(node, "Fac", FLOAT)
+            if is_const(f):
+                f = min(max(float(f), 0.0), 1.0)
+            a, b = (self.g.input_value(node, s) for s in ("Shader", "Shader_001"))
+            wa = self.math(ops.M_MULTIPLY, weight, self.math(ops.M_SUBTRACT, 1.0, f))
+            wb = self.math(ops.M_MULTIPLY, weight, f)
+            out = []
+            if not (is_const(wa) and wa == 0.0):
+                out += self.closure(a, wa)
+            if not (is_const(wb) and wb == 0.0):
+                out += self.closure(b, wb)
+            return out
+        if node.type == "add_closure":
+            return sum((self.closure(self.g.input_value(node, s), weight) for s in ("Shader", "Shader_001")), [])
+        return [(weight, node)]
+
+    def lobe(self, node: Node) -> dict:
+        """The Principled set of one lobe: base, roughness, metallic, specular, transmission, alpha, emission,
+        normal (values), and constants ior, tint, specular_tint, threshold; ``kind`` (surface, transparent,
+        emission, holdout), ``lk`` its slot kind (:mod:`tracer.shading.lobes`, None: no slot), ``colour`` (the slot's
+        colour), ``through`` (a transparent lobe's Color)."""
+        t = node.type
+        zero3 = (0.0, 0.0, 0.0)
+        lb = dict(kind="surface", base=zero3, roughness=0.5, metallic=0.0, specular=0.0, transmission=0.0, alpha=1.0,
+                  emission=zero3, normal=None, ior=1.5, tint=None, specular_tint=(1.0, 1.0, 1.0), threshold=0.0,
+                  lk=_KIND.get(t), colour=zero3, through=zero3)
+        if t == "principled_bsdf":
+            lb.update(base=self.inp(node, "Base Color"), roughness=self.inp(node, "Roughness"),
+                      metallic=self.inp(node, "Metallic"), specular=self.inp(node, "Specular IOR Level"),
+                      transmission=self.inp(node, "Transmission Weight"), alpha=self.inp(node, "Alpha"),
+                      emission=self.scale3(self.inp(node, "Emission Color"), self.inp(node, "Emission Strength")),
+                      normal=self._normal_in(node), ior=self._const_in(node, "IOR", 1.5),
+                      threshold=self._const_in(node, "Alpha Threshold", 0.0))
+            lb["colour"] = lb["base"]
+            st = self.g.input_value(node, "Specular Tint")
+            if isinstance(st, Out):
+                self.warn(node.name + "st", f"Principled BSDF {node.name!r}: a linked Specular Tint is read as white")
+            else:
+                lb["specular_tint"] = vec3(st)
+            for name in ("Coat Weight", "Sheen Weight", "Subsurface Weight"):
+                w = self.g.input_value(node, name)
+                if isinstance(w, Out) or float(w) > 0:
+                    self.warn(node.name + name, f"Principled BSDF {node.name!r}: {name} is not supported (ignored)")
+            tint = node.params.get("transmission_tint")
+            if tint is not None:
+                lb["tint"] = vec3(tint)
+        elif t in ("diffuse_bsdf", "translucent_bsdf"):
+            lb.update(base=self.inp(node, "Color"), roughness=1.0, normal=self._normal_in(node))
+            lb["colour"] = lb["base"]
+        elif t == "glossy_bsdf":
+            an = self.g.input_value(node, "Anisotropy")
+            if isinstance(an, Out) or float(an) != 0.0:
+                self.warn(node.name + "an", f"Glossy BSDF {node.name!r}: anisotropy is rendered isotropic")
+            lb.update(base=self.inp(node, "Color"), metallic=1.0, roughness=self.inp(node, "Roughness"),
+                      specular=0.5, normal=self._normal_in(node))
+            lb["colour"] = lb["base"]
+        elif t in ("glass_bsdf", "refraction_bsdf"):
+            r = self.inp(node, "Roughness")
+            if not is_const(r) or float(r) > 0.05:
+                self.warn(node.name + "r", f"{node.name!r}: rough glass is rendered as smooth glass")
+            col = self.g.input_value(node, "Color")
+            if isinstance(col, Out):
+                self.warn(node.name + "c", f"{node.name!r}: a linked glass colour is read as its constant estimate")
+            colour = vec3(self._estimate_of(node, "Color")) if isinstance(col, Out) else vec3(col)
+            lb.update(base=colour, transmission=1.0, roughness=r, specular=0.5, ior=self._const_in(node, "IOR", 1.5),
+                      tint=colour, normal=self._normal_in(node), colour=colour)
+        elif t == "transparent_bsdf":
+            lb.update(kind="transparent", through=self.inp(node, "Color"))
+        elif t == "emission":
+            lb.update(kind="emission", emission=self.scale3(self.inp(node, "Color"), self.inp(node, "Strength")))
+        elif t == "holdout":
+            lb.update(kind="holdout")  # black; its weight is the hit's holdout (tracer.integrator.compose cuts the alpha)
+        else:
+            self.warn(node.name, f"shader {node.name!r} ({t}) is not supported; a grey diffuse surface is used")
+            lb.update(base=(0.8, 0.8, 0.8), roughness=1.0, lk=L.DIFFUSE, colour=(0.8, 0.8, 0.8))
+        return lb
+
+    def _estimate_of(self, node, name):
+        c = type(self)(self.g, None, self.uv_index, estimate=True)
+        return c.inp(node, name)
+
+    def _const_in(self, node, name, default):
+        x = self.g.input_value(node, name)
+        if isinstance(x, Out):
+            self.warn(node.name + name, f"{node.name!r}: a linked {name} is read as its constant estimate")
+            return float(self._estimate_of(node, name))
+        return float(x)
+
+    def _normal_in(self, node):
+        x = self.g.input_value(node, "Normal")
+        if isinstance(x, Out):
+            return self.val(x, VECTOR)
+        return None
+
+    def outputs(self) -> tuple[dict, dict]:
+        """(values per closure input slot, constant row extras); the lobe slots, if any, in ``self.lobe_slots``."""
+        out = self.g.output_node
+        surface = self.g.input_value(out, "Surface") if out is not None else None
+        disp = self.g.input_value(out, "Displacement") if out is not None else None
+        lobes = [(w, self.lobe(n)) for w, n in self.closure(surface)]
+        if isinstance(disp, Out):
+            self.warn("displacement", "Displacement is rendered as bump (the surface is not moved)")
+            lobes = [(w, dict(lb, normal=self._displacement_bump(disp, lb["normal"]))) for w, lb in lobes]
+        vals, extras = self.combine(lobes)
+        self.lobe_slots = self.slots(lobes)
+        return vals, extras
+
+    def _displacement_bump(self, disp: Out, normal):
+        nrm = normal if normal is not None else self.hit(IN_NORMAL)
+        if self.estimate:
+            return nrm
+        hs = []
+        for var in range(3):
+            d = self.val(disp, VECTOR, var)
+            hs.append(self.vmath(ops.V_DOT_PRODUCT, d, self.hit(IN_NORMAL))[1])
+        if all(is_const(h) for h in hs):
+            return nrm
+        setup = self.bump_setup()
+        return self.op("bump", [(hs[0], 1), (hs[1], 1), (hs[2], 1), (1.0, 1), (1.0, 1), (nrm, 3)],
+                           imm=setup.r, raw={"reads": [(setup.r, 10)]})
+
+    def _mean(self, c):
+        """The mean of a colour (a transparent lobe's share of coverage)."""
+        if is_const(c):
+            return sum(vec3(c)) / 3.0
+        return self.convert(c, VECTOR, FLOAT)
+
+    def combine(self, lobes: list) -> tuple[dict, dict]:
+        """The one-closure outputs of a weighted lobe list (module docstring, 3)."""
+        zero3 = (0.0, 0.0, 0.0)
+        extras = dict(ior=1.5, transmission_tint=None, specular_tint=(1.0, 1.0, 1.0), alpha_threshold=0.0)
+        if not lobes:  # nothing connected: black (as Cycles)
+            return dict(base=zero3, roughness=0.5, metallic=0.0, specular=0.0, alpha=1.0, emission=zero3,
+                        normal=None, transmission=0.0), extras
+        surf = [(w, lb) for w, lb in lobes if lb["kind"] in ("surface", "holdout")]
+        for _w, lb in surf:
+            extras["specular_tint"] = lb["specular_tint"]
+            extras["alpha_threshold"] = max(extras["alpha_threshold"], lb["threshold"])
+        glass = [(w, lb) for w, lb in surf if not (is_const(lb["transmission"]) and lb["transmission"] == 0.0)]
+        if glass:
+            extras["ior"] = glass[0][1]["ior"]
+            tints = [lb["tint"] for _w, lb in glass]
+            extras["transmission_tint"] = tints[0]
+        elif surf:
+            extras["ior"] = surf[0][1]["ior"]
+        normals = [lb["normal"] for _w, lb in surf if lb["normal"] is not None]
+        normal = normals[0] if normals else None
+        if len({id(x) if not is_const(x) else vec3(x) for x in normals}) > 1:
+            self.warn("normals", "lobes with different normals: the first lobe's normal is used for all")
+        if len(lobes) == 1:
+            w, lb = lobes[0]
+            if lb["kind"] == "transparent":
+                return dict(base=zero3, roughness=0.5, metallic=0.0, specular=0.0,
+                            alpha=self.math(ops.M_SUBTRACT, 1.0, self._mean(lb["through"]), clamp=True),
+                            emission=zero3, normal=None, transmission=0.0), extras
+            if lb["kind"] == "emission":
+                return dict(base=zero3, roughness=0.5, metallic=0.0, specular=0.0, alpha=1.0,
+                            emission=self.scale3(lb["emission"], w), normal=None, transmission=0.0), extras
+            if is_const(w) and float(w) == 1.0:
+                return {k: lb[k] for k in ("base", "roughness", "metallic", "specular", "alpha", "emission",
+                                           "transmission")} | {"normal": normal}, extras
+        # several lobes (or a weighted one): transparency, emission sum, weighted parameters
+        m = self.math
+        transp = 0.0
+        emis = zero3
+        s_w = []
+        for w, lb in lobes:
+            if lb["kind"] == "transparent":
+                transp = m(ops.M_ADD, transp, m(ops.M_MULTIPLY, w, self._mean(lb["through"])))
+                continue
+            emis = self.add3(emis, self.scale3(lb["emission"], w))
+            if lb["kind"] == "emission":
+                continue
+            sw = m(ops.M_MULTIPLY, w, lb["alpha"])
+            transp = m(ops.M_ADD, transp, m(ops.M_MULTIPLY, w, m(ops.M_SUBTRACT, 1.0, lb["alpha"])))
+            s_w.append((sw, lb))
+        alpha = m(ops.M_SUBTRACT, 1.0, transp, clamp=True)
+        inv_alpha = m(ops.M_DIVIDE, 1.0, alpha)
+        total = 0.0
+        for sw, _lb in s_w:
+            total = m(ops.M_ADD, total, sw)
+        inv_total = m(ops.M_DIVIDE, 1.0, total)
+        base, spec, rough, metal, tran = zero3, 0.0, 0.0, 0.0, 0.0
+        for sw, lb in s_w:
+            base = self.add3(base, self.scale3(lb["base"], sw))
+            spec = m(ops.M_ADD, spec, m(ops.M_MULTIPLY, sw, lb["specular"]))
+            rough = m(ops.M_ADD, rough, m(ops.M_MULTIPLY, sw, lb["roughness"]))
+            metal = m(ops.M_ADD, metal, m(ops.M_MULTIPLY, sw, lb["metallic"]))
+            tran = m(ops.M_ADD, tran, m(ops.M_MULTIPLY, sw, lb["transmission"]))
+        return dict(base=self.scale3(base, inv_alpha), specular=m(ops.M_MULTIPLY, spec, inv_alpha),
+                    roughness=m(ops.M_MULTIPLY, rough, inv_total) if s_w else 0.5,
+                    metallic=m(ops.M_MULTIPLY, metal, inv_total), transmission=m(ops.M_MULTIPLY, tran, inv_total),
+                    alpha=alpha, emission=self.scale3(emis, inv_alpha), normal=normal), extras
+
+    # ------------------------------------------------------------------ lobe slots
+    def slots(self, lobes: list) -> LobeSlots | None:
+        """The lobe slots of a weighted lobe list (module docstring, 4), or None where one closure holds it."""
+        if self.estimate:
+            return None
+        refl = [(w, lb) for w, lb in lobes if lb["kind"] == "surface"]
+        special = any(lb["lk"] in (L.GLOSSY, L.TRANSLUCENT, L.REFRACTION) for _w, lb in refl) or any(
+            lb["kind"] == "holdout" or (lb["kind"] == "transparent" and not (
+                is_const(lb["through"]) and vec3(lb["through"]) == (1.0, 1.0, 1.0))) for _w, lb in lobes)
+        if len(refl) < 2 and not special:
+            return None
+        m = self.math
+        through, holdout = (0.0, 0.0, 0.0), 0.0
+        slots = []
+        for w, lb in lobes:
+            if lb["kind"] == "transparent":
+                through = self.add3(through, self.scale3(lb["through"], w))
+            elif lb["kind"] == "holdout":
+                holdout = m(ops.M_ADD, holdout, w)
+            elif lb["kind"] == "surface":
+                a = lb["alpha"]
+                if not (is_const(a) and float(a) == 1.0):
+                    through = self.add3(through, self.convert(m(ops.M_MULTIPLY, w, m(ops.M_SUBTRACT, 1.0, a)),
+                                                              FLOAT, VECTOR))
+                slots.append((m(ops.M_MULTIPLY, w, a), lb))
+        if len(slots) > L.MAX_LOBES:
+            slots = self._merge(slots)
+        kinds = np.full(L.MAX_LOBES, -1, np.int32)
+        regs = np.zeros((L.MAX_LOBES, 6), np.int32)
+        live = []
+        for k, (w, lb) in enumerate(slots):
+            kinds[k] = lb["lk"]
+            vals = [(self.convert(w, FLOAT, VECTOR), 3), (lb["colour"], 3), (lb["roughness"], 1),
+                    (lb["metallic"], 1), (lb["specular"], 1), (lb["transmission"], 1)]
+            for j, (x, n) in enumerate(vals):
+                regs[k, j] = self.e.reg(x, n)
+                live.append((int(regs[k, j]), n))
+        extra = np.array([self.e.reg(through, 3), self.e.reg(holdout, 1)], np.int32)
+        live += [(int(extra[0]), 3), (int(extra[1]), 1)]
+        return LobeSlots(kinds, regs, extra, live)
+
+    def _merge(self, slots: list) -> list:
+        """More reflecting lobes than slots: the lightest (by constant weight; a per-hit weight counts as ½) are
+        blended into one Principled lobe of weight-averaged parameters (one warning)."""
+        self.warn("lobes", f"{len(slots)} reflecting BSDFs: the lightest are merged into one blended lobe "
+                           f"(the tracer keeps {L.MAX_LOBES})")
+        est = [float(w) if is_const(w) else 0.5 for w, _lb in slots]
+        order = sorted(range(len(slots)), key=lambda k: -est[k])
+        keep = [slots[k] for k in order[:L.MAX_LOBES - 1]]
+        rest = [slots[k] for k in order[L.MAX_LOBES - 1:]]
+        m = self.math
+        total = 0.0
+        for w, _lb in rest:
+            total = m(ops.M_ADD, total, w)
+        inv = m(ops.M_DIVIDE, 1.0, total)
+        blend = dict(rest[0][1], lk=L.PRINCIPLED, colour=(0.0, 0.0, 0.0), roughness=0.0, metallic=0.0, specular=0.0,
+                     transmission=0.0)
+        for w, lb in rest:
+            f = m(ops.M_MULTIPLY, w, inv)
+            blend["colour"] = self.add3(blend["colour"], self.scale3(lb["colour"], f))
+            for key in ("roughness", "metallic", "specular", "transmission"):
+                blend[key] = m(ops.M_ADD, blend[key], m(ops.M_MULTIPLY, f, lb[key]))
+        return keep + [(total, blend)]

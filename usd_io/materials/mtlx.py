@@ -1,0 +1,268 @@
+"""MaterialX documents referenced from USD (``references = @looks.mtlx@</MaterialX/Materials>``), and the node
+definitions every MaterialX network is read against.
+
+usd-core has no ``usdMtlx`` file format plugin, so such a reference does not compose. This module reads a
+``.mtlx`` document with the MaterialX library (``pip install MaterialX``: XIncludes, version upgrades, node
+definitions), translates it into an in-memory USD layer the way usdMtlx lays it out (``/MaterialX/Materials/<m>``
+Material prims whose ``outputs:mtlx:surface`` connects to a child Shader; each node graph the shader reads copied
+into the Material as a NodeGraph of Shaders, its interface inputs as NodeGraph inputs) and points the stage's
+references at it, in memory — no file is written and the stage's own files are not changed on disk.
+
+Each Shader's ``info:id`` is the name of the node definition MaterialX resolves for the node (``ND_add_color3FA``,
+``ND_noise3d_float``, or a document's own ``<nodedef>``); a node with several outputs gets one ``outputs:<name>``
+each. Values keep their MaterialX types; ``filename`` values are resolved as MaterialX resolves them (the
+``fileprefix`` of the input or of any ancestor element) and made absolute against the file that authored them (an
+XIncluded file's own folder); an input's active colour space (its own or an ancestor's ``colorspace``) becomes the
+attribute's ``colorSpace``. Documents that cannot be parsed stay unresolved (the composition warning names them).
+
+:func:`nodedef` finds a node definition by name among the standard libraries and the definitions of every document
+read so far (their ``<nodedef>`` s and the ``<nodegraph nodedef=...>`` s implementing them):
+:mod:`usd_io.materials.mtlx_graph` reads networks against it.
+"""
+
+from __future__ import annotations
+
+import os
+
+from pxr import Sdf
+
+#: MaterialX type -> Sdf value type.
+TYPES = {"float": Sdf.ValueTypeNames.Float, "integer": Sdf.ValueTypeNames.Int, "boolean": Sdf.ValueTypeNames.Bool,
+         "color3": Sdf.ValueTypeNames.Color3f, "color4": Sdf.ValueTypeNames.Color4f,
+         "vector2": Sdf.ValueTypeNames.Float2, "vector3": Sdf.ValueTypeNames.Float3,
+         "vector4": Sdf.ValueTypeNames.Float4, "filename": Sdf.ValueTypeNames.Asset,
+         "string": Sdf.ValueTypeNames.String, "surfaceshader": Sdf.ValueTypeNames.Token,
+         "matrix33": Sdf.ValueTypeNames.Matrix3d, "matrix44": Sdf.ValueTypeNames.Matrix4d}
+
+#: Translated documents by absolute path (layers must stay alive while stages reference them).
+_LAYERS: dict[str, Sdf.Layer | None] = {}
+_LIB: dict = {}
+
+
+def _library() -> mx.Document:
+    """The standard data libraries (stdlib, pbrlib, bxdf: Standard Surface, OpenPBR, UsdPreviewSurface)."""
+    import MaterialX as mx  # in the three functions that read documents: a stage without .mtlx never loads it
+
+    if "std" not in _LIB:
+        lib = mx.createDocument()
+        mx.loadLibraries(mx.getDefaultDataLibraryFolders(), mx.getDefaultDataSearchPath(), lib)
+        _LIB["std"] = lib
+        _LIB["docs"] = mx.createDocument()  # the documents' own definitions
+        _LIB["docs"].setDataLibrary(lib)
+    return _LIB["std"]
+
+
+def definitions() -> mx.Document:
+    """A document whose nodedef lookups see the libraries and every read document's own definitions."""
+    _library()
+    return _LIB["docs"]
+
+
+def nodedef(name: str):
+    """The node definition called ``name`` (None when neither the libraries nor a read document define it)."""
+    return definitions().getNodeDef(name) or None
+
+
+def _register(doc: mx.Document) -> None:
+    """Copy a document's own node definitions and their node-graph implementations into :func:`definitions`."""
+    defs = definitions()
+    for nd in doc.getNodeDefs():
+        if not defs.getChild(nd.getName()):
+            defs.addNodeDef(nd.getName(), nd.getType(), nd.getNodeString()).copyContentFrom(nd)
+    for ng in doc.getNodeGraphs():
+        if ng.getNodeDefString() and not defs.getChild(ng.getName()):
+            defs.addNodeGraph(ng.getName()).copyContentFrom(ng)
+
+
+def read_document(path: str) -> mx.Document:
+    """A ``.mtlx`` file read with its XIncludes (relative to its folder), upgraded to the library's version and
+    resolved against the standard libraries."""
+    import MaterialX as mx
+
+    doc = mx.createDocument()
+    mx.readFromXmlFile(doc, path, mx.FileSearchPath(os.path.dirname(path)))
+    doc.setDataLibrary(_library())
+    _register(doc)
+    return doc
+
+
+def _value(mx_type: str, text: str, base_dir: str):
+    if mx_type == "filename":
+        text = text.replace("\\", "/") if "\\" in text and not os.path.exists(text) else text
+        return Sdf.AssetPath(text if os.path.isabs(text) else os.path.normpath(os.path.join(base_dir, text)))
+    if mx_type == "string":
+        return text
+    if mx_type == "boolean":
+        return text.strip().lower() == "true"
+    nums = [float(x) for x in text.replace(",", " ").split()]
+    if mx_type == "integer":
+        return int(nums[0])
+    return nums[0] if len(nums) == 1 else tuple(nums)
+
+
+def _nodedef_name(node) -> str:
+    nd = node.getNodeDef()
+    return nd.getName() if nd else f"ND_{node.getCategory()}_{node.getType()}"
+
+
+def _outputs(node) -> list:
+    """(name, type) of a node's outputs: its definition's (several for separate3 & co.), else ``out``."""
+    if node.getType() == "surfaceshader":
+        return [("surface", "surfaceshader")]
+    nd = node.getNodeDef()
+    outs = [(o.getName(), o.getType()) for o in nd.getActiveOutputs()] if nd else []
+    return outs if len(outs) > 1 else [("out", node.getType())]
+
+
+def _out_prop(node, output: str) -> str:
+    if node.getType() == "surfaceshader":
+        return "outputs:surface"
+    return f"outputs:{output or 'out'}"
+
+
+class _Writer:
+    def __init__(self, doc, base_dir: str):
+        self.doc, self.base_dir = doc, base_dir
+        self.layer = Sdf.Layer.CreateAnonymous(".usda")
+
+    def prim(self, path: Sdf.Path, type_name: str) -> Sdf.PrimSpec:
+        Sdf.CreatePrimInLayer(self.layer, path)
+        spec = self.layer.GetPrimAtPath(path)
+        spec.specifier = Sdf.SpecifierDef
+        spec.typeName = type_name
+        return spec
+
+    @staticmethod
+    def attr(spec, name, mx_type):
+        return Sdf.AttributeSpec(spec, name, TYPES.get(mx_type, Sdf.ValueTypeNames.Token))
+
+    def shader(self, parent: Sdf.Path, node, graph_path: Sdf.Path | None) -> Sdf.Path:
+        """One node as a Shader under ``parent``; its upstream nodes (in the node's own scope) too."""
+        path = parent.AppendChild(node.getName())
+        if self.layer.GetPrimAtPath(path):
+            return path
+        spec = self.prim(path, "Shader")
+        ident = Sdf.AttributeSpec(spec, "info:id", Sdf.ValueTypeNames.Token, variability=Sdf.VariabilityUniform)
+        ident.default = _nodedef_name(node)
+        for name, mx_type in _outputs(node):
+            self.attr(spec, f"outputs:{name}", mx_type)
+        for inp in node.getInputs():
+            self.input(spec, path, inp, graph_path)
+        return path
+
+    def input(self, spec, owner: Sdf.Path, inp, graph_path) -> None:
+        """One input: a connection to a node of its scope or to a document-level node graph, an interface
+        connection to its node graph's input, or a value."""
+        mx_type = inp.getType() or "float"
+        a = self.attr(spec, f"inputs:{inp.getName()}", mx_type)
+        space = inp.getActiveColorSpace()
+        if space:
+            a.SetInfo("colorSpace", space)
+        scope = inp.getParent().getParent()  # the node's node graph or the document
+        up = scope.getNode(inp.getNodeName()) if inp.getNodeName() else None
+        if up is not None:
+            where = owner.GetParentPath() if graph_path is None else graph_path
+            p = self.shader(where, up, graph_path)
+            a.connectionPathList.Prepend(p.AppendProperty(_out_prop(up, inp.getOutputString())))
+            return
+        if inp.getNodeGraphString():
+            g = self.doc.getNodeGraph(inp.getNodeGraphString())
+            if g is not None:
+                root = owner.GetParentPath() if graph_path is None else graph_path.GetParentPath()
+                gp = self.graph(root, g)
+                a.connectionPathList.Prepend(gp.AppendProperty(f"outputs:{inp.getOutputString() or 'out'}"))
+            return
+        if inp.getInterfaceName() and graph_path is not None:
+            a.connectionPathList.Prepend(graph_path.AppendProperty(f"inputs:{inp.getInterfaceName()}"))
+            return
+        if inp.getValueString():
+            text = inp.getResolvedValueString() if mx_type == "filename" else inp.getValueString()
+            src = inp.getActiveSourceUri()
+            base = os.path.dirname(src) if src and os.path.isabs(src) else self.base_dir
+            try:
+                a.default = _value(mx_type, text, base)
+            except (ValueError, IndexError):
+                pass
+
+    def graph(self, parent: Sdf.Path, g) -> Sdf.Path:
+        path = parent.AppendChild(g.getName())
+        if self.layer.GetPrimAtPath(path):
+            return path
+        spec = self.prim(path, "NodeGraph")
+        for inp in g.getInputs():  # the graph's interface
+            self.input(spec, path, inp, None)
+        for out in g.getOutputs():
+            a = self.attr(spec, f"outputs:{out.getName()}", out.getType() or "float")
+            node = g.getNode(out.getNodeName()) if out.getNodeName() else None
+            if node is not None:
+                up = self.shader(path, node, path)
+                a.connectionPathList.Prepend(up.AppendProperty(_out_prop(node, out.getOutputString())))
+        return path
+
+    def material(self, m) -> None:
+        path = Sdf.Path("/MaterialX/Materials").AppendChild(m.getName())
+        spec = self.prim(path, "Material")
+        out = Sdf.AttributeSpec(spec, "outputs:mtlx:surface", Sdf.ValueTypeNames.Token)
+        for inp in m.getInputs():
+            node = inp.getConnectedNode()
+            if inp.getType() == "surfaceshader" and node is not None:
+                sh = self.shader(path, node, None)
+                out.connectionPathList.Prepend(sh.AppendProperty("outputs:surface"))
+
+    def translate(self) -> Sdf.Layer:
+        self.prim(Sdf.Path("/MaterialX"), "Scope")
+        self.prim(Sdf.Path("/MaterialX/Materials"), "Scope")
+        for m in self.doc.getMaterialNodes():
+            self.material(m)
+        return self.layer
+
+
+def translate(path: str) -> Sdf.Layer | None:
+    """The in-memory USD layer of a ``.mtlx`` document (cached by path), or None when it cannot be read."""
+    import MaterialX as mx
+
+    path = os.path.abspath(path)
+    if path not in _LAYERS:
+        try:
+            _LAYERS[path] = _Writer(read_document(path), os.path.dirname(path)).translate()
+        except (mx.Exception, mx.ExceptionFileMissing, mx.ExceptionParseError, mx.ExceptionFoundCycle,
+                mx.ExceptionOrphanedElement, OSError, ValueError):  # a missing .mtlx: USD's own error names it
+            _LAYERS[path] = None
+    return _LAYERS[path]
+
+
+def _mtlx_items(items, layer) -> tuple[list, bool]:
+    """(the list with every .mtlx reference pointed at its translation, whether anything changed)."""
+    out, changed = [], False
+    for ref in items:
+        if ref.assetPath.lower().endswith(".mtlx"):
+            translated = translate(layer.ComputeAbsolutePath(ref.assetPath))
+            if translated is not None:
+                ref = Sdf.Reference(translated.identifier, ref.primPath, ref.layerOffset, ref.customData)
+                changed = True
+        out.append(ref)
+    return out, changed
+
+
+def resolve_mtlx_references(stage) -> int:
+    """Point every ``.mtlx`` reference in the stage's layers at its in-memory translation; returns how many
+    prim specs changed (the stage recomposes them)."""
+    specs = []
+    for layer in stage.GetUsedLayers():
+        if layer.anonymous:
+            continue
+        layer.Traverse(Sdf.Path.absoluteRootPath,
+                       lambda p, layer=layer: specs.append((layer, p)) if p.IsPrimPath() or p.IsPrimVariantSelectionPath() else None)
+    changed = 0
+    with Sdf.ChangeBlock():
+        for layer, p in specs:
+            spec = layer.GetPrimAtPath(p)
+            if spec is None or not spec.hasReferences:
+                continue
+            refs = spec.referenceList
+            for which in ("explicitItems", "prependedItems", "appendedItems"):
+                items, hit = _mtlx_items(list(getattr(refs, which)), layer)
+                if hit:
+                    setattr(refs, which, items)
+                    changed += 1
+    return changed
