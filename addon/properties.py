@@ -21,7 +21,7 @@ SETTINGS = tracer.settings.SETTINGS
 def blender_property(name: str):
     """The ``bpy.props`` property of RenderSettings field ``name`` (which has a ``blender`` label)."""
     s = SETTINGS[name]
-    default = tracer.settings.default_of(name)
+    default = tracer.settings.default_of(name) if s.blender_default is None else s.blender_default
     value = s.none_as if default is None else default
     if s.toggle:  # the value the property holds when its checkbox is ticked (the checkbox says whether it applies)
         value = s.toggle[2]
@@ -57,10 +57,19 @@ def toggle_property(name: str):
     return BoolProperty(name=s.toggle[1], default=False, description=f"Use {s.toggle[1]}: " + s.help)
 
 
-#: Add-on properties that are not render settings: the ray-type passes (which AOVs the view layer gets).
+#: Add-on properties that are not render settings: the ray-type passes (which AOVs the view layer gets), and the
+#: viewport's denoising (Cycles' Sampling > Viewport > Denoise and its Start Sample: off by default, as in Cycles;
+#: addon/viewport.py).
 EXTRA = {"ray_type_passes": BoolProperty(
     name="Ray-Type Passes", description="Passes Whitted Direct / Reflection / Transmission (the beauty split by "
-    "each path's first secondary ray; they sum to Combined) and Whitted Ray Depth (deepest ray per pixel)")}
+    "each path's first secondary ray; they sum to Combined) and Whitted Ray Depth (deepest ray per pixel)"),
+    "preview_denoise": BoolProperty(
+        name="Viewport Denoise", default=False,
+        description="Denoise the viewport's passes with Open Image Denoise (guided by the albedo) once they have "
+        "the Start Sample's samples per pixel"),
+    "preview_denoise_start": IntProperty(
+        name="Start Sample", default=1, min=1, soft_max=9,
+        description="Samples per pixel a viewport pass has before it is denoised (the passes have 1, 4 and 9)")}
 
 WhittedSceneSettings = type("WhittedSceneSettings", (bpy.types.PropertyGroup,), {
     "__annotations__": {**{n: blender_property(n) for n, s in SETTINGS.items() if s.blender},

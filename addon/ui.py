@@ -86,6 +86,12 @@ class WHITTED_PT_render(_Panel, bpy.types.Panel):
         props = context.scene.whitted
         for heading in ("Sampling", "Rays"):
             draw_settings(layout.column(heading=heading), props, heading)
+        col = layout.column(heading="Denoise")  # Cycles' Render and Viewport Denoise checkboxes
+        draw_settings(col, props, "Denoise")
+        col.prop(props, "preview_denoise", text="Viewport")
+        sub = col.column()
+        sub.active = props.preview_denoise
+        sub.prop(props, "preview_denoise_start")
         col = layout.column(heading="Film")
         col.prop(context.scene.render, "film_transparent", text="Transparent")
         col = layout.column(heading="Passes")
@@ -118,7 +124,7 @@ class WHITTED_PT_performance_final_render(_Panel, bpy.types.Panel):
 
 
 #: The headings of the panels above, where each Blender setting must be drawn.
-HEADINGS = ("Sampling", "Rays", "Performance")
+HEADINGS = ("Sampling", "Rays", "Denoise", "Performance")
 
 PANELS = (WHITTED_PT_render, WHITTED_PT_performance, WHITTED_PT_performance_final_render)
 _added: list = []

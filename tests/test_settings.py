@@ -17,7 +17,7 @@ CHANGED = {"width": 40, "height": 30, "samples": 3, "adaptive_threshold": 0.05, 
            "max_depth": 1, "epsilon": 1e-3, "fresnel": False,
            "shadows": False, "light_samples": 9, "sky_samples": 4, "terminal_rays": True, "shading": "classic",
            "max_transparent": 0, "min_weight": 0.25, "transparent": True, "depth_of_field": False,
-           "motion_blur": False, "tile_size": 16, "threads": 1,
+           "motion_blur": False, "denoise": True, "tile_size": 16, "threads": 1,
            "aovs": ("depth", "objectid"), "region": (4, 4, 30, 20), "seed": 7, "progress": True,
            "extra": {"record_rays": True}}
 
@@ -85,8 +85,9 @@ def test_integrator_key_holds_the_fields_its_packed_tables_read():
 
 
 def test_every_blender_property_reaches_f12_settings(bpy_module):
-    """Each property addon/properties.py makes from a field (no literal there) has the field's default and its
-    value reaches the settings F12 renders with."""
+    """Each property addon/properties.py makes from a field (no literal there) has the field's default (or the
+    Blender default its Setting names: Denoise is on for F12, as in Cycles) and its value reaches the settings F12
+    renders with."""
     import addon
     from addon import export
 
@@ -97,16 +98,18 @@ def test_every_blender_property_reaches_f12_settings(bpy_module):
         fields = [n for n, s in SETTINGS.items() if s.blender]
         assert fields, "no Blender properties"
         defaults = export.settings_from_scene(scene)
+        blender_default = lambda n: default_of(n) if SETTINGS[n].blender_default is None else SETTINGS[n].blender_default  # noqa: E731
+        assert defaults.denoise is True and default_of("denoise") is False
         for name in fields:
-            assert getattr(defaults, name) == default_of(name), name
+            assert getattr(defaults, name) == blender_default(name), name
             s = SETTINGS[name]
-            stored = CHANGED[name]
+            stored = CHANGED[name] if CHANGED[name] != blender_default(name) else default_of(name)
             setattr(props, name, stored)
             if s.toggle:  # a value under a checkbox (Noise Threshold): unticked, the field keeps its default
                 assert getattr(export.settings_from_scene(scene), name) == default_of(name), name
                 setattr(props, s.toggle[0], True)
-            assert getattr(export.settings_from_scene(scene), name) == pytest.approx(CHANGED[name]), name
-            setattr(props, name, s.none_as if default_of(name) is None else default_of(name))
+            assert getattr(export.settings_from_scene(scene), name) == pytest.approx(stored), name
+            setattr(props, name, s.none_as if blender_default(name) is None else blender_default(name))
             if s.toggle:
                 setattr(props, s.toggle[0], False)
         assert dataclasses.asdict(export.settings_from_scene(scene)) == dataclasses.asdict(defaults)

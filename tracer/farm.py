@@ -34,6 +34,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .denoise import check as check_denoiser
+from .denoise import denoise_image
 from .film import Image
 from .settings import RenderSettings
 
@@ -311,11 +313,15 @@ def render_tiled(client, source, frame=None, *, tile_size: int = DEFAULT_FARM_TI
     """Render one frame split into tile tasks and assemble it on the client.
 
     Tiles stream back as they finish and are copied into the image at once, so the client holds the image plus the
-    tiles in transit, not every task's result. Raises :class:`FarmError` if a tile fails."""
+    tiles in transit, not every task's result. Raises :class:`FarmError` if a tile fails. With
+    ``settings.denoise`` the tiles bring the denoiser's guides and the client denoises the assembled frame (the
+    filter looks across tile borders: never tile by tile)."""
     from dask.distributed import as_completed
 
     shipped = _ship(client, assets)
     settings = client.submit(_settings_task, source, frame, shipped, pure=False).result()
+    if settings.denoise:  # the client denoises the assembled frame: no library here is an error before the tiles
+        check_denoiser()
     tiles = frame_tiles(settings, tile_size)
     h, w = settings.height, settings.width
     from .integrator.tiles import empty_aovs
@@ -338,11 +344,23 @@ def render_tiled(client, source, frame=None, *, tile_size: int = DEFAULT_FARM_TI
         if on_tile is not None:
             on_tile((x0, y0, x1, y1))
     image.stats = {"seconds": time.perf_counter() - start, "tiles": len(tiles)}
+    if settings.denoise:
+        prefilter = client.submit(_prefilter_task, source, frame, shipped, pure=False).result()
+        denoise_image(image, settings, prefilter=prefilter)
+        image.stats["seconds"] = time.perf_counter() - start
     return image
 
 
 def _settings_task(source, frame, assets=None) -> RenderSettings:
     return prepared(_with_assets(source, assets), frame)[1]
+
+
+def _prefilter_task(source, frame, assets=None) -> str:
+    """How the client's denoise treats the frame's guides (tracer.integrator.tiles.guide_prefilter of the worker's
+    scene)."""
+    from .integrator.tiles import guide_prefilter
+
+    return guide_prefilter(prepared(_with_assets(source, assets), frame)[0])
 
 
 def _with_assets(source, assets):

@@ -35,14 +35,16 @@ class Outputs:
     exposure: float = 0.0
     max_depth: int | None = None
     max_samples: int | None = None
+    denoise: bool = False
 
     @classmethod
     def of(cls, settings, exposure: float = 0.0) -> "Outputs":
-        """The outputs of a render with ``settings`` (its AOVs and max depth) at ``exposure`` (checked finite)."""
+        """The outputs of a render with ``settings`` (its AOVs, max depth and whether it denoises) at ``exposure``
+        (checked finite)."""
         if not np.isfinite(exposure):
             raise BadInput(f"--exposure must be a finite number, got {exposure}")
         return cls(aovs=tuple(settings.aovs), exposure=float(exposure), max_depth=settings.max_depth,
-                   max_samples=settings.samples ** 2)
+                   max_samples=settings.samples ** 2, denoise=bool(settings.denoise))
 
     def expose(self, image) -> None:
         """The exposure applied to ``image`` in place (colour only; alpha and AOVs stay)."""
@@ -51,8 +53,9 @@ class Outputs:
 
     def stream(self, out: str, width: int, height: int):
         """For a PNG ``out``: a :class:`tracer.png_stream.StreamedPNG` to hand to ``tracer.render`` as ``on_tile``
-        (the picture is encoded band by band while the render runs, this exposure applied); None otherwise."""
-        if os.path.splitext(out)[1].lower() != ".png":
+        (the picture is encoded band by band while the render runs, this exposure applied); None otherwise, and for
+        a render that denoises (its pixels change once the whole frame is done)."""
+        if os.path.splitext(out)[1].lower() != ".png" or self.denoise:
             return None
         from tracer.png_stream import StreamedPNG  # the tracer loads after the flags are checked (start-up)
 

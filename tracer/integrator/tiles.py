@@ -20,12 +20,14 @@ import numpy as np
 
 from ..camera import eye_ray
 from ..clip_planes import clip_eye_rays
+from ..denoise import check as check_denoiser
+from ..denoise import denoise_image
 from ..film import Image, box_filter, majority, vote
 from ..geometry.motion import affine_at, decompose, time_sample
 from ..jit import kernel
 from ..sampling import multijitter, progressive_order, sample_class_a, uniform1, uniform2_1
 from ..scene import Scene
-from ..settings import RAY_TYPE_AOVS, RenderSettings
+from ..settings import GUIDE_AOVS, RAY_TYPE_AOVS, RenderSettings
 from . import adaptive, compose
 from .wavefront import PATH_TYPES, NextQueue, RayCounts, ShadowQueue, SurfaceQueue
 
@@ -336,6 +338,10 @@ def write_tile(image: Image, res, tile, spp: int) -> None:
             aovs[name][y0:y1, x0:x1] = box_filter(res.by_type[:, i], spp).reshape(th, tw, 3)
     if "raydepth" in aovs:
         aovs["raydepth"][y0:y1, x0:x1] = res.deepest.reshape(th, tw, spp).max(axis=2)
+    if "denoising_albedo" in aovs:  # the denoiser's guides: the mean over the pixel's samples, as Cycles' passes
+        aovs["denoising_albedo"][y0:y1, x0:x1] = box_filter(res.guide_albedo, spp).reshape(th, tw, 3)
+    if "denoising_normal" in aovs:
+        aovs["denoising_normal"][y0:y1, x0:x1] = box_filter(res.guide_normal, spp).reshape(th, tw, 3)
     if "sample_count" in aovs:
         aovs["sample_count"][y0:y1, x0:x1] = spp
 
@@ -380,6 +386,10 @@ def _write_tile_spent(image: Image, res, tile) -> None:
             aovs[name][y0:y1, x0:x1] = mean(res.by_type[:, i]).reshape(th, tw, 3)
     if "raydepth" in aovs:
         aovs["raydepth"][y0:y1, x0:x1] = np.maximum.reduceat(res.deepest, starts).reshape(th, tw)
+    if "denoising_albedo" in aovs:  # the denoiser's guides, over the samples the pixel took
+        aovs["denoising_albedo"][y0:y1, x0:x1] = mean(res.guide_albedo).reshape(th, tw, 3)
+    if "denoising_normal" in aovs:
+        aovs["denoising_normal"][y0:y1, x0:x1] = mean(res.guide_normal).reshape(th, tw, 3)
     if "sample_count" in aovs:
         aovs["sample_count"][y0:y1, x0:x1] = spent.reshape(th, tw)
 
@@ -402,6 +412,9 @@ def empty_aovs(settings: RenderSettings, h: int, w: int) -> dict:
         aovs["raydepth"] = np.full((h, w), -1, np.int32)
     if "shadow_catcher" in settings.aovs:  # 1 where no catcher is seen (tracer.integrator.compose)
         aovs["shadow_catcher"] = np.ones((h, w, 3), np.float32)
+    if uses_guides(settings):  # the denoiser's guides (kept for it even when not asked for as outputs)
+        for name in GUIDE_AOVS:
+            aovs[name] = np.zeros((h, w, 3), np.float32)
     if "sample_count" in settings.aovs:  # 0 where nothing was rendered
         aovs["sample_count"] = np.zeros((h, w), np.int32)
     return aovs
@@ -410,6 +423,11 @@ def empty_aovs(settings: RenderSettings, h: int, w: int) -> dict:
 def uses_ray_types(settings: RenderSettings) -> bool:
     """Whether the integrator must split colours by ray type (a ray-type AOV is asked for)."""
     return any(a in RAY_TYPE_AOVS for a in settings.aovs)
+
+
+def uses_guides(settings: RenderSettings) -> bool:
+    """Whether the integrator must make the denoising guides (tracer/integrator/guides.py): to denoise, or asked for."""
+    return bool(settings.denoise) or any(a in GUIDE_AOVS for a in settings.aovs)
 
 
 #: Shadow-ray slots a batch of eye samples may fill at one depth: each shading point queues up to the
@@ -487,7 +505,7 @@ def check_memory(settings: RenderSettings, available: int | None = None) -> None
                              f"more than the {format_bytes(available)} this machine has available")
 
 
-def trace_batches(integ, o, d, keys, cancelled, ray_types=False, t_max=None, times=None):
+def trace_batches(integ, o, d, keys, cancelled, ray_types=False, t_max=None, times=None, guides=False):
     """``integ.trace`` over a tile's eye samples in consecutive batches of at most :data:`SHADOW_SLOTS` shadow
     slots, joined into one :class:`~tracer.integrator.wavefront.TileResult`. Each sample's path is traced within one batch
     and its rays keep their relative order, so the result equals one call's bit for bit."""
@@ -495,13 +513,13 @@ def trace_batches(integ, o, d, keys, cancelled, ray_types=False, t_max=None, tim
     batch = max(1024, SHADOW_SLOTS // per_point)
     n = len(o)
     if n <= batch:
-        return integ.trace(o, d, keys, cancelled, ray_types=ray_types, t_max=t_max, times=times)
+        return integ.trace(o, d, keys, cancelled, ray_types=ray_types, t_max=t_max, times=times, guides=guides)
     parts = []
     for a in range(0, n, batch):
         b = min(a + batch, n)
         parts.append(integ.trace(o[a:b], d[a:b], keys[a:b], cancelled, ray_types=ray_types,
                                  t_max=None if t_max is None else t_max[a:b],
-                                 times=None if times is None else times[a:b]))
+                                 times=None if times is None else times[a:b], guides=guides))
     return _joined_results(parts)
 
 
@@ -516,7 +534,8 @@ def _joined_results(parts):
     return dataclasses.replace(first, color=join("color"), alpha=join("alpha"), depth=join("depth"),
                                normal=join("normal"), albedo=join("albedo"), object_id=join("object_id"),
                                counts=counts, by_type=join("by_type"), deepest=join("deepest"),
-                               compose=join("compose"))
+                               compose=join("compose"), guide_albedo=join("guide_albedo"),
+                               guide_normal=join("guide_normal"))
 
 
 def trace_eye(session, settings: RenderSettings, o, d, keys, times, cancelled):
@@ -527,7 +546,8 @@ def trace_eye(session, settings: RenderSettings, o, d, keys, times, cancelled):
     t_max = None
     if cam.clipping_planes:  # each ray's valid interval (tracer.clip_planes): origin moved to its start
         o, t_max = clip_eye_rays(cam, o, d, cam.far - cam.near)
-    res = trace_batches(integ, o, d, keys, cancelled, ray_types=uses_ray_types(settings), t_max=t_max, times=times)
+    res = trace_batches(integ, o, d, keys, cancelled, ray_types=uses_ray_types(settings), t_max=t_max, times=times,
+                        guides=uses_guides(settings))
     if cam.near > 0 or cam.clipping_planes:  # depth is measured from the eye (the film plane for orthographic)
         rel = o - cam.position.astype(np.float32)
         res.depth += (np.linalg.norm(rel, axis=1) if cam.projection == "perspective"
@@ -593,7 +613,8 @@ def _taken(res, order):
     """``res`` with its per-sample arrays in ``order``."""
     take = lambda name: None if getattr(res, name) is None else getattr(res, name)[order]  # noqa: E731
     return dataclasses.replace(res, **{name: take(name) for name in ("color", "alpha", "depth", "normal", "albedo",
-                                                                     "object_id", "by_type", "deepest", "compose")})
+                                                                     "object_id", "by_type", "deepest", "compose",
+                                                                     "guide_albedo", "guide_normal")})
 
 
 def render_tile(session, settings: RenderSettings, tile) -> Image:
@@ -628,6 +649,8 @@ def render_session(session, settings: RenderSettings | None = None, *, on_tile=N
     """:meth:`tracer.Session.render`: every tile of ``settings`` on a thread pool, written into one image."""
     settings = (settings or RenderSettings()).validate()
     check_memory(settings)  # an impossible size is one clear error, not numpy's allocation failure midway
+    if settings.denoise:  # no OIDN library: DenoiseUnavailable now, not after the render
+        check_denoiser()
     cancelled = cancelled or (lambda: False)
     start = started if started is not None else time.perf_counter()
     scene = session.scene
@@ -681,4 +704,17 @@ def render_session(session, settings: RenderSettings | None = None, *, on_tile=N
         image.stats["ray_batches"] = accel.batches
     if was_cancelled:
         raise RenderCancelled(image)
+    if settings.denoise:  # the whole frame (or region) at once: the filter looks across tile borders
+        denoise_image(image, settings, prefilter=guide_prefilter(scene))
+        image.stats["seconds"] = time.perf_counter() - start
+        if on_tile is not None:  # the frame changed everywhere: hand it over once more, whole
+            on_tile(image, settings.region or (0, 0, w, h))
     return image
+
+
+def guide_prefilter(scene: Scene) -> str:
+    """How the denoiser treats the guides (tracer.denoise.PREFILTERS): "none" (trusted as clean, one filter) when
+    the eye samples see the scene without a lens or motion, where the guides are the anti-aliased first hits and
+    carry no noise; "accurate" (filtered first, Cycles' default) when depth of field or motion blur makes them
+    noisy. docs/benchmarks.md ("Denoising"): the prefilter costs two more filters."""
+    return "accurate" if scene.camera.lens_radius > 0 or has_motion(scene) else "none"

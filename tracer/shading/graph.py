@@ -72,7 +72,8 @@ class ImageRef:
 
     path         file read through OpenImageIO at first use (or None when ``pixels`` are given)
     pixels       (H, W, 4) float32 scene-linear, straight alpha, row 0 = top (front ends that decode themselves)
-    colorspace   "auto" (8/16-bit files sRGB, float files linear) | "srgb" | "raw" — for ``path`` only
+    colorspace   "auto" (8-bit RGB/RGBA files sRGB, others linear: :func:`tracer.shading.texture.decode_image`) |
+                 "srgb" | "raw" — for ``path`` only
     wrap_s, wrap_t   "repeat" | "clamp" | "mirror" | "black" (Blender's REPEAT, EXTEND, MIRROR, CLIP)
     interpolation    "linear" | "closest" | "cubic" | "smart" (tracer.shading.texture: Smart reads as Cubic)
     label        for messages

@@ -136,34 +136,77 @@ def as_texture(t, label: str = "texture") -> Texture:
     return Texture(image=np.asarray(t))
 
 
-def load_texture(path: str, colorspace: str = "auto", channels: int = 3) -> np.ndarray:
-    """Read an image with OpenImageIO as (H, W, ``channels``) linear float32 (``channels`` 3: RGB as before; 4: RGBA
-    with straight alpha, 1 for images without one). ``colorspace``: "auto" (8/16-bit integer files are sRGB, float
-    files linear), "srgb" or "raw"/"linear". Alpha is never colour-decoded."""
+#: Colour-space tokens of an image file, case-insensitive: decode r, g, b through the sRGB curve, keep the values,
+#: or choose by the file (:func:`decode_image`).
+COLORSPACES = ("auto", "srgb", "raw", "linear")
+_OIIO_WRAP = {"periodic": "repeat", "clamp": "clamp", "mirror": "mirror", "black": "black", "default": "",
+              "repeat": "repeat"}
+
+
+class DecodedImage(NamedTuple):
+    """One image file decoded: ``rgba`` (H, W, 4) float32 linear, straight alpha, row 0 the top of the picture;
+    ``srgb`` whether r, g, b went through the sRGB curve; ``wrap_meta`` the file's own wrap modes (s, t) as
+    :data:`WRAP_MODES` names, "" where it has none (TIFF/OpenEXR/TX ``wrapmodes``)."""
+
+    rgba: np.ndarray
+    srgb: bool
+    wrap_meta: tuple
+
+
+def decode_image(path: str, colorspace: str = "auto", label: str | None = None) -> DecodedImage:
+    """Read an image file with OpenImageIO: the one decoder of the tracer, the USD reader and the API.
+
+    - channels: 1 -> (v, v, v, 1); 2 -> (v, v, v, a); 3 -> (r, g, b, 1); 4+ -> (r, g, b, a);
+    - colour is straight (unassociated) alpha: OIIO would otherwise premultiply PNG colour by its alpha and darken
+      the edges of every cut-out;
+    - ``colorspace`` "srgb" decodes r, g, b through the sRGB curve (alpha never); "raw"/"linear" keeps the values;
+      **"auto" is sRGB for 8-bit files of 3 or 4 channels and raw otherwise**: Storm's rule
+      (``HioOIIO_Image::IsColorSpaceSRGB``), the UsdPreviewSurface spec's fallback for a file without colour
+      metadata. One-channel maps (roughness, masks), 16-bit and float files stay linear. (Blender decides per image
+      with its own colour-space setting, which the add-on reads; it never asks for "auto".)
+    - NaN and ±Inf texels become 0.
+
+    ValueError (naming ``label``, default the path) when the file cannot be read or the colour space is unknown."""
     import OpenImageIO as oiio
 
-    buf = oiio.ImageBuf(str(path))
+    label = label or str(path)
+    space = str(colorspace).lower()
+    if space not in COLORSPACES:
+        raise ValueError(f"texture {label}: colour space {colorspace!r} is not one of {', '.join(COLORSPACES)}")
+    config = oiio.ImageSpec()
+    config.attribute("oiio:UnassociatedAlpha", 1)
+    buf = oiio.ImageBuf(str(path), 0, 0, config)
     if buf.has_error:
-        raise ValueError(f"cannot read texture {path}: {buf.geterror()}")
+        raise ValueError(f"cannot read texture {label}: {buf.geterror().strip()}")
     spec = buf.spec()
-    pixels = buf.get_pixels(oiio.FLOAT)
-    if pixels is None or pixels.size == 0:
-        raise ValueError(f"cannot read texture {path}: no pixels")
-    pixels = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels)
-    alpha = np.ones(pixels.shape[:2] + (1,), np.float32)
-    if spec.nchannels == 1:
-        rgb = np.repeat(pixels, 3, axis=2)
-    elif spec.nchannels == 2:
-        rgb, alpha = np.repeat(pixels[..., :1], 3, axis=2), pixels[..., 1:2]
+    px = buf.get_pixels(oiio.FLOAT)
+    if px is None or np.size(px) == 0:
+        raise ValueError(f"cannot read texture {label}: no pixels")
+    px = np.asarray(px, np.float32).reshape(spec.height, spec.width, spec.nchannels)
+    n = px.shape[2]
+    one = np.ones_like(px[..., :1])
+    if n == 1:
+        rgba = np.concatenate([px, px, px, one], axis=2)
+    elif n == 2:
+        rgba = np.concatenate([px[..., :1]] * 3 + [px[..., 1:2]], axis=2)
+    elif n == 3:
+        rgba = np.concatenate([px, one], axis=2)
     else:
-        rgb = pixels[..., :3]
-        if spec.nchannels >= 4:
-            alpha = pixels[..., 3:4]
-    is_float = spec.format.basetype in (oiio.FLOAT, oiio.HALF, oiio.DOUBLE)
-    if colorspace == "srgb" or (colorspace == "auto" and not is_float):
-        rgb = srgb_to_linear(rgb)
-    out = rgb if channels == 3 else np.concatenate([rgb, alpha], axis=2)
-    return np.ascontiguousarray(np.nan_to_num(out), dtype=np.float32)
+        rgba = px[..., :4]
+    eight_bit = spec.format.basetype in (oiio.UINT8, oiio.INT8)
+    srgb = space == "srgb" or (space == "auto" and eight_bit and n in (3, 4))
+    rgba = np.nan_to_num(rgba, nan=0.0, posinf=0.0, neginf=0.0).astype(np.float32)
+    if srgb:
+        rgba[..., :3] = srgb_to_linear(rgba[..., :3])
+    wraps = str(spec.get_string_attribute("wrapmodes", "")).split(",")
+    wrap_meta = tuple(_OIIO_WRAP.get(w.strip().lower(), "") for w in (wraps + wraps)[:2])
+    return DecodedImage(np.ascontiguousarray(rgba), srgb, wrap_meta)
+
+
+def load_texture(path: str, colorspace: str = "auto", channels: int = 3) -> np.ndarray:
+    """An image file (:func:`decode_image`) as (H, W, ``channels``) linear float32: 3 RGB, 4 RGBA (straight
+    alpha, 1 for images without one)."""
+    return np.ascontiguousarray(decode_image(path, colorspace).rgba[..., :channels])
 
 
 # ---------------------------------------------------------------------------------------------- kernels' form

@@ -5,12 +5,12 @@ files inside a ``.usdz`` package work alike. OpenImageIO cannot read inside a zi
 (``/a/b.usdz[textures/c.png]``) is read through ``Ar`` (``ArResolver.OpenAsset``, which knows nested packages) into
 a temporary file that OIIO then decodes; the file is removed at once.
 
-UsdUVTexture conventions (UsdPreviewSurface spec 2.5):
+UsdUVTexture conventions (UsdPreviewSurface spec 2.5); the decoding is the tracer's one decoder's,
+:func:`tracer.shading.texture.decode_image`, whose rules are these:
 
 - channels: 1 channel -> (v, v, v, 1); 2 channels -> (v, v, v, a); 3 -> (r, g, b, 1); 4 -> (r, g, b, a). Images
   are returned with 4 channels, so every output (r, g, b, a, rgb) means the same in every file.
-- ``sourceColorSpace``: ``sRGB`` decodes r, g, b through the sRGB curve (``tracer.colorspace.srgb_to_linear``; alpha is
-  never decoded); ``raw`` keeps the values; ``auto`` is sRGB for 8-bit files of 3 or 4 channels and raw otherwise,
+- ``sourceColorSpace``: ``sRGB`` decodes r, g, b through the sRGB curve (alpha is never decoded); ``raw`` keeps the values; ``auto`` is sRGB for 8-bit files of 3 or 4 channels and raw otherwise,
   Storm's rule (``HioOIIO_Image::IsColorSpaceSRGB``; the spec's fallback when a file has no colour metadata, and
   OIIO labels every 8-bit PNG/JPEG sRGB, grey ones too): one-channel maps (roughness, masks) stay linear.
 - ``wrapS/wrapT = useMetadata``: the file's ``wrapmodes`` metadata (TIFF/OpenEXR/TX; ``periodic`` = repeat), else
@@ -28,11 +28,7 @@ import tempfile
 import numpy as np
 from pxr import Ar
 
-from tracer.colorspace import srgb_to_linear
-
-WRAPS = ("repeat", "clamp", "mirror", "black")
-_OIIO_WRAP = {"periodic": "repeat", "clamp": "clamp", "mirror": "mirror", "black": "black", "default": "",
-              "repeat": "repeat"}
+from tracer.shading.texture import WRAP_MODES as WRAPS, decode_image
 
 
 class TextureFile:
@@ -43,56 +39,21 @@ class TextureFile:
         self.pixels, self.wrap_meta, self.srgb, self.label = pixels, wrap_meta, srgb, label
 
 
-def _oiio_read(path: str, label: str):
-    import OpenImageIO as oiio
-
-    config = oiio.ImageSpec()
-    config.attribute("oiio:UnassociatedAlpha", 1)  # colour stays straight alpha, as the spec wants (PNG stores it so)
-    buf = oiio.ImageBuf(path, 0, 0, config)
-    if buf.has_error:
-        raise ValueError(f"cannot read texture {label}: {buf.geterror().strip()}")
-    spec = buf.spec()
-    px = buf.get_pixels(oiio.FLOAT)
-    if px is None or np.size(px) == 0:
-        raise ValueError(f"cannot read texture {label}: no pixels")
-    px = np.asarray(px, np.float32).reshape(spec.height, spec.width, spec.nchannels)
-    eight_bit = spec.format.basetype in (oiio.UINT8, oiio.INT8)
-    wraps = str(spec.get_string_attribute("wrapmodes", "")).split(",")
-    wrap_meta = tuple(_OIIO_WRAP.get(w.strip().lower(), "") for w in (wraps + wraps)[:2])
-    return px, eight_bit, wrap_meta
-
-
 def read_texture_file(resolved: str, colorspace: str = "auto", label: str | None = None) -> TextureFile:
-    """Decode ``resolved`` (a resolved USD asset path) as UsdUVTexture does. ValueError when it cannot be read."""
+    """Decode ``resolved`` (a resolved USD asset path) as UsdUVTexture does (the tracer's one decoder,
+    :func:`tracer.shading.texture.decode_image`). ValueError when it cannot be read."""
     label = label or resolved
+    colorspace = colorspace if colorspace in ("sRGB", "raw") else "auto"  # the spec's tokens; anything else: auto
     if Ar.IsPackageRelativePath(resolved):
-        px, eight_bit, wrap_meta = _read_packaged(resolved, label)
+        image = _read_packaged(resolved, colorspace, label)
     else:
         if not os.path.isfile(resolved):
             raise ValueError(f"cannot read texture {label}: no such file")
-        px, eight_bit, wrap_meta = _oiio_read(resolved, label)
-    n = px.shape[2]
-    if n == 1:
-        rgba = np.concatenate([np.repeat(px, 3, axis=2), np.ones_like(px)], axis=2)
-    elif n == 2:
-        rgba = np.concatenate([np.repeat(px[..., :1], 3, axis=2), px[..., 1:2]], axis=2)
-    elif n == 3:
-        rgba = np.concatenate([px, np.ones_like(px[..., :1])], axis=2)
-    else:
-        rgba = px[..., :4]
-    if colorspace == "sRGB":
-        srgb = True
-    elif colorspace == "raw":
-        srgb = False
-    else:  # auto: Storm's rule (HioOIIO_Image::IsColorSpaceSRGB)
-        srgb = eight_bit and n in (3, 4)
-    rgba = np.nan_to_num(rgba, nan=0.0, posinf=0.0, neginf=0.0).astype(np.float32)
-    if srgb:
-        rgba[..., :3] = srgb_to_linear(rgba[..., :3])
-    return TextureFile(np.ascontiguousarray(rgba), wrap_meta, srgb, label)
+        image = decode_image(resolved, colorspace, label)
+    return TextureFile(image.rgba, image.wrap_meta, image.srgb, label)
 
 
-def _read_packaged(resolved: str, label: str):
+def _read_packaged(resolved: str, colorspace: str, label: str):
     """Read a file inside a package (.usdz) through Ar and decode it from a temporary copy."""
     asset = Ar.GetResolver().OpenAsset(Ar.ResolvedPath(resolved))
     if asset is None:
@@ -106,7 +67,7 @@ def _read_packaged(resolved: str, label: str):
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(bytes(data))
-        return _oiio_read(tmp, label)
+        return decode_image(tmp, colorspace, label)
     finally:
         os.unlink(tmp)
 
