@@ -18,9 +18,10 @@ PSNR of the sRGB-encoded image against the reference (as tests/cycles do):
 - ours, adaptive: budgets N×N, N = 3 … 16, each at noise thresholds 0.2, 0.05 and 0.01, min samples 4;
 - Cycles, fixed: 1 … 1024 samples, adaptive sampling off;
 - Cycles, adaptive: budgets 16 … 1024 samples at the same thresholds, min samples 4 (Cycles checks first after 16);
-- Cycles, adaptive + OIDN: as above with Open Image Denoise (CPU; albedo and normal guides, accurate prefilter),
-  Blender's default final-render denoiser. Ours has no denoiser on this branch (issue #33's other half), so this
-  mode is context, not a like-for-like pair.
+- ours, adaptive + OIDN: as ours adaptive with ``denoise`` (tracer/denoise.py: Open Image Denoise with the albedo
+  and normal guides, the whole frame after the tiles, inside the timed render);
+- Cycles, adaptive + OIDN: as Cycles adaptive with Open Image Denoise (CPU; albedo and normal guides, accurate
+  prefilter), Blender's default final-render denoiser.
 
 A mode's curve is its best PSNR for the time (the points sorted by CPU time, each kept when it beats every faster
 one: the best setting of the knobs at that cost); its time to a target is where that curve first reaches it,
@@ -58,7 +59,8 @@ REFERENCE_SEEDS = (101, 102)
 #: A render is repeated (its least CPU time kept: the machine is shared) until REPEAT_SECONDS of CPU are spent,
 #: at most REPEATS times.
 REPEATS, REPEAT_SECONDS = 3, 1.0
-MODES = ("ours fixed", "ours adaptive", "cycles fixed", "cycles adaptive", "cycles adaptive+oidn")
+MODES = ("ours fixed", "ours adaptive", "ours adaptive+oidn", "cycles fixed", "cycles adaptive",
+         "cycles adaptive+oidn")
 
 
 # ---------------------------------------------------------------------------------------------------- scenes
@@ -315,12 +317,18 @@ def sweep(name: str, threads: int, ref_samples: int, targets=TARGETS, modes=MODE
     out["warnings"] = warnings
     ours_render(scene, base.with_(samples=2))  # kernels loaded before anything is timed
     ours_render(scene, base.with_(samples=3, adaptive_threshold=0.1, adaptive_min_samples=4))
+    if "ours adaptive+oidn" in modes:
+        ours_render(scene, base.with_(samples=3, adaptive_threshold=0.1, adaptive_min_samples=4, denoise=True))
     runs = []
     if "ours fixed" in modes:
         runs += [("ours fixed", {"N": n}, base.with_(samples=n)) for n in OURS_N]
     if "ours adaptive" in modes:
         runs += [("ours adaptive", {"N": n, "threshold": t},
                   base.with_(samples=n, adaptive_threshold=t, adaptive_min_samples=MIN_SAMPLES))
+                 for n in OURS_BUDGETS for t in THRESHOLDS]
+    if "ours adaptive+oidn" in modes:
+        runs += [("ours adaptive+oidn", {"N": n, "threshold": t},
+                  base.with_(samples=n, adaptive_threshold=t, adaptive_min_samples=MIN_SAMPLES, denoise=True))
                  for n in OURS_BUDGETS for t in THRESHOLDS]
     for mode, knob, settings in runs:
         px, cpu, wall, spp = ours_render(scene, settings)
@@ -350,11 +358,17 @@ def sweep(name: str, threads: int, ref_samples: int, targets=TARGETS, modes=MODE
 
 
 # ---------------------------------------------------------------------------------------------------- output
+#: The like-for-like pairs whose ratio the table gives: (ours, Cycles).
+PAIRS = (("ours adaptive", "cycles adaptive"), ("ours adaptive+oidn", "cycles adaptive+oidn"))
+
+
 def table(results: list, target: float) -> str:
-    """Markdown: per scene, the CPU seconds each mode needs to reach ``target`` dB, and ours ÷ Cycles (adaptive)."""
+    """Markdown: per scene, the CPU seconds each mode needs to reach ``target`` dB, and ours ÷ Cycles per pair."""
     modes = [m for m in MODES if any(r["curves"].get(m) for r in results)]
-    head = "| scene | reference (2 seeds) | " + " | ".join(modes) + " | ours ÷ Cycles, adaptive |"
-    lines = [head, "|" + "---|" * (len(modes) + 3)]
+    pairs = [p for p in PAIRS if p[0] in modes and p[1] in modes]
+    head = ("| scene | reference (2 seeds) | " + " | ".join(modes) + "".join(f" | {a} ÷ {b}" for a, b in pairs)
+            + " |")
+    lines = [head, "|" + "---|" * (len(modes) + len(pairs) + 2)]
     for r in results:
         tt = r["time_to"][f"{target:g}"]
         cells = []
@@ -362,13 +376,15 @@ def table(results: list, target: float) -> str:
             t = tt.get(m)
             cells.append("—" if not r["curves"].get(m) else
                          (f"{t:.2f} s" if t is not None else f"not reached ({r['best_psnr'][m]:.1f} dB)"))
-        a, c = tt.get("ours adaptive"), tt.get("cycles adaptive")
-        ratio = f"{a / c:.2f}" if a and c else "—"
-        lines.append(f"| {r['scene']} | {r['reference_psnr']:.1f} dB | " + " | ".join(cells) + f" | {ratio} |")
+        for a, b in pairs:
+            ta, tb = tt.get(a), tt.get(b)
+            cells.append(f"{ta / tb:.2f}" if ta and tb else "—")
+        lines.append(f"| {r['scene']} | {r['reference_psnr']:.1f} dB | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
-COLOURS = {"ours fixed": "#9ecae1", "ours adaptive": "#08519c", "cycles fixed": "#fdae6b",
+COLOURS = {"ours fixed": "#9ecae1", "ours adaptive": "#08519c", "ours adaptive+oidn": "#08306b",
+           "cycles fixed": "#fdae6b",
            "cycles adaptive": "#d94801", "cycles adaptive+oidn": "#7f2704"}
 
 
