@@ -64,6 +64,7 @@ DEFERRED: dict = {
     ("usd_io.request", "usd_io.reader"): "start-up (pxr, the tracer: the CLI parses flags with request.py)",
     # MaterialX loads only for a material with a MaterialX network
     ("usd_io.materials.table", "usd_io.materials.mtlx_graph"): "MaterialX",
+    ("usd_io.materials.mtlx_surfaces", "usd_io.materials.mtlx_closures"): "MaterialX",
     # properties.py imports bpy; export.py also runs where only its scene conversion is wanted
     ("addon.export", "addon.properties"): "bpy",
     # building a zip without kernels does not load the tracer (numba)

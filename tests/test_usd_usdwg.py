@@ -189,7 +189,8 @@ def test_mtlx_standard_surface_weights_textures_and_normal_map(tmp_path):
     assert f["metallic"] == pytest.approx(0.7)
     assert "r.png" in f["roughness_texture"] and f["roughness_channel"] == 0
     assert "n.png" in f["normal_texture"]
-    assert [w for w in info.warnings if "coat is not supported" in w]
+    assert f["layers"][0]["kind"] == "dielectric" and f["layers"][0]["weight"] == 1.0  # the coat: a layer
+    assert not [w for w in info.warnings if "coat" in w]
     from usd_io.materials.network import source
 
     stage = Usd.Stage.Open(path)

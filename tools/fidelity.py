@@ -3,6 +3,7 @@ Storm's baseline PNGs, by silhouette IoU.
 
     python tools/fidelity.py OPENUSD_CHECKOUT [--out /tmp/fidelity] [--only NAME[,NAME...]] [--no-dof]
                              [--aa 2] [--jsonl OUT.jsonl]
+    python tools/fidelity.py materialx MATERIALX_CHECKOUT ...   (the MaterialX corpus: tools/fidelity_mtlx.py)
 
 Nothing is downloaded: OPENUSD_CHECKOUT is a checkout (or an extracted copy) of OpenUSD holding
 ``pxr/usdImaging/usdImagingGL/CMakeLists.txt`` and its ``testenv``. Every ``pxr_register_test`` there whose
@@ -252,6 +253,12 @@ def side_by_side(path: str, storm: np.ndarray, ours_rgba: np.ndarray, a: np.ndar
 
 
 def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["materialx"]:  # the MaterialX corpus (tools/fidelity_mtlx.py)
+        sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+        import fidelity_mtlx
+
+        return fidelity_mtlx.main(argv[1:])
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("openusd")
     p.add_argument("--out", default="/tmp/fidelity")

@@ -1094,14 +1094,26 @@ def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shado
     q_o, q_d, q_t, q_s, q_c, q_l = shadow.o, shadow.d, shadow.t_max, shadow.sample, shadow.color, shadow.light
     o_color = out.color
     n_new = 0
+    no_lobes = lobes.none()
     for i in range(s_hit.shape[0]):
         if not s_hit[i]:
             continue
         s = sample[i]
         n, di = vec.row(s_n, i), vec.row(d, i)
         cl, wl, g = _closure_at(surf, mats, i, n, di, principled, spawn)
-        if wl <= 0.0 or bsdf.is_black(cl):
-            continue
+        lb = no_lobes
+        nl = surf.lobes[i] if principled else -1
+        if nl >= 0:  # a sum of lobes: the sky lights each lobe (as the direct-light stage does), not the blend
+            lb, wl = _lobes_at(surf, mats, i, n, di, spawn)
+            if wl <= 0.0 or lobes.is_black(lb):
+                continue
+            diffuse = lobes.diffuse_albedo(lb)
+            spec_ambient = lobes.specular_ambient(lb)
+        else:
+            if wl <= 0.0 or bsdf.is_black(cl):
+                continue
+            diffuse = cl.diffuse
+            spec_ambient = vec.scale(bsdf.specular_albedo(cl), 1.0 - g)
         w_ray = vec.row(weight, i)
         wo = vec.scale(w_ray, wl)
         p = (s_p[i, 0], s_p[i, 1], s_p[i, 2])
@@ -1118,7 +1130,10 @@ def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shado
                 n_l = vec.dot(n, dr)
                 if n_l <= 0.0 or vec.dot(ng, dr) <= 0.0 or pdf <= 0.0:
                     continue
-                f = bsdf.evaluate(cl, n, wi, dr, n_l, 1.0 - g)
+                if nl >= 0:  # each lobe's specular part less its mirror share g_i (the mirror ray sees the sky)
+                    f = lobes.evaluate(lb, n, wi, dr, n_l, True, 1.0, 1.0)
+                else:
+                    f = bsdf.evaluate(cl, n, wi, dr, n_l, 1.0 - g)
                 c = vec.scale(vec.mul(wo, vec.mul(f, env_radiance(e_data, e_rot, dr))), 1.0 / (pdf * kk))
                 _put(q_o, q_d, q_t, q_s, q_c, q_l, n_shadow, spawn_ray(p, ng, dr, eps), dr, np.inf, s, c, -1)
                 n_shadow += 1
@@ -1127,10 +1142,10 @@ def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shado
         if not has_amb:
             continue
         if principled:  # the lobes' share of the uniform sky, unshadowed
-            c = vec.scale(vec.mul(bsdf.specular_albedo(cl), amb), 1.0 - g)
+            c = vec.mul(spec_ambient, amb)
             for ch in range(3):
                 o_color[s, ch] += wo[ch] * c[ch]
-        c = vec.scale(vec.mul(wo, shading.ambient(cl.diffuse, amb)), 1.0 / kk)
+        c = vec.scale(vec.mul(wo, shading.ambient(diffuse, amb)), 1.0 / kk)
         for k in range(kk):
             s0, s1 = rotated_multijitter(k, sd, r0, r1)
             dr = sky.cosine_direction(n, tu, tv, s0, s1)

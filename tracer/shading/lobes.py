@@ -176,6 +176,24 @@ def ambient(lb, amb):
 
 
 @kernel(inline=True)
+def diffuse_albedo(lb):
+    """Σᵢ wᵢ·R_d,ᵢ: what the lobes' diffuse parts reflect of a uniform sky (the sky stage's cosine rays carry it)."""
+    c = (0.0, 0.0, 0.0)
+    for k in range(lb.n):
+        c = vec.add(c, vec.mul(lb.w[k], lb.cl[k].diffuse))
+    return c
+
+
+@kernel(inline=True)
+def specular_ambient(lb):
+    """Σᵢ wᵢ·(1 − gᵢ)·(lobe i's specular albedo): what the lobes' light-sample share reflects of a uniform sky."""
+    c = (0.0, 0.0, 0.0)
+    for k in range(lb.n):
+        c = vec.add(c, vec.scale(vec.mul(lb.w[k], bsdf.specular_albedo(lb.cl[k])), 1.0 - lb.g[k]))
+    return c
+
+
+@kernel(inline=True)
 def is_black(lb):
     """No lobe reflects light samples."""
     if vec.max3(lb.translucent) > 0.0 or vec.max3(lb.sheen) > 0.0:

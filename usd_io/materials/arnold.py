@@ -25,7 +25,7 @@ from pxr import Sdf, UsdShade
 from . import network as net
 from .arnold_patterns import PATTERNS, upstream
 
-#: Arnold surface ids read as a MaterialX family (a key of ``surfaces.MX_SURFACES``).
+#: Arnold surface ids read as a MaterialX family (a key of ``usd_io.mtlx_surfaces.READERS``).
 AS_MATERIALX = {"arnold:standard_surface": "standard_surface", "arnold:openpbr_surface": "open_pbr_surface"}
 SIMPLE_SURFACES = ("arnold:lambert", "arnold:standard", "arnold:flat") + PATTERNS[1:] + ("arnold:image",)
 

@@ -24,7 +24,10 @@ from __future__ import annotations
 
 import os
 
-from pxr import Sdf
+import numpy as np
+from pxr import Gf, Sdf, Tf
+
+from tracer import colorspace
 
 #: MaterialX type -> Sdf value type.
 TYPES = {"float": Sdf.ValueTypeNames.Float, "integer": Sdf.ValueTypeNames.Int, "boolean": Sdf.ValueTypeNames.Bool,
@@ -56,6 +59,44 @@ def definitions() -> mx.Document:
     """A document whose nodedef lookups see the libraries and every read document's own definitions."""
     _library()
     return _LIB["docs"]
+
+
+def linear_colour(value, space: str, unknown=None):
+    """A colour value authored in MaterialX colour space ``space`` (an input's ``colorspace``, its own or
+    inherited: what :func:`translate` writes as the attribute's ``colorSpace``) as linear Rec.709, the tracer's
+    working space (:func:`tracer.colorspace.to_lin_rec709`, MaterialX's own colour transforms). A space MaterialX's
+    default colour management does not know is left as is and reported through ``unknown(space)``; a value that
+    is not a colour (a scalar, a string) is returned unchanged."""
+    space = str(space or "")
+    if space in colorspace.NO_CONVERSION or value is None or isinstance(value, str):
+        return value
+    if colorspace.materialx_space(space) is None:
+        if unknown is not None:
+            unknown(space)
+        return value
+    v = np.asarray(value.asTuple() if hasattr(value, "asTuple") else value, np.float64).reshape(-1)
+    if v.size not in (3, 4):
+        return value
+    rgb = colorspace.to_lin_rec709(v[:3], space)
+    return tuple(float(x) for x in rgb) + tuple(float(x) for x in v[3:])
+
+
+def texture_colorspace(space: str) -> tuple[str, str | None]:
+    """How a MaterialX image whose file is in colour space ``space`` is decoded (usd_io.materials.texture_files): "sRGB"
+    (srgb_texture: the sRGB curve), "raw" (no space, a linear Rec.709 alias, or a data texture), "mx:<space>" (read
+    raw, then MaterialX's transform into linear Rec.709), with a note for a space MaterialX does not know (read
+    raw, as MaterialX's own renderers read it)."""
+    space = str(space or "")
+    if space in colorspace.NO_CONVERSION:
+        return "raw", None
+    known = colorspace.materialx_space(space)
+    if known is None:
+        return "raw", f"colour space {space!r} is not one MaterialX's colour management knows (read as linear)"
+    if known == "srgb_texture":
+        return "sRGB", None
+    if known == "lin_rec709":
+        return "raw", None
+    return f"mx:{known}", None
 
 
 def nodedef(name: str):
@@ -97,6 +138,10 @@ def _value(mx_type: str, text: str, base_dir: str):
     nums = [float(x) for x in text.replace(",", " ").split()]
     if mx_type == "integer":
         return int(nums[0])
+    if mx_type in ("matrix33", "matrix44"):  # row-major rows, as MaterialX writes them
+        n = 3 if mx_type == "matrix33" else 4
+        rows = [nums[i * n:(i + 1) * n] for i in range(n)]
+        return Gf.Matrix3d(*rows) if n == 3 else Gf.Matrix4d(*rows)
     return nums[0] if len(nums) == 1 else tuple(nums)
 
 
@@ -175,13 +220,17 @@ class _Writer:
         if inp.getInterfaceName() and graph_path is not None:
             a.connectionPathList.Prepend(graph_path.AppendProperty(f"inputs:{inp.getInterfaceName()}"))
             return
+        if inp.getInterfaceName() and graph_path is None:  # a top-level node reading a document-level input
+            top = self.doc.getInput(inp.getInterfaceName())
+            if top is not None and top.getValueString():
+                inp = top
         if inp.getValueString():
             text = inp.getResolvedValueString() if mx_type == "filename" else inp.getValueString()
             src = inp.getActiveSourceUri()
             base = os.path.dirname(src) if src and os.path.isabs(src) else self.base_dir
             try:
                 a.default = _value(mx_type, text, base)
-            except (ValueError, IndexError):
+            except (ValueError, IndexError, TypeError, Tf.ErrorException):  # a value USD cannot hold: unauthored
                 pass
 
     def graph(self, parent: Sdf.Path, g) -> Sdf.Path:
@@ -205,7 +254,8 @@ class _Writer:
         out = Sdf.AttributeSpec(spec, "outputs:mtlx:surface", Sdf.ValueTypeNames.Token)
         for inp in m.getInputs():
             node = inp.getConnectedNode()
-            if inp.getType() == "surfaceshader" and node is not None:
+            # the front surface only: a backsurfaceshader (two-sided materials) is not one of usdMtlx's outputs
+            if inp.getType() == "surfaceshader" and node is not None and inp.getName() == "surfaceshader":
                 sh = self.shader(path, node, None)
                 out.connectionPathList.Prepend(sh.AppendProperty("outputs:surface"))
 

@@ -71,7 +71,7 @@ class UsdNode:
         if is_out:
             return ("link", UsdNode(UsdShade.Shader(a.GetPrim()), self.time), UsdShade.Output(a).GetBaseName())
         v = a.Get() if self.time is None else a.Get(self.time)
-        return None if v is None else ("const", v, a)
+        return None if v is None else ("const", v, a, a.GetColorSpace())
 
 
 class MxNode:
@@ -93,7 +93,7 @@ class MxNode:
             return None if up is None else ("link", MxNode(up, self.outer), inp.getOutputString() or "out")
         if inp.getInterfaceName():
             return ("outer", self.outer, inp.getInterfaceName())
-        return ("const", inp.getValue(), None) if inp.getValueString() else None
+        return ("const", inp.getValue(), None, inp.getActiveColorSpace()) if inp.getValueString() else None
 
 
 class Outs:
@@ -120,6 +120,10 @@ class Translator:
         self._warned: set = set()
 
     # ------------------------------------------------------------------ plumbing
+    def unknown_space(self, space: str) -> None:
+        self.warn(f"space {space}", f"MaterialX colour space {space!r} is not one MaterialX's colour management "
+                                    "knows (values read as linear Rec.709)")
+
     def warn(self, key: str, message: str) -> None:
         if key not in self._warned:
             self._warned.add(key)
@@ -164,6 +168,16 @@ class Translator:
         else:
             x = self.add("combine_xyz", {"X": xyz[0], "Y": xyz[1], "Z": xyz[2]}, "Vector")
         return V(t, x, parts[3] if n == 4 and len(parts) > 3 else 1.0)
+
+    def flat2(self, v: V) -> V:
+        """A vector2 with its third lane 0 (the convention every vector2 value keeps): a float operand broadcast
+        over three lanes (``uv − 0.5``) would leave −0.5 there, and a dot product or length would count it."""
+        if v.t != "vector2" or v.wide != 2:
+            return v
+        if not hasattr(v.x, "node"):
+            x = tuple(float(c) for c in v.x)
+            return V(v.t, (x[0], x[1], 0.0), v.w)
+        return V(v.t, self.vmath("MULTIPLY", v.x, (1.0, 1.0, 0.0)), v.w)
 
     def cast(self, v: V, t: str) -> V:
         """``v`` as type ``t``: a float broadcast, a vector cut to its lanes, color3 ↔ vector3 as is."""
@@ -218,7 +232,7 @@ class Translator:
         c = _Ctx(self, view, nd)
         fn = getattr(self, f"_n_{nd.getNodeString()}", None)
         if fn is not None:
-            return self.cast(fn(c, t, output), t)
+            return self.flat2(self.cast(fn(c, t, output), t))
         impl = nd.getImplementation()
         if isinstance(impl, mx.NodeGraph):
             go = impl.getOutput(output) or (impl.getOutputs()[0] if impl.getOutputs() else None)
@@ -319,7 +333,7 @@ class Translator:
         return net.TextureLookup(node=c.view.name, asset=r[1], channel=0 if WIDTH.get(t, 1) == 1 else -1, uv=None,
                                  transform=np.eye(3), scale=(1.0, 1.0, 1.0, 1.0), bias=(0.0, 0.0, 0.0, 0.0),
                                  fallback=tuple(default) + (1.0,), wrap_s=wrap[0], wrap_t=wrap[1],
-                                 colorspace="sRGB" if a.GetColorSpace() == "srgb_texture" else "raw",
+                                 colorspace=mtlx.texture_colorspace(a.GetColorSpace())[0],
                                  layer=authoring_layer(a))
 
     def _n_image(self, c, t, o, tiled=False):
@@ -543,14 +557,226 @@ class Translator:
         return V("float", self.lane(c.i("in"), int(c.uniform("index", 0) or 0)))
 
     def _n_switch(self, c, t, o):
-        """in{which + 1} (a constant ``which``, as real documents author it)."""
+        """in{which + 1}: a constant ``which`` picks its input; a connected one selects per hit (in1 below 1,
+        in2 below 2, ... MaterialX's switch on floor(which), clamped to the inputs the definition has)."""
         which = c.view.input("which")
         while which is not None and which[0] == "outer":
             which = which[1].input(which[2])
-        if which is not None and which[0] == "link":
-            self.warn(c.view.key, f"MaterialX switch {c.view.name}: a connected 'which' is not supported (in1 used)")
-        k = int(_py(c.uniform("which", 0)) or 0) if which is None or which[0] != "link" else 0
-        return c.i(f"in{min(max(k, 0), 9) + 1}", t)
+        n = len([i for i in c.nd.getActiveInputs() if i.getName().startswith("in")]) or 1
+        if which is None or which[0] != "link":
+            k = int(_py(c.uniform("which", 0)) or 0)
+            return c.i(f"in{min(max(k, 0), n - 1) + 1}", t)
+        w = c.f("which")
+        out = c.i("in1", t)
+        for k in range(1, n):  # from in1 upwards: which >= k takes in(k+1)
+            out = self.mix(t, out, c.i(f"in{k + 1}", t),
+                           V("float", self.math("SUBTRACT", 1.0, self.math("LESS_THAN", w, float(k)))))
+        return out
+
+    def _n_blackbody(self, c, t, o):
+        """The colour of a black body at ``temperature`` K (the tracer's Blackbody node, Cycles' table; MaterialX
+        normalises its own fit the same way, to a luminance of 1 at the white point)."""
+        return V(t, self.add("blackbody", {"Temperature": c.f("temperature")}, "Color"))
+
+    def _n_artistic_ior(self, c, t, o):
+        """Gulbrandsen's artist-friendly metallic Fresnel (outputs ``ior`` and ``extinction``), lane by lane:
+        r = clamp(reflectivity, 0, 0.99), n = g·(1 − r)/(1 + r) + (1 − g)·(1 + √r)/(1 − √r),
+        k = √(((n + 1)²·r − (n − 1)²)/(1 − r))."""
+        r = self._lanewise("color3", "MINIMUM", self._lanewise("color3", "MAXIMUM", c.i("reflectivity"),
+                                                                V("float", 0.0)), V("float", 0.99))
+        g = c.i("edge_color")
+        lanes = []
+        for i in range(3):
+            ri, gi = self.lane(r, i), self.lane(g, i)
+            sr = self.math("SQRT", ri)
+            n_min = self.math("DIVIDE", self.math("SUBTRACT", 1.0, ri), self.math("ADD", 1.0, ri))
+            n_max = self.math("DIVIDE", self.math("ADD", 1.0, sr), self.math("SUBTRACT", 1.0, sr))
+            n = self.math("ADD", self.math("MULTIPLY", gi, n_min),
+                          self.math("MULTIPLY", self.math("SUBTRACT", 1.0, gi), n_max))
+            if o == "extinction":
+                np1, nm1 = self.math("ADD", n, 1.0), self.math("SUBTRACT", n, 1.0)
+                k2 = self.math("DIVIDE", self.math("SUBTRACT", self.math("MULTIPLY", self.math("MULTIPLY", np1, np1),
+                                                                               ri), self.math("MULTIPLY", nm1, nm1)),
+                               self.math("SUBTRACT", 1.0, ri))
+                lanes.append(self.math("SQRT", self.math("MAXIMUM", k2, 0.0)))
+            else:
+                lanes.append(n)
+        return self.pack("color3", lanes)
+
+    # ---- more arithmetic, logic and vectors (MaterialX's GLSL implementations)
+    _n_fract = lambda self, c, t, o: self._unary(c, t, "FRACT")  # noqa: E731
+    _n_round = lambda self, c, t, o: self._unary(c, t, "ROUND")  # noqa: E731
+
+    def _n_and(self, c, t, o):
+        return V(t, self.math("MULTIPLY", c.f("in1"), c.f("in2")))
+
+    def _n_or(self, c, t, o):
+        return V(t, self.math("MAXIMUM", c.f("in1"), c.f("in2")))
+
+    def _n_not(self, c, t, o):
+        return V(t, self.math("SUBTRACT", 1.0, c.f("in")))
+
+    def _n_rotate2d(self, c, t, o):
+        """(cos·x + sin·y, −sin·x + cos·y), ``amount`` in degrees (mx_rotate_vector2)."""
+        v, a = c.i("in", "vector2"), self.math("RADIANS", c.f("amount"))
+        sa, ca = self.math("SINE", a), self.math("COSINE", a)
+        x, y = self.lane(v, 0), self.lane(v, 1)
+        return self.pack(t, [self.math("ADD", self.math("MULTIPLY", ca, x), self.math("MULTIPLY", sa, y)),
+                             self.math("SUBTRACT", self.math("MULTIPLY", ca, y), self.math("MULTIPLY", sa, x))])
+
+    def _n_rotate3d(self, c, t, o):
+        """in·cos + (in × axis)·sin + axis·(axis·in)·(1 − cos), axis normalised, ``amount`` in degrees."""
+        v = self.lanes3(c.i("in", "vector3"))
+        axis = self.vmath("NORMALIZE", self.lanes3(c.i("axis", "vector3")))
+        a = self.math("RADIANS", c.f("amount"))
+        sa, ca = self.math("SINE", a), self.math("COSINE", a)
+        r = self.vmath("MULTIPLY", v, self._splat(ca))
+        r = self.vmath("ADD", r, self.vmath("MULTIPLY", self.vmath("CROSS_PRODUCT", v, axis), self._splat(sa)))
+        d = self.vmath("DOT_PRODUCT", axis, v, out="Value")
+        r = self.vmath("ADD", r, self.vmath("MULTIPLY", axis, self._splat(self.math("MULTIPLY", d,
+                                                                                    self.math("SUBTRACT", 1.0, ca)))))
+        return V(t, r)
+
+    def _splat(self, f):
+        return (float(f),) * 3 if not hasattr(f, "node") else self.add("combine_xyz", {"X": f, "Y": f, "Z": f},
+                                                                        "Vector")
+
+    def _n_viewdirection(self, c, t, o):
+        """The direction from the eye to the point (the negated Incoming of the hit)."""
+        return V(t, self.vmath("MULTIPLY", self.add("geometry", out="Incoming"), (-1.0, -1.0, -1.0)))
+
+    def _n_bitangent(self, c, t, o):
+        return self.geomprop("Bworld", t)
+
+    def _n_roughness_anisotropy(self, c, t, o):
+        """α = clamp(r², ε, 1), stretched by the anisotropy (mx_roughness_anisotropy): (α / a, α·a), a = √(1 −
+        clamp(anisotropy, 0, 0.98))."""
+        r = c.f("roughness")
+        alpha = self.math("MINIMUM", self.math("MAXIMUM", self.math("MULTIPLY", r, r), 1e-8), 1.0)
+        an = c.f("anisotropy")
+        if not hasattr(an, "node") and float(an) <= 0.0:
+            return self.pack(t, [alpha, alpha])
+        aspect = self.math("SQRT", self.math("SUBTRACT", 1.0, self.math("MINIMUM", self.math("MAXIMUM", an, 0.0),
+                                                                         0.98)))
+        return self.pack(t, [self.math("MINIMUM", self.math("DIVIDE", alpha, aspect), 1.0),
+                             self.math("MULTIPLY", alpha, aspect)])
+
+    def _n_roughness_dual(self, c, t, o):
+        v = c.i("roughness", "vector2")
+        x = self.lane(v, 0)
+        y = self.lane(v, 1)
+        if not hasattr(y, "node") and float(y) < 0:
+            y = x
+        sq = [self.math("MINIMUM", self.math("MAXIMUM", self.math("MULTIPLY", q, q), 1e-8), 1.0) for q in (x, y)]
+        return self.pack(t, sq)
+
+    def _transform(self, c, t, o):
+        a, b = str(c.uniform("fromspace", "") or ""), str(c.uniform("tospace", "") or "")
+        if a != b:
+            self.warn(c.view.key, f"MaterialX {c.view.name}: a transform from {a!r} to {b!r} space is read as the "
+                                  "identity")
+        return c.i("in", t)
+
+    _n_transformpoint = _n_transformvector = _n_transformnormal = _transform
+
+    def _pass_through(self, c, t, o, what):
+        self.warn(c.view.key, f"MaterialX {c.view.name}: {what}")
+        return c.i("in", t) if c.has("in") else self.const(0.0, t)
+
+    def _n_blur(self, c, t, o):
+        return self._pass_through(c, t, o, "blur is not rendered (its input unblurred: the same mean colour)")
+
+    def _n_heighttonormal(self, c, t, o):
+        self.warn(c.view.key, f"MaterialX {c.view.name}: heighttonormal is not rendered (a flat normal)")
+        return self.const((0.5, 0.5, 1.0), t)
+
+    def _n_time(self, c, t, o):
+        self.warn(c.view.key, f"MaterialX {c.view.name}: time is read as 0")
+        return V(t, 0.0)
+
+    def _n_frame(self, c, t, o):
+        self.warn(c.view.key, f"MaterialX {c.view.name}: frame is read as 1")
+        return V(t, 1.0)
+
+    # ---- compositing (MaterialX's GLSL, lane by lane: the blend mixed with bg by ``mix``)
+    def _blend(self, c, t, fn, alpha_lane=True):
+        fg, bg, m = c.i("fg", t), c.i("bg", t), c.f("mix")
+        parts = []
+        for i in range(WIDTH.get(t, 1)):
+            f_, b_ = self.lane(fg, i), self.lane(bg, i)
+            r = fn(f_, b_, fg, bg, i)
+            parts.append(self.math("ADD", self.math("MULTIPLY", m, r),
+                                   self.math("MULTIPLY", self.math("SUBTRACT", 1.0, m), b_)))
+        return self.pack(t, parts)
+
+    def _n_plus(self, c, t, o):
+        return self._blend(c, t, lambda f, b, *_: self.math("ADD", b, f))
+
+    def _n_minus(self, c, t, o):
+        return self._blend(c, t, lambda f, b, *_: self.math("SUBTRACT", b, f))
+
+    def _n_difference(self, c, t, o):
+        return self._blend(c, t, lambda f, b, *_: self.math("ABSOLUTE", self.math("SUBTRACT", b, f)))
+
+    def _n_screen(self, c, t, o):
+        return self._blend(c, t, lambda f, b, *_: self.math("SUBTRACT", 1.0, self.math(
+            "MULTIPLY", self.math("SUBTRACT", 1.0, f), self.math("SUBTRACT", 1.0, b))))
+
+    def _n_burn(self, c, t, o):
+        return self._blend(c, t, lambda f, b, *_: self.math("SUBTRACT", 1.0, self.math(
+            "DIVIDE", self.math("SUBTRACT", 1.0, b), f)))
+
+    def _n_dodge(self, c, t, o):
+        return self._blend(c, t, lambda f, b, *_: self.math("DIVIDE", b, self.math("SUBTRACT", 1.0, f)))
+
+    def _n_over(self, c, t, o):
+        return self._blend(c, t, lambda f, b, fg, bg, i: self.math("ADD", f, self.math(
+            "MULTIPLY", b, self.math("SUBTRACT", 1.0, self.lane(fg, 3)))))
+
+    def _n_in(self, c, t, o):
+        return self._blend(c, t, lambda f, b, fg, bg, i: self.math("MULTIPLY", f, self.lane(bg, 3)))
+
+    def _n_mask(self, c, t, o):
+        return self._blend(c, t, lambda f, b, fg, bg, i: self.math("MULTIPLY", b, self.lane(fg, 3)))
+
+    def _n_out(self, c, t, o):
+        return self._blend(c, t, lambda f, b, fg, bg, i: self.math("MULTIPLY", f, self.math(
+            "SUBTRACT", 1.0, self.lane(bg, 3))))
+
+    def _n_matte(self, c, t, o):
+        def fn(f, b, fg, bg, i):
+            fa = self.lane(fg, 3)
+            ff = self.math("MULTIPLY", f, fa) if i < 3 else f
+            return self.math("ADD", ff, self.math("MULTIPLY", b, self.math("SUBTRACT", 1.0, fa)))
+        return self._blend(c, t, fn)
+
+    def _n_disjointover(self, c, t, o):
+        def fn(f, b, fg, bg, i):
+            fa, ba = self.lane(fg, 3), self.lane(bg, 3)
+            if i == 3:
+                return self.math("MINIMUM", self.math("ADD", fa, ba), 1.0)
+            over = self.math("GREATER_THAN", self.math("ADD", fa, ba), 1.0)
+            x = self.math("DIVIDE", self.math("SUBTRACT", 1.0, fa), ba)
+            scaled = self.math("ADD", f, self.math("MULTIPLY", b, x))
+            return self.add("mix_float", {"Factor": over, "A": self.math("ADD", f, b), "B": scaled}, "Result",
+                            use_clamp=False)
+        return self._blend(c, t, fn)
+
+    def _n_inside(self, c, t, o):
+        return self._lanewise(t, "MULTIPLY", c.i("in"), c.i("mask"))
+
+    def _n_outside(self, c, t, o):
+        m = c.i("mask")
+        return self._lanewise(t, "MULTIPLY", c.i("in"), V(m.t, self.math("SUBTRACT", 1.0, m.x)) if m.wide == 1
+                              else m)
+
+    def _n_premult(self, c, t, o):
+        x = c.i("in")
+        return V(t, self.vmath("MULTIPLY", self.lanes3(x), self._splat(x.w)), x.w)
+
+    def _n_unpremult(self, c, t, o):
+        x = c.i("in")
+        return V(t, self.vmath("DIVIDE", self.lanes3(x), self._splat(x.w)), x.w)
 
     def _n_constant(self, c, t, o):
         return c.i("value")
@@ -660,6 +886,8 @@ class _Ctx:
             ond = mtlx.nodedef(outer.sid)
             return self.tr.cast(_Ctx(self.tr, outer, ond).i(r[2]), t) if ond is not None else self.tr.const(0.0, t)
         if r is not None and r[0] == "const":
+            if t in ("color3", "color4") and len(r) > 3 and r[3]:  # a colour in a named colour space
+                return self.tr.const(mtlx.linear_colour(r[1], r[3], self.tr.unknown_space), t)
             return self.tr.const(r[1], t)
         if d is not None and d.getDefaultGeomPropString():
             return self.tr.geomprop(d.getDefaultGeomPropString(), t)
@@ -698,10 +926,12 @@ class MxProgram:
     def value(self, g, translators: dict) -> V:
         tr = self.translator(g, translators)
         v = tr.out(UsdNode(self.lookup.shader, self.table.time), self.lookup.output)
-        k = float(self.lookup.scale)
-        if k != 1.0:
-            v = tr._lanewise(v.t, "MULTIPLY", v, V("float", k)) if v.wide != 3 else \
-                V(v.t, tr.vmath("MULTIPLY", v.x, (k, k, k)))
+        k = np.broadcast_to(np.asarray(self.lookup.scale, np.float64), (3,))  # a weight, or an RGB factor
+        if not np.allclose(k, 1.0):
+            if v.wide == 3:
+                v = V(v.t, tr.vmath("MULTIPLY", v.x, tuple(float(x) for x in k)))
+            else:
+                v = tr._lanewise(v.t, "MULTIPLY", v, V("float", float(k.mean())))
         return v
 
     def write(self, g, translators: dict):

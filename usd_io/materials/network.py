@@ -29,7 +29,7 @@ import numpy as np
 from pxr import Sdf, UsdShade
 
 from .arnold_patterns import upstream as arnold_upstream
-from .mtlx import nodedef
+from .mtlx import nodedef, texture_colorspace
 from .shade_types import (CHANNELS, MX_ADDRESS, PRIMVAR_READERS, UV_TEXTURE_DEFAULTS, WIDTH, Const,  # noqa: F401
                           GraphLookup, PrimvarLookup, TextureLookup, Unsupported, V, file_layer, floats, producer,
                           shader_id, transform2d_matrix, value, varname)
@@ -71,13 +71,15 @@ def source(shader: UsdShade.Shader, name: str, fallback, time=None):
 def mx_image_lookup(node: UsdShade.Shader, time=None) -> TextureLookup:
     """A MaterialX ``image``/``tiledimage`` node as a texture lookup (MaterialX, like USD, puts uv (0, 0) at the
     image's lower left). A float image reads its red channel; colour and vector ones rgb. The ``file`` input's
-    colour space: ``srgb_texture`` is sRGB, anything else (and none: the document's linear space) raw.
+    colour space (:func:`usd_io.mtlx.texture_colorspace`): ``srgb_texture`` is sRGB, none or a linear Rec.709 name
+    raw, any other MaterialX space read raw and transformed into linear Rec.709.
     ``tiledimage``: uv · uvtiling − uvoffset."""
     sid = shader_id(node)
-    notes: list = []
     kind = sid.rsplit("_", 1)[-1]
     file_input = node.GetInput("file")
     space = file_input.GetAttr().GetColorSpace() if file_input else ""
+    cs, note = texture_colorspace(space)  # srgb_texture, linear, or MaterialX's transform after a raw read
+    notes: list = [note] if note else []
     uv, m = _mx_texcoord(node, notes, time)
     uv = None if uv == _COMPUTED else uv
     if sid.startswith("ND_tiledimage_"):
@@ -91,8 +93,7 @@ def mx_image_lookup(node: UsdShade.Shader, time=None) -> TextureLookup:
     return TextureLookup(node=str(node.GetPath()), asset=asset if isinstance(asset, Sdf.AssetPath) else None,
                          channel=0 if kind == "float" else -1, uv=uv, transform=m, scale=(1.0, 1.0, 1.0, 1.0),
                          bias=(0.0, 0.0, 0.0, 0.0), fallback=fallback, wrap_s=wrap[0], wrap_t=wrap[1],
-                         colorspace="sRGB" if space == "srgb_texture" else "raw", notes=notes,
-                         layer=file_layer(node, time))
+                         colorspace=cs, notes=notes, layer=file_layer(node, time))
 
 
 def mx_normal_map(node: UsdShade.Shader, fallback, time=None):

@@ -27,19 +27,18 @@ see :mod:`usd_io.materials.network`) or, for diffuseColor, a colour primvar read
     occlusion           ignored (a ray tracer shadows for itself): one note when authored
     displacement        not supported: one warning when connected or ≠ 0
 
-A MaterialX OpenPBR (``ND_open_pbr_surface_surfaceshader``) or Standard Surface shader on
-``outputs:mtlx:surface`` supplies ``transmission_weight``/``transmission`` (-> transmission),
-``specular_ior``/``specular_IOR`` (-> ior) and ``transmission_color`` (-> transmission_tint): the only way a
-Blender glass survives its USD export. Without a UsdPreviewSurface, base colour (× its weight), metalness, specular
-roughness and the normal come from it as well, each a constant or a MaterialX ``image``/``tiledimage`` (normal:
-through ``normalmap``), Standard Surface's emission × emission_color and either's specular weight; coat,
-sheen/fuzz, subsurface and OpenPBR's emission warn. MaterialX's own UsdPreviewSurface node
-(``ND_UsdPreviewSurface_surfaceshader``) is a UsdPreviewSurface. ``.mtlx`` documents referenced from USD are
-translated by :mod:`usd_io.materials.mtlx` before any of this sees them.
+A MaterialX surface shader on ``outputs:mtlx:surface`` (or on the universal output) — Standard Surface, OpenPBR,
+glTF PBR, Disney Principled, surface_unlit — is read by :mod:`usd_io.materials.mtlx_surfaces` as MaterialX's own
+node-graph implementations define it (its coats as layers over the Principled base, :func:`principled_graph`'s
+``layers``), any other (pbrlib's ``surface``, Lama, a document's own) by :mod:`usd_io.materials.mtlx_closures` as a
+closure network; beside a UsdPreviewSurface only transmission, its colour and the IOR come from it (the only way a
+Blender glass survives its USD export). MaterialX's own UsdPreviewSurface node (``ND_UsdPreviewSurface_surfaceshader``)
+is a UsdPreviewSurface. ``.mtlx`` documents referenced from USD are translated by :mod:`usd_io.materials.mtlx`
+before any of this sees them.
 
-Any other surface (Arnold's, NVIDIA's OmniPBR, or one nothing reads) goes to :mod:`usd_io.materials.surfaces`; an unread one
-shows the prim's displayColor with a warning, never a silent 18 % grey. Everything dropped or approximated prints
-one warning naming the material and the input or node.
+Any other surface (Arnold's, NVIDIA's OmniPBR, or one nothing reads) goes to :mod:`usd_io.materials.surfaces`; an
+unread one shows the prim's displayColor with a warning, never a silent 18 % grey. Everything dropped or
+approximated prints one warning naming the material and the input or node.
 """
 
 from __future__ import annotations
@@ -56,7 +55,8 @@ from tracer.shading.materials import PRINCIPLED_DEFAULTS as _P, f0_from_ior as _
 from . import network as net
 from .preview_ranges import clamp_preview_inputs
 from .primvars import DEFAULT_UV, find_primvar, mesh_primvars
-from .surfaces import MX_SURFACES, other_surface
+from .mtlx_surfaces import read as read_mtlx_surface
+from .surfaces import other_surface
 from .texture_assets import open_texture
 from .texture_files import TextureCache, resolve_wrap
 
@@ -225,6 +225,8 @@ class MaterialTable:
         fields, needs = self.convert(mat)
         row = self.add_material(key, fields, needs)
         self.summary[key] = {k: (v.label if isinstance(v, UVLookup) else
+                                 repr(v) if k == "closure" else
+                                 [dict(x) for x in v] if k == "layers" else
                                  tuple(round(float(x), 4) for x in np.ravel(v)) if np.ndim(v) else
                                  (round(float(v), 4) if isinstance(v, float) else v)) for k, v in fields.items()}
         self.by_path[key] = (row, needs)
@@ -426,8 +428,8 @@ class MaterialTable:
         if asset is None or not asset.path:
             self.warn(f"{label}: {name} texture {lk.node!r} has no file; its fallback {lk.fallback} is used")
             return None, lk.fallback
-        cs = lk.colorspace if lk.colorspace in ("sRGB", "raw") else "auto"
-        if lk.colorspace not in ("sRGB", "raw", "auto"):
+        cs = lk.colorspace if lk.colorspace in ("sRGB", "raw") or lk.colorspace.startswith("mx:") else "auto"
+        if lk.colorspace not in ("sRGB", "raw", "auto") and not lk.colorspace.startswith("mx:"):
             self.warn(f"{lk.node}: unknown sourceColorSpace {lk.colorspace!r} (auto used)")
         got = open_texture(lk, cs, self.files, self.warn, label, name)  # UDIM sets, backslashes: texture_assets
         if got is None:
@@ -463,64 +465,10 @@ class MaterialTable:
 
     # ------------------------------------------------------------------ MaterialX
     def materialx(self, s: UsdShade.Shader, fields: dict, label: str, needs: MeshNeeds, family=None) -> dict:
-        """OpenPBR / Standard Surface. Without a UsdPreviewSurface (``fields`` empty) base colour (× its weight),
-        metalness, specular roughness and the normal come from it, each a constant or a MaterialX image
-        (:func:`usd_io.materials.network.mx_image_lookup`); transmission, its colour and the ior always do."""
-        sid = net.shader_id(s)
-        family = family or next((f for f in MX_SURFACES if f in sid), None)
-        if family is None:
-            if not fields:
-                self.warn(f"{label}: MaterialX shader {sid!r} is not supported")
-            return fields
-        names = MX_SURFACES[family]
-        out = dict(fields)
-
-        def num(name, default):
-            v = net.value(s, name, default, self.time)
-            return net.floats(v, 1, (default,))[0] if v is not None else None
-
-        if not fields:  # no UsdPreviewSurface: take the basics from MaterialX
-            t = self.model(specular=0.5)
-            weight = float(num(names["weight"], names["weight_default"]))
-            base = net.source(s, names["base"], names["base_default"], self.time)
-            if isinstance(base, net.Const):
-                base = net.Const(tuple(weight * c for c in net.floats(base.value, 3, names["base_default"])))
-            elif isinstance(base, net.TextureLookup):
-                base.scale = tuple(weight * c for c in base.scale[:3]) + (base.scale[3],)
-            elif isinstance(base, net.GraphLookup):
-                base.scale = weight
-            if isinstance(base, net.PrimvarLookup):  # a primvar read (Arnold's user_data_rgb): vertex colour
-                needs.color = (base.name, net.floats(base.fallback, 3, names["base_default"]))
-                t.update(base_color=(weight, weight, weight), vertex_color=True)
-            else:
-                self._colour_input(t, "base_color", base, names["base_default"], label, names["base"], needs)
-            if "spec" in names:  # the specular weight scales the Principled level (0.5 at weight 1)
-                t["specular"] = 0.5 * float(np.clip(num(names["spec"], 1.0), 0.0, 2.0))
-            if "emission" in names:  # Standard Surface: emission weight x emission_color
-                self._colour_input(t, "emission", _weighted(net.source(s, names["emission_color"], (1.0, 1.0, 1.0),
-                                                                       self.time), num(names["emission"], 0.0)),
-                                   (0.0, 0.0, 0.0), label, names["emission_color"], needs)
-            self._scalar_input(t, "metallic", net.source(s, names["metal"], 0.0, self.time), 0.0, label,
-                               names["metal"], needs)
-            self._scalar_input(t, "roughness", net.source(s, names["rough"], names["rough_default"], self.time),
-                               names["rough_default"], label, names["rough"], needs)
-            t["metallic"] = float(np.clip(t["metallic"], 0.0, 1.0))
-            self._normal_input(t, net.source(s, names["normal"], None, self.time), label, names["normal"], needs,
-                               (0.0, 0.0, 0.0))
-            out.update(t)
-        for what in names["dropped"]:  # lobes the Principled model here does not have
-            w = net.source(s, what, 0.0, self.time)
-            if not isinstance(w, net.Const) or float(net.floats(w.value, 1, (0.0,))[0]) > 0:
-                self.warn(f"{label}: MaterialX {what} is not supported (dropped)")
-        trans = num(names["trans"], None) if net.value(s, names["trans"], None, self.time) is not None else None
-        if trans is not None and float(trans) > 0:
-            out["transmission"] = float(np.clip(trans, 0, 1))
-            out["transmission_tint"] = net.floats(net.value(s, names["tint"], (1.0, 1.0, 1.0), self.time), 3,
-                                                  (1.0, 1.0, 1.0))
-        ior = net.value(s, names["ior"], None, self.time)
-        if ior is not None and float(net.floats(ior, 1, (1.5,))[0]) > 0:
-            out["ior"] = float(net.floats(ior, 1, (1.5,))[0])
-        return out
+        """A MaterialX surface shader (Standard Surface, OpenPBR, glTF PBR, Disney Principled, surface_unlit, or a
+        closure network): :mod:`usd_io.materials.mtlx_surfaces`. With a UsdPreviewSurface beside it (``fields``)
+        only transmission, its colour and the IOR come from it."""
+        return read_mtlx_surface(self, s, fields, label, needs, family)
 
 
 #: Shader ids of UsdPreviewSurface: its own, and MaterialX's node definition of it (what usdMtlx writes for a
@@ -530,17 +478,6 @@ PREVIEW_SURFACE_IDS = ("UsdPreviewSurface", "ND_UsdPreviewSurface_surfaceshader"
 
 def is_preview_surface(shader) -> bool:
     return net.shader_id(shader) in PREVIEW_SURFACE_IDS
-
-
-def _weighted(src, w: float):
-    """A colour source scaled by ``w`` (a constant's value, a texture's scale)."""
-    if isinstance(src, net.Const):
-        return net.Const(tuple(w * c for c in net.floats(src.value, 3, (1.0, 1.0, 1.0))))
-    if isinstance(src, net.TextureLookup):
-        src.scale = tuple(w * c for c in src.scale[:3]) + (src.scale[3],)
-    if isinstance(src, net.GraphLookup):
-        src.scale = w
-    return src
 
 
 def _is_default(src, default) -> bool:
@@ -570,6 +507,9 @@ def principled_graph(name: str, f: dict, color_primvar: str = "displayColor") ->
     g = Graph(name)
     nodes: dict = {}  # id(lookup) -> (outputs, UV map name): each lookup written once
     translators: dict = {}  # the MaterialX networks' translator of this graph (usd_io.materials.mtlx_graph)
+    if f.get("closure") is not None:  # a MaterialX closure network (usd_io.materials.mtlx_closures): the surface itself
+        g.output(f["closure"].write(g, translators))
+        return g
 
     def tex(lk):
         if id(lk) not in nodes:
@@ -620,6 +560,8 @@ def principled_graph(name: str, f: dict, color_primvar: str = "displayColor") ->
                                      "Vector_002": (0.5, 0.5, 0.5)}, operation="MULTIPLY_ADD")["Vector"]
         inputs["Normal"] = g.add("normal_map", {"Color": half, "Strength": float(f.get("normal_strength", 1.0))},
                                  uv_map=uv_map)["Normal"]
+    if f.get("specular_tint") is not None:
+        inputs["Specular Tint"] = tuple(float(x) for x in np.broadcast_to(f["specular_tint"], (3,)))
     params = {}
     if f.get("transmission_tint") is not None:
         params["transmission_tint"] = tuple(float(x) for x in np.broadcast_to(f["transmission_tint"], (3,)))
@@ -628,5 +570,36 @@ def principled_graph(name: str, f: dict, color_primvar: str = "displayColor") ->
     bsdf = g.add("principled_bsdf", inputs, **params)
     if f.get("normal_graph") is not None:  # a MaterialX normal network: the Principled BSDF's Normal
         g.link(f["normal_graph"].value(g, translators).x, bsdf, "Normal")
-    g.output(bsdf["BSDF"])
+    g.output(_layered(g, bsdf["BSDF"], f.get("layers") or (), float(f.get("ior", FIELD_DEFAULTS["ior"]))))
     return g
+
+
+def _layered(g: Graph, base, layers, ior: float):
+    """``base`` under ``layers`` (top first), each as MaterialX's layer(top, base) = top + base·(1 − the top's
+    albedo): a ``dielectric`` layer (weight, roughness, ior) is a Principled lobe with a black base whose Fresnel
+    curve is the layer's IOR (its Specular IOR Level 0.5·F0(layer)/F0(ior) against the material's ``ior``, which
+    the lobes share), the base weighted by 1 − weight·Fresnel(layer IOR, n·v); a ``glossy`` layer (weight, colour,
+    roughness) a constant-Fresnel GGX lobe of that colour, the base weighted by 1 − weight·mean(colour)."""
+    out = base
+    for layer in reversed(list(layers)):
+        w = float(np.clip(layer.get("weight", 1.0), 0.0, 1.0))
+        if w <= 0:
+            continue
+        r = float(np.clip(layer.get("roughness", 0.0), 0.0, 1.0))
+        if layer["kind"] == "dielectric":
+            lior = float(layer.get("ior", 1.5))
+            level = 0.5 * _f0_from_ior(lior) / max(_f0_from_ior(ior), 1e-9)
+            top = g.add("principled_bsdf", {"Base Color": (0.0, 0.0, 0.0), "Metallic": 0.0, "Roughness": r,
+                                            "Specular IOR Level": float(level), "IOR": ior})["BSDF"]
+            fr = g.add("fresnel", {"IOR": lior})["Fac"]
+            albedo = g.add("math", {"Value": fr, "Value_001": w}, operation="MULTIPLY")["Value"]
+        else:
+            colour = tuple(float(x) for x in np.broadcast_to(layer.get("colour", (0.04,) * 3), (3,)))
+            top = g.add("glossy_bsdf", {"Color": colour, "Roughness": r})["BSDF"]
+            albedo = w * float(np.mean(colour))
+        keep = g.add("math", {"Value": 1.0, "Value_001": albedo}, operation="SUBTRACT")["Value"] \
+            if not isinstance(albedo, float) else 1.0 - albedo
+        under = g.add("mix_closure", {"Fac": keep, "Shader_001": out})["Shader"]
+        above = g.add("mix_closure", {"Fac": w, "Shader_001": top})["Shader"] if w < 1 else top
+        out = g.add("add_closure", {"Shader": above, "Shader_001": under})["Shader"]
+    return out

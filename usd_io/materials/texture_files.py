@@ -28,6 +28,7 @@ import tempfile
 import numpy as np
 from pxr import Ar
 
+from tracer.colorspace import to_lin_rec709
 from tracer.shading.texture import WRAP_MODES as WRAPS, decode_image
 
 
@@ -43,6 +44,8 @@ def read_texture_file(resolved: str, colorspace: str = "auto", label: str | None
     """Decode ``resolved`` (a resolved USD asset path) as UsdUVTexture does (the tracer's one decoder,
     :func:`tracer.shading.texture.decode_image`). ValueError when it cannot be read."""
     label = label or resolved
+    mx_space = colorspace[3:] if colorspace.startswith("mx:") else None  # a MaterialX colour space: raw, then its
+    colorspace = "raw" if mx_space else colorspace  # transform into linear Rec.709 (tracer.colorspace)
     colorspace = colorspace if colorspace in ("sRGB", "raw") else "auto"  # the spec's tokens; anything else: auto
     if Ar.IsPackageRelativePath(resolved):
         image = _read_packaged(resolved, colorspace, label)
@@ -50,7 +53,11 @@ def read_texture_file(resolved: str, colorspace: str = "auto", label: str | None
         if not os.path.isfile(resolved):
             raise ValueError(f"cannot read texture {label}: no such file")
         image = decode_image(resolved, colorspace, label)
-    return TextureFile(image.rgba, image.wrap_meta, image.srgb, label)
+    rgba = image.rgba
+    if mx_space:
+        rgba = np.array(rgba, np.float32)
+        rgba[..., :3] = to_lin_rec709(rgba[..., :3], mx_space).astype(np.float32)
+    return TextureFile(rgba, image.wrap_meta, image.srgb, label)
 
 
 def _read_packaged(resolved: str, colorspace: str, label: str):
