@@ -16,10 +16,10 @@ Cycles' viewport does it: Open Image Denoise guided by the albedo only, guides n
 The worker refines progressively: coarse pixels first (:func:`levels`: as Cycles' viewport, the first pass is about
 :data:`START_RESOLUTION` pixels across, at least every 8th pixel; then every 4th, 2nd pixel, then all), then more
 anti-aliasing samples (:data:`AA_PASSES`), each pass a fixed N×N per pixel (the scene's adaptive sampling is for
-F12: a pass of at most 3×3 samples leaves a round nothing to skip). Any change (camera, size, edits, settings) cancels the pass in
-flight (the tracer polls ``cancelled`` between tiles and depths) and starts again from the coarsest level. Each
-finished pass replaces the frame and calls ``on_frame`` (the engine's ``tag_redraw``: as Cycles' session does from
-its thread, it only sets a flag Blender's main loop polls).
+F12: a pass of at most 3×3 samples leaves a round nothing to skip). Any change (camera, size, edits, settings)
+cancels the pass in flight (the tracer polls ``cancelled`` between tiles and depths) and starts again from the
+coarsest level. Each finished pass replaces the frame and calls ``on_frame`` (the engine's ``tag_redraw``: as
+Cycles' session does from its thread, it only sets a flag Blender's main loop polls).
 """
 
 from __future__ import annotations

@@ -25,8 +25,8 @@ PSNR of the sRGB-encoded image against the reference (as tests/cycles do):
 
 A mode's curve is its best PSNR for the time (the points sorted by CPU time, each kept when it beats every faster
 one: the best setting of the knobs at that cost); its time to a target is where that curve first reaches it,
-interpolated linearly in PSNR against log time with the point before. ``--svg DIR`` draws one plot per scene (PSNR against
-CPU time, log scale), hand-written SVG (no plotting package in the environment).
+interpolated linearly in PSNR against log time with the point before. ``--svg DIR`` draws one plot per scene
+(PSNR against CPU time, log scale), hand-written SVG (no plotting package in the environment).
 """
 
 from __future__ import annotations
@@ -396,7 +396,8 @@ def svg_plot(r: dict, targets, path: str) -> None:
     t_lo = 10 ** math.floor(math.log10(min(t for t, _ in pts)))
     t_hi = 10 ** math.ceil(math.log10(max(t for t, _ in pts)))
     p_lo, p_hi = 5 * math.floor(min(p for _, p in pts) / 5), 5 * math.ceil(max(p for _, p in pts) / 5 + 0.01)
-    x = lambda t: ml + (math.log10(t) - math.log10(t_lo)) / (math.log10(t_hi) - math.log10(t_lo)) * (w - ml - mr)  # noqa: E731
+    span = math.log10(t_hi) - math.log10(t_lo)
+    x = lambda t: ml + (math.log10(t) - math.log10(t_lo)) / span * (w - ml - mr)  # noqa: E731
     y = lambda p: mt + (p_hi - p) / (p_hi - p_lo) * (h - mt - mb)  # noqa: E731
     s = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" font-family="sans-serif" '
          f'font-size="11"><rect width="{w}" height="{h}" fill="white"/>',

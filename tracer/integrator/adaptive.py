@@ -6,8 +6,8 @@ them in rounds, in the progressive order of :func:`tracer.sampling.progressive_o
 stratum, jitter, lens position and time whichever round traces it: :func:`tracer.integrator.tiles.pixel_stratum`),
 and stops once its noise estimate is below the threshold. The estimate is Cycles': the pixel's mean I over all its
 samples against the mean A over the half of them in class A (:func:`tracer.sampling.sample_class_a`),
-error = Σ_rgb |I − A| / (10⁻⁴ + √(Σ_rgb I)) (Σ I instead of its root above 1), compared with 5 × the threshold
-(Cycles' scale: a threshold means what it means in Cycles). A pixel that has not converged keeps its 3×3
+error = Σ_rgb |I − A| / (10⁻⁴ + √(Σ_rgb I)) (Σ I instead of its root above 1), compared with 5 × the
+threshold (Cycles' scale: a threshold means what it means in Cycles). A pixel that has not converged keeps its 3×3
 neighbours sampling too (Cycles' x then y filter). The tile loop that runs the rounds is
 :func:`tracer.integrator.tiles.trace_tile`; everything here is numpy on a tile's pixels (no loop per pixel).
 

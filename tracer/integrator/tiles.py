@@ -697,7 +697,8 @@ def render_session(session, settings: RenderSettings | None = None, *, on_tile=N
         bar.close()
     elapsed = time.perf_counter() - start
     pixels = sum((t[2] - t[0]) * (t[3] - t[1]) for t in tiles)
-    image.stats = {"rays": counts.as_dict(), "samples_per_pixel": counts.eye / max(pixels, 1), "seconds": elapsed, "bvh_seconds": build_time, "threads": threads,
+    image.stats = {"rays": counts.as_dict(), "samples_per_pixel": counts.eye / max(pixels, 1), "seconds": elapsed,
+                   "bvh_seconds": build_time, "threads": threads,
                    "rays_per_second": counts.total / elapsed if elapsed > 0 else 0.0, "epsilon": float(integ.eps),
                    "triangles": len(scene.triangles), "intersect_seconds": accel.seconds - isect_before}
     if getattr(accel, "record", False):
