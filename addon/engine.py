@@ -72,7 +72,7 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
         """The material preview: at most 2×2 samples, 4 light samples, depth 4, no AOVs; a grey image on error."""
         s = export.settings_from_scene(depsgraph.scene, view_layer=depsgraph.view_layer)
         job = _Job(self, depsgraph, s.with_(samples=min(s.samples, 2), light_samples=4, sky_samples=0,
-                                            max_depth=min(s.max_depth, 4), region=None, aovs=()))
+                                            max_depth=min(s.max_depth, 4), region=None, aovs=(), denoise=False))
         try:
             scene, _ = export.scene_from_depsgraph(depsgraph, width=job.settings.width, height=job.settings.height,
                                                    cancelled=job.cancelled)
@@ -189,6 +189,7 @@ class WhittedRenderEngine(bpy.types.RenderEngine):
                 self._sync.reset()
             edits = self._sync.update(depsgraph, width=region.width, height=region.height, camera=camera)
             self._view.set_settings(viewport_settings(depsgraph.scene))
+            self._view.set_denoise(viewport_denoise(depsgraph.scene))
             self._view.edit(edits)
         except Exception as exc:  # never crash Blender from the viewport
             print(f"Whitted viewport: {exc}")
@@ -397,6 +398,8 @@ class _Job:
                     data = np.zeros(ids.shape, np.float32)
                     ok = (ids >= 0) & (ids < len(pass_indices))
                     data[ok] = pass_indices[ids[ok]]
+                elif aov == "sample_count":  # Cycles' Debug Sample Count: the share of the N×N budget taken
+                    data = data.astype(np.float32) / np.float32(settings.samples ** 2)
                 layers[pname] = np.ascontiguousarray(data, np.float32)
             self._tiles.put((tile, layers))
 
@@ -424,8 +427,17 @@ class _Job:
 
 def viewport_settings(bpy_scene) -> "tracer.RenderSettings":
     """The viewport's render settings: the scene's, with 4 samples per extended light (the passes refine the
-    anti-aliasing themselves)."""
-    return export.settings_from_scene(bpy_scene).with_(light_samples=4, region=None, aovs=())
+    anti-aliasing themselves); F12's Denoise does not apply (the viewport has its own: :func:`viewport_denoise`)."""
+    return export.settings_from_scene(bpy_scene).with_(light_samples=4, region=None, aovs=(), denoise=False)
+
+
+def viewport_denoise(bpy_scene) -> int | None:
+    """The samples per pixel a viewport pass has before it is denoised (Render Properties > Denoise > Viewport and
+    its Start Sample, as Cycles' viewport denoising), or None: not denoised."""
+    props = getattr(bpy_scene, "whitted", None)
+    if props is None or not props.preview_denoise:
+        return None
+    return int(props.preview_denoise_start)
 
 
 def _redraw_callback(engine):
@@ -462,7 +474,21 @@ def _tile_z(camera, distance, tile, width, height):
     return np.where(np.isfinite(dist), dist * cos, NO_DEPTH).astype(np.float32)
 
 
+def blender_library_dirs() -> list:
+    """Where this Blender keeps its shared libraries (its Open Image Denoise among them): lib/ beside the binary
+    (Linux), blender.shared/ (Windows), Contents/Resources/lib (macOS)."""
+    import os
+
+    base = os.path.dirname(bpy.app.binary_path or "")
+    if not base:
+        return []
+    return [os.path.join(base, "lib"), os.path.join(base, "blender.shared"), base,
+            os.path.normpath(os.path.join(base, "..", "Resources", "lib"))]
+
+
 def register():
+    for d in blender_library_dirs():  # F12's Denoise uses Blender's own OIDN (tracer/denoise.py)
+        tracer.denoise.add_search_dir(d)
     bpy.utils.register_class(WhittedRenderEngine)
     # Shipped kernels where they fit; the rest prepared in a child process, never in Blender's (addon/kernels.py).
     kernels.start()

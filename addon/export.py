@@ -16,7 +16,9 @@ particles are included):
   orthographic scale, clip start/end.
 - Lights, in Blender's units: point P W -> intensity P/(4π)·colour, radius = ``shadow_soft_size``; spot: the same
   with cone half-angle ``spot_size/2`` and ``spot_blend``; sun strength S -> irradiance S·colour, ``angle``; area
-  power P -> radiance P/(π·A)·colour (A in world units, emitting along the light's -Z). ``2^exposure`` multiplies.
+  power P -> radiance P/(π·A)·colour (A in world units, emitting along the light's -Z; its Spread as Cycles' soft box;
+  a Portal is skipped: it only guides Cycles' world sampling). ``2^exposure`` multiplies; a light's own node tree
+  (Emission Color × Strength, a Light Falloff's Quadratic as its Strength) multiplies its colour.
 - Ray visibility and linking (:func:`links_from_blender`): each object's ``visible_camera`` / ``visible_glossy`` /
   ``visible_transmission`` / ``visible_shadow`` as ``scene.object_visibility``; each light's
   ``light_linking.receiver_collection`` / ``blocker_collection`` (include / exclude states), ``use_shadow`` and
@@ -24,7 +26,8 @@ particles are included):
 - World: :func:`addon.world.world_from_blender` (Background colour × strength, an Environment Texture as
   ``tracer.Environment``, anything else baked to a lat-long image by Cycles).
 - Materials: node trees translated by :mod:`addon.shader_tree` into the tracer's shader graph, compiled into rows
-  by :mod:`addon.model` (the node table is in docs/addon.md).
+  by :mod:`addon.model` (the node table is in docs/addon.md); a Volume output as a homogeneous medium
+  (:mod:`addon.volume`, ``scene.material_volumes``).
 """
 
 from __future__ import annotations
@@ -53,13 +56,17 @@ def image_pixels(image) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------------------- geometry
-def mesh_arrays(mesh) -> dict:
+def mesh_arrays(mesh, attributes=()) -> dict:
     """Object-space triangle arrays of a Blender mesh: vertices (V, 3), triangles (T, 3), per-corner normals
     (T, 3, 3) from ``corner_normals`` (split/custom normals, flat faces included), per-corner UVs (T, 3, 2) of
     every UV map by name (``uv_layers``; ``uv_default`` = the active render map, ``uvs`` its UVs or None),
     per-corner RGBA (T, 3, 4) of every point- or corner-domain Color Attribute (``colors``; ``color_default`` =
     the render colour), per-triangle material slot indices (T,). All numpy (``foreach_get``), no Python loop
-    over vertices."""
+    over vertices.
+
+    ``attributes``: names a material reads (Attribute node) that are not Color Attributes: any generic attribute
+    of that name, on any domain and of any numeric type, is read into ``colors`` too, as Cycles reads it
+    (:func:`attribute_corners`); ``attributes_read`` records the names asked for."""
     mesh.calc_loop_triangles()
     nv, nt = len(mesh.vertices), len(mesh.loop_triangles)
     verts = np.empty(nv * 3, np.float32)
@@ -99,15 +106,83 @@ def mesh_arrays(mesh) -> dict:
     if colors:
         render = getattr(attrs, "default_color_name", "") or getattr(attrs, "active_color_name", "")
         color_default = render if render in colors else next(iter(colors))
+    tri_faces = None
+    for name in attributes:
+        if not name or name in colors or name in layers:
+            continue
+        attr = getattr(mesh, "attributes", {}).get(name)
+        if attr is None:
+            continue
+        if tri_faces is None:
+            tri_faces = np.empty(nt, np.int32)
+            mesh.loop_triangles.foreach_get("polygon_index", tri_faces)
+        c = attribute_corners(mesh, attr, tris, loops, tri_faces)
+        if c is not None:
+            colors[name] = c
     return {"vertices": verts.reshape(nv, 3), "triangles": tris.reshape(nt, 3), "normals": normals,
             "uvs": layers.get(default), "uv_layers": layers, "uv_default": default, "colors": colors,
-            "color_default": color_default, "material_index": mat}
+            "color_default": color_default, "material_index": mat, "attributes_read": frozenset(attributes)}
 
 
-def _object_mesh_arrays(obj, depsgraph):
+#: Generic attribute types -> (the ``foreach_get`` property, components): what an Attribute node can read.
+ATTRIBUTE_TYPES = {"FLOAT": ("value", 1, np.float32), "INT": ("value", 1, np.int32), "INT8": ("value", 1, np.int32),
+                   "BOOLEAN": ("value", 1, bool), "FLOAT2": ("vector", 2, np.float32),
+                   "INT32_2D": ("value", 2, np.int32), "FLOAT_VECTOR": ("vector", 3, np.float32),
+                   "FLOAT_COLOR": ("color", 4, np.float32), "BYTE_COLOR": ("color", 4, np.float32),
+                   "QUATERNION": ("value", 4, np.float32)}
+
+
+def attribute_corners(mesh, attr, tris: np.ndarray, loops: np.ndarray, tri_faces: np.ndarray):
+    """Per-corner RGBA (T, 3, 4) of a generic attribute as Cycles' Attribute node reads it (measured: Blender's
+    sync): a float f as (f, f, f), a 2D vector as (x, y, 0), a 3D vector as it is, a colour with its alpha (else 1);
+    point, corner and face domains as they are, an edge-domain value averaged over each vertex's edges (Blender's
+    edge -> point interpolation). None for a type or domain that has no such reading."""
+    kind = ATTRIBUTE_TYPES.get(attr.data_type)
+    if kind is None or attr.domain not in ("POINT", "EDGE", "FACE", "CORNER"):
+        return None
+    prop, k, dtype = kind
+    n = len(attr.data)
+    raw = np.empty(n * k, dtype)
+    try:
+        attr.data.foreach_get(prop, raw)
+    except (TypeError, RuntimeError):
+        try:  # a bpy whose buffer checks refuse the dtype: the slow, sequence path
+            raw = np.asarray([getattr(d, prop) for d in attr.data], np.float64).reshape(-1)
+        except (TypeError, AttributeError):
+            return None
+    raw = raw.reshape(n, k).astype(np.float32)
+    rgba = np.zeros((n, 4), np.float32)
+    rgba[:, 3] = 1.0
+    if k == 1:
+        rgba[:, :3] = raw
+    elif k == 4 and prop == "color":
+        rgba[:] = raw
+    else:
+        rgba[:, :min(k, 3)] = raw[:, :3]
+    nt = len(tri_faces)
+    if attr.domain == "POINT":
+        out = rgba[tris]
+    elif attr.domain == "CORNER":
+        out = rgba[loops]
+    elif attr.domain == "FACE":
+        out = np.repeat(rgba[tri_faces], 3, axis=0)
+    else:  # EDGE: the mean over the edges that meet at each vertex
+        ev = np.empty(len(mesh.edges) * 2, np.int32)
+        mesh.edges.foreach_get("vertices", ev)
+        ev = ev.reshape(-1, 2)
+        acc = np.zeros((len(mesh.vertices), 4), np.float64)
+        cnt = np.zeros(len(mesh.vertices), np.float64)
+        for side in (0, 1):
+            np.add.at(acc, ev[:, side], rgba)
+            np.add.at(cnt, ev[:, side], 1.0)
+        out = (acc / np.maximum(cnt, 1.0)[:, None]).astype(np.float32)[tris]
+    return np.ascontiguousarray(out.reshape(nt, 3, 4), np.float32)
+
+
+def _object_mesh_arrays(obj, depsgraph, attributes=()):
     mesh = obj.to_mesh(preserve_all_data_layers=False, depsgraph=depsgraph)
     try:
-        return None if mesh is None else mesh_arrays(mesh)
+        return None if mesh is None else mesh_arrays(mesh, attributes)
     finally:
         obj.to_mesh_clear()
 
@@ -210,6 +285,7 @@ def light_from_blender(obj, warnings: list):
     colour = np.asarray(light.color[:3], np.float64) * 2.0 ** float(getattr(light, "exposure", 0.0))
     power = float(light.energy)
     name = obj.name
+    colour = colour * light_node_factor(light, name, warnings)
     if not getattr(light, "normalize", True):
         power *= unnormalized_factor(light, m)
     if light.type in ("POINT", "SPOT"):
@@ -226,15 +302,52 @@ def light_from_blender(obj, warnings: list):
         return tracer.DistantLight(direction=-axis_z, irradiance=colour * power,
                                    angle=min(float(light.angle), math.pi - 1e-6), name=name)
     if light.type == "AREA":
+        if getattr(getattr(light, "cycles", None), "is_portal", False):
+            warnings.append(f"light {name!r}: a Portal guides Cycles' sampling of the world and emits nothing; "
+                            "skipped")
+            return None
         (sx, sy), shape = area_shape(light, m)
         area = tracer.AreaLight.area_of((sx, sy), shape)
         if area <= 0:
             warnings.append(f"light {name!r}: zero-size area light skipped")
             return None
         return tracer.AreaLight(position=pos, u_axis=m[:3, 0], v_axis=m[:3, 1], normal=-axis_z, size=(sx, sy),
-                                radiance=colour * power / (math.pi * area), shape=shape, name=name)
+                                radiance=colour * power / (math.pi * area), shape=shape, name=name,
+                                spread=min(max(float(getattr(light, "spread", math.pi)), 0.0), math.pi))
     warnings.append(f"light {name!r}: {light.type} lights are not supported")
     return None
+
+
+def light_node_factor(light, name: str, warnings: list) -> np.ndarray:
+    """What a light's own node tree (Use Nodes, Cycles) multiplies its colour by: the Emission at its Light Output,
+    Color × Strength (constants; a Light Falloff's Quadratic output is its Strength, the light's own falloff). (1,
+    1, 1) without a tree; anything else is named in one warning and left at 1."""
+    tree = getattr(light, "node_tree", None)
+    if tree is None or not getattr(light, "use_nodes", False):
+        return np.ones(3)
+    outs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputLight"
+            and getattr(n, "target", "ALL") in ("ALL", "CYCLES")]
+    out = next((n for n in outs if n.is_active_output), outs[0] if outs else None)
+    if out is None or not out.inputs["Surface"].is_linked:
+        return np.ones(3) if out is None else np.zeros(3)
+    em = out.inputs["Surface"].links[0].from_node
+    if em.bl_idname != "ShaderNodeEmission" or em.inputs["Color"].is_linked:
+        warnings.append(f"light {name!r}: its node tree is not read (only a constant Emission is); plain light used")
+        return np.ones(3)
+    strength = em.inputs["Strength"]
+    s = float(strength.default_value)
+    if strength.is_linked:
+        link = strength.links[0]
+        src = link.from_node
+        if src.bl_idname == "ShaderNodeLightFalloff" and not src.inputs["Strength"].is_linked:
+            s = float(src.inputs["Strength"].default_value)
+            if link.from_socket.name != "Quadratic":
+                warnings.append(f"light {name!r}: Light Falloff {link.from_socket.name} is rendered as Quadratic "
+                                "(the light's own falloff)")
+        else:
+            warnings.append(f"light {name!r}: a linked Emission Strength in its node tree is read as "
+                            f"{s:g}")
+    return np.asarray(em.inputs["Color"].default_value[:3], np.float64) * s
 
 
 def area_shape(light, m: np.ndarray) -> tuple[tuple[float, float], str]:
@@ -324,19 +437,25 @@ def export_objects(depsgraph, writer: MaterialWriter, warnings: list, lights: li
             continue
         if obj.type not in GEOMETRY_TYPES or not inst.show_self or obj.get(RAYS_PROPERTY):
             continue
+        slots = tuple(writer.row(s.material) for s in obj.material_slots)
+        wanted = writer.attribute_names(slots)  # generic attributes the materials read by name
         key = obj.data.as_pointer() if obj.type == "MESH" and obj.data is not None else obj.as_pointer()
         key = (key, obj.original.name if obj.type != "MESH" else "")
+        named = _geometry_key(obj)
         if key not in geometry:
-            named = _geometry_key(obj)
             if geometry_cache is not None and named in geometry_cache:
                 geometry[key] = geometry_cache[named]
             else:
                 if cancelled is not None and cancelled():
                     raise ExportCancelled("export cancelled")
-                geometry[key] = _object_mesh_arrays(obj, depsgraph)
+                geometry[key] = _object_mesh_arrays(obj, depsgraph, wanted)
                 if geometry_cache is not None:
                     geometry_cache[named] = geometry[key]
         g = geometry[key]
+        if g is not None and not wanted <= g.get("attributes_read", frozenset()):  # other materials, more names
+            g = geometry[key] = _object_mesh_arrays(obj, depsgraph, wanted | g.get("attributes_read", frozenset()))
+            if geometry_cache is not None:
+                geometry_cache[named] = g
         if g is None or not len(g["triangles"]):
             continue
         mw = inst.matrix_world
@@ -348,7 +467,6 @@ def export_objects(depsgraph, writer: MaterialWriter, warnings: list, lights: li
         if tracer.scene.singular(det, max(m3.to_scale())):
             warnings.append(f"object {obj.name!r}: zero scale (nothing to render); skipped")
             continue
-        slots = tuple(writer.row(s.material) for s in obj.material_slots)
         if (key, slots) not in inputs:  # material rows and baked UVs: once per mesh and slot materials
             if slots:
                 mats = np.asarray(slots, np.int32)[np.clip(g["material_index"], 0, len(slots) - 1)]
@@ -450,12 +568,25 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     pass_indices[:len(exported)] = [o.pass_index for o in exported]
     b.object_pass_indices = pass_indices
     scene = b.build()
+    scene.material_volumes = material_volumes(writer, len(scene.materials.names))
     scene.object_visibility, scene.light_links, scene.emitter_links = links_from_blender(
         depsgraph, exported, scene.lights, len(b.object_names), warnings)
     scene.object_holdout, scene.object_shadow_catcher = compose_flags(depsgraph, exported, len(b.object_names))
     if blur:  # last: it evaluates the scene at other sub-frames (and puts the frame back)
         apply_motion(scene, exported, sample_motion(depsgraph, exported, warnings, frame_set))
     return scene, warnings
+
+
+def material_volumes(writer: MaterialWriter, n_materials: int) -> np.ndarray | None:
+    """``Scene.material_volumes`` of the materials a writer read (a material's Volume output: addon/volume.py), or
+    None when none holds a medium."""
+    rows = {r: v for r, v in writer.volumes.items() if r not in writer.open_media}
+    if not rows:
+        return None
+    vols = np.zeros((n_materials, 6), np.float32)
+    for row, v in rows.items():
+        vols[row] = v
+    return vols
 
 
 def links_from_blender(depsgraph, exported: list, lights: list, n_objects: int, warnings: list) -> tuple:

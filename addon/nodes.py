@@ -21,6 +21,9 @@ from .image_cache import cached_pixels
 
 srgb_to_linear = tracer_module("colorspace").srgb_to_linear
 
+#: What Cycles renders for an image it cannot read (TEX_IMAGE_MISSING_R/G/B): magenta.
+MISSING_IMAGE = (1.0, 0.0, 1.0)
+
 #: Blender's Extension (Image Texture) -> the tracer's wrap mode.
 WRAP = {"REPEAT": "repeat", "EXTEND": "clamp", "CLIP": "black", "MIRROR": "mirror"}
 
@@ -78,7 +81,7 @@ class Reader:
                 self.images[img.name] = image_rgba(img)
             except Exception as exc:  # missing file, unreadable pixels
                 self.images[img.name] = None
-                self.warn(img.name, f"image {img.name!r} not loaded ({exc}); using the socket's value")
+                self.warn(img.name, f"image {img.name!r} not loaded ({exc}); magenta stands in, as in Cycles")
         pixels = self.images[img.name]
         if pixels is None:
             return None
@@ -121,8 +124,8 @@ def read_world(world, warn, images: dict) -> dict:
         if not ok:
             return {"unreadable": src.name, "color": const * strength}
         tex = r.image_texture(src) if src.bl_idname == "ShaderNodeTexImage" else _env_texture(r, src)
-        if tex is None:
-            return {"color": const * strength}
+        if tex is None:  # a file Blender could not read: Cycles' missing-image magenta
+            return {"color": np.array(MISSING_IMAGE, np.float32) * strength}
         mean = tex.values(-1).reshape(-1, 3).mean(0)
         return {"environment": tex, "strength": strength, "rotation": rotation, "color": mean * strength,
                 "image_texture": src.bl_idname == "ShaderNodeTexImage"}
@@ -137,7 +140,7 @@ def _env_texture(r: Reader, node) -> TextureRef | None:
             r.images[img.name] = image_rgba(img)
         except Exception as exc:
             r.images[img.name] = None
-            r.warn(img.name, f"image {img.name!r} not loaded ({exc})")
+            r.warn(img.name, f"image {img.name!r} not loaded ({exc}); magenta stands in, as in Cycles")
     px = r.images[img.name]
     return None if px is None else TextureRef(pixels=px, wrap="repeat", label=node.name)
 

@@ -11,8 +11,13 @@ passes and the Passes panel draws the checkboxes (addon/ui.py), all from :data:`
     objectid        Object Index           view layer: use_pass_object_index      ("IndexOB" before Blender 5.0)
     shadow_catcher  Shadow Catcher         Cycles' view layer: use_pass_shadow_catcher (one checkbox for both
                                            engines: Cycles' own setting)
+    sample_count    Debug Sample Count     Cycles' view layer: pass_debug_sample_count (as Cycles writes it: the
+                                           samples a pixel took divided by the most it may take, N×N)
     direct, reflection, transmission, raydepth
                     Whitted Direct, ...    scene.whitted.ray_type_passes (tracer.settings.RAY_TYPE_AOVS)
+    denoising_albedo, denoising_normal
+                    Denoising Albedo,      Cycles' view layer: denoising_store_passes ("Denoising Data", one
+                    Denoising Normal       checkbox for both engines: Cycles' own setting)
 
 ``albedo`` has no Blender pass here (Blender's Diffuse Color is Cycles' own split; the CLI writes it).
 """
@@ -54,6 +59,11 @@ PASSES: tuple = (
     Pass("normal", "Normal", 3, "XYZ", "VECTOR", "layer", "use_pass_normal", "Normal"),
     Pass("objectid", OBJECT_INDEX, 1, "X", "VALUE", "layer", "use_pass_object_index", "Object Index"),
     Pass("shadow_catcher", "Shadow Catcher", 3, "RGB", "COLOR", "cycles", "use_pass_shadow_catcher"),
+    Pass("sample_count", "Debug Sample Count", 1, "X", "VALUE", "cycles", "pass_debug_sample_count", "Sample Count"),
+    Pass("denoising_albedo", "Denoising Albedo", 3, "RGB", "COLOR", "cycles", "denoising_store_passes",
+         "Denoising Data"),
+    Pass("denoising_normal", "Denoising Normal", 3, "XYZ", "VECTOR", "cycles", "denoising_store_passes",
+         "Denoising Data"),
 ) + tuple(Pass(aov, *_RAY_TYPE[aov], "whitted", "ray_type_passes", "") for aov in tracer.settings.RAY_TYPE_AOVS)
 #: {tracer AOV: its Pass}.
 BY_AOV = {p.aov: p for p in PASSES}
@@ -79,7 +89,7 @@ def checkboxes(view_layer, props) -> list:
     property's own name)."""
     out, seen = [], set()
     for p in PASSES:
-        if p.label is None or (p.owner, p.prop) in seen:
+        if p.label is None or (p.owner, p.prop) in seen or _holder(p, view_layer, props) is None:
             continue
         seen.add((p.owner, p.prop))
         out.append((_holder(p, view_layer, props), p.prop, p.label))

@@ -271,7 +271,8 @@ class Translator:
                 self.images[image.name] = image_rgba(image)
             except Exception as exc:  # missing file, unreadable pixels
                 self.images[image.name] = None
-                self.warn(node, f"image {image.name!r} not loaded ({exc})", "load")
+                self.warn(node, f"image {image.name!r} not loaded ({exc}); magenta stands in, as in Cycles",
+                          "load")
         px = self.images[image.name]
         if px is None:
             return None
@@ -312,6 +313,27 @@ def _bsdf(ir_type, distribution=False):
             params["distribution"] = d if d in ("MULTI_GGX", "GGX", "BECKMANN", "ASHIKHMIN_SHIRLEY") else "GGX"
         return t.add(node, ctx, ir_type, **params)
     return handler
+
+
+def _sheen(t: Translator, node, ctx):
+    """Sheen BSDF (Blender 4+; Velvet before): microfiber or Ashikhmin, as Cycles (tracer.sheen)."""
+    d = getattr(node, "distribution", "MICROFIBER")
+    return t.add(node, ctx, "sheen_bsdf", distribution=d if d in ("MICROFIBER", "ASHIKHMIN") else "MICROFIBER")
+
+
+def _subsurface(t: Translator, node, ctx):
+    """Subsurface Scattering: a Diffuse BSDF of its Color (Cycles' picture at Whitted-limited paths is within a few
+    per cent of it: the light that travels under the surface is what a Whitted tracer lacks; one warning)."""
+    t.warn(node, f"Subsurface Scattering {node.name!r} is rendered as diffuse reflection of its Color (the "
+                 "scattering radius is not modelled)")
+    return t.add(node, ctx, "diffuse_bsdf", {"Scale": None, "Radius": None, "IOR": None, "Roughness": None,
+                                             "Anisotropy": None}, {"BSSRDF": "BSDF"})
+
+
+def _volume_shader(t: Translator, node, ctx):
+    """A volume shader (Absorption, Scatter, Principled Volume) reached from a Surface socket: Cycles evaluates
+    nothing of it there (a volume closure has no surface part); the Volume output is addon/volume.py's."""
+    return {}
 
 
 def _value(t, node, ctx):
@@ -356,13 +378,41 @@ def _light_path(t, node, ctx):
     return res
 
 
+#: UV-set names that carry a colour attribute's alpha (the tracer keeps RGB per corner): ALPHA_UV + kind + ":" +
+#: attribute name, kind "vc" (Color Attribute node: a missing attribute's alpha is 0) or "attr" (Attribute node:
+#: 1). addon/model.py fills these sets with (alpha, 0) per corner from the mesh.
+ALPHA_UV = "\u241fwhitted-alpha:"
+
+
+def alpha_uv_name(kind: str, attribute: str) -> str:
+    return f"{ALPHA_UV}{kind}:{attribute}"
+
+
+def _alpha_output(t: Translator, node, ctx, kind: str, attribute: str) -> Value:
+    """A colour attribute's alpha, read through its pseudo UV set (:data:`ALPHA_UV`)."""
+    uv = t.g.add("uvmap", attribute=alpha_uv_name(kind, attribute), name=t.name(node, ctx) + ".alpha_uv")
+    x = t.g.add("separate_xyz", {"Vector": uv["UV"]}, name=t.name(node, ctx) + ".alpha")
+    return Value(x["X"], FLOAT)
+
+
 def _attribute(t, node, ctx):
     if node.attribute_type != "GEOMETRY":
         t.warn(node, f"Attribute {node.name!r}: {node.attribute_type} attributes are not supported; white stands "
                      "in", "type")
         return {"Color": Value((1.0, 1.0, 1.0), COLOR), "Vector": Value((1.0, 1.0, 1.0), VECTOR),
                 "Fac": Value(1.0, FLOAT), "Alpha": Value(1.0, FLOAT)}
-    return t.add(node, ctx, "attribute", attribute=node.attribute_name, attribute_type="GEOMETRY")
+    res = t.add(node, ctx, "attribute", attribute=node.attribute_name, attribute_type="GEOMETRY")
+    if node.outputs["Alpha"].is_linked:
+        res["Alpha"] = _alpha_output(t, node, ctx, "attr", node.attribute_name)
+    return res
+
+
+def _vertex_color(t, node, ctx):
+    """Color Attribute: its colour per corner, and its alpha (0 where the mesh lacks it, as Cycles)."""
+    res = t.add(node, ctx, "vertex_color", layer_name=node.layer_name)
+    if node.outputs["Alpha"].is_linked:
+        res["Alpha"] = _alpha_output(t, node, ctx, "vc", node.layer_name)
+    return res
 
 
 def _uvmap(t, node, ctx):
@@ -443,13 +493,16 @@ def _light_falloff(t, node, ctx):
             "Constant": Value(mul(strength, l2, ".constant"), FLOAT)}
 
 
+#: What Cycles renders for an image it cannot read (TEX_IMAGE_MISSING_R/G/B/A): magenta, alpha 1.
+MISSING_IMAGE = (1.0, 0.0, 1.0)
+
+
 def _image(t: Translator, node, ctx):
     ref = t.image_ref(node, node.image, node.extension, node.interpolation)
     if ref is None:
         if node.image is None:
-            t.warn(node, f"Image Texture {node.name!r} has no image (Cycles renders it pink); black stands in",
-                   "none")
-        return {"Color": Value((0.0, 0.0, 0.0), COLOR), "Alpha": Value(0.0, FLOAT)}
+            t.warn(node, f"Image Texture {node.name!r} has no image; magenta stands in, as in Cycles", "none")
+        return {"Color": Value(MISSING_IMAGE, COLOR), "Alpha": Value(1.0, FLOAT)}
     return t.add(node, ctx, "image_texture", image=ref, projection=node.projection,
                  projection_blend=float(node.projection_blend), interpolation=node.interpolation,
                  extension=node.extension)
@@ -458,9 +511,9 @@ def _image(t: Translator, node, ctx):
 def _environment(t: Translator, node, ctx):
     ref = t.image_ref(node, node.image, "REPEAT", node.interpolation)
     if ref is None:
-        t.warn(node, f"Environment Texture {node.name!r} has no image (Cycles renders it pink); black stands in",
-               "none")
-        return {"Color": Value((0.0, 0.0, 0.0), COLOR), "Alpha": Value(0.0, FLOAT)}
+        if node.image is None:
+            t.warn(node, f"Environment Texture {node.name!r} has no image; magenta stands in, as in Cycles", "none")
+        return {"Color": Value(MISSING_IMAGE, COLOR), "Alpha": Value(1.0, FLOAT)}
     return t.add(node, ctx, "environment_texture", image=ref, projection=node.projection,
                  interpolation=node.interpolation)
 
@@ -582,6 +635,11 @@ HANDLERS = {
     "ShaderNodeBsdfGlass": _bsdf("glass_bsdf", True),
     "ShaderNodeBsdfRefraction": _bsdf("refraction_bsdf", True),
     "ShaderNodeBsdfTranslucent": _bsdf("translucent_bsdf"),
+    "ShaderNodeBsdfSheen": _sheen,
+    "ShaderNodeVolumeAbsorption": _volume_shader,
+    "ShaderNodeVolumeScatter": _volume_shader,
+    "ShaderNodeVolumePrincipled": _volume_shader,
+    "ShaderNodeSubsurfaceScattering": _subsurface,
     "ShaderNodeBsdfTransparent": _bsdf("transparent_bsdf"),
     "ShaderNodeEmission": _bsdf("emission"),
     "ShaderNodeHoldout": _bsdf("holdout"),
@@ -594,7 +652,7 @@ HANDLERS = {
     "ShaderNodeNewGeometry": _geometry,
     "ShaderNodeObjectInfo": _simple("object_info"),
     "ShaderNodeAttribute": _attribute,
-    "ShaderNodeVertexColor": lambda t, n, c: t.add(n, c, "vertex_color", layer_name=n.layer_name),
+    "ShaderNodeVertexColor": _vertex_color,
     "ShaderNodeUVMap": _uvmap,
     "ShaderNodeLayerWeight": _simple("layer_weight"),
     "ShaderNodeFresnel": _simple("fresnel"),

@@ -44,6 +44,7 @@ import numpy as np
 
 from . import export
 from .export import tracer
+from .volume import volume_of
 
 
 class Edit(NamedTuple):
@@ -68,6 +69,9 @@ class _KnownMaterials(export.MaterialWriter):
     def row(self, material) -> int:
         if material is not None and material.name in self.known and material.name not in self._rows:
             self._rows[material.name] = self._add(material.name, self.known[material.name])
+            vol = volume_of(material, self.warn)  # a Volume output's medium (cheap: a few nodes)
+            if vol is not None:
+                self.volumes[self._rows[material.name]] = vol
         return super().row(material)
 
 
@@ -185,6 +189,7 @@ class SceneSync:
         self._depsgraph = depsgraph.as_pointer()  # another depsgraph (file reloaded): export everything again
         self._materials, self._textures = scene.materials, list(scene.textures)
         self._material_names = list(scene.materials.names)
+        self._volumes = scene.material_volumes
         self._lights = list(scene.lights)
         self._world = (scene.background, scene.ambient, scene.environment)
         self._camera = scene.camera
@@ -228,6 +233,9 @@ class SceneSync:
         edits: list[Edit] = []
 
         materials = tracer.Materials.from_list(b.materials)
+        volumes = export.material_volumes(writer, len(materials.names))
+        if not same(volumes, getattr(self, "_volumes", None)):  # a medium came, went or changed: export again
+            return self.full(depsgraph, width=width, height=height, camera=camera, cancelled=cancelled)
         if not same(materials, self._materials) or not same(b.textures, self._textures):
             if len(materials) < len(self._materials):  # rows went away: the meshes' ids may not fit any more
                 return self.full(depsgraph, width=width, height=height, camera=camera, cancelled=cancelled)

@@ -41,9 +41,23 @@ def compat_panels():
 
 def draw_settings(layout, props, panel: str) -> None:
     """Every ``scene.whitted`` property whose setting is drawn under ``panel`` (``Setting.panel``,
-    tracer/settings.py), in field order: a new setting shows up by itself."""
+    tracer/settings.py), in field order: a new setting shows up by itself. A setting with a ``toggle`` is drawn
+    as Cycles draws Noise Threshold (checkbox, then the value, greyed out when unticked); one ``active_with``
+    such a setting is greyed out with it."""
     for name, s in SETTINGS.items():
-        if s.blender is not None and s.panel == panel:
+        if s.blender is None or s.panel != panel:
+            continue
+        if s.toggle:
+            row = layout.row(heading=s.toggle[1])
+            row.prop(props, s.toggle[0], text="")
+            sub = row.row()
+            sub.active = getattr(props, s.toggle[0])
+            sub.prop(props, name, text="")
+        elif s.active_with:
+            row = layout.row()
+            row.active = getattr(props, SETTINGS[s.active_with].toggle[0])
+            row.prop(props, name)
+        else:
             layout.prop(props, name)
 
 
@@ -72,6 +86,12 @@ class WHITTED_PT_render(_Panel, bpy.types.Panel):
         props = context.scene.whitted
         for heading in ("Sampling", "Rays"):
             draw_settings(layout.column(heading=heading), props, heading)
+        col = layout.column(heading="Denoise")  # Cycles' Render and Viewport Denoise checkboxes
+        draw_settings(col, props, "Denoise")
+        col.prop(props, "preview_denoise", text="Viewport")
+        sub = col.column()
+        sub.active = props.preview_denoise
+        sub.prop(props, "preview_denoise_start")
         col = layout.column(heading="Film")
         col.prop(context.scene.render, "film_transparent", text="Transparent")
         col = layout.column(heading="Passes")
@@ -104,7 +124,7 @@ class WHITTED_PT_performance_final_render(_Panel, bpy.types.Panel):
 
 
 #: The headings of the panels above, where each Blender setting must be drawn.
-HEADINGS = ("Sampling", "Rays", "Performance")
+HEADINGS = ("Sampling", "Rays", "Denoise", "Performance")
 
 PANELS = (WHITTED_PT_render, WHITTED_PT_performance, WHITTED_PT_performance_final_render)
 _added: list = []

@@ -8,12 +8,18 @@ is a rebuild from a full export), ``view_draw`` hands it the current view camera
 ever traces or edits the session: the worker applies the edits between two passes, so a camera move costs no
 scene work at all and a material edit only a repack.
 
+With viewport denoising on (:meth:`ViewportRender.set_denoise`: Render Properties > Denoise > Viewport, as Cycles'),
+each full-resolution pass with at least the Start Sample's samples per pixel is denoised before it is shown, as
+Cycles' viewport does it: Open Image Denoise guided by the albedo only, guides not prefiltered, "balanced" quality
+(Cycles' viewport defaults), on the worker thread.
+
 The worker refines progressively: coarse pixels first (:func:`levels`: as Cycles' viewport, the first pass is about
 :data:`START_RESOLUTION` pixels across, at least every 8th pixel; then every 4th, 2nd pixel, then all), then more
-anti-aliasing samples (:data:`AA_PASSES`). Any change (camera, size, edits, settings) cancels the pass in
-flight (the tracer polls ``cancelled`` between tiles and depths) and starts again from the coarsest level. Each
-finished pass replaces the frame and calls ``on_frame`` (the engine's ``tag_redraw``: as Cycles' session does from
-its thread, it only sets a flag Blender's main loop polls).
+anti-aliasing samples (:data:`AA_PASSES`), each pass a fixed N×N per pixel (the scene's adaptive sampling is for
+F12: a pass of at most 3×3 samples leaves a round nothing to skip). Any change (camera, size, edits, settings)
+cancels the pass in flight (the tracer polls ``cancelled`` between tiles and depths) and starts again from the
+coarsest level. Each finished pass replaces the frame and calls ``on_frame`` (the engine's ``tag_redraw``: as
+Cycles' session does from its thread, it only sets a flag Blender's main loop polls).
 """
 
 from __future__ import annotations
@@ -55,6 +61,8 @@ class Frame:
     generation: int
     changed: float = 0.0
     done: float = 0.0
+    #: Whether the pass was denoised (:meth:`ViewportRender.set_denoise`).
+    denoised: bool = False
     #: The pixels as the GPU texture wants them (bottom row first, flat float32), made on the worker thread so
     #: view_draw only uploads them.
     flat: np.ndarray | None = None
@@ -71,6 +79,7 @@ class ViewportRender:
         self._lock = threading.Condition()
         self._edits: list = []
         self._settings = settings or tracer.RenderSettings()
+        self._denoise: int | None = None  # samples per pixel from which a full-resolution pass is denoised
         self._camera = None
         self._size = None
         self._generation = 0
@@ -113,6 +122,17 @@ class ViewportRender:
             if settings == self._settings:
                 return False
             self._settings = settings
+            self._restart()
+            return True
+
+    def set_denoise(self, start: int | None) -> bool:
+        """Denoise each full-resolution pass with at least ``start`` samples per pixel (None: none); restarts only
+        if it differs. Returns True if it did."""
+        start = None if start is None else max(1, int(start))
+        with self._lock:
+            if start == self._denoise:
+                return False
+            self._denoise = start
             self._restart()
             return True
 
@@ -193,8 +213,8 @@ class ViewportRender:
                 self._lock.wait_for(lambda: self._stop or (self._ready() and (self._edits or not self._converged())))
                 if self._stop:
                     return
-                gen, camera, size, base, changed = (self._generation, self._camera, self._size, self._settings,
-                                                    self._changed)
+                gen, camera, size, base, changed, start = (self._generation, self._camera, self._size,
+                                                           self._settings, self._changed, self._denoise)
                 edits, self._edits = self._edits, []
             if edits:
                 try:
@@ -221,9 +241,15 @@ class ViewportRender:
                 if self._generation != gen:
                     break
                 w, h = max(1, size[0] // level), max(1, size[1] // level)
-                settings = base.with_(width=w, height=h, samples=samples, region=None, aovs=(), progress=False)
+                denoise = start is not None and level == 1 and samples * samples >= start
+                # Fixed counts: each pass is a whole N×N (1, 2, 3), too few samples for adaptive sampling's rounds
+                settings = base.with_(width=w, height=h, samples=samples, region=None, progress=False,
+                                      aovs=("denoising_albedo",) if denoise else (), denoise=False,
+                                      adaptive_threshold=0.0)
                 try:
                     image = session.render(settings, cancelled=lambda g=gen: self._generation != g)
+                    if denoise:
+                        denoise = self._denoised(image)
                 except tracer.RenderCancelled:
                     break
                 except Exception as exc:  # never let the thread die silently: keep the message, show nothing new
@@ -234,7 +260,8 @@ class ViewportRender:
                     if self._generation != gen:
                         break
                     self._frame = Frame(rgba=image.rgba, key=_view_key(camera, size), level=level, samples=samples,
-                                        generation=gen, changed=changed, done=time.perf_counter(), flat=flat)
+                                        generation=gen, changed=changed, done=time.perf_counter(), flat=flat,
+                                        denoised=denoise)
                     self.passes_done += 1
                     self.history.append((gen, level, samples, changed, self._frame.done))
                     self._lock.notify_all()
@@ -242,6 +269,19 @@ class ViewportRender:
                     self.on_frame()
                 except Exception:  # the engine may be gone (viewport closed): nothing to tell
                     pass
+
+    def _denoised(self, image) -> bool:
+        """Denoise a pass in place as Cycles' viewport does (albedo guide, no prefilter, balanced quality); False,
+        with the reason printed once, where no OIDN library loads (the noisy pass is shown)."""
+        try:
+            image.rgba[:] = tracer.denoise.denoise(image.rgba, image.aovs["denoising_albedo"], prefilter="fast",
+                                               quality="balanced")
+            return True
+        except tracer.denoise.DenoiseUnavailable as exc:
+            if str(exc) not in self.errors:
+                self.errors.append(str(exc))
+                print(f"Whitted viewport: {exc}")
+            return False
 
     def _fail(self, exc, gen):
         self.errors.append(str(exc))

@@ -65,6 +65,7 @@ def measure(renderer, width, height, threads):
         sc.render.engine = "WHITTED"
         sc.whitted.samples = 1
         sc.whitted.threads = threads
+        bs.plain_whitted(sc)  # Denoise off: the render alone, against Cycles without its denoiser
         t0 = time.perf_counter()
         bpy.ops.render.render()
         out["f12_s"] = time.perf_counter() - t0

@@ -184,6 +184,7 @@ def measure(renderer, a) -> dict:
         sc.render.engine = "WHITTED"
         sc.whitted.samples = a.aa
         sc.whitted.threads = a.threads
+        bs.plain_whitted(sc)  # Denoise off: the render alone, against Cycles without its denoiser
         c0, t0 = _cpu(), time.perf_counter()
         bpy.ops.render.render()
         out["f12_s"], out["f12_cpu_s"] = time.perf_counter() - t0, _cpu() - c0

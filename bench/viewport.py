@@ -143,6 +143,7 @@ def measure_persistent(size=(1920, 1080), threads=2, samples=1):
         sc.render.engine = "WHITTED"
         sc.whitted.samples = samples
         sc.whitted.threads = threads
+        sc.whitted.denoise = False  # F12's Denoise (on by default) is not what this measures
         torus = bpy.data.objects["Torus_3"]
         torus.keyframe_insert("location", frame=1)
         torus.location.x += 0.5

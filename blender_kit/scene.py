@@ -260,6 +260,15 @@ def set_cycles_whitted(scene=None, samples: int = 64, max_depth: int = 8, *, see
 PASS_ALIASES = {"Object Index": "IndexOB", "Material Index": "IndexMA", "Z": "Depth"}
 
 
+def plain_whitted(scene, denoise: bool = False) -> None:
+    """Whitted's F12 without its Denoise (Render Properties > Denoise is on by default, as Cycles' is): the plain
+    render the comparisons and benchmarks measure, as ``whitted_cycles_settings`` turns Cycles' denoiser off. A scene
+    without the add-on's settings is left alone."""
+    props = getattr(scene, "whitted", None)
+    if props is not None:
+        props.denoise = bool(denoise)
+
+
 def read_exr(path) -> dict:
     """A (multilayer) EXR as linear float32 arrays by pass: ``{"rgba": (H, W, 4), "Depth": (H, W),
     "Normal": (H, W, 3), "IndexOB": (H, W), ...}``; single-layer files give just "rgba"."""
@@ -297,15 +306,18 @@ def read_exr(path) -> dict:
     return out
 
 
-def render_exr(scene=None, path: str | None = None, *, engine: str | None = None, passes=()) -> dict:
+def render_exr(scene=None, path: str | None = None, *, engine: str | None = None, passes=(),
+               denoise: bool = False) -> dict:
     """F12 into a 32-bit EXR (multilayer when ``passes`` name any of "Depth", "Normal", "IndexOB") and read it back
     with :func:`read_exr`. ``engine`` switches the render engine first ("CYCLES", "WHITTED"). The file goes to
-    ``path`` or a fresh temporary directory."""
+    ``path`` or a fresh temporary directory. Whitted's Denoise (on in a new scene, as Cycles' is) is set to
+    ``denoise``: off, the plain render that tests compare pixel for pixel (:func:`plain_whitted`)."""
     import bpy
 
     scene = scene or bpy.context.scene
     if engine is not None:
         scene.render.engine = engine
+    plain_whitted(scene, denoise)
     layer = scene.view_layers[0]
     layer.use_pass_z = "Depth" in passes
     layer.use_pass_normal = "Normal" in passes

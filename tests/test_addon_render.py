@@ -238,3 +238,26 @@ def test_image_texture_on_base_color(bpy_module, whitted):
     red_cells = ball[:, 0] > 2 * ball[:, 2]
     blue_cells = ball[:, 2] > 2 * ball[:, 0]
     assert red_cells.mean() > 0.2 and blue_cells.mean() > 0.2  # both checker colours are on the sphere
+
+
+def test_noise_threshold_and_debug_sample_count_pass_in_f12(bpy_module, whitted):
+    """Render Properties → Sampling → Noise Threshold (ticked) reaches F12: with Cycles' Debug Sample Count pass
+    asked for, Blender gets each pixel's samples over the N×N budget, as Cycles writes it; a soft shadow takes
+    more than the open ground, and the budget's share is below 1 where the ground is flat."""
+    scene, _ = sphere_scene()
+    scene.objects["Point"].data.shadow_soft_size = 1.0  # a soft shadow
+    props = scene.whitted
+    props.light_samples = 1
+    props.use_adaptive_sampling, props.adaptive_threshold, props.adaptive_min_samples = True, 0.01, 8
+    layer = scene.view_layers[0]
+    layer.cycles.pass_debug_sample_count = True
+    try:
+        out, stats = render_whitted(scene, passes=("Debug Sample Count",), samples=6)
+    finally:
+        props.use_adaptive_sampling, props.light_samples = False, 16
+        layer.cycles.pass_debug_sample_count = False
+    share = out["Debug Sample Count"]
+    share = share[..., 0] if share.ndim == 3 else share
+    assert share.min() >= 8 / 36 - 1e-6 and share.max() <= 1.0 + 1e-6
+    assert share.min() < 0.5 and share.max() == pytest.approx(1.0)
+    assert stats["samples_per_pixel"] == pytest.approx(share.mean() * 36, rel=1e-4)

@@ -367,3 +367,41 @@ def test_an_edit_the_session_refuses_asks_for_a_full_export(scene):
         assert vr.wait_until_converged(600) and vr.session is not None
     finally:
         vr.stop()
+
+
+def test_viewport_denoises_full_resolution_passes_from_the_start_sample(scene):
+    """Viewport denoising (Render Properties > Denoise > Viewport, Start Sample 4): the coarse passes and the
+    1-sample full-resolution pass are shown as traced, the passes with 4 and 9 samples per pixel denoised as
+    Cycles' viewport does (albedo guide, no prefilter, balanced quality)."""
+    from tracer import denoise as dn
+
+    frames = []
+    vr = viewport.ViewportRender(settings=tracer.RenderSettings(light_samples=4))
+    vr.on_frame = lambda: frames.append(vr.latest())
+    try:
+        assert vr.set_denoise(4) and not vr.set_denoise(4)  # a change restarts; the same value does not
+        vr.set_scene(scene)
+        vr.set_view(_camera(), SIZE)
+        assert vr.wait_until_converged(600)
+        assert [(f.level, f.samples, f.denoised) for f in frames] == \
+            [(lv, 1, False) for lv in viewport.LEVELS] + [(1, n, n * n >= 4) for n in viewport.AA_PASSES]
+        scene.camera = _camera()
+        settings = tracer.RenderSettings(width=SIZE[0], height=SIZE[1], light_samples=4,
+                                         samples=viewport.AA_PASSES[-1], aovs=("denoising_albedo",))
+        plain = tracer.render(scene, settings)
+        expected = dn.denoise(plain.rgba, plain.aovs["denoising_albedo"], prefilter="fast", quality="balanced")
+        np.testing.assert_allclose(frames[-1].rgba, expected, atol=1e-5)
+        assert not np.allclose(frames[-1].rgba, plain.rgba, atol=1e-4)
+    finally:
+        vr.stop()
+
+
+def test_viewport_denoise_follows_the_scene_properties(registered):
+    bs.reset(size=(64, 48))
+    scene = bpy.context.scene
+    assert scene.whitted.denoise and not scene.whitted.preview_denoise  # F12 on, viewport off: Cycles' defaults
+    assert engine.viewport_denoise(scene) is None
+    assert engine.viewport_settings(scene).denoise is False  # F12's checkbox is not the viewport's
+    scene.whitted.preview_denoise = True
+    scene.whitted.preview_denoise_start = 9
+    assert engine.viewport_denoise(scene) == 9

@@ -238,3 +238,20 @@ def test_production_stage_is_many_display_colour_meshes(tmp_path, monkeypatch):
 
     monkeypatch.setattr(tracer.integrator.wavefront, "reads_input", lambda programs, what: True)  # computed, as before
     assert np.array_equal(render(scene, settings).rgba, image.rgba)
+
+
+def test_equal_quality_time_to_a_target_reads_the_best_curve(tmp_path):
+    """bench/equal_quality.py: a mode's curve keeps the best PSNR for the time; the time to a target interpolates
+    in log time on it; the plot is an SVG with every mode's line."""
+    from bench import equal_quality as eq
+
+    points = [(1.0, 30.0), (2.0, 28.0), (4.0, 40.0), (3.0, 33.0), (8.0, 39.0)]
+    assert eq.frontier(points) == [(1.0, 30.0), (3.0, 33.0), (4.0, 40.0)]
+    assert eq.time_to(points, 30.0) == 1.0
+    t = eq.time_to(points, 35.0)  # between (3 s, 33 dB) and (4 s, 40 dB), 2/7 of the way in log time
+    assert t == pytest.approx(np.exp(np.log(3.0) + 2 / 7 * (np.log(4.0) - np.log(3.0))))
+    assert eq.time_to(points, 45.0) is None
+    curves = {m: [dict(cpu=c, psnr=p) for c, p in points] for m in eq.MODES}
+    eq.svg_plot({"scene": "x", "curves": curves}, (35.0, 40.0), str(tmp_path / "x.svg"))
+    svg = (tmp_path / "x.svg").read_text()
+    assert svg.startswith("<svg") and svg.count("<polyline") == len(eq.MODES)

@@ -218,3 +218,36 @@ def test_shading_flag_chooses_the_local_model(tmp_path):
         api = render(scene, RenderSettings(width=info.width, height=info.height, samples=1, shading=model)).rgb
         np.testing.assert_allclose(images[model], api, rtol=1e-3, atol=1e-6)  # the beauty EXR is half-float
     assert np.abs(images["classic"] - images["principled"]).max() > 0.05
+
+
+def test_adaptive_sampling_flags_and_the_sample_count_aov(tmp_path):
+    """--adaptive-threshold / --adaptive-min-samples reach the render; --aov sample_count writes each pixel's
+    samples (EXR) and a heat map of them (PNG): a ball's soft shadow takes more than the open ground."""
+    path = tmp_path / "shadow.usda"
+    s = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(s, "Z")
+    cam = UsdGeom.Camera.Define(s, "/Cam")
+    cam.CreateFocalLengthAttr(3.0)
+    cam.CreateHorizontalApertureAttr(4.0)
+    cam.CreateVerticalApertureAttr(3.0)
+    cam.AddTranslateOp().Set(Gf.Vec3d(0, 0, 8))  # looking down -Z at the ground
+    UsdGeom.Sphere.Define(s, "/Ball").AddTranslateOp().Set(Gf.Vec3d(0, 0, 1))
+    ground = UsdGeom.Mesh.Define(s, "/Ground")
+    ground.CreatePointsAttr([(-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0)])
+    ground.CreateFaceVertexCountsAttr([4])
+    ground.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
+    light = UsdLux.SphereLight.Define(s, "/Lamp")
+    light.CreateRadiusAttr(1.0)
+    light.CreateIntensityAttr(30.0)
+    light.AddTranslateOp().Set(Gf.Vec3d(3, -2, 6))
+    s.GetRootLayer().Save()
+    out = tmp_path / "out.exr"
+    res = whitted("render", path, "-o", out, "--width", 40, "--aa", 6, "--light-samples", 1, "--adaptive-threshold",
+                  0.01, "--adaptive-min-samples", 8, "--aov", "sample_count", "--quiet")
+    assert res.returncode == 0, res.stderr
+    count = read_image(str(tmp_path / "out.sample_count.exr"))[..., 0]
+    assert count.min() == 8 and count.max() == 36
+    assert 0.05 < (count == 36).mean() < 0.5, (count == 36).mean()
+    assert (tmp_path / "out.sample_count.png").exists()
+    res = whitted("render", path, "-o", tmp_path / "x.png", "--adaptive-threshold", "2")
+    one_line_error(res, "--adaptive-threshold")

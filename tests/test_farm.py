@@ -385,3 +385,31 @@ def test_a_stage_animated_by_value_clips_is_read_per_frame(tmp_path, fresh_worke
     assert reused is False and not np.array_equal(first, last)
     assert np.array_equal(first, _reference(tmp_path, text, 1.0))
     assert np.array_equal(last, _reference(tmp_path, text, 8.0))
+
+
+def test_a_tiled_frame_is_denoised_whole_on_the_client(anim, client):
+    """--denoise on a frame split into tiles: the tiles bring the noisy pixels and the denoiser's guides, and the
+    client denoises the assembled frame, which equals a local denoised render; denoising tile by tile would not
+    (the filter looks across the tile borders)."""
+    from tracer import denoise as dn
+    from tracer.farm import frame_tiles, render_tiled
+    from usd_io.farm import UsdSource
+
+    settings = dict(samples=1, max_depth=2, light_samples=4, denoise=True, tile_size=32)
+    source = UsdSource(path=anim, width=128, height=96, settings=settings)
+    scene, st = source.load(3.0)
+    tiles = frame_tiles(st, 64)
+    assert len(tiles) == 4
+    tiled = render_tiled(client, source, 3.0, tile_size=64)
+    whole = render(scene, st)
+    assert "denoise" in tiled.stats and "denoise" in whole.stats
+    np.testing.assert_allclose(tiled.rgba, whole.rgba, atol=1e-5)
+    assert not tiled.aovs  # the guides were for the filter only
+    noisy = render(scene, st.with_(denoise=False, aovs=dn.GUIDE_AOVS))
+    per_tile = noisy.rgba.copy()
+    for x0, y0, x1, y1 in tiles:
+        win = (slice(y0, y1), slice(x0, x1))
+        per_tile[win] = dn.denoise(noisy.rgba[win], noisy.aovs["denoising_albedo"][win],
+                                   noisy.aovs["denoising_normal"][win])
+    seam = np.abs(per_tile - whole.rgba)[60:68, :, :3].max()  # rows around the horizontal tile border
+    assert seam > 1e-3, seam

@@ -28,7 +28,7 @@ LAYERS: dict = {
         {"tracer.geometry", "tracer.camera", "tracer.clip_planes", "tracer.lights"},
         {"tracer.shading"},  # the VM reads surface attributes (geometry)
         {"tracer.scene", "tracer.scene_kernels", "tracer.builder"},  # the container of all of the above
-        {"tracer.accel", "tracer.film", "tracer.png_stream"},
+        {"tracer.accel", "tracer.film", "tracer.png_stream", "tracer.denoise"},
         {"tracer.integrator"},
         # the front doors
         {"tracer", "tracer.render", "tracer.session", "tracer.farm", "tracer.explain", "tracer.warmup",
@@ -58,6 +58,7 @@ DEFERRED: dict = {
     ("usd_io.cli", "tracer.integrator.tiles"): "start-up", ("usd_io.cli", "usd_io.explain"): "start-up (pxr, the tracer)",
     ("usd_io.cli", "usd_io.farm"): "dask only with --scheduler", ("usd_io.cli", "usd_io.render_settings"): "pxr",
     ("usd_io.cli", "usd_io.stage"): "pxr", ("usd_io.cli", "tracer.kernel_plan"): "start-up",
+    ("usd_io.cli", "tracer.denoise"): "start-up",
     ("usd_io.outputs", "tracer"): "start-up", ("usd_io.outputs", "tracer.film"): "start-up",
     ("usd_io.outputs", "tracer.png_stream"): "start-up",
     ("usd_io.request", "usd_io.reader"): "start-up (pxr, the tracer: the CLI parses flags with request.py)",

@@ -300,7 +300,8 @@ CHANGED = {"width": 40, "height": 30, "samples": 2, "max_depth": 1, "epsilon": 1
            "shadows": False, "light_samples": 9, "sky_samples": 4, "terminal_rays": True, "shading": "classic",
            "max_transparent": 0, "min_weight": 0.2, "transparent": True, "tile_size": 16, "threads": 1,
            "aovs": ("depth", "objectid", "normal"), "region": (4, 4, 30, 20), "seed": 7, "progress": False,
-           "extra": {}, "depth_of_field": False, "motion_blur": False}
+           "extra": {}, "depth_of_field": False, "motion_blur": False, "denoise": True, "adaptive_threshold": 0.05,
+           "adaptive_min_samples": 8}
 
 
 def test_every_setting_reaches_a_session_that_rendered_before():

@@ -13,10 +13,11 @@ import pytest
 from tracer.settings import INTEGRATOR_FIELDS, SETTINGS, RenderSettings, default_of, integrator_key
 
 #: A valid value other than the default for every field (a new field fails the walk until it is listed here).
-CHANGED = {"width": 40, "height": 30, "samples": 3, "max_depth": 1, "epsilon": 1e-3, "fresnel": False,
+CHANGED = {"width": 40, "height": 30, "samples": 3, "adaptive_threshold": 0.05, "adaptive_min_samples": 8,
+           "max_depth": 1, "epsilon": 1e-3, "fresnel": False,
            "shadows": False, "light_samples": 9, "sky_samples": 4, "terminal_rays": True, "shading": "classic",
            "max_transparent": 0, "min_weight": 0.25, "transparent": True, "depth_of_field": False,
-           "motion_blur": False, "tile_size": 16, "threads": 1,
+           "motion_blur": False, "denoise": True, "tile_size": 16, "threads": 1,
            "aovs": ("depth", "objectid"), "region": (4, 4, 30, 20), "seed": 7, "progress": True,
            "extra": {"record_rays": True}}
 
@@ -84,8 +85,9 @@ def test_integrator_key_holds_the_fields_its_packed_tables_read():
 
 
 def test_every_blender_property_reaches_f12_settings(bpy_module):
-    """Each property addon/properties.py makes from a field (no literal there) has the field's default and its
-    value reaches the settings F12 renders with."""
+    """Each property addon/properties.py makes from a field (no literal there) has the field's default (or the
+    Blender default its Setting names: Denoise is on for F12, as in Cycles) and its value reaches the settings F12
+    renders with."""
     import addon
     from addon import export
 
@@ -96,13 +98,20 @@ def test_every_blender_property_reaches_f12_settings(bpy_module):
         fields = [n for n, s in SETTINGS.items() if s.blender]
         assert fields, "no Blender properties"
         defaults = export.settings_from_scene(scene)
+        blender_default = lambda n: default_of(n) if SETTINGS[n].blender_default is None else SETTINGS[n].blender_default  # noqa: E731
+        assert defaults.denoise is True and default_of("denoise") is False
         for name in fields:
-            assert getattr(defaults, name) == default_of(name), name
+            assert getattr(defaults, name) == blender_default(name), name
             s = SETTINGS[name]
-            stored = CHANGED[name]
+            stored = CHANGED[name] if CHANGED[name] != blender_default(name) else default_of(name)
             setattr(props, name, stored)
-            assert getattr(export.settings_from_scene(scene), name) == pytest.approx(CHANGED[name]), name
-            setattr(props, name, s.none_as if default_of(name) is None else default_of(name))
+            if s.toggle:  # a value under a checkbox (Noise Threshold): unticked, the field keeps its default
+                assert getattr(export.settings_from_scene(scene), name) == default_of(name), name
+                setattr(props, s.toggle[0], True)
+            assert getattr(export.settings_from_scene(scene), name) == pytest.approx(stored), name
+            setattr(props, name, s.none_as if blender_default(name) is None else blender_default(name))
+            if s.toggle:
+                setattr(props, s.toggle[0], False)
         assert dataclasses.asdict(export.settings_from_scene(scene)) == dataclasses.asdict(defaults)
     finally:
         addon.unregister()
@@ -137,3 +146,44 @@ def test_every_blender_setting_is_drawn_in_a_panel():
     for name, s in SETTINGS.items():
         if s.blender:
             assert s.panel in ui.HEADINGS, name
+
+
+def test_noise_threshold_is_a_checkbox_and_a_value_as_in_cycles(bpy_module):
+    """Render Properties → Sampling → Noise Threshold: Cycles' checkbox (``use_adaptive_sampling``) and value
+    (starting at Cycles' 0.01); unticked, F12 samples every pixel fully; Min Samples reaches F12 as it is."""
+    import addon
+    from addon import export
+
+    addon.register()
+    try:
+        scene = bpy_module.context.scene
+        props = scene.whitted
+        assert props.use_adaptive_sampling is False
+        assert props.adaptive_threshold == pytest.approx(0.01)
+        assert export.settings_from_scene(scene).adaptive_threshold == 0.0
+        props.use_adaptive_sampling = True
+        props.adaptive_min_samples = 12
+        got = export.settings_from_scene(scene)
+        assert got.adaptive_threshold == pytest.approx(0.01) and got.adaptive_min_samples == 12
+
+        class Layout:  # records what the Sampling panel draws, and what it greys out
+            drawn: list = []
+
+            def row(self, **kw):
+                return self
+
+            def prop(self, holder, name, **kw):
+                self.drawn.append((name, getattr(self, "active", True)))
+
+        from addon import ui
+
+        ui.draw_settings(Layout(), props, "Sampling")
+        names = [n for n, _ in Layout.drawn]
+        assert names[:4] == ["samples", "use_adaptive_sampling", "adaptive_threshold", "adaptive_min_samples"], names
+        props.use_adaptive_sampling = False
+        props.adaptive_min_samples = 0
+        Layout.drawn.clear()
+        ui.draw_settings(Layout(), props, "Sampling")
+        assert ("adaptive_min_samples", False) in Layout.drawn  # greyed out with the checkbox unticked
+    finally:
+        addon.unregister()

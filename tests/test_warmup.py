@@ -58,6 +58,7 @@ def test_compile_kernels_covers_the_kernels_a_render_uses():
     for hot in ("integrator.wavefront._surfaces", "integrator.wavefront._direct_light",
                 "integrator.wavefront._spawn_secondary", "integrator.wavefront._add_unoccluded",
                 "integrator.tiles._tile_eye_rays", "integrator.tiles._tile_eye_rays_timed",
+                "integrator.tiles._list_eye_rays", "integrator.tiles._write_rgba_spent",
                 "geometry.motion.frames_at_time"):
         assert before[hot] > 0, f"compile_kernels left {hot} uncompiled: {before}"
     grew = {k: (before[k], n) for k, n in after.items() if n != before.get(k, 0)}
@@ -108,7 +109,11 @@ def check_in_this_process():
                             (_flat_scene_without_normals(), RenderSettings(width=16, height=16, sky_samples=4,
                                                                             threads=2, aovs=("normal",))),
                             (sky, RenderSettings(width=16, height=12, samples=1, sky_samples=4)),
-                            (_moving_sphere(), RenderSettings(width=16, height=12))):
+                            (_moving_sphere(), RenderSettings(width=16, height=12)),
+                            (sphere, RenderSettings(width=16, height=12, samples=4, adaptive_threshold=0.05,
+                                                    adaptive_min_samples=4, aovs=("objectid",))),
+                            (_moving_sphere(), RenderSettings(width=16, height=12, samples=3,
+                                                              adaptive_threshold=0.05))):
         image = tracer.render(scene, settings)
         assert image.rgba[..., :3].max() > 0  # the scenes are lit
     after = {name: len(k.signatures) for name, k in _kernels().items()}

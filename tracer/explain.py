@@ -3,6 +3,8 @@
 It traces exactly the eye samples :func:`tracer.render` traces for that pixel (same hashes, same settings, the same
 :meth:`Integrator.step` kernels), one ray per slot instead of one eye sample per slot, so each ray's own contribution
 is known. The explained colour (mean over samples of the sum of every ray's contribution) equals the rendered pixel.
+With adaptive sampling, the pixel's tile is first traced as the render traces it, to learn how many samples the
+pixel took; those are the samples explained.
 
 Each ray is a :class:`Ray`; :meth:`Explanation.to_json` gives the documented JSON form (README, "Explain a pixel").
 """
@@ -10,6 +12,7 @@ Each ray is a :class:`Ray`; :meth:`Explanation.to_json` gives the documented JSO
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -17,7 +20,8 @@ from .accel.accelerator import Accelerator
 from .clip_planes import clip_eye_rays
 from .geometry.instances import world_frame
 from .geometry.motion import frames_at_time
-from .integrator.tiles import timed_eye_rays
+from .integrator import adaptive
+from .integrator.tiles import listed_eye_rays, tiles_of, timed_eye_rays, trace_tile_adaptive
 from .integrator.wavefront import Integrator, RayQueue, Tile
 from .jit import kernel
 from .lights import linking
@@ -109,6 +113,21 @@ class Explanation:
         return [r for rays in self.samples for r in rays]
 
 
+def _adaptive_samples(scene: Scene, settings: RenderSettings, integ: Integrator, x: int, y: int):
+    """(o, d, keys, times) of the samples pixel (x, y) takes under adaptive sampling: its tile of
+    :func:`tracer.integrator.tiles.tiles_of` traced in rounds as the render does (the count depends on the pixel's
+    neighbours), then the pixel's first ``count`` samples of the progressive order."""
+    inside = lambda t: t[0] <= x < t[2] and t[1] <= y < t[3]  # noqa: E731
+    x0, y0, x1, y1 = next((t for t in tiles_of(settings) if inside(t)), None) or next(
+        t for t in tiles_of(settings.with_(region=None)) if inside(t))
+    session = SimpleNamespace(scene=scene, integrator=lambda _settings: integ)
+    res = trace_tile_adaptive(session, settings, (x0, y0, x1, y1), lambda: False)
+    count = settings.samples ** 2 if res.spent is None else int(res.spent[(y - y0) * (x1 - x0) + (x - x0)])
+    o, d, keys, times, _ = listed_eye_rays(scene, settings, np.full(count, x), np.full(count, y),
+                                           np.arange(count))
+    return o, d, keys, times
+
+
 def explain_pixel(scene: Scene, settings: RenderSettings, x: int, y: int, accel: Accelerator | None = None,
                   integrator: Integrator | None = None) -> Explanation:
     """The ray tree of pixel (x, y) (image pixels, origin top-left) under ``settings``."""
@@ -117,7 +136,10 @@ def explain_pixel(scene: Scene, settings: RenderSettings, x: int, y: int, accel:
     if not (0 <= x < settings.width and 0 <= y < settings.height):
         raise ValueError(f"pixel ({x}, {y}) is outside the {settings.width}x{settings.height} image")
     integ = integrator if integrator is not None else Integrator(scene, settings, accel)
-    o, d, keys, times = timed_eye_rays(scene, settings, x, y, x + 1, y + 1)
+    if adaptive.enabled(settings):
+        o, d, keys, times = _adaptive_samples(scene, settings, integ, x, y)
+    else:
+        o, d, keys, times = timed_eye_rays(scene, settings, x, y, x + 1, y + 1)
     spp = len(o)
     rays_of = [[] for _ in range(spp)]
     t_max = (np.full(spp, scene.camera.far - scene.camera.near, np.float32) if np.isfinite(scene.camera.far)

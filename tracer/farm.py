@@ -34,6 +34,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .denoise import check as check_denoiser
+from .denoise import denoise_image
 from .film import Image
 from .settings import RenderSettings
 
@@ -261,20 +263,11 @@ class _TileRenderer:
         self.scene = session.scene
 
     def tile(self, settings: RenderSettings, tile):
-        from .integrator.tiles import empty_aovs, timed_eye_rays, uses_ray_types, write_tile
+        """(rgba, aovs) of the rectangle ``tile``: :func:`tracer.integrator.tiles.render_tile`, as a local render
+        traces it (adaptive sampling's rounds per tile of the renderer's grid, which the farm's tiles follow)."""
+        from .integrator.tiles import render_tile
 
-        settings = settings.validate()
-        integ = self.session.integrator(settings)
-        x0, y0, x1, y1 = tile
-        th, tw = y1 - y0, x1 - x0
-        o, d, keys, times = timed_eye_rays(self.scene, settings, x0, y0, x1, y1)
-        res = integ.trace(o, d, keys, ray_types=uses_ray_types(settings), times=times)
-        cam = self.scene.camera
-        if cam.near > 0:  # as tracer.render: depth from the eye (the film plane for orthographic cameras)
-            res.depth += (np.linalg.norm(o - cam.position.astype(np.float32), axis=1)
-                          if cam.projection == "perspective" else np.float32(cam.near))
-        img = Image(rgba=np.zeros((th, tw, 4), np.float32), aovs=empty_aovs(settings, th, tw))
-        write_tile(img, res, (0, 0, tw, th), settings.samples**2)
+        img = render_tile(self.session, settings, tile)
         return img.rgba, img.aovs
 
 
@@ -320,11 +313,15 @@ def render_tiled(client, source, frame=None, *, tile_size: int = DEFAULT_FARM_TI
     """Render one frame split into tile tasks and assemble it on the client.
 
     Tiles stream back as they finish and are copied into the image at once, so the client holds the image plus the
-    tiles in transit, not every task's result. Raises :class:`FarmError` if a tile fails."""
+    tiles in transit, not every task's result. Raises :class:`FarmError` if a tile fails. With
+    ``settings.denoise`` the tiles bring the denoiser's guides and the client denoises the assembled frame (the
+    filter looks across tile borders: never tile by tile)."""
     from dask.distributed import as_completed
 
     shipped = _ship(client, assets)
     settings = client.submit(_settings_task, source, frame, shipped, pure=False).result()
+    if settings.denoise:  # the client denoises the assembled frame: no library here is an error before the tiles
+        check_denoiser()
     tiles = frame_tiles(settings, tile_size)
     h, w = settings.height, settings.width
     from .integrator.tiles import empty_aovs
@@ -347,11 +344,23 @@ def render_tiled(client, source, frame=None, *, tile_size: int = DEFAULT_FARM_TI
         if on_tile is not None:
             on_tile((x0, y0, x1, y1))
     image.stats = {"seconds": time.perf_counter() - start, "tiles": len(tiles)}
+    if settings.denoise:
+        prefilter = client.submit(_prefilter_task, source, frame, shipped, pure=False).result()
+        denoise_image(image, settings, prefilter=prefilter)
+        image.stats["seconds"] = time.perf_counter() - start
     return image
 
 
 def _settings_task(source, frame, assets=None) -> RenderSettings:
     return prepared(_with_assets(source, assets), frame)[1]
+
+
+def _prefilter_task(source, frame, assets=None) -> str:
+    """How the client's denoise treats the frame's guides (tracer.integrator.tiles.guide_prefilter of the worker's
+    scene)."""
+    from .integrator.tiles import guide_prefilter
+
+    return guide_prefilter(prepared(_with_assets(source, assets), frame)[0])
 
 
 def _with_assets(source, assets):

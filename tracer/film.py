@@ -44,8 +44,17 @@ def box_filter(values: np.ndarray, spp: int) -> np.ndarray:
 
 def majority(ids: np.ndarray, spp: int, limit: int = 16) -> np.ndarray:
     """Per pixel, the id seen by most of its samples (ties: the smaller id); at most ``limit`` samples vote."""
-    g = ids.reshape(-1, spp)[:, :limit]
-    votes = (g[:, :, None] == g[:, None, :]).sum(axis=2)
+    return vote(ids.reshape(-1, spp)[:, :limit])
+
+
+def vote(g: np.ndarray, ok: np.ndarray | None = None) -> np.ndarray:
+    """Per row of ``g`` (P, L), the id most of its entries hold (ties: the smaller id); ``ok`` (P, L), where given,
+    says which entries vote (adaptive sampling: a pixel's samples, fewer than L)."""
+    same = g[:, :, None] == g[:, None, :]
+    if ok is None:
+        votes = same.sum(axis=2)
+    else:
+        votes = np.where(ok, (same & ok[:, None, :]).sum(axis=2), 0)
     best = np.max(votes, axis=1, keepdims=True)
     return np.where(votes == best, g, np.iinfo(np.int32).max).min(axis=1).astype(np.int32)
 

@@ -87,3 +87,64 @@ def rotated_multijitter(index, side, r0, r1):
     s0, s1 = multijitter(index, side, r0, r1)
     s0, s1 = s0 + r1, s1 + r0
     return s0 - math.floor(s0), s1 - math.floor(s1)
+
+
+# ---------------------------------------------------------------------------------------------- progressive order
+def _sobol2(m: int):
+    """The first 2^m points of the 2-D Sobol sequence (dimension 1: van der Corput in base 2; dimension 2: the
+    generator of the polynomial x + 1), as 32-bit integers. Every aligned block of 2^j of its points is a (0, j, 2)-net:
+    one point in each of the 2^j elementary intervals of area 2^-j (a (0, 2)-sequence)."""
+    n = 1 << m
+    k = np.arange(n, dtype=np.uint64)
+    x = np.zeros(n, np.uint64)
+    y = np.zeros(n, np.uint64)
+    v = 1 << 31
+    for i in range(32):
+        bit = (k >> np.uint64(i)) & np.uint64(1)
+        x ^= bit * np.uint64(1 << (31 - i))
+        y ^= bit * np.uint64(v)
+        v ^= v >> 1
+    return x, y
+
+
+_ORDERS: dict = {}
+
+
+def progressive_order(n: int) -> np.ndarray:
+    """The N×N strata (index row·N + column, as the renderer's ``s``) in an order whose every prefix is spread over
+    the pixel: the order in which the 2-D Sobol (0, 2)-sequence first enters each stratum. For N a power of two
+    that is the sequence's first N² points, so the first 4^j strata of the order form a 2^j × 2^j stratification
+    (4 samples of 16: one per quadrant) and any 2^j form a (0, j, 2)-net; for other N, nearly so. Adaptive
+    sampling takes a pixel's samples in this order (``tracer.integrator.adaptive``). Cached per N; int32."""
+    n = int(n)
+    out = _ORDERS.get(n)
+    if out is not None:
+        return out
+    nn = n * n
+    m = max(0, (nn - 1).bit_length())
+    while True:
+        x, y = _sobol2(m)
+        cx = np.minimum((x * np.uint64(n)) >> np.uint64(32), np.uint64(n - 1)).astype(np.int64)
+        cy = np.minimum((y * np.uint64(n)) >> np.uint64(32), np.uint64(n - 1)).astype(np.int64)
+        cell = cy * n + cx  # row (jy, the film's s // N) · N + column (jx, s % N)
+        _, first = np.unique(cell, return_index=True)
+        if len(first) == nn:
+            out = np.ascontiguousarray(cell[np.sort(first)], np.int32)
+            break
+        m += 1
+    out.setflags(write=False)
+    _ORDERS[n] = out
+    return out
+
+
+def sample_class_a(k: np.ndarray) -> np.ndarray:
+    """Whether positions ``k`` of a progressive order belong to class A of the two interleaved halves adaptive
+    sampling compares (Cycles' ``sample_is_class_A``: the parity of k's odd bits, after Christensen et al.,
+    "Progressive Multi-Jittered Sample Sequences", 10.2.1): each aligned block of 4 positions has two of each class,
+    and each class of a (0, 2)-sequence is itself well stratified."""
+    x = np.asarray(k, np.uint32) & np.uint32(0xAAAAAAAA)
+    parity = np.zeros(x.shape, np.uint32)
+    while np.any(x):
+        parity ^= x & np.uint32(1)
+        x = x >> np.uint32(1)
+    return parity.astype(bool)

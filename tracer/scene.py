@@ -233,6 +233,11 @@ class Scene:
     #: Optional (O,) bool per object id: the object is a shadow catcher (Blender's ``is_shadow_catcher``): invisible
     #: in the beauty except for the shadows other objects cast on it (tracer.integrator.compose). Ids past the end: False.
     object_shadow_catcher: np.ndarray | None = None
+    #: Optional (M, 6) float32 per material: a homogeneous medium inside the objects that wear it, (σ RGB, E RGB):
+    #: extinction per unit length and emitted radiance per unit length. A ray that leaves such an object through a
+    #: back face after travelling t inside is attenuated by exp(−σ·t) and gains E/σ·(1 − exp(−σ·t)) (E·t where σ =
+    #: 0): Beer–Lambert with emission (a Blender material's Volume output; tracer.integrator). None: no media.
+    material_volumes: np.ndarray | None = None
 
     def __post_init__(self):
         self.validate()

@@ -21,7 +21,10 @@ import math
 from dataclasses import MISSING, dataclass, field, fields, replace
 
 AOV_NAMES = ("depth", "normal", "albedo", "objectid", "direct", "reflection", "transmission", "raydepth",
-             "shadow_catcher")
+             "shadow_catcher", "denoising_albedo", "denoising_normal", "sample_count")
+#: The denoiser's guides (tracer/integrator/guides.py), Cycles' Denoising Albedo and Denoising Normal passes: made whenever
+#: ``RenderSettings.denoise`` is on, written as AOVs when asked.
+GUIDE_AOVS = ("denoising_albedo", "denoising_normal")
 #: AOVs that split the beauty by the ray type light arrived through (they sum to it), and the deepest ray per pixel.
 RAY_TYPE_AOVS = ("direct", "reflection", "transmission", "raydepth")
 #: Local illumination models (RenderSettings.shading): the Principled BSDF's diffuse + GGX specular evaluated per
@@ -41,8 +44,12 @@ class Setting:
     (``aliases`` too; a bool becomes ``--flag/--no-flag``); None: not a flag, and ``cli_from`` says where the CLI
     takes it from. ``blender``: the Blender property's label (``panel``: the heading it is drawn under in Render
     Properties, addon/ui.py; ``ui``: its extra options, ``soft_max``, ``precision``, ``subtype``; ``none_as``: the
-    value a property stores for None, e.g. 0 = automatic); None: not a property, and ``blender_from`` says where
-    the add-on takes it from. ``rebuilds_integrator``: the session's packed tables
+    value a property stores for None, e.g. 0 = automatic; ``toggle``: (checkbox property, its label, the value
+    the property starts at) for a setting Blender shows as a checkbox and a value, as Cycles' Noise Threshold: the
+    checkbox off gives the field's default; ``active_with``: the field whose checkbox greys this one out); None:
+    not a property, and ``blender_from`` says where the add-on takes it from; ``blender_default``: the property's
+    default where Blender's differs from the API's (None: the field's own; Denoise is on for F12 as in Cycles, off
+    for the API and the CLI). ``rebuilds_integrator``: the session's packed tables
     (the Integrator's ``Options``, its light table) depend on it, so a change makes a new Integrator; any other
     setting is read per render."""
 
@@ -61,7 +68,10 @@ class Setting:
     panel: str = ""
     ui: tuple = ()
     none_as: object = None
+    toggle: tuple = ()
+    active_with: str = ""
     blender_from: str = ""
+    blender_default: object = None
     rebuilds_integrator: bool = False
 
 
@@ -83,6 +93,17 @@ class RenderSettings:
     samples: int = setting(DEFAULT_AA, "anti-aliasing: N×N stratified samples per pixel (box filter); 1 = one ray "
                            "through each pixel centre", unit="N", lo=1, flag="--aa", metavar="N",
                            blender="Samples", panel="Sampling", ui=(("soft_max", 8), ("max", 64)))
+    adaptive_threshold: float = setting(0.0, "adaptive sampling's noise threshold (Cycles' Noise Threshold, the "
+                                        "same scale): a pixel stops taking samples of its N×N budget once its noise "
+                                        "estimate is below it; 0.01 is Cycles' default, higher is faster and noisier; "
+                                        "0 = off (every pixel takes all N×N)", lo=0, hi=1, flag="--adaptive-threshold",
+                                        metavar="T", blender="Noise Threshold", panel="Sampling",
+                                        toggle=("use_adaptive_sampling", "Noise Threshold", 0.01),
+                                        ui=(("soft_min", 0.001), ("precision", 4)))
+    adaptive_min_samples: int = setting(0, "adaptive sampling: samples every pixel takes before it may stop "
+                                        "(at most N×N); 0 = automatic, Cycles' rule max(4, ⌈16 / threshold^0.3⌉)",
+                                        lo=0, flag="--adaptive-min-samples", metavar="N", blender="Min Samples",
+                                        panel="Sampling", active_with="adaptive_threshold", ui=(("max", 4096),))
     max_depth: int = setting(8, "maximum recursion depth of reflection/transmission rays (0 = eye and shadow rays "
                              "only)", lo=0, flag="--max-depth", metavar="D", rebuilds_integrator=True,
                              blender="Max Depth", panel="Rays", ui=(("max", 64),))
@@ -131,6 +152,11 @@ class RenderSettings:
                                 "RenderSettings' disableMotionBlur; Blender: Render > Motion Blur); off = everything "
                                 "where it is at the frame. Read by the front ends as they build the scene",
                                 flag="--motion-blur", blender_from="Render > Motion Blur")
+    denoise: bool = setting(False, "denoise the finished frame with Open Image Denoise, guided by the albedo and "
+                            "normal at the first non-specular hit (Cycles' Denoising Data passes; the "
+                            "denoising_albedo / denoising_normal AOVs); the whole frame at once, never tile by tile. "
+                            "Needs an OIDN 2 library: pip install 'whitted[denoise]' (Blender ships its own)",
+                            flag="--denoise", blender="Denoise", panel="Denoise", blender_default=True)
     tile_size: int = setting(128, "pixel tile edge; memory is bounded by tile size × samples", unit="px", lo=4,
                              flag="--tile-size", metavar="PX", blender_from="the default (Blender shows no tiles)")
     threads: int | None = setting(None, "worker threads; unset = all cores (images are identical for any count)",
@@ -139,9 +165,13 @@ class RenderSettings:
     aovs: tuple = setting((), "extra outputs (float32 EXR next to the image): depth, normal, albedo, objectid, and "
                           "direct, reflection, transmission (the beauty by the path's first secondary ray; they "
                           "sum to it), raydepth (deepest ray per pixel: EXR + heat-map PNG), shadow_catcher (Cycles' "
-                          "Shadow Catcher pass; with it, Combined leaves the catchers' shadows out)", choices=AOV_NAMES,
+                          "Shadow Catcher pass; with it, Combined leaves the catchers' shadows out), denoising_albedo, "
+                          "denoising_normal (the denoiser's guides: Cycles' Denoising Data passes, the normal in "
+                          "camera space), sample_count (samples each pixel took: N×N, or fewer with adaptive "
+                          "sampling; EXR + heat-map PNG)", choices=AOV_NAMES,
                           flag="--aov", metavar="A[,A...]",
-                          blender_from="the view layer's passes (Z, Normal, Object Index) and Ray-Type Passes")
+                          blender_from="the view layer's passes (Z, Normal, Object Index, Denoising Data, Cycles' "
+                          "Debug Sample Count) and Ray-Type Passes")
     region: tuple | None = setting(None, "render only this pixel rectangle (x0, y0, x1, y1), top-left origin, "
                                    "exclusive upper bounds", cli_from="not on the command line (the API; the "
                                    "farm's tiles)", blender_from="the render border")

@@ -4,8 +4,10 @@ A render compiles only the kernels it uses, as it first uses them (tracer/jit.py
 from the cache (tracer/kernel_cache.py). :func:`compile_kernels` is for preparing everything ahead: ``whitted
 warmup``, the Blender add-on's child process, and the kernels shipped in the add-on's zip (tracer/kernel_bundle.py).
 It renders a tiny scene that takes every path through the kernels (all light kinds with and without extent, shading
-normals, a texture, mirror, glass, alpha, emission, sky visibility), then the same scene with motion blur (a moving
-and a deforming object, a moving camera, a shutter curve: tracer/geometry/motion.py's kernels and the stages' timed paths).
+normals, a texture, mirror, glass, alpha, emission, sky visibility, the denoiser's guides: F12 denoises by default),
+then the same scene with motion blur (a moving and a deforming object, a moving camera, a shutter curve:
+tracer/geometry/motion.py's kernels and the stages' timed paths), each also with adaptive sampling (its eye rays of
+listed samples and its film).
 docs/benchmarks.md ("Ready at install") has what that costs, measured.
 """
 
@@ -48,9 +50,12 @@ def compile_kernels() -> None:
     b.background = np.array([0.1, 0.1, 0.1], np.float32)
     b.ambient = np.array([0.1, 0.1, 0.1], np.float32)
     settings = RenderSettings(width=8, height=8, samples=2, light_samples=1, sky_samples=1, threads=1,
-                              aovs=("depth",), transparent=True)
+                              aovs=("depth", "denoising_albedo", "denoising_normal"), transparent=True)
     render(b.build(), settings)
     render(_with_motion(b), settings)
+    adaptive = settings.with_(samples=3, adaptive_threshold=0.5, adaptive_min_samples=4)  # rounds of listed samples
+    render(b.build(), adaptive)
+    render(_with_motion(b), adaptive)
     b.materials[glass]["alpha"] = 1.0  # nothing see-through: shadow rays take plain occlusion (tracer/accel/alpha.py)
     render(b.build(), settings)
     mark_kernels_cached()

@@ -176,6 +176,8 @@ def cmd_render(args) -> int:
         settings = settings_from_args(args, progress=not args.quiet)
     except UsdInputError as exc:
         raise BadInput(f"{', '.join(args.scenes)}: {exc}") from None
+    if settings.denoise:  # without an OIDN library: one line and exit 2, before any stage is read
+        _check_denoiser()
     outputs = Outputs.of(settings, args.exposure)
     options = RenderOptions.from_args(args)
     frames = parse_frames(args.frames) if args.frames else [args.time]
@@ -224,6 +226,16 @@ def _render_scenes(args, settings, outputs, options, frames) -> int:
             print(f"whitted: {failed} of {len(args.scenes)} scenes failed", file=sys.stderr)
         return EXIT_BAD_INPUT
     return EXIT_OK
+
+
+def _check_denoiser() -> None:
+    """BadInput unless Open Image Denoise loads here (``--denoise``; tracer.denoise says where it looked)."""
+    from tracer.denoise import DenoiseUnavailable, check  # (ctypes only: OIDN itself loads here, once)
+
+    try:
+        check()
+    except DenoiseUnavailable as exc:
+        raise BadInput(f"--denoise: {exc}") from None
 
 
 _kernels_ready = False

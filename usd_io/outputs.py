@@ -28,18 +28,23 @@ OUTPUT_TYPES = (".png", ".exr", ".jpg", ".jpeg", ".tif", ".tiff", ".hdr")
 @dataclass(frozen=True)
 class Outputs:
     """How an image becomes files: ``exposure`` in stops (pixels × 2^EV), the ``aovs`` written next to it,
-    ``max_depth`` the top of the ``raydepth`` heat map."""
+    ``max_depth`` the top of the ``raydepth`` heat map, ``max_samples`` (the N×N budget) of the ``sample_count``
+    one."""
 
     aovs: tuple = ()
     exposure: float = 0.0
     max_depth: int | None = None
+    max_samples: int | None = None
+    denoise: bool = False
 
     @classmethod
     def of(cls, settings, exposure: float = 0.0) -> "Outputs":
-        """The outputs of a render with ``settings`` (its AOVs and max depth) at ``exposure`` (checked finite)."""
+        """The outputs of a render with ``settings`` (its AOVs, max depth and whether it denoises) at ``exposure``
+        (checked finite)."""
         if not np.isfinite(exposure):
             raise BadInput(f"--exposure must be a finite number, got {exposure}")
-        return cls(aovs=tuple(settings.aovs), exposure=float(exposure), max_depth=settings.max_depth)
+        return cls(aovs=tuple(settings.aovs), exposure=float(exposure), max_depth=settings.max_depth,
+                   max_samples=settings.samples ** 2, denoise=bool(settings.denoise))
 
     def expose(self, image) -> None:
         """The exposure applied to ``image`` in place (colour only; alpha and AOVs stay)."""
@@ -48,8 +53,9 @@ class Outputs:
 
     def stream(self, out: str, width: int, height: int):
         """For a PNG ``out``: a :class:`tracer.png_stream.StreamedPNG` to hand to ``tracer.render`` as ``on_tile``
-        (the picture is encoded band by band while the render runs, this exposure applied); None otherwise."""
-        if os.path.splitext(out)[1].lower() != ".png":
+        (the picture is encoded band by band while the render runs, this exposure applied); None otherwise, and for
+        a render that denoises (its pixels change once the whole frame is done)."""
+        if os.path.splitext(out)[1].lower() != ".png" or self.denoise:
             return None
         from tracer.png_stream import StreamedPNG  # the tracer loads after the flags are checked (start-up)
 
@@ -67,7 +73,8 @@ class Outputs:
             except ValueError as exc:
                 raise BadInput(str(exc)) from None
         self.expose(image)
-        write_outputs(image, out, self.aovs, max_depth=self.max_depth, picture=stream is None)
+        write_outputs(image, out, self.aovs, max_depth=self.max_depth, max_samples=self.max_samples,
+                      picture=stream is None)
 
 
 def warn(message: str) -> None:
@@ -138,9 +145,10 @@ def check_output(path: str, types=OUTPUT_TYPES):
         raise BadInput(f"{path}: output directory {directory} does not exist")
 
 
-def write_outputs(image, out, aovs, max_depth: int | None = None, picture: bool = True) -> None:
+def write_outputs(image, out, aovs, max_depth: int | None = None, picture: bool = True,
+                  max_samples: int | None = None) -> None:
     """The image (unless ``picture`` is False: written already) and its AOVs (EXR next to it; ``raydepth`` also as a
-    heat-map PNG scaled to ``max_depth``)."""
+    heat-map PNG scaled to ``max_depth``, ``sample_count`` to ``max_samples``)."""
     try:
         if picture:
             _save(image, out)
@@ -152,6 +160,10 @@ def write_outputs(image, out, aovs, max_depth: int | None = None, picture: bool 
                 from tracer.film import heat_map  # (start-up: as in stream)
 
                 _write_aov(aov_path(out, name)[:-4] + ".png", heat_map(a[..., 0], max_depth))
+            if name == "sample_count":  # black: no samples; yellow: the whole N×N budget
+                from tracer.film import heat_map  # (start-up: as in stream)
+
+                _write_aov(aov_path(out, name)[:-4] + ".png", heat_map(a[..., 0], max_samples))
     except ValueError as exc:  # unwritable output (the tracer's film names the file and the reason)
         raise BadInput(str(exc)) from None
 

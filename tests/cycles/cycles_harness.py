@@ -199,12 +199,16 @@ def content_hash(*parts) -> str:
 def _read_exr_channels(path: str) -> dict:
     import OpenImageIO as oiio
 
-    buf = oiio.ImageBuf(path)
-    if buf.has_error:
-        raise ValueError(f"cannot read {path}: {buf.geterror()}")
-    spec = buf.spec()
-    px = np.asarray(buf.get_pixels(oiio.FLOAT), np.float32).reshape(spec.height, spec.width, spec.nchannels)
-    return {name: px[..., i] for i, name in enumerate(spec.channelnames)}
+    first = oiio.ImageBuf(path)
+    if first.has_error:
+        raise ValueError(f"cannot read {path}: {first.geterror()}")
+    out = {}
+    for sub in range(max(1, first.nsubimages)):  # Blender writes one part (OIIO subimage) per pass
+        buf = oiio.ImageBuf(path, sub, 0) if sub else first
+        spec = buf.spec()
+        px = np.asarray(buf.get_pixels(oiio.FLOAT), np.float32).reshape(spec.height, spec.width, spec.nchannels)
+        out.update({name: px[..., i] for i, name in enumerate(spec.channelnames)})
+    return out
 
 
 def _channel(chans: dict, suffix: str) -> np.ndarray:
@@ -263,8 +267,10 @@ def cycles_reference(desc: dict, *, kind: str = "beauty") -> dict:
     kind "beauty": ``desc["samples"]`` samples, box filter 1 px: {"rgb"} linear.
     kind "ids": 1 sample through the pixel centre (filter width 0.01 px): {"rgb"}; for per-pixel first-hit
     comparisons (ids travel as emission colours: bpy 5.0 writes no IndexOB pass into the multilayer EXR headless).
+    kind "denoising": the beauty's settings with the view layer's Denoising Data stored (Cycles' denoiser itself
+    stays off): {"rgb", "albedo", "normal"}, the Denoising Albedo and Denoising Normal passes (camera space).
     """
-    if kind not in ("beauty", "ids"):
+    if kind not in ("beauty", "ids", "denoising"):
         raise ValueError(f"unknown reference kind {kind!r}")
 
     def render(tmp):
@@ -272,6 +278,8 @@ def cycles_reference(desc: dict, *, kind: str = "beauty") -> dict:
         if kind == "ids":
             sc.cycles.samples = 1
             sc.cycles.filter_width = 0.01
+        if kind == "denoising":
+            sc.view_layers[0].cycles.denoising_store_passes = True
         render_multilayer(sc, tmp)
 
     path, seconds, cached = cached_exr(f"{desc['name']}-{kind}-{content_hash(desc, kind)}", render,
@@ -279,6 +287,9 @@ def cycles_reference(desc: dict, *, kind: str = "beauty") -> dict:
     chans = _read_exr_channels(path)
     out = {"rgb": np.stack([_channel(chans, f"Combined.{c}") for c in "RGB"], axis=-1), "seconds": seconds,
            "cached": cached, "path": path}
+    if kind == "denoising":
+        out["albedo"] = np.stack([_channel(chans, f"Denoising Albedo.{c}") for c in "RGB"], axis=-1)
+        out["normal"] = np.stack([_channel(chans, f"Denoising Normal.{c}") for c in "XYZ"], axis=-1)
     return out
 
 

@@ -208,11 +208,17 @@ def catcher_blocked(accel, o, d, t_max, tables, tri_ids, inst_ids, eps, rounds: 
 
 
 # ---------------------------------------------------------------------------------------------- the film
-def composite(color, alpha, comp, spp: int, transparent: bool, approximate: bool):
+def composite(color, alpha, comp, spp: int, transparent: bool, approximate: bool, spent=None):
     """Per pixel from a tile's samples (``spp`` consecutive per pixel): (rgba (P, 4), shadow catcher (P, 3)) as
-    Cycles reads its Combined (the matte, with the shadow as alpha or over the world) and Shadow Catcher passes."""
-    n = len(alpha) // spp
-    mean = lambda a: a.reshape((n, spp) + a.shape[1:]).mean(axis=1)  # noqa: E731
+    Cycles reads its Combined (the matte, with the shadow as alpha or over the world) and Shadow Catcher passes.
+    With adaptive sampling, ``spent`` (P,) gives each pixel's count of consecutive samples instead."""
+    if spent is None:
+        n = len(alpha) // spp
+        mean = lambda a: a.reshape((n, spp) + a.shape[1:]).mean(axis=1)  # noqa: E731
+    else:
+        starts = np.cumsum(spent) - spent
+        mean = lambda a: (np.add.reduceat(a, starts, axis=0)  # noqa: E731
+                          / spent.reshape((-1,) + (1,) * (a.ndim - 1)))
     split = comp[:, SPLIT] > 0
     c = mean(color)
     a_c = np.clip(mean(alpha), 0.0, 1.0)

@@ -54,6 +54,7 @@ from ..shading.spaces import object_spaces, set_camera
 from ..shading.texture import pack_textures
 from ..shading.vm import IN_GENERATED, OP_INPUT, cut as _cut, shade_programs
 from . import compose
+from . import guides as guide_stage
 
 RAY_TYPES = ("eye", "shadow", "reflection", "transmission", "sky")
 
@@ -102,10 +103,16 @@ class TileResult:
     albedo: np.ndarray  # (S, 3) first-hit diffuse colour
     object_id: np.ndarray  # (S,) first-hit object id, -1 where none
     counts: RayCounts = field(default_factory=RayCounts)
+    guide_albedo: np.ndarray | None = None  # (S, 3) Cycles' Denoising Albedo (tracer/integrator/guides.py), with guides
+    guide_normal: np.ndarray | None = None  # (S, 3) Cycles' Denoising Normal (camera space), with guides
     by_type: np.ndarray | None = None  # (S, 3, 3) colour per PATH_TYPES (with ray_types)
     deepest: np.ndarray | None = None  # (S,) depth of the deepest ray (0 = the eye ray only) (with ray_types)
     compose: np.ndarray | None = None  # (S, compose.COLUMNS) shadow-catcher sums (scenes with a catcher)
     compose_mode: tuple = (False, True)  # (transparent film, approximate shadow catcher) for tracer.integrator.compose
+    # (P,) samples each pixel of the tile took (adaptive sampling), when they differ; None: every pixel took its
+    # spp. With it the per-sample arrays hold each pixel's samples consecutively, in stratum order, spent[p] of
+    # them (tracer.integrator.tiles.write_tile)
+    spent: np.ndarray | None = None
 
 
 class MaterialArrays(NamedTuple):
@@ -192,6 +199,8 @@ class RayQueue(NamedTuple):
     t_max: np.ndarray | None
     mask: np.ndarray | None = None  # Embree ray masks (tracer.lights.linking), None: the rays see every object
     time: np.ndarray | None = None  # each ray's time across the shutter (tracer.geometry.motion), None: no motion blur
+    feature: np.ndarray | None = None  # (N, 4) the denoising guides each ray still carries
+    #                                    (tracer/integrator/guides.py: P·T rgb, P), None: no guides are made
 
 
 class SurfaceQueue(NamedTuple):
@@ -307,6 +316,8 @@ class NextQueue(NamedTuple):
     through_weight: np.ndarray
     through_sample: np.ndarray
     through_t0: np.ndarray  # distance along the eye ray travelled before the pass-through ray
+    parent: np.ndarray  # the row of the hit each next ray left (the denoising guides follow it: tracer/integrator/guides.py)
+    through_parent: np.ndarray  # the same for the pass-through rays
 
     @classmethod
     def empty(cls, n: int, spawn: bool) -> "NextQueue":
@@ -314,7 +325,7 @@ class NextQueue(NamedTuple):
         return cls(np.empty((m, 3), np.float32), np.empty((m, 3), np.float32), np.empty((m, 3), np.float32),
                    np.empty(m, np.int32), SpawnRecord.empty(0, m), np.empty((n, 3), np.float32),
                    np.empty((n, 3), np.float32), np.empty((n, 3), np.float32), np.empty(n, np.int32),
-                   np.empty(n, np.float32))
+                   np.empty(n, np.float32), np.empty(m, np.int32), np.empty(n, np.int32))
 
 
 class Step(NamedTuple):
@@ -327,6 +338,15 @@ class Step(NamedTuple):
     next: RayQueue
     spawned: SpawnRecord
     n_reflected: int
+
+
+class Guides(NamedTuple):
+    """Where the denoising guides of a trace are written (tracer/integrator/guides.py): per eye sample (slot) the albedo and
+    the camera-space normal, and the camera's world-to-camera rows."""
+
+    albedo: np.ndarray
+    normal: np.ndarray
+    cam: np.ndarray
 
 
 class Tile(NamedTuple):
@@ -404,6 +424,7 @@ class Integrator:
         self.see_through = bool(np.any(used & ((m.alpha < 1) | self.programs.alpha_varies)))
         #: Holdouts and shadow catchers (tracer.integrator.compose)
         self.compose = compose.pack(scene)
+        self.volumes = _pack_volumes(getattr(scene, "material_volumes", None), len(m.names))
         self._local = threading.local()
         self._camera_lock = threading.Lock()
 
@@ -420,9 +441,10 @@ class Integrator:
         return self.settings.max_depth + (1 if self.settings.terminal_rays else 0)
 
     def _shade(self, depth: int, o, d, weight, sample, t0, hits, keys, out: "Tile", counts, spawn: bool,
-               time=None):
+               time=None, feature=None, gd: "Guides | None" = None):
         """The stages for one batch of rays and their hits: returns (ShadowQueue, NextQueue, n_refl, n_tran,
-        n_through)."""
+        n_through, the catcher's shadow rays, the spawned rays' guide features: None, or (reflections,
+        transmissions, pass-through rays))."""
         n = len(o)
         t, prim, u, v, inst = hits
         surf = SurfaceQueue.scratch(self._held(), n)
@@ -444,6 +466,8 @@ class Integrator:
                            surf.transmission, m.alpha_threshold, g.uv_sets, g.colors, g.has_colors, g.vertices,
                            g.triangles, g.face_normals, g.object_ids, self.spaces, x.data, x.params, it.linear,
                            it.mirrored, it.object_ids, eye, spread, flat, pt.lobes, surf.lobe_arrays)
+        if self.volumes is not None:  # rays leaving a medium: Beer–Lambert and its emission over their length
+            weight = _through_media(self.volumes, surf, t, sample, weight, out.color, n)
         split = None  # the eye samples whose first catcher hit is in this batch (tracer.integrator.compose)
         cp = self.compose
         if depth == 0 and (cp.has_holdout or cp.has_catcher):
@@ -466,11 +490,19 @@ class Integrator:
         nxt = NextQueue.empty(n, spawn)
         n_refl, n_tran, n_through = _spawn_secondary(surf, d, t, t0, sample, weight, spawn, self.materials,
                                                      self.options, nxt, counts)
+        feats = None
+        if feature is not None and gd is not None and np.any(feature[:, 3] > 0):  # the denoising guides
+            carry = np.empty((n, 3), np.float32)
+            guide_stage.features(surf, d, sample, weight, feature, depth, self.materials, self.options, self.env, gd.cam,
+                            gd.albedo, gd.normal, carry)
+            feats = guide_stage.propagate(feature, carry, [
+                (nxt.parent[:n_refl], nxt.weight[:n_refl]), (nxt.parent[n:n + n_tran], nxt.weight[n:n + n_tran]),
+                (nxt.through_parent[:n_through], nxt.through_weight[:n_through])])
         shadow = ShadowQueue(*(a[:n_shadow] for a in shadow))
         caught = None  # the shadow rays of split hits (their catcher-only light is added with the occlusion)
         if split is not None:
             caught = self._catcher_rays(out, split, before, sample, shadow, nxt, n, n_refl, n_tran, n_through)
-        return shadow, nxt, n_refl, n_tran, n_through, caught
+        return shadow, nxt, n_refl, n_tran, n_through, caught, feats
 
     def _catcher_rays(self, out, split, before, sample, shadow, nxt, n, n_refl, n_tran, n_through):
         """The catcher-only light of split hits that the stages added directly, and the world along the rays
@@ -490,11 +522,13 @@ class Integrator:
                 compose.add_world(out.compose, s_, w_, d_, rows, self.env, bg)
         return mask[shadow.sample]
 
-    def step(self, depth: int, rays: "RayQueue", keys: np.ndarray, out: "Tile", counts: np.ndarray) -> "Step":
+    def step(self, depth: int, rays: "RayQueue", keys: np.ndarray, out: "Tile", counts: np.ndarray,
+             gd: "Guides | None" = None) -> "Step":
         """One depth of Cast-Ray for a queue of rays: closest hits, shading (adding into ``out`` at each ray's
         sample), the deferred shadow rays and their occlusion, and the queue of next rays (reflections, then
         transmissions; empty past the last depth). Rays that pass through alpha < 1 surfaces are traced again
-        within the step (up to ``max_transparent`` surfaces deep)."""
+        within the step (up to ``max_transparent`` surfaces deep). With ``gd`` and ``rays.feature``, the denoising
+        guides are written into ``gd`` and the next rays carry theirs (tracer/integrator/guides.py)."""
         n = len(rays.o)
         mask = rays.mask if depth else linking.ray_masks(self.links, 0, n, 0)
         time = rays.time
@@ -506,15 +540,21 @@ class Integrator:
         spawn = depth < self.last_depth
         shadows, refl, tran, caught = [], [], [], []
         o, d, w, smp, t0, h = rays.o, rays.d, rays.weight, rays.sample, np.zeros(n, np.float32), hits
+        feat = rays.feature if gd is not None else None
+        feats_refl, feats_tran = [], []
         for layer in range(self.settings.max_transparent + 1):
-            shadow, nxt, n_refl, n_tran, n_through, c = self._shade(depth, o, d, w, smp, t0, h, keys, out, counts,
-                                                                    spawn, time)
+            shadow, nxt, n_refl, n_tran, n_through, c, fs = self._shade(depth, o, d, w, smp, t0, h, keys, out,
+                                                                        counts, spawn, time, feat, gd)
             shadows.append(shadow)
             if self.compose.has_catcher:
                 caught.append(c if c is not None else np.zeros(len(shadow.o), np.bool_))
             m = len(o)
             refl.append((nxt, slice(0, n_refl)))
             tran.append((nxt, slice(m, m + n_tran)))
+            if feat is not None:
+                feats_refl.append(fs[0] if fs is not None else np.zeros((n_refl, 4), np.float32))
+                feats_tran.append(fs[1] if fs is not None else np.zeros((n_tran, 4), np.float32))
+                feat = fs[2] if fs is not None else np.zeros((n_through, 4), np.float32)
             if not n_through or layer == self.settings.max_transparent:
                 break
             o, d = nxt.through_o[:n_through], nxt.through_d[:n_through]
@@ -547,6 +587,8 @@ class Integrator:
         nxt = RayQueue(o=cat(lambda q: q.o), d=cat(lambda q: q.d), weight=cat(lambda q: q.weight),
                        sample=cat(lambda q: q.sample), t_max=None)
         nxt = nxt._replace(mask=linking.ray_masks(self.links, depth + 1, len(nxt.o), n_reflected))
+        if gd is not None and rays.feature is not None:
+            nxt = nxt._replace(feature=np.concatenate(feats_refl + feats_tran))
         if timed:
             nxt = nxt._replace(time=sample_time[nxt.sample])
         spawned = SpawnRecord(light=shadow.light[:0], normal=cat(lambda q: q.spawned.normal),
@@ -594,11 +636,12 @@ class Integrator:
 
     def trace(self, origins: np.ndarray, directions: np.ndarray, keys: np.ndarray,
               cancelled=lambda: False, ray_types: bool = False, t_max: np.ndarray | None = None,
-              times: np.ndarray | None = None) -> TileResult:
+              times: np.ndarray | None = None, guides: bool = False) -> TileResult:
         """Trace eye rays (one per sample) to the maximum depth. ``keys`` are unique per sample (for the
         deterministic random streams); ``times`` each eye sample's time across the shutter (motion blur; None:
         none), kept by every ray of its path. With ``ray_types`` the result also holds each sample's colour split by the
-        ray type it arrived through (:data:`PATH_TYPES`) and the depth of its deepest ray."""
+        ray type it arrived through (:data:`PATH_TYPES`) and the depth of its deepest ray; with ``guides`` each
+        sample's denoising albedo and normal (tracer/integrator/guides.py)."""
         s = self.scene
         n_samples = len(origins)
         # With ray_types, each eye sample owns PATH_TYPES slots and a path's contributions go to the slot of its
@@ -611,6 +654,10 @@ class Integrator:
         counts = np.zeros(5, np.int64)
         keys = np.ascontiguousarray(np.repeat(keys, k), np.int64)
         deepest = np.full(n_samples, -1, np.int32)
+        gd = None
+        if guides:
+            gd = Guides(albedo=np.zeros((n_samples * k, 3), np.float32),
+                        normal=np.zeros((n_samples * k, 3), np.float32), cam=guide_stage.camera_rows(s.camera))
 
         rays = RayQueue(o=np.ascontiguousarray(origins, np.float32), d=np.ascontiguousarray(directions, np.float32),
                         weight=np.ones((n_samples, 3), np.float32),
@@ -618,13 +665,14 @@ class Integrator:
                         t_max=(t_max if t_max is not None else  # per ray: the camera's clipping planes
                                np.full(n_samples, s.camera.far - s.camera.near, np.float32)
                                if np.isfinite(s.camera.far) else None),
-                        time=None if times is None else np.ascontiguousarray(times, np.float32))
+                        time=None if times is None else np.ascontiguousarray(times, np.float32),
+                        feature=np.ones((n_samples, 4), np.float32) if guides else None)
         for depth in range(self.last_depth + 1):
             if not len(rays.o) or cancelled():
                 break
             if ray_types:
                 np.maximum.at(deepest, rays.sample // k, depth)
-            step = self.step(depth, rays, keys, out, counts)
+            step = self.step(depth, rays, keys, out, counts, gd)
             rays = step.next
             if ray_types and depth == 0 and len(rays.o):  # the first secondary rays choose their path's slot
                 first = np.where(np.arange(len(rays.o)) < step.n_reflected, _REFLECTION_PATH, _TRANSMISSION_PATH)
@@ -635,7 +683,10 @@ class Integrator:
         rc = RayCounts(eye=n_samples, shadow=int(counts[_N_SHADOW]), reflection=int(counts[_N_REFLECTION]),
                        transmission=int(counts[_N_TRANSMISSION]), sky=int(counts[_N_SKY]), tir=int(counts[_N_TIR]))
         by_type = out.color.reshape(n_samples, k, 3)
-        return TileResult(color=by_type.sum(axis=1) if k > 1 else out.color, alpha=out.alpha[::k],
+        slots = lambda a: a.reshape(n_samples, k, 3).sum(axis=1) if k > 1 else a  # noqa: E731
+        return TileResult(guide_albedo=None if gd is None else slots(gd.albedo),
+                          guide_normal=None if gd is None else slots(gd.normal),
+                          color=by_type.sum(axis=1) if k > 1 else out.color, alpha=out.alpha[::k],
                           depth=out.depth[::k], normal=out.normal[::k], albedo=out.albedo[::k],
                           object_id=out.object_id[::k], counts=rc, by_type=by_type if k > 1 else None,
                           deepest=deepest if k > 1 else None,
@@ -644,6 +695,43 @@ class Integrator:
 
 
 # ---------------------------------------------------------------------------------------------- helpers
+def _pack_volumes(vol, n_materials: int):
+    """Scene.material_volumes as (n_materials, 6) float64 (σ ≥ 0, E ≥ 0), or None when no material has a medium."""
+    if vol is None:
+        return None
+    vol = np.asarray(vol, np.float64)
+    if vol.ndim != 2 or vol.shape[1] != 6:
+        raise ValueError(f"scene.material_volumes must have shape (M, 6), got {vol.shape}")
+    out = np.zeros((max(n_materials, len(vol)), 6))
+    out[:len(vol)] = np.maximum(np.nan_to_num(vol, nan=0.0, posinf=0.0), 0.0)
+    return out if out.any() else None
+
+
+def _through_media(volumes, surf, t, sample, weight, color, n):
+    """Rays that hit the back face of an object whose material holds a medium (:attr:`Scene.material_volumes`)
+    travelled the length t inside it: their weight × exp(−σ·t), and the medium's emission along that length,
+    weight·E/σ·(1 − exp(−σ·t)) (E·t where σ = 0), added to their samples. Returns the new weights."""
+    back = surf.hit[:n] & ~surf.front[:n]
+    rows = np.flatnonzero(back)
+    if not len(rows):
+        return weight
+    mats = surf.mat[rows]
+    v = volumes[np.minimum(mats, len(volumes) - 1)]
+    live = (mats < len(volumes)) & (v > 0).any(axis=1)
+    rows, v = rows[live], v[live]
+    if not len(rows):
+        return weight
+    tt = np.asarray(t, np.float64)[rows][:, None]
+    sigma, em = v[:, :3], v[:, 3:]
+    att = np.exp(-sigma * tt)
+    glow = np.where(sigma > 0, em / np.maximum(sigma, 1e-30) * (1.0 - att), em * tt)
+    w = np.asarray(weight, np.float64)[rows]
+    np.add.at(color, sample[rows], (w * glow).astype(color.dtype))
+    weight = weight.copy()
+    weight[rows] = (w * att).astype(weight.dtype)
+    return weight
+
+
 @kernel(inline=True)
 def spawn_ray(p, ng, direction, eps):
     """The origin of a ray leaving surface point p along ``direction``: p moved ε along the geometric normal ng, to
@@ -1084,6 +1172,7 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
     n_o, n_d, n_w, n_s = nxt.o, nxt.d, nxt.weight, nxt.sample
     th_o, th_d, th_w, th_s, th_t0 = (nxt.through_o, nxt.through_d, nxt.through_weight, nxt.through_sample,
                                      nxt.through_t0)
+    n_par, th_par = nxt.parent, nxt.through_parent
     s_hit, s_mat, s_base, s_metal, s_rough, s_cover, s_p, s_ng, s_n, s_front, s_mirror = (
         surf.hit, surf.mat, surf.base, surf.metallic, surf.roughness, surf.cover, surf.p, surf.ng, surf.n,
         surf.front, surf.mirror)
@@ -1110,6 +1199,7 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
         if vec.max3(wt) > min_weight:
             _put_ray(th_o, th_d, th_w, th_s, n_through, spawn_ray(p, ng, di, eps), di, wt, s)
             th_t0[n_through] = t0[i] + t[i]
+            th_par[n_through] = i
             n_through += 1
             counts[_N_TRANSMISSION] += 1
         if not spawn or a <= 0.0:
@@ -1175,11 +1265,13 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
                 t_dir = vec.normalize(t_dir)
                 _put_ray(n_o, n_d, n_w, n_s, j, spawn_ray(p, ng, t_dir, eps), t_dir, w_tran, s)
                 _put_spawn(rec_n, rec_eta, rec_tir, j, t_n, eta_i, eta_r, False)
+                n_par[j] = i
                 n_tran += 1
         if vec.max3(w_refl) > min_weight:
             r_dir = vec.normalize(r_dir)
             _put_ray(n_o, n_d, n_w, n_s, n_refl, spawn_ray(p, ng, r_dir, eps), r_dir, w_refl, s)
             _put_spawn(rec_n, rec_eta, rec_tir, n_refl, r_n, eta_i, eta_r, tir)
+            n_par[n_refl] = i
             n_refl += 1
     counts[_N_TIR] += n_tir
     counts[_N_REFLECTION] += n_refl

@@ -115,7 +115,9 @@ class DistantLight:
 @dataclass
 class AreaLight:
     """A one-sided Lambertian emitter centred at ``position``, spanning ``size`` along ``u_axis`` and ``v_axis``,
-    emitting along ``normal`` (Blender: the light's −Z). ``shape`` is "rect" or "disk" (an ellipse for unequal sizes)."""
+    emitting along ``normal`` (Blender: the light's −Z). ``shape`` is "rect" or "disk" (an ellipse for unequal sizes).
+    ``spread`` (radians, π = none) narrows the emission as Blender's Spread does (Cycles' soft-box grid,
+    :func:`spread_table`): radiance × max((tan(spread/2) − tan θ)·N, 0) at θ from the normal, N keeping the power."""
 
     position: np.ndarray
     u_axis: np.ndarray
@@ -125,9 +127,13 @@ class AreaLight:
     radiance: np.ndarray = None
     shape: str = "rect"
     name: str = "area"
+    spread: float = math.pi
 
     def __post_init__(self):
         self.position = _vec3(self.position, "position")
+        self.spread = float(self.spread)
+        if not (0.0 <= self.spread <= math.pi + 1e-6):
+            raise ValueError(f"light {self.name}: spread must be in [0, π], got {self.spread}")
         self.u_axis = _normalize(self.u_axis, "u_axis")
         self.v_axis = _normalize(self.v_axis, "v_axis")
         self.normal = _normalize(self.normal, "normal")
@@ -160,6 +166,18 @@ class AreaLight:
 
 Light = PointLight | SpotLight | DistantLight | AreaLight
 
+
+def spread_table(spread: float) -> tuple[float, float]:
+    """(tan(s/2), N) of an area light's Spread s as Cycles sets them (scene/light.cpp): the attenuation
+    max((tan(s/2) − tan θ)·N, 0) keeps the power when ∫ f·cos θ dω = π, i.e. N = 1/(tan(s/2) − s/2) (its series
+    3/(s/2)³ below s/2 = 0.05, as Cycles). (0, 0): no spread (s = π); a spread under 1e-3 rad is taken as 1e-3
+    (Cycles' s = 0, a light seen only along its normal, cannot be met by sampling the area)."""
+    if spread >= math.pi - 1e-6:
+        return 0.0, 0.0
+    h = max(spread, 1e-3) / 2.0
+    t = math.tan(h)
+    return t, (1.0 / (t - h) if h > 0.05 else 3.0 / h ** 3)
+
 # ---------------------------------------------------------------------- the packed light tables
 #: Light kinds in the packed tables.
 POINT, SPOT, DISTANT, RECT, DISK, MESH = 0, 1, 2, 3, 4, 5
@@ -183,6 +201,7 @@ class LightTables(NamedTuple):
     v_axis: np.ndarray  # (L, 3) float64
     size: np.ndarray  # (L, 2) float64: area, extents along u and v
     area: np.ndarray  # (L,) float64: area, its area
+    spread: np.ndarray  # (L, 2) float64: area, (tan(spread/2), N) of :func:`spread_table`; N = 0: no spread
     tri: np.ndarray  # (N, 3, 3) float64 emitting triangles, world space
     tri_le: np.ndarray  # (N, 3) float64 their radiance
     tri_cdf: np.ndarray  # (N,) float64 cumulative pick probability (power-proportional) within each light's slice
@@ -257,7 +276,7 @@ def pack_lights(lights: list, light_samples: int, emitters=None, linked=()) -> L
     f1, f2, f3 = (lambda: np.zeros(n, np.float64)), (lambda: np.zeros((n, 2))), (lambda: np.zeros((n, 3)))
     t = LightTables(kind=np.zeros(n, np.int64), side=np.ones(n, np.int64), position=f3(), color=f3(), radius=f1(),
                     direction=f3(), cos_cone=f1(), blend=f1(), cos_max=f1(), u_axis=f3(), v_axis=f3(), size=f2(),
-                    area=f1(), tri=tri, tri_le=tri_le, tri_cdf=cdf, tri_start=np.zeros(n, np.int64),
+                    area=f1(), spread=f2(), tri=tri, tri_le=tri_le, tri_cdf=cdf, tri_start=np.zeros(n, np.int64),
                     tri_end=np.zeros(n, np.int64), emitter_object=np.full(n, -1, np.int64))
     for i, (obj, start, end) in enumerate(groups, start=len(lights)):
         t.kind[i] = MESH
@@ -277,6 +296,7 @@ def pack_lights(lights: list, light_samples: int, emitters=None, linked=()) -> L
             t.kind[i] = RECT if light.shape == "rect" else DISK
             t.position[i], t.color[i], t.direction[i] = light.position, light.radiance, light.normal
             t.u_axis[i], t.v_axis[i], t.size[i], t.area[i] = light.u_axis, light.v_axis, light.size, light.area
+            t.spread[i] = spread_table(light.spread)
     return t
 
 
@@ -386,4 +406,9 @@ def sample_light(lights, j, k, p, r0, r1):
     l = vec.scale(to_l, 1.0 / dist)
     cos_l = max(0.0, -vec.dot(l, vec.row(lights.direction, j)))
     # E from a sample of a Lambertian emitter: Le · cosθ_l · A / r², averaged over the K samples.
-    return l, dist, vec.scale(vec.row(lights.color, j), cos_l * lights.area[j] / d2 / kk)
+    f = cos_l * lights.area[j] / d2 / kk
+    norm = lights.spread[j, 1]
+    if norm > 0.0 and cos_l > 0.0:  # Blender's Spread: the soft box's grid hides light at angle θ > spread/2
+        tan_a = math.sqrt(max(1.0 - cos_l * cos_l, 0.0)) / cos_l
+        f *= max((lights.spread[j, 0] - tan_a) * norm, 0.0)
+    return l, dist, vec.scale(vec.row(lights.color, j), f)

@@ -12,6 +12,9 @@ lowered to the tracer's closure inputs and, where one closure cannot hold it, to
    glass          transmission 1, tinted by Color, ior; smooth                  (slot GLASS)
    refraction     as glass without its reflection                               (slot REFRACTION)
    translucent    as diffuse, lit from behind                                   (slot TRANSLUCENT)
+   sheen          Sheen BSDF (microfiber / Ashikhmin, tracer.shading.sheen)     (slot SHEEN)
+                  blended as a diffuse of Color × its mean albedo; a Principled BSDF's Sheen Weight adds a
+                  SHEEN slot of weight × Sheen Tint after its own, which lays it over the Principled lobe
    transparent    coverage: its weight × Color passes straight through
    emission       emission += weight × Color × Strength, reflects nothing
    holdout        a black, opaque surface; its weight is the hit's ``holdout`` (tracer.integrator.compose: alpha)
@@ -35,11 +38,14 @@ from __future__ import annotations
 import numpy as np
 
 from . import lobes as L, ops
+from . import sheen as _sheen
 from .graph import Node, Out
 from .nodes import FLOAT, IN_NORMAL, VECTOR, is_const, vec3
 
 _KIND = {"principled_bsdf": L.PRINCIPLED, "diffuse_bsdf": L.DIFFUSE, "glossy_bsdf": L.GLOSSY, "glass_bsdf": L.GLASS,
-         "refraction_bsdf": L.REFRACTION, "translucent_bsdf": L.TRANSLUCENT}
+         "refraction_bsdf": L.REFRACTION, "translucent_bsdf": L.TRANSLUCENT, "sheen_bsdf": L.SHEEN}
+#: Sheen BSDF distribution -> the SHEEN slot's P_METAL (tracer.shading.sheen).
+_SHEEN_DIST = {"MICROFIBER": _sheen.MICROFIBER, "ASHIKHMIN": _sheen.ASHIKHMIN}
 
 
 class LobeSlots:
@@ -99,13 +105,24 @@ class ClosureLowering:
                 self.warn(node.name + "st", f"Principled BSDF {node.name!r}: a linked Specular Tint is read as white")
             else:
                 lb["specular_tint"] = vec3(st)
-            for name in ("Coat Weight", "Sheen Weight", "Subsurface Weight"):
-                w = self.g.input_value(node, name)
-                if isinstance(w, Out) or float(w) > 0:
-                    self.warn(node.name + name, f"Principled BSDF {node.name!r}: {name} is not supported (ignored)")
+            w = self.g.input_value(node, "Coat Weight")
+            if isinstance(w, Out) or float(w) > 0:
+                self.warn(node.name + "Coat", f"Principled BSDF {node.name!r}: Coat Weight is not supported (ignored)")
+            w = self.g.input_value(node, "Subsurface Weight")
+            if isinstance(w, Out) or float(w) > 0:  # Blender 4+: subsurface replaces the diffuse, same colour
+                self.warn(node.name + "Subsurface", f"Principled BSDF {node.name!r}: subsurface scattering is "
+                          "rendered as diffuse reflection of the Base Color (the scattering radius is not modelled)")
+            w = self.g.input_value(node, "Sheen Weight")
+            if isinstance(w, Out) or float(w) > 0:  # the sheen layer: a SHEEN slot after this lobe (outputs)
+                lb["sheen"] = (self.inp(node, "Sheen Weight"), self.inp(node, "Sheen Tint"),
+                               self.inp(node, "Sheen Roughness"))
             tint = node.params.get("transmission_tint")
             if tint is not None:
                 lb["tint"] = vec3(tint)
+        elif t == "sheen_bsdf":
+            dist = _SHEEN_DIST.get(node.params.get("distribution") or "MICROFIBER", _sheen.MICROFIBER)
+            lb.update(self._sheen_lobe(self.inp(node, "Color"), self.inp(node, "Roughness"), dist, layer=False),
+                      normal=self._normal_in(node))
         elif t in ("diffuse_bsdf", "translucent_bsdf"):
             lb.update(base=self.inp(node, "Color"), roughness=1.0, normal=self._normal_in(node))
             lb["colour"] = lb["base"]
@@ -137,6 +154,15 @@ class ClosureLowering:
             lb.update(base=(0.8, 0.8, 0.8), roughness=1.0, lk=L.DIFFUSE, colour=(0.8, 0.8, 0.8))
         return lb
 
+    def _sheen_lobe(self, colour, roughness, dist: int, layer: bool) -> dict:
+        """A SHEEN lobe's fields: in the slots its colour, roughness, distribution (P_METAL) and layer flag (P_SPEC);
+        blended (one-closure outputs) a diffuse of colour × its mean albedo (the constant roughness's, else ½'s)."""
+        r = float(roughness) if is_const(roughness) else 0.5
+        e = _sheen.mean_albedo(dist, r)
+        return dict(base=self.scale3(colour, e), roughness=1.0, metallic=0.0, specular=0.0, transmission=0.0,
+                    lk=L.SHEEN, colour=colour, p_rough=roughness, p_metal=float(dist), p_spec=1.0 if layer else 0.0,
+                    sheen_layer=layer)
+
     def _estimate_of(self, node, name):
         c = type(self)(self.g, None, self.uv_index, estimate=True)
         return c.inp(node, name)
@@ -159,7 +185,15 @@ class ClosureLowering:
         out = self.g.output_node
         surface = self.g.input_value(out, "Surface") if out is not None else None
         disp = self.g.input_value(out, "Displacement") if out is not None else None
-        lobes = [(w, self.lobe(n)) for w, n in self.closure(surface)]
+        lobes = []
+        for w, n in self.closure(surface):
+            lb = self.lobe(n)
+            lobes.append((w, lb))
+            if lb.get("sheen") is not None:  # the Principled sheen: a layer lobe right after its own
+                sw, tint, rough = lb["sheen"]
+                layer = dict(lb, **self._sheen_lobe(tint, rough, _sheen.MICROFIBER, layer=True))
+                layer.update(sheen=None, emission=(0.0, 0.0, 0.0))
+                lobes.append((self.math(ops.M_MULTIPLY, w, sw), layer))
         if isinstance(disp, Out):
             self.warn("displacement", "Displacement is rendered as bump (the surface is not moved)")
             lobes = [(w, dict(lb, normal=self._displacement_bump(disp, lb["normal"]))) for w, lb in lobes]
@@ -238,11 +272,16 @@ class ClosureLowering:
             s_w.append((sw, lb))
         alpha = m(ops.M_SUBTRACT, 1.0, transp, clamp=True)
         inv_alpha = m(ops.M_DIVIDE, 1.0, alpha)
+        base, spec, rough, metal, tran = zero3, 0.0, 0.0, 0.0, 0.0
+        # sheen lobes add their albedo's worth of diffuse colour and leave the other parameters to the rest
+        for sw, lb in s_w:
+            if lb["lk"] == L.SHEEN:
+                base = self.add3(base, self.scale3(lb["base"], sw))
+        s_w = [x for x in s_w if x[1]["lk"] != L.SHEEN] or [(sw, dict(lb, base=zero3)) for sw, lb in s_w]
         total = 0.0
         for sw, _lb in s_w:
             total = m(ops.M_ADD, total, sw)
         inv_total = m(ops.M_DIVIDE, 1.0, total)
-        base, spec, rough, metal, tran = zero3, 0.0, 0.0, 0.0, 0.0
         for sw, lb in s_w:
             base = self.add3(base, self.scale3(lb["base"], sw))
             spec = m(ops.M_ADD, spec, m(ops.M_MULTIPLY, sw, lb["specular"]))
@@ -260,7 +299,7 @@ class ClosureLowering:
         if self.estimate:
             return None
         refl = [(w, lb) for w, lb in lobes if lb["kind"] == "surface"]
-        special = any(lb["lk"] in (L.GLOSSY, L.TRANSLUCENT, L.REFRACTION) for _w, lb in refl) or any(
+        special = any(lb["lk"] in (L.GLOSSY, L.TRANSLUCENT, L.REFRACTION, L.SHEEN) for _w, lb in refl) or any(
             lb["kind"] == "holdout" or (lb["kind"] == "transparent" and not (
                 is_const(lb["through"]) and vec3(lb["through"]) == (1.0, 1.0, 1.0))) for _w, lb in lobes)
         if len(refl) < 2 and not special:
@@ -286,8 +325,9 @@ class ClosureLowering:
         live = []
         for k, (w, lb) in enumerate(slots):
             kinds[k] = lb["lk"]
-            vals = [(self.convert(w, FLOAT, VECTOR), 3), (lb["colour"], 3), (lb["roughness"], 1),
-                    (lb["metallic"], 1), (lb["specular"], 1), (lb["transmission"], 1)]
+            vals = [(self.convert(w, FLOAT, VECTOR), 3), (lb["colour"], 3), (lb.get("p_rough", lb["roughness"]), 1),
+                    (lb.get("p_metal", lb["metallic"]), 1), (lb.get("p_spec", lb["specular"]), 1),
+                    (lb["transmission"], 1)]
             for j, (x, n) in enumerate(vals):
                 regs[k, j] = self.e.reg(x, n)
                 live.append((int(regs[k, j]), n))
@@ -302,6 +342,7 @@ class ClosureLowering:
                            f"(the tracer keeps {L.MAX_LOBES})")
         est = [float(w) if is_const(w) else 0.5 for w, _lb in slots]
         order = sorted(range(len(slots)), key=lambda k: -est[k])
+        slots = [(w, dict(lb, p_spec=0.0) if lb.get("sheen_layer") else lb) for w, lb in slots]  # order changes
         keep = [slots[k] for k in order[:L.MAX_LOBES - 1]]
         rest = [slots[k] for k in order[L.MAX_LOBES - 1:]]
         m = self.math

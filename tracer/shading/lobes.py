@@ -17,6 +17,8 @@ GLOSSY         multiscatter GGX with the constant Fresnel ``colour`` (:func:`tra
 GLASS          smooth dielectric: the mirror ray takes F·colour, the refracted ray (1 − F)·colour
 REFRACTION     the refracted ray takes colour (no Fresnel, no reflection)
 TRANSLUCENT    Lambert from behind: colour/π·|n·l| for lights on the other side of the surface
+SHEEN          :mod:`tracer.shading.sheen` (microfiber or Ashikhmin velvet, P_METAL = the distribution); P_SPEC = 1: the
+               Principled sheen layer, which weights the slot before it by 1 − max(w·colour)·E(μ)
 =============  ===========================================================================================
 
 Transparent, Emission and Holdout leaves take no slot: their weights are per-hit sums (the pass-through colour
@@ -36,13 +38,13 @@ import numpy as np
 
 from .. import vec
 from ..jit import kernel
-from . import bsdf
+from . import bsdf, sheen
 
 #: Lobe slots per hit. A tree with more reflecting leaves merges the lightest (one warning per material).
 MAX_LOBES = 4
 
-PRINCIPLED, DIFFUSE, GLOSSY, GLASS, REFRACTION, TRANSLUCENT = range(6)
-KIND_NAMES = ("principled", "diffuse", "glossy", "glass", "refraction", "translucent")
+PRINCIPLED, DIFFUSE, GLOSSY, GLASS, REFRACTION, TRANSLUCENT, SHEEN = range(7)
+KIND_NAMES = ("principled", "diffuse", "glossy", "glass", "refraction", "translucent", "sheen")
 
 #: Per-slot scalar parameters (``SurfaceQueue.lobe_param``): roughness, metallic, specular level, transmission.
 P_ROUGH, P_METAL, P_SPEC, P_TRANS = range(4)
@@ -57,6 +59,10 @@ class Lobes(NamedTuple):
     g: tuple  # MAX_LOBES × float
     n: int
     translucent: tuple
+    sheen: tuple  # Σ weight·colour of the sheen lobes (they share the first one's distribution and roughness)
+    sheen_kind: int  # tracer.shading.sheen.MICROFIBER / ASHIKHMIN
+    sheen_rough: float
+    sheen_albedo: float  # its directional albedo at the view angle
 
 
 @kernel(inline=True)
@@ -92,11 +98,32 @@ def setup(kinds, w, base, prm, i, nl, n, d, tint, ior, spawn):
     c2, w2, g2 = _slot(kinds, w, base, prm, i, 2, nl, mu, tint, ior, spawn)
     c3, w3, g3 = _slot(kinds, w, base, prm, i, 3, nl, mu, tint, ior, spawn)
     tr = (0.0, 0.0, 0.0)
+    sh = (0.0, 0.0, 0.0)
+    sh_kind, sh_rough, sh_albedo, found = 0, 0.5, 0.0, False
+    a0, a1, a2 = 1.0, 1.0, 1.0  # the Principled sheen layer's weight on the slot below it (slots 0-2)
     for k in range(nl):
+        wc = (float(w[i, k, 0]) * base[i, k, 0], float(w[i, k, 1]) * base[i, k, 1], float(w[i, k, 2]) * base[i, k, 2])
         if kinds[i, k] == TRANSLUCENT:
-            tr = vec.add(tr, (float(w[i, k, 0]) * base[i, k, 0], float(w[i, k, 1]) * base[i, k, 1],
-                              float(w[i, k, 2]) * base[i, k, 2]))
-    return Lobes((c0, c1, c2, c3), (w0, w1, w2, w3), (g0, g1, g2, g3), np.int64(nl), tr)
+            tr = vec.add(tr, wc)
+        elif kinds[i, k] == SHEEN:
+            if not found:
+                sh_kind = int(prm[i, k, P_METAL] + 0.5)
+                sh_rough = min(max(float(prm[i, k, P_ROUGH]), 0.0), 1.0)
+                sh_albedo = sheen.albedo(sh_kind, sh_rough, mu)
+                found = True
+            sh = vec.add(sh, wc)
+            if prm[i, k, P_SPEC] > 0.5 and k > 0:
+                e_k = sheen.albedo(int(prm[i, k, P_METAL] + 0.5), min(max(float(prm[i, k, P_ROUGH]), 0.0), 1.0), mu)
+                layer = min(max(1.0 - vec.max3(wc) * e_k, 0.0), 1.0)
+                if k == 1:
+                    a0 = layer
+                elif k == 2:
+                    a1 = layer
+                else:
+                    a2 = layer
+    return Lobes((c0, c1, c2, c3), (vec.scale(w0, a0), vec.scale(w1, a1), vec.scale(w2, a2), w3),
+                 (g0, g1, g2, g3), np.int64(nl), tr, sh,
+                 np.int64(sh_kind), sh_rough, sh_albedo)
 
 
 @kernel(inline=True)
@@ -104,7 +131,8 @@ def none():
     """No lobes (the one-closure path's placeholder, made once per stage call)."""
     zero = (0.0, 0.0, 0.0)
     c = bsdf.lambertian(zero, 1.0)
-    return Lobes((c, c, c, c), (zero, zero, zero, zero), (0.0, 0.0, 0.0, 0.0), np.int64(0), zero)
+    return Lobes((c, c, c, c), (zero, zero, zero, zero), (0.0, 0.0, 0.0, 0.0), np.int64(0), zero, zero,
+                 np.int64(0), 0.5, 0.0)
 
 
 @kernel(inline=True)
@@ -122,6 +150,8 @@ def evaluate(lb, n, wi, l, n_l, mesh, glossy, diffuse):
         if diffuse != 1.0:  # the diffuse part is the BSDF at spec_scale 0
             f = vec.sub(f, vec.scale(bsdf.evaluate(cl, n, wi, l, n_l, 0.0), 1.0 - diffuse))
         c = vec.add(c, vec.mul(lb.w[k], f))
+    if vec.max3(lb.sheen) > 0.0:  # sheen is a diffuse-type lobe (Cycles' LABEL_DIFFUSE)
+        c = vec.madd(c, lb.sheen, sheen.evaluate(lb.sheen_kind, lb.sheen_rough, n, wi, l) * diffuse)
     return c
 
 
@@ -142,7 +172,7 @@ def ambient(lb, amb):
         cl = lb.cl[k]
         a = vec.madd(cl.diffuse, bsdf.specular_albedo(cl), 1.0 - lb.g[k])
         c = vec.add(c, vec.mul(lb.w[k], vec.mul(a, amb)))
-    return c
+    return vec.madd(c, vec.mul(lb.sheen, amb), lb.sheen_albedo)
 
 
 @kernel(inline=True)
@@ -166,7 +196,7 @@ def specular_ambient(lb):
 @kernel(inline=True)
 def is_black(lb):
     """No lobe reflects light samples."""
-    if vec.max3(lb.translucent) > 0.0:
+    if vec.max3(lb.translucent) > 0.0 or vec.max3(lb.sheen) > 0.0:
         return False
     for k in range(lb.n):
         if not bsdf.is_black(lb.cl[k]):

@@ -474,7 +474,8 @@ define('material_output', [_s("Surface"), _v("Displacement")], [])
 
 
 define('principled_bsdf', [(_c if np.ndim(d) else _f)(k, d) for k, d in PRINCIPLED_DEFAULTS.items()] + [
-      _N, _f("Coat Weight"), _f("Sheen Weight"), _f("Subsurface Weight"), _f("Anisotropic"),
+      _N, _f("Coat Weight"), _f("Sheen Weight"), _f("Sheen Roughness", 0.5), _c("Sheen Tint", (1, 1, 1)),
+      _f("Subsurface Weight"), _f("Anisotropic"),
       _f("Alpha Threshold")],  # Alpha Threshold: USD's opacityThreshold (not in Blender)
       [_s("BSDF")], transmission_tint=None, proof='tests/cycles/test_cycles_addon_materials.py, tests/cycles/test_cycles_usd_materials.py')
 
@@ -495,6 +496,10 @@ define('refraction_bsdf', [_c("Color", (1, 1, 1)), _f("Roughness"), _f("IOR", 1.
 
 
 define('translucent_bsdf', [_c("Color"), _N], [_s("BSDF")], proof='tests/cycles/test_cycles_nodes.py (closures)')
+
+
+define('sheen_bsdf', [_c("Color"), _f("Roughness", 0.5), _N], [_s("BSDF")], distribution="MICROFIBER",
+       proof='tests/test_blender_fidelity.py (sheen)')
 
 
 define('transparent_bsdf', [_c("Color", (1, 1, 1))], [_s("BSDF")], proof='tests/cycles/test_cycles_nodes.py (closures)')
@@ -589,13 +594,15 @@ def _attribute(cx, node, var):
         cx.warn(node.name, f"Attribute {node.name!r}: {node.param('attribute_type')} attributes are not "
                              "supported; white is used")
         return {"Color": (1.0, 1.0, 1.0), "Vector": (1.0, 1.0, 1.0), "Fac": 1.0, "Alpha": 1.0}
-    if cx.uv_index(name) is not None and name and name in getattr(cx.uv_index, "names", ()):
+    # (the name test first: asking uv_index for a name reserves a UV set for it, which no mesh would fill)
+    if name and name in getattr(cx.uv_index, "names", ()) and cx.uv_index(name) is not None:
         uvv = cx.uv(name, var)
         return {"Color": uvv, "Vector": uvv, "Fac": cx.convert(uvv, VECTOR, FLOAT), "Alpha": 1.0}
     if name not in cx.vertex_colors:
         cx.vertex_colors.append(name)
     c = cx.hit(IN_COLOR, variant=var)
-    return {"Color": c, "Vector": c, "Fac": cx.convert(c, COLOR, FLOAT), "Alpha": 1.0}
+    # Fac: the mean of the components, as Cycles' svm_node_attr_store (not the colour's luminance)
+    return {"Color": c, "Vector": c, "Fac": cx.convert(c, VECTOR, FLOAT), "Alpha": 1.0}
 
 
 @node('vertex_color', [], [_c("Color"), _f("Alpha")], layer_name="")
