@@ -142,12 +142,27 @@ def test_open_pbr_coat_tints_and_reflects(tmp_path):
 
 
 def test_an_input_that_is_not_rendered_is_named_once(tmp_path):
-    """Sheen is not rendered: one warning naming the input (``sheen``), however often the material is read."""
-    body = COPPER.replace('<input name="coat" type="float" value="1" />',
-                          '<input name="coat" type="float" value="1" /><input name="sheen" type="float" value="0.5" />')
+    """Thin-film interference is not rendered: one warning naming the input (``thin_film_thickness``)."""
+    body = COPPER.replace('<input name="coat" type="float" value="1" />', '<input name="coat" type="float" value="1" />'
+                          '<input name="thin_film_thickness" type="float" value="400" />')
     _img, warnings = render(quad_stage(str(tmp_path), document(body), light="dome"))
-    named = [w for w in warnings if "sheen" in w]
+    named = [w for w in warnings if "thin_film_thickness" in w]
     assert len(named) == 1, warnings
+
+
+def test_sheen_is_the_principled_sheen_layer(tmp_path):
+    """Standard Surface's sheen reads as the Principled sheen (weight, colour, roughness), the tracer's sheen lobe
+    over the base: a black base with a white sheen of weight 1 reflects the sheen's albedo, not black; no warning.
+    Before: dropped with a warning."""
+    body = """  <standard_surface name="SR" type="surfaceshader">
+    <input name="base" type="float" value="1" /><input name="base_color" type="color3" value="0, 0, 0" />
+    <input name="specular" type="float" value="0" />
+    <input name="sheen" type="float" value="1" /><input name="sheen_color" type="color3" value="1, 1, 1" />
+    <input name="sheen_roughness" type="float" value="0.5" />
+  </standard_surface>"""
+    img, warnings = render(quad_stage(str(tmp_path), document(body), light="dome"))
+    assert 0.02 < img.mean() < 0.5, img.mean()
+    assert not [w for w in warnings if "sheen" in w], warnings
 
 
 # ---------------------------------------------------------------------------------------------- tiled circles
@@ -326,11 +341,14 @@ def test_gltf_pbr_reads_as_materialx_defines_it(tmp_path):
 
 
 def test_gltf_pbr_names_what_it_does_not_render(tmp_path):
+    """Iridescence and the volume (thickness) are named once each; sheen_color is rendered (the sheen layer)."""
     extra = '\n    <input name="sheen_color" type="color3" value="0.5, 0.5, 0.5" />' \
-            '\n    <input name="iridescence" type="float" value="1" />'
+            '\n    <input name="iridescence" type="float" value="1" />' \
+            '\n    <input name="thickness" type="float" value="0.5" />'
     _img, warnings = render(quad_stage(str(tmp_path), document(GLTF.format(metallic=0, specular=1, extra=extra))))
-    for name in ("sheen_color", "iridescence"):
+    for name in ("iridescence", "thickness"):
         assert len([w for w in warnings if name in w]) == 1, (name, warnings)
+    assert not [w for w in warnings if "sheen" in w], warnings
 
 
 DISNEY = """  <disney_principled name="SR" type="surfaceshader">

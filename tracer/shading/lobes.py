@@ -186,11 +186,12 @@ def diffuse_albedo(lb):
 
 @kernel(inline=True)
 def specular_ambient(lb):
-    """Σᵢ wᵢ·(1 − gᵢ)·(lobe i's specular albedo): what the lobes' light-sample share reflects of a uniform sky."""
+    """Σᵢ wᵢ·(1 − gᵢ)·(lobe i's specular albedo) + the sheen lobes' weight·colour × their albedo: what the lobes'
+    light-sample share reflects of a uniform sky, unshadowed (as :func:`ambient` adds them)."""
     c = (0.0, 0.0, 0.0)
     for k in range(lb.n):
         c = vec.add(c, vec.scale(vec.mul(lb.w[k], bsdf.specular_albedo(lb.cl[k])), 1.0 - lb.g[k]))
-    return c
+    return vec.madd(c, lb.sheen, lb.sheen_albedo)
 
 
 @kernel(inline=True)

@@ -18,7 +18,8 @@ other warns once and contributes nothing. A closure comes back with an estimate 
                               (ior, extinction) (its F82 tint white: Schlick's curve)
     generalized_schlick_bsdf  R: color90 = 1 a Principled metal of F0 = color0 (Schlick), else a     mean(color0)
                               Glossy BSDF of colour color0; T/RT: Glass BSDF tinted by color0
-    sheen_bsdf, thin film     not rendered (one warning; a sheen layer passes its base through)
+    sheen_bsdf                Sheen BSDF (microfiber), its albedo the lobe's mean albedo × colour
+    thin film                 not rendered (one warning)
     subsurface_bsdf           Diffuse BSDF of its colour (one warning)
     layer(top, base)          top + base × (1 − albedo(top))                                         combined
     mix(fg, bg, mix), add, multiply (by a float or colour)   Mix Shader / Add Shader (a colour factor by its mean)
@@ -33,6 +34,8 @@ from __future__ import annotations
 
 import MaterialX as mx
 import numpy as np
+
+from tracer.shading import sheen
 
 from . import mtlx
 from .mtlx_graph import MxNode, Translator, UsdNode, _Ctx
@@ -178,8 +181,13 @@ class Closures:
         return self._diffuse(c)
 
     def _c_sheen_bsdf(self, c):
-        self.tr.warn(c.view.key, f"MaterialX {c.view.name}: sheen is not rendered")
-        return None, 0.0
+        """The tracer's Sheen BSDF (microfiber: Zeltner et al., MaterialX's own default mode); its albedo for a
+        layer: weight × mean(colour) × the lobe's mean albedo at its roughness."""
+        col, r, w = c.i("color"), c.f("roughness"), c.f("weight")
+        out = self.tr.add("sheen_bsdf", {"Color": self.tr.lanes3(col), "Roughness": r}, "BSDF",
+                          distribution="MICROFIBER")
+        e = sheen.mean_albedo(sheen.MICROFIBER, float(r)) if not hasattr(r, "node") else 0.15
+        return self.scaled(out, w), self.fmul(self.fmul(self.mean3(col), e), w)
 
     def _c_chiang_hair_bsdf(self, c):
         self.tr.warn(c.view.key, f"MaterialX {c.view.name}: hair BSDFs are not rendered")

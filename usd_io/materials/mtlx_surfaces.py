@@ -23,7 +23,8 @@ standard_surface (``NG_standard_surface_surfaceshader_100``)
     by transmission_color), emission · emission_color, opacity (its luminance), normal. coat: a dielectric layer
     (coat, coat_IOR, coat_roughness) over everything, whose coat_color (mixed by coat) tints what is under it;
     coat_affect_color raises the diffuse colour to 1 + coat · coat_affect_color. subsurface: rendered as the
-    diffuse colour mix(base · base_color, subsurface_color, subsurface) (warned). Not rendered (warned): sheen,
+    diffuse colour mix(base · base_color, subsurface_color, subsurface) (warned). sheen (sheen_color,
+    sheen_roughness): the Principled sheen layer (the tracer's microfiber sheen). Not rendered (warned):
     thin film, anisotropy, diffuse_roughness (Oren-Nayar rendered as Lambert), transmission depth/scatter/
     dispersion/extra roughness, thin_walled.
 open_pbr_surface (``open_pbr_surface_surfaceshader``)
@@ -33,14 +34,16 @@ open_pbr_surface (``open_pbr_surface_surfaceshader``)
     transmission_weight/color, emission_luminance · emission_color, geometry_opacity, geometry_normal. coat: a
     dielectric layer (coat_weight, coat_ior, coat_roughness), coat_color's absorption and the coat darkening
     (1 − K)/(1 − E_base·K), K = 1 − (1 − F0(coat_ior))/coat_ior², mixed by coat_weight · coat_darkening, on the
-    base. subsurface_weight: the diffuse colour towards subsurface_color (warned). Not rendered (warned): fuzz,
+    base. subsurface_weight: the diffuse colour towards subsurface_color (warned). fuzz: the Principled sheen
+    layer. Not rendered (warned):
     thin film, anisotropy, base_diffuse_roughness, transmission depth/scatter/dispersion, thin walled.
 gltf_pbr (``IMPL_gltf_pbr_surfaceshader``)
     base_color, metallic, roughness, normal, transmission (tinted by base_color), ior; the dielectric's
     generalized Schlick F0 = min(F0(ior) · specular_color, 1) · specular is the Principled level 0.5 · specular
     with tint specular_color; emissive · emissive_strength; alpha by alpha_mode (0 opaque, 1 MASK: a cut-out at
     alpha_cutoff, 2 BLEND: alpha). clearcoat: a dielectric layer (IOR 1.5, clearcoat_roughness). occlusion is
-    ignored (a ray tracer shadows). Not rendered (warned): sheen_color/sheen_roughness, iridescence, thickness
+    ignored (a ray tracer shadows). sheen_color: the Principled sheen of weight max(sheen_color), its colour
+    normalised, roughness sheen_roughness² (MaterialX's graph). Not rendered (warned): iridescence, thickness
     and attenuation (volume), anisotropy, dispersion.
 disney_principled (``NG_disney_principled``)
     the diffuse (Burley: Lambert at normal incidence, rendered as Lambert) and the metal (Schlick from baseColor)
@@ -48,7 +51,8 @@ disney_principled (``NG_disney_principled``)
     baseColor, ior); the dielectric specular — MaterialX's generalized Schlick of weight 0.08 · specular with F0 =
     mix(1, baseColor, specularTint) and F90 = 1, so F ≈ 0.08 · specular · F0 at every angle — a glossy layer of
     that colour and the roughness, over the non-metal part; clearcoat a glossy layer 0.04 · clearcoat, roughness
-    1 − clearcoatGloss. Not rendered (warned): sheen, sheenTint, subsurface (rendered as the diffuse),
+    1 − clearcoatGloss; sheen the Principled sheen of colour mix(1, baseColor, sheenTint). Not rendered
+    (warned): subsurface (rendered as the diffuse),
     anisotropic.
 surface_unlit (``ND_surface_unlit``)
     emission · emission_color, nothing reflected; transmission · transmission_color passes through (alpha =
@@ -251,6 +255,18 @@ def f82_tint(reflectivity, edge, scale=(1.0, 1.0, 1.0)):
     return tuple(float(x) for x in np.clip(scale * conductor_fresnel(c, n, k) / np.maximum(schlick, 1e-6), 0, 1))
 
 
+def _sheen(t, inp: Inputs, weight: str, colour: str, rough: str, rough_default: float) -> None:
+    """A sheen layer (Standard Surface's sheen, OpenPBR's fuzz) as the Principled sheen (microfiber: the tracer's
+    sheen lobe over the base); constants only, a network read as its constant with one warning."""
+    if not inp.weight_on(weight):
+        return
+    w = inp.f(weight, 0.0) if not inp.connected(weight) else 1.0
+    if any(inp.connected(n) for n in (weight, colour, rough)):
+        inp.warn(f"input {weight}/{colour}/{rough} driven by a network is read as its constant")
+    t.update(sheen=float(np.clip(w, 0.0, 1.0)), sheen_tint=tuple(float(x) for x in inp.c3(colour)),
+             sheen_roughness=float(np.clip(inp.f(rough, rough_default), 0.0, 1.0)))
+
+
 def white_tint_under_coat(t: dict) -> None:
     """A coat's lobe shares the material's specular tint (the tracer's lobes have one tint and one IOR per
     material), and a coat reflects white: under a coat the tint is white, a dielectric base's tint kept as its
@@ -342,7 +358,7 @@ def standard_surface(inp: Inputs) -> dict:
         white_tint_under_coat(t)
         if inp.differs("coat_normal"):
             inp.warn("input coat_normal is not rendered (the coat uses the surface's normal)")
-    inp.dropped(["sheen"], "is not rendered (no sheen lobe)")
+    _sheen(t, inp, "sheen", "sheen_color", "sheen_roughness", 0.3)
     inp.dropped(["thin_film_thickness"], "is not rendered (no thin-film interference)")
     inp.dropped(["specular_anisotropy", "coat_anisotropy"], "is rendered isotropic")
     inp.dropped(["diffuse_roughness"], "is rendered as Lambert (no Oren-Nayar roughness)")
@@ -443,7 +459,7 @@ def open_pbr_surface(inp: Inputs) -> dict:
         white_tint_under_coat(t)
         if inp.differs("geometry_coat_normal"):
             inp.warn("input geometry_coat_normal is not rendered (the coat uses the surface's normal)")
-    inp.dropped(["fuzz_weight"], "is not rendered (no fuzz/sheen lobe)")
+    _sheen(t, inp, "fuzz_weight", "fuzz_color", "fuzz_roughness", 0.5)
     inp.dropped(["thin_film_weight"], "is not rendered (no thin-film interference)")
     inp.dropped(["specular_roughness_anisotropy", "coat_roughness_anisotropy"], "is rendered isotropic")
     inp.dropped(["base_diffuse_roughness"], "is rendered as Lambert (no Oren-Nayar roughness)")
@@ -485,7 +501,12 @@ def gltf_pbr(inp: Inputs) -> dict:
         t["layers"] = [dict(kind="dielectric", weight=cc, roughness=inp.f("clearcoat_roughness", 0.0), ior=1.5)]
         if inp.differs("clearcoat_normal"):
             inp.warn("input clearcoat_normal is not rendered (the coat uses the surface's normal)")
-    inp.dropped(["sheen_color"], "is not rendered (no sheen lobe)")
+    sc = inp.c3("sheen_color", (0.0, 0.0, 0.0))
+    if float(sc.max()) > 0:  # MaterialX's glTF graph: weight max(sheen_color), colour normalised, roughness squared
+        t.update(sheen=float(sc.max()), sheen_tint=tuple(float(x) for x in sc / sc.max()),
+                 sheen_roughness=inp.f("sheen_roughness", 0.0) ** 2)
+        if inp.connected("sheen_color") or inp.connected("sheen_roughness"):
+            inp.warn("input sheen_color/sheen_roughness driven by a network is read as its constant")
     inp.dropped(["iridescence"], "is not rendered (no thin-film interference)")
     inp.dropped(["thickness", "attenuation_distance"], "is not rendered (no volume absorption)")
     inp.dropped(["anisotropy_strength"], "is rendered isotropic")
@@ -522,7 +543,10 @@ def disney_principled(inp: Inputs) -> dict:
         t["layers"] = layers
     if inp.weight_on("subsurface"):
         inp.warn("input subsurface is rendered as the diffuse (no scattering inside)")
-    inp.dropped(["sheen"], "is not rendered (no sheen lobe)")
+    sh = inp.f("sheen", 0.0)
+    if sh > 0:  # MaterialX's Disney graph: sheen_bsdf of colour mix(1, baseColor, sheenTint)
+        tint = (1 - inp.f("sheenTint", 0.5)) + inp.f("sheenTint", 0.5) * inp.c3("baseColor", (0.16,) * 3)
+        t.update(sheen=sh, sheen_tint=tuple(float(x) for x in tint), sheen_roughness=0.3)
     inp.dropped(["anisotropic"], "is rendered isotropic")
     return t
 

@@ -562,6 +562,10 @@ def principled_graph(name: str, f: dict, color_primvar: str = "displayColor") ->
                                  uv_map=uv_map)["Normal"]
     if f.get("specular_tint") is not None:
         inputs["Specular Tint"] = tuple(float(x) for x in np.broadcast_to(f["specular_tint"], (3,)))
+    if float(f.get("sheen", 0.0) or 0.0) > 0:  # the Principled sheen layer (tracer.shading.sheen, microfiber)
+        inputs["Sheen Weight"] = float(f["sheen"])
+        inputs["Sheen Tint"] = tuple(float(x) for x in np.broadcast_to(f.get("sheen_tint", (1.0,) * 3), (3,)))
+        inputs["Sheen Roughness"] = float(f.get("sheen_roughness", 0.5))
     params = {}
     if f.get("transmission_tint") is not None:
         params["transmission_tint"] = tuple(float(x) for x in np.broadcast_to(f["transmission_tint"], (3,)))
