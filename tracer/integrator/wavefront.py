@@ -43,7 +43,7 @@ from ..geometry.motion import frames_at_time, pack_motion
 from ..geometry.surface import color_at, corner_normals, geometry_of, shading_frame
 from ..jit import kernel
 from ..lights import linking, sky
-from ..lights.emitters import MESH, pack_lights, sample_light
+from ..lights.emitters import MESH, lamp_hit, pack_lights, sample_light
 from ..lights.environment import env_radiance, pack_environment
 from ..sampling import rotated_multijitter, uniform2_1
 from ..scene import Scene
@@ -67,6 +67,9 @@ _REFLECTION_PATH, _TRANSMISSION_PATH = 1, 2
 _STREAM_PIXEL = 0
 _STREAM_LIGHT = 1  # + depth
 _STREAM_SKY = 40  # + depth
+
+# What made a ray, for the lamps it sees (the columns of tracer.lights.linking.Links.seen).
+RAY_CAMERA, RAY_GLOSSY, RAY_TRANSMISSION = 0, 1, 2
 
 # Slots of the kernel's counter array.
 _N_SHADOW, _N_SKY, _N_REFLECTION, _N_TRANSMISSION, _N_TIR = 0, 1, 2, 3, 4
@@ -201,6 +204,8 @@ class RayQueue(NamedTuple):
     time: np.ndarray | None = None  # each ray's time across the shutter (tracer.geometry.motion), None: no motion blur
     feature: np.ndarray | None = None  # (N, 4) the denoising guides each ray still carries
     #                                    (tracer/integrator/guides.py: P·T rgb, P), None: no guides are made
+    kind: np.ndarray | None = None  # (N,) uint8 RAY_CAMERA / RAY_GLOSSY / RAY_TRANSMISSION (which lamps see it:
+    #                                 _lamps_seen); None: camera rays at depth 0
 
 
 class SurfaceQueue(NamedTuple):
@@ -441,7 +446,7 @@ class Integrator:
         return self.settings.max_depth + (1 if self.settings.terminal_rays else 0)
 
     def _shade(self, depth: int, o, d, weight, sample, t0, hits, keys, out: "Tile", counts, spawn: bool,
-               time=None, feature=None, gd: "Guides | None" = None):
+               time=None, feature=None, gd: "Guides | None" = None, kind=None):
         """The stages for one batch of rays and their hits: returns (ShadowQueue, NextQueue, n_refl, n_tran,
         n_through, the catcher's shadow rays, the spawned rays' guide features: None, or (reflections,
         transmissions, pass-through rays))."""
@@ -479,6 +484,9 @@ class Integrator:
         if depth == 0:
             _first_hits(surf, t, prim, inst, self.instances, t0, sample, self.geometry, out)
         _emitted(d, surf, sample, weight, depth, self.options, self.env, out)
+        if self.links.any_seen:  # the lamps' shapes this batch's rays meet before their hits
+            _lamps_seen(o, d, t, surf.hit, weight, sample,
+                        kind if kind is not None else np.zeros(n, np.uint8), self.lights, self.links.seen, out)
         shadow = ShadowQueue.empty(n * (self.light_samples + self.sky_side ** 2))
         before = out.color[split] if split is not None else None
         recv = linking.receiver_bits(self.links, prim, inst, self.geometry.object_ids, it.object_ids)
@@ -542,9 +550,10 @@ class Integrator:
         o, d, w, smp, t0, h = rays.o, rays.d, rays.weight, rays.sample, np.zeros(n, np.float32), hits
         feat = rays.feature if gd is not None else None
         feats_refl, feats_tran = [], []
+        kind = rays.kind if rays.kind is not None else np.zeros(n, np.uint8)
         for layer in range(self.settings.max_transparent + 1):
             shadow, nxt, n_refl, n_tran, n_through, c, fs = self._shade(depth, o, d, w, smp, t0, h, keys, out,
-                                                                        counts, spawn, time, feat, gd)
+                                                                        counts, spawn, time, feat, gd, kind)
             shadows.append(shadow)
             if self.compose.has_catcher:
                 caught.append(c if c is not None else np.zeros(len(shadow.o), np.bool_))
@@ -558,6 +567,7 @@ class Integrator:
             if not n_through or layer == self.settings.max_transparent:
                 break
             o, d = nxt.through_o[:n_through], nxt.through_d[:n_through]
+            kind = kind[nxt.through_parent[:n_through]]  # a ray through alpha stays what it was
             w, smp, t0 = nxt.through_weight[:n_through], nxt.through_sample[:n_through], nxt.through_t0[:n_through]
             tm = None
             if rays.t_max is not None:  # eye rays stop at the far plane: what is left of their length
@@ -586,7 +596,9 @@ class Integrator:
         n_reflected = sum(s.stop - s.start for _, s in refl)
         nxt = RayQueue(o=cat(lambda q: q.o), d=cat(lambda q: q.d), weight=cat(lambda q: q.weight),
                        sample=cat(lambda q: q.sample), t_max=None)
-        nxt = nxt._replace(mask=linking.ray_masks(self.links, depth + 1, len(nxt.o), n_reflected))
+        kinds = np.full(len(nxt.o), RAY_TRANSMISSION, np.uint8)
+        kinds[:n_reflected] = RAY_GLOSSY
+        nxt = nxt._replace(mask=linking.ray_masks(self.links, depth + 1, len(nxt.o), n_reflected), kind=kinds)
         if gd is not None and rays.feature is not None:
             nxt = nxt._replace(feature=np.concatenate(feats_refl + feats_tran))
         if timed:
@@ -941,6 +953,30 @@ def _emitted(d, surf, sample, weight, depth, opt, env, out):
 
 
 @kernel(refcounts=False)
+def _lamps_seen(o, d, t, hit, weight, sample, kind, lights, seen, out):
+    """Lamps stage: the shapes of the lights (area lights, spheres of point and spot lights with a radius, suns
+    with an angle: tracer.lights.emitters.lamp_hit) each ray meets before its hit, as Cycles shows them in mirrors,
+    through glass and (when a light's camera visibility is on) to the camera. ``kind`` (per ray) picks the column
+    of ``seen`` (Links.seen: the light's factor for camera, glossy, transmission rays; 0: that ray does not see
+    it). Lights do not block each other here: a ray adds every lamp before its hit (Cycles shows the nearest)."""
+    o_color = out.color
+    n_lights = seen.shape[0]
+    for i in range(o.shape[0]):
+        k = kind[i]
+        t_max = t[i] if hit[i] else math.inf
+        oi, di = vec.row(o, i), vec.row(d, i)
+        s = sample[i]
+        for j in range(n_lights):
+            f = seen[j, k]
+            if f <= 0.0:
+                continue
+            tl, le = lamp_hit(lights, j, oi, di, t_max)
+            if tl < t_max:
+                for c in range(3):
+                    o_color[s, c] += weight[i, c] * f * le[c]
+
+
+@kernel(refcounts=False)
 def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt, out, shadow, n_shadow, counts,
                   links, recv):
     """Direct-light stage: per hit, every light sample's colour (local model × irradiance), written with its shadow
@@ -962,7 +998,7 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
     s_mirror = surf.mirror
     n_lights = l_kind.shape[0]
     linked = recv.shape[0] > 0
-    l_recv, l_diffuse, l_glossy = links.recv_set, links.diffuse, links.glossy
+    l_recv, l_diffuse, l_glossy, l_seen = links.recv_set, links.diffuse, links.glossy, links.seen
     amb = (opt.ambient[0], opt.ambient[1], opt.ambient[2])
     add_ambient = (amb[0] > 0.0 or amb[1] > 0.0 or amb[2] > 0.0) and sky_side == 0
     s_nl = surf.lobes
@@ -998,8 +1034,9 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
         for j in range(n_lights):
             if linked and not linking.lights_receiver(l_recv[j], recv[i]):
                 continue
-            # a light the mirror ray can see (emissive triangles) gives the mirror share of the lobes to that ray
-            spec_scale = (1.0 - g if l_kind[j] == MESH else 1.0) * l_glossy[j]
+            # a light the mirror ray can see (emissive triangles, a lamp's shape) gives the mirror share of the lobes
+            # to that ray
+            spec_scale = (1.0 - g if l_kind[j] == MESH or l_seen[j, 1] > 0.0 else 1.0) * l_glossy[j]
             for k in range(l_side[j] * l_side[j]):
                 l, dist, e = sample_light(lights, j, k, p, r0, r1)
                 n_l = vec.dot(n, l)
@@ -1056,7 +1093,7 @@ def _lobe_light(surf, d, i, s, weight, keys, depth, spawn, mats, lights, opt, ou
     for j in range(l_kind.shape[0]):
         if linked and not linking.lights_receiver(l_recv[j], recv[i]):
             continue
-        mesh = l_kind[j] == MESH
+        mesh = l_kind[j] == MESH or links.seen[j, 1] > 0.0  # the mirror ray sees it (its share of the lobes)
         for k in range(l_side[j] * l_side[j]):
             l, dist, e = sample_light(lights, j, k, p, r0, r1)
             n_l = vec.dot(n, l)
