@@ -45,6 +45,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..jit import kernel
+from . import emitters
 
 #: Ray visibility bits of ``Scene.object_visibility`` (and the low bits of the Embree masks).
 CAMERA, GLOSSY, TRANSMISSION, SHADOW = 1, 2, 4, 8
@@ -213,11 +214,9 @@ def pack(scene, n_lights: int, emitter_object: np.ndarray | None = None) -> Link
                 warnings.warn("ray visibility / shadow linking: the instanced objects differ; all instances of "
                               "the instance array use the union of their settings", stacklevel=2)
             array_mask = int(np.bitwise_or.reduce(m))
-    from .emitters import hittable
-
     seen = np.zeros((n_lights, 3), np.float64)  # camera, glossy (mirror), transmission (refraction)
     for j, light in enumerate(list(scene.lights)[:n_lights]):
-        if hittable(light):
+        if emitters.hittable(light):
             link = entries[row_entry[j]] if row_entry[j] >= 0 else LightLink()
             seen[j] = (float(link.camera), float(link.glossy), float(link.transmission))
     return Links(receivers=bool(recv_sets), recv_set=recv_set, object_recv=object_recv, diffuse=diffuse,
