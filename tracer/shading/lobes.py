@@ -13,7 +13,8 @@ Kinds and what each contributes (Cycles 5.0, ``kernel/svm/closure.h``):
 PRINCIPLED     :func:`tracer.shading.bsdf.principled` with its inputs; its glass part (1 − metallic)·transmission
                reflects by Fresnel (× specular tint) and refracts tinted by its base colour
 DIFFUSE        Lambert, R_d = colour (:func:`tracer.shading.bsdf.lambertian`)
-GLOSSY         multiscatter GGX with the constant Fresnel ``colour`` (:func:`tracer.shading.bsdf.glossy`)
+GLOSSY         GGX with the constant Fresnel ``colour`` (:func:`tracer.shading.bsdf.glossy`); P_SPEC = 1: multiscatter
+               GGX, 0: single scattering (the node's GGX, Beckmann and Ashikhmin-Shirley distributions)
 GLASS          smooth dielectric: the mirror ray takes F·colour, the refracted ray (1 − F)·colour
 REFRACTION     the refracted ray takes colour (no Fresnel, no reflection)
 TRANSLUCENT    Lambert from behind: colour/π·|n·l| for lights on the other side of the surface
@@ -84,7 +85,7 @@ def _slot(kinds, w, base, prm, i, k, nl, mu, tint, ior, spawn):
     if kind == DIFFUSE:
         return bsdf.lambertian(col, mu), wk, 0.0
     if kind == GLOSSY:
-        return bsdf.glossy(col, r, mu), wk, g
+        return bsdf.glossy(col, r, mu, float(prm[i, k, P_SPEC]) > 0.0), wk, g
     return bsdf.lambertian(zero, mu), wk, 0.0  # glass, refraction, translucent: nothing from the front
 
 
