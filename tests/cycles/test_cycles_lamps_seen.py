@@ -44,16 +44,21 @@ def sun_a(name, direction_to_sun, strength, angle):
 
 
 MATS = {"grey": GREY, "white": lambert((0.85, 0.85, 0.85)), "mirror": mirror((0.9, 0.9, 0.9)),
-        "glass": glass(1.5), "dark": lambert((0.05, 0.05, 0.05))}
+        "glass": glass(1.5), "dark": lambert((0.05, 0.05, 0.05)),
+        # a hammered metal keeps the light samples' blurred highlight of a lamp; a polished one shows its image
+        "hammered": dict(base_color=[0.95, 0.64, 0.54], metallic=1.0, roughness=0.25),
+        "polished": dict(base_color=[0.91, 0.92, 0.92], metallic=1.0, roughness=0.05)}
 
 
 def _mirror_floor():
-    """An area light above a mirror floor, seen in it by the camera; a Lambert ball lit by it and a point light."""
+    """An area light above a mirror floor, seen in it by the camera; a Lambert ball it lights, and two metal balls
+    under it: roughness 0.25 (its highlight sampled) and 0.05 (its image in the mirror ray)."""
     return scene("lamps_area_mirror", camera=camera((0.0, -6.0, 2.2), (0.0, 0.5, 0.0)), materials=MATS, objects=[
         floor(material="mirror", size=12.0),
-        sphere("Ball", (1.3, 0.0, 0.6), 0.6, "white", 2, segments=32, rings=16)],
-        lights=[area("Panel", (-0.4, 1.5, 2.5), (-0.4, 1.5, 0.0), 2.5, (1.2, 0.8)),
-                point("Key", (2.5, -2.0, 4.0), 300.0)],
+        sphere("Ball", (1.3, 0.0, 0.6), 0.6, "white", 2, segments=32, rings=16),
+        sphere("Hammered", (-1.6, 0.3, 0.55), 0.55, "hammered", 3, segments=48, rings=24),
+        sphere("Polished", (0.2, -0.9, 0.45), 0.45, "polished", 4, segments=48, rings=24)],
+        lights=[area("Panel", (-0.4, 1.5, 2.5), (-0.4, 1.5, 0.0), 2.5, (1.2, 0.8))],
         depth=2, samples=64, ours_samples=4, width=80, height=60)
 
 
@@ -83,13 +88,30 @@ def _variety():
                  depth=2, samples=64, ours_samples=4, width=80, height=60)
 
 
+def _rough_metal():
+    """A hammered-copper ball (roughness 0.25) filling the view under a square area light: Cycles blurs the light into
+    a GGX highlight, which the light samples give; the mirror ray would show the light's sharp image
+    (tracer.shading.bsdf.lamp_share: the mirror ray sees lamps only on nearly smooth lobes)."""
+    return scene("lamps_rough_metal", camera=camera((0.0, -3.2, 1.6), (0.0, 0.0, 0.9), lens=50.0), materials=MATS,
+                 objects=[floor(material="dark", size=12.0),
+                          sphere("Hammered", (0.0, 0.0, 0.9), 0.9, "hammered", 2, segments=64, rings=32)],
+                 lights=[area("Panel", (0.6, -1.2, 3.0), (0.0, 0.0, 0.9), 6.0, (1.0, 1.0))],
+                 depth=2, samples=128, ours_samples=4, width=80, height=60)
+
+
 #: name -> (scene, per-light properties: {light: {object or light-data property: value}})
 CASES = {
     "area_mirror": (_mirror_floor(), {}),
     "sphere_glass": (_behind_glass(), {}),
+    "rough_metal": (_rough_metal(), {}),
     "variety": (_variety(), {"Soft": {"spread": math.radians(50.0)}, "Shown": {"visible_camera": True},
                              "Hidden": {"visible_glossy": False}}),
 }
+
+
+#: Scenes that hold what must not change: a rough lobe's highlight of a lamp stays the light samples' (the mirror ray
+#: showing the lamp there instead: 23.2 dB against Cycles, measured with the mirror share g of tracer.shading.bsdf)
+HIGHLIGHTS_ONLY = ("rough_metal",)
 
 
 def _build(desc, props):
@@ -125,6 +147,8 @@ def test_lamps_seen_match_cycles(bpy_module, tmp_path, monkeypatch, key):
     desc, _ = CASES[key]
     ref = reference(key)
     H.check_images(desc, ours(key), ref, tmp_path, min_psnr=LAMP_PSNR_MIN, max_mae=LAMP_MAE_MAX)
+    if key in HIGHLIGHTS_ONLY:
+        return
     # red first: with the lamps' shapes unseen (the tracer before), the picture is far from Cycles'
     monkeypatch.setattr(emitters, "hittable", lambda light: False)
     unseen = H.metrics(ours(key), ref)
