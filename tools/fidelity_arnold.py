@@ -12,12 +12,15 @@ image exist, and the stage has a camera (kick's ``-c`` when given, else a Render
 camera: the one Arnold's USD reader creates first). Each is rendered in-process (``usd_io.load_stage`` +
 ``tracer.render``) at the reference's size, at kick's ``-frame`` (else the stage's default time), through that
 camera conformed as Arnold conforms it (its ``fov`` is horizontal: the horizontal aperture is kept, UsdRender's
-adjustApertureHeight, written on a RenderSettings on the session layer), with no default light (Arnold adds none)
-and a black background (Arnold's), and compared with the reference:
+adjustApertureHeight, written on a RenderSettings on the session layer), with no default light (Arnold adds none),
+a black background (Arnold's) and the lights in Arnold's units (``light_units="arnold"``, usd_io.exporters; the
+spec's where the RenderSettings set ``arnold:global:usdlux_version``), and compared with the reference:
 
     psnr      10·log10(1 / MSE) over R, G, B of both images' **linear** values clamped to [0, 1] (the 8-bit
               references hold min(linear, 1); float references are clamped the same way). No tone curve.
     psnr_srgb the same after the sRGB transfer function (how a viewer sees the pair; for reference only)
+    psnr_ref_decoded  ours against the reference read as sRGB-encoded (diagnostic: a reference whose driver wrote
+              sRGB instead of linear values scores higher here)
     de        ΔE2000 between the mean colours (linear, clamped, as sRGB-primaries Lab) of the pixels either image
               covers (reference alpha ≥ 0.5 or our object id; only ours where the reference is opaque everywhere,
               as it is where a dome is seen): a missing environment does not hide a wrong albedo
@@ -172,6 +175,7 @@ def stage_pixel_aspect(stage) -> float | None:
 def render_ours(test: dict, size, aa: int):
     import tracer
     from pxr import Usd
+    from usd_io.exporters import arnold_usdlux_version
     from usd_io.reader import load_stage
 
     h, w = size
@@ -180,8 +184,9 @@ def render_ours(test: dict, size, aa: int):
     if camera is None:
         raise NoCamera("the stage has no camera" + (f" {test['camera']}" if test.get("camera") else ""))
     stage, settings_prim = arnold_camera(test["stage"], camera, stage_pixel_aspect(probe))
+    units = "spec" if arnold_usdlux_version(probe) else "arnold"  # kick reads every stage in Arnold's units
     scene, info = load_stage(stage, time=test.get("frame"), camera=camera, width=w, height=h,
-                             render_settings_prim=settings_prim, default_light=False)
+                             render_settings_prim=settings_prim, default_light=False, light_units=units)
     settings = tracer.RenderSettings(width=w, height=h, samples=aa, transparent=False, light_samples=4,
                                      sky_samples=8, max_depth=6, aovs=("objectid",))
     image = tracer.render(scene, settings)
@@ -204,11 +209,16 @@ def srgb(x: np.ndarray) -> np.ndarray:
     return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
 
 
+def srgb_decode(x: np.ndarray) -> np.ndarray:
+    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
+
+
 def compare(ref: np.ndarray, ours: np.ndarray, covered: np.ndarray) -> dict:
     r, o = np.clip(ref[..., :3], 0, 1), np.clip(ours[..., :3], 0, 1)
     a, b = ref[..., 3] >= 0.5, covered
     union = (a | b) if not a.all() else b  # an opaque reference (a background Arnold sees): our objects
     out = dict(psnr=round(psnr(r, o), 2), psnr_srgb=round(psnr(srgb(r), srgb(o)), 2),
+               psnr_ref_decoded=round(psnr(srgb_decode(r), o), 2),
                iou=round(float(np.count_nonzero(a & b) / max(np.count_nonzero(union), 1)), 4) if union.any() else 1.0)
     if union.any():
         mr, mo = r[union].mean(axis=0), o[union].mean(axis=0)
