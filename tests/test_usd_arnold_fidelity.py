@@ -166,9 +166,9 @@ def test_face_varying_primvar_whose_element_size_does_not_fit_is_read_per_index(
 
 
 def test_a_texture_on_element_size_uvs_is_drawn():
-    """The same quad under an unlit UsdPreviewSurface-free arnold:flat reading a primvar through user_data_rgb is
-    not needed: a UV ramp through the mesh's st (a checkerboard of 1 cell per unit, color1 at the UV origin) shows
-    both colours across the quad once the UVs are read."""
+    """A quad whose st is written MtoA's way (elementSize 4) under an Arnold checkerboard (unlit as the surface,
+    one cell per UV unit, color1 at the UV origin): with its UVs read, the bottom-left cell is color1 and the one
+    right of it color2 (before: no UVs, one colour everywhere)."""
     s = new_stage()
     add_camera(s, eye=(0, 0, 10))
     m = quad(s, "/Q", half=3.0)
