@@ -252,20 +252,20 @@ def contact_sheet(path: str, rows, per_row: int = 6, tile: int = 80, limit: int 
         done = done[:limit]
     if not done:
         return
-    th = max(int(round(tile * r["_ref"].shape[0] / r["_ref"].shape[1])) for r in done)
     pad = 3
-    lines = (len(done) + per_row - 1) // per_row
-    sheet = np.full((lines * (th + 2 * pad), per_row * (2 * tile + 2 * pad), 3), 0.12, np.float32)
+    tall = lambda r: min(int(round(tile * r["_ref"].shape[0] / r["_ref"].shape[1])), 2 * tile)  # noqa: E731
+    rows_h = [max(tall(r) for r in done[k:k + per_row]) for k in range(0, len(done), per_row)]
+    sheet = np.full((sum(h + 2 * pad for h in rows_h), per_row * (2 * tile + 2 * pad), 3), 0.12, np.float32)
 
     def shrink(img):
         h, w = img.shape[:2]
-        ys = (np.arange(int(round(tile * h / w))) * h / (tile * h / w)).astype(int).clip(0, h - 1)
+        ys = (np.arange(int(round(tile * h / w))) * h / (tile * h / w)).astype(int).clip(0, h - 1)[:2 * tile]
         xs = (np.arange(tile) * w / tile).astype(int).clip(0, w - 1)
         return srgb(img[ys][:, xs, :3])
 
     for k, r in enumerate(done):
         y, x = divmod(k, per_row)
-        y0, x0 = y * (th + 2 * pad) + pad, x * (2 * tile + 2 * pad) + pad
+        y0, x0 = sum(h + 2 * pad for h in rows_h[:y]) + pad, x * (2 * tile + 2 * pad) + pad
         a, b = shrink(r["_ref"]), shrink(r["_ours"])
         sheet[y0:y0 + a.shape[0], x0:x0 + tile] = a
         sheet[y0:y0 + b.shape[0], x0 + tile:x0 + 2 * tile] = b
