@@ -236,9 +236,9 @@ class MaterialTable:
     def _arnold_default(self) -> int:
         name = "arnold:default_surface"
         if name not in self._defaults:
-            fields = self.model(vertex_color=True, **ARNOLD_DEFAULT_SURFACE)
-            self.summary.setdefault(name, fields)
-            self._defaults[name] = self.add_material(name, fields, MeshNeeds(color=("displayColor", (1.0, 1.0, 1.0))))
+            surface = self.model(vertex_color=True, **ARNOLD_DEFAULT_SURFACE)
+            self.summary.setdefault(name, surface.summary())
+            self._defaults[name] = self.add_material(name, surface, MeshNeeds(color=("displayColor", (1.0, 1.0, 1.0))))
         return self._defaults[name]
 
     def _plain(self, name, rgb, **extra):
