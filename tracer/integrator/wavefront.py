@@ -1262,7 +1262,8 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
         k_m = float(m_km[mat])
         w_t = float(s_tran[i])
         mirror = vec.scale(vec.row(m_mirror, mat), k_m)
-        mirror_l = mirror  # the part of the mirror weight that sees lamps (k_m, glass: all; lobes: bsdf.lamp_share)
+        mirror_l = mirror  # the part of the mirror weight that sees lamps (k_m: all; lobes: bsdf.lamp_share)
+        glass_l = 1.0  # the share of the glass's reflected and refracted rays that sees lamps (smooth: all)
         # the dielectric split: the mirror ray takes F·glass_r, the refracted ray (1 − F)·glass_t + glass_t0
         glass_t0 = (0.0, 0.0, 0.0)
         if nl >= 0:  # the lobes' mirror share (direct-light stage) and their glass / refraction weights
@@ -1271,10 +1272,13 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
             glass_r, glass_t, glass_t0 = lobes.refraction_weights(s_lk, s_lw, s_lb, s_lp, i, nl,
                                                                   vec.row(m_stint, mat))
             glass_r, glass_t = vec.scale(glass_r, 1.0 - k_m), vec.scale(glass_t, 1.0 - k_m)
+            glass_l = lobes.glass_lamp_share(s_lk, s_lp, i, nl)
             glass_t0 = vec.scale(glass_t0, 1.0 - k_m)
         else:
             if principled:  # the lobes' mirror share, from the direct-light stage's closure (SurfaceQueue.mirror)
                 glass = (1.0 - k_m) * (1.0 - float(s_metal[i])) * w_t
+                if glass > 0.0:
+                    glass_l = bsdf.lamp_share_of(float(s_rough[i]))
                 mirror = vec.madd(mirror, vec.row(s_mirror, i), 1.0 - k_m)
                 mirror_l = vec.madd(mirror_l, vec.row(s_mlamp, i), 1.0 - k_m)
             else:  # classic: a smooth metal (Principled input) mirrors its base colour, as the notes' k_m·tint
@@ -1310,7 +1314,7 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
             else:
                 fr = 1.0 if tir else 0.0
             w_refl = vec.add(w_refl, vec.mul(w, vec.scale(glass_r, fr)))
-            w_refl_l = vec.add(w_refl_l, vec.mul(w, vec.scale(glass_r, fr)))
+            w_refl_l = vec.add(w_refl_l, vec.mul(w, vec.scale(glass_r, fr * glass_l)))
             if tir:
                 n_tir += 1
                 w_tran = (0.0, 0.0, 0.0)
@@ -1327,7 +1331,7 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
                 _put_ray(n_o, n_d, n_w, n_s, j, spawn_ray(p, ng, t_dir, eps), t_dir, w_tran, s)
                 _put_spawn(rec_n, rec_eta, rec_tir, j, t_n, eta_i, eta_r, False)
                 n_par[j] = i
-                n_lamp[j] = 1.0
+                n_lamp[j] = glass_l
                 n_tran += 1
         if vec.max3(w_refl) > min_weight:
             r_dir = vec.normalize(r_dir)

@@ -334,13 +334,18 @@ def mirror_share(roughness):
 
 
 @kernel(inline=True)
+def lamp_share_of(roughness):
+    """1 for roughness ≤ ROUGH_LAMP_MIRROR, 0 from ROUGH_LAMP_LOCAL, smoothstep in between: how much of a lobe (or
+    of glass rendered smooth) sees lamps through the mirror or refracted ray."""
+    x = min(max((roughness - ROUGH_LAMP_MIRROR) / (ROUGH_LAMP_LOCAL - ROUGH_LAMP_MIRROR), 0.0), 1.0)
+    return 1.0 - x * x * (3.0 - 2.0 * x)
+
+
+@kernel(inline=True)
 def lamp_share(cl, g):
-    """The share of the specular lobes the mirror ray takes of the lamps it sees (at most the mirror share g): 1 for
-    roughness ≤ ROUGH_LAMP_MIRROR, 0 from ROUGH_LAMP_LOCAL, smoothstep in between (roughness = α²^¼ of the
-    closure; a classic closure, α² = 0, gives g)."""
-    r = math.sqrt(math.sqrt(max(cl.alpha2, 0.0)))
-    x = min(max((r - ROUGH_LAMP_MIRROR) / (ROUGH_LAMP_LOCAL - ROUGH_LAMP_MIRROR), 0.0), 1.0)
-    return min(g, 1.0 - x * x * (3.0 - 2.0 * x))
+    """The share of the specular lobes the mirror ray takes of the lamps it sees (at most the mirror share g):
+    :func:`lamp_share_of` the closure's roughness α²^¼ (a classic closure, α² = 0, gives g)."""
+    return min(g, lamp_share_of(math.sqrt(math.sqrt(max(cl.alpha2, 0.0)))))
 
 
 @kernel(inline=True)

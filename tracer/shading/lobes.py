@@ -224,6 +224,19 @@ def is_black(lb):
 
 
 @kernel(inline=True)
+def glass_lamp_share(kinds, prm, i, nl):
+    """The share of hit i's glass (Glass, Refraction, a Principled's transmission: rendered smooth) whose reflected
+    and refracted rays see lamps: :func:`tracer.shading.bsdf.lamp_share_of` its roughest such lobe (rough glass
+    blurs a lamp over its whole highlight in Cycles; a sharp image of it is further from that than none)."""
+    share = 1.0
+    for k in range(nl):
+        kind = kinds[i, k]
+        if kind == GLASS or kind == REFRACTION or (kind == PRINCIPLED and float(prm[i, k, P_TRANS]) > 0.0):
+            share = min(share, bsdf.lamp_share_of(float(prm[i, k, P_ROUGH])))
+    return share
+
+
+@kernel(inline=True)
 def refraction_weights(kinds, w, base, prm, i, nl, tint):
     """(R, T, T₀) of hit i's lobes for the spawn stage: the reflected ray takes R·F and the refracted ray T·(1 − F)
     + T₀, F the dielectric Fresnel factor of the material's IOR. Glass: R = T = w·colour; Refraction: T₀ = w·colour;
