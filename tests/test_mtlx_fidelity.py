@@ -521,3 +521,33 @@ def test_a_top_level_node_reads_a_document_input(tmp_path):
   </surface_unlit>""")
     img, _w = render(quad_stage(str(tmp_path), doc))
     np.testing.assert_allclose(img.mean(axis=(0, 1)), (0.0, 0.3, 0.9), atol=2e-3)
+
+
+# ---------------------------------------------------------------------------------------------- what the reader reads
+def test_a_file_named_by_tokens_of_a_node_definition(tmp_path):
+    """token_graph_material: a document's own node definition carries ``<token>`` s, its node-graph implementation
+    names its image ``tex/[Image_Name].[Image_Extension]``; MaterialX substitutes the definition's token values
+    (spec: "Filename Substitutions") and resolves the name against the document. An unlit surface shows the image's
+    constant colour. Before: "no file (its default is used)", black."""
+    (tmp_path / "tex").mkdir()
+    _write_exr(str(tmp_path / "tex" / "grid.exr"), np.full((4, 4, 3), (0.2, 0.6, 0.3), np.float32))
+    doc = document("""  <nodedef name="ND_token" node="token_image">
+    <token name="Image_Name" type="string" value="grid" />
+    <token name="Image_Extension" type="string" value="exr" />
+    <output name="out" type="color3" />
+  </nodedef>
+  <nodegraph name="NG_token" nodedef="ND_token">
+    <tiledimage name="tiledimage" type="color3" nodedef="ND_tiledimage_color3">
+      <input name="file" type="filename" uniform="true" value="tex/[Image_Name].[Image_Extension]" />
+    </tiledimage>
+    <output name="out" type="color3" nodename="tiledimage" />
+  </nodegraph>
+  <nodegraph name="G">
+    <token_image name="t" type="color3" />
+    <output name="out" type="color3" nodename="t" />
+  </nodegraph>
+  <surface_unlit name="SR" type="surfaceshader"><input name="emission_color" type="color3" nodegraph="G" output="out" />
+  </surface_unlit>""")
+    img, warnings = render(quad_stage(str(tmp_path), doc))
+    np.testing.assert_allclose(img.mean(axis=(0, 1)), (0.2, 0.6, 0.3), atol=2e-3)
+    assert not [w for w in warnings if "no file" in w or "not found" in w], warnings

@@ -109,10 +109,14 @@ def _register(doc: mx.Document) -> None:
     defs = definitions()
     for nd in doc.getNodeDefs():
         if not defs.getChild(nd.getName()):
-            defs.addNodeDef(nd.getName(), nd.getType(), nd.getNodeString()).copyContentFrom(nd)
+            copy = defs.addNodeDef(nd.getName(), nd.getType(), nd.getNodeString())
+            copy.copyContentFrom(nd)
+            copy.setSourceUri(nd.getActiveSourceUri())  # relative file names stay relative to their document
     for ng in doc.getNodeGraphs():
         if ng.getNodeDefString() and not defs.getChild(ng.getName()):
-            defs.addNodeGraph(ng.getName()).copyContentFrom(ng)
+            copy = defs.addNodeGraph(ng.getName())
+            copy.copyContentFrom(ng)
+            copy.setSourceUri(ng.getActiveSourceUri())
 
 
 def read_document(path: str) -> mx.Document:
@@ -143,6 +147,15 @@ def _value(mx_type: str, text: str, base_dir: str):
         rows = [nums[i * n:(i + 1) * n] for i in range(n)]
         return Gf.Matrix3d(*rows) if n == 3 else Gf.Matrix4d(*rows)
     return nums[0] if len(nums) == 1 else tuple(nums)
+
+
+def file_value(inp) -> Sdf.AssetPath:
+    """A ``filename`` input's value as MaterialX resolves it (its ``fileprefix`` and the ``[token]`` s of its node,
+    of its node graph and of the node definition that graph implements substituted) and made absolute against the
+    document that authored it; resolved when the file exists."""
+    src = inp.getActiveSourceUri()
+    path = _value("filename", inp.getResolvedValueString(), os.path.dirname(src) if src else os.getcwd()).path
+    return Sdf.AssetPath(path, path) if os.path.exists(path) else Sdf.AssetPath(path)
 
 
 def _nodedef_name(node) -> str:

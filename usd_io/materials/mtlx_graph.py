@@ -93,7 +93,11 @@ class MxNode:
             return None if up is None else ("link", MxNode(up, self.outer), inp.getOutputString() or "out")
         if inp.getInterfaceName():
             return ("outer", self.outer, inp.getInterfaceName())
-        return ("const", inp.getValue(), None, inp.getActiveColorSpace()) if inp.getValueString() else None
+        if not inp.getValueString():
+            return None
+        if inp.getType() == "filename":  # tokens substituted, relative to its document
+            return ("const", mtlx.file_value(inp), None, inp.getActiveColorSpace())
+        return ("const", inp.getValue(), None, inp.getActiveColorSpace())
 
 
 class Outs:
@@ -325,16 +329,17 @@ class Translator:
         r, a = c.view.input("file"), None
         while r is not None and r[0] == "outer":
             r = r[1].input(r[2])
-        if r is None or r[0] != "const" or r[2] is None or not isinstance(r[1], Sdf.AssetPath):
+        if r is None or r[0] != "const" or not isinstance(r[1], Sdf.AssetPath):
             return None
-        a = r[2]
+        a = r[2]  # a USD attribute, or None for a file named inside a node graph implementation
+        space = a.GetColorSpace() if a is not None else r[3]
         default = self.const(_py(c.uniform("default", 0.0)), "color3").x
         wrap = [net.MX_ADDRESS.get(str(c.uniform(f"{k}addressmode", "periodic")), "repeat") for k in "uv"]
         return net.TextureLookup(node=c.view.name, asset=r[1], channel=0 if WIDTH.get(t, 1) == 1 else -1, uv=None,
                                  transform=np.eye(3), scale=(1.0, 1.0, 1.0, 1.0), bias=(0.0, 0.0, 0.0, 0.0),
                                  fallback=tuple(default) + (1.0,), wrap_s=wrap[0], wrap_t=wrap[1],
-                                 colorspace=mtlx.texture_colorspace(a.GetColorSpace())[0],
-                                 layer=authoring_layer(a))
+                                 colorspace=mtlx.texture_colorspace(space)[0],
+                                 layer=authoring_layer(a) if a is not None else None)
 
     def _n_image(self, c, t, o, tiled=False):
         lk = net.mx_image_lookup(c.view.s) if isinstance(c.view, UsdNode) else self._graph_image_lookup(c, t)
