@@ -551,3 +551,22 @@ def test_a_file_named_by_tokens_of_a_node_definition(tmp_path):
     img, warnings = render(quad_stage(str(tmp_path), doc))
     np.testing.assert_allclose(img.mean(axis=(0, 1)), (0.2, 0.6, 0.3), atol=2e-3)
     assert not [w for w in warnings if "no file" in w or "not found" in w], warnings
+
+
+def test_a_node_graph_input_without_a_value_reads_its_defaultgeomprop(tmp_path):
+    """defaultgeomprop.mtlx: a node graph's interface input ``texcoord`` has no value but ``defaultgeomprop="UV0"``;
+    MaterialX's spec: an unconnected input with no value takes that geometric property. Shown unlit as (s, t, 0),
+    the quad's own texture coordinates: s grows across the columns. Before: read as 0 (black)."""
+    doc = document("""  <nodegraph name="G">
+    <input name="texcoord" type="vector2" defaultgeomprop="UV0" />
+    <convert name="v3" type="vector3"><input name="in" type="vector2" interfacename="texcoord" /></convert>
+    <convert name="c" type="color3"><input name="in" type="vector3" nodename="v3" /></convert>
+    <output name="out" type="color3" nodename="c" />
+  </nodegraph>
+  <surface_unlit name="SR" type="surfaceshader"><input name="emission_color" type="color3" nodegraph="G" output="out" />
+  </surface_unlit>""")
+    img, _w = render(quad_stage(str(tmp_path), doc))
+    s = (np.arange(N) + 0.5) / N
+    np.testing.assert_allclose(img[..., 0].mean(axis=0), s, atol=0.02)
+    np.testing.assert_allclose(sorted(img[..., 1].mean(axis=1)), s, atol=0.02)
+    assert abs(img[..., 2]).max() < 1e-3

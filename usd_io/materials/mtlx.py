@@ -216,6 +216,8 @@ class _Writer:
         space = inp.getActiveColorSpace()
         if space:
             a.SetInfo("colorSpace", space)
+        if inp.getDefaultGeomPropString():  # a node graph's interface input: read where no value is authored
+            a.SetInfo("customData", {"mtlx:defaultgeomprop": inp.getDefaultGeomPropString()})
         scope = inp.getParent().getParent()  # the node's node graph or the document
         up = scope.getNode(inp.getNodeName()) if inp.getNodeName() else None
         if up is not None:

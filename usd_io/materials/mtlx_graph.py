@@ -56,6 +56,23 @@ def _py(v):
         return v
 
 
+def _default_geomprop(inp) -> str | None:
+    """The ``defaultgeomprop`` of the node-graph interface input that ``inp`` (a UsdShade input without a value)
+    is connected to, through nested graphs (:mod:`usd_io.materials.mtlx` writes it as custom data)."""
+    seen = 0
+    while inp and seen < 16:
+        seen += 1
+        sources = inp.GetConnectedSources()[0] if inp.HasConnectedSource() else []
+        if not sources or sources[0].sourceType != UsdShade.AttributeType.Input:
+            return None
+        src = sources[0].source.GetInput(sources[0].sourceName)
+        gp = src.GetAttr().GetCustomData().get("mtlx:defaultgeomprop") if src else None
+        if gp:
+            return str(gp)
+        inp = src
+    return None
+
+
 class UsdNode:
     """A node of a UsdShade network (its inputs followed through NodeGraph interfaces)."""
 
@@ -67,11 +84,15 @@ class UsdNode:
     def input(self, name: str):
         a, is_out = net.producer(self.s, name)
         if a is None:
-            return None
+            gp = _default_geomprop(self.s.GetInput(name))
+            return ("geomprop", gp) if gp else None
         if is_out:
             return ("link", UsdNode(UsdShade.Shader(a.GetPrim()), self.time), UsdShade.Output(a).GetBaseName())
         v = a.Get() if self.time is None else a.Get(self.time)
-        return None if v is None else ("const", v, a, a.GetColorSpace())
+        if v is None:  # an interface input with no value
+            gp = a.GetCustomData().get("mtlx:defaultgeomprop") or _default_geomprop(self.s.GetInput(name))
+            return ("geomprop", str(gp)) if gp else None
+        return ("const", v, a, a.GetColorSpace())
 
 
 class MxNode:
@@ -890,6 +911,8 @@ class _Ctx:
             outer = r[1]
             ond = mtlx.nodedef(outer.sid)
             return self.tr.cast(_Ctx(self.tr, outer, ond).i(r[2]), t) if ond is not None else self.tr.const(0.0, t)
+        if r is not None and r[0] == "geomprop":  # a node graph's input with no value: its defaultgeomprop
+            return self.tr.geomprop(r[1], t)
         if r is not None and r[0] == "const":
             if t in ("color3", "color4") and len(r) > 3 and r[3]:  # a colour in a named colour space
                 return self.tr.const(mtlx.linear_colour(r[1], r[3], self.tr.unknown_space), t)
