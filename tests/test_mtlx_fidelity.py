@@ -570,3 +570,20 @@ def test_a_node_graph_input_without_a_value_reads_its_defaultgeomprop(tmp_path):
     np.testing.assert_allclose(img[..., 0].mean(axis=0), s, atol=0.02)
     np.testing.assert_allclose(sorted(img[..., 1].mean(axis=1)), s, atol=0.02)
     assert abs(img[..., 2]).max() < 1e-3
+
+
+def test_an_input_reads_a_document_level_output(tmp_path):
+    """multioutput_test5: a shader input with ``output="name"`` and no node or graph reads the document's
+    ``<output name="name">``, which passes on a node's output (here one output of a multi-output ``separate3``).
+    Unlit: emission · emission_color = 0.5 × (0.2, 0.6, 0.9). Before: both inputs unread (the defaults, white)."""
+    doc = document("""  <constant name="c" type="color3"><input name="value" type="color3" value="0.2, 0.6, 0.9" /></constant>
+  <separate3 name="sep" type="multioutput"><input name="in" type="color3" value="0.1, 0.5, 0.3" /></separate3>
+  <output name="col" type="color3" nodename="c" />
+  <output name="green" type="float" nodename="sep" output="outg" />
+  <surface_unlit name="SR" type="surfaceshader">
+    <input name="emission" type="float" output="green" />
+    <input name="emission_color" type="color3" output="col" />
+  </surface_unlit>""")
+    img, warnings = render(quad_stage(str(tmp_path), doc))
+    np.testing.assert_allclose(img.mean(axis=(0, 1)), (0.1, 0.3, 0.45), atol=2e-3)
+    assert not not_supported(warnings), warnings

@@ -220,10 +220,17 @@ class _Writer:
             a.SetInfo("customData", {"mtlx:defaultgeomprop": inp.getDefaultGeomPropString()})
         scope = inp.getParent().getParent()  # the node's node graph or the document
         up = scope.getNode(inp.getNodeName()) if inp.getNodeName() else None
+        output = inp.getOutputString()
+        if up is None and not inp.getNodeName() and not inp.getNodeGraphString() and output:
+            # output="name" alone: an <output> element of the node's scope (a document-level output), which names
+            # the node (and the node's output) it passes on
+            o = scope.getOutput(output) if hasattr(scope, "getOutput") else None
+            if o is not None and o.getNodeName():
+                up, output = scope.getNode(o.getNodeName()), o.getOutputString()
         if up is not None:
             where = owner.GetParentPath() if graph_path is None else graph_path
             p = self.shader(where, up, graph_path)
-            a.connectionPathList.Prepend(p.AppendProperty(_out_prop(up, inp.getOutputString())))
+            a.connectionPathList.Prepend(p.AppendProperty(_out_prop(up, output)))
             return
         if inp.getNodeGraphString():
             g = self.doc.getNodeGraph(inp.getNodeGraphString())
