@@ -587,3 +587,35 @@ def test_an_input_reads_a_document_level_output(tmp_path):
     img, warnings = render(quad_stage(str(tmp_path), doc))
     np.testing.assert_allclose(img.mean(axis=(0, 1)), (0.1, 0.3, 0.45), atol=2e-3)
     assert not not_supported(warnings), warnings
+
+
+@pytest.mark.parametrize("meters_per_unit", [1.0, 0.01])
+def test_values_with_units_are_converted(tmp_path, meters_per_unit):
+    """texture_units, standard_surface_unit: a value with ``unit``/``unittype`` is converted (MaterialX's "Units")
+    into the scene's unit for a distance (the stage's metres per unit: 25 mm is 0.025 m, or 2.5 cm) and into the
+    unit the node definition declares for an angle (rotate2d's degrees: π/2 radian turns (0.6, 0.2) into (0.2,
+    −0.6)). Shown unlit: (distance / 10, rotated x, rotated y + 1). Before: 25 (the number as written) and no
+    turn."""
+    from pxr import Usd, UsdGeom
+
+    doc = document("""  <nodegraph name="G">
+    <multiply name="d" type="float"><input name="in1" type="float" value="0.1" />
+      <input name="in2" type="float" value="25" unit="millimeter" unittype="distance" /></multiply>
+    <rotate2d name="r" type="vector2"><input name="in" type="vector2" value="0.6, 0.2" />
+      <input name="amount" type="float" value="1.5707963" unit="radian" unittype="angle" /></rotate2d>
+    <separate2 name="s" type="multioutput"><input name="in" type="vector2" nodename="r" /></separate2>
+    <add name="y" type="float"><input name="in1" type="float" nodename="s" output="outy" /><input name="in2" type="float" value="1" /></add>
+    <combine3 name="c" type="color3"><input name="in1" type="float" nodename="d" />
+      <input name="in2" type="float" nodename="s" output="outx" /><input name="in3" type="float" nodename="y" /></combine3>
+    <output name="out" type="color3" nodename="c" />
+  </nodegraph>
+  <surface_unlit name="SR" type="surfaceshader"><input name="emission_color" type="color3" nodegraph="G" output="out" />
+  </surface_unlit>""")
+    path = quad_stage(str(tmp_path), doc)
+    stage = Usd.Stage.Open(path)
+    UsdGeom.SetStageMetersPerUnit(stage, meters_per_unit)
+    stage.Save()
+    img, warnings = render(path)
+    want = (0.1 * 0.025 / meters_per_unit, 0.2, -0.6 + 1.0)
+    np.testing.assert_allclose(img.mean(axis=(0, 1)), want, atol=2e-3)
+    assert not not_supported(warnings), warnings
