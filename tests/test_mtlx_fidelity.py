@@ -619,3 +619,25 @@ def test_values_with_units_are_converted(tmp_path, meters_per_unit):
     want = (0.1 * 0.025 / meters_per_unit, 0.2, -0.6 + 1.0)
     np.testing.assert_allclose(img.mean(axis=(0, 1)), want, atol=2e-3)
     assert not not_supported(warnings), warnings
+
+
+def test_surface_weights_driven_by_a_uniform_network(tmp_path):
+    """syntax_1_22's car paint: ``coat`` and ``coat_color`` (and, there, ``base``, ``specular``...) driven by
+    node graphs of constants. A network that varies nowhere is its value (folded by the shader compiler): the
+    copper's coat 0.5 × 2 and its colour through a constant node give the coated metal's closed form. Before: "coat
+    driven by a network is read as 0", a silver ball."""
+    body = COPPER.replace('<input name="coat" type="float" value="1" />',
+                          '<input name="coat" type="float" nodegraph="W" output="coat" />')
+    body = body.replace('<input name="coat_color" type="color3" value="0.96467984, 0.37626296, 0.25818297" />',
+                        '<input name="coat_color" type="color3" nodegraph="W" output="tint" />')
+    doc = document("""  <nodegraph name="W">
+    <multiply name="m" type="float"><input name="in1" type="float" value="0.5" /><input name="in2" type="float" value="2" /></multiply>
+    <constant name="c" type="color3"><input name="value" type="color3" value="0.96467984, 0.37626296, 0.25818297" /></constant>
+    <output name="coat" type="float" nodename="m" />
+    <output name="tint" type="color3" nodename="c" />
+  </nodegraph>
+""" + body)
+    img, warnings = render(quad_stage(str(tmp_path), doc, light="dome"))
+    want = coated_metal_albedo((0.96467984, 0.37626296, 0.25818297))
+    assert np.abs(img.mean(axis=(0, 1)) - want).max() < 0.02, (img.mean(axis=(0, 1)), want)
+    assert not [w for w in warnings if "driven by a network" in w], warnings

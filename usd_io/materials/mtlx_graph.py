@@ -928,6 +928,72 @@ class _Ctx:
         return v.x if v.wide == 1 else self.tr.lane(v, 0)
 
 
+class _Varying(Exception):
+    """A network being folded reads something that varies per hit (an image, a UV set)."""
+
+
+class _FoldTable:
+    """The material table as a network being folded sees it: no textures, no UV sets, no warnings (the network
+    is translated again, with its warnings, when it does not fold)."""
+
+    def __init__(self, table):
+        self.time = table.time
+
+    def warn(self, message: str) -> None:
+        pass
+
+    def uv_set_index(self, name):
+        raise _Varying
+
+    @property
+    def uv_set_names(self):
+        raise _Varying
+
+    def _texture(self, *args, **kw):
+        raise _Varying
+
+
+class _NoNeeds:
+    def __init__(self):
+        self.uv_sets: set = set()
+        self.color = None
+
+
+def constant_value(table, lookup):
+    """The value of the network ``lookup`` (a :class:`usd_io.materials.network.GraphLookup`) when it varies nowhere
+    — constants, and maths, conversions and switches of constants — folded by the shader compiler exactly as the
+    tracer would evaluate it (a float or a tuple); None when anything in it varies per hit (a texture coordinate, a
+    position, an image, a noise)."""
+    from tracer.shading.compiler import Compiler
+    from tracer.shading.graph import Graph, Out
+    from tracer.shading.nodes import FLOAT, VECTOR
+
+    g = Graph("fold")
+    tr = Translator(_FoldTable(table), g, "", _NoNeeds(), table.time)
+    try:
+        v = tr.out(UsdNode(lookup.shader, table.time), lookup.output)
+    except _Varying:
+        return None
+    except Exception:  # noqa: BLE001 — whatever the translator cannot fold is translated as a network
+        return None
+    if v.wide == 1 and not isinstance(v.x, Out) and not hasattr(v.x, "node"):
+        return float(v.x)
+    if v.wide > 1 and not isinstance(v.x, Out) and not hasattr(v.x, "node"):
+        return tuple(float(x) for x in v.x)
+    c = Compiler(g)
+    try:
+        x = c.val(v.x, FLOAT if v.wide == 1 else VECTOR)
+    except Exception:  # noqa: BLE001
+        return None
+    if not c.e.is_const(x):
+        return None
+    if hasattr(x, "r") and hasattr(x, "n"):  # a register of constants
+        vals = [float(c.e.init[k]) for k in range(x.r, x.r + x.n)]
+    else:
+        vals = [float(e) for e in np.ravel(x)]
+    return vals[0] if v.wide == 1 else tuple(vals[:3])
+
+
 class MxProgram:
     """A MaterialX network driving one surface input (:class:`usd_io.materials.network.GraphLookup`), written into
     the material's graph when :meth:`tracer.shading.principled.PrincipledSurface.graph` writes it (as one of its lookups:

@@ -67,7 +67,7 @@ from tracer import colorspace
 from tracer.shading.materials import f0_from_ior
 from tracer.shading.principled import PrincipledSurface
 
-from . import mtlx
+from . import mtlx, mtlx_graph
 from . import network as net
 
 #: Node-definition names (or their prefix) of each family.
@@ -100,6 +100,7 @@ class Inputs:
         self.table, self.s, self.label, self.needs, self.family = table, s, label, needs, family
         self.nd = _nodedef_for(net.shader_id(s), family)
         self.time = table.time
+        self._folded: dict = {}
 
     def warn(self, message: str) -> None:
         self.table.warn(f"{self.label}: MaterialX {self.family} {message}")
@@ -117,14 +118,22 @@ class Inputs:
             return v
 
     def connected(self, name: str) -> bool:
+        """Driven by a network that varies (one that folds to a constant reads as that constant)."""
         a, is_out = net.producer(self.s, name)
-        return a is not None and is_out
+        return a is not None and is_out and not isinstance(self.src(name), net.Const)
 
     def src(self, name: str, fallback=None):
         """What drives ``name`` (usd_io.materials.network's sources), a constant colour in its colour space
-        converted."""
+        converted; a network that varies nowhere as the constant it folds to
+        (:func:`usd_io.materials.mtlx_graph.constant_value`)."""
         default = self.default(name, fallback if fallback is not None else 0.0)
         got = net.source(self.s, name, default, self.time)
+        if isinstance(got, net.GraphLookup):
+            key = (name, got.node, got.output)
+            if key not in self._folded:
+                self._folded[key] = mtlx_graph.constant_value(self.table, got)
+            if self._folded[key] is not None:
+                return net.Const(self._folded[key])
         if isinstance(got, net.Const) and got.value is not default:
             a, _o = net.producer(self.s, name)
             if a is not None and str(a.GetTypeName()) in ("color3f", "color4f", "color3d", "color4d"):
