@@ -641,3 +641,50 @@ def test_surface_weights_driven_by_a_uniform_network(tmp_path):
     want = coated_metal_albedo((0.96467984, 0.37626296, 0.25818297))
     assert np.abs(img.mean(axis=(0, 1)) - want).max() < 0.02, (img.mean(axis=(0, 1)), want)
     assert not [w for w in warnings if "driven by a network" in w], warnings
+
+
+# ---------------------------------------------------------------------------------------------- a surface over a medium
+GLASS = """  <dielectric_bsdf name="r" type="BSDF"><input name="ior" type="float" value="1.5" />
+    <input name="roughness" type="vector2" value="0.0001, 0.0001" /><input name="scatter_mode" type="string" value="R" />
+  </dielectric_bsdf>
+  <dielectric_bsdf name="t" type="BSDF"><input name="ior" type="float" value="1.5" />
+    <input name="roughness" type="vector2" value="0.0001, 0.0001" /><input name="scatter_mode" type="string" value="T" />
+  </dielectric_bsdf>
+  <anisotropic_vdf name="medium" type="VDF"><input name="absorption" type="vector3" value="0, 0, 0" /></anisotropic_vdf>
+  <layer name="inside" type="BSDF"><input name="top" type="BSDF" nodename="t" /><input name="base" type="VDF" nodename="medium" /></layer>
+  <layer name="glass" type="BSDF"><input name="top" type="BSDF" nodename="r" /><input name="base" type="BSDF" nodename="inside" /></layer>
+  <conductor_bsdf name="au" type="BSDF">
+    <input name="ior" type="color3" value="0.18, 0.42, 1.37" /><input name="extinction" type="color3" value="3.42, 2.35, 1.77" />
+    <input name="roughness" type="vector2" value="0.0001, 0.0001" />
+  </conductor_bsdf>
+"""
+AU_F0 = ((np.array([0.18, 0.42, 1.37]) - 1) ** 2 + np.array([3.42, 2.35, 1.77]) ** 2) / \
+    ((np.array([0.18, 0.42, 1.37]) + 1) ** 2 + np.array([3.42, 2.35, 1.77]) ** 2)
+
+
+@pytest.mark.parametrize("case", ["glass", "mix", "layer"])
+def test_a_transmissive_dielectric_over_its_medium(tmp_path, case):
+    """Lama's dielectric is layer(dielectric R, layer(dielectric T, anisotropic_vdf)): a surface over its interior
+    medium, whose transmission is rendered (MaterialX: a T dielectric "may be layered over a VDF describing the
+    surface interior"). Closed forms on a quad seen head-on under a uniform white dome:
+
+    - *glass*: a lossless interface reflects F and transmits 1 − F of a uniform world: the pixel is 1. Before: only
+      the reflection, F = 0.04 (the transmission was taken for light feeding a base that was not there).
+    - *mix* (LamaMix) of gold and that glass at ½: ½·(F0(gold) + 1), by linearity.
+    - *layer* (LamaLayer) of the glass over gold: its transmission is what lights the base (the spec's vertical
+      layering), so the layer reflects F + (1 − F)·F0(gold) — at most 1: MaterialX's layer conserves energy when
+      its layers do. (Cycles' reference renders this layer at a mean of 1.66–1.85 under a dome whose brightest
+      radiance is 1: more light than falls on it, which no energy-conserving layer can reflect.)"""
+    f = 0.04
+    bsdf = {"glass": "glass", "mix": "m", "layer": "l"}[case]
+    extra = {"glass": "",
+             "mix": '<mix name="m" type="BSDF"><input name="fg" type="BSDF" nodename="glass" />'
+                    '<input name="bg" type="BSDF" nodename="au" /><input name="mix" type="float" value="0.5" /></mix>',
+             "layer": '<layer name="l" type="BSDF"><input name="top" type="BSDF" nodename="glass" />'
+                      '<input name="base" type="BSDF" nodename="au" /></layer>'}[case]
+    want = {"glass": np.ones(3), "mix": 0.5 * (AU_F0 + 1), "layer": f + (1 - f) * AU_F0}[case]
+    doc = document(GLASS + extra + f'\n  <surface name="SR" type="surfaceshader"><input name="bsdf" type="BSDF" '
+                                   f'nodename="{bsdf}" /></surface>')
+    img, warnings = render(quad_stage(str(tmp_path), doc, light="dome"))
+    assert np.abs(img.mean(axis=(0, 1)) - want).max() < 0.02, (img.mean(axis=(0, 1)), want)
+    assert not [w for w in warnings if "not supported" in w], warnings

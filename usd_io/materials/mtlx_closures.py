@@ -22,6 +22,9 @@ other warns once and contributes nothing. A closure comes back with an estimate 
     thin film                 not rendered (one warning)
     subsurface_bsdf           Diffuse BSDF of its colour (one warning)
     layer(top, base)          top + base × (1 − albedo(top))                                         combined
+    layer(top, VDF)           a surface over its interior medium: the top whole (its transmission     top's
+                              rendered, unless it is itself a layer's top); the medium's absorption
+                              and scattering are not rendered (one warning when they are not zero)
     mix(fg, bg, mix), add, multiply (by a float or colour)   Mix Shader / Add Shader (a colour factor by its mean)
     uniform_edf               Emission (color); other EDFs: their base or colour (one warning)
     surface(bsdf, edf, opacity)   bsdf + edf, mixed with Transparent by 1 − opacity
@@ -263,7 +266,36 @@ class Closures:
             out = self.tr.add("glossy_bsdf", {"Color": col0, "Roughness": r}, "BSDF")
         return self.scaled(out, w), self.fmul(self.mean3(c0), w)
 
+    def upstream(self, c, name):
+        """(view, output) of the node feeding input ``name`` of ``c`` (through node-graph interfaces), or None."""
+        r = c.view.input(name)
+        while r is not None and r[0] == "outer":
+            r = r[1].input(r[2])
+        return (r[1], r[2]) if r is not None and r[0] == "link" else None
+
+    def _medium(self, c, view) -> None:
+        """A VDF under a transmissive surface (its interior): named in one warning when it absorbs or scatters."""
+        nd = mtlx.nodedef(view.sid)
+        if nd is None:
+            return
+        m = _Ctx(self.tr, view, nd)
+        for name in ("absorption", "scattering"):
+            if m.has(name):
+                v = m.i(name, "vector3").x
+                if hasattr(v, "node") or np.any(np.abs(np.asarray(v, np.float64)) > 0):
+                    self.tr.warn(view.key, f"MaterialX {view.name}: the interior medium ({nd.getNodeString()}, its "
+                                           "absorption and scattering) is not rendered (the surface over it is)")
+                    return
+
     def _c_layer(self, c):
+        up = self.upstream(c, "base")
+        nd = mtlx.nodedef(up[0].sid) if up is not None else None
+        if nd is not None and nd.getType() == "VDF":
+            # a surface over its interior medium (MaterialX: a transmissive dielectric_bsdf layered over a VDF):
+            # the top whole, its transmission included — unless this is itself the top of a layer, whose
+            # transmission is the light that reaches that layer's base
+            self._medium(c, up[0])
+            return self.closure_input(c, "top")
         self.on_top += 1
         try:
             top, a_top = self.closure_input(c, "top")
