@@ -37,6 +37,10 @@ import MaterialX as mx
 import numpy as np
 from pxr import Sdf, UsdShade
 
+from tracer.shading.compiler import Compiler
+from tracer.shading.graph import Graph, Out
+from tracer.shading.nodes import FLOAT, VECTOR
+
 from . import mtlx, network as net
 from .arnold_patterns import graph_node as arnold_node
 from .primvars import DEFAULT_UV
@@ -964,10 +968,6 @@ def constant_value(table, lookup):
     — constants, and maths, conversions and switches of constants — folded by the shader compiler exactly as the
     tracer would evaluate it (a float or a tuple); None when anything in it varies per hit (a texture coordinate, a
     position, an image, a noise)."""
-    from tracer.shading.compiler import Compiler
-    from tracer.shading.graph import Graph, Out
-    from tracer.shading.nodes import FLOAT, VECTOR
-
     g = Graph("fold")
     tr = Translator(_FoldTable(table), g, "", _NoNeeds(), table.time)
     try:
