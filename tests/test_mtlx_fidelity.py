@@ -688,3 +688,18 @@ def test_a_transmissive_dielectric_over_its_medium(tmp_path, case):
     img, warnings = render(quad_stage(str(tmp_path), doc, light="dome"))
     assert np.abs(img.mean(axis=(0, 1)) - want).max() < 0.02, (img.mean(axis=(0, 1)), want)
     assert not [w for w in warnings if "not supported" in w], warnings
+
+
+def test_an_unlit_surface_transmits_its_colour(tmp_path):
+    """surface_unlit's transmission as MaterialX's OSL implementation (the ray-traced one) defines it, t =
+    transmission: (1 − t)·emission·emission_color emitted, t·transmission_color of what is behind passed through.
+    Over a uniform white dome with t = ½, a blue transmission and an orange emission: (0.5, 0.25, 0.5). Before:
+    the transmission was an alpha of its luminance over the full emission, (1, 0.5, 0.04)."""
+    body = """  <surface_unlit name="SR" type="surfaceshader">
+    <input name="emission_color" type="color3" value="1, 0.5, 0" />
+    <input name="transmission" type="float" value="0.5" />
+    <input name="transmission_color" type="color3" value="0, 0, 1" />
+  </surface_unlit>"""
+    img, warnings = render(quad_stage(str(tmp_path), document(body), light="dome"))
+    np.testing.assert_allclose(img.mean(axis=(0, 1)), (0.5, 0.25, 0.5), atol=5e-3)
+    assert not not_supported(warnings), warnings

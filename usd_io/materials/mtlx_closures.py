@@ -155,12 +155,17 @@ class Closures:
         return self.tr.add("mix_closure", {"Fac": op, "Shader": clear, "Shader_001": out}, "Shader"), alb
 
     def _c_surface_unlit(self, c):
-        """emission · emission_color, and transmission · transmission_color passing through; ``opacity`` mixes
-        the whole with a clear surface (MaterialX's mx_surface_unlit)."""
+        """MaterialX's OSL mx_surface_unlit (the ray-traced implementation): with t = clamp(transmission, 0, 1),
+        (1 − t) · emission · emission_color emitted and t · transmission_color passing through; ``opacity`` mixes
+        the whole with a clear surface."""
         e = self.tr.lanes3(c.i("emission_color"))
-        out = self.tr.add("emission", {"Color": e, "Strength": c.f("emission")}, "Emission")
         tw = c.f("transmission")
-        if hasattr(tw, "node") or float(tw) > 0:
+        varies = hasattr(tw, "node")
+        tw = self.tr.math("MINIMUM", self.tr.math("MAXIMUM", tw, 0.0), 1.0) if varies else \
+            float(np.clip(float(tw), 0.0, 1.0))
+        out = self.tr.add("emission", {"Color": e, "Strength": self.fmul(c.f("emission"), self.one_minus(tw))},
+                          "Emission")
+        if varies or tw > 0:
             col = self.tr.vmath("MULTIPLY", self.tr.lanes3(c.i("transmission_color")), self.tr._splat(tw))
             out = self.add_closures(out, self.tr.add("transparent_bsdf", {"Color": col}, "BSDF"))
         op = c.f("opacity")

@@ -55,8 +55,9 @@ disney_principled (``NG_disney_principled``)
     (warned): subsurface (rendered as the diffuse),
     anisotropic.
 surface_unlit (``ND_surface_unlit``)
-    emission · emission_color, nothing reflected; transmission · transmission_color passes through (alpha =
-    1 − luminance) and opacity.
+    emission · emission_color, nothing reflected, and opacity; with a transmission (or any network) MaterialX's
+    OSL closure reading (usd_io.materials.mtlx_closures): (1 − t) of the emission, t · transmission_color passing
+    through.
 """
 
 from __future__ import annotations
@@ -565,9 +566,7 @@ def surface_unlit(inp: Inputs) -> PrincipledSurface:
     t = inp.table.model(base_color=(0.0, 0.0, 0.0), specular=0.0, metallic=0.0)
     em = scaled(inp.src("emission_color"), inp.f("emission", 1.0))
     _colour(t, "emission", inp, em, (1.0, 1.0, 1.0), "emission_color")
-    tr = inp.f("transmission", 0.0) * _lum(inp.c3("transmission_color"))
-    op = inp.f("opacity", 1.0)
-    a = float(np.clip(op * (1 - tr), 0.0, 1.0))
+    a = float(np.clip(inp.f("opacity", 1.0), 0.0, 1.0))  # (a transmission: the closure reading, read())
     if a < 1:
         t.alpha = a
     return t
@@ -594,9 +593,10 @@ def read(table, s, fields: PrincipledSurface | None, label: str, needs,
             table.warn(f"{label}: MaterialX shader {sid!r} is not supported")
         return fields
     inp = Inputs(table, s, label, needs, family)
-    if fields is None and family == "surface_unlit" and any(inp.connected(n) for n in (
-            "emission", "emission_color", "transmission", "transmission_color", "opacity")):
-        from .mtlx_closures import MxClosureProgram  # networks on its weights too: the closure reading
+    if fields is None and family == "surface_unlit" and (any(inp.connected(n) for n in (
+            "emission", "emission_color", "transmission", "transmission_color", "opacity"))
+            or inp.f("transmission", 0.0) > 0):
+        from .mtlx_closures import MxClosureProgram  # networks, a coloured transmission: the closure reading
 
         return table.model(closure=MxClosureProgram(table, s, label, needs))
     if fields is None:
