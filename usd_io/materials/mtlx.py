@@ -13,8 +13,11 @@ Each Shader's ``info:id`` is the name of the node definition MaterialX resolves 
 each. Values keep their MaterialX types; ``filename`` values are resolved as MaterialX resolves them (the
 ``fileprefix`` of the input or of any ancestor element) and made absolute against the file that authored them (an
 XIncluded file's own folder); a value with a ``unit`` is converted into the unit its node definition declares,
-else (a distance) into the stage's own (its metres per unit, MaterialX's "scene unit"); an input's active colour space (its own or an ancestor's ``colorspace``) becomes the
-attribute's ``colorSpace``. Documents that cannot be parsed stay unresolved (the composition warning names them).
+else (a distance) into the stage's own (its metres per unit, MaterialX's "scene unit"); an input's active colour
+space (its own or an ancestor's ``colorspace``) becomes the attribute's ``colorSpace``; a node graph input's
+``defaultgeomprop`` its custom data ``mtlx:defaultgeomprop``; an input naming a document-level ``<output>``
+(``output`` alone) a connection to the node that output passes on. Documents that cannot be parsed stay unresolved
+(the composition warning names them).
 
 :func:`nodedef` finds a node definition by name among the standard libraries and the definitions of every document
 read so far (their ``<nodedef>`` s and the ``<nodegraph nodedef=...>`` s implementing them):
