@@ -703,3 +703,18 @@ def test_an_unlit_surface_transmits_its_colour(tmp_path):
     img, warnings = render(quad_stage(str(tmp_path), document(body), light="dome"))
     np.testing.assert_allclose(img.mean(axis=(0, 1)), (0.5, 0.25, 0.5), atol=5e-3)
     assert not not_supported(warnings), warnings
+
+
+def test_a_uniform_network_with_an_unsupported_node_still_warns(tmp_path):
+    """Folding a uniform network must not swallow what it cannot read: a node the translator does not support
+    (``flake3d``, read as its default 0) inside the network that drives ``coat`` leaves the network unfolded, and
+    so named in a warning (the coat's). Before the check: it folded to 0 without a word."""
+    body = COPPER.replace('<input name="coat" type="float" value="1" />',
+                          '<input name="coat" type="float" nodegraph="W" output="coat" />')
+    doc = document("""  <nodegraph name="W">
+    <flake3d name="f" type="multioutput"><input name="size" type="float" value="0.01" /></flake3d>
+    <output name="coat" type="float" nodename="f" output="presence" />
+  </nodegraph>
+""" + body)
+    _img, warnings = render(quad_stage(str(tmp_path), doc, light="dome"))
+    assert [w for w in warnings if "flake3d" in w or "coat driven by a network" in w], warnings

@@ -937,14 +937,15 @@ class _Varying(Exception):
 
 
 class _FoldTable:
-    """The material table as a network being folded sees it: no textures, no UV sets, no warnings (the network
-    is translated again, with its warnings, when it does not fold)."""
+    """The material table as a network being folded sees it: no textures, no UV sets; a warning (a node read as
+    its default, an unknown colour space) stops the folding, so that the network is translated again with it."""
 
     def __init__(self, table):
         self.time = table.time
+        self.warned = False
 
     def warn(self, message: str) -> None:
-        pass
+        self.warned = True
 
     def uv_set_index(self, name):
         raise _Varying
@@ -969,12 +970,15 @@ def constant_value(table, lookup):
     tracer would evaluate it (a float or a tuple); None when anything in it varies per hit (a texture coordinate, a
     position, an image, a noise)."""
     g = Graph("fold")
-    tr = Translator(_FoldTable(table), g, "", _NoNeeds(), table.time)
+    quiet = _FoldTable(table)
+    tr = Translator(quiet, g, "", _NoNeeds(), table.time)
     try:
         v = tr.out(UsdNode(lookup.shader, table.time), lookup.output)
     except _Varying:
         return None
     except Exception:  # noqa: BLE001 — whatever the translator cannot fold is translated as a network
+        return None
+    if quiet.warned:
         return None
     if v.wide == 1 and not isinstance(v.x, Out) and not hasattr(v.x, "node"):
         return float(v.x)
