@@ -718,3 +718,35 @@ def test_a_uniform_network_with_an_unsupported_node_still_warns(tmp_path):
 """ + body)
     _img, warnings = render(quad_stage(str(tmp_path), doc, light="dome"))
     assert [w for w in warnings if "flake3d" in w or "coat driven by a network" in w], warnings
+
+
+def test_a_tiled_image_of_real_world_sizes(tmp_path):
+    """tiledimage_unit: MaterialX's tiledimage looks up ((uv · uvtiling − uvoffset) / realworldimagesize) ·
+    realworldtilesize (NG_tiledimage); with a 0.5 ft image and 0.5 in tiles (units converted into metres) that is
+    uv / 12, the same picture as uvtiling 1/12. Before: the real-world sizes were ignored (the picture of uvtiling
+    1)."""
+    px = np.zeros((8, 8, 3), np.float32)
+    px[..., 0] = np.linspace(0, 1, 8)[None, :]
+    px[..., 1] = np.linspace(0, 1, 8)[:, None]
+    _write_exr(str(tmp_path / "ramp.exr"), px)
+
+    def doc(inputs):
+        return document(f"""  <nodegraph name="G">
+    <tiledimage name="t" type="color3"><input name="file" type="filename" value="ramp.exr" />{inputs}</tiledimage>
+    <output name="out" type="color3" nodename="t" />
+  </nodegraph>
+  <surface_unlit name="SR" type="surfaceshader"><input name="emission_color" type="color3" nodegraph="G" output="out" />
+  </surface_unlit>""")
+
+    real = doc('<input name="realworldimagesize" type="vector2" value="0.5, 0.5" unit="foot" unittype="distance" />'
+               '<input name="realworldtilesize" type="vector2" value="0.5, 0.5" unit="inch" unittype="distance" />')
+    same = doc('<input name="uvtiling" type="vector2" value="0.0833333, 0.0833333" />')
+    plain = doc("")
+    imgs = []
+    for k, d in enumerate((real, same, plain)):
+        sub = tmp_path / str(k)
+        sub.mkdir()
+        _write_exr(str(sub / "ramp.exr"), px)
+        imgs.append(render(quad_stage(str(sub), d))[0])
+    np.testing.assert_allclose(imgs[0], imgs[1], atol=2e-3)
+    assert np.abs(imgs[0] - imgs[2]).max() > 0.1

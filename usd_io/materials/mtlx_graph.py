@@ -377,9 +377,14 @@ class Translator:
         if uvl is None:
             return self.const(fallback, t) if WIDTH.get(t, 1) > 1 else V(t, float(fallback[0]))
         st = c.i("texcoord", "vector2")
-        if tiled:
+        if tiled:  # NG_tiledimage: ((uv · uvtiling − uvoffset) / realworldimagesize) · realworldtilesize
             tiling, offset = c.i("uvtiling", "vector2"), c.i("uvoffset", "vector2")
             st = V("vector2", self.vmath("SUBTRACT", self.vmath("MULTIPLY", st.x, tiling.x), offset.x))
+            image, tile = c.i("realworldimagesize", "vector2"), c.i("realworldtilesize", "vector2")
+            if hasattr(image.x, "node") or hasattr(tile.x, "node") or \
+                    not np.allclose(np.asarray(tile.x[:2]) / np.asarray(image.x[:2]), 1.0):
+                size = self.vmath("DIVIDE", self.lanes3(tile), self.vmath("MAXIMUM", self.lanes3(image), (1e-9,) * 3))
+                st = V("vector2", self.vmath("MULTIPLY", st.x, size))
         st_x = st.x
         if not np.allclose(uvl.transform, np.eye(3)):
             st_x = self.add("usd_transform2d", {"in": st_x}, "result", matrix=np.asarray(uvl.transform))
