@@ -13,6 +13,12 @@ hand-written document (no third-party file is read), checked against closed form
   dome's closed-form ambient term and through its sampled texture — so nothing in the tracer's GGX loses energy.
 - **Families**: glTF PBR, Disney Principled, OpenPBR's coat and ``surface_unlit`` read as MaterialX defines them,
   each input that is not rendered named in one warning.
+- **What the reader reads** (the spec's own rules): filename tokens of a node definition, a node graph input's
+  ``defaultgeomprop``, document-level ``<output>`` s, units (into the definition's unit or the stage's metres per
+  unit; tiledimage's real-world sizes), surface inputs driven by networks that vary nowhere (folded),
+  ``surface_unlit``'s transmission (MaterialX's OSL).
+- **A surface over its medium** (Lama's dielectric: layer(dielectric, VDF)): its transmission rendered, checked on
+  a quad under a uniform dome (a lossless interface shows 1; mixed with and layered over gold, their closed forms).
 """
 
 from __future__ import annotations
