@@ -756,3 +756,24 @@ def test_a_tiled_image_of_real_world_sizes(tmp_path):
         imgs.append(render(quad_stage(str(sub), d))[0])
     np.testing.assert_allclose(imgs[0], imgs[1], atol=2e-3)
     assert np.abs(imgs[0] - imgs[2]).max() > 0.1
+
+
+def test_a_node_instance_reads_its_definitions_default_file(tmp_path):
+    """nodegraph_nodegraph: an instance of a document's own node definition that does not author its ``file``
+    input reads the definition's default file (MaterialX: an unauthored input takes its nodedef's value), here
+    through the implementation's interface. Before: "no file", black."""
+    _write_exr(str(tmp_path / "c.exr"), np.full((4, 4, 3), (0.7, 0.2, 0.4), np.float32))
+    doc = document("""  <nodedef name="ND_pic" node="pic">
+    <input name="f" type="filename" uniform="true" value="c.exr" />
+    <output name="out" type="color3" />
+  </nodedef>
+  <nodegraph name="NG_pic" nodedef="ND_pic">
+    <image name="i" type="color3"><input name="file" type="filename" uniform="true" interfacename="f" /></image>
+    <output name="out" type="color3" nodename="i" />
+  </nodegraph>
+  <nodegraph name="G"><pic name="p" type="color3" /><output name="out" type="color3" nodename="p" /></nodegraph>
+  <surface_unlit name="SR" type="surfaceshader"><input name="emission_color" type="color3" nodegraph="G" output="out" />
+  </surface_unlit>""")
+    img, warnings = render(quad_stage(str(tmp_path), doc))
+    np.testing.assert_allclose(img.mean(axis=(0, 1)), (0.7, 0.2, 0.4), atol=2e-3)
+    assert not [w for w in warnings if "no file" in w], warnings

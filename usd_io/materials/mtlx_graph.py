@@ -353,10 +353,16 @@ class Translator:
         through the interface from the USD shader's input (colour space and layer from that attribute)."""
         r, a = c.view.input("file"), None
         while r is not None and r[0] == "outer":
-            r = r[1].input(r[2])
+            outer, key = r[1], r[2]
+            r = outer.input(key)
+            if r is None:  # the instance does not author it: its definition's default file
+                ond = mtlx.nodedef(outer.sid)
+                d = ond.getActiveInput(key) if ond is not None else None
+                if d is not None and d.getType() == "filename" and d.getValueString():
+                    r = ("const", mtlx.file_value(d), None, d.getActiveColorSpace())
         if r is None or r[0] != "const" or not isinstance(r[1], Sdf.AssetPath):
             return None
-        a = r[2]  # a USD attribute, or None for a file named inside a node graph implementation
+        a = r[2]  # a USD attribute, or None for a file named inside a node graph implementation or its definition
         space = a.GetColorSpace() if a is not None else r[3]
         default = self.const(_py(c.uniform("default", 0.0)), "color3").x
         wrap = [net.MX_ADDRESS.get(str(c.uniform(f"{k}addressmode", "periodic")), "repeat") for k in "uv"]
