@@ -777,3 +777,25 @@ def test_a_node_instance_reads_its_definitions_default_file(tmp_path):
     img, warnings = render(quad_stage(str(tmp_path), doc))
     np.testing.assert_allclose(img.mean(axis=(0, 1)), (0.7, 0.2, 0.4), atol=2e-3)
     assert not [w for w in warnings if "no file" in w], warnings
+
+
+def test_a_surface_shader_inside_a_node_graph_reads_its_interface(tmp_path):
+    """nodegraph_nodegraph: a material's surface shader is the output of a node graph, and the shader reads the
+    graph's interface input. The shader sees that input's value (here an unlit emission colour). Before: the
+    shader was written outside its graph and read its definition's default (white)."""
+    doc = """<?xml version="1.0"?>
+<materialx version="1.39" colorspace="lin_rec709">
+  <nodegraph name="G">
+    <input name="tint" type="color3" value="0.1, 0.6, 0.3" />
+    <surface_unlit name="SR" type="surfaceshader"><input name="emission_color" type="color3" interfacename="tint" />
+    </surface_unlit>
+    <output name="out" type="surfaceshader" nodename="SR" />
+  </nodegraph>
+  <surfacematerial name="M" type="material">
+    <input name="surfaceshader" type="surfaceshader" nodegraph="G" output="out" />
+  </surfacematerial>
+</materialx>
+"""
+    img, warnings = render(quad_stage(str(tmp_path), doc))
+    np.testing.assert_allclose(img.mean(axis=(0, 1)), (0.1, 0.6, 0.3), atol=2e-3)
+    assert not not_supported(warnings), warnings

@@ -328,6 +328,12 @@ class _Writer:
             node = inp.getConnectedNode()
             # the front surface only: a backsurfaceshader (two-sided materials) is not one of usdMtlx's outputs
             if inp.getType() == "surfaceshader" and node is not None and inp.getName() == "surfaceshader":
+                g = self.doc.getNodeGraph(inp.getNodeGraphString()) if inp.getNodeGraphString() else None
+                if g is not None and g.getOutput(inp.getOutputString() or "out") is not None:
+                    # a shader inside a node graph: the graph (its interface feeds the shader), its output
+                    gp = self.graph(path, g)
+                    out.connectionPathList.Prepend(gp.AppendProperty(f"outputs:{inp.getOutputString() or 'out'}"))
+                    continue
                 sh = self.shader(path, node, None)
                 out.connectionPathList.Prepend(sh.AppendProperty("outputs:surface"))
 
