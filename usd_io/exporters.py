@@ -104,7 +104,8 @@ def written_for_arnold(stage) -> str | None:
     from pxr import Usd  # here: request.py reads UNITS for the CLI's flags before pxr is loaded
 
     found = None
-    for prim in stage.Traverse(Usd.TraverseInstanceProxies()):
+    ranges = [stage.Traverse()] + [Usd.PrimRange(p) for p in stage.GetPrototypes()]  # each prim once, not per instance
+    for prim in (p for r in ranges for p in r):
         if prim.GetTypeName().startswith("Arnold"):
             found = f"{prim.GetPath()} ({prim.GetTypeName()})"
             break
@@ -124,7 +125,7 @@ def arnold_usdlux_version(stage) -> str | None:
     lights as UsdLux says (its USDLux compatibility mode), not in its own units."""
     from pxr import Usd  # here: as written_for_arnold
 
-    for prim in stage.Traverse(Usd.TraverseInstanceProxies()):
+    for prim in stage.Traverse():
         if prim.GetTypeName() == "RenderSettings":
             a = prim.GetAttribute("arnold:global:usdlux_version")
             v = a.Get() if a and a.HasAuthoredValue() else None
