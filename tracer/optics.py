@@ -94,6 +94,100 @@ def fresnel_dielectric_1(cos_i, eta_i, eta_r):
     return 0.5 * (r_s * r_s + r_p * r_p)
 
 
+@kernel(inline=True)
+def ggx_lambda(alpha2, cos):
+    """Smith's Λ of GGX for a direction at cos θ to the macro normal: (√(1 + α²·tan²θ) − 1)/2 (either side)."""
+    c2 = min(cos * cos, 1.0)
+    if c2 <= 0.0:
+        return 1e30
+    return 0.5 * (math.sqrt(1.0 + alpha2 * (1.0 - c2) / c2) - 1.0)
+
+
+@kernel(inline=True)
+def sample_ggx_vndf(wi, n, alpha, u1, u2):
+    """A GGX microfacet normal m drawn from the distribution of normals visible from wi (unit, towards the
+    viewer, wi·n > 0), D_wi(m) = G1(wi)·max(0, wi·m)·D(m)/(wi·n) (Heitz 2018, "Sampling the GGX Distribution of
+    Visible Normals", listing 1), for the isotropic GGX of width α about the unit normal n; (u1, u2) in [0, 1)²."""
+    tx, ty = vec.orthonormal_basis(n)
+    vx, vy, vz = vec.dot(wi, tx), vec.dot(wi, ty), max(vec.dot(wi, n), 1e-7)
+    # the view direction in the hemisphere configuration (stretched to α = 1)
+    hx, hy, hz = alpha * vx, alpha * vy, vz
+    inv = 1.0 / math.sqrt(hx * hx + hy * hy + hz * hz)
+    hx, hy, hz = hx * inv, hy * inv, hz * inv
+    lensq = hx * hx + hy * hy
+    if lensq > 0.0:
+        il = 1.0 / math.sqrt(lensq)
+        t1x, t1y, t1z = -hy * il, hx * il, 0.0
+    else:
+        t1x, t1y, t1z = 1.0, 0.0, 0.0
+    t2x, t2y, t2z = hy * t1z - hz * t1y, hz * t1x - hx * t1z, hx * t1y - hy * t1x  # h × t1
+    r = math.sqrt(u1)
+    phi = 2.0 * math.pi * u2
+    p1 = r * math.cos(phi)
+    p2 = r * math.sin(phi)
+    s = 0.5 * (1.0 + hz)
+    p2 = (1.0 - s) * math.sqrt(max(1.0 - p1 * p1, 0.0)) + s * p2
+    p3 = math.sqrt(max(1.0 - p1 * p1 - p2 * p2, 0.0))
+    nx = p1 * t1x + p2 * t2x + p3 * hx
+    ny = p1 * t1y + p2 * t2y + p3 * hy
+    nz = p1 * t1z + p2 * t2z + p3 * hz
+    # back to the ellipsoid configuration
+    mx, my, mz = alpha * nx, alpha * ny, max(nz, 1e-7)
+    m = vec.add(vec.add(vec.scale(tx, mx), vec.scale(ty, my)), vec.scale(n, mz))
+    return vec.normalize(m)
+
+
+@kernel(inline=True)
+def rough_dielectric(d, n, ng, alpha, eta_i, eta_r, u1, u2, fresnel):
+    """One sample of a rough dielectric interface (GGX microfacets of width α = roughness², as Cycles' microfacet
+    glass): the microfacet normal m, the reflected and refracted directions about it and their shadowing factors.
+    Returns (m, r, g_r, t, g_t, F, tir): the reflected ray's weight is w_r = F·g_r, the refracted ray's
+    w_t = (1 − F)·g_t (a Refraction BSDF, no Fresnel: g_t).
+
+    Estimator. The Walter et al. 2007 BSDF of the interface, for wi = −d and an outgoing o, is
+    f(wi, o) = |wi·m||o·m| / (|wi·n||o·n|) · D(m)·G2(wi, o) · {F(wi·m)/(4|wi·m||o·m|) (reflection, m = h_r);
+    (1 − F)·η_o²/(η_i(wi·m) + η_o(o·m))² (transmission, m = h_t)} (radiance form, no 1/η² as the smooth seed
+    transmission: its limit at α → 0 is exactly the smooth split F, 1 − F). m is drawn from the visible normals,
+    p(m) = G1(wi)·|wi·m|·D(m)/|wi·n| (:func:`sample_ggx_vndf`); given m, o is its mirror image (Jacobian
+    dω_m/dω_o = 1/(4|o·m|)) or its refraction (Jacobian η_o²|o·m|/(η_i(wi·m) + η_o(o·m))²). Both rays are
+    spawned from the same m, each as the branch of a choice made with probability F (resp. 1 − F), so each
+    weight is F·f·|o·n|/(F·p(o)) scaled back by its branch's probability:
+        w_r = F · G2(wi, r)/G1(wi),    w_t = (1 − F) · G2(wi, t)/G1(wi),
+    D, |wi·m|, the Jacobians and η all cancel. With the height-correlated Smith G2 = 1/(1 + Λ(wi) + Λ(o)) (Cycles')
+    G2/G1(wi) = (1 + Λ(wi))/(1 + Λ(wi) + Λ(o)); with the separable G2 = G1(wi)·G1(o) it is G1(o) of the outgoing
+    direction: the Fresnel choice × G1(o). A direction on the wrong side of the macro surface (r·n ≤ 0 or r·ng ≤ 0;
+    t·n ≥ 0 or t·ng ≥ 0) has weight 0, and so has the refraction under total internal reflection about m (F = 1).
+    Summed, w_r + w_t = F·G + (1 − F)·G ≤ 1: the interface reflects and transmits 1 less its single-scattering
+    loss (Smith shadowing), 1 exactly as α → 0. ``fresnel`` False: F is 1 under TIR, 0 otherwise (the notes' weights).
+    """
+    wi = vec.scale(d, -1.0)
+    m = sample_ggx_vndf(wi, n, alpha, u1, u2)
+    cos_im = vec.dot(wi, m)
+    if cos_im <= 0.0:  # cannot happen for visible normals but for rounding
+        m = n
+        cos_im = max(vec.dot(wi, n), 0.0)
+    alpha2 = alpha * alpha
+    lam_i = ggx_lambda(alpha2, vec.dot(wi, n))
+    r = reflect_dir(d, m)
+    t, tir = refract_dir(d, m, eta_i, eta_r)
+    if fresnel:
+        fr = fresnel_dielectric_1(cos_im, eta_i, eta_r)
+    else:
+        fr = 1.0 if tir else 0.0
+    if tir:
+        fr = 1.0
+    g_r = 0.0
+    r_n = vec.dot(r, n)
+    if r_n > 0.0 and vec.dot(r, ng) > 0.0:
+        g_r = (1.0 + lam_i) / (1.0 + lam_i + ggx_lambda(alpha2, r_n))
+    g_t = 0.0
+    if not tir:
+        t_n = vec.dot(t, n)
+        if t_n < 0.0 and vec.dot(t, ng) < 0.0:
+            g_t = (1.0 + lam_i) / (1.0 + lam_i + ggx_lambda(alpha2, t_n))
+    return m, r, g_r, t, g_t, fr, tir
+
+
 # ---------------------------------------------------------------------- array forms
 @kernel
 def _reflect_rows(d, n, out):

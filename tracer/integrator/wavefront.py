@@ -45,7 +45,7 @@ from ..jit import kernel
 from ..lights import linking, sky
 from ..lights.emitters import MESH, lamp_hit, pack_lights, sample_light
 from ..lights.environment import env_radiance, pack_environment
-from ..sampling import rotated_multijitter, uniform2_1
+from ..sampling import rotated_multijitter, uniform1, uniform2_1
 from ..scene import Scene
 from ..settings import RenderSettings
 from ..shading import bsdf, lobes, local as shading
@@ -67,6 +67,8 @@ _REFLECTION_PATH, _TRANSMISSION_PATH = 1, 2
 _STREAM_PIXEL = 0
 _STREAM_LIGHT = 1  # + depth
 _STREAM_SKY = 40  # + depth
+_STREAM_GLASS = 200  # + depth: the microfacet normal of rough glass (uniform2_1)
+_STREAM_GLASS_PICK = 1000  # + depth: mirror or rough glass for the one reflected ray (uniform1)
 
 # What made a ray, for the lamps it sees (the columns of tracer.lights.linking.Links.seen).
 RAY_CAMERA, RAY_GLOSSY, RAY_TRANSMISSION = 0, 1, 2
@@ -500,8 +502,8 @@ class Integrator:
             n_shadow = _sky(surf, d, sample, weight, keys, depth, spawn, self.materials, self.env, self.options,
                             out, shadow, n_shadow, counts)
         nxt = NextQueue.empty(n, spawn)
-        n_refl, n_tran, n_through = _spawn_secondary(surf, d, t, t0, sample, weight, spawn, self.materials,
-                                                     self.options, nxt, counts)
+        n_refl, n_tran, n_through = _spawn_secondary(surf, d, t, t0, sample, weight, keys, depth, spawn,
+                                                     self.materials, self.options, nxt, counts)
         feats = None
         if feature is not None and gd is not None and np.any(feature[:, 3] > 0):  # the denoising guides
             carry = np.empty((n, 3), np.float32)
@@ -1210,12 +1212,18 @@ def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shado
 
 
 @kernel(refcounts=False)
-def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, counts):
+def _spawn_secondary(surf, d, t, t0, sample, weight, keys, depth, spawn, mats, opt, nxt, counts):
     """Spawn stage: per hit, the reflected ray (k_m·mirror_tint + the Principled lobes' mirror share + glass·F),
     the transmitted ray (glass·(1 − F)) and, where alpha < 1, the ray that passes straight through (weight
     1 − alpha, same depth). A sum of lobes (``SurfaceQueue.lobes`` ≥ 0) gives its mirror share, its glass and
     refraction weights (:func:`tracer.shading.lobes.refraction_weights`) and its pass-through colour instead. Returns
-    (reflections, transmissions, pass-through rays) written."""
+    (reflections, transmissions, pass-through rays) written.
+
+    Rough glass (roughness r with α² = r⁴ above bsdf.SINGULAR_ALPHA2; Principled models only): the glass's
+    reflected and refracted rays are mirrored and refracted about one GGX microfacet normal drawn from the
+    visible normals with the eye sample's key (stream _STREAM_GLASS + depth) and weighted by
+    :func:`tracer.optics.rough_dielectric`; where a smooth mirror part also reflects, the one reflected ray is
+    either (chosen by their weights' sums, divided by the choice's probability)."""
     n_rays = surf.hit.shape[0]
     eps = opt.eps
     n_refl = 0
@@ -1264,6 +1272,7 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
         mirror = vec.scale(vec.row(m_mirror, mat), k_m)
         mirror_l = mirror  # the part of the mirror weight that sees lamps (k_m: all; lobes: bsdf.lamp_share)
         glass_l = 1.0  # the share of the glass's reflected and refracted rays that sees lamps (smooth: all)
+        g_rough = 0.0  # the glass's roughness
         # the dielectric split: the mirror ray takes F·glass_r, the refracted ray (1 − F)·glass_t + glass_t0
         glass_t0 = (0.0, 0.0, 0.0)
         if nl >= 0:  # the lobes' mirror share (direct-light stage) and their glass / refraction weights
@@ -1273,12 +1282,14 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
                                                                   vec.row(m_stint, mat))
             glass_r, glass_t = vec.scale(glass_r, 1.0 - k_m), vec.scale(glass_t, 1.0 - k_m)
             glass_l = lobes.glass_lamp_share(s_lk, s_lp, i, nl)
+            g_rough = lobes.glass_roughness(s_lk, s_lw, s_lb, s_lp, i, nl)
             glass_t0 = vec.scale(glass_t0, 1.0 - k_m)
         else:
             if principled:  # the lobes' mirror share, from the direct-light stage's closure (SurfaceQueue.mirror)
                 glass = (1.0 - k_m) * (1.0 - float(s_metal[i])) * w_t
                 if glass > 0.0:
                     glass_l = bsdf.lamp_share_of(float(s_rough[i]))
+                    g_rough = min(max(float(s_rough[i]), 0.0), 1.0)
                 mirror = vec.madd(mirror, vec.row(s_mirror, i), 1.0 - k_m)
                 mirror_l = vec.madd(mirror_l, vec.row(s_mlamp, i), 1.0 - k_m)
             else:  # classic: a smooth metal (Principled input) mirrors its base colour, as the notes' k_m·tint
@@ -1304,7 +1315,45 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
         eta_i, eta_r, tir = 1.0, 1.0, False
         w_refl = vec.mul(w, mirror)
         w_refl_l = vec.mul(w, mirror_l)
-        if has_glass:
+        g_alpha = g_rough * g_rough
+        if has_glass and g_alpha * g_alpha > bsdf.SINGULAR_ALPHA2:  # rough glass: one sampled microfacet normal
+            ior = float(m_ior[mat])
+            eta_i, eta_r = (1.0, ior) if s_front[i] else (ior, 1.0)
+            u1, u2 = uniform2_1(keys[s], _STREAM_GLASS + depth, opt.seed)
+            m_n, g_dir, g_r, t_dir, g_t, fr, tir = optics.rough_dielectric(di, n, ng, g_alpha, eta_i, eta_r, u1, u2,
+                                                                           fresnel)
+            if tir:
+                n_tir += 1
+            # energy compensation (Multiscatter GGX): the interface's weights over its albedo E(μ, r, η)
+            comp = 1.0 / max(bsdf.glass_albedo(g_rough, -vec.dot(di, n), eta_r / eta_i), 0.05)
+            g_r, g_t = g_r * comp, g_t * comp
+            w_tran = vec.mul(w, vec.madd(vec.scale(glass_t, (1.0 - fr) * g_t), glass_t0, g_t))
+            if vec.max3(w_tran) > min_weight:
+                j = n_rays + n_tran
+                t_dir = vec.normalize(t_dir)
+                _put_ray(n_o, n_d, n_w, n_s, j, spawn_ray(p, ng, t_dir, eps), t_dir, w_tran, s)
+                _put_spawn(rec_n, rec_eta, rec_tir, j, m_n, eta_i, eta_r, False)
+                n_par[j] = i
+                n_lamp[j] = 1.0  # sampled: it sees lamps as Cycles' rough glass does (blurred over its highlight)
+                n_tran += 1
+            w_glass = vec.mul(w, vec.scale(glass_r, fr * g_r))
+            sum_m = w_refl[0] + w_refl[1] + w_refl[2]
+            sum_g = w_glass[0] + w_glass[1] + w_glass[2]
+            pick_glass = False
+            if sum_g > 0.0:
+                pick_glass = True
+                if sum_m > 0.0:  # one reflected ray: the mirror's or the rough glass's, by their weights
+                    p_g = sum_g / (sum_g + sum_m)
+                    pick_glass = uniform1(keys[s], _STREAM_GLASS_PICK + depth, opt.seed) < p_g
+                    if pick_glass:
+                        w_glass = vec.scale(w_glass, 1.0 / p_g)
+                    else:
+                        w_refl = vec.scale(w_refl, 1.0 / (1.0 - p_g))
+                        w_refl_l = vec.scale(w_refl_l, 1.0 / (1.0 - p_g))
+                if pick_glass:
+                    w_refl, w_refl_l, r_dir, r_n = w_glass, w_glass, g_dir, m_n
+            tir = tir and pick_glass  # the reflected ray is the glass's total internal reflection
+        elif has_glass:
             ior = float(m_ior[mat])
             eta_i, eta_r = (1.0, ior) if s_front[i] else (ior, 1.0)
             t_dir, tir = optics.refract_dir(di, n, eta_i, eta_r)

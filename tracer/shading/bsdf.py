@@ -32,6 +32,7 @@ import numpy as np
 from .. import vec
 from ..jit import kernel
 from . import local as shading
+from .ggx_glass_data import GLASS_E_IN as _GLASS_E_IN, GLASS_E_OUT as _GLASS_E_OUT
 from .ggx_tables_data import E_AVG as _E_AVG, FSS as _FSS, IOR_S as _IOR_S, SCHLICK_S as _SCHLICK_S, E as _E
 
 INV_PI = 1.0 / math.pi
@@ -117,6 +118,18 @@ def _table3(t, x, y, z):
     j = min(i + 1, nz - 1)
     f = z - i
     return (1.0 - f) * table2(t[i], x, y) + f * table2(t[j], x, y)
+
+
+@kernel(inline=True)
+def glass_albedo(roughness, mu, eta):
+    """E(μ, r, η): what one rough dielectric interface (:func:`tracer.optics.rough_dielectric`, single scattering)
+    returns of white light arriving at cos θ = μ, η = η_far/η_near (:mod:`tracer.shading.ggx_glass`). The spawn
+    stage divides the interface's weights by it: Cycles' Multiscatter GGX glass loses no energy."""
+    r = min(max(roughness, 0.0), 1.0)
+    mu = min(max(mu, 0.0), 1.0)
+    if eta >= 1.0:
+        return _table3(_GLASS_E_IN, r, mu, _z_of(eta))
+    return _table3(_GLASS_E_OUT, r, mu, _z_of(1.0 / max(eta, 1e-6)))
 
 
 # ---------------------------------------------------------------------------------------------- Fresnel

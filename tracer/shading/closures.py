@@ -10,7 +10,7 @@ lowered to the tracer's closure inputs and, where one closure cannot hold it, to
    diffuse        base = Color, specular 0, roughness 1                        (slot DIFFUSE)
    glossy         base = Color, metallic 1, roughness (Anisotropic: isotropic), specular 1 for Multiscatter GGX,
                   0 for single scattering (GGX, Beckmann, Ashikhmin-Shirley)  (slot GLOSSY)
-   glass          transmission 1, tinted by Color, ior; smooth                  (slot GLASS)
+   glass          transmission 1, tinted by Color, ior, roughness (GGX sampled)  (slot GLASS)
    refraction     as glass without its reflection                               (slot REFRACTION)
    translucent    as diffuse, lit from behind                                   (slot TRANSLUCENT)
    sheen          Sheen BSDF (microfiber / Ashikhmin, tracer.shading.sheen)     (slot SHEEN)
@@ -137,9 +137,7 @@ class ClosureLowering:
                       specular=1.0 if multi else 0.0, normal=self._normal_in(node))
             lb["colour"] = lb["base"]
         elif t in ("glass_bsdf", "refraction_bsdf"):
-            r = self.inp(node, "Roughness")
-            if not is_const(r) or float(r) > 0.05:
-                self.warn(node.name + "r", f"{node.name!r}: rough glass is rendered as smooth glass")
+            r = self.inp(node, "Roughness")  # rough: microfacets sampled per ray (tracer.optics.rough_dielectric)
             col = self.g.input_value(node, "Color")
             if isinstance(col, Out):
                 self.warn(node.name + "c", f"{node.name!r}: a linked glass colour is read as its constant estimate")

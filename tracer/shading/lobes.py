@@ -15,8 +15,9 @@ PRINCIPLED     :func:`tracer.shading.bsdf.principled` with its inputs; its glass
 DIFFUSE        Lambert, R_d = colour (:func:`tracer.shading.bsdf.lambertian`)
 GLOSSY         GGX with the constant Fresnel ``colour`` (:func:`tracer.shading.bsdf.glossy`); P_SPEC = 1: multiscatter
                GGX, 0: single scattering (the node's GGX, Beckmann and Ashikhmin-Shirley distributions)
-GLASS          smooth dielectric: the mirror ray takes F·colour, the refracted ray (1 − F)·colour
-REFRACTION     the refracted ray takes colour (no Fresnel, no reflection)
+GLASS          dielectric: the mirror ray takes F·colour, the refracted ray (1 − F)·colour; rough (roughness > 0):
+               both about one sampled GGX microfacet normal (:func:`tracer.optics.rough_dielectric`)
+REFRACTION     the refracted ray takes colour (no Fresnel, no reflection); rough: about a sampled microfacet normal
 TRANSLUCENT    Lambert from behind: colour/π·|n·l| for lights on the other side of the surface
 SHEEN          :mod:`tracer.shading.sheen` (microfiber or Ashikhmin velvet, P_METAL = the distribution); P_SPEC = 1: the
                Principled sheen layer, which weights the slot before it by 1 − max(w·colour)·E(μ)
@@ -224,10 +225,36 @@ def is_black(lb):
 
 
 @kernel(inline=True)
+def glass_roughness(kinds, w, base, prm, i, nl):
+    """The roughness of hit i's glass (Glass, Refraction, a Principled's transmission) for the spawn stage's one
+    microfacet sample: the lobes' roughnesses averaged by their weights (max of weight·colour; one glass lobe, the
+    usual case: its own roughness)."""
+    total = 0.0
+    acc = 0.0
+    for k in range(nl):
+        kind = kinds[i, k]
+        s = 1.0
+        if kind == PRINCIPLED:
+            s = (1.0 - float(prm[i, k, P_METAL])) * float(prm[i, k, P_TRANS])
+            if s <= 0.0:
+                continue
+        elif kind != GLASS and kind != REFRACTION:
+            continue
+        wc = max(float(w[i, k, 0]) * base[i, k, 0], float(w[i, k, 1]) * base[i, k, 1],
+                 float(w[i, k, 2]) * base[i, k, 2], 0.0) * s
+        if kind == PRINCIPLED:  # its reflected part is the specular tint's, not the base colour's
+            wc = max(wc, max(float(w[i, k, 0]), float(w[i, k, 1]), float(w[i, k, 2]), 0.0) * s)
+        total += wc
+        acc += wc * min(max(float(prm[i, k, P_ROUGH]), 0.0), 1.0)
+    return acc / total if total > 0.0 else 0.0
+
+
+@kernel(inline=True)
 def glass_lamp_share(kinds, prm, i, nl):
-    """The share of hit i's glass (Glass, Refraction, a Principled's transmission: rendered smooth) whose reflected
-    and refracted rays see lamps: :func:`tracer.shading.bsdf.lamp_share_of` its roughest such lobe (rough glass
-    blurs a lamp over its whole highlight in Cycles; a sharp image of it is further from that than none)."""
+    """The share of hit i's glass (Glass, Refraction, a Principled's transmission) whose reflected and refracted
+    rays see lamps when the glass is rendered smooth (the classic model): :func:`tracer.shading.bsdf.lamp_share_of`
+    its roughest such lobe (rough glass blurs a lamp over its whole highlight in Cycles; a sharp image of it is
+    further from that than none). Rough glass whose rays sample microfacets sees lamps with all of them."""
     share = 1.0
     for k in range(nl):
         kind = kinds[i, k]
