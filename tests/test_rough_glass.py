@@ -157,21 +157,28 @@ def test_rough_glass_in_a_white_furnace_is_white(bpy_module, kind):
     assert np.percentile(np.abs(ours - 1.0), 95) < 0.1, np.percentile(np.abs(ours - 1.0), 95)
 
 
-def _psnr(a, b):
-    mse = float(np.mean((np.clip(a, 0, 1) - np.clip(b, 0, 1)) ** 2))
-    return 10 * math.log10(1.0 / max(mse, 1e-12))
+@pytest.mark.blender
+@pytest.mark.cycles
+def test_cycles_rough_glass_in_a_white_furnace_is_white_too(bpy_module):
+    """Cycles' rough glass (Multiscatter GGX, the Glass BSDF's default) keeps the energy as well: what the energy
+    compensation (tracer.shading.ggx_glass) is held to."""
+    ref = H.cycles_render("rough_glass_furnace", furnace_scene, _source(furnace_scene, _node_material, _glass),
+                          dict(depth=16, samples=256))
+    mean = ref.mean(axis=(0, 1))
+    assert np.all(np.abs(mean - 1.0) < 0.02), mean
 
 
 @pytest.mark.blender
 @pytest.mark.cycles
-def test_a_rough_glass_sphere_matches_cycles(bpy_module, tmp_path, monkeypatch):
+def test_a_rough_glass_sphere_matches_cycles(bpy_module, tmp_path):
     """A rough glass sphere (roughness 0.3) in front of a checker against Cycles: the smooth rendering (the seed's
-    refraction, what the tracer did before) is far from it, the sampled microfacets close."""
+    refraction, what the tracer did before) is far from it (16 dB), the sampled microfacets close (37.6 dB)."""
     ref = H.cycles_render("rough_glass_checker", checker_scene, _source(checker_scene, _node_material, _glass),
                           dict(depth=8, samples=512))
-    ours, _warnings = ours_render(checker_scene(), samples=16)
+    ours, warnings = ours_render(checker_scene(), samples=16)
+    assert not warnings, warnings
     smooth, _ = ours_render(checker_scene(0.0), samples=4)
-    after, before = _psnr(ours, ref), _psnr(smooth, ref)
-    print(f"rough glass vs Cycles: {after:.1f} dB (smooth: {before:.1f} dB)")
-    assert before < 30.0 and after > 33.0, (before, after)
-    H.check_images({"name": "rough_glass_checker"}, ours, ref, tmp_path, min_psnr=33.0, max_mae=0.03)
+    before, after = H.metrics(smooth, ref)["psnr"], H.metrics(ours, ref)["psnr"]
+    print(f"rough glass vs Cycles: {after:.1f} dB (rendered smooth: {before:.1f} dB)")
+    assert before < 25.0, before
+    H.check_images({"name": "rough_glass_checker"}, ours, ref, tmp_path, min_psnr=35.0, max_mae=0.015)

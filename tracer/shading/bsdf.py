@@ -349,7 +349,7 @@ def mirror_share(roughness):
 @kernel(inline=True)
 def lamp_share_of(roughness):
     """1 for roughness ≤ ROUGH_LAMP_MIRROR, 0 from ROUGH_LAMP_LOCAL, smoothstep in between: how much of a lobe (or
-    of glass rendered smooth) sees lamps through the mirror or refracted ray."""
+    of glass rendered smooth: the classic model) sees lamps through the mirror or refracted ray."""
     x = min(max((roughness - ROUGH_LAMP_MIRROR) / (ROUGH_LAMP_LOCAL - ROUGH_LAMP_MIRROR), 0.0), 1.0)
     return 1.0 - x * x * (3.0 - 2.0 * x)
 

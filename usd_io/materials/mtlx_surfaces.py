@@ -47,7 +47,7 @@ gltf_pbr (``IMPL_gltf_pbr_surfaceshader``)
     and attenuation (volume), anisotropy, dispersion.
 disney_principled (``NG_disney_principled``)
     the diffuse (Burley: Lambert at normal incidence, rendered as Lambert) and the metal (Schlick from baseColor)
-    as the Principled base (baseColor, metallic, roughness), specTrans its transmission (smooth, tinted by
+    as the Principled base (baseColor, metallic, roughness), specTrans its transmission (rough by the roughness, tinted by
     baseColor, ior); the dielectric specular — MaterialX's generalized Schlick of weight 0.08 · specular with F0 =
     mix(1, baseColor, specularTint) and F90 = 1, so F ≈ 0.08 · specular · F0 at every angle — a glossy layer of
     that colour and the roughness, over the non-metal part; clearcoat a glossy layer 0.04 · clearcoat, roughness
