@@ -29,7 +29,9 @@ from __future__ import annotations
 import numpy as np
 
 from .bundled import tracer_module
+from .nodes import _read_rgba as read_rgba
 from .nodes import image_rgba
+from .udim import tiled_rgba
 
 _ir = tracer_module("shading.graph")
 CLOSURE, COLOR, FLOAT, NODE_TYPES, VECTOR = _ir.CLOSURE, _ir.COLOR, _ir.FLOAT, _ir.NODE_TYPES, _ir.VECTOR
@@ -276,14 +278,45 @@ class Translator:
         px = self.images[image.name]
         if px is None:
             return None
-        if getattr(image, "source", "FILE") in ("TILED", "SEQUENCE", "MOVIE"):
-            self.warn(node, f"image {image.name!r} ({image.source}): its first tile/frame is used", "source")
+        source = getattr(image, "source", "FILE")
+        if source in ("SEQUENCE", "MOVIE"):
+            self.warn(node, f"image {image.name!r} ({source}): its first frame is used", "source")
+        elif source == "TILED":  # a projection (Box, Sphere, Tube; a world's) reads uv in [0, 1]: tile 1001
+            first = min((int(t.number) for t in image.tiles), default=1001)
+            if first != 1001:
+                self.warn(node, f"image {image.name!r} (TILED): this projection reads only tile 1001's square, "
+                                f"which the set lacks; its first tile ({first}) is used", "source")
         wrap = WRAP.get(extension, "repeat")
         key = (image.name, wrap, interpolation)
         if key not in self._refs:
             self._refs[key] = ImageRef(pixels=px, wrap_s=wrap, wrap_t=wrap, interpolation=interpolation.lower(),
                                        label=image.name)
         return self._refs[key]
+
+    def tiled_ref(self, node, image, interpolation: str = "Linear"):
+        """(ImageRef of the atlas of a tiled image's tiles (clamped), its (3, 3) uv matrix), or None when no tile
+        could be read (one warning; magenta stands in). :mod:`addon.udim` reads the tiles."""
+        key = ("udim", image.name)
+        if key not in self.images:
+            try:
+                atlas, m, notes = tiled_rgba(image, read_rgba)
+            except Exception as exc:  # noqa: BLE001  (no tile readable)
+                self.images[key] = None
+                self.warn(node, f"tiled image {image.name!r} not loaded ({exc}); magenta stands in, as in Cycles",
+                          "load")
+            else:
+                self.images[key] = (atlas, m)
+                for n in notes:
+                    self.warn(node, f"tiled image {image.name!r}: {n}", n)
+        got = self.images[key]
+        if got is None:
+            return None
+        atlas, m = got
+        rkey = (key, "clamp", interpolation)
+        if rkey not in self._refs:
+            self._refs[rkey] = ImageRef(pixels=atlas, wrap_s="clamp", wrap_t="clamp",
+                                        interpolation=interpolation.lower(), label=image.name)
+        return self._refs[rkey], m
 
 
 # ---------------------------------------------------------------------------------------------- node handlers
@@ -498,6 +531,9 @@ MISSING_IMAGE = (1.0, 0.0, 1.0)
 
 
 def _image(t: Translator, node, ctx):
+    img = node.image
+    if img is not None and getattr(img, "source", "FILE") == "TILED" and node.projection == "FLAT":
+        return _tiled_image(t, node, ctx)
     ref = t.image_ref(node, node.image, node.extension, node.interpolation)
     if ref is None:
         if node.image is None:
@@ -506,6 +542,26 @@ def _image(t: Translator, node, ctx):
     return t.add(node, ctx, "image_texture", image=ref, projection=node.projection,
                  projection_blend=float(node.projection_blend), interpolation=node.interpolation,
                  extension=node.extension)
+
+
+def _tiled_image(t: Translator, node, ctx):
+    """An Image Texture of a tiled (UDIM) image, Flat projection: the atlas of its tiles read at the Vector (the
+    UV map where unlinked) mapped by the atlas's (s/U, t/V), clamped (tiles do not repeat). Cycles finds the tile
+    ⌊u⌋ + 10·⌊v⌋ and reads it with the node's Extension; the atlas reads the same texels inside every tile and
+    differs only within half a texel of a seam (the neighbour's edge blends in) and outside the set (its edge
+    tiles extend where Cycles is magenta)."""
+    got = t.tiled_ref(node, node.image, node.interpolation)
+    if got is None:
+        return {"Color": Value(MISSING_IMAGE, COLOR), "Alpha": Value(1.0, FLOAT)}
+    ref, m = got
+    nm = t.name(node, ctx)
+    v = t.value_of(node, ctx, "Vector", VECTOR)
+    xf = t.g.add("usd_transform2d", {} if v is UNSET else {"in": v.v}, name=nm + ".udim",
+                 matrix=tuple(map(tuple, np.asarray(m, float))))
+    n = t.g.add("image_texture", {"Vector": xf["result"]}, name=nm, image=ref, projection="FLAT",
+                projection_blend=float(node.projection_blend), interpolation=node.interpolation,
+                extension="EXTEND")
+    return t.outs(node, n)
 
 
 def _environment(t: Translator, node, ctx):
