@@ -31,7 +31,7 @@ import numpy as np
 from .bundled import tracer_module
 from .nodes import _read_rgba as read_rgba
 from .nodes import image_rgba
-from .udim import tiled_rgba
+from .udim import tile_pixels, tiled_atlas
 
 _ir = tracer_module("shading.graph")
 CLOSURE, COLOR, FLOAT, NODE_TYPES, VECTOR = _ir.CLOSURE, _ir.COLOR, _ir.FLOAT, _ir.NODE_TYPES, _ir.VECTOR
@@ -293,30 +293,39 @@ class Translator:
                                        label=image.name)
         return self._refs[key]
 
-    def tiled_ref(self, node, image, interpolation: str = "Linear"):
-        """(ImageRef of the atlas of a tiled image's tiles (clamped), its (3, 3) uv matrix), or None when no tile
-        could be read (one warning; magenta stands in). :mod:`addon.udim` reads the tiles."""
+    def tiled_ref(self, node, image, extension: str = "REPEAT", interpolation: str = "Linear"):
+        """(ImageRef of the atlas of a tiled image's tiles (clamped), the coefficients of the tile set -> atlas map
+        (:func:`tracer.shading.udim.udim_atlas_padded`)), or None when no tile could be read (one warning; magenta
+        stands in). :mod:`addon.udim` reads the tiles (once per image) and lays them out (once per Extension)."""
         key = ("udim", image.name)
         if key not in self.images:
             try:
-                atlas, m, notes = tiled_rgba(image, read_rgba)
+                tiles, notes = tile_pixels(image, read_rgba)
+                if not tiles:
+                    raise ValueError(f"none of its tiles could be read ({'; '.join(notes) or 'no tiles'})")
             except Exception as exc:  # noqa: BLE001  (no tile readable)
                 self.images[key] = None
                 self.warn(node, f"tiled image {image.name!r} not loaded ({exc}); magenta stands in, as in Cycles",
                           "load")
             else:
-                self.images[key] = (atlas, m)
+                self.images[key] = tiles
                 for n in notes:
                     self.warn(node, f"tiled image {image.name!r}: {n}", n)
-        got = self.images[key]
-        if got is None:
+        if self.images[key] is None:
             return None
-        atlas, m = got
-        rkey = (key, "clamp", interpolation)
+        wrap = WRAP.get(extension, "repeat")
+        akey = ("udim", image.name, wrap)
+        if akey not in self.images:
+            atlas, coeffs, notes = tiled_atlas(self.images[key], wrap)
+            self.images[akey] = (atlas, coeffs)
+            for n in notes:
+                self.warn(node, f"tiled image {image.name!r}: {n}", n)
+        atlas, coeffs = self.images[akey]
+        rkey = (akey, interpolation)
         if rkey not in self._refs:
             self._refs[rkey] = ImageRef(pixels=atlas, wrap_s="clamp", wrap_t="clamp",
                                         interpolation=interpolation.lower(), label=image.name)
-        return self._refs[rkey], m
+        return self._refs[rkey], coeffs
 
 
 # ---------------------------------------------------------------------------------------------- node handlers
@@ -545,20 +554,34 @@ def _image(t: Translator, node, ctx):
 
 
 def _tiled_image(t: Translator, node, ctx):
-    """An Image Texture of a tiled (UDIM) image, Flat projection: the atlas of its tiles read at the Vector (the
-    UV map where unlinked) mapped by the atlas's (s/U, t/V), clamped (tiles do not repeat). Cycles finds the tile
-    ⌊u⌋ + 10·⌊v⌋ and reads it with the node's Extension; the atlas reads the same texels inside every tile and
-    differs only within half a texel of a seam (the neighbour's edge blends in) and outside the set (its edge
-    tiles extend where Cycles is magenta)."""
-    got = t.tiled_ref(node, node.image, node.interpolation)
+    """An Image Texture of a tiled (UDIM) image, Flat projection, as Cycles reads it (kernel_image_udim_map: the
+    tile ⌊u⌋ + 10·⌊v⌋, read at the fraction with the node's Extension; outside the set, magenta): the padded atlas
+    of :func:`tracer.shading.udim.udim_atlas_padded` read at its map of the Vector (the UV map where unlinked),
+    five Vector Math nodes: i = min(⌊max(X, 0)⌋, (U, V)), then X·a + (i·b + c). (Cycles truncates: uv in (−1, 0)
+    reads tile 1001 wrapped where this reads its border and then magenta.)"""
+    got = t.tiled_ref(node, node.image, node.extension, node.interpolation)
     if got is None:
         return {"Color": Value(MISSING_IMAGE, COLOR), "Alpha": Value(1.0, FLOAT)}
-    ref, m = got
+    ref, k = got
     nm = t.name(node, ctx)
     v = t.value_of(node, ctx, "Vector", VECTOR)
-    xf = t.g.add("usd_transform2d", {} if v is UNSET else {"in": v.v}, name=nm + ".udim",
-                 matrix=tuple(map(tuple, np.asarray(m, float))))
-    n = t.g.add("image_texture", {"Vector": xf["result"]}, name=nm, image=ref, projection="FLAT",
+    if v is UNSET:
+        v = Value(t.g.add("uvmap", name=nm + ".uv")["UV"], VECTOR)
+
+    def vmath(op, a, b, c=None, tag=""):
+        inputs = {"Vector": a, "Vector_001": b}
+        if c is not None:
+            inputs["Vector_002"] = c
+        return t.g.add("vector_math", inputs, name=nm + ".udim_" + tag, operation=op)["Vector"]
+    (n_u, n_v), (a_s, a_t), (b_s, b_t), (c_s, c_t) = k["tiles"], k["scale"], k["tile"], k["offset"]
+    i = vmath("MAXIMUM", v.v, (0.0, 0.0, 0.0), tag="max")
+    i = vmath("FLOOR", i, (0.0, 0.0, 0.0), tag="floor")
+    i = vmath("MINIMUM", i, (float(n_u), float(n_v), 0.0), tag="min")
+    r = vmath("MULTIPLY_ADD", i, (b_s, b_t, 0.0), (c_s, c_t, 0.0), tag="tile")
+    # (the constant first: the lookup then carries no UV set and reads level 0, plain bilinear as Cycles' images;
+    # a UV set's texel density would price the whole atlas, and a coarser level blends the cells' borders)
+    st = vmath("MULTIPLY_ADD", (a_s, a_t, 0.0), v.v, r, tag="st")
+    n = t.g.add("image_texture", {"Vector": st}, name=nm, image=ref, projection="FLAT",
                 projection_blend=float(node.projection_blend), interpolation=node.interpolation,
                 extension="EXTEND")
     return t.outs(node, n)

@@ -9,10 +9,11 @@
   read.
 
 Each file is loaded as a temporary image datablock with the tiled image's colour space and alpha mode and decoded
-exactly as a single image (:func:`addon.nodes.image_rgba`'s reader), then removed. The tiles go into one atlas with
-the (s/U, t/V) matrix (:func:`tracer.shading.udim.udim_atlas`, shared with the USD reader). A tile Blender lists
-but cannot give pixels for (a tile added without a fill, a missing file) takes Cycles' missing-image magenta, as
-Cycles renders it; so does the place of a tile the set lacks.
+exactly as a single image (:func:`addon.nodes.image_rgba`'s reader), then removed. The tiles go into one atlas as
+Cycles reads them (:func:`tracer.shading.udim.udim_atlas_padded`, beside the USD reader's atlas): each tile
+bordered by what the node's Extension reads past its own edges, so a seam filters as in Cycles (each tile is its
+own texture there). A tile Blender lists but cannot give pixels for (a tile added without a fill, a missing file)
+is Cycles' missing-image magenta; so are the place of a tile the set lacks and uv outside the set.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ import numpy as np
 from .bundled import tracer_module
 
 _udim = tracer_module("shading.udim")
-udim_atlas, tile_uv, is_udim_tile = _udim.udim_atlas, _udim.tile_uv, _udim.is_udim_tile
+udim_atlas_padded, tile_uv, is_udim_tile = _udim.udim_atlas_padded, _udim.tile_uv, _udim.is_udim_tile
 
 #: What Cycles renders for a tile it cannot read (TEX_IMAGE_MISSING_R/G/B/A): magenta, alpha 1.
 MISSING = (1.0, 0.0, 1.0, 1.0)
@@ -115,11 +116,9 @@ def _saved_copy(image, folder: str, ext: str) -> dict:
     return found
 
 
-def tiled_rgba(image, read) -> tuple[np.ndarray, np.ndarray, list]:
-    """(atlas (H, W, 4), (3, 3) uv matrix, notes) of a tiled image (see the module's docstring); raises ValueError
-    when no tile can be read."""
-    tiles, notes = tile_pixels(image, read)
-    if not tiles:
-        raise ValueError(f"none of its tiles could be read ({'; '.join(notes) or 'no tiles'})")
-    atlas, m, more = udim_atlas(tiles, MISSING)
-    return np.ascontiguousarray(atlas), m, notes + more
+def tiled_atlas(tiles: list, wrap: str) -> tuple[np.ndarray, dict, list]:
+    """(atlas (H, W, 4), the tile set -> atlas map's coefficients, notes) of ``tiles`` (:func:`tile_pixels`), each
+    tile bordered by what its own ``wrap`` (the node's Extension) reads past its edges, absent tiles magenta
+    (:func:`tracer.shading.udim.udim_atlas_padded`); raises ValueError without tiles."""
+    atlas, coeffs, notes = udim_atlas_padded(tiles, wrap, MISSING)
+    return np.ascontiguousarray(atlas), coeffs, notes
