@@ -314,9 +314,10 @@ class Translator:
         if self.images[key] is None:
             return None
         wrap = WRAP.get(extension, "repeat")
-        akey = ("udim", image.name, wrap)
+        smooth = interpolation != "Closest"
+        akey = ("udim", image.name, wrap, smooth)
         if akey not in self.images:
-            atlas, coeffs, notes = tiled_atlas(self.images[key], wrap)
+            atlas, coeffs, notes = tiled_atlas(self.images[key], wrap, smooth)
             self.images[akey] = (atlas, coeffs)
             for n in notes:
                 self.warn(node, f"tiled image {image.name!r}: {n}", n)

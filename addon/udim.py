@@ -116,9 +116,10 @@ def _saved_copy(image, folder: str, ext: str) -> dict:
     return found
 
 
-def tiled_atlas(tiles: list, wrap: str) -> tuple[np.ndarray, dict, list]:
+def tiled_atlas(tiles: list, wrap: str, smooth: bool = True) -> tuple[np.ndarray, dict, list]:
     """(atlas (H, W, 4), the tile set -> atlas map's coefficients, notes) of ``tiles`` (:func:`tile_pixels`), each
     tile bordered by what its own ``wrap`` (the node's Extension) reads past its edges, absent tiles magenta
-    (:func:`tracer.shading.udim.udim_atlas_padded`); raises ValueError without tiles."""
-    atlas, coeffs, notes = udim_atlas_padded(tiles, wrap, MISSING)
+    (:func:`tracer.shading.udim.udim_atlas_padded`: smaller tiles enlarged to the largest, bilinearly when
+    ``smooth``); raises ValueError without tiles."""
+    atlas, coeffs, notes = udim_atlas_padded(tiles, wrap, MISSING, smooth=smooth)
     return np.ascontiguousarray(atlas), coeffs, notes

@@ -35,21 +35,41 @@ def tile_uv(number: int) -> tuple[int, int]:
     return i % 10, i // 10
 
 
-def _tiles(tiles: list):
-    """(uvs, U, V, h, w, images resampled to the first tile's size, notes) of (tile number, pixels) pairs."""
+def _resample(img: np.ndarray, h: int, w: int, smooth: bool) -> np.ndarray:
+    """``img`` at h × w: nearest texel, or (``smooth``) bilinear at the new texel centres with the edges extended
+    (an enlarged tile then reads, texel by texel, what a bilinear lookup of the tile itself reads there)."""
+    if not smooth or img.shape[0] > h or img.shape[1] > w:
+        yi = (np.arange(h) * img.shape[0] // h)[:, None]
+        xi = (np.arange(w) * img.shape[1] // w)[None, :]
+        return img[yi, xi]
+    def axis(n_in, n_out):
+        x = np.clip((np.arange(n_out) + 0.5) * n_in / n_out - 0.5, 0.0, n_in - 1)
+        i0 = np.floor(x).astype(int)
+        i1 = np.minimum(i0 + 1, n_in - 1)
+        return i0, i1, (x - i0).astype(np.float32)
+    y0, y1, fy = axis(img.shape[0], h)
+    x0, x1, fx = axis(img.shape[1], w)
+    rows = img[y0] * (1 - fy)[:, None, None] + img[y1] * fy[:, None, None]
+    return rows[:, x0] * (1 - fx)[None, :, None] + rows[:, x1] * fx[None, :, None]
+
+
+def _tiles(tiles: list, size: str = "first", smooth: bool = False):
+    """(uvs, U, V, h, w, images resampled to one size, notes) of (tile number, pixels) pairs: the first tile's size
+    (``size`` "first") or the largest width and height of any (``size`` "largest": no tile loses texels; smaller
+    ones are enlarged, bilinearly when ``smooth``)."""
     if not tiles:
         raise ValueError("no UDIM tiles")
     notes, images = [], []
     uvs = [tile_uv(t) for t, _px in tiles]
     n_u, n_v = max(u for u, _v in uvs) + 1, max(v for _u, v in uvs) + 1
-    h, w = np.asarray(tiles[0][1]).shape[:2]
+    shapes = [np.asarray(px).shape[:2] for _t, px in tiles]
+    h, w = shapes[0] if size == "first" else (max(s[0] for s in shapes), max(s[1] for s in shapes))
     for number, img in tiles:
         img = np.asarray(img, np.float32)
         if img.shape[:2] != (h, w):
-            notes.append(f"tile {number} is {img.shape[1]}x{img.shape[0]}, not {w}x{h}: resampled")
-            yi = (np.arange(h) * img.shape[0] // h)[:, None]
-            xi = (np.arange(w) * img.shape[1] // w)[None, :]
-            img = img[yi, xi]
+            if size == "first":  # (enlarging to the largest loses nothing: no note)
+                notes.append(f"tile {number} is {img.shape[1]}x{img.shape[0]}, not {w}x{h}: resampled")
+            img = _resample(img, h, w, smooth)
         images.append(img[..., :4])
     return uvs, n_u, n_v, h, w, images, notes
 
@@ -80,10 +100,12 @@ PAD = 2
 _PAD_MODES = {"repeat": "wrap", "clamp": "edge", "mirror": "symmetric", "black": "constant"}
 
 
-def udim_atlas_padded(tiles: list, wrap: str, missing, pad: int = PAD) -> tuple[np.ndarray, dict, list]:
+def udim_atlas_padded(tiles: list, wrap: str, missing, pad: int = PAD, smooth: bool = True) -> tuple[np.ndarray, dict,
+                                                                                                   list]:
     """Tiles laid as Cycles reads them, each with its own wrap: (atlas, coefficients, notes).
 
-    Every tile (resampled to the first tile's size h × w) gets a border of ``pad`` texels holding what its own
+    Every tile (enlarged to the largest tile's size h × w: bilinearly when ``smooth``, for a Linear or Cubic
+    lookup; by nearest texel for Closest) gets a border of ``pad`` texels holding what its own
     ``wrap`` ("repeat" | "clamp" | "mirror" | "black") reads past its edges, so a filter at a seam reads the tile
     itself, not its neighbour; cells of absent tiles are ``missing`` (RGBA), and so is a one-texel ring round the
     atlas (Cycles reads no tile there: magenta). The atlas is U·(w + 2·pad) + 2 texels wide and V·(h + 2·pad) + 2
@@ -92,7 +114,7 @@ def udim_atlas_padded(tiles: list, wrap: str, missing, pad: int = PAD) -> tuple[
     "offset"; "tiles" = (U, V)); look the atlas up with clamp. :func:`udim_st` evaluates it."""
     if wrap not in _PAD_MODES:
         raise ValueError(f"unknown wrap {wrap!r}")
-    uvs, n_u, n_v, h, w, images, notes = _tiles(tiles)
+    uvs, n_u, n_v, h, w, images, notes = _tiles(tiles, "largest", smooth)
     cw, ch = w + 2 * pad, h + 2 * pad
     width, height = n_u * cw + 2, n_v * ch + 2
     atlas = np.empty((height, width, 4), np.float32)
