@@ -9,7 +9,8 @@
   read.
 
 Each file is loaded as a temporary image datablock with the tiled image's colour space and alpha mode and decoded
-exactly as a single image (:func:`addon.nodes.image_rgba`'s reader), then removed. The tiles go into one atlas as
+exactly as a single image (:func:`addon.nodes.image_rgba`'s reader), then removed (where Blender allows no new
+datablock, OpenImageIO decodes it with the colour space's transfer). The tiles go into one atlas as
 Cycles reads them (:func:`tracer.shading.udim.udim_atlas_padded`, beside the USD reader's atlas): each tile
 bordered by what the node's Extension reads past its own edges, so a seam filters as in Cycles (each tile is its
 own texture there). A tile Blender lists but cannot give pixels for (a tile added without a fill, a missing file)
@@ -28,6 +29,7 @@ from .bundled import tracer_module
 
 _udim = tracer_module("shading.udim")
 udim_atlas_padded, tile_uv, is_udim_tile = _udim.udim_atlas_padded, _udim.tile_uv, _udim.is_udim_tile
+decode_image = tracer_module("shading.texture").decode_image
 
 #: What Cycles renders for a tile it cannot read (TEX_IMAGE_MISSING_R/G/B/A): magenta, alpha 1.
 MISSING = (1.0, 0.0, 1.0, 1.0)
@@ -39,11 +41,24 @@ def tile_path(filepath: str, number: int) -> str:
     return filepath.replace("<UDIM>", str(number)).replace("<UVTILE>", f"u{u + 1}_v{v + 1}")
 
 
-def _load_rgba(path: str, like, read) -> np.ndarray:
-    """Pixels of the file ``path`` decoded as the image ``like`` would be (colour space, alpha mode)."""
+def new_image(path: str):
+    """A new image datablock of the file ``path`` (a test replaces it to refuse, as a viewport's drawing does)."""
     import bpy
 
-    im = bpy.data.images.load(path, check_existing=False)
+    return bpy.data.images.load(path, check_existing=False)
+
+
+def _load_rgba(path: str, like, read) -> np.ndarray:
+    """Pixels of the file ``path`` decoded as the image ``like`` would be (colour space, alpha mode): through a
+    temporary image datablock, or, where Blender allows no new datablock (a viewport's drawing), OpenImageIO with
+    the colour space's transfer (sRGB or none)."""
+    import bpy
+
+    try:
+        im = new_image(path)
+    except (RuntimeError, AttributeError):  # blend data not writable in this context
+        space = "srgb" if "srgb" in like.colorspace_settings.name.lower() else "raw"
+        return decode_image(path, space, label=path).rgba
     try:
         im.colorspace_settings.name = like.colorspace_settings.name
         if hasattr(like, "alpha_mode"):

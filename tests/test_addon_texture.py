@@ -142,3 +142,22 @@ def test_udim_tiles_packed_and_generated(registered, tmp_path):
     ts, warnings = export.scene_from_depsgraph(bpy.context.evaluated_depsgraph_get())
     out = render(ts, RenderSettings(width=8, height=8, samples=1, max_depth=2, seed=0)).rgb
     np.testing.assert_allclose(out[4:, :4], np.broadcast_to((0.0, 1.0, 0.0), (4, 4, 3)), atol=2e-3)
+
+
+def test_udim_tiles_without_new_datablocks(registered, tmp_path, monkeypatch):
+    """Where Blender refuses new datablocks (a viewport's drawing), the tiles are decoded by OpenImageIO: the same
+    picture."""
+    from addon import export
+    from tracer import RenderSettings, render
+
+    udim_scene(str(tmp_path / "tiles"), size=(8, 8), interpolation="Closest")
+
+    def refuse(*_a, **_k):
+        raise RuntimeError("can't modify blend data in this state")
+    import addon.udim
+
+    monkeypatch.setattr(addon.udim, "new_image", refuse)
+    ts, warnings = export.scene_from_depsgraph(bpy.context.evaluated_depsgraph_get())
+    assert not warnings, warnings
+    out = render(ts, RenderSettings(width=8, height=8, samples=1, max_depth=2, seed=0)).rgb
+    np.testing.assert_allclose(out, udim_expected((8, 8)), atol=2e-3)
