@@ -34,16 +34,23 @@ def _arnold_lambert(stage, path="/M", kd=1.0, colour=(1.0, 1.0, 1.0)):
 
 
 # ---------------------------------------------------------------- light units: Arnold's own
-def test_arnold_distant_light_lights_a_white_diffuse_facing_it_to_its_intensity():
-    """Arnold's lights (legacy, no usdlux_version): a distant light of intensity I renders a Lambert of albedo ρ
-    facing it as ρ·I (E = π·I), where the UsdLux spec gives ρ·I/π. The stage is Arnold's by its arnold:lambert."""
+def test_arnold_distant_light_gives_irradiance_equal_to_its_intensity_whatever_its_angle():
+    """Arnold's lights (legacy, no usdlux_version): a distant light of intensity I gives E = I, so a Lambert of
+    albedo ρ facing it is ρ·I/π. arnold-usd's test_0191 (I = 1 on a cube of albedo 0.8·0.5) has 100/255 there in
+    its sRGB-encoded reference: sRGB(0.4/π) = 0.392 (E = π·I would be sRGB(0.4) = 0.665). Arnold ignores the angle
+    (the spec's unnormalized sun is E = I·Ω, Ω the disk's solid angle). The stage is Arnold's by its
+    arnold:lambert."""
     c = (0.2, 0.4, 0.8)
     s = st.lit_quad_with("arnold:lambert", {"Kd": (F, 0.5), "Kd_color": (C3, Gf.Vec3f(*c))}, output="arnold:surface")
+    sun = UsdLux.DistantLight(s.GetPrimAtPath("/Sun"))
+    sun.CreateAngleAttr(10.0)
+    sun.CreateNormalizeAttr(False)
     px, info = _centre(s)
-    np.testing.assert_allclose(px, 0.5 * np.asarray(c) * 2.0, rtol=0.02)
+    np.testing.assert_allclose(px, 0.5 * np.asarray(c) * 2.0 / np.pi, rtol=0.02)
     assert any("Arnold's own units" in n for n in info.notes), info.notes
     spec, _ = _centre(s, light_units="spec")
-    np.testing.assert_allclose(spec, 0.5 * np.asarray(c) * 2.0 / np.pi, rtol=0.02)
+    omega = 2 * np.pi * (1 - np.cos(np.radians(5.0)))
+    np.testing.assert_allclose(spec, 0.5 * np.asarray(c) * 2.0 * omega / np.pi, rtol=0.02)
 
 
 def _point_lit(radius_prim=None, usdlux_version=None, normalize=True):
@@ -64,24 +71,26 @@ def _point_lit(radius_prim=None, usdlux_version=None, normalize=True):
 
 
 def test_arnold_point_light_lights_a_white_diffuse_to_intensity_over_distance_squared():
-    """A normalized SphereLight in Arnold's units: radiant intensity π·I, so a Lambert (ρ = 0.5) seen at the centre
-    pixel (the point (0.15, 0.15, 0) of the floor, the light at (0, 0, 2)) is ρ·I·cosθ/r² = 0.5·8·2/4.045^1.5 = 0.98;
-    the spec's I/4 W/sr would give ρ·(I/4)·cosθ/(π r²) = 0.08. Arnold's radius 0 (primvars:arnold:radius): a point."""
+    """A normalized SphereLight in Arnold's units: radiant intensity I, so a Lambert (ρ = 0.5) seen at the centre
+    pixel (the point (0.15, 0.15, 0) of the floor, the light at (0, 0, 2)) is ρ·I·cosθ/(π r²) = 0.5·8·2/(π·4.045^1.5)
+    = 0.31; the spec's I/4 W/sr would give a quarter. arnold-usd's test_0192/0193/0200 (points of radius 0) match
+    their sRGB-decoded references at 37-42 dB so (π·I: 24 dB at best). Arnold's radius 0 (primvars:arnold:radius):
+    a point."""
     px, info = _centre(_point_lit(radius_prim=0.0), samples=4)
-    np.testing.assert_allclose(px, 0.5 * 8 * 2 / 4.045 ** 1.5, rtol=0.02)
+    np.testing.assert_allclose(px, 0.5 * 8 * 2 / (np.pi * 4.045 ** 1.5), rtol=0.02)
     lamp = [lt for _k, _n, lt in info.lights][0]
-    np.testing.assert_allclose(lamp.intensity, 8.0 * np.pi, rtol=1e-6)
+    np.testing.assert_allclose(lamp.intensity, 8.0, rtol=1e-6)
     _px, info = _centre(_point_lit())
     assert [lt for _k, _n, lt in info.lights][0].radius == 0.5  # UsdLux's radius without Arnold's
 
 
 def test_arnold_radius_primvar_wins_over_the_usd_radius():
     """arnold-usd reads primvars:arnold:* after the UsdLux inputs: Arnold's radius 0 makes a point light (no soft
-    shadow), however the light is normalized: the same π·I, even with normalize off."""
+    shadow), however the light is normalized: the same I W/sr, even with normalize off."""
     _px, info = _centre(_point_lit(radius_prim=0.0, normalize=False))
     lamp = [lt for _k, _n, lt in info.lights][0]
     assert lamp.radius == 0.0
-    np.testing.assert_allclose(lamp.intensity, 8.0 * np.pi, rtol=1e-6)
+    np.testing.assert_allclose(lamp.intensity, 8.0, rtol=1e-6)
 
 
 def test_arnold_usdlux_version_reads_the_lights_as_the_spec():
@@ -127,7 +136,9 @@ def _unbound(display_color=None, marker=True, explicit=None):
 def test_unbound_geometry_on_an_arnold_stage_is_arnolds_default_standard_surface():
     """arnold-usd's UsdArnoldReader::GetDefaultShader: geometry without a material gets a standard_surface (every
     default: base 0.8, specular 1, roughness 0.2) whose base_color reads displayColor, white without one. The
-    picture equals that shader written out; Hydra's fallback (plain diffuse 0.5 grey) was 4× darker here."""
+    picture equals that shader written out; Hydra's fallback (plain diffuse 0.5 grey) was darker here. kick gives
+    it to every stage's unbound geometry (arnold-usd's test_2254 logs "_default_arnold_shader" on a stage without
+    Arnold content): load_stage(fallback_surface="arnold") does the same whatever the stage."""
     for colour in (None, (0.9, 0.1, 0.1)):
         got, info = _centre(_unbound(display_color=colour), samples=2)
         want, _ = _centre(_unbound(display_color=colour, explicit=colour or (1.0, 1.0, 1.0)), samples=2)
@@ -135,13 +146,18 @@ def test_unbound_geometry_on_an_arnold_stage_is_arnolds_default_standard_surface
         fields = info.materials["arnold:default_surface"]  # what differs from the Principled defaults
         assert fields["roughness"] == 0.2 and fields["vertex_color"] and "specular" not in fields
     white, _ = _centre(_unbound(), samples=2)
-    assert white.mean() > 0.7 * np.cos(np.radians(20)), white  # 0.8·E/π·π: Arnold's units, not 0.5·E/π
+    assert white.mean() > 0.7 * np.cos(np.radians(20)) / np.pi, white  # ≈ 0.8·E/π (+ specular), not 0.5·E/π
+    forced, info = _centre(_unbound(marker=False), samples=2, fallback_surface="arnold")
+    np.testing.assert_allclose(forced, white, rtol=0.02, atol=1e-4)
+    assert "arnold:default_surface" in info.materials
 
 
 def test_unbound_geometry_elsewhere_keeps_hydras_display_colour():
     _px, info = _centre(_unbound(display_color=(0.9, 0.1, 0.1), marker=False))
     assert "arnold:default_surface" not in info.materials
     assert info.materials["displayColor"].get("specular") == 0.0
+    _px, info = _centre(_unbound(display_color=(0.9, 0.1, 0.1)), fallback_surface="hydra")
+    assert "arnold:default_surface" not in info.materials and "displayColor" in info.materials
 
 
 # ---------------------------------------------------------------- MtoA's faceVarying primvars with elementSize

@@ -309,12 +309,12 @@ def _centre(stage, w=24, h=16):
 
 
 def test_arnold_lambert_is_lambertian_with_kd_times_colour():
-    """Closed form: a distant light of intensity 2 head-on on albedo Kd·Kd_color gives radiance albedo·2 in
-    Arnold's units (the stage is Arnold's: E = π·I, usd_io.exporters; tests/test_usd_arnold_fidelity.py)."""
+    """Closed form: a distant light of intensity 2 head-on on albedo Kd·Kd_color gives radiance albedo·2/π (E = I
+    in Arnold's units too, usd_io.exporters; tests/test_usd_arnold_fidelity.py)."""
     c = (0.2, 0.4, 0.8)
     px, info = _centre(st.lit_quad_with("arnold:lambert", {"Kd": (F, 0.5), "Kd_color": (C3, Gf.Vec3f(*c))},
                                         output="arnold:surface"))
-    np.testing.assert_allclose(px, 0.5 * np.asarray(c) * 2, rtol=0.02)
+    np.testing.assert_allclose(px, 0.5 * np.asarray(c) * 2 / np.pi, rtol=0.02)
     assert not any("not supported" in w for w in info.warnings), info.warnings
 
 
@@ -339,7 +339,7 @@ def test_arnold_user_data_rgb_reads_the_primvar():
     ud.CreateInput("attribute", Sdf.ValueTypeNames.String).Set("displayColor")
     UsdShade.Shader(s.GetPrimAtPath("/M/S")).CreateInput("base_color", C3).ConnectToSource(ud.ConnectableAPI(), "out")
     px, _ = _centre(s)
-    np.testing.assert_allclose(px, np.asarray((0.9, 0.1, 0.1)) * 2, rtol=0.03)  # Arnold's units: E = π·I
+    np.testing.assert_allclose(px, np.asarray((0.9, 0.1, 0.1)) * 2 / np.pi, rtol=0.03)  # E = I (Arnold's too)
 
 
 def test_omnipbr_constant_inputs_without_the_mdl_file():

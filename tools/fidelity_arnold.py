@@ -1,5 +1,5 @@
 """Fidelity against references (issue #32), the Arnold corpus: arnold-usd's test suite (``testsuite/test_NNNN``)
-against the reference images Arnold rendered (``ref/reference.tif``, linear values; 8-bit for most tests).
+against the reference images Arnold rendered (``ref/reference.tif``: 8-bit, sRGB-encoded, for most tests).
 
     python tools/fidelity.py arnold ARNOLD_USD_CHECKOUT [--out /tmp/fidelity-arnold] [--only test_0200,...]
                                     [--aa 3] [--jsonl OUT.jsonl] [--sheet SHEET.png] [--list]
@@ -14,13 +14,16 @@ camera: the one Arnold's USD reader creates first). Each is rendered in-process 
 camera conformed as Arnold conforms it (its ``fov`` is horizontal: the horizontal aperture is kept, UsdRender's
 adjustApertureHeight, written on a RenderSettings on the session layer), with no default light (Arnold adds none),
 a black background (Arnold's) and the lights in Arnold's units (``light_units="arnold"``, usd_io.exporters; the
-spec's where the RenderSettings set ``arnold:global:usdlux_version``), and compared with the reference:
+spec's where the RenderSettings set ``arnold:global:usdlux_version``) and Arnold's default shader on unbound
+geometry (kick gives every stage arnold-usd's ``_default_arnold_shader``, Arnold content or not), and compared
+with the reference read as Arnold wrote it (:func:`reference_linear`: float outputs linear; integer outputs in
+the narrow colour space, sRGB-encoded unless the stage names a linear one; ``reference_encoding`` in the JSONL
+says which and why):
 
-    psnr      10·log10(1 / MSE) over R, G, B of both images' **linear** values clamped to [0, 1] (the 8-bit
-              references hold min(linear, 1); float references are clamped the same way). No tone curve.
+    psnr      10·log10(1 / MSE) over R, G, B of both images' **linear** values clamped to [0, 1] (an 8-bit
+              reference decoded from sRGB holds min(linear, 1); float references are clamped the same way).
     psnr_srgb the same after the sRGB transfer function (how a viewer sees the pair; for reference only)
-    psnr_ref_decoded  ours against the reference read as sRGB-encoded (diagnostic: a reference whose driver wrote
-              sRGB instead of linear values scores higher here)
+    psnr_other_reading  ours against the reference read the other way (sRGB-encoded <-> linear), a diagnostic
     de        ΔE2000 between the mean colours (linear, clamped, as sRGB-primaries Lab) of the pixels either image
               covers (reference alpha ≥ 0.5 or our object id; only ours where the reference is opaque everywhere,
               as it is where a dome is seen): a missing environment does not hide a wrong albedo
@@ -146,6 +149,63 @@ def read_rgba(path: str) -> np.ndarray:
     return px[..., :4]
 
 
+#: Colour spaces of Arnold's OCIO config (and raw names) that are linear: an integer output in one of them holds
+#: linear values. In Arnold's config "sRGB" names the linear Rec.709 space (kick says so for test_1459, which sets
+#: color_space_narrow = "sRGB": 'narrow color space "sRGB" is linear, and will cause banding').
+LINEAR_SPACES = ("srgb", "linear", "raw", "acescg", "aces2065-1", "scene-linear rec.709-srgb", "lin_srgb",
+                 "lin_rec709", "linear rec.709 (srgb)", "utility - linear - srgb")
+
+
+def narrow_color_space(stage) -> tuple[str | None, str]:
+    """(the colour space Arnold writes integer outputs in when the stage says, or None: the default, why): a
+    RenderProduct's ``arnold:color_space`` / ``arnold:driver_*:color_space`` other than "" and "auto", else the
+    colour manager's ``color_space_narrow`` set on a RenderSettings (``arnold:color_manager:color_space_narrow``,
+    ``arnold:global:color_space_narrow``). A colour manager prim that no RenderSettings names is not Arnold's
+    options.color_manager and changes nothing."""
+    from pxr import Usd
+
+    for prim in stage.Traverse(Usd.TraverseInstanceProxies()):
+        for attr in prim.GetAttributes():
+            name = attr.GetName()
+            if not attr.HasAuthoredValue():
+                continue
+            value = attr.Get()
+            if not isinstance(value, str) or value.strip().lower() in ("", "auto"):
+                continue
+            if prim.GetTypeName() == "RenderProduct" and (
+                    name == "arnold:color_space" or (name.startswith("arnold:driver") and name.endswith(":color_space"))):
+                return value, f"{prim.GetPath()}.{name}"
+            if prim.GetTypeName() == "RenderSettings" and name in ("arnold:color_manager:color_space_narrow",
+                                                                   "arnold:global:color_space_narrow"):
+                return value, f"{prim.GetPath()}.{name}"
+    return None, ""
+
+
+def reference_linear(path: str, stage_path: str) -> tuple[np.ndarray, str, str]:
+    """(the reference's linear RGBA, "linear" or "srgb": how Arnold encoded it, why). Arnold's colour manager (the
+    logs of every reference: color_manager_ocio with Arnold's own config) writes **float** outputs (EXR, float
+    TIFF) linear and **integer** ones (the 8-bit TIFFs of kick's ``-o testrender.tif``, JPEG) in its narrow colour
+    space, sRGB-encoded by default; a stage whose render product or colour manager names a linear space
+    (:data:`LINEAR_SPACES`) gets linear integers. A rule from the file's format and the stage's settings: never
+    "whichever matches better"."""
+    import OpenImageIO as oiio
+    from pxr import Usd
+
+    rgba = read_rgba(path)
+    inp = oiio.ImageInput.open(path)
+    fmt = inp.spec().format if inp else None
+    if inp:
+        inp.close()
+    if fmt is not None and fmt.basetype in (oiio.HALF, oiio.FLOAT, oiio.DOUBLE):
+        return rgba, "linear", f"a {fmt} image: Arnold writes float outputs linear"
+    space, where = narrow_color_space(Usd.Stage.Open(stage_path))
+    if space is not None and space.strip().lower() in LINEAR_SPACES:
+        return rgba, "linear", f"integer output in {space!r}, a linear space ({where})"
+    rgba[..., :3] = srgb_decode(np.clip(rgba[..., :3], 0.0, 1.0))
+    return rgba, "srgb", (f"integer ({fmt}) output in {space!r} ({where})" if space else
+                          f"integer ({fmt}) output: Arnold's default narrow colour space, sRGB")
+
+
 def arnold_camera(path: str, camera: str, pixel_aspect: float | None):
     """The stage with a RenderSettings on its session layer: ``camera``, Arnold's conform (the horizontal
     aperture kept), the stage's pixel aspect when its own RenderSettings gives one."""
@@ -186,7 +246,8 @@ def render_ours(test: dict, size, aa: int):
     stage, settings_prim = arnold_camera(test["stage"], camera, stage_pixel_aspect(probe))
     units = "spec" if arnold_usdlux_version(probe) else "arnold"  # kick reads every stage in Arnold's units
     scene, info = load_stage(stage, time=test.get("frame"), camera=camera, width=w, height=h,
-                             render_settings_prim=settings_prim, default_light=False, light_units=units)
+                             render_settings_prim=settings_prim, default_light=False, light_units=units,
+                             fallback_surface="arnold")  # kick: Arnold's default shader on unbound geometry
     settings = tracer.RenderSettings(width=w, height=h, samples=aa, transparent=False, light_samples=4,
                                      sky_samples=8, max_depth=6, aovs=("objectid",))
     image = tracer.render(scene, settings)
@@ -218,7 +279,6 @@ def compare(ref: np.ndarray, ours: np.ndarray, covered: np.ndarray) -> dict:
     a, b = ref[..., 3] >= 0.5, covered
     union = (a | b) if not a.all() else b  # an opaque reference (a background Arnold sees): our objects
     out = dict(psnr=round(psnr(r, o), 2), psnr_srgb=round(psnr(srgb(r), srgb(o)), 2),
-               psnr_ref_decoded=round(psnr(srgb_decode(r), o), 2),
                iou=round(float(np.count_nonzero(a & b) / max(np.count_nonzero(union), 1)), 4) if union.any() else 1.0)
     if union.any():
         mr, mo = r[union].mean(axis=0), o[union].mean(axis=0)
@@ -320,10 +380,13 @@ def main(argv=None) -> int:
         try:
             if "skip" in test:
                 raise NoCamera(test["skip"])
-            ref = read_rgba(test["reference"])
+            ref, encoding, why = reference_linear(test["reference"], test["stage"])
+            other = srgb(ref[..., :3]) if encoding == "srgb" else srgb_decode(np.clip(ref[..., :3], 0, 1))
             ours, covered, info, camera = render_ours(test, ref.shape[:2], args.aa)
             row.update(camera=camera, frame=test.get("frame"), size=[ref.shape[1], ref.shape[0]],
-                       **compare(ref, ours, covered), warnings=list(info.warnings))
+                       reference_encoding=encoding, reference_encoding_why=why,
+                       **compare(ref, ours, covered), warnings=list(info.warnings),
+                       psnr_other_reading=round(psnr(np.clip(other, 0, 1), np.clip(ours[..., :3], 0, 1)), 2))
             side_by_side(os.path.join(args.out, test["name"] + ".png"), ref, ours)
             row["_ref"], row["_ours"] = ref, ours
         except NoCamera as why:

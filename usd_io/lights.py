@@ -10,7 +10,9 @@ light of power P as a SphereLight with I = P/π, normalize = 1; Cycles' radiant 
                  radius -> soft shadows unless treatAsPoint; ShapingAPI cone -> SpotLight(cone_angle =
                  shaping:cone:angle in degrees (half angle), blend = shaping:cone:softness)
     (Arnold's own units, ``units = "arnold"``, usd_io.exporters: a normalized or radius-0 SphereLight has
-    radiant intensity π·I, ``primvars:arnold:radius`` overriding the radius; a DistantLight E = π·I.)
+    radiant intensity I W/sr (four times the spec's), ``primvars:arnold:radius`` overriding the radius; a
+    DistantLight E = I whatever its angle and normalize (UsdLux's fallback intensity read as the spec's). Measured on arnold-usd's references, which are
+    sRGB-encoded 8-bit: one distant light of I = 1 on a cube of albedo 0.4 gives 100/255 = sRGB(0.4/π).)
     DistantLight spec: ``angle`` is the angular diameter of the sun's disk (default 0.53°) and I its radiance, so
                  the irradiance is E = I·Ω with Ω = 2π(1 − cos(angle/2)) the disk's solid angle (the schema
                  default I = 50 000 gives E = 3.36 W/m², a sane sun); ``normalize`` = 1 makes E = I.
@@ -160,7 +162,7 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
         r *= float(np.mean(_axis_scales(world)))
         point = bool(_get(lux.GetTreatAsPointAttr(), time, False))
         if units == "arnold" and (_normalized(prim, time) or r <= 0):
-            intensity = rgb * np.pi  # Arnold: a white diffuse facing it at distance d is I/d²
+            intensity = rgb  # Arnold's point light: E = I/d² at distance d (the spec's I/4 W/sr is a quarter)
         elif _normalized(prim, time) or r <= 0:
             intensity = rgb / 4.0
         else:
@@ -190,8 +192,9 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
             diameter = float(np.clip(np.radians(angle), 0, np.pi - 1e-6))
         if not blender and angle <= 0:  # a delta sun: the limit the normalized reading gives
             irradiance = rgb
-        if units == "arnold":  # Arnold's distant light: a white diffuse facing it is I, E = π·I (normalize ignored)
-            irradiance = rgb * np.pi
+        if units == "arnold" and authored(prim, "intensity"):  # Arnold's distant light: E = I whatever its angle
+            irradiance = rgb  # (normalize ignored). UsdLux's fallback 50 000 is read as the spec's (E = 3.36 for
+            # 0.53°): arnold-usd's references of lights without an intensity (test_2254, test_2268) are lit so
         return "distant", DistantLight(direction=down, irradiance=irradiance, angle=diameter, name=name), None
     if t == "CylinderLight":
         # A tube along its local X of `length` and `radius`: emitted as a spherical light of the same power

@@ -65,8 +65,12 @@ class StageInfo:
             self.warnings.append(message)
 
 
+FALLBACK_SURFACES = ("auto", "arnold", "hydra")  # load_stage(fallback_surface=...)
+
+
 class _Reader:
-    def __init__(self, stage, time, purposes, segments, info: StageInfo, light_units: str = "auto"):
+    def __init__(self, stage, time, purposes, segments, info: StageInfo, light_units: str = "auto",
+                 fallback_surface: str = "auto"):
         self.stage, self.time, self.purposes, self.segments, self.info = stage, time, purposes, segments, info
         self.light_units, note = exporter_light_units(stage, light_units)  # usd_io.exporters
         if note:
@@ -74,6 +78,10 @@ class _Reader:
         self.b = SceneBuilder()
         self.xf = Transforms(time)
         self.mats = MaterialTable(self.b, time, info.warn)
+        if fallback_surface not in FALLBACK_SURFACES:
+            raise ValueError(f"fallback surface {fallback_surface!r}: choose one of {', '.join(FALLBACK_SURFACES)}")
+        if fallback_surface != "auto":  # else asked of the stage at the first unbound prim (written_for_arnold)
+            self.mats._arnold_stage = fallback_surface == "arnold"
         self.lo = np.full(3, np.inf)
         self.hi = np.full(3, -np.inf)
         self._proto_cache: dict[str, MeshData | None] = {}
@@ -444,7 +452,7 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
                height: int | None = None, purposes=DEFAULT_PURPOSES, segments: int = DEFAULT_SEGMENTS,
                default_light: bool = True, variants=(), complexity: str = DEFAULT_COMPLEXITY,
                render_settings_prim: str | None = None, light_units: str = "auto", depth_of_field: bool = True,
-               motion_blur: bool = True):
+               motion_blur: bool = True, fallback_surface: str = "auto"):
     """Read a USD stage (a path or an open ``Usd.Stage``) into a render-ready :class:`tracer.Scene`.
 
     time      time code (None: the earliest time, i.e. default values or the first time sample)
@@ -466,6 +474,9 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
               ``disableDepthOfField`` does the same)
     motion_blur  False: nothing moves across the shutter (``--no-motion-blur``; the RenderSettings'
               ``disableMotionBlur`` does the same)
+    fallback_surface  what geometry without a material is drawn with: "auto" Arnold's default standard_surface
+              on a stage written for Arnold (usd_io.exporters.written_for_arnold), else Hydra's displayColor
+              diffuse; "arnold" or "hydra" either whatever the stage (a stage rendered by kick: Arnold's)
 
     Returns ``(scene, info)``; ``info.warnings`` lists what was skipped or approximated (each message once).
     Raises :class:`UsdInputError` (a ``ValueError``) for input the user can fix.
@@ -492,7 +503,7 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     if complexity not in COMPLEXITY:
         raise UsdInputError(f"complexity {complexity!r}: choose from {', '.join(COMPLEXITY)}")
     try:
-        r = _Reader(stage, tc, purposes, segments, info, light_units)
+        r = _Reader(stage, tc, purposes, segments, info, light_units, fallback_surface)
     except ValueError as exc:  # an unknown --light-units value
         raise UsdInputError(f"{label}: {exc}") from None
     r.subdivision_level = COMPLEXITY[complexity]
