@@ -219,3 +219,113 @@ def test_arnold_standard_surface_takes_arnolds_own_defaults():
     s = st.lit_quad_with("arnold:standard_surface", {"base": (F, 1.0)}, output="arnold:surface")
     _px, info = _centre(s)
     np.testing.assert_allclose(info.materials["/M"]["base_color"], (1.0, 1.0, 1.0), rtol=1e-6)
+
+
+# ---------------------------------------------------------------- a PointInstancer's per-instance primvars
+def _two_cubes(colours=((1.0, 0.0, 0.0), (0.0, 0.0, 1.0)), primvar="displayColor", material=None, nested=False,
+               interpolation="varying"):
+    """Two instances of one unit cube at x = ∓1.5 (the camera at z = 10 sees their +z faces head-on), lit by a
+    normalized distant light of E = 2 along −z; ``colours`` the instancer's per-instance ``primvar``.
+    ``nested``: the cube instancer is the prototype of an outer instancer with one instance, which carries the
+    primvar (one element: both inner instances take it)."""
+    s = new_stage()
+    add_camera(s, eye=(0, 0, 10))
+    sun = UsdLux.DistantLight.Define(s, "/Sun")
+    sun.CreateIntensityAttr(2.0)
+    sun.CreateNormalizeAttr(True)
+    outer = "/Outer" if nested else None
+    root = "/Outer/Protos/PI" if nested else "/PI"
+    cube = UsdGeom.Cube.Define(s, root + "/Protos/Cube")
+    cube.CreateSizeAttr(1.0)
+    if material is not None:
+        bind(cube, material(s))
+    st.point_instancer(s, root, [root + "/Protos/Cube"], [(-1.5, 0, 0), (1.5, 0, 0)])
+    holder = s.GetPrimAtPath(root)
+    if nested:
+        st.point_instancer(s, outer, ["/Outer/Protos/PI"], [(0, 0, 0)])
+        holder = s.GetPrimAtPath(outer)
+        colours = colours[:1]
+    pv = UsdGeom.PrimvarsAPI(holder).CreatePrimvar(primvar, Sdf.ValueTypeNames.Color3fArray, interpolation)
+    pv.Set([Gf.Vec3f(*c) for c in colours])
+    return s
+
+
+def _cube_centres(stage, **kw):
+    w, h = 48, 32  # the aperture's 3:2
+    scene, info = load_stage(stage, width=w, height=h, default_light=False, **kw)
+    img = render(scene, RenderSettings(width=w, height=h, samples=2)).rgb
+    # the camera's 3.6-wide aperture at focal 5 sees 3.6·9.5/5 = 6.84 across at z = 0.5: the centres at ∓1.5
+    px = lambda x: int(round((x / (3.6 * 9.5 / 5) + 0.5) * w - 0.5))  # noqa: E731
+    return img[h // 2, px(-1.5)], img[h // 2, px(1.5)], info
+
+
+def test_point_instancer_display_color_per_instance_colours_each_instance():
+    """Hydra and Arnold give each instance its element of the instancer's vertex/varying primvars. Two instances
+    of one unbound cube with displayColor red and blue per instance: Hydra's fallback (a Lambert of albedo
+    displayColor) under E = 2 head-on is displayColor·2/π on each +z face. Before, both were the prototype's grey
+    (0.18·2/π) and a warning said the primvar was not read."""
+    left, right, info = _cube_centres(_two_cubes())
+    np.testing.assert_allclose(left, np.array([1.0, 0.0, 0.0]) * 2 / np.pi, rtol=0.03, atol=2e-3)
+    np.testing.assert_allclose(right, np.array([0.0, 0.0, 1.0]) * 2 / np.pi, rtol=0.03, atol=2e-3)
+    assert not any("per-instance primvars" in w for w in info.warnings), info.warnings
+
+
+def test_an_outer_instancers_primvar_reaches_the_nested_instances():
+    """An outer instancer's per-instance primvar colours every instance of the instancer it instances."""
+    left, right, _info = _cube_centres(_two_cubes(colours=((0.0, 1.0, 0.0),), nested=True))
+    for got in (left, right):
+        np.testing.assert_allclose(got, np.array([0.0, 1.0, 0.0]) * 2 / np.pi, rtol=0.03, atol=2e-3)
+
+
+def _user_data_material(s):
+    """Arnold's lambert (Kd 1) whose Kd_color is user_data_rgb("my_color", default grey)."""
+    mat = UsdShade.Material.Define(s, "/M")
+    sh = UsdShade.Shader.Define(s, "/M/S")
+    sh.CreateIdAttr("arnold:lambert")
+    sh.CreateInput("Kd", F).Set(1.0)
+    ud = UsdShade.Shader.Define(s, "/M/UD")
+    ud.CreateIdAttr("arnold:user_data_rgb")
+    ud.CreateInput("attribute", Sdf.ValueTypeNames.String).Set("my_color")
+    ud.CreateInput("default", C3).Set(Gf.Vec3f(0.5, 0.5, 0.5))
+    sh.CreateInput("Kd_color", C3).ConnectToSource(ud.ConnectableAPI(), "out")
+    mat.CreateSurfaceOutput("arnold").ConnectToSource(sh.ConnectableAPI(), "out")
+    return mat
+
+
+def test_user_data_rgb_reads_the_instancers_primvar_per_instance():
+    """arnold-usd's arnold_materialbuilder tests (test_0186): user_data_rgb reads an instancer's primvars:my_color,
+    one colour per instance (Arnold's instance_my_color), not the default grey. Arnold's units: E = I, so the
+    Lambert is colour·2/π."""
+    left, right, info = _cube_centres(_two_cubes(primvar="my_color", material=_user_data_material,
+                                                 colours=((0.8, 0.4, 0.1), (0.1, 0.3, 0.9))))
+    np.testing.assert_allclose(left, np.array([0.8, 0.4, 0.1]) * 2 / np.pi, rtol=0.03, atol=2e-3)
+    np.testing.assert_allclose(right, np.array([0.1, 0.3, 0.9]) * 2 / np.pi, rtol=0.03, atol=2e-3)
+
+
+def test_a_per_instance_primvar_no_material_reads_is_named_in_a_warning():
+    s = _two_cubes()
+    pv = UsdGeom.PrimvarsAPI(s.GetPrimAtPath("/PI")).CreatePrimvar("weight", Sdf.ValueTypeNames.FloatArray, "varying")
+    pv.Set([0.5, 1.0])
+    _l, _r, info = _cube_centres(s)
+    said = [w for w in info.warnings if "per-instance primvars" in w]
+    assert len(said) == 1 and "weight" in said[0] and "displayColor" not in said[0], said
+
+
+# ---------------------------------------------------------------- a light's camera weight
+def test_a_dome_with_a_fractional_arnold_camera_weight_is_seen_at_that_weight():
+    """Arnold's light parameter ``camera`` weights the light's contribution to camera rays (arnold-usd's test_1238:
+    a white dome of intensity 1 with primvars:arnold:camera = 0.1 is a 0.1 grey background in the reference; it
+    was drawn white). The quad it lights is lit the same whatever the weight."""
+    def frame(weight):
+        s = new_stage()
+        add_camera(s, eye=(0, 0, 10))
+        quad(s, "/Q", half=1.0)
+        dome = UsdLux.DomeLight.Define(s, "/Dome")
+        UsdGeom.PrimvarsAPI(dome.GetPrim()).CreatePrimvar("arnold:camera", F).Set(weight)
+        scene, info = load_stage(s, width=24, height=16)
+        return render(scene, RenderSettings(width=24, height=16, samples=1)).rgb
+
+    full, tenth = frame(1.0), frame(0.1)
+    np.testing.assert_allclose(full[0, 0], (1, 1, 1), atol=1e-4)
+    np.testing.assert_allclose(tenth[0, 0], (0.1, 0.1, 0.1), atol=1e-4)
+    np.testing.assert_allclose(tenth[8, 12], full[8, 12], rtol=0.05)

@@ -24,7 +24,8 @@ light of power P as a SphereLight with I = P/π, normalize = 1; Cycles' radiant 
     DiskLight    the same with A = π·radius²
     DomeLight    the world: a lat-long texture becomes Scene.environment (usd_io/dome.py: orientation, format);
                  without one, Scene.background = I and Scene.ambient = I · inputs:diffuse; Arnold's
-                 ``primvars:arnold:camera = 0`` (lights the scene, unseen by the camera): background black
+                 ``primvars:arnold:camera = w`` (Arnold's light parameter ``camera``: lights the scene, seen by the
+                 camera × w; 0 unseen): background I·w
 
 Which reading: a stage whose root layer says it was written by Blender (``doc = "Blender v…"``, what
 Blender's exporter writes) takes Blender's sun; every other stage the spec's. For every other light type the two
@@ -292,23 +293,26 @@ def _dome(prim, world, time, rgb, warn):
         if diffuse != 1.0:
             warn(f"{name}: inputs:diffuse = {diffuse} is not supported with a dome texture (1 used)")
     background = colour
-    if _hidden_from_camera(prim, time):  # Arnold's visibility: the dome lights the scene, the camera sees black
+    seen = _camera_weight(prim, time)
+    if seen != 1.0:  # Arnold's light parameter `camera`: the dome lights the scene, the camera sees it × seen
         if env is None:
-            background = np.zeros(3)
+            background = colour * seen
         else:
-            warn(f"{name}: primvars:arnold:camera = 0 (hidden from the camera) is not supported with a dome "
-                 "texture (the dome is seen)")
+            warn(f"{name}: primvars:arnold:camera = {seen:g} (the camera sees the dome × {seen:g}) is not supported "
+                 "with a dome texture (the dome is seen as it lights)")
     return "dome", None, dict(background=background, ambient=colour * diffuse, environment=env)
 
 
-def _hidden_from_camera(prim, time) -> bool:
-    """Whether Arnold's ``primvars:arnold:camera`` (a light's contribution to camera rays) is authored 0."""
+def _camera_weight(prim, time) -> float:
+    """Arnold's ``primvars:arnold:camera``: the weight of a light's contribution to camera rays (a float, 1 when
+    not authored; 0 hides it from the camera, 0.1 shows it at a tenth)."""
     pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("arnold:camera")
     v = pv.Get(time) if pv and pv.HasAuthoredValue() else None
     try:
-        return v is not None and float(v) == 0.0
+        w = float(v) if v is not None else 1.0
     except (TypeError, ValueError):
-        return False
+        return 1.0
+    return max(w, 0.0) if np.isfinite(w) else 1.0
 
 
 #: The default lighting of a stage without lights, as usdview/usdrecord light one: a headlight along the camera's

@@ -66,6 +66,26 @@ class StageInfo:
 
 
 FALLBACK_SURFACES = ("auto", "arnold", "hydra")  # load_stage(fallback_surface=...)
+#: At most this many triangles of prototype copies made to colour a PointInstancer's instances one by one.
+INSTANCE_COLOUR_TRIANGLES = 2_000_000
+
+
+def instance_colour_primvars(prim, time, count: int):
+    """({name: (count, 3) float values} of a PointInstancer's per-instance (vertex/varying) primvars with three
+    numeric components and one element per instance, [names of every per-instance primvar])."""
+    colours, names = {}, []
+    for pv in UsdGeom.PrimvarsAPI(prim).GetPrimvarsWithValues():
+        if pv.GetInterpolation() not in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying):
+            continue
+        name = pv.GetPrimvarName()
+        names.append(name)
+        try:
+            vals = np.asarray(pv.ComputeFlattened(time), np.float64)
+        except (TypeError, ValueError):
+            continue
+        if vals.ndim == 2 and vals.shape == (count, 3) and pv.GetElementSize() == 1 and np.all(np.isfinite(vals)):
+            colours[name] = vals
+    return colours, sorted(names)
 
 
 class _Reader:
@@ -86,6 +106,7 @@ class _Reader:
         self.hi = np.full(3, -np.inf)
         self._proto_cache: dict[str, MeshData | None] = {}
         self._proto_ids: dict[tuple, int] = {}  # (prototype prim path, material rows) -> tracer prototype object id
+        self._instance_primvars_read: set = set()  # (instancer path, primvar name) drawn per instance
         self.light_prims: list = []  # the UsdLux prim of each tracer light
         self._grey = None
         self.empty: set = set()  # gprims whose geometry is absent or has no faces at this time
@@ -165,10 +186,16 @@ class _Reader:
 
     def shaded(self, prim, data: MeshData):
         """(data, per-triangle material rows, add_mesh keywords for UV sets and vertex colours)"""
+        return self.shaded_with_needs(prim, data)[:3]
+
+    def shaded_with_needs(self, prim, data: MeshData, display_color_given: bool = False):
+        """:meth:`shaded` and the MeshNeeds of its materials (None when they could not be read)."""
+        needs = None
         try:
-            material, needs = self.mats.for_prim(prim, data.n_faces, data.faces)
+            material, needs = self.mats.for_prim(prim, data.n_faces, data.faces, display_color_given)
             material, extra = self.mats.mesh_inputs(prim, data, material, needs)
         except (TypeError, ValueError, IndexError) as exc:  # a shading input of an unexpected type or shape
+            needs = None
             self.info.warn(f"{prim.GetPath()}: its material could not be read ({type(exc).__name__}: {exc}); "
                            "rendered grey")
             if self._grey is None:
@@ -177,7 +204,7 @@ class _Reader:
             material, extra = self._grey, ({} if data.uvs is None else dict(uvs=data.uvs))
         for w in data.warnings:
             self.info.warn(w)
-        return data, material, extra
+        return data, material, extra, needs
 
     def add_gprim(self, prim):
         data = self.cached_geometry(prim)
@@ -213,16 +240,20 @@ class _Reader:
         self._grow(transform_points(m, data.points))
         self.info.meshes.append((str(prim.GetPath()), int(len(tris))))
 
-    def add_instancer(self, prim, frames=None, depth=0):
+    def add_instancer(self, prim, frames=None, depth=0, outer=None):
         """A PointInstancer; ``frames`` (F, 4, 4) are the world matrices of the instancer itself when it is nested
-        in another instancer's prototype (one per outer instance), else its own world matrix."""
+        in another instancer's prototype (one per outer instance), else its own world matrix; ``outer`` the
+        per-instance colour primvars of the enclosing instancers, {name: (source path, (F, 3) values)}.
+
+        Per-instance (vertex/varying) primvars give each instance its element, as Hydra and Arnold do (an
+        instancer's value wins over the prototype's own, the innermost instancer's over an outer one's): a
+        3-component primvar that a prototype's material reads as its colour (displayColor, a primvar reader,
+        Arnold's user_data_rgb) is drawn per instance, by one copy of the prototype mesh per distinct value
+        (:data:`INSTANCE_COLOUR_TRIANGLES` at most). Others are named in one warning."""
         mats, idx, protos = instance_matrices(prim, self.time)
         frames = self.xf.world(prim)[None] if frames is None else frames
-        per_instance = sorted(pv.GetPrimvarName() for pv in UsdGeom.PrimvarsAPI(prim).GetPrimvarsWithValues()
-                              if pv.GetInterpolation() in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying))
-        if per_instance:  # Hydra gives each instance its element; the tracer's instances share their prototype's
-            self.info.warn(f"{prim.GetPath()}: per-instance primvars {', '.join(per_instance)} are not read (each "
-                           "instance shows its prototype's own values)")
+        here = str(prim.GetPath())
+        own, per_instance = instance_colour_primvars(prim, self.time, len(idx))
         total = 0
         for p_index, p_path in enumerate(protos):
             sel = np.flatnonzero(idx == p_index)
@@ -231,6 +262,9 @@ class _Reader:
                 continue
             # world matrix of every (outer instance, instance) pair before the piece's own relative transform
             base = (frames[:, None] @ mats[sel][None]).reshape(-1, 4, 4)
+            # the colour primvars of every such pair (row f·S + s), the innermost instancer's winning
+            colours = {name: (src, np.repeat(vals, len(sel), axis=0)) for name, (src, vals) in (outer or {}).items()}
+            colours.update({name: (here, np.tile(vals[sel], (len(frames), 1))) for name, vals in own.items()})
             for piece in renderable_prims(self.stage, self.time, self.purposes, root=root):
                 rel = self.xf.relative(piece, root.GetParent())
                 if piece.IsA(UsdGeom.PointInstancer):
@@ -238,7 +272,7 @@ class _Reader:
                         self.info.warn(f"{piece.GetPath()}: PointInstancers nested more than "
                                        f"{MAX_INSTANCER_DEPTH} deep (a prototype cycle?) (skipped)")
                     else:
-                        total += self.add_instancer(piece, base @ rel[None], depth + 1)
+                        total += self.add_instancer(piece, base @ rel[None], depth + 1, colours)
                     continue
                 if (piece.GetTypeName() not in GPRIM_TYPES and not piece.IsA(UsdGeom.Mesh)
                         and not _is_points_or_curves(piece)):
@@ -249,7 +283,7 @@ class _Reader:
                 data = self.geometry(piece)
                 if data is None or not len(data.triangles):
                     continue
-                data, material, extra = self.shaded(piece, data)
+                data, material, extra, needs = self.shaded_with_needs(piece, data, "displayColor" in colours)
                 full = base @ rel[None]
                 usable = _usable(full)
                 if not usable.all():
@@ -260,15 +294,49 @@ class _Reader:
                     continue
                 # the piece's mesh once, in its own space; one instance per (outer instance, instance) with an
                 # object id of its own (AOV objectid, picking), ids consecutive in instance order
-                proto = self.b.add_mesh(data.points, data.triangles, material=material,
-                                        name=f"{prim.GetPath()}[{piece.GetPath()}]", normals=data.normals,
-                                        **dict(dict(uvs=data.uvs), **extra))
+                label = f"{prim.GetPath()}[{piece.GetPath()}]"
+                name = needs.color[0] if needs is not None and needs.color is not None else None
+                if name in colours and "colors" in extra:
+                    src, values = colours[name]
+                    if self._add_coloured_instances(label, data, material, extra, full, values[usable], src, name):
+                        self._instance_primvars_read.add((src, name))
+                        self._grow_instances(full, data.points)
+                        total += len(data.triangles) * len(full)
+                        continue
+                proto = self.b.add_mesh(data.points, data.triangles, material=material, name=label,
+                                        normals=data.normals, **dict(dict(uvs=data.uvs), **extra))
                 self.b.add_instances(proto, full)
                 self._grow_instances(full, data.points)
                 total += len(data.triangles) * len(full)
+        unread = sorted(set(per_instance) - {n for src, n in self._instance_primvars_read if src == here})
+        if unread:  # Hydra gives each instance its element; these reach no material as a colour here
+            self.info.warn(f"{prim.GetPath()}: per-instance primvars {', '.join(unread)} are not read (each "
+                           "instance shows its prototype's own values)")
         if depth == 0:
             self.info.meshes.append((str(prim.GetPath()), int(total)))
         return total
+
+    def _add_coloured_instances(self, label, data, material, extra, full, values, src, name) -> bool:
+        """The instances ``full`` (K, 4, 4) of one prototype piece, each coloured by its row of ``values`` (K, 3):
+        one copy of the piece's mesh per distinct colour, its vertex colour that colour. False (nothing added)
+        when the copies would pass :data:`INSTANCE_COLOUR_TRIANGLES`."""
+        values = np.asarray(values, np.float32)
+        uniq, inverse = np.unique(values, axis=0, return_inverse=True)
+        inverse = np.asarray(inverse).reshape(-1)
+        if len(uniq) * len(data.triangles) > INSTANCE_COLOUR_TRIANGLES:
+            self.info.warn(f"{src}: per-instance primvar {name} has {len(uniq)} distinct values on {label}'s "
+                           f"{len(data.triangles)} triangles: more than {INSTANCE_COLOUR_TRIANGLES} triangles of "
+                           "copies (not read; each instance shows the prototype's own value)")
+            return False
+        corners = np.asarray(extra["colors"]).shape
+        for u, colour in enumerate(uniq):
+            rows = np.flatnonzero(inverse == u)
+            kw = dict(extra, colors=np.broadcast_to(colour[: corners[-1]], corners).copy())
+            proto = self.b.add_mesh(data.points, data.triangles, material=material, name=label,
+                                    normals=data.normals, **dict(dict(uvs=data.uvs), **kw))
+            # the names an unsplit piece would give (usd_io.geometry.instancing.instancer_motion reads the index)
+            self.b.add_instances(proto, full[rows], names=[f"{label}[{i}]" for i in rows])
+        return True
 
     def _grow_instances(self, matrices, points):
         self._grow(instance_bounds(matrices, points))

@@ -156,10 +156,11 @@ class MaterialTable:
                 return mat
         return None
 
-    def for_prim(self, prim, n_faces: int, faces: np.ndarray):
+    def for_prim(self, prim, n_faces: int, faces: np.ndarray, display_color_given: bool = False):
         """(per-triangle material rows or one row, MeshNeeds) for a gprim whose triangles come from ``faces``.
         GeomSubset bindings win on their faces; the prim's own binding (or displayColor) covers the rest and is
-        not created at all when the subsets cover every face."""
+        not created at all when the subsets cover every face. ``display_color_given``: a PointInstancer gives the
+        prim a displayColor per instance (unbound, it reads one even without its own)."""
         per_face = np.full(n_faces, -1, np.int64)
         needs = MeshNeeds()
         label = str(prim.GetPath())
@@ -180,7 +181,7 @@ class MaterialTable:
         if mat is not None:
             row, pneeds = self.material(mat)
         else:
-            row, pneeds = self.display_color(prim)
+            row, pneeds = self.display_color(prim, display_color_given)
         needs.merge(pneeds, self.warn, label)
         if not np.any(per_face >= 0):
             return row, needs
@@ -215,7 +216,7 @@ class MaterialTable:
         return self.uv_set_names.index(key)
 
     # ------------------------------------------------------------------ displayColor
-    def display_color(self, prim):
+    def display_color(self, prim, given: bool = False):
         """Unbound geometry: displayColor as a vertex colour (any interpolation), on a plain diffuse surface; on a
         stage written for Arnold, Arnold's fallback standard_surface (usd_io.materials.arnold.DEFAULT_SURFACE)."""
         if self._arnold_stage is None:  # asked once per table (one stage)
@@ -223,7 +224,7 @@ class MaterialTable:
         if self._arnold_stage:
             return self._arnold_default(), MeshNeeds(color=("displayColor", (1.0, 1.0, 1.0)))
         pv = find_primvar(prim, "displayColor")  # inherited from ancestors as UsdGeomPrimvarsAPI says
-        if pv is None:
+        if pv is None and not given:
             return self._plain("displayColor(none)", DEFAULT_DISPLAY), MeshNeeds()
         op = UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayOpacity")
         if op and op.HasValue():
