@@ -329,3 +329,48 @@ def test_a_dome_with_a_fractional_arnold_camera_weight_is_seen_at_that_weight():
     np.testing.assert_allclose(full[0, 0], (1, 1, 1), atol=1e-4)
     np.testing.assert_allclose(tenth[0, 0], (0.1, 0.1, 0.1), atol=1e-4)
     np.testing.assert_allclose(tenth[8, 12], full[8, 12], rtol=0.05)
+
+
+# ---------------------------------------------------------------- the harness: how Arnold wrote its references
+def _write_image(path, values, fmt):
+    import OpenImageIO as oiio
+
+    h, w = values.shape[:2]
+    buf = oiio.ImageBuf(oiio.ImageSpec(w, h, values.shape[2], fmt))
+    buf.set_pixels(oiio.ROI(0, w, 0, h, 0, 1, 0, values.shape[2]), values)
+    assert buf.write(str(path)), oiio.geterror()
+
+
+def test_the_harness_reads_integer_references_as_srgb_and_float_ones_as_linear(tmp_path):
+    """tools/fidelity_arnold.reference_linear: Arnold's colour manager writes integer outputs (kick's 8-bit
+    TIFF) in its narrow colour space, sRGB-encoded by default, and float outputs linear; a stage whose RenderProduct
+    or colour manager names a linear narrow space gets linear integers. Code value 100/255 is sRGB(0.4/π) = 0.1273
+    linear (arnold-usd's test_0191)."""
+    import sys as _sys
+    import os as _os
+
+    _sys.path.insert(0, _os.path.join(_os.path.dirname(_os.path.dirname(_os.path.abspath(__file__))), "tools"))
+    import fidelity_arnold as fa
+    import OpenImageIO as oiio
+
+    code = np.full((2, 2, 4), 100 / 255, np.float32)
+    code[..., 3] = 1.0
+    _write_image(tmp_path / "int.tif", (code * 255 + 0.5).astype(np.uint8), oiio.UINT8)
+    _write_image(tmp_path / "float.exr", code, oiio.FLOAT)
+    plain = new_stage()
+    plain.GetRootLayer().Export(str(tmp_path / "plain.usda"))
+    linear = new_stage()
+    rs = linear.DefinePrim("/Render/Settings", "RenderSettings")
+    rs.CreateAttribute("arnold:color_manager:color_space_narrow", Sdf.ValueTypeNames.String).Set("sRGB")
+    linear.GetRootLayer().Export(str(tmp_path / "linear.usda"))
+
+    rgba, enc, _why = fa.reference_linear(str(tmp_path / "int.tif"), str(tmp_path / "plain.usda"))
+    assert enc == "srgb"
+    np.testing.assert_allclose(rgba[0, 0, :3], 0.4 / np.pi, rtol=0.01)
+    np.testing.assert_allclose(rgba[0, 0, 3], 1.0)
+    rgba, enc, _why = fa.reference_linear(str(tmp_path / "float.exr"), str(tmp_path / "plain.usda"))
+    assert enc == "linear"
+    np.testing.assert_allclose(rgba[0, 0, :3], 100 / 255, rtol=1e-5)
+    rgba, enc, why = fa.reference_linear(str(tmp_path / "int.tif"), str(tmp_path / "linear.usda"))
+    assert enc == "linear" and "color_space_narrow" in why
+    np.testing.assert_allclose(rgba[0, 0, :3], 100 / 255, rtol=1e-5)
