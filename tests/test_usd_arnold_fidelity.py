@@ -374,3 +374,29 @@ def test_the_harness_reads_integer_references_as_srgb_and_float_ones_as_linear(t
     rgba, enc, why = fa.reference_linear(str(tmp_path / "int.tif"), str(tmp_path / "linear.usda"))
     assert enc == "linear" and "color_space_narrow" in why
     np.testing.assert_allclose(rgba[0, 0, :3], 100 / 255, rtol=1e-5)
+
+
+def test_the_harness_reads_our_colours_in_arnolds_rendering_space(tmp_path):
+    """Arnold's default colour manager renders in ACEScg (every reference log of arnold-usd's suite): a constant
+    (1, 0, 0) is ACEScg red, written to an 8-bit output as Rec.709 (1.705, -0.130, -0.024) before its encoding
+    (MaterialX's acescg_to_lin_rec709). A float output stays in the rendering space; a stage whose colour manager
+    renders in "sRGB" (linear Rec.709 in Arnold's config) needs no conversion."""
+    import sys as _sys
+    import os as _os
+
+    _sys.path.insert(0, _os.path.join(_os.path.dirname(_os.path.dirname(_os.path.abspath(__file__))), "tools"))
+    import fidelity_arnold as fa
+
+    red = np.zeros((1, 1, 4), np.float32)
+    red[..., 0] = red[..., 3] = 1.0
+    plain = new_stage()
+    assert fa.rendering_space(plain)[0] == "acescg"
+    np.testing.assert_allclose(fa.to_output_space(red, "acescg", integer=True)[0, 0],
+                               (1.705051, -0.130256, -0.024003, 1.0), atol=1e-5)
+    np.testing.assert_allclose(fa.to_output_space(red, "acescg", integer=False), red)
+    s = new_stage()
+    rs = s.DefinePrim("/Render/Settings", "RenderSettings")
+    rs.CreateAttribute("arnold:color_manager:color_space_linear", Sdf.ValueTypeNames.String).Set("sRGB")
+    space, why = fa.rendering_space(s)
+    assert space == "rec709" and "color_space_linear" in why
+    np.testing.assert_allclose(fa.to_output_space(red, space, integer=True), red)

@@ -20,6 +20,10 @@ with the reference read as Arnold wrote it (:func:`reference_linear`: float outp
 the narrow colour space, sRGB-encoded unless the stage names a linear one; ``reference_encoding`` in the JSONL
 says which and why):
 
+Our colour numbers are read as Arnold's rendering space (:func:`rendering_space`: ACEScg, Arnold's default, unless
+the stage sets one), so an integer reference is compared with our render converted to Rec.709 primaries
+(``--rendering-space rec709`` compares the numbers as they are):
+
     psnr      10·log10(1 / MSE) over R, G, B of both images' **linear** values clamped to [0, 1] (an 8-bit
               reference decoded from sRGB holds min(linear, 1); float references are clamped the same way).
     psnr_srgb the same after the sRGB transfer function (how a viewer sees the pair; for reference only)
@@ -181,6 +185,24 @@ def narrow_color_space(stage) -> tuple[str | None, str]:
     return None, ""
 
 
+def image_format(path: str):
+    """The OpenImageIO TypeDesc of an image file's pixels (None: unreadable)."""
+    import OpenImageIO as oiio
+
+    inp = oiio.ImageInput.open(path)
+    if not inp:
+        return None
+    fmt = inp.spec().format
+    inp.close()
+    return fmt
+
+
+def is_float(fmt) -> bool:
+    import OpenImageIO as oiio
+
+    return fmt is not None and fmt.basetype in (oiio.HALF, oiio.FLOAT, oiio.DOUBLE)
+
+
 def reference_linear(path: str, stage_path: str) -> tuple[np.ndarray, str, str]:
     """(the reference's linear RGBA, "linear" or "srgb": how Arnold encoded it, why). Arnold's colour manager (the
     logs of every reference: color_manager_ocio with Arnold's own config) writes **float** outputs (EXR, float
@@ -192,11 +214,8 @@ def reference_linear(path: str, stage_path: str) -> tuple[np.ndarray, str, str]:
     from pxr import Usd
 
     rgba = read_rgba(path)
-    inp = oiio.ImageInput.open(path)
-    fmt = inp.spec().format if inp else None
-    if inp:
-        inp.close()
-    if fmt is not None and fmt.basetype in (oiio.HALF, oiio.FLOAT, oiio.DOUBLE):
+    fmt = image_format(path)
+    if is_float(fmt):
         return rgba, "linear", f"a {fmt} image: Arnold writes float outputs linear"
     space, where = narrow_color_space(Usd.Stage.Open(stage_path))
     if space is not None and space.strip().lower() in LINEAR_SPACES:
@@ -204,6 +223,46 @@ def reference_linear(path: str, stage_path: str) -> tuple[np.ndarray, str, str]:
     rgba[..., :3] = srgb_decode(np.clip(rgba[..., :3], 0.0, 1.0))
     return rgba, "srgb", (f"integer ({fmt}) output in {space!r} ({where})" if space else
                           f"integer ({fmt}) output: Arnold's default narrow colour space, sRGB")
+
+
+#: Names of linear Rec.709 in Arnold's OCIO config (and the raw names): a rendering space that needs no conversion.
+REC709_SPACES = ("srgb", "lin_srgb", "lin_rec709", "linear rec.709 (srgb)", "scene-linear rec.709-srgb",
+                 "utility - linear - srgb", "raw")
+
+
+def rendering_space(stage) -> tuple[str, str]:
+    """("acescg" or "rec709", why): the colour space Arnold shaded the test in. Arnold's default colour manager
+    (color_manager_ocio with Arnold's own config) renders in ACEScg: every reference log says 'rendering color
+    space is "ACEScg"'. Colour constants (shader inputs, light colours, displayColor, user data) are ACEScg numbers
+    there, and an integer output is converted to Rec.709 primaries before its sRGB encoding, so a saturated
+    constant comes out more saturated than the same numbers read as Rec.709. A stage whose RenderSettings set the
+    colour manager's ``color_space_linear`` renders in that space: "sRGB" is linear Rec.709 in Arnold's config
+    (test_1459), and a name the config lacks ("linear", test_1868) makes kick ignore colour spaces."""
+    from pxr import Usd
+
+    for prim in stage.Traverse(Usd.TraverseInstanceProxies()):
+        if prim.GetTypeName() != "RenderSettings":
+            continue
+        for name in ("arnold:color_manager:color_space_linear", "arnold:global:color_space_linear"):
+            attr = prim.GetAttribute(name)
+            value = attr.Get() if attr and attr.HasAuthoredValue() else None
+            if isinstance(value, str) and value.strip():
+                space = "acescg" if value.strip().lower() == "acescg" else "rec709"
+                return space, f"{prim.GetPath()}.{name} = {value!r}"
+    return "acescg", "Arnold's default colour manager renders in ACEScg"
+
+
+def to_output_space(rgba: np.ndarray, space: str, integer: bool) -> np.ndarray:
+    """Our render (its colour numbers read as Arnold's rendering space) in the reference's space: an integer output
+    of an ACEScg render is converted to Rec.709 primaries (tracer.colorspace.AP1_TO_REC709); a float output stays in
+    the rendering space (its driver's "auto" colour space), as does a Rec.709 render."""
+    from tracer.colorspace import AP1_TO_REC709
+
+    if space != "acescg" or not integer:
+        return rgba
+    out = np.array(rgba, np.float32, copy=True)
+    out[..., :3] = out[..., :3] @ np.asarray(AP1_TO_REC709, np.float32).T
+    return out
 
 
 def arnold_camera(path: str, camera: str, pixel_aspect: float | None):
@@ -356,6 +415,9 @@ def main(argv=None) -> int:
     p.add_argument("--jsonl", default=None)
     p.add_argument("--sheet", default=None, help="contact sheet PNG (reference | ours, worst first)")
     p.add_argument("--sheet-limit", type=int, default=0, help="only the worst N pairs on the sheet")
+    p.add_argument("--rendering-space", choices=("arnold", "rec709"), default="arnold",
+                   help="arnold: our colour numbers read as Arnold's rendering space (ACEScg unless the stage sets "
+                        "one: rendering_space()); rec709: as Rec.709 (no conversion)")
     p.add_argument("--list", action="store_true")
     p.add_argument("--summary-of", default=None, metavar="JSONL", help="print the summary of an earlier run's JSONL")
     args = p.parse_args(argv)
@@ -383,8 +445,13 @@ def main(argv=None) -> int:
             ref, encoding, why = reference_linear(test["reference"], test["stage"])
             other = srgb(ref[..., :3]) if encoding == "srgb" else srgb_decode(np.clip(ref[..., :3], 0, 1))
             ours, covered, info, camera = render_ours(test, ref.shape[:2], args.aa)
+            from pxr import Usd
+            space, space_why = (rendering_space(Usd.Stage.Open(test["stage"])) if args.rendering_space == "arnold"
+                                else ("rec709", "--rendering-space rec709"))
+            ours = to_output_space(ours, space, integer=not is_float(image_format(test["reference"])))
             row.update(camera=camera, frame=test.get("frame"), size=[ref.shape[1], ref.shape[0]],
-                       reference_encoding=encoding, reference_encoding_why=why,
+                       reference_encoding=encoding, reference_encoding_why=why, rendering_space=space,
+                       rendering_space_why=space_why,
                        **compare(ref, ours, covered), warnings=list(info.warnings),
                        psnr_other_reading=round(psnr(np.clip(other, 0, 1), np.clip(ours[..., :3], 0, 1)), 2))
             side_by_side(os.path.join(args.out, test["name"] + ".png"), ref, ours)
