@@ -400,3 +400,32 @@ def test_the_harness_reads_our_colours_in_arnolds_rendering_space(tmp_path):
     space, why = fa.rendering_space(s)
     assert space == "rec709" and "color_space_linear" in why
     np.testing.assert_allclose(fa.to_output_space(red, space, integer=True), red)
+
+
+# ---------------------------------------------------------------- a primvar read into a colour other than the base
+def test_arnold_flat_shows_the_primvar_its_user_data_rgb_reads():
+    """arnold-usd's test_2530/test_2687: an arnold:flat whose color is a user_data_rgb of the mesh's primvar
+    test_color. flat is unlit: each face shows its colour exactly (here uniform, one per face). It showed the
+    fallback white with a warning ("color driven by arnold:user_data_rgb is not supported")."""
+    s = new_stage()
+    add_camera(s, eye=(0, 0, 10))
+    q = quad(s, "/Q", half=3.0)
+    q.CreateFaceVertexCountsAttr([4, 4])
+    q.CreatePointsAttr([(-3, -3, 0), (0, -3, 0), (0, 3, 0), (-3, 3, 0), (3, -3, 0), (3, 3, 0)])
+    q.CreateFaceVertexIndicesAttr([0, 1, 2, 3, 1, 4, 5, 2])
+    pv = UsdGeom.PrimvarsAPI(q).CreatePrimvar("test_color", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.uniform)
+    pv.Set([Gf.Vec3f(0.2, 0.6, 0.9), Gf.Vec3f(0.9, 0.3, 0.1)])
+    mat = UsdShade.Material.Define(s, "/M")
+    flat = UsdShade.Shader.Define(s, "/M/Flat")
+    flat.CreateIdAttr("arnold:flat")
+    ud = UsdShade.Shader.Define(s, "/M/UD")
+    ud.CreateIdAttr("arnold:user_data_rgb")
+    ud.CreateInput("attribute", Sdf.ValueTypeNames.String).Set("test_color")
+    flat.CreateInput("color", C3).ConnectToSource(ud.ConnectableAPI(), "out")
+    mat.CreateSurfaceOutput("arnold").ConnectToSource(flat.ConnectableAPI(), "out")
+    bind(q, mat)
+    scene, info = load_stage(s, width=24, height=16, default_light=False)
+    img = render(scene, RenderSettings(width=24, height=16, samples=1)).rgb
+    np.testing.assert_allclose(img[8, 6], (0.2, 0.6, 0.9), atol=2e-3)
+    np.testing.assert_allclose(img[8, 18], (0.9, 0.3, 0.1), atol=2e-3)
+    assert not any("not supported" in w for w in info.warnings), info.warnings

@@ -104,6 +104,20 @@ class UVLookup:
         return node, uv
 
 
+@dataclass
+class PrimvarColour:
+    """A lookup (tracer.shading.principled) of the mesh's colour primvar ``name`` (its vertex colour, Scene.colors):
+    what a primvar reader or Arnold's user_data_rgb upstream of a colour input other than the base colour (an
+    arnold:flat's color, an emission) reads."""
+
+    name: str
+
+    def write(self, g, memo: dict):
+        col = g.add("vertex_color", layer_name=self.name)
+        rgb = g.add("separate_color", {"Color": col["Color"]})
+        return dict(rgb=col["Color"], r=rgb["Red"], g=rgb["Green"], b=rgb["Blue"], a=col["Alpha"]), None
+
+
 def ior_from_f0(f0: float) -> float:
     """The inverse of :func:`f0_from_ior`."""
     r = float(np.sqrt(np.clip(f0, 0.0, 0.999)))
@@ -431,6 +445,12 @@ class MaterialTable:
                 return
             c = const[src.channel] if src.channel >= 0 else None
             setattr(t, key, (c, c, c) if c is not None else tuple(const[:3]))
+            return
+        if isinstance(src, net.PrimvarLookup) and (needs.color is None or needs.color[0] == src.name):
+            # the mesh's vertex colour (one colour primvar per mesh: MeshNeeds), its fallback where it has none
+            needs.color = (src.name, net.floats(src.fallback, 3, default) if src.fallback is not None else default)
+            setattr(t, key, (1.0, 1.0, 1.0))
+            t.read(key, PrimvarColour(src.name), -1)
             return
         fb = self._fallback_of(src, default)
         self.warn(f"{label}: {name} driven by {self._what(src)} is not supported (fallback {fb} used)")
