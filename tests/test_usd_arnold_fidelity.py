@@ -429,3 +429,28 @@ def test_arnold_flat_shows_the_primvar_its_user_data_rgb_reads():
     np.testing.assert_allclose(img[8, 6], (0.2, 0.6, 0.9), atol=2e-3)
     np.testing.assert_allclose(img[8, 18], (0.9, 0.3, 0.1), atol=2e-3)
     assert not any("not supported" in w for w in info.warnings), info.warnings
+
+
+def test_the_harness_opens_a_stage_where_kick_runs_it(tmp_path):
+    """arnold-usd's suite runs kick in a directory holding the test's data files beside the suite's common/:
+    a stage's ../common/bricks.png names testsuite/common/bricks.png there (fidelity_arnold.kick_layout); read
+    from data/ it names test_X/common/, which does not exist (test_1567's dome texture was "not found")."""
+    import sys as _sys
+    import os as _os
+
+    _sys.path.insert(0, _os.path.join(_os.path.dirname(_os.path.dirname(_os.path.abspath(__file__))), "tools"))
+    import fidelity_arnold as fa
+
+    suite = tmp_path / "testsuite"
+    (suite / "common").mkdir(parents=True)
+    (suite / "common" / "bricks.png").write_bytes(b"png")
+    (suite / "test_0001" / "data").mkdir(parents=True)
+    s = new_stage()
+    s.DefinePrim("/T").CreateAttribute("file", Sdf.ValueTypeNames.Asset).Set(Sdf.AssetPath("../common/bricks.png"))
+    s.GetRootLayer().Export(str(suite / "test_0001" / "data" / "test.usda"))
+    path = fa.kick_layout(str(suite / "test_0001" / "data" / "test.usda"), str(tmp_path / "run"))
+    mirrored = Usd.Stage.Open(path)
+    got = mirrored.GetPrimAtPath("/T").GetAttribute("file").Get().resolvedPath
+    assert got and _os.path.samefile(got, suite / "common" / "bricks.png")
+    raw = Usd.Stage.Open(str(suite / "test_0001" / "data" / "test.usda"))
+    assert not raw.GetPrimAtPath("/T").GetAttribute("file").Get().resolvedPath

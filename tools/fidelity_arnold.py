@@ -9,7 +9,7 @@ Nothing is downloaded: ARNOLD_USD_CHECKOUT is a checkout (or extracted copy) of 
 (cmake/utils/test.cmake) renders ``data/<scene>`` with ``kick -r 160 120 -sm lambert ... <kick_params>``; tests
 without a ``scene`` render ``test.ass``, an Arnold scene this tracer does not read), the scene and a reference
 image exist, and the stage has a camera (kick's ``-c`` when given, else a RenderSettings' camera, else the first
-camera: the one Arnold's USD reader creates first). Each is rendered in-process (``usd_io.load_stage`` +
+camera: the one Arnold's USD reader creates first). Each is rendered in-process (from a mirror of kick's run directory, :func:`kick_layout`) (``usd_io.load_stage`` +
 ``tracer.render``) at the reference's size, at kick's ``-frame`` (else the stage's default time), through that
 camera conformed as Arnold conforms it (its ``fov`` is horizontal: the horizontal aperture is kept, UsdRender's
 adjustApertureHeight, written on a RenderSettings on the session layer), with no default light (Arnold adds none),
@@ -291,18 +291,38 @@ def stage_pixel_aspect(stage) -> float | None:
     return None
 
 
-def render_ours(test: dict, size, aa: int):
+def kick_layout(stage_path: str, root: str) -> str:
+    """The stage as kick opens it: the suite runs each test in a directory holding its ``data/`` files, beside the
+    suite's ``common/`` (testsuite/SConscript copies it), so a relative asset ``../common/bricks.png`` names
+    ``testsuite/common``. Mirrored under ``root`` with symbolic links (nothing copied); the mirrored stage path."""
+    data = os.path.dirname(stage_path)
+    test_dir = os.path.dirname(data)
+    suite = os.path.dirname(test_dir)
+    run = os.path.join(root, os.path.basename(test_dir))
+    os.makedirs(run, exist_ok=True)
+    for name in os.listdir(data):
+        link = os.path.join(run, name)
+        if not os.path.lexists(link):
+            os.symlink(os.path.join(data, name), link)
+    common = os.path.join(root, "common")
+    if os.path.isdir(os.path.join(suite, "common")) and not os.path.lexists(common):
+        os.symlink(os.path.join(suite, "common"), common)
+    return os.path.join(run, os.path.basename(stage_path))
+
+
+def render_ours(test: dict, size, aa: int, layout_root: str | None = None):
     import tracer
     from pxr import Usd
     from usd_io.exporters import arnold_usdlux_version
     from usd_io.reader import load_stage
 
     h, w = size
-    probe = Usd.Stage.Open(test["stage"])
+    path = kick_layout(test["stage"], layout_root) if layout_root else test["stage"]
+    probe = Usd.Stage.Open(path)
     camera = find_camera(probe, test.get("camera"))
     if camera is None:
         raise NoCamera("the stage has no camera" + (f" {test['camera']}" if test.get("camera") else ""))
-    stage, settings_prim = arnold_camera(test["stage"], camera, stage_pixel_aspect(probe))
+    stage, settings_prim = arnold_camera(path, camera, stage_pixel_aspect(probe))
     units = "spec" if arnold_usdlux_version(probe) else "arnold"  # kick reads every stage in Arnold's units
     scene, info = load_stage(stage, time=test.get("frame"), camera=camera, width=w, height=h,
                              render_settings_prim=settings_prim, default_light=False, light_units=units,
@@ -444,7 +464,8 @@ def main(argv=None) -> int:
                 raise NoCamera(test["skip"])
             ref, encoding, why = reference_linear(test["reference"], test["stage"])
             other = srgb(ref[..., :3]) if encoding == "srgb" else srgb_decode(np.clip(ref[..., :3], 0, 1))
-            ours, covered, info, camera = render_ours(test, ref.shape[:2], args.aa)
+            ours, covered, info, camera = render_ours(test, ref.shape[:2], args.aa,
+                                                      layout_root=os.path.join(args.out, "kick-layout"))
             from pxr import Usd
             space, space_why = (rendering_space(Usd.Stage.Open(test["stage"])) if args.rendering_space == "arnold"
                                 else ("rec709", "--rendering-space rec709"))
