@@ -454,3 +454,30 @@ def test_the_harness_opens_a_stage_where_kick_runs_it(tmp_path):
     assert got and _os.path.samefile(got, suite / "common" / "bricks.png")
     raw = Usd.Stage.Open(str(suite / "test_0001" / "data" / "test.usda"))
     assert not raw.GetPrimAtPath("/T").GetAttribute("file").Get().resolvedPath
+
+
+def test_reading_a_stage_in_acescg_converts_colour_textures_not_constants(tmp_path):
+    """load_stage(rendering_space="acescg"): Arnold's default colour manager converts a colour texture from sRGB
+    into its ACEScg rendering space and takes constants as ACEScg numbers. An 8-bit sRGB texture of pure red,
+    shown unlit (arnold:image as the surface), is Rec.709→AP1 (0.6131, 0.0702, 0.0206) there (the inverse of
+    MaterialX's acescg_to_lin_rec709; converted back for display it is red again); a flat constant is unchanged."""
+    import OpenImageIO as oiio
+    from tracer.colorspace import AP1_TO_REC709
+
+    red = np.zeros((2, 2, 3), np.uint8)
+    red[..., 0] = 255
+    _write_image(tmp_path / "red.png", red, oiio.UINT8)
+    img_stage = st.arnold_uv_quad("arnold:image", {})
+    UsdShade.Shader(img_stage.GetPrimAtPath("/M/S")).CreateInput("filename", Sdf.ValueTypeNames.Asset).Set(
+        Sdf.AssetPath(str(tmp_path / "red.png")))
+    flat_stage = st.arnold_uv_quad("arnold:flat", {"color": (C3, Gf.Vec3f(0.2, 0.5, 0.7))})
+
+    def centre(stage, space):
+        scene, _info = load_stage(stage, width=8, height=8, default_light=False, rendering_space=space)
+        return render(scene, RenderSettings(width=8, height=8, samples=1)).rgb[4, 4]
+
+    want = np.linalg.inv(np.asarray(AP1_TO_REC709)) @ np.array([1.0, 0.0, 0.0])
+    np.testing.assert_allclose(want, (0.6131, 0.0702, 0.0206), atol=1e-3)
+    np.testing.assert_allclose(centre(img_stage, "acescg"), want, atol=2e-3)
+    np.testing.assert_allclose(centre(img_stage, "rec709"), (1.0, 0.0, 0.0), atol=2e-3)
+    np.testing.assert_allclose(centre(flat_stage, "acescg"), (0.2, 0.5, 0.7), atol=2e-3)

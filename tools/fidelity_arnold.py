@@ -234,7 +234,8 @@ def rendering_space(stage) -> tuple[str, str]:
     """("acescg" or "rec709", why): the colour space Arnold shaded the test in. Arnold's default colour manager
     (color_manager_ocio with Arnold's own config) renders in ACEScg: every reference log says 'rendering color
     space is "ACEScg"'. Colour constants (shader inputs, light colours, displayColor, user data) are ACEScg numbers
-    there, and an integer output is converted to Rec.709 primaries before its sRGB encoding, so a saturated
+    there (load_stage(rendering_space="acescg") reads them so and converts colour textures into ACEScg, as
+    Arnold does), and an integer output is converted to Rec.709 primaries before its sRGB encoding, so a saturated
     constant comes out more saturated than the same numbers read as Rec.709. A stage whose RenderSettings set the
     colour manager's ``color_space_linear`` renders in that space: "sRGB" is linear Rec.709 in Arnold's config
     (test_1459), and a name the config lacks ("linear", test_1868) makes kick ignore colour spaces."""
@@ -310,7 +311,7 @@ def kick_layout(stage_path: str, root: str) -> str:
     return os.path.join(run, os.path.basename(stage_path))
 
 
-def render_ours(test: dict, size, aa: int, layout_root: str | None = None):
+def render_ours(test: dict, size, aa: int, layout_root: str | None = None, rendering_space: str = "rec709"):
     import tracer
     from pxr import Usd
     from usd_io.exporters import arnold_usdlux_version
@@ -326,7 +327,8 @@ def render_ours(test: dict, size, aa: int, layout_root: str | None = None):
     units = "spec" if arnold_usdlux_version(probe) else "arnold"  # kick reads every stage in Arnold's units
     scene, info = load_stage(stage, time=test.get("frame"), camera=camera, width=w, height=h,
                              render_settings_prim=settings_prim, default_light=False, light_units=units,
-                             fallback_surface="arnold")  # kick: Arnold's default shader on unbound geometry
+                             fallback_surface="arnold",  # kick: Arnold's default shader on unbound geometry
+                             rendering_space=rendering_space)
     settings = tracer.RenderSettings(width=w, height=h, samples=aa, transparent=False, light_samples=4,
                                      sky_samples=8, max_depth=6, aovs=("objectid",))
     image = tracer.render(scene, settings)
@@ -464,11 +466,12 @@ def main(argv=None) -> int:
                 raise NoCamera(test["skip"])
             ref, encoding, why = reference_linear(test["reference"], test["stage"])
             other = srgb(ref[..., :3]) if encoding == "srgb" else srgb_decode(np.clip(ref[..., :3], 0, 1))
-            ours, covered, info, camera = render_ours(test, ref.shape[:2], args.aa,
-                                                      layout_root=os.path.join(args.out, "kick-layout"))
             from pxr import Usd
             space, space_why = (rendering_space(Usd.Stage.Open(test["stage"])) if args.rendering_space == "arnold"
                                 else ("rec709", "--rendering-space rec709"))
+            ours, covered, info, camera = render_ours(test, ref.shape[:2], args.aa,
+                                                      layout_root=os.path.join(args.out, "kick-layout"),
+                                                      rendering_space=space)
             ours = to_output_space(ours, space, integer=not is_float(image_format(test["reference"])))
             row.update(camera=camera, frame=test.get("frame"), size=[ref.shape[1], ref.shape[0]],
                        reference_encoding=encoding, reference_encoding_why=why, rendering_space=space,

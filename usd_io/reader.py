@@ -15,6 +15,7 @@ import numpy as np
 from pxr import Sdf, Usd, UsdGeom, UsdLux
 
 from tracer import SceneBuilder
+from tracer.colorspace import AP1_TO_REC709
 from tracer.scene import instance_bounds
 
 from . import camera as cam
@@ -34,6 +35,7 @@ from .layer_metadata import meters_per_unit
 from .lights import convert_light, default_lights, light_links
 from .materials.arnold import render_globals as arnold_render_globals
 from .materials.table import MaterialTable
+from .materials.texture_files import TextureCache
 from .render_settings import CONFORM, DEFAULT_CONFORM, crop_to_data_window, read_render_settings
 from .stage import (DEFAULT_PURPOSES, UsdInputError, captured_stderr, check_purposes, composition_warnings, open_stage,
                     renderable_prims, stage_messages, stage_time)
@@ -66,6 +68,7 @@ class StageInfo:
 
 
 FALLBACK_SURFACES = ("auto", "arnold", "hydra")  # load_stage(fallback_surface=...)
+RENDERING_SPACES = ("rec709", "acescg")  # load_stage(rendering_space=...)
 #: At most this many triangles of prototype copies made to colour a PointInstancer's instances one by one.
 INSTANCE_COLOUR_TRIANGLES = 2_000_000
 
@@ -90,7 +93,7 @@ def instance_colour_primvars(prim, time, count: int):
 
 class _Reader:
     def __init__(self, stage, time, purposes, segments, info: StageInfo, light_units: str = "auto",
-                 fallback_surface: str = "auto"):
+                 fallback_surface: str = "auto", rendering_space: str = "rec709"):
         self.stage, self.time, self.purposes, self.segments, self.info = stage, time, purposes, segments, info
         self.light_units, note = exporter_light_units(stage, light_units)  # usd_io.exporters
         if note:
@@ -102,6 +105,10 @@ class _Reader:
             raise ValueError(f"fallback surface {fallback_surface!r}: choose one of {', '.join(FALLBACK_SURFACES)}")
         if fallback_surface != "auto":  # else asked of the stage at the first unbound prim (written_for_arnold)
             self.mats._arnold_stage = fallback_surface == "arnold"
+        if rendering_space not in RENDERING_SPACES:
+            raise ValueError(f"rendering space {rendering_space!r}: choose one of {', '.join(RENDERING_SPACES)}")
+        if rendering_space == "acescg":  # colour textures into ACEScg; constants are taken as ACEScg numbers
+            self.mats.files = TextureCache(np.linalg.inv(np.asarray(AP1_TO_REC709, np.float64)))
         self.lo = np.full(3, np.inf)
         self.hi = np.full(3, -np.inf)
         self._proto_cache: dict[str, MeshData | None] = {}
@@ -520,7 +527,7 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
                height: int | None = None, purposes=DEFAULT_PURPOSES, segments: int = DEFAULT_SEGMENTS,
                default_light: bool = True, variants=(), complexity: str = DEFAULT_COMPLEXITY,
                render_settings_prim: str | None = None, light_units: str = "auto", depth_of_field: bool = True,
-               motion_blur: bool = True, fallback_surface: str = "auto"):
+               motion_blur: bool = True, fallback_surface: str = "auto", rendering_space: str = "rec709"):
     """Read a USD stage (a path or an open ``Usd.Stage``) into a render-ready :class:`tracer.Scene`.
 
     time      time code (None: the earliest time, i.e. default values or the first time sample)
@@ -545,6 +552,10 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     fallback_surface  what geometry without a material is drawn with: "auto" Arnold's default standard_surface
               on a stage written for Arnold (usd_io.exporters.written_for_arnold), else Hydra's displayColor
               diffuse; "arnold" or "hydra" either whatever the stage (a stage rendered by kick: Arnold's)
+    rendering_space  "rec709": the scene's colour numbers are linear Rec.709 (the tracer's space); "acescg": they
+              are ACEScg numbers, as Arnold's default colour manager takes them, and colour textures decoded from
+              sRGB are converted into ACEScg (the picture is then in ACEScg: convert it to Rec.709 for display,
+              tracer.colorspace.AP1_TO_REC709)
 
     Returns ``(scene, info)``; ``info.warnings`` lists what was skipped or approximated (each message once).
     Raises :class:`UsdInputError` (a ``ValueError``) for input the user can fix.
@@ -571,7 +582,7 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     if complexity not in COMPLEXITY:
         raise UsdInputError(f"complexity {complexity!r}: choose from {', '.join(COMPLEXITY)}")
     try:
-        r = _Reader(stage, tc, purposes, segments, info, light_units, fallback_surface)
+        r = _Reader(stage, tc, purposes, segments, info, light_units, fallback_surface, rendering_space)
     except ValueError as exc:  # an unknown --light-units value
         raise UsdInputError(f"{label}: {exc}") from None
     r.subdivision_level = COMPLEXITY[complexity]
