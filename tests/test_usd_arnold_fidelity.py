@@ -481,3 +481,28 @@ def test_reading_a_stage_in_acescg_converts_colour_textures_not_constants(tmp_pa
     np.testing.assert_allclose(centre(img_stage, "acescg"), want, atol=2e-3)
     np.testing.assert_allclose(centre(img_stage, "rec709"), (1.0, 0.0, 0.0), atol=2e-3)
     np.testing.assert_allclose(centre(flat_stage, "acescg"), (0.2, 0.5, 0.7), atol=2e-3)
+
+
+def test_native_instances_take_the_colour_primvar_authored_on_each_instance():
+    """arnold-usd's test_0188: instanceable prims referencing one cube, each with its own constant displayColor,
+    which the prototype's gprim inherits (UsdGeomPrimvarsAPI). Each instance shows its own colour (Hydra's fallback
+    Lambert: displayColor·2/π under E = 2 head-on); the tracer's shared prototype gave both the first one's."""
+    s = new_stage()
+    add_camera(s, eye=(0, 0, 10))
+    sun = UsdLux.DistantLight.Define(s, "/Sun")
+    sun.CreateIntensityAttr(2.0)
+    sun.CreateNormalizeAttr(True)
+    proto = s.DefinePrim("/Proto", "Xform")
+    proto.SetSpecifier(Sdf.SpecifierClass)
+    UsdGeom.Cube.Define(s, "/Proto/Cube").CreateSizeAttr(1.0)
+    for name, x, colour in (("A", -1.5, (1.0, 0.0, 0.0)), ("B", 1.5, (0.0, 0.0, 1.0))):
+        inst = UsdGeom.Xform.Define(s, f"/{name}")
+        inst.GetPrim().GetInherits().AddInherit("/Proto")
+        inst.GetPrim().SetInstanceable(True)
+        inst.AddTranslateOp().Set(Gf.Vec3d(x, 0, 0))
+        UsdGeom.PrimvarsAPI(inst).CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray,
+                                                UsdGeom.Tokens.constant).Set([Gf.Vec3f(*colour)])
+    assert s.GetPrimAtPath("/A/Cube").IsInstanceProxy()
+    left, right, _info = _cube_centres(s)
+    np.testing.assert_allclose(left, np.array([1.0, 0.0, 0.0]) * 2 / np.pi, rtol=0.03, atol=2e-3)
+    np.testing.assert_allclose(right, np.array([0.0, 0.0, 1.0]) * 2 / np.pi, rtol=0.03, atol=2e-3)

@@ -229,11 +229,13 @@ class _Reader:
         if not _usable(m):
             self.info.warn(f"{prim.GetPath()}: transform is singular (zero scale) or not finite (skipped)")
             return
-        data, material, extra = self.shaded(prim, data)
+        data, material, extra, needs = self.shaded_with_needs(prim, data)
         tris = data.triangles
         if prim.IsInstanceProxy() and not Skinning.is_skinned(prim):
-            # native instancing: the prototype's mesh once (object space), this proxy an instance of it
-            key = (str(prim.GetPrimInPrototype().GetPath()), np.asarray(material).tobytes())
+            # native instancing: the prototype's mesh once (object space), this proxy an instance of it; once per
+            # instance-given colour when the colour primvar is inherited from outside the prototype
+            key = (str(prim.GetPrimInPrototype().GetPath()), np.asarray(material).tobytes(),
+                   self.mats.instance_colour_source(prim, needs) if needs is not None else None)
             proto = self._proto_ids.get(key)
             if proto is None:
                 proto = self.b.add_mesh(data.points, tris, material=material, name=key[0], normals=data.normals,

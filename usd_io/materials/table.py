@@ -206,7 +206,8 @@ class MaterialTable:
         """(per-triangle material rows, add_mesh keywords: UV sets and vertex colours) for one mesh."""
         key = None
         if prim.IsInstanceProxy():  # instances share their prototype's primvars: expand them once
-            key = (str(prim.GetPrimInPrototype().GetPath()), id(data), frozenset(needs.uv_sets), needs.color)
+            key = (str(prim.GetPrimInPrototype().GetPath()), id(data), frozenset(needs.uv_sets), needs.color,
+                   self.instance_colour_source(prim, needs))
         if key is not None and key in self._primvar_cache:
             uv_sets, colors = self._primvar_cache[key]
         else:
@@ -221,6 +222,19 @@ class MaterialTable:
         if colors is not None:
             kw["colors"] = colors
         return rows, kw
+
+    @staticmethod
+    def instance_colour_source(prim, needs: MeshNeeds):
+        """For an instance proxy: the path of the prim outside its prototype that gives it its colour primvar (a
+        constant primvar inherited from the instanceable prim or above it: each native instance its own value, as
+        Hydra and Arnold read it), else None (the prototype's own value, shared by every instance)."""
+        if needs.color is None or not prim.IsInstanceProxy():
+            return None
+        pv = find_primvar(prim, needs.color[0])
+        if pv is None:
+            return None
+        owner = pv.GetAttr().GetPrim()
+        return str(owner.GetPath()) if not owner.IsInstanceProxy() else None
 
     def uv_set_index(self, name: str | None) -> int:
         """Index in Scene.uv_sets of a texture's UV primvar (None and "st" read the mesh's default set 0)."""
