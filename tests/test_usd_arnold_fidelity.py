@@ -183,14 +183,14 @@ def test_face_varying_primvar_whose_element_size_does_not_fit_is_read_per_index(
 
 def test_a_texture_on_element_size_uvs_is_drawn():
     """A quad whose st is written MtoA's way (elementSize 4) under an Arnold checkerboard (unlit as the surface,
-    one cell per UV unit, color1 at the UV origin): with its UVs read, the bottom-left cell is color1 and the one
-    right of it color2 (before: no UVs, one colour everywhere)."""
+    two cells per UV unit, color2 at the UV origin): with its UVs read, the bottom-left cell is color2 and the one
+    right of it color1 (before: no UVs, one colour everywhere)."""
     s = new_stage()
     add_camera(s, eye=(0, 0, 10))
     m = quad(s, "/Q", half=3.0)
     pv = UsdGeom.PrimvarsAPI(m).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying,
                                               4)
-    pv.Set([(0, 0), (2, 0), (0, 2), (2, 2)])
+    pv.Set([(0, 0), (1, 0), (0, 1), (1, 1)])
     pv.SetIndices([0, 1, 3, 2])
     mat = UsdShade.Material.Define(s, "/M")
     sh = UsdShade.Shader.Define(s, "/M/Checker")
@@ -204,8 +204,8 @@ def test_a_texture_on_element_size_uvs_is_drawn():
     img = render(scene, RenderSettings(width=w, height=h, samples=1)).rgb
     quadrant = lambda y, x: img[y, x]  # noqa: E731  (the quad spans the frame: 2 × 2 cells)
     bottom_left, bottom_right = quadrant(h * 3 // 4, w // 4), quadrant(h * 3 // 4, w * 3 // 4)
-    assert bottom_left[0] > 0.5 and bottom_left[2] < 0.1, bottom_left  # cell (0, 0): color1
-    assert bottom_right[2] > 0.5 and bottom_right[0] < 0.1, bottom_right  # cell (1, 0): color2
+    assert bottom_left[2] > 0.5 and bottom_left[0] < 0.1, bottom_left  # cell (0, 0): color2
+    assert bottom_right[0] > 0.5 and bottom_right[2] < 0.1, bottom_right  # cell (1, 0): color1
 
 
 def test_arnold_standard_surface_takes_arnolds_own_defaults():
