@@ -3,14 +3,16 @@ against the reference images Arnold rendered (``ref/reference.tif``: 8-bit, sRGB
 
     python tools/fidelity.py arnold ARNOLD_USD_CHECKOUT [--out /tmp/fidelity-arnold] [--only test_0200,...]
                                     [--aa 3] [--jsonl OUT.jsonl] [--sheet SHEET.png] [--list]
+                                    [--rendering-space arnold|rec709]
 
 Nothing is downloaded: ARNOLD_USD_CHECKOUT is a checkout (or extracted copy) of Autodesk/arnold-usd holding
 ``testsuite/``. A test is a candidate when its README's ``PARAMS`` name a USD ``scene`` (the suite's CMake
 (cmake/utils/test.cmake) renders ``data/<scene>`` with ``kick -r 160 120 -sm lambert ... <kick_params>``; tests
 without a ``scene`` render ``test.ass``, an Arnold scene this tracer does not read), the scene and a reference
 image exist, and the stage has a camera (kick's ``-c`` when given, else a RenderSettings' camera, else the first
-camera: the one Arnold's USD reader creates first). Each is rendered in-process (from a mirror of kick's run directory, :func:`kick_layout`) (``usd_io.load_stage`` +
-``tracer.render``) at the reference's size, at kick's ``-frame`` (else the stage's default time), through that
+camera: the one Arnold's USD reader creates first). Each is rendered in-process (``usd_io.load_stage`` +
+``tracer.render``, the stage opened from a mirror of kick's run directory: :func:`kick_layout`) at the
+reference's size, at kick's ``-frame`` (else the stage's default time), through that
 camera conformed as Arnold conforms it (its ``fov`` is horizontal: the horizontal aperture is kept, UsdRender's
 adjustApertureHeight, written on a RenderSettings on the session layer), with no default light (Arnold adds none),
 a black background (Arnold's) and the lights in Arnold's units (``light_units="arnold"``, usd_io.exporters; the
@@ -18,11 +20,10 @@ spec's where the RenderSettings set ``arnold:global:usdlux_version``) and Arnold
 geometry (kick gives every stage arnold-usd's ``_default_arnold_shader``, Arnold content or not), and compared
 with the reference read as Arnold wrote it (:func:`reference_linear`: float outputs linear; integer outputs in
 the narrow colour space, sRGB-encoded unless the stage names a linear one; ``reference_encoding`` in the JSONL
-says which and why):
-
-Our colour numbers are read as Arnold's rendering space (:func:`rendering_space`: ACEScg, Arnold's default, unless
-the stage sets one), so an integer reference is compared with our render converted to Rec.709 primaries
-(``--rendering-space rec709`` compares the numbers as they are):
+says which and why). Our colour numbers are read as Arnold's rendering space (:func:`rendering_space`: ACEScg,
+Arnold's default, unless the stage sets one; colour textures converted into it), so an integer reference is
+compared with our render converted to Rec.709 primaries (``--rendering-space rec709`` compares the numbers as they
+are):
 
     psnr      10·log10(1 / MSE) over R, G, B of both images' **linear** values clamped to [0, 1] (an 8-bit
               reference decoded from sRGB holds min(linear, 1); float references are clamped the same way).
@@ -176,8 +177,8 @@ def narrow_color_space(stage) -> tuple[str | None, str]:
             value = attr.Get()
             if not isinstance(value, str) or value.strip().lower() in ("", "auto"):
                 continue
-            if prim.GetTypeName() == "RenderProduct" and (
-                    name == "arnold:color_space" or (name.startswith("arnold:driver") and name.endswith(":color_space"))):
+            driver_space = name.startswith("arnold:driver") and name.endswith(":color_space")
+            if prim.GetTypeName() == "RenderProduct" and (name == "arnold:color_space" or driver_space):
                 return value, f"{prim.GetPath()}.{name}"
             if prim.GetTypeName() == "RenderSettings" and name in ("arnold:color_manager:color_space_narrow",
                                                                    "arnold:global:color_space_narrow"):

@@ -11,8 +11,9 @@ light of power P as a SphereLight with I = P/π, normalize = 1; Cycles' radiant 
                  shaping:cone:angle in degrees (half angle), blend = shaping:cone:softness)
     (Arnold's own units, ``units = "arnold"``, usd_io.exporters: a normalized or radius-0 SphereLight has
     radiant intensity I W/sr (four times the spec's), ``primvars:arnold:radius`` overriding the radius; a
-    DistantLight E = I whatever its angle and normalize (UsdLux's fallback intensity read as the spec's). Measured on arnold-usd's references, which are
-    sRGB-encoded 8-bit: one distant light of I = 1 on a cube of albedo 0.4 gives 100/255 = sRGB(0.4/π).)
+    DistantLight E = I whatever its angle and normalize (UsdLux's fallback intensity read as the spec's).
+    Measured on arnold-usd's references, which are sRGB-encoded 8-bit: one distant light of I = 1 on a cube of
+    albedo 0.4 gives 100/255 = sRGB(0.4/π).)
     DistantLight spec: ``angle`` is the angular diameter of the sun's disk (default 0.53°) and I its radiance, so
                  the irradiance is E = I·Ω with Ω = 2π(1 − cos(angle/2)) the disk's solid angle (the schema
                  default I = 50 000 gives E = 3.36 W/m², a sane sun); ``normalize`` = 1 makes E = I.
