@@ -506,3 +506,15 @@ def test_native_instances_take_the_colour_primvar_authored_on_each_instance():
     left, right, _info = _cube_centres(s)
     np.testing.assert_allclose(left, np.array([1.0, 0.0, 0.0]) * 2 / np.pi, rtol=0.03, atol=2e-3)
     np.testing.assert_allclose(right, np.array([0.0, 0.0, 1.0]) * 2 / np.pi, rtol=0.03, atol=2e-3)
+
+
+def test_a_mesh_light_is_named_in_a_warning():
+    """UsdLux's MeshLightAPI on a gprim (arnold-usd's test_2707, test_2390) is not drawn as a light: one warning
+    names it (it was silent)."""
+    s = new_stage()
+    add_camera(s, eye=(0, 0, 10))
+    q = quad(s, "/Q", half=1.0)
+    UsdLux.MeshLightAPI.Apply(q.GetPrim())
+    _scene, info = load_stage(s, width=8, height=8)
+    said = [w for w in info.warnings if "MeshLightAPI" in w]
+    assert len(said) == 1 and "/Q" in said[0], info.warnings
