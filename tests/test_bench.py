@@ -255,3 +255,26 @@ def test_equal_quality_time_to_a_target_reads_the_best_curve(tmp_path):
     eq.svg_plot({"scene": "x", "curves": curves}, (35.0, 40.0), str(tmp_path / "x.svg"))
     svg = (tmp_path / "x.svg").read_text()
     assert svg.startswith("<svg") and svg.count("<polyline") == len(eq.MODES)
+
+
+def test_equal_quality_takes_third_party_files_by_folder_and_picks_the_sheets_renders(tmp_path):
+    """bench/equal_quality.py --blend: files under a folder are named by their path in it (nothing downloaded);
+    the contact sheet shows, per mode, the first render of its curve that reaches the target, under 300 KB."""
+    from bench import equal_quality as eq
+
+    (tmp_path / "corpus" / "gltf").mkdir(parents=True)
+    for name in ("gltf/a.blend", "gltf/b.blend", "notes.txt"):
+        (tmp_path / "corpus" / name).write_bytes(b"")
+    assert eq.blend_scenes([str(tmp_path / "corpus")]) == {
+        "corpus/gltf/a": str(tmp_path / "corpus" / "gltf" / "a.blend"),
+        "corpus/gltf/b": str(tmp_path / "corpus" / "gltf" / "b.blend")}
+    curve = [dict(cpu=1.0, psnr=30.0), dict(cpu=4.0, psnr=36.0), dict(cpu=2.0, psnr=35.5), dict(cpu=3.0, psnr=20.0)]
+    assert eq.first_reaching(curve, 35.0) == 2 and eq.first_reaching(curve, 37.0) is None
+    rng = np.random.default_rng(0)
+    results = [{"scene": f"s{k}", "pictures": {"reference": rng.uniform(0, 1, (90, 160, 3)),
+                                                "ours adaptive+oidn": rng.uniform(0, 1, (90, 160, 3))}}
+               for k in range(5)]
+    for ext in ("png", "jpg"):
+        path = tmp_path / f"sheet.{ext}"
+        eq.contact_sheet(str(path), results, max_bytes=300_000)
+        assert 0 < path.stat().st_size <= 300_000
