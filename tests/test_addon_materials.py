@@ -203,7 +203,7 @@ def test_principled_defaults_are_blenders():
     base colour is UsdPreviewSurface's own fallback, 0.18."""
     from addon.model import default_surface
     from tracer.shading.materials import PRINCIPLED_DEFAULTS, f0_from_ior
-    from usd_io.materials.table import principled_graph
+    from usd_io.materials.table import MaterialTable
 
     mat, _nt, _out, bsdf = node_material("defaults")
     for name, want in PRINCIPLED_DEFAULTS.items():
@@ -213,7 +213,7 @@ def test_principled_defaults_are_blenders():
     row = compile_graph(default_surface("empty")).row
     assert row["specular"] == 0.5 and row["roughness"] == 0.5 and row["metallic"] == 0.0 and row["ior"] == 1.5
     assert row["base_color"] == pytest.approx((0.8, 0.8, 0.8)) and row["emission"] == (0.0, 0.0, 0.0)
-    usd = compile_graph(principled_graph("empty", {})).row
+    usd = compile_graph(MaterialTable.model().graph("empty")).row
     assert usd == dict(row, base_color=pytest.approx((0.18, 0.18, 0.18)))
     assert 2.0 * row["specular"] * f0_from_ior(row["ior"]) == pytest.approx(((1.5 - 1.0) / (1.5 + 1.0)) ** 2)
     from addon.model import MaterialWriter

@@ -207,13 +207,13 @@ def surface(node, **inputs):
 
 def test_one_material_s_networks_share_their_nodes(tmp_path, monkeypatch):
     """Two inputs driven by one MaterialX node: it is written once into the material's graph (one translator per
-    graph, kept by the writer, usd_io.materials.table.principled_graph, not on the Graph object)."""
-    import usd_io.materials.table as M
+    graph, kept by the writer, tracer.shading.principled.PrincipledSurface.graph, not on the Graph object)."""
+    from tracer.shading.principled import PrincipledSurface
     from usd_io import load_stage
 
     graphs = []
-    real = M.principled_graph
-    monkeypatch.setattr(M, "principled_graph", lambda *a, **k: graphs.append(real(*a, **k)) or graphs[-1])
+    real = PrincipledSurface.graph
+    monkeypatch.setattr(PrincipledSurface, "graph", lambda *a, **k: graphs.append(real(*a, **k)) or graphs[-1])
 
     def build(s, node):
         n = node("n", "ND_noise3d_float", T.Float)

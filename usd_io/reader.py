@@ -164,7 +164,8 @@ class _Reader:
             self.info.warn(f"{prim.GetPath()}: its material could not be read ({type(exc).__name__}: {exc}); "
                            "rendered grey")
             if self._grey is None:
-                self._grey = self.mats.writer.add_material("whitted:unreadable", dict(base_color=(0.5, 0.5, 0.5)))
+                grey = self.mats.model(base_color=(0.5, 0.5, 0.5))
+                self._grey = self.mats.writer.add_material("whitted:unreadable", grey)
             material, extra = self._grey, ({} if data.uvs is None else dict(uvs=data.uvs))
         for w in data.warnings:
             self.info.warn(w)

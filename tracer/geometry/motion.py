@@ -362,6 +362,15 @@ def _unit(v):
 
 
 @kernel(inline=True)
+def place_ray(dec, row, tau, o, d):
+    """A ray (origin ``o``, direction ``d``) placed by row ``row`` of ``dec`` at time ``tau``: the origin as a
+    point, the direction as a vector, made unit again."""
+    r0, r1, r2 = affine_at(dec, row, tau)
+    p = _apply3(r0, r1, r2, o)
+    return (p[0] + r0[3], p[1] + r1[3], p[2] + r2[3]), _unit(_apply3(r0, r1, r2, d))
+
+
+@kernel(inline=True)
 def _lerp_vertex(vsteps, k, index, f):
     """Vertex ``index`` between steps k and k + 1 at fraction f (Embree's linear vertex motion)."""
     return ((1.0 - f) * vsteps[k, index, 0] + f * vsteps[k + 1, index, 0],

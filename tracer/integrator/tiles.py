@@ -23,7 +23,7 @@ from ..clip_planes import clip_eye_rays
 from ..denoise import check as check_denoiser
 from ..denoise import denoise_image
 from ..film import Image, box_filter, majority, vote
-from ..geometry.motion import affine_at, decompose, time_sample
+from ..geometry.motion import decompose, place_ray, time_sample
 from ..jit import kernel
 from ..sampling import multijitter, progressive_order, sample_class_a, uniform1, uniform2_1
 from ..scene import Scene
@@ -129,15 +129,7 @@ def _tile_eye_rays_timed(cam, cam_dec, table, x0, y0, x1, y1, n, width, height, 
                 times[i] = tau
                 oi, di = eye_ray(cam, u, v, a, b)
                 if moving:
-                    r0, r1, r2 = affine_at(cam_dec, 0, tau)
-                    oi = (r0[0] * oi[0] + r0[1] * oi[1] + r0[2] * oi[2] + r0[3],
-                          r1[0] * oi[0] + r1[1] * oi[1] + r1[2] * oi[2] + r1[3],
-                          r2[0] * oi[0] + r2[1] * oi[1] + r2[2] * oi[2] + r2[3])
-                    wd = (r0[0] * di[0] + r0[1] * di[1] + r0[2] * di[2],
-                          r1[0] * di[0] + r1[1] * di[1] + r1[2] * di[2],
-                          r2[0] * di[0] + r2[1] * di[1] + r2[2] * di[2])
-                    ln = math.sqrt(wd[0] * wd[0] + wd[1] * wd[1] + wd[2] * wd[2])
-                    di = (wd[0] / ln, wd[1] / ln, wd[2] / ln)
+                    oi, di = place_ray(cam_dec, 0, tau, oi, di)
                 o[i, 0], o[i, 1], o[i, 2] = oi
                 d[i, 0], d[i, 1], d[i, 2] = di
                 i += 1
@@ -181,15 +173,7 @@ def _list_eye_rays(cam, cam_dec, table, timed, xs, ys, ks, order, n, width, heig
             tau = time_sample(px, py, s, n, width, seed, key, table)
             times[i] = tau
             if moving:
-                r0, r1, r2 = affine_at(cam_dec, 0, tau)
-                oi = (r0[0] * oi[0] + r0[1] * oi[1] + r0[2] * oi[2] + r0[3],
-                      r1[0] * oi[0] + r1[1] * oi[1] + r1[2] * oi[2] + r1[3],
-                      r2[0] * oi[0] + r2[1] * oi[1] + r2[2] * oi[2] + r2[3])
-                wd = (r0[0] * di[0] + r0[1] * di[1] + r0[2] * di[2],
-                      r1[0] * di[0] + r1[1] * di[1] + r1[2] * di[2],
-                      r2[0] * di[0] + r2[1] * di[1] + r2[2] * di[2])
-                ln = math.sqrt(wd[0] * wd[0] + wd[1] * wd[1] + wd[2] * wd[2])
-                di = (wd[0] / ln, wd[1] / ln, wd[2] / ln)
+                oi, di = place_ray(cam_dec, 0, tau, oi, di)
         o[i, 0], o[i, 1], o[i, 2] = oi
         d[i, 0], d[i, 1], d[i, 2] = di
 
@@ -203,16 +187,8 @@ def listed_eye_rays(scene: Scene, settings: RenderSettings, xs: np.ndarray, ys: 
     strata = np.empty(count, np.int64)
     timed = has_motion(scene)
     times = np.empty(count if timed else 0, np.float32)
-    cam = scene.camera
-    cam_dec = _NO_CAMERA_MOTION
-    packed = cam.packed()
-    table = _NO_CURVE
-    if timed:
-        if cam.motion is not None:  # as timed_eye_rays: camera-space rays placed by the camera at their time
-            packed = packed._replace(rotation=np.eye(3), eye=(0.0, 0.0, 0.0))
-            cam_dec = np.ascontiguousarray(decompose(cam.motion)[None])
-        if scene.motion is not None and len(scene.motion.curve):
-            table = scene.motion.curve
+    packed, cam_dec, table = _motion_inputs(scene) if timed else (scene.camera.packed(), _NO_CAMERA_MOTION,
+                                                                  _NO_CURVE)
     _list_eye_rays(packed, cam_dec, table, timed, np.ascontiguousarray(xs, np.int64),
                    np.ascontiguousarray(ys, np.int64), np.ascontiguousarray(ks, np.int64),
                    progressive_order(settings.samples), settings.samples, settings.width, settings.height,
@@ -243,6 +219,18 @@ _NO_CURVE = np.zeros(0, np.float32)
 _NO_CAMERA_MOTION = np.zeros((0, 2, 16))
 
 
+def _motion_inputs(scene: Scene):
+    """(packed camera, camera motion (1, S, 16) or none, shutter curve table) of a scene with motion: with camera
+    motion the rays are made in camera space, then placed by the camera at each ray's time."""
+    cam = scene.camera
+    packed, cam_dec = cam.packed(), _NO_CAMERA_MOTION
+    if cam.motion is not None:
+        packed = packed._replace(rotation=np.eye(3), eye=(0.0, 0.0, 0.0))
+        cam_dec = np.ascontiguousarray(decompose(cam.motion)[None])
+    table = scene.motion.curve if scene.motion is not None and len(scene.motion.curve) else _NO_CURVE
+    return packed, cam_dec, table
+
+
 def has_motion(scene: Scene) -> bool:
     """Whether ``scene`` has motion blur: something moves across the shutter (``Scene.motion``) or the camera."""
     return getattr(scene, "motion", None) is not None or scene.camera.motion is not None
@@ -256,13 +244,7 @@ def timed_eye_rays(scene: Scene, settings: RenderSettings, x0: int, y0: int, x1:
     count = (x1 - x0) * (y1 - y0) * settings.samples**2
     o, d, keys = np.empty((count, 3), np.float32), np.empty((count, 3), np.float32), np.empty(count, np.int64)
     times = np.empty(count, np.float32)
-    cam = scene.camera
-    cam_dec = _NO_CAMERA_MOTION
-    packed = cam.packed()
-    if cam.motion is not None:  # rays in camera space, then placed by the camera at each ray's time
-        packed = packed._replace(rotation=np.eye(3), eye=(0.0, 0.0, 0.0))
-        cam_dec = np.ascontiguousarray(decompose(cam.motion)[None])
-    table = scene.motion.curve if scene.motion is not None and len(scene.motion.curve) else _NO_CURVE
+    packed, cam_dec, table = _motion_inputs(scene)
     _tile_eye_rays_timed(packed, cam_dec, table, x0, y0, x1, y1, settings.samples, settings.width, settings.height,
                          settings.seed, o, d, keys, times)
     return o, d, keys, times

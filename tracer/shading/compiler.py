@@ -37,6 +37,7 @@ from .lobes import MAX_LOBES
 from .nodes import transform2d_matrix  # noqa: F401  (re-exported: the USD readers' UsdTransform2d)
 from .nodes import (COLOR, FLOAT, NODE_TYPES, OPCODE, OPS, VECTOR, Reg, TextureUse, convert_constant,
                     is_const as _is_const, vec3 as _vec)
+from .principled import row_surface
 from .texture import Texture, as_texture
 
 
@@ -583,53 +584,6 @@ class ProgramTable(NamedTuple):
         return self.outs[:, N.OUT_ALPHA] >= 0
 
 
-def row_graph(m, i: int, textures: list) -> Graph:
-    """The graph of row ``i`` of a :class:`tracer.Materials` table whose ``P_texture`` columns read textures:
-    each textured parameter is its constant × the lookup (a scalar reads one channel, or the luminance for rgb;
-    a colour reads rgb, or one channel as grey), the normal map through ``normal_map``."""
-    tex, ch = m.texture_slots()
-    g = Graph(m.names[i] if i < len(m.names) else f"material{i}")
-
-    def value(j, colour: bool):
-        ti, c = int(tex[i, j]), int(ch[i, j])
-        node = g.add("scene_texture", index=ti, uv_set=int(textures[ti].uv_set))
-        if c < 0:
-            return node["Color"]
-        if c == 3:
-            x = node["Alpha"]
-        else:
-            x = g.add("separate_color", {"Color": node["Color"]})[("Red", "Green", "Blue")[c]]
-        return g.add("combine_color", {"Red": x, "Green": x, "Blue": x})["Color"] if colour else x
-
-    def colour(j, const):
-        if tex[i, j] < 0:
-            return tuple(float(x) for x in const)
-        return g.add("vector_math", {"Vector": value(j, True), "Vector_001": tuple(float(x) for x in const)},
-                     operation="MULTIPLY")["Vector"]
-
-    def scalar(j, const):
-        if tex[i, j] < 0:
-            return float(const)
-        return g.add("math", {"Value": value(j, False), "Value_001": float(const)}, operation="MULTIPLY")["Value"]
-
-    base = colour(0, m.diffuse[i])
-    if tex[i, 0] >= 0 and m.vertex_color[i]:
-        base = g.add("vector_math", {"Vector": base, "Vector_001": g.add("vertex_color")["Color"]},
-                     operation="MULTIPLY")["Vector"]
-    inputs = {"Base Color": base, "Roughness": scalar(1, m.roughness[i]), "Metallic": scalar(2, m.metallic[i]),
-              "Specular IOR Level": scalar(3, m.specular[i]), "Alpha": scalar(4, m.alpha[i]),
-              "Emission Color": colour(5, m.emission[i]), "Emission Strength": 1.0}
-    if tex[i, 6] >= 0:
-        v = value(6, True)
-        half = g.add("vector_math", {"Vector": v, "Vector_001": (0.5, 0.5, 0.5), "Vector_002": (0.5, 0.5, 0.5)},
-                     operation="MULTIPLY_ADD")["Vector"]
-        nm = g.add("normal_map", {"Color": half, "Strength": float(m.normal_strength[i])},
-                   uv_map=int(textures[int(tex[i, 6])].uv_set))
-        inputs["Normal"] = nm["Normal"]
-    g.output(g.add("principled_bsdf", inputs)["BSDF"])
-    return g
-
-
 def pack_programs(m, textures: list) -> tuple[ProgramTable, list]:
     """(the :class:`ProgramTable` of a Materials table, the textures its image ops read: ``textures`` followed by
     those the graphs' ImageRefs add). Kept on the table while its graphs, texture columns and the constants
@@ -669,8 +623,9 @@ def _pack_programs(m, textures: list) -> tuple[ProgramTable, list]:
         if bound is not None:
             prog = compile_graph(bound.graph, None, bound.uv_index, textures, row=False).program
         elif (tex_slots[i] >= 0).any():
-            prog = compile_graph(row_graph(m, i, textures), None, lambda name: name if isinstance(name, int) else 0,
-                                 textures, row=False).program
+            graph = row_surface(m, i, textures).graph(m.names[i] if i < len(m.names) else f"material{i}")
+            prog = compile_graph(graph, None, lambda name: name if isinstance(name, int) else 0, textures,
+                                 row=False).program
         else:
             prog = None
         if prog is None:

@@ -35,7 +35,7 @@ def is_arnold(shader) -> bool:
 
 
 def simple_surface(table, s, label: str, needs):
-    """(fields) of arnold:lambert / standard / flat; None for other ids."""
+    """The PrincipledSurface of arnold:lambert / standard / flat; None for other ids."""
     sid = net.shader_id(s)
     t = table.model()
     if sid in PATTERNS[1:] or sid == "arnold:image":  # a colour node as the surface: unlit, like arnold:flat

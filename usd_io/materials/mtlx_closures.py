@@ -311,7 +311,7 @@ class Closures:
 
 class MxClosureProgram:
     """A material whose surface is a closure network (the ``closure`` field of
-    :func:`usd_io.materials.table.principled_graph`): ``write(g, translators)`` returns the surface's IR closure."""
+    :meth:`tracer.shading.principled.PrincipledSurface.graph`): ``write(g, translators)`` returns the surface's IR closure."""
 
     def __init__(self, table, shader, label: str, needs):
         self.table, self.shader, self.label, self.needs = table, shader, label, needs

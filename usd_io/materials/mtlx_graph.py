@@ -97,7 +97,7 @@ class MxNode:
 
 
 class Outs:
-    """A translated value seen as a lookup's node by :func:`usd_io.materials.table.principled_graph`: outputs
+    """A translated value seen as a lookup's node by :meth:`tracer.shading.principled.PrincipledSurface.graph`: outputs
     ``rgb`` (three lanes), ``r``, ``g``, ``b`` and ``a``."""
 
     def __init__(self, tr: "Translator", v: V):
@@ -902,7 +902,7 @@ class _Ctx:
 
 class MxProgram:
     """A MaterialX network driving one surface input (:class:`usd_io.materials.network.GraphLookup`), written into
-    the material's graph when :func:`usd_io.materials.table.principled_graph` writes it (as one of its lookups:
+    the material's graph when :meth:`tracer.shading.principled.PrincipledSurface.graph` writes it (as one of its lookups:
     ``write(g, translators) -> (outputs, UV map name)``). ``translators`` is the writer's, one per graph: the
     networks of one material share one :class:`Translator` (nodes written once), and nothing is kept on the
     Graph."""

@@ -8,7 +8,7 @@ default). Each input is a constant (a colour in a named colour space converted i
 warning naming it (``<material>: MaterialX <family> input <name> ...``), once per material.
 
 The layers MaterialX stacks with ``layer(top, base)`` (base × (1 − the top's directional albedo) + top) are written
-as lobes over the Principled base (:func:`usd_io.materials.table.principled_graph`, ``layers``): a *dielectric*
+as lobes over the Principled base (:meth:`tracer.shading.principled.PrincipledSurface.graph`, ``layers``): a *dielectric*
 layer is a Principled lobe with a black base (its Fresnel curve of the layer's IOR, its roughness), the base weighted by
 1 − weight·F(IOR, n·v) (a Fresnel node: the layer's albedo at the view angle, exact for a smooth layer); a *glossy*
 layer is a constant-Fresnel GGX lobe (Disney's scaled generalized Schlick), the base weighted by 1 − weight·its
@@ -65,6 +65,7 @@ import numpy as np
 
 from tracer import colorspace
 from tracer.shading.materials import f0_from_ior
+from tracer.shading.principled import PrincipledSurface
 
 from . import mtlx
 from . import network as net
@@ -203,7 +204,7 @@ def scaled(src, k):
 def _colour(t, key, inputs: Inputs, src, default, name):
     if isinstance(src, net.PrimvarLookup):  # a primvar read: the vertex colour, the constant part as the colour
         inputs.needs.color = (src.name, net.floats(src.fallback, 3, default))
-        t.update({key: tuple(default), "vertex_color": True})
+        t.update(**{key: tuple(default)}, vertex_color=True)
         return
     inputs.table._colour_input(t, key, src, default, inputs.label, name, inputs.needs)
 
@@ -267,16 +268,16 @@ def _sheen(t, inp: Inputs, weight: str, colour: str, rough: str, rough_default: 
              sheen_roughness=float(np.clip(inp.f(rough, rough_default), 0.0, 1.0)))
 
 
-def white_tint_under_coat(t: dict) -> None:
+def white_tint_under_coat(t: PrincipledSurface) -> None:
     """A coat's lobe shares the material's specular tint (the tracer's lobes have one tint and one IOR per
     material), and a coat reflects white: under a coat the tint is white, a dielectric base's tint kept as its
     Specular IOR Level × the tint's luminance, a metal's F82 tint dropped (its F0, which carries the coat's
     absorption, rises to white only at grazing angles, where the coat reflects most of the light anyway)."""
-    tint = t.pop("specular_tint", None)
+    tint, t.specular_tint = t.specular_tint, None
     if tint is None:
         return
-    if float(t.get("metallic", 0.0) or 0.0) < 1.0:
-        t["specular"] = float(np.clip(t.get("specular", 0.5) * _lum(tint), 0.0, 1.0))
+    if float(t.metallic) < 1.0:
+        t.specular = float(np.clip(t.specular * _lum(tint), 0.0, 1.0))
 
 
 def _lum(c) -> float:
@@ -284,8 +285,8 @@ def _lum(c) -> float:
 
 
 # ---------------------------------------------------------------------------------------------- families
-def standard_surface(inp: Inputs) -> dict:
-    t = {}
+def standard_surface(inp: Inputs) -> PrincipledSurface:
+    t = inp.table.model()
     base_w = inp.f("base", 0.8)
     metal = float(np.clip(inp.f("metalness", 0.0), 0.0, 1.0)) if not inp.connected("metalness") else None
     coat = inp.f("coat", 0.0) if not inp.connected("coat") else None
@@ -319,30 +320,30 @@ def standard_surface(inp: Inputs) -> dict:
     spec = inp.f("specular", 1.0) if not inp.connected("specular") else 1.0
     if inp.connected("specular"):
         inp.warn("input specular driven by a network is read as 1")
-    t["specular"] = 0.5 * float(np.clip(spec, 0.0, 2.0))
+    t.specular = 0.5 * float(np.clip(spec, 0.0, 2.0))
     tint = inp.c3("specular_color") * atten
     if metal is not None and metal > 0 and isinstance(inp.src("base_color"), net.Const):
         f82 = np.asarray(f82_tint(inp.c3("base_color") * base_w, inp.c3("specular_color") * spec, atten))
         tint = f82 if metal >= 1 else (1 - metal) * tint + metal * f82
-    t["specular_tint"] = tuple(float(x) for x in np.maximum(tint, 0.0))  # a wide-gamut colour may come out < 0
+    t.specular_tint = tuple(float(x) for x in np.maximum(tint, 0.0))  # a wide-gamut colour may come out < 0
     if metal is None:
         _scalar(t, "metallic", inp, "metalness", 0.0)
     else:
-        t["metallic"] = metal
+        t.metallic = metal
     rough_src = inp.src("specular_roughness", 0.2)
     car = inp.f("coat_affect_roughness", 0.0) * coat * inp.f("coat_roughness", 0.1)
     if car > 0 and isinstance(rough_src, net.Const):
         r = float(net.floats(rough_src.value, 1, (0.2,))[0])
         rough_src = net.Const((1 - car) * r + car)
     inp.table._scalar_input(t, "roughness", rough_src, 0.2, inp.label, "specular_roughness", inp.needs)
-    t["ior"] = inp.f("specular_IOR", 1.5) or 1.5
+    t.ior = inp.f("specular_IOR", 1.5) or 1.5
 
     trans = inp.f("transmission", 0.0) if not inp.connected("transmission") else 0.0
     if inp.connected("transmission"):
         inp.warn("input transmission driven by a network is read as 0")
     if trans > 0:
-        t["transmission"] = float(np.clip(trans, 0.0, 1.0))
-        t["transmission_tint"] = tuple(float(x) for x in inp.c3("transmission_color") * atten)
+        t.transmission = float(np.clip(trans, 0.0, 1.0))
+        t.transmission_tint = tuple(float(x) for x in inp.c3("transmission_color") * atten)
     em = inp.src("emission", 0.0)
     if not (isinstance(em, net.Const) and float(net.floats(em.value, 1, (0.0,))[0]) == 0.0):
         w = float(net.floats(em.value, 1, (0.0,))[0]) if isinstance(em, net.Const) else 1.0
@@ -353,7 +354,7 @@ def standard_surface(inp: Inputs) -> dict:
     inp.table._normal_input(t, net.source(inp.s, "normal", None, inp.time), inp.label, "normal", inp.needs,
                             (0.0, 0.0, 0.0))
     if coat > 0:
-        t["layers"] = [dict(kind="dielectric", weight=coat, roughness=inp.f("coat_roughness", 0.1),
+        t.layers = [dict(kind="dielectric", weight=coat, roughness=inp.f("coat_roughness", 0.1),
                             ior=inp.f("coat_IOR", 1.5) or 1.5)]
         white_tint_under_coat(t)
         if inp.differs("coat_normal"):
@@ -375,13 +376,13 @@ def _opacity(t, inp: Inputs, name: str, scalar: bool = False) -> None:
         v = net.floats(src.value, 3, (1.0, 1.0, 1.0))
         a = float(np.clip(v[0] if scalar else _lum(v), 0.0, 1.0))
         if a < 1:
-            t["alpha"] = a
+            t.alpha = a
         return
     inp.table._scalar_input(t, "alpha", src, 1.0, inp.label, name, inp.needs)
 
 
-def open_pbr_surface(inp: Inputs) -> dict:
-    t = {}
+def open_pbr_surface(inp: Inputs) -> PrincipledSurface:
+    t = inp.table.model()
     base_w = inp.f("base_weight", 1.0)
     metal = float(np.clip(inp.f("base_metalness", 0.0), 0.0, 1.0)) if not inp.connected("base_metalness") else None
     coat = float(np.clip(inp.f("coat_weight", 0.0), 0.0, 1.0)) if not inp.connected("coat_weight") else 0.0
@@ -415,8 +416,8 @@ def open_pbr_surface(inp: Inputs) -> dict:
     if metal is None:
         _scalar(t, "metallic", inp, "base_metalness", 0.0)
     else:
-        t["metallic"] = metal
-    t["specular"] = 0.5 * float(np.clip(spec_w, 0.0, 2.0))
+        t.metallic = metal
+    t.specular = 0.5 * float(np.clip(spec_w, 0.0, 2.0))
     tint = inp.c3("specular_color") * atten
     if metal is not None and metal > 0 and coat > 0 and isinstance(inp.src("base_color", (0.8,) * 3), net.Const):
         # OpenPBR's metal is F82-tinted already; the coat's absorption folded into F0 needs the tint rescaled
@@ -425,7 +426,7 @@ def open_pbr_surface(inp: Inputs) -> dict:
         f0 = np.clip(r * atten, 0.0, 1.0)
         metal_tint = np.clip(inp.c3("specular_color") * atten * (r + (1 - r) * s82) / (f0 + (1 - f0) * s82), 0, 1)
         tint = (1 - metal) * tint + metal * metal_tint
-    t["specular_tint"] = tuple(float(x) for x in np.maximum(tint, 0.0))
+    t.specular_tint = tuple(float(x) for x in np.maximum(tint, 0.0))
     r_src = inp.src("specular_roughness", 0.3)
     if coat > 0 and isinstance(r_src, net.Const):
         r = float(net.floats(r_src.value, 1, (0.3,))[0])
@@ -433,11 +434,11 @@ def open_pbr_surface(inp: Inputs) -> dict:
         affected = min(1.0, 2 * cr ** 4 + r ** 4) ** 0.25
         r_src = net.Const((1 - coat) * r + coat * affected)
     inp.table._scalar_input(t, "roughness", r_src, 0.3, inp.label, "specular_roughness", inp.needs)
-    t["ior"] = inp.f("specular_ior", 1.5) or 1.5
+    t.ior = inp.f("specular_ior", 1.5) or 1.5
     trans = inp.f("transmission_weight", 0.0) if not inp.connected("transmission_weight") else 0.0
     if trans > 0:
-        t["transmission"] = float(np.clip(trans, 0.0, 1.0))
-        t["transmission_tint"] = tuple(float(x) for x in inp.c3("transmission_color") * atten)
+        t.transmission = float(np.clip(trans, 0.0, 1.0))
+        t.transmission_tint = tuple(float(x) for x in inp.c3("transmission_color") * atten)
         inp.dropped(["transmission_depth", "transmission_scatter", "transmission_dispersion_scale"],
                     "is not rendered")
     lum = inp.src("emission_luminance", 0.0)
@@ -454,7 +455,7 @@ def open_pbr_surface(inp: Inputs) -> dict:
     inp.table._normal_input(t, net.source(inp.s, "geometry_normal", None, inp.time), inp.label, "geometry_normal",
                             inp.needs, (0.0, 0.0, 0.0))
     if coat > 0:
-        t["layers"] = [dict(kind="dielectric", weight=coat, roughness=inp.f("coat_roughness", 0.0),
+        t.layers = [dict(kind="dielectric", weight=coat, roughness=inp.f("coat_roughness", 0.0),
                             ior=inp.f("coat_ior", 1.6) or 1.6)]
         white_tint_under_coat(t)
         if inp.differs("geometry_coat_normal"):
@@ -467,29 +468,29 @@ def open_pbr_surface(inp: Inputs) -> dict:
     return t
 
 
-def gltf_pbr(inp: Inputs) -> dict:
-    t = {}
+def gltf_pbr(inp: Inputs) -> PrincipledSurface:
+    t = inp.table.model()
     _colour(t, "base_color", inp, inp.src("base_color"), (1.0, 1.0, 1.0), "base_color")
     _scalar(t, "metallic", inp, "metallic", 1.0)
     _scalar(t, "roughness", inp, "roughness", 1.0)
     spec = inp.f("specular", 1.0) if not inp.connected("specular") else 1.0
     if inp.connected("specular"):
         inp.warn("input specular driven by a network is read as 1")
-    t["specular"] = 0.5 * float(np.clip(spec, 0.0, 1.0))
+    t.specular = 0.5 * float(np.clip(spec, 0.0, 1.0))
     ior = inp.f("ior", 1.5) or 1.5
-    t["ior"] = ior
+    t.ior = ior
     sc = inp.c3("specular_color")
     f0 = f0_from_ior(ior)
-    t["specular_tint"] = tuple(float(x) for x in np.maximum(np.minimum(f0 * sc, 1.0), 0.0) / max(f0, 1e-9))
+    t.specular_tint = tuple(float(x) for x in np.maximum(np.minimum(f0 * sc, 1.0), 0.0) / max(f0, 1e-9))
     trans = inp.f("transmission", 0.0) if not inp.connected("transmission") else 0.0
     if trans > 0:
-        t["transmission"] = float(np.clip(trans, 0.0, 1.0))
+        t.transmission = float(np.clip(trans, 0.0, 1.0))
     em = scaled(inp.src("emissive", (0.0, 0.0, 0.0)), inp.f("emissive_strength", 1.0))
     _colour(t, "emission", inp, em, (0.0, 0.0, 0.0), "emissive")
     mode = int(inp.f("alpha_mode", 0.0))
     if mode == 1:
         _scalar(t, "alpha", inp, "alpha", 1.0)
-        t["alpha_threshold"] = inp.f("alpha_cutoff", 0.5)
+        t.alpha_threshold = inp.f("alpha_cutoff", 0.5)
     elif mode == 2:
         _scalar(t, "alpha", inp, "alpha", 1.0)
     inp.table._normal_input(t, net.source(inp.s, "normal", None, inp.time), inp.label, "normal", inp.needs,
@@ -498,7 +499,7 @@ def gltf_pbr(inp: Inputs) -> dict:
     if inp.connected("clearcoat"):
         inp.warn("input clearcoat driven by a network is read as 0")
     if cc > 0:
-        t["layers"] = [dict(kind="dielectric", weight=cc, roughness=inp.f("clearcoat_roughness", 0.0), ior=1.5)]
+        t.layers = [dict(kind="dielectric", weight=cc, roughness=inp.f("clearcoat_roughness", 0.0), ior=1.5)]
         if inp.differs("clearcoat_normal"):
             inp.warn("input clearcoat_normal is not rendered (the coat uses the surface's normal)")
     sc = inp.c3("sheen_color", (0.0, 0.0, 0.0))
@@ -516,17 +517,17 @@ def gltf_pbr(inp: Inputs) -> dict:
     return t
 
 
-def disney_principled(inp: Inputs) -> dict:
-    t = {}
+def disney_principled(inp: Inputs) -> PrincipledSurface:
+    t = inp.table.model()
     _colour(t, "base_color", inp, inp.src("baseColor", (0.16, 0.16, 0.16)), (0.16, 0.16, 0.16), "baseColor")
     metal_src = inp.src("metallic", 0.0)
     inp.table._scalar_input(t, "metallic", metal_src, 0.0, inp.label, "metallic", inp.needs)
     _scalar(t, "roughness", inp, "roughness", 0.5)
-    t["specular"] = 0.0  # the dielectric specular is the glossy layer below
-    t["ior"] = inp.f("ior", 1.5) or 1.5
+    t.specular = 0.0  # the dielectric specular is the glossy layer below
+    t.ior = inp.f("ior", 1.5) or 1.5
     trans = inp.f("specTrans", 0.0) if not inp.connected("specTrans") else 0.0
     if trans > 0:
-        t["transmission"] = float(np.clip(trans, 0.0, 1.0))
+        t.transmission = float(np.clip(trans, 0.0, 1.0))
     metal = float(net.floats(metal_src.value, 1, (0.0,))[0]) if isinstance(metal_src, net.Const) else 0.0
     spec = inp.f("specular", 0.5)
     layers = []
@@ -540,7 +541,7 @@ def disney_principled(inp: Inputs) -> dict:
         layers.insert(0, dict(kind="glossy", weight=1.0, colour=(0.04 * cc,) * 3,
                               roughness=1.0 - inp.f("clearcoatGloss", 1.0)))
     if layers:
-        t["layers"] = layers
+        t.layers = layers
     if inp.weight_on("subsurface"):
         inp.warn("input subsurface is rendered as the diffuse (no scattering inside)")
     sh = inp.f("sheen", 0.0)
@@ -551,15 +552,15 @@ def disney_principled(inp: Inputs) -> dict:
     return t
 
 
-def surface_unlit(inp: Inputs) -> dict:
-    t = dict(base_color=(0.0, 0.0, 0.0), specular=0.0, metallic=0.0)
+def surface_unlit(inp: Inputs) -> PrincipledSurface:
+    t = inp.table.model(base_color=(0.0, 0.0, 0.0), specular=0.0, metallic=0.0)
     em = scaled(inp.src("emission_color"), inp.f("emission", 1.0))
     _colour(t, "emission", inp, em, (1.0, 1.0, 1.0), "emission_color")
     tr = inp.f("transmission", 0.0) * _lum(inp.c3("transmission_color"))
     op = inp.f("opacity", 1.0)
     a = float(np.clip(op * (1 - tr), 0.0, 1.0))
     if a < 1:
-        t["alpha"] = a
+        t.alpha = a
     return t
 
 
@@ -567,29 +568,31 @@ READERS = {"standard_surface": standard_surface, "open_pbr_surface": open_pbr_su
            "disney_principled": disney_principled, "surface_unlit": surface_unlit}
 
 
-def read(table, s, fields: dict, label: str, needs, family: str | None = None) -> dict:
-    """The tracer fields of a MaterialX surface shader ``s``. With a UsdPreviewSurface beside it (``fields`` not
-    empty) only what the preview surface cannot say is taken from it: transmission, its colour and the IOR."""
+def read(table, s, fields: PrincipledSurface | None, label: str, needs,
+         family: str | None = None) -> PrincipledSurface | None:
+    """The surface of a MaterialX surface shader ``s`` (None: not read, with a warning). With a UsdPreviewSurface
+    beside it (``fields``) only what the preview surface cannot say is taken from it: transmission, its colour and
+    the IOR."""
     sid = net.shader_id(s)
     family = family or family_of(sid)
     if family is None:
         nd = mtlx.nodedef(sid) if sid.startswith("ND_") else None
-        if not fields and nd is not None and nd.getType() == "surfaceshader":  # pbrlib closures: mtlx_closures
+        if fields is None and nd is not None and nd.getType() == "surfaceshader":  # pbrlib closures: mtlx_closures
             from .mtlx_closures import MxClosureProgram
 
-            return {"closure": MxClosureProgram(table, s, label, needs)}
-        if not fields:
+            return table.model(closure=MxClosureProgram(table, s, label, needs))
+        if fields is None:
             table.warn(f"{label}: MaterialX shader {sid!r} is not supported")
         return fields
     inp = Inputs(table, s, label, needs, family)
-    if not fields and family == "surface_unlit" and any(inp.connected(n) for n in (
+    if fields is None and family == "surface_unlit" and any(inp.connected(n) for n in (
             "emission", "emission_color", "transmission", "transmission_color", "opacity")):
         from .mtlx_closures import MxClosureProgram  # networks on its weights too: the closure reading
 
-        return {"closure": MxClosureProgram(table, s, label, needs)}
-    if not fields:
+        return table.model(closure=MxClosureProgram(table, s, label, needs))
+    if fields is None:
         return READERS[family](inp)
-    out = dict(fields)
+    out = fields
     names = {"standard_surface": ("transmission", "transmission_color", "specular_IOR"),
              "open_pbr_surface": ("transmission_weight", "transmission_color", "specular_ior"),
              "gltf_pbr": ("transmission", "base_color", "ior")}.get(family)
@@ -597,11 +600,11 @@ def read(table, s, fields: dict, label: str, needs, family: str | None = None) -
         return out
     trans = inp.f(names[0], 0.0)
     if trans > 0:
-        out["transmission"] = float(np.clip(trans, 0, 1))
-        out["transmission_tint"] = tuple(float(x) for x in inp.c3(names[1]))
+        out.transmission = float(np.clip(trans, 0, 1))
+        out.transmission_tint = tuple(float(x) for x in inp.c3(names[1]))
     if net.value(s, names[2], None, table.time) is not None:
         ior = inp.f(names[2], 1.5)
         if ior > 0:
-            out["ior"] = ior
+            out.ior = ior
     return out
 

@@ -96,7 +96,7 @@ def _lookup(s, name, time, uv_matrix, colorspace, channel=-1, scale=(1.0, 1.0, 1
 
 
 def read_omnipbr(table, s, label: str, needs):
-    """(fields) of an OmniPBR / OmniGlass shader."""
+    """The PrincipledSurface of an OmniPBR / OmniGlass shader."""
     time = table.time
     val = lambda name: _value(s, name, time)  # noqa: E731
     num = lambda name: float(net.floats(val(name), 1, (DEFAULTS.get(name, 0.0),))[0])  # noqa: E731
@@ -135,8 +135,8 @@ def read_omnipbr(table, s, label: str, needs):
             lk.bias = tuple(c * (1 - k) if i == ch else 0.0 for i in range(4))
             table._scalar_input(t, key, lk, c, label, own, needs)
         else:
-            t[key] = float(np.clip(c, 0.0, 1.0))
-    t["specular"] = float(max(num("specular_level"), 0.0))
+            setattr(t, key, float(np.clip(c, 0.0, 1.0)))
+    t.specular = float(max(num("specular_level"), 0.0))
     # normal map
     nm = _lookup(s, "normalmap_texture", time, m, "raw")
     if nm is not None:
@@ -157,8 +157,8 @@ def read_omnipbr(table, s, label: str, needs):
         if otex is not None:
             table._scalar_input(t, "alpha", otex, 1.0, label, "opacity_texture", needs)
         else:
-            t["alpha"] = float(np.clip(num("opacity_constant"), 0.0, 1.0))
-        t["alpha_threshold"] = threshold
+            t.alpha = float(np.clip(num("opacity_constant"), 0.0, 1.0))
+        t.alpha_threshold = threshold
     for name in IGNORED:
         inp = s.GetInput(name)
         if inp and inp.GetAttr().HasAuthoredValue() and inp.Get(time) not in (None, False, 0, 0.0, ""):

@@ -24,7 +24,7 @@ DISPLAY_COLOR_FALLBACK = (0.5, 0.5, 0.5)
 
 
 def other_surface(table, mat, preview, label: str, needs):
-    """(fields) for a material whose surface is not a UsdPreviewSurface or outputs:mtlx:surface MaterialX."""
+    """The PrincipledSurface of a material whose surface is not a UsdPreviewSurface or outputs:mtlx:surface MaterialX."""
     candidates = [preview] if preview else []
     for context in ("arnold", "mdl"):
         s, _, _ = mat.ComputeSurfaceSource(context)
@@ -38,7 +38,7 @@ def other_surface(table, mat, preview, label: str, needs):
     for s in candidates:
         sid = net.shader_id(s)
         if sid in arnold.AS_MATERIALX or mtlx_family(sid):
-            return table.materialx(s, {}, label, needs, family=arnold.AS_MATERIALX.get(sid))
+            return table.materialx(s, None, label, needs, family=arnold.AS_MATERIALX.get(sid))
         if sid in arnold.SIMPLE_SURFACES:
             return arnold.simple_surface(table, s, label, needs)
         if omnipbr.is_omnipbr(s):

@@ -29,8 +29,8 @@ see :mod:`usd_io.materials.network`) or, for diffuseColor, a colour primvar read
 
 A MaterialX surface shader on ``outputs:mtlx:surface`` (or on the universal output) — Standard Surface, OpenPBR,
 glTF PBR, Disney Principled, surface_unlit — is read by :mod:`usd_io.materials.mtlx_surfaces` as MaterialX's own
-node-graph implementations define it (its coats as layers over the Principled base, :func:`principled_graph`'s
-``layers``), any other (pbrlib's ``surface``, Lama, a document's own) by :mod:`usd_io.materials.mtlx_closures` as a
+node-graph implementations define it (its coats as layers over the Principled base,
+:class:`tracer.shading.principled.PrincipledSurface`'s ``layers``), any other (pbrlib's ``surface``, Lama, a document's own) by :mod:`usd_io.materials.mtlx_closures` as a
 closure network; beside a UsdPreviewSurface only transmission, its colour and the IOR come from it (the only way a
 Blender glass survives its USD export). MaterialX's own UsdPreviewSurface node (``ND_UsdPreviewSurface_surfaceshader``)
 is a UsdPreviewSurface. ``.mtlx`` documents referenced from USD are translated by :mod:`usd_io.materials.mtlx`
@@ -49,8 +49,9 @@ import numpy as np
 from pxr import UsdGeom, UsdShade
 
 from tracer.shading.compiler import add_graph
-from tracer.shading.graph import Graph, ImageRef
-from tracer.shading.materials import PRINCIPLED_DEFAULTS as _P, f0_from_ior as _f0_from_ior
+from tracer.shading.graph import ImageRef
+from tracer.shading.materials import f0_from_ior as _f0_from_ior
+from tracer.shading.principled import PrincipledSurface
 
 from . import network as net
 from .preview_ranges import clamp_preview_inputs
@@ -88,6 +89,17 @@ class UVLookup:
     bias: tuple
     fallback: tuple
     label: str = ""
+
+    def write(self, g, memo: dict):
+        """Its IR nodes in ``g`` (a lookup of tracer.shading.principled): a ``usd_uv_texture`` node read at the
+        ``uvmap`` of its primvar through ``usd_transform2d``; (the node, the UV map name)."""
+        uv = self.uv if self.uv not in (None, "st") else ""
+        st = g.add("uvmap", attribute=uv)["UV"]
+        if not np.allclose(self.transform, np.eye(3)):
+            st = g.add("usd_transform2d", {"in": st}, matrix=np.asarray(self.transform, np.float64))["result"]
+        node = g.add("usd_uv_texture", {"st": st}, image=self.image, scale=tuple(self.scale), bias=tuple(self.bias),
+                     fallback=tuple(self.fallback), name=self.label)
+        return node, uv
 
 
 def ior_from_f0(f0: float) -> float:
@@ -213,32 +225,28 @@ class MaterialTable:
         return row, MeshNeeds(color=("displayColor", DEFAULT_DISPLAY))
 
     def _plain(self, name, rgb, **extra):
-        fields = self.model(base_color=tuple(float(x) for x in rgb), specular=0.0, **extra)
-        self.summary.setdefault(name, fields)
-        return self.add_material(name, fields)
+        surface = self.model(base_color=tuple(float(x) for x in rgb), specular=0.0, **extra)
+        self.summary.setdefault(name, surface.summary())
+        return self.add_material(name, surface)
 
     # ------------------------------------------------------------------ UsdShade.Material
     def material(self, mat: UsdShade.Material):
         key = str(mat.GetPath())
         if key in self.by_path:
             return self.by_path[key]
-        fields, needs = self.convert(mat)
-        row = self.add_material(key, fields, needs)
-        self.summary[key] = {k: (v.label if isinstance(v, UVLookup) else
-                                 repr(v) if k == "closure" else
-                                 [dict(x) for x in v] if k == "layers" else
-                                 tuple(round(float(x), 4) for x in np.ravel(v)) if np.ndim(v) else
-                                 (round(float(v), 4) if isinstance(v, float) else v)) for k, v in fields.items()}
+        surface, needs = self.convert(mat)
+        row = self.add_material(key, surface, needs)
+        self.summary[key] = surface.summary()
         self.by_path[key] = (row, needs)
         return row, needs
 
     def convert(self, mat: UsdShade.Material):
-        """Tracer material fields and the MeshNeeds for one material."""
+        """(the material's :class:`PrincipledSurface`, its MeshNeeds)."""
         preview, _, _ = mat.ComputeSurfaceSource()
         mtlx, _, _ = mat.ComputeSurfaceSource("mtlx")
         if mtlx and mtlx.GetPath() == (preview.GetPath() if preview else None):
             mtlx = None  # no mtlx-specific output: ComputeSurfaceSource fell back to the universal one
-        fields, needs = {}, MeshNeeds()
+        fields, needs = None, MeshNeeds()
         label = str(mat.GetPath())
         if mtlx and is_preview_surface(mtlx) and not (preview and is_preview_surface(preview)):
             preview, mtlx = mtlx, None  # MaterialX's UsdPreviewSurface node: the same inputs, the same reading
@@ -246,13 +254,13 @@ class MaterialTable:
             fields, needs = self.preview_surface(preview, label)
         if mtlx:
             fields = self.materialx(mtlx, fields, label, needs)
-        if not fields:  # Arnold, MDL OmniPBR, or nothing understood (displayColor + a warning): usd_io.materials.surfaces
+        if fields is None:  # Arnold, MDL OmniPBR, or nothing understood (displayColor + a warning): usd_io.materials.surfaces
             fields = other_surface(self, mat, preview, label, needs)
         return fields, needs
 
     # ------------------------------------------------------------------ UsdPreviewSurface
     def preview_surface(self, s: UsdShade.Shader, label: str):
-        """(tracer fields, MeshNeeds) of one UsdPreviewSurface."""
+        """(PrincipledSurface, MeshNeeds) of one UsdPreviewSurface."""
         t = self.model()
         needs = MeshNeeds()
         src = {name: net.source(s, name, default, self.time) for name, default in PREVIEW_DEFAULTS.items()}
@@ -271,7 +279,7 @@ class MaterialTable:
         ior = float(self._const(src["ior"], 1.5, label, "ior"))
         if not (np.isfinite(ior) and ior > 0):
             ior = 1.5
-        t["ior"] = ior
+        t.ior = ior
         self._scalar_input(t, "roughness", src["roughness"], 0.5, label, "roughness", needs)
         if spec_wf:
             if not _is_default(src["metallic"], 0.0):
@@ -287,13 +295,13 @@ class MaterialTable:
             f0 = float(np.clip(rgb.mean(), 0.0, 1.0))
             level = 0.5 * f0 / max(f0_from_ior(ior), 1e-9)
             if level <= 1.0:
-                t["specular"] = level
+                t.specular = level
             else:
-                t["specular"] = 0.5
-                t["ior"] = ior_from_f0(f0)
-            t["metallic"] = 0.0
+                t.specular = 0.5
+                t.ior = ior_from_f0(f0)
+            t.metallic = 0.0
         else:
-            t["specular"] = 0.5
+            t.specular = 0.5
             self._scalar_input(t, "metallic", src["metallic"], 0.0, label, "metallic", needs)
 
         # opacity
@@ -302,12 +310,12 @@ class MaterialTable:
         if isinstance(op, net.Const):
             opacity = float(np.clip(net.floats(op.value, 1, (1.0,))[0], 0.0, 1.0))
             if threshold > 0:
-                t["alpha"] = 0.0 if opacity < threshold else 1.0
+                t.alpha = 0.0 if opacity < threshold else 1.0
             elif opacity < 1:
-                t["transmission"] = 1.0 - opacity
+                t.transmission = 1.0 - opacity
         else:
             self._scalar_input(t, "alpha", op, 1.0, label, "opacity", needs)
-            t["alpha_threshold"] = max(threshold, 0.0)
+            t.alpha_threshold = max(threshold, 0.0)
 
         self._colour_input(t, "emission", src["emissiveColor"], (0.0, 0.0, 0.0), label, "emissiveColor", needs)
 
@@ -329,9 +337,9 @@ class MaterialTable:
         if isinstance(n, net.TextureLookup):
             idx, _const = self._texture(n, label, name, needs)
             if idx is not None:
-                t["normal_texture"] = idx
+                t.read("normal", idx)
         elif isinstance(n, net.GraphLookup):  # a MaterialX normalmap/bump network: a world-space normal
-            t["normal_graph"] = self._graph(n, label, name, needs)
+            t.normal_graph = self._graph(n, label, name, needs)
         elif isinstance(n, net.Const):
             if n.value is not None and not np.allclose(net.floats(n.value, 3, neutral), neutral):
                 self.warn(f"{label}: a constant {name} {tuple(n.value)} is not supported (ignored)")
@@ -371,45 +379,44 @@ class MaterialTable:
 
     def _scalar_input(self, t, key, src, default, label, name, needs):
         if isinstance(src, net.Const):
-            t[key] = float(net.floats(src.value, 1, (default,))[0])
+            setattr(t, key, float(net.floats(src.value, 1, (default,))[0]))
             return
         if isinstance(src, net.GraphLookup):
-            t.update({key: 1.0, f"{key}_texture": self._graph(src, label, name, needs), f"{key}_channel": 0})
+            setattr(t, key, 1.0)
+            t.read(key, self._graph(src, label, name, needs), 0)
             return
         if isinstance(src, net.TextureLookup):
             idx, const = self._texture(src, label, name, needs)
             if idx is not None:
-                t[key] = 1.0
-                t[f"{key}_texture"] = idx
-                t[f"{key}_channel"] = src.channel if src.channel >= 0 else 0
+                setattr(t, key, 1.0)
+                t.read(key, idx, src.channel if src.channel >= 0 else 0)
                 return
-            t[key] = float(const[src.channel if src.channel >= 0 else 0])
+            setattr(t, key, float(const[src.channel if src.channel >= 0 else 0]))
             return
         fb = self._fallback_of(src, default)
         self.warn(f"{label}: {name} driven by {self._what(src)} is not supported (fallback {fb} used)")
-        t[key] = float(net.floats(fb, 1, (default,))[0])
+        setattr(t, key, float(net.floats(fb, 1, (default,))[0]))
 
     def _colour_input(self, t, key, src, default, label, name, needs):
         if isinstance(src, net.Const):
-            t[key] = net.floats(src.value, 3, default)
+            setattr(t, key, net.floats(src.value, 3, default))
             return
         if isinstance(src, net.GraphLookup):
-            t.update({key: (1.0, 1.0, 1.0), f"{key}_texture": self._graph(src, label, name, needs),
-                      f"{key}_channel": -1})
+            setattr(t, key, (1.0, 1.0, 1.0))
+            t.read(key, self._graph(src, label, name, needs), -1)
             return
         if isinstance(src, net.TextureLookup):
             idx, const = self._texture(src, label, name, needs)
             if idx is not None:
-                t[key] = (1.0, 1.0, 1.0)
-                t[f"{key}_texture"] = idx
-                t[f"{key}_channel"] = src.channel  # -1 = rgb; a single channel is read as grey
+                setattr(t, key, (1.0, 1.0, 1.0))
+                t.read(key, idx, src.channel)  # -1 = rgb; a single channel is read as grey
                 return
             c = const[src.channel] if src.channel >= 0 else None
-            t[key] = (c, c, c) if c is not None else tuple(const[:3])
+            setattr(t, key, (c, c, c) if c is not None else tuple(const[:3]))
             return
         fb = self._fallback_of(src, default)
         self.warn(f"{label}: {name} driven by {self._what(src)} is not supported (fallback {fb} used)")
-        t[key] = net.floats(fb, 3, default)
+        setattr(t, key, net.floats(fb, 3, default))
 
     def _texture(self, lk: net.TextureLookup, label: str, name: str, needs: MeshNeeds):
         """(texture index, None) for a readable UsdUVTexture; (None, its fallback as 4 floats) otherwise, with one
@@ -452,19 +459,19 @@ class MaterialTable:
 
     # ------------------------------------------------------------------ the tracer's model
     @staticmethod
-    def model(**fields) -> dict:
-        """The reader's description of a surface: Principled fields (docs/materials-api.md), a parameter P read
-        from a texture as ``P_texture`` (a :class:`UVLookup`) and ``P_channel``; written as IR by
-        :meth:`add_material`."""
-        return dict(fields)
+    def model(**inputs) -> PrincipledSurface:
+        """A new surface description (tracer.shading.principled): the Principled BSDF's defaults but
+        UsdPreviewSurface's diffuseColor fallback, then ``inputs``; written as IR by :meth:`add_material`."""
+        return PrincipledSurface(base_color=FALLBACK_DIFFUSE).update(**inputs)
 
-    def add_material(self, name: str, fields: dict, needs: MeshNeeds | None = None) -> int:
+    def add_material(self, name: str, surface: PrincipledSurface, needs: MeshNeeds | None = None) -> int:
         """Write one surface as a shader graph (tracer.shading.graph) and add its row (tracer.shading.compiler)."""
         color = needs.color[0] if needs is not None and needs.color is not None else "displayColor"
-        return add_graph(self.b, principled_graph(name, fields, color), self.warn, self.uv_set_index, name=name)
+        return add_graph(self.b, surface.graph(name, color), self.warn, self.uv_set_index, name=name)
 
     # ------------------------------------------------------------------ MaterialX
-    def materialx(self, s: UsdShade.Shader, fields: dict, label: str, needs: MeshNeeds, family=None) -> dict:
+    def materialx(self, s: UsdShade.Shader, fields: PrincipledSurface | None, label: str, needs: MeshNeeds,
+                  family=None) -> PrincipledSurface | None:
         """A MaterialX surface shader (Standard Surface, OpenPBR, glTF PBR, Disney Principled, surface_unlit, or a
         closure network): :mod:`usd_io.materials.mtlx_surfaces`. With a UsdPreviewSurface beside it (``fields``)
         only transmission, its colour and the IOR come from it."""
@@ -485,125 +492,3 @@ def _is_default(src, default) -> bool:
     if not isinstance(src, net.Const):
         return False
     return bool(np.allclose(net.floats(src.value, 1, (default,))[0], default))
-
-
-# ---------------------------------------------------------------------------------------------- the IR
-#: Each field's value where a description leaves it out: the Principled BSDF's defaults (tracer.shading.materials,
-#: Blender's), emission being Emission Color × Emission Strength, and UsdPreviewSurface's own diffuseColor fallback.
-FIELD_DEFAULTS = {"base_color": FALLBACK_DIFFUSE, "roughness": _P["Roughness"], "metallic": _P["Metallic"],
-                  "specular": _P["Specular IOR Level"], "alpha": _P["Alpha"], "ior": _P["IOR"],
-                  "transmission": _P["Transmission Weight"],
-                  "emission": tuple(c * _P["Emission Strength"] for c in _P["Emission Color"])}
-
-
-def principled_graph(name: str, f: dict, color_primvar: str = "displayColor") -> Graph:
-    """A reader's description (:meth:`MaterialTable.model` fields) written as one ``principled_bsdf`` shader graph,
-    the tracer's one front-end contract (tracer.shading.graph). A field left out is its :data:`FIELD_DEFAULTS`
-    value. A parameter P read from a lookup (``P_texture``, ``P_channel``: −1 rgb — a scalar parameter then reads
-    the lookup's luminance —, 0..3 one channel, which a colour reads as grey) is its constant × the lookup; each
-    :class:`UVLookup` becomes a ``usd_uv_texture`` node, its st a ``uvmap`` through ``usd_transform2d``, and a
-    MaterialX network (:class:`usd_io.materials.mtlx_graph.MxProgram`) its translated nodes, one translator per graph. The
-    normal map is a ``normal_map`` node fed value/2 + 1/2 (the lookup gives the tangent-space normal itself)."""
-    g = Graph(name)
-    nodes: dict = {}  # id(lookup) -> (outputs, UV map name): each lookup written once
-    translators: dict = {}  # the MaterialX networks' translator of this graph (usd_io.materials.mtlx_graph)
-    if f.get("closure") is not None:  # a MaterialX closure network (usd_io.materials.mtlx_closures): the surface itself
-        g.output(f["closure"].write(g, translators))
-        return g
-
-    def tex(lk):
-        if id(lk) not in nodes:
-            if hasattr(lk, "write"):  # a MaterialX network (usd_io.materials.mtlx_graph.MxProgram)
-                nodes[id(lk)] = lk.write(g, translators)
-            else:
-                st = g.add("uvmap", attribute=lk.uv if lk.uv not in (None, "st") else "")["UV"]
-                if not np.allclose(lk.transform, np.eye(3)):
-                    st = g.add("usd_transform2d", {"in": st}, matrix=np.asarray(lk.transform, np.float64))["result"]
-                node = g.add("usd_uv_texture", {"st": st}, image=lk.image, scale=tuple(lk.scale),
-                             bias=tuple(lk.bias), fallback=tuple(lk.fallback), name=lk.label)
-                nodes[id(lk)] = node, lk.uv if lk.uv not in (None, "st") else ""
-        return nodes[id(lk)]
-
-    def value(key, colour):
-        lk, ch = f[f"{key}_texture"], int(f.get(f"{key}_channel", -1))
-        node = tex(lk)[0]
-        if ch < 0:
-            return node["rgb"]
-        x = node["rgba"[ch]]
-        return g.add("combine_color", {"Red": x, "Green": x, "Blue": x})["Color"] if colour else x
-
-    def colour(key):
-        const = tuple(float(x) for x in np.broadcast_to(np.asarray(f.get(key, FIELD_DEFAULTS[key]), np.float64), (3,)))
-        if f.get(f"{key}_texture") is None:
-            return const
-        return g.add("vector_math", {"Vector": value(key, True), "Vector_001": const}, operation="MULTIPLY")["Vector"]
-
-    def scalar(key):
-        const = float(f.get(key, FIELD_DEFAULTS[key]))
-        if f.get(f"{key}_texture") is None:
-            return const
-        return g.add("math", {"Value": value(key, False), "Value_001": const}, operation="MULTIPLY")["Value"]
-
-    base = colour("base_color")
-    vc = f.get("vertex_color")
-    if vc is not None and vc is not False:
-        col = g.add("vertex_color", layer_name=color_primvar if vc is True else str(vc))["Color"]
-        base = g.add("vector_math", {"Vector": base, "Vector_001": col}, operation="MULTIPLY")["Vector"]
-    inputs = {"Base Color": base, "Roughness": scalar("roughness"), "Metallic": scalar("metallic"),
-              "Specular IOR Level": scalar("specular"), "Alpha": scalar("alpha"), "Emission Color": colour("emission"),
-              "Emission Strength": 1.0, "IOR": float(f.get("ior", FIELD_DEFAULTS["ior"])),
-              "Transmission Weight": float(f.get("transmission", FIELD_DEFAULTS["transmission"])),
-              "Alpha Threshold": float(f.get("alpha_threshold", 0.0))}
-    if f.get("normal_texture") is not None:
-        node, uv_map = tex(f["normal_texture"])
-        half = g.add("vector_math", {"Vector": node["rgb"], "Vector_001": (0.5, 0.5, 0.5),
-                                     "Vector_002": (0.5, 0.5, 0.5)}, operation="MULTIPLY_ADD")["Vector"]
-        inputs["Normal"] = g.add("normal_map", {"Color": half, "Strength": float(f.get("normal_strength", 1.0))},
-                                 uv_map=uv_map)["Normal"]
-    if f.get("specular_tint") is not None:
-        inputs["Specular Tint"] = tuple(float(x) for x in np.broadcast_to(f["specular_tint"], (3,)))
-    if float(f.get("sheen", 0.0) or 0.0) > 0:  # the Principled sheen layer (tracer.shading.sheen, microfiber)
-        inputs["Sheen Weight"] = float(f["sheen"])
-        inputs["Sheen Tint"] = tuple(float(x) for x in np.broadcast_to(f.get("sheen_tint", (1.0,) * 3), (3,)))
-        inputs["Sheen Roughness"] = float(f.get("sheen_roughness", 0.5))
-    params = {}
-    if f.get("transmission_tint") is not None:
-        params["transmission_tint"] = tuple(float(x) for x in np.broadcast_to(f["transmission_tint"], (3,)))
-    elif float(f.get("transmission", FIELD_DEFAULTS["transmission"])) > 0:
-        params["transmission_tint"] = (1.0, 1.0, 1.0)
-    bsdf = g.add("principled_bsdf", inputs, **params)
-    if f.get("normal_graph") is not None:  # a MaterialX normal network: the Principled BSDF's Normal
-        g.link(f["normal_graph"].value(g, translators).x, bsdf, "Normal")
-    g.output(_layered(g, bsdf["BSDF"], f.get("layers") or (), float(f.get("ior", FIELD_DEFAULTS["ior"]))))
-    return g
-
-
-def _layered(g: Graph, base, layers, ior: float):
-    """``base`` under ``layers`` (top first), each as MaterialX's layer(top, base) = top + base·(1 − the top's
-    albedo): a ``dielectric`` layer (weight, roughness, ior) is a Principled lobe with a black base whose Fresnel
-    curve is the layer's IOR (its Specular IOR Level 0.5·F0(layer)/F0(ior) against the material's ``ior``, which
-    the lobes share), the base weighted by 1 − weight·Fresnel(layer IOR, n·v); a ``glossy`` layer (weight, colour,
-    roughness) a constant-Fresnel GGX lobe of that colour, the base weighted by 1 − weight·mean(colour)."""
-    out = base
-    for layer in reversed(list(layers)):
-        w = float(np.clip(layer.get("weight", 1.0), 0.0, 1.0))
-        if w <= 0:
-            continue
-        r = float(np.clip(layer.get("roughness", 0.0), 0.0, 1.0))
-        if layer["kind"] == "dielectric":
-            lior = float(layer.get("ior", 1.5))
-            level = 0.5 * _f0_from_ior(lior) / max(_f0_from_ior(ior), 1e-9)
-            top = g.add("principled_bsdf", {"Base Color": (0.0, 0.0, 0.0), "Metallic": 0.0, "Roughness": r,
-                                            "Specular IOR Level": float(level), "IOR": ior})["BSDF"]
-            fr = g.add("fresnel", {"IOR": lior})["Fac"]
-            albedo = g.add("math", {"Value": fr, "Value_001": w}, operation="MULTIPLY")["Value"]
-        else:
-            colour = tuple(float(x) for x in np.broadcast_to(layer.get("colour", (0.04,) * 3), (3,)))
-            top = g.add("glossy_bsdf", {"Color": colour, "Roughness": r})["BSDF"]
-            albedo = w * float(np.mean(colour))
-        keep = g.add("math", {"Value": 1.0, "Value_001": albedo}, operation="SUBTRACT")["Value"] \
-            if not isinstance(albedo, float) else 1.0 - albedo
-        under = g.add("mix_closure", {"Fac": keep, "Shader_001": out})["Shader"]
-        above = g.add("mix_closure", {"Fac": w, "Shader_001": top})["Shader"] if w < 1 else top
-        out = g.add("add_closure", {"Shader": above, "Shader_001": under})["Shader"]
-    return out
