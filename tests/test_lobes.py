@@ -156,3 +156,19 @@ def test_one_bsdf_keeps_the_one_closure_path_and_a_holdout_weight_is_written():
     p = compile_graph(g).program
     assert p.lobes is not None and list(p.lobes.kinds) == [L.DIFFUSE, -1, -1, -1]
     assert p.init[p.lobes.extra[1]] == pytest.approx(0.25)  # the per-hit holdout weight the compositor reads
+
+
+@pytest.mark.parametrize("metallic, specular", [(1.0, 0.5), (0.0, 0.5)])
+def test_mix_with_an_empty_input_scales_a_specular_lobe_whole(metallic, specular):
+    """Mix Shader (Fac 0.4) with its first input left empty is 0.4 × the lobe (Cycles: an unconnected closure is
+    nothing). A material row cannot say that for a specular lobe (its F0 × 0.4 still rises to 1 at grazing
+    angles: 0.393 of the metal before); the lobe keeps its slot and weight."""
+    def lobe(g):
+        return g.add("principled_bsdf", {"Base Color": (0.9, 0.6, 0.3), "Roughness": 0.4, "Metallic": metallic,
+                                         "Specular IOR Level": specular})["BSDF"]
+
+    light = (0.3, 0.0, -1.0)
+    alone, _ = probe(lobe, light=light, behind=True)
+    got, _ = probe(lambda g: g.add("mix_closure", {"Fac": 0.4, "Shader_001": lobe(g)})["Shader"], light=light,
+                   behind=True)
+    np.testing.assert_allclose(got, 0.4 * alone, rtol=2e-3)

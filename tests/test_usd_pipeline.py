@@ -309,11 +309,12 @@ def _centre(stage, w=24, h=16):
 
 
 def test_arnold_lambert_is_lambertian_with_kd_times_colour():
-    """Closed form: irradiance 2 head-on on albedo Kd·Kd_color gives radiance albedo·2/π."""
+    """Closed form: a distant light of intensity 2 head-on on albedo Kd·Kd_color gives radiance albedo·2 in
+    Arnold's units (the stage is Arnold's: E = π·I, usd_io.exporters; tests/test_usd_arnold_fidelity.py)."""
     c = (0.2, 0.4, 0.8)
     px, info = _centre(st.lit_quad_with("arnold:lambert", {"Kd": (F, 0.5), "Kd_color": (C3, Gf.Vec3f(*c))},
                                         output="arnold:surface"))
-    np.testing.assert_allclose(px, 0.5 * np.asarray(c) * 2 / np.pi, rtol=0.02)
+    np.testing.assert_allclose(px, 0.5 * np.asarray(c) * 2, rtol=0.02)
     assert not any("not supported" in w for w in info.warnings), info.warnings
 
 
@@ -338,7 +339,7 @@ def test_arnold_user_data_rgb_reads_the_primvar():
     ud.CreateInput("attribute", Sdf.ValueTypeNames.String).Set("displayColor")
     UsdShade.Shader(s.GetPrimAtPath("/M/S")).CreateInput("base_color", C3).ConnectToSource(ud.ConnectableAPI(), "out")
     px, _ = _centre(s)
-    np.testing.assert_allclose(px, np.asarray((0.9, 0.1, 0.1)) * 2 / np.pi, rtol=0.03)
+    np.testing.assert_allclose(px, np.asarray((0.9, 0.1, 0.1)) * 2, rtol=0.03)  # Arnold's units: E = π·I
 
 
 def test_omnipbr_constant_inputs_without_the_mdl_file():
@@ -895,7 +896,7 @@ def test_a_usd_camera_with_a_transform_keeps_it_over_arnold_primvars():
     s = st.arnold_camera_stage(position=(10, 0, 10), look_at=(10, 0, 0))
     UsdGeom.Xformable(s.GetPrimAtPath("/Cam")).AddTranslateOp().Set(Gf.Vec3d(0, 0, 10))  # looks at nothing
     img, info = _image(s)
-    assert _lit_columns(img) == 0.0 and not any("Arnold" in n for n in info.notes)
+    assert _lit_columns(img) == 0.0 and not any("placed by its Arnold" in n for n in info.notes)
 
 
 S_ = Sdf.ValueTypeNames.String
@@ -983,9 +984,8 @@ def test_a_dome_arnold_hides_from_the_camera_lights_but_is_not_seen():
         s = new_stage()
         add_camera(s, eye=(0, 0, 10))
         st.quad(s, "/Q", half=1.0)
-        dome = UsdLux.DomeLight.Define(s, "/Dome")
-        if hidden:
-            UsdGeom.PrimvarsAPI(dome.GetPrim()).CreatePrimvar("arnold:camera", F).Set(0.0)
+        dome = UsdLux.DomeLight.Define(s, "/Dome")  # both stages Arnold's (the same fallback surface)
+        UsdGeom.PrimvarsAPI(dome.GetPrim()).CreatePrimvar("arnold:camera", F).Set(0.0 if hidden else 1.0)
         return _image(s, w=24, h=16)[0]
 
     seen, unseen = frame(False), frame(True)

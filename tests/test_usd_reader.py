@@ -511,3 +511,23 @@ def test_zero_scale_instances_are_dropped():
     scene = flatten(scene)  # instances as world-space triangles, to check their placement
     assert len(scene.triangles) == 2 * 12
     assert any("1 instance(s)" in w for w in info.warnings)
+
+
+def test_per_instance_primvars_of_a_point_instancer_are_named_not_dropped_silently():
+    """Hydra gives each instance its element of a PointInstancer's vertex/varying primvar (Arnold's user_data
+    reads them too); the tracer's instances share their prototype's values: one warning names them. A constant
+    primvar is inherited by the prototypes below (no warning)."""
+    s = new_stage()
+    add_camera(s)
+    inst = UsdGeom.PointInstancer.Define(s, "/Inst")
+    UsdGeom.Cube.Define(s, "/Inst/Protos/Box")
+    inst.CreatePrototypesRel().SetTargets(["/Inst/Protos/Box"])
+    inst.CreateProtoIndicesAttr([0, 0])
+    inst.CreatePositionsAttr([(0, 0, 0), (3, 0, 0)])
+    api = UsdGeom.PrimvarsAPI(inst)
+    api.CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.varying).Set(
+        [(1, 0, 0), (0, 0, 1)])
+    api.CreatePrimvar("weight", Sdf.ValueTypeNames.Float, UsdGeom.Tokens.constant).Set(0.5)
+    _scene, info = load_stage(s, width=16)
+    said = [w for w in info.warnings if "per-instance primvars" in w]
+    assert len(said) == 1 and "displayColor" in said[0] and "weight" not in said[0], info.warnings

@@ -4,6 +4,7 @@ Storm's baseline PNGs, by silhouette IoU.
     python tools/fidelity.py OPENUSD_CHECKOUT [--out /tmp/fidelity] [--only NAME[,NAME...]] [--no-dof]
                              [--aa 2] [--jsonl OUT.jsonl]
     python tools/fidelity.py materialx MATERIALX_CHECKOUT ...   (the MaterialX corpus: tools/fidelity_mtlx.py)
+    python tools/fidelity.py arnold ARNOLD_USD_CHECKOUT ...     (arnold-usd's test suite: tools/fidelity_arnold.py)
 
 Nothing is downloaded: OPENUSD_CHECKOUT is a checkout (or an extracted copy) of OpenUSD holding
 ``pxr/usdImaging/usdImagingGL/CMakeLists.txt`` and its ``testenv``. Every ``pxr_register_test`` there whose
@@ -259,6 +260,11 @@ def main(argv=None) -> int:
         import fidelity_mtlx
 
         return fidelity_mtlx.main(argv[1:])
+    if argv[:1] == ["arnold"]:  # arnold-usd's test suite against Arnold's references (tools/fidelity_arnold.py)
+        sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+        import fidelity_arnold
+
+        return fidelity_arnold.main(argv[1:])
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("openusd")
     p.add_argument("--out", default="/tmp/fidelity")

@@ -18,6 +18,14 @@ and each writer maps to one set of units (:data:`UNITS`), applied by ``usd_io.li
     blender-legacy Blender 2.83 – 3.1, and 3.2 – 3.6 stages without a DomeLight (the released exporter kept
                    ``energy / 100`` until 4.0 and wrote no world): intensity = P / 100 for points, spots and area
                    lights (no normalize), the sun's strength as is with its angle in radians written as degrees
+    arnold         a stage written for Arnold (:func:`written_for_arnold`) without ``arnold:global:usdlux_version``
+                   on its RenderSettings: Arnold's own light units, which arnold-usd passes through unchanged
+                   (intensity, exposure, normalize, radius) and Arnold's core reads as its legacy lights do
+                   unless usdlux_version is set: a distant light of I lights a white diffuse surface facing it to
+                   I (irradiance E = π·I, whatever its angle and normalize), a point (sphere) light of radius 0 or
+                   normalized to I/d² at distance d (radiant intensity π·I; the spec's I/4); the radius is
+                   ``primvars:arnold:radius`` when authored (Arnold's parameter wins). Rect, disk and dome
+                   lights: as the spec (radiance I, normalized I/A)
     kit            Omniverse Kit: every intensity (and OmniPBR's emissive_intensity) × 2^KIT_EV (−9 EV: Kit's
                    lights are in nits seen through an auto-exposed camera; −9 EV matches its previews)
 
@@ -45,7 +53,9 @@ from dataclasses import dataclass
 KIT_EV = -9.0
 #: Blender's nits_to_watts_per_meter_sq (1 / 683).
 NITS_TO_W_PER_M2 = 0.0014641
-UNITS = ("spec", "blender", "blender-nits", "blender-legacy", "kit")
+UNITS = ("spec", "blender", "blender-nits", "blender-legacy", "kit", "arnold")
+#: Authored property-name prefixes only Arnold's writers (arnold-usd, Solaris' Arnold, MtoA, ...) write.
+ARNOLD_PREFIXES = ("arnold:", "primvars:arnold:", "outputs:arnold:")
 
 
 @dataclass(frozen=True)
@@ -79,6 +89,48 @@ def detect(stage) -> Writer | None:
     kit_keys = isinstance(render, dict) and any(str(k).startswith("rtx:") for k in render)
     if "omni_layer" in data or kit_keys or re.search(r"omniverse|\bkit\b", doc + " " + creator, re.I):
         return Writer("Omniverse Kit", "kit")
+    why = written_for_arnold(stage)
+    if why is not None and arnold_usdlux_version(stage) is None:
+        return Writer(f"Arnold ({why})", "arnold")
+    return None
+
+
+def written_for_arnold(stage) -> str | None:
+    """What says ``stage`` was written for Arnold (the first piece found, e.g.
+    "/Render/settings.arnold:global:AA_samples"), or None: a prim typed ``Arnold*`` (Arnold's USD schemas), an
+    authored property named ``arnold:*`` (render settings, node parameters), ``primvars:arnold:*`` (per-object
+    Arnold parameters) or ``outputs:arnold:*`` (a material's Arnold surface), or a shader whose ``info:id`` is
+    ``arnold:*``. One traversal that stops at the first piece: callers keep the answer."""
+    from pxr import Usd  # here: request.py reads UNITS for the CLI's flags before pxr is loaded
+
+    found = None
+    ranges = [stage.Traverse()] + [Usd.PrimRange(p) for p in stage.GetPrototypes()]  # each prim once, not per instance
+    for prim in (p for r in ranges for p in r):
+        if prim.GetTypeName().startswith("Arnold"):
+            found = f"{prim.GetPath()} ({prim.GetTypeName()})"
+            break
+        name = next((n for n in prim.GetAuthoredPropertyNames() if n.startswith(ARNOLD_PREFIXES)), None)
+        if name is not None:
+            found = f"{prim.GetPath()}.{name}"
+            break
+        sid = prim.GetAttribute("info:id").Get() if prim.HasAttribute("info:id") else None
+        if sid is not None and str(sid).startswith("arnold:"):
+            found = f"{prim.GetPath()} ({sid})"
+            break
+    return found
+
+
+def arnold_usdlux_version(stage) -> str | None:
+    """A RenderSettings' ``arnold:global:usdlux_version`` when authored and not 0/empty: Arnold then reads the
+    lights as UsdLux says (its USDLux compatibility mode), not in its own units."""
+    from pxr import Usd  # here: as written_for_arnold
+
+    for prim in stage.Traverse():
+        if prim.GetTypeName() == "RenderSettings":
+            a = prim.GetAttribute("arnold:global:usdlux_version")
+            v = a.Get() if a and a.HasAuthoredValue() else None
+            if v not in (None, "", 0, "0"):
+                return str(v)
     return None
 
 
@@ -104,6 +156,11 @@ def light_units(stage, mode: str = "auto") -> tuple[str, str | None]:
     what = {"blender": "its sun as E = 4·I",
             "blender-nits": "its intensities from nits (× 0.0014641, areas as its exporter computed them)",
             "blender-legacy": "its intensities as power / 100 (P = 100·I) and its sun angle in radians",
-            "kit": f"its intensities × 2^{KIT_EV:g} (−9 EV)"}[w.units]
+            "kit": f"its intensities × 2^{KIT_EV:g} (−9 EV)",
+            "arnold": "distant and point lights × π of the spec's (E = π·I; a point's intensity π·I, not I/4), "
+                      "primvars:arnold:radius"}[w.units]
+    if w.units == "arnold":
+        return w.units, (f"lights read in Arnold's own units (the stage is written for Arnold: {w.name[8:-1]}): "
+                         f"{what} (docs/usd.md, \"Two readings\"; --light-units spec reads them as UsdLux says)")
     return w.units, (f"lights read in the units of {w.name}'s exporter: {what} (docs/usd.md, \"Two readings\"; "
                      "--light-units spec reads them as UsdLux says)")

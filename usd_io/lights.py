@@ -9,6 +9,8 @@ light of power P as a SphereLight with I = P/π, normalize = 1; Cycles' radiant 
                  (the same light as a normalized one of I·4πR², i.e. normalize divides by the surface area)
                  radius -> soft shadows unless treatAsPoint; ShapingAPI cone -> SpotLight(cone_angle =
                  shaping:cone:angle in degrees (half angle), blend = shaping:cone:softness)
+    (Arnold's own units, ``units = "arnold"``, usd_io.exporters: a normalized or radius-0 SphereLight has
+    radiant intensity π·I, ``primvars:arnold:radius`` overriding the radius; a DistantLight E = π·I.)
     DistantLight spec: ``angle`` is the angular diameter of the sun's disk (default 0.53°) and I its radiance, so
                  the irradiance is E = I·Ω with Ω = 2π(1 − cos(angle/2)) the disk's solid angle (the schema
                  default I = 50 000 gives E = 3.36 W/m², a sane sun); ``normalize`` = 1 makes E = I.
@@ -135,7 +137,7 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
     """(kind, tracer light or None, world dict or None) for one UsdLux prim in ``units`` (usd_io.exporters.UNITS:
     the writer's light units; None: "blender" when ``blender`` else "spec")."""
     units = units or ("blender" if blender else "spec")
-    if units != "spec" and not authored(prim, "intensity"):
+    if units not in ("spec", "arnold") and not authored(prim, "intensity"):
         units = "spec"  # the writer's units are about the numbers it wrote: a fallback intensity is UsdLux's
     blender = units == "blender"
     t = prim.GetTypeName()
@@ -151,9 +153,15 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
     down = -world[:3, 2]  # the light's −Z
     if t == "SphereLight":
         lux = UsdLux.SphereLight(prim)
-        r = _finite(_get(lux.GetRadiusAttr(), time, 0.5), "radius") * float(np.mean(_axis_scales(world)))
+        r = _finite(_get(lux.GetRadiusAttr(), time, 0.5), "radius")
+        arnold_r = prim.GetAttribute("primvars:arnold:radius") if units == "arnold" else None
+        if arnold_r and arnold_r.HasAuthoredValue():  # Arnold's own parameter wins (arnold-usd reads it last)
+            r = _finite(arnold_r.Get(time), "primvars:arnold:radius")
+        r *= float(np.mean(_axis_scales(world)))
         point = bool(_get(lux.GetTreatAsPointAttr(), time, False))
-        if _normalized(prim, time) or r <= 0:
+        if units == "arnold" and (_normalized(prim, time) or r <= 0):
+            intensity = rgb * np.pi  # Arnold: a white diffuse facing it at distance d is I/d²
+        elif _normalized(prim, time) or r <= 0:
             intensity = rgb / 4.0
         else:
             intensity = rgb * np.pi * r * r
@@ -182,6 +190,8 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
             diameter = float(np.clip(np.radians(angle), 0, np.pi - 1e-6))
         if not blender and angle <= 0:  # a delta sun: the limit the normalized reading gives
             irradiance = rgb
+        if units == "arnold":  # Arnold's distant light: a white diffuse facing it is I, E = π·I (normalize ignored)
+            irradiance = rgb * np.pi
         return "distant", DistantLight(direction=down, irradiance=irradiance, angle=diameter, name=name), None
     if t == "CylinderLight":
         # A tube along its local X of `length` and `radius`: emitted as a spherical light of the same power

@@ -210,6 +210,11 @@ class _Reader:
         in another instancer's prototype (one per outer instance), else its own world matrix."""
         mats, idx, protos = instance_matrices(prim, self.time)
         frames = self.xf.world(prim)[None] if frames is None else frames
+        per_instance = sorted(pv.GetPrimvarName() for pv in UsdGeom.PrimvarsAPI(prim).GetPrimvarsWithValues()
+                              if pv.GetInterpolation() in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying))
+        if per_instance:  # Hydra gives each instance its element; the tracer's instances share their prototype's
+            self.info.warn(f"{prim.GetPath()}: per-instance primvars {', '.join(per_instance)} are not read (each "
+                           "instance shows its prototype's own values)")
         total = 0
         for p_index, p_path in enumerate(protos):
             sel = np.flatnonzero(idx == p_index)

@@ -302,7 +302,7 @@ class ClosureLowering:
         special = any(lb["lk"] in (L.GLOSSY, L.TRANSLUCENT, L.REFRACTION, L.SHEEN) for _w, lb in refl) or any(
             lb["kind"] == "holdout" or (lb["kind"] == "transparent" and not (
                 is_const(lb["through"]) and vec3(lb["through"]) == (1.0, 1.0, 1.0))) for _w, lb in lobes)
-        if len(refl) < 2 and not special:
+        if len(refl) < 2 and not special and (not refl or _exact_as_a_row(*refl[0])):
             return None
         m = self.math
         through, holdout = (0.0, 0.0, 0.0), 0.0
@@ -358,3 +358,15 @@ class ClosureLowering:
             for key in ("roughness", "metallic", "specular", "transmission"):
                 blend[key] = m(ops.M_ADD, blend[key], m(ops.M_MULTIPLY, f, lb[key]))
         return keep + [(total, blend)]
+
+
+def _is(x, value: float) -> bool:
+    return is_const(x) and float(x) == value
+
+
+def _exact_as_a_row(w, lb: dict) -> bool:
+    """Whether one reflecting lobe of weight ``w`` is exactly the material row :meth:`ClosureLowering.combine`
+    makes of it: at weight 1 always; at another weight only a lobe without specular (w·base is the diffuse). A
+    weighted specular lobe needs its slot: a row would scale F0 by w, while Fresnel still rises to 1 at grazing
+    angles (Mix Shader with one input left empty: Cycles scales the whole lobe)."""
+    return _is(w, 1.0) or (_is(lb["specular"], 0.0) and _is(lb["metallic"], 0.0))

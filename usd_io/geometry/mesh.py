@@ -9,7 +9,8 @@ per-corner values through the triangulation's corner table:
     varying      one per point (meshes: the same as vertex)
     faceVarying  one per face-vertex   -> indexed by the corner's face-vertex position
 
-Indexed primvars are flattened first (``Primvar.ComputeFlattened``). ``orientation = leftHanded`` reverses the
+Indexed primvars are flattened first (``Primvar.ComputeFlattened``; :func:`flattened`: with elementSize 1 where the
+authored elementSize does not fit the indices, as Arnold reads MtoA's primvars). ``orientation = leftHanded`` reverses the
 winding so the tracer's counter-clockwise front faces match USD's; so does a mirroring (negative determinant)
 transform. Subdivision surfaces (``subdivisionScheme`` catmullClark, the USD default, loop or bilinear) are
 refined by ``tracer.geometry.subdivision`` to the ``--complexity`` level (:data:`COMPLEXITY`); at level 0 (low) they render
@@ -124,6 +125,23 @@ class MeshData:
     point_weights: np.ndarray | None = None  # NURBS patches: (V, P) each vertex as a combination of the CVs
 
 
+def flattened(pv, time):
+    """``pv``'s values with its indices applied (``UsdGeom.Primvar.ComputeFlattened``), or None.
+
+    An indexed primvar whose ``elementSize`` does not fit its indices (MtoA writes faceVarying normals and UVs with
+    elementSize = a face's corner count and one index per corner: USD's ComputeFlattened refuses it, with a warning
+    naming the primvar) is flattened with elementSize 1, one value per index, as Arnold reads it (arnold-usd's
+    reader ignores elementSize)."""
+    vals = pv.ComputeFlattened(time)
+    if (vals is None or len(vals) == 0) and pv.IsIndexed() and pv.GetElementSize() > 1:
+        raw, idx = pv.Get(time), pv.GetIndices(time)
+        if raw is not None and idx is not None and len(raw) and len(idx):
+            i = np.asarray(idx, np.int64)
+            if i.min() >= 0 and i.max() < len(raw):
+                return np.asarray(raw)[i]
+    return vals
+
+
 def _primvar(prim, name):
     pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar(name)
     return pv if pv and pv.HasValue() else None
@@ -133,7 +151,7 @@ def read_uvs(prim, tri: Triangulation, n_points, n_fv, time, name="st"):
     pv = _primvar(prim, name)
     if pv is None:
         return None, None
-    vals = pv.ComputeFlattened(time)
+    vals = flattened(pv, time)
     if vals is None or len(vals) == 0:
         return None, None
     uv, why = expand_primvar(np.asarray(vals, dtype=np.float64).reshape(len(vals), -1)[:, :2],
@@ -239,7 +257,7 @@ def _polygons(prim, mesh, label, points, counts, indices, left, holes, time, uv_
     # Normals: primvars:normals wins over the normals attribute (UsdGeom rule).
     pv = _primvar(prim, "normals")
     if pv is not None:
-        vals, interp = pv.ComputeFlattened(time), pv.GetInterpolation()
+        vals, interp = flattened(pv, time), pv.GetInterpolation()
     else:
         attr = mesh.GetNormalsAttr()
         vals = attr.Get(time) if attr.HasValue() else None

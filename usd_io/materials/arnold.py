@@ -15,6 +15,12 @@ Nodes upstream of an input (``arnold:image``, ``arnold:user_data_*`` and the pat
 :mod:`usd_io.materials.arnold_patterns`; anything else upstream is ``Unsupported`` (one warning naming the node; the input's
 value is used). A pattern node (or ``arnold:image``) connected as the surface itself is drawn as Arnold draws it: its
 colour, unlit (as ``arnold:flat``).
+
+Geometry without a material, on a stage written for Arnold (``usd_io.exporters.written_for_arnold``), is drawn with Arnold's
+own fallback (:data:`DEFAULT_SURFACE`, ``MaterialTable.display_color``) instead of Hydra's plain displayColor: arnold-usd's reader
+(``UsdArnoldReader::GetDefaultShader``) gives it a ``standard_surface`` with every default (base 0.8, specular 1 at
+IOR 1.5, specular_roughness 0.2) whose ``base_color`` is a ``user_data_rgb`` reading ``displayColor``, white
+without one.
 """
 
 from __future__ import annotations
@@ -66,6 +72,12 @@ def simple_surface(table, s, label: str, needs):
                                                                                   0.0, 1.0)), metallic=0.0)
         return t
     return None
+
+
+#: Arnold's fallback surface (``UsdArnoldReader::GetDefaultShader``: standard_surface with its defaults) in the
+#: reader's fields: base 0.8 × base_color (displayColor as vertex colour, white without one), Standard Surface's
+#: specular 1 at IOR 1.5 (the Principled level 0.5) and specular_roughness 0.2, no metal.
+DEFAULT_SURFACE = dict(base_color=(0.8, 0.8, 0.8), specular=0.5, roughness=0.2, ior=1.5, metallic=0.0)
 
 
 #: Arnold render globals (``arnold:global:NAME`` on a RenderSettings prim, naming an ArnoldNodeGraph) that draw

@@ -83,7 +83,14 @@ def family_of(sid: str) -> str | None:
     return None
 
 
+#: Arnold shaders read against the MaterialX definition of their own interface: Arnold's standard_surface is
+#: MaterialX's version 1.0.0 (base 0.8, base_color white: Arnold's defaults), not the library's default 1.0.1
+#: (base 1, base_color 0.8), which differs wherever only one of the two is authored.
+ARNOLD_NODEDEFS = {"arnold:standard_surface": "ND_standard_surface_surfaceshader_100"}
+
+
 def _nodedef_for(sid: str, family: str):
+    sid = ARNOLD_NODEDEFS.get(sid, sid)
     nd = mtlx.nodedef(sid) if sid.startswith("ND_") else None
     if nd is None:  # an Arnold shader of the same interface, or a versionless id: the library's default version
         lib = mtlx.definitions()

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from pxr import Sdf, UsdGeom
 
-from ..geometry.mesh import Triangulation, expand_primvar
+from ..geometry.mesh import Triangulation, expand_primvar, flattened
 
 #: The name of UV set 0 in ``Scene.uv_sets``: each mesh's default set (st, or its only UV primvar: the rule above).
 DEFAULT_UV = "<default>"
@@ -59,7 +59,7 @@ def corner_values(prim, name: str, tri, n_points: int, n_face_vertices: int, tim
     pv = find_primvar(prim, name)
     if pv is None:
         return None, None
-    vals = pv.ComputeFlattened(time)
+    vals = flattened(pv, time)
     if vals is None or len(vals) == 0:
         return None, None
     v = np.asarray(vals, dtype=np.float64).reshape(len(vals), -1)
@@ -83,7 +83,7 @@ def gprim_colors(prim, data, name, fallback, time, warn):
     points and per curve (uniform) through the triangles' faces; on implicit shapes, non-constant values are averaged
     (one warning)."""
     pv = find_primvar(prim, name)
-    vals = pv.ComputeFlattened(time) if pv is not None else None
+    vals = flattened(pv, time) if pv is not None else None
     n_tri = len(data.triangles)
     if vals is None or not len(vals):
         return np.broadcast_to(np.asarray(fallback, np.float32), (n_tri, 3, 3)).copy()

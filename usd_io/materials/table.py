@@ -57,6 +57,8 @@ from . import network as net
 from .preview_ranges import clamp_preview_inputs
 from .primvars import DEFAULT_UV, find_primvar, mesh_primvars
 from .mtlx_surfaces import read as read_mtlx_surface
+from ..exporters import written_for_arnold
+from .arnold import DEFAULT_SURFACE as ARNOLD_DEFAULT_SURFACE
 from .surfaces import other_surface
 from .texture_assets import open_texture
 from .texture_files import TextureCache, resolve_wrap
@@ -141,6 +143,8 @@ class MaterialTable:
         self.uv_set_names: list[str] = [DEFAULT_UV]  # index in Scene.uv_sets
         self.writer = self  # ``writer.add_material(name, fields)``: what usd_io.reader calls
         self._primvar_cache: dict = {}
+        self._defaults: dict = {}  # fallback surfaces made once: name -> row
+        self._arnold_stage: bool | None = None  # usd_io.exporters.written_for_arnold, asked at the first unbound prim
 
     # ------------------------------------------------------------------ binding
     @staticmethod
@@ -212,7 +216,12 @@ class MaterialTable:
 
     # ------------------------------------------------------------------ displayColor
     def display_color(self, prim):
-        """Unbound geometry: displayColor as a vertex colour (any interpolation), on a plain diffuse surface."""
+        """Unbound geometry: displayColor as a vertex colour (any interpolation), on a plain diffuse surface; on a
+        stage written for Arnold, Arnold's fallback standard_surface (usd_io.materials.arnold.DEFAULT_SURFACE)."""
+        if self._arnold_stage is None:  # asked once per table (one stage)
+            self._arnold_stage = written_for_arnold(prim.GetStage()) is not None
+        if self._arnold_stage:
+            return self._arnold_default(), MeshNeeds(color=("displayColor", (1.0, 1.0, 1.0)))
         pv = find_primvar(prim, "displayColor")  # inherited from ancestors as UsdGeomPrimvarsAPI says
         if pv is None:
             return self._plain("displayColor(none)", DEFAULT_DISPLAY), MeshNeeds()
@@ -223,6 +232,14 @@ class MaterialTable:
                 self.warn(f"{prim.GetPath()}: displayOpacity is not supported (rendered opaque)")
         row = self._plain("displayColor", (1.0, 1.0, 1.0), vertex_color=True)
         return row, MeshNeeds(color=("displayColor", DEFAULT_DISPLAY))
+
+    def _arnold_default(self) -> int:
+        name = "arnold:default_surface"
+        if name not in self._defaults:
+            surface = self.model(vertex_color=True, **ARNOLD_DEFAULT_SURFACE)
+            self.summary.setdefault(name, surface.summary())
+            self._defaults[name] = self.add_material(name, surface, MeshNeeds(color=("displayColor", (1.0, 1.0, 1.0))))
+        return self._defaults[name]
 
     def _plain(self, name, rgb, **extra):
         surface = self.model(base_color=tuple(float(x) for x in rgb), specular=0.0, **extra)

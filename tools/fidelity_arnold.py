@@ -1,0 +1,349 @@
+"""Fidelity against references (issue #32), the Arnold corpus: arnold-usd's test suite (``testsuite/test_NNNN``)
+against the reference images Arnold rendered (``ref/reference.tif``, linear values; 8-bit for most tests).
+
+    python tools/fidelity.py arnold ARNOLD_USD_CHECKOUT [--out /tmp/fidelity-arnold] [--only test_0200,...]
+                                    [--aa 3] [--jsonl OUT.jsonl] [--sheet SHEET.png] [--list]
+
+Nothing is downloaded: ARNOLD_USD_CHECKOUT is a checkout (or extracted copy) of Autodesk/arnold-usd holding
+``testsuite/``. A test is a candidate when its README's ``PARAMS`` name a USD ``scene`` (the suite's CMake
+(cmake/utils/test.cmake) renders ``data/<scene>`` with ``kick -r 160 120 -sm lambert ... <kick_params>``; tests
+without a ``scene`` render ``test.ass``, an Arnold scene this tracer does not read), the scene and a reference
+image exist, and the stage has a camera (kick's ``-c`` when given, else a RenderSettings' camera, else the first
+camera: the one Arnold's USD reader creates first). Each is rendered in-process (``usd_io.load_stage`` +
+``tracer.render``) at the reference's size, at kick's ``-frame`` (else the stage's default time), through that
+camera conformed as Arnold conforms it (its ``fov`` is horizontal: the horizontal aperture is kept, UsdRender's
+adjustApertureHeight, written on a RenderSettings on the session layer), with no default light (Arnold adds none),
+a black background (Arnold's) and the lights in Arnold's units (``light_units="arnold"``, usd_io.exporters; the
+spec's where the RenderSettings set ``arnold:global:usdlux_version``), and compared with the reference:
+
+    psnr      10·log10(1 / MSE) over R, G, B of both images' **linear** values clamped to [0, 1] (the 8-bit
+              references hold min(linear, 1); float references are clamped the same way). No tone curve.
+    psnr_srgb the same after the sRGB transfer function (how a viewer sees the pair; for reference only)
+    psnr_ref_decoded  ours against the reference read as sRGB-encoded (diagnostic: a reference whose driver wrote
+              sRGB instead of linear values scores higher here)
+    de        ΔE2000 between the mean colours (linear, clamped, as sRGB-primaries Lab) of the pixels either image
+              covers (reference alpha ≥ 0.5 or our object id; only ours where the reference is opaque everywhere,
+              as it is where a dome is seen): a missing environment does not hide a wrong albedo
+    iou       silhouette IoU of reference alpha ≥ 0.5 against the pixels whose majority sample hit an object
+
+``OUT/<test>.png`` is the side-by-side pair (reference | ours | 4 × |difference|, sRGB-encoded for viewing);
+``--jsonl`` gets one JSON line per test; ``--sheet`` a contact sheet (reference | ours, worst PSNR first) small
+enough to commit. The summary prints one row per test, then the median PSNR and the count at ≥ 25 dB.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import json
+import os
+import re
+import shlex
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from fidelity_mtlx import delta_e2000, srgb_linear_to_lab  # noqa: E402
+
+USD_EXT = (".usd", ".usda", ".usdc", ".usdz")
+TARGET_DB = 25.0
+
+
+def params_of(readme: str) -> dict:
+    """The README's ``PARAMS: {...}`` as a dict ({} when absent or unreadable)."""
+    m = re.search(r"PARAMS\s*:\s*(\{.*\})", readme, re.S)
+    if not m:
+        return {}
+    try:
+        got = ast.literal_eval(m.group(1))
+    except (ValueError, SyntaxError):
+        got = {}
+        for key in ("scene", "kick_params"):
+            k = re.search(rf"'{key}'\s*:\s*'([^']*)'", m.group(1))
+            if k:
+                got[key] = k.group(1)
+    return got if isinstance(got, dict) else {}
+
+
+def kick_options(kick_params: str) -> dict:
+    """kick's ``-c CAMERA``, ``-frame F`` and ``-r W H`` from the test's ``kick_params``."""
+    argv = shlex.split(kick_params or "")
+    out = {}
+    for i, a in enumerate(argv):
+        if a == "-c" and i + 1 < len(argv):
+            out["camera"] = argv[i + 1]
+        elif a == "-frame" and i + 1 < len(argv):
+            out["frame"] = float(argv[i + 1])
+        elif a == "-r" and i + 2 < len(argv):
+            out["size"] = (int(argv[i + 1]), int(argv[i + 2]))
+    return out
+
+
+def tests_of(root: str) -> list[dict]:
+    """Every test of ``root/testsuite`` whose scene is a USD file with a reference image (see the module doc);
+    ``skip`` holds the reason when it is not rendered."""
+    suite = os.path.join(root, "testsuite") if os.path.isdir(os.path.join(root, "testsuite")) else root
+    out = []
+    for name in sorted(os.listdir(suite)):
+        d = os.path.join(suite, name)
+        readme = os.path.join(d, "README")
+        if not name.startswith("test_") or not os.path.isfile(readme):
+            continue
+        params = params_of(open(readme, errors="replace").read())
+        scene = str(params.get("scene", "test.ass"))
+        if not scene.lower().endswith(USD_EXT):
+            continue
+        ref = os.path.join(d, str(params.get("reference_image", "ref/reference.tif")))
+        if not os.path.isfile(ref):
+            alt = [os.path.join(d, "ref", f) for f in sorted(os.listdir(os.path.join(d, "ref")))
+                   if f.startswith("reference.") and f.rsplit(".", 1)[-1] in ("tif", "exr", "png", "jpg")] \
+                if os.path.isdir(os.path.join(d, "ref")) else []
+            ref = alt[0] if alt else ref
+        test = dict(name=name, stage=os.path.join(d, "data", scene), reference=ref,
+                    title=open(readme, errors="replace").read().strip().split("\n")[0][:80],
+                    **kick_options(str(params.get("kick_params", ""))))
+        if not os.path.isfile(test["stage"]):
+            test["skip"] = "scene file absent from the checkout"
+        elif not os.path.isfile(ref):
+            test["skip"] = "no reference image"
+        out.append(test)
+    return out
+
+
+def find_camera(stage, wanted: str | None):
+    """kick's camera, else the RenderSettings' camera, else the first camera in traversal order (None: none)."""
+    from pxr import Usd, UsdGeom, UsdRender
+
+    if wanted:
+        p = stage.GetPrimAtPath(wanted)
+        return wanted if p and p.IsA(UsdGeom.Camera) else None
+    first = None
+    for prim in stage.Traverse(Usd.TraverseInstanceProxies()):
+        if prim.IsA(UsdRender.Settings):
+            targets = UsdRender.Settings(prim).GetCameraRel().GetForwardedTargets()
+            if targets and stage.GetPrimAtPath(targets[0]):
+                return str(targets[0])
+        if first is None and prim.IsA(UsdGeom.Camera):
+            first = str(prim.GetPath())
+    return first
+
+
+def read_rgba(path: str) -> np.ndarray:
+    import OpenImageIO as oiio
+
+    buf = oiio.ImageBuf(path)
+    if buf.spec().deep:  # a deep EXR (test_1306): its samples composited front to back
+        buf = oiio.ImageBufAlgo.flatten(buf)
+    px = buf.get_pixels(oiio.FLOAT)
+    if px is None or px.size == 0:
+        raise ValueError(f"{path}: unreadable ({oiio.geterror()})")
+    px = np.asarray(px, np.float32)
+    if px.shape[2] == 3:
+        px = np.concatenate([px, np.ones(px.shape[:2] + (1,), np.float32)], axis=2)
+    return px[..., :4]
+
+
+def arnold_camera(path: str, camera: str, pixel_aspect: float | None):
+    """The stage with a RenderSettings on its session layer: ``camera``, Arnold's conform (the horizontal
+    aperture kept), the stage's pixel aspect when its own RenderSettings gives one."""
+    from pxr import Sdf, Usd, UsdRender
+
+    stage = Usd.Stage.Open(path)
+    with Usd.EditContext(stage, stage.GetSessionLayer()):
+        rs = UsdRender.Settings.Define(stage, "/FidelityArnold")
+        rs.CreateCameraRel().SetTargets([Sdf.Path(camera)])
+        rs.CreateAspectRatioConformPolicyAttr("adjustApertureHeight")
+        if pixel_aspect:
+            rs.CreatePixelAspectRatioAttr(float(pixel_aspect))
+    return stage, "/FidelityArnold"
+
+
+def stage_pixel_aspect(stage) -> float | None:
+    from pxr import UsdRender
+
+    for prim in stage.Traverse():
+        if prim.IsA(UsdRender.Settings):
+            a = UsdRender.Settings(prim).GetPixelAspectRatioAttr()
+            if a and a.HasAuthoredValue():
+                return float(a.Get())
+    return None
+
+
+def render_ours(test: dict, size, aa: int):
+    import tracer
+    from pxr import Usd
+    from usd_io.exporters import arnold_usdlux_version
+    from usd_io.reader import load_stage
+
+    h, w = size
+    probe = Usd.Stage.Open(test["stage"])
+    camera = find_camera(probe, test.get("camera"))
+    if camera is None:
+        raise NoCamera("the stage has no camera" + (f" {test['camera']}" if test.get("camera") else ""))
+    stage, settings_prim = arnold_camera(test["stage"], camera, stage_pixel_aspect(probe))
+    units = "spec" if arnold_usdlux_version(probe) else "arnold"  # kick reads every stage in Arnold's units
+    scene, info = load_stage(stage, time=test.get("frame"), camera=camera, width=w, height=h,
+                             render_settings_prim=settings_prim, default_light=False, light_units=units)
+    settings = tracer.RenderSettings(width=w, height=h, samples=aa, transparent=False, light_samples=4,
+                                     sky_samples=8, max_depth=6, aovs=("objectid",))
+    image = tracer.render(scene, settings)
+    rgba = np.asarray(image.rgba, np.float32)
+    oid = np.asarray(image.aovs["objectid"]) if getattr(image, "aovs", None) else None
+    return rgba, (oid >= 0) if oid is not None else rgba[..., 3] >= 0.5, info, camera
+
+
+class NoCamera(Exception):
+    """The stage has no camera to render through (not measured)."""
+
+
+def psnr(a: np.ndarray, b: np.ndarray) -> float:
+    mse = float(np.mean((a - b) ** 2))
+    return 99.0 if mse <= 1e-12 else 10.0 * np.log10(1.0 / mse)
+
+
+def srgb(x: np.ndarray) -> np.ndarray:
+    x = np.clip(x, 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+
+
+def srgb_decode(x: np.ndarray) -> np.ndarray:
+    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
+
+
+def compare(ref: np.ndarray, ours: np.ndarray, covered: np.ndarray) -> dict:
+    r, o = np.clip(ref[..., :3], 0, 1), np.clip(ours[..., :3], 0, 1)
+    a, b = ref[..., 3] >= 0.5, covered
+    union = (a | b) if not a.all() else b  # an opaque reference (a background Arnold sees): our objects
+    out = dict(psnr=round(psnr(r, o), 2), psnr_srgb=round(psnr(srgb(r), srgb(o)), 2),
+               psnr_ref_decoded=round(psnr(srgb_decode(r), o), 2),
+               iou=round(float(np.count_nonzero(a & b) / max(np.count_nonzero(union), 1)), 4) if union.any() else 1.0)
+    if union.any():
+        mr, mo = r[union].mean(axis=0), o[union].mean(axis=0)
+        out.update(de=round(float(delta_e2000(srgb_linear_to_lab(mr), srgb_linear_to_lab(mo))), 2),
+                   mean_ref=[round(float(v), 4) for v in mr], mean_ours=[round(float(v), 4) for v in mo])
+    return out
+
+
+def write_png(path: str, rgb01: np.ndarray) -> None:
+    import OpenImageIO as oiio
+
+    d = os.path.dirname(path)
+    if d:
+        os.makedirs(d, exist_ok=True)
+    h, w = rgb01.shape[:2]
+    out = oiio.ImageBuf(oiio.ImageSpec(w, h, 3, oiio.UINT8))
+    out.set_pixels(oiio.ROI(0, w, 0, h), (np.clip(rgb01, 0, 1) * 255 + 0.5).astype(np.uint8))
+    out.write(path)
+
+
+def side_by_side(path: str, ref: np.ndarray, ours: np.ndarray) -> None:
+    r, o = np.clip(ref[..., :3], 0, 1), np.clip(ours[..., :3], 0, 1)
+    write_png(path, np.concatenate([srgb(r), srgb(o), np.clip(4 * np.abs(r - o), 0, 1)], axis=1))
+
+
+def contact_sheet(path: str, rows, per_row: int = 6, tile: int = 80, limit: int = 0) -> None:
+    """reference | ours per measured test, worst PSNR first, each image shrunk to ``tile`` pixels wide (sRGB);
+    a red bar over a pair below 25 dB, green at or above."""
+    done = sorted([r for r in rows if r.get("_ref") is not None], key=lambda r: r["psnr"])
+    if limit > 0:
+        done = done[:limit]
+    if not done:
+        return
+    pad = 3
+    tall = lambda r: min(int(round(tile * r["_ref"].shape[0] / r["_ref"].shape[1])), 2 * tile)  # noqa: E731
+    rows_h = [max(tall(r) for r in done[k:k + per_row]) for k in range(0, len(done), per_row)]
+    sheet = np.full((sum(h + 2 * pad for h in rows_h), per_row * (2 * tile + 2 * pad), 3), 0.12, np.float32)
+
+    def shrink(img):
+        h, w = img.shape[:2]
+        ys = (np.arange(int(round(tile * h / w))) * h / (tile * h / w)).astype(int).clip(0, h - 1)[:2 * tile]
+        xs = (np.arange(tile) * w / tile).astype(int).clip(0, w - 1)
+        return srgb(img[ys][:, xs, :3])
+
+    for k, r in enumerate(done):
+        y, x = divmod(k, per_row)
+        y0, x0 = sum(h + 2 * pad for h in rows_h[:y]) + pad, x * (2 * tile + 2 * pad) + pad
+        a, b = shrink(r["_ref"]), shrink(r["_ours"])
+        sheet[y0:y0 + a.shape[0], x0:x0 + tile] = a
+        sheet[y0:y0 + b.shape[0], x0 + tile:x0 + 2 * tile] = b
+        sheet[y0 - pad + 1:y0, x0:x0 + 2 * tile] = (0.2, 0.8, 0.3) if r["psnr"] >= TARGET_DB else (0.9, 0.2, 0.2)
+    write_png(path, sheet)
+
+
+def summary(rows) -> str:
+    ok = [r for r in rows if r.get("psnr") is not None]
+    if not ok:
+        return "nothing measured"
+    p = np.array([r["psnr"] for r in ok])
+    de = [r["de"] for r in ok if r.get("de") is not None]
+    return (f"{len(ok)} tests measured ({len(rows) - len(ok)} not: "
+            f"{sum('skip' in r for r in rows)} skipped, {sum('error' in r for r in rows)} errors); "
+            f"median PSNR {np.median(p):.2f} dB (sRGB-encoded {np.median([r['psnr_srgb'] for r in ok]):.2f}); "
+            f">= {TARGET_DB:.0f} dB: {int((p >= TARGET_DB).sum())}; >= 30 dB: {int((p >= 30).sum())}; "
+            f"median dE00 of the covered mean colour {np.median(de):.2f}; "
+            f"median IoU {np.median([r['iou'] for r in ok]):.3f}")
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("arnold_usd", help="a checkout of Autodesk/arnold-usd (or its extracted testsuite/)")
+    p.add_argument("--out", default="/tmp/fidelity-arnold")
+    p.add_argument("--only", default="", help="comma-separated test names (test_0200,...)")
+    p.add_argument("--aa", type=int, default=3, help="N×N samples per pixel")
+    p.add_argument("--jsonl", default=None)
+    p.add_argument("--sheet", default=None, help="contact sheet PNG (reference | ours, worst first)")
+    p.add_argument("--sheet-limit", type=int, default=0, help="only the worst N pairs on the sheet")
+    p.add_argument("--list", action="store_true")
+    p.add_argument("--summary-of", default=None, metavar="JSONL", help="print the summary of an earlier run's JSONL")
+    args = p.parse_args(argv)
+    if args.summary_of:
+        rows = [json.loads(line) for line in open(args.summary_of)]
+        print(summary(list({r["test"]: r for r in rows}.values())))
+        return 0
+    tests = tests_of(args.arnold_usd)
+    if args.only:
+        keep = set(args.only.split(","))
+        tests = [t for t in tests if t["name"] in keep]
+    if args.list:
+        for t in tests:
+            print(t["name"], os.path.relpath(t["stage"], os.path.dirname(os.path.dirname(t["stage"]))),
+                  t.get("camera", ""), t.get("frame", ""), t.get("skip", ""))
+        return 0
+    os.makedirs(args.out, exist_ok=True)
+    rows = []
+    for test in tests:
+        row = dict(test=test["name"], stage=os.path.basename(test["stage"]), title=test["title"])
+        start = time.perf_counter()
+        try:
+            if "skip" in test:
+                raise NoCamera(test["skip"])
+            ref = read_rgba(test["reference"])
+            ours, covered, info, camera = render_ours(test, ref.shape[:2], args.aa)
+            row.update(camera=camera, frame=test.get("frame"), size=[ref.shape[1], ref.shape[0]],
+                       **compare(ref, ours, covered), warnings=list(info.warnings))
+            side_by_side(os.path.join(args.out, test["name"] + ".png"), ref, ours)
+            row["_ref"], row["_ours"] = ref, ours
+        except NoCamera as why:
+            row.update(skip=str(why))
+        except Exception as exc:  # noqa: BLE001 — a row per failure, the run goes on
+            row.update(error=f"{type(exc).__name__}: {exc}"[:300])
+        row["seconds"] = round(time.perf_counter() - start, 1)
+        rows.append(row)
+        shown = (f"{row['psnr']:6.2f} dB  dE {row.get('de', float('nan')):5.1f}  IoU {row['iou']:.3f}  "
+                 f"warnings {len(row['warnings'])}") if "psnr" in row else \
+            ("skip: " + row["skip"] if "skip" in row else "ERR " + row["error"])
+        print(f"{row['test']:14s} {row['stage']:22s} {shown}", flush=True)
+        if args.jsonl:
+            with open(args.jsonl, "a") as f:
+                f.write(json.dumps({k: v for k, v in row.items() if not k.startswith("_")}) + "\n")
+    if args.sheet:
+        contact_sheet(args.sheet, rows, limit=args.sheet_limit)
+    print(summary(rows))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
