@@ -143,6 +143,8 @@ class ClosureLowering:
             colour = vec3(self._estimate_of(node, "Color")) if isinstance(col, Out) else vec3(col)
             lb.update(base=colour, transmission=1.0, roughness=r, specular=0.5, ior=self._const_in(node, "IOR", 1.5),
                       tint=colour, normal=self._normal_in(node), colour=colour)
+            if t == "glass_bsdf":  # Cycles' Glass BSDF tints its Fresnel reflection by Color too (Refraction has none)
+                lb["specular_tint"] = colour
         elif t == "transparent_bsdf":
             lb.update(kind="transparent", through=self.inp(node, "Color"))
         elif t == "emission":
