@@ -9,7 +9,7 @@ lowered to the tracer's closure inputs and, where one closure cannot hold it, to
    principled     its inputs (emission = Emission Color × Strength; Alpha mixes with transparency)
    diffuse        base = Color, specular 0, roughness 1                        (slot DIFFUSE)
    glossy         base = Color, metallic 1, roughness (Anisotropic: isotropic)  (slot GLOSSY)
-   glass          transmission 1, tinted by Color, ior; smooth                  (slot GLASS)
+   glass          transmission 1, reflection and refraction tinted by Color, ior; smooth (slot GLASS)
    refraction     as glass without its reflection                               (slot REFRACTION)
    translucent    as diffuse, lit from behind                                   (slot TRANSLUCENT)
    sheen          Sheen BSDF (microfiber / Ashikhmin, tracer.shading.sheen)     (slot SHEEN)
