@@ -22,7 +22,10 @@ particles are included):
 - Ray visibility and linking (:func:`links_from_blender`): each object's ``visible_camera`` / ``visible_glossy`` /
   ``visible_transmission`` / ``visible_shadow`` as ``scene.object_visibility``; each light's
   ``light_linking.receiver_collection`` / ``blocker_collection`` (include / exclude states), ``use_shadow`` and
-  ``visible_diffuse`` / ``visible_glossy`` as ``scene.light_links`` (tracer/lights/linking.py).
+  ``visible_diffuse`` / ``visible_glossy`` / ``visible_camera`` / ``visible_transmission`` as ``scene.light_links``
+  (tracer/lights/linking.py): an area light, a point or spot light with a radius and a sun with an angle are seen
+  in mirrors (glossy) and through glass (transmission), and by the camera only with its Camera visibility on, as
+  Cycles shows them (tracer.lights.emitters.lamp_hit).
 - World: :func:`addon.world.world_from_blender` (Background colour × strength, an Environment Texture as
   ``tracer.Environment``, anything else baked to a lat-long image by Cycles).
 - Materials: node trees translated by :mod:`addon.shader_tree` into the tracer's shader graph, compiled into rows
@@ -637,6 +640,9 @@ def links_from_blender(depsgraph, exported: list, lights: list, n_objects: int, 
             link.cast_shadow = bool(getattr(obj.data, "use_shadow", True))
             link.diffuse = float(bool(getattr(obj, "visible_diffuse", True)))
             link.glossy = float(bool(getattr(obj, "visible_glossy", True)))
+            # the lamp's shape as camera and refraction rays see it (Cycles' defaults: camera off, transmission on)
+            link.camera = float(bool(getattr(obj, "visible_camera", False)))
+            link.transmission = float(bool(getattr(obj, "visible_transmission", True)))
         links.append(link)
     if all(k.is_default() for k in links):
         links = []

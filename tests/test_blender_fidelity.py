@@ -713,6 +713,55 @@ def test_a_lights_own_node_tree_matches_cycles(bpy_module, tmp_path):
     H.check_images({"name": "light_nodes"}, ours, ref, tmp_path, min_psnr=35.0, max_mae=0.006)
 
 
+# ---------------------------------------------------------------------------------------------------- glossy GGX
+def glossy_furnace_scene(distribution: str, roughness: float = 1.0, size=(16, 16)):
+    """A white Glossy BSDF (``distribution``, ``roughness``) on a plane seen straight down (μ = 1) by an orthographic
+    camera, under a uniform white world of radiance 1: a white furnace. The glTF importer's old "glTF Metallic
+    Roughness" group (gltf/05_metallic_sphere_light) builds its metal from such a Glossy BSDF, distribution GGX."""
+    import bpy
+
+    scene = bs.reset(size)
+    bs.add_camera((0.0, 0.0, 5.0), target=(0.0, 0.0, 0.0), ortho_scale=1.0)
+    bs.set_world((1.0, 1.0, 1.0))
+    mat = bpy.data.materials.new("Glossy")
+    nt = mat.node_tree
+    for n in list(nt.nodes):
+        if n.type != "OUTPUT_MATERIAL":
+            nt.nodes.remove(n)
+    g = nt.nodes.new("ShaderNodeBsdfGlossy")
+    g.distribution = distribution
+    g.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    g.inputs["Roughness"].default_value = roughness
+    nt.links.new(g.outputs[0], next(n for n in nt.nodes if n.type == "OUTPUT_MATERIAL").inputs["Surface"])
+    bs.add_plane((0.0, 0.0, 0.0), 40.0, material=mat)
+    bpy.context.view_layer.update()
+    return scene
+
+
+def glossy_furnace_closed_form(distribution: str, roughness: float = 1.0) -> float:
+    """What the white furnace shows: single-scattering GGX reflects its directional albedo E(μ, r) (the light that
+    scatters twice among the microfacets is lost), Multiscatter GGX all of it."""
+    from tracer.shading import bsdf
+
+    return 1.0 if distribution == "MULTI_GGX" else float(bsdf.table2(bsdf._E, roughness, 1.0))
+
+
+@pytest.mark.parametrize("distribution", ["GGX", "MULTI_GGX"])
+def test_a_glossy_bsdf_in_a_white_furnace_keeps_its_distribution(bpy_module, distribution):
+    """gltf/05_metallic_sphere_light came out 1.7× Cycles': every Glossy BSDF was multiscatter GGX, and a GGX one
+    (single scattering) of roughness 1 reflects 0.31 of a uniform world head-on, not 1."""
+    ours, _ = ours_render(glossy_furnace_scene(distribution), samples=2)
+    np.testing.assert_allclose(ours.mean(axis=(0, 1)), glossy_furnace_closed_form(distribution), rtol=0.01)
+
+
+@pytest.mark.cycles
+@pytest.mark.parametrize("distribution", ["GGX", "MULTI_GGX"])
+def test_cycles_glossy_bsdf_in_a_white_furnace_is_the_same_closed_form(bpy_module, distribution):
+    ref = H.cycles_render(f"glossy_furnace_{distribution}", lambda: glossy_furnace_scene(distribution),
+                          source_of(glossy_furnace_scene), dict(depth=8, samples=256))
+    np.testing.assert_allclose(ref.mean(axis=(0, 1)), glossy_furnace_closed_form(distribution), rtol=0.01)
+
+
 def test_a_medium_on_an_open_mesh_is_dropped(bpy_module):
     """A water plane with Volume Absorption and Emission has no inside: its medium is not rendered (one warning);
     before, rays meeting the plane's back face gained its emission over their whole length (the water file: 4 dB)."""

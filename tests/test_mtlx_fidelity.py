@@ -13,6 +13,12 @@ hand-written document (no third-party file is read), checked against closed form
   dome's closed-form ambient term and through its sampled texture — so nothing in the tracer's GGX loses energy.
 - **Families**: glTF PBR, Disney Principled, OpenPBR's coat and ``surface_unlit`` read as MaterialX defines them,
   each input that is not rendered named in one warning.
+- **What the reader reads** (the spec's own rules): filename tokens of a node definition, a node graph input's
+  ``defaultgeomprop``, document-level ``<output>`` s, units (into the definition's unit or the stage's metres per
+  unit; tiledimage's real-world sizes), surface inputs driven by networks that vary nowhere (folded),
+  ``surface_unlit``'s transmission (MaterialX's OSL).
+- **A surface over its medium** (Lama's dielectric: layer(dielectric, VDF)): its transmission rendered, checked on
+  a quad under a uniform dome (a lossless interface shows 1; mixed with and layered over gold, their closed forms).
 """
 
 from __future__ import annotations
@@ -521,3 +527,275 @@ def test_a_top_level_node_reads_a_document_input(tmp_path):
   </surface_unlit>""")
     img, _w = render(quad_stage(str(tmp_path), doc))
     np.testing.assert_allclose(img.mean(axis=(0, 1)), (0.0, 0.3, 0.9), atol=2e-3)
+
+
+# ---------------------------------------------------------------------------------------------- what the reader reads
+def test_a_file_named_by_tokens_of_a_node_definition(tmp_path):
+    """token_graph_material: a document's own node definition carries ``<token>`` s, its node-graph implementation
+    names its image ``tex/[Image_Name].[Image_Extension]``; MaterialX substitutes the definition's token values
+    (spec: "Filename Substitutions") and resolves the name against the document. An unlit surface shows the image's
+    constant colour. Before: "no file (its default is used)", black."""
+    (tmp_path / "tex").mkdir()
+    _write_exr(str(tmp_path / "tex" / "grid.exr"), np.full((4, 4, 3), (0.2, 0.6, 0.3), np.float32))
+    doc = document("""  <nodedef name="ND_token" node="token_image">
+    <token name="Image_Name" type="string" value="grid" />
+    <token name="Image_Extension" type="string" value="exr" />
+    <output name="out" type="color3" />
+  </nodedef>
+  <nodegraph name="NG_token" nodedef="ND_token">
+    <tiledimage name="tiledimage" type="color3" nodedef="ND_tiledimage_color3">
+      <input name="file" type="filename" uniform="true" value="tex/[Image_Name].[Image_Extension]" />
+    </tiledimage>
+    <output name="out" type="color3" nodename="tiledimage" />
+  </nodegraph>
+  <nodegraph name="G">
+    <token_image name="t" type="color3" />
+    <output name="out" type="color3" nodename="t" />
+  </nodegraph>
+  <surface_unlit name="SR" type="surfaceshader"><input name="emission_color" type="color3" nodegraph="G" output="out" />
+  </surface_unlit>""")
+    img, warnings = render(quad_stage(str(tmp_path), doc))
+    np.testing.assert_allclose(img.mean(axis=(0, 1)), (0.2, 0.6, 0.3), atol=2e-3)
+    assert not [w for w in warnings if "no file" in w or "not found" in w], warnings
+
+
+def test_a_node_graph_input_without_a_value_reads_its_defaultgeomprop(tmp_path):
+    """defaultgeomprop.mtlx: a node graph's interface input ``texcoord`` has no value but ``defaultgeomprop="UV0"``;
+    MaterialX's spec: an unconnected input with no value takes that geometric property. Shown unlit as (s, t, 0),
+    the quad's own texture coordinates: s grows across the columns. Before: read as 0 (black)."""
+    doc = document("""  <nodegraph name="G">
+    <input name="texcoord" type="vector2" defaultgeomprop="UV0" />
+    <convert name="v3" type="vector3"><input name="in" type="vector2" interfacename="texcoord" /></convert>
+    <convert name="c" type="color3"><input name="in" type="vector3" nodename="v3" /></convert>
+    <output name="out" type="color3" nodename="c" />
+  </nodegraph>
+  <surface_unlit name="SR" type="surfaceshader"><input name="emission_color" type="color3" nodegraph="G" output="out" />
+  </surface_unlit>""")
+    img, _w = render(quad_stage(str(tmp_path), doc))
+    s = (np.arange(N) + 0.5) / N
+    np.testing.assert_allclose(img[..., 0].mean(axis=0), s, atol=0.02)
+    np.testing.assert_allclose(sorted(img[..., 1].mean(axis=1)), s, atol=0.02)
+    assert abs(img[..., 2]).max() < 1e-3
+
+
+def test_an_input_reads_a_document_level_output(tmp_path):
+    """multioutput_test5: a shader input with ``output="name"`` and no node or graph reads the document's
+    ``<output name="name">``, which passes on a node's output (here one output of a multi-output ``separate3``).
+    Unlit: emission · emission_color = 0.5 × (0.2, 0.6, 0.9). Before: both inputs unread (the defaults, white)."""
+    doc = document("""  <constant name="c" type="color3"><input name="value" type="color3" value="0.2, 0.6, 0.9" /></constant>
+  <separate3 name="sep" type="multioutput"><input name="in" type="color3" value="0.1, 0.5, 0.3" /></separate3>
+  <output name="col" type="color3" nodename="c" />
+  <output name="green" type="float" nodename="sep" output="outg" />
+  <surface_unlit name="SR" type="surfaceshader">
+    <input name="emission" type="float" output="green" />
+    <input name="emission_color" type="color3" output="col" />
+  </surface_unlit>""")
+    img, warnings = render(quad_stage(str(tmp_path), doc))
+    np.testing.assert_allclose(img.mean(axis=(0, 1)), (0.1, 0.3, 0.45), atol=2e-3)
+    assert not not_supported(warnings), warnings
+
+
+@pytest.mark.parametrize("meters_per_unit", [1.0, 0.01])
+def test_values_with_units_are_converted(tmp_path, meters_per_unit):
+    """texture_units, standard_surface_unit: a value with ``unit``/``unittype`` is converted (MaterialX's "Units")
+    into the scene's unit for a distance (the stage's metres per unit: 25 mm is 0.025 m, or 2.5 cm) and into the
+    unit the node definition declares for an angle (rotate2d's degrees: π/2 radian turns (0.6, 0.2) into (0.2,
+    −0.6)). Shown unlit: (distance / 10, rotated x, rotated y + 1). Before: 25 (the number as written) and no
+    turn."""
+    from pxr import Usd, UsdGeom
+
+    doc = document("""  <nodegraph name="G">
+    <multiply name="d" type="float"><input name="in1" type="float" value="0.1" />
+      <input name="in2" type="float" value="25" unit="millimeter" unittype="distance" /></multiply>
+    <rotate2d name="r" type="vector2"><input name="in" type="vector2" value="0.6, 0.2" />
+      <input name="amount" type="float" value="1.5707963" unit="radian" unittype="angle" /></rotate2d>
+    <separate2 name="s" type="multioutput"><input name="in" type="vector2" nodename="r" /></separate2>
+    <add name="y" type="float"><input name="in1" type="float" nodename="s" output="outy" /><input name="in2" type="float" value="1" /></add>
+    <combine3 name="c" type="color3"><input name="in1" type="float" nodename="d" />
+      <input name="in2" type="float" nodename="s" output="outx" /><input name="in3" type="float" nodename="y" /></combine3>
+    <output name="out" type="color3" nodename="c" />
+  </nodegraph>
+  <surface_unlit name="SR" type="surfaceshader"><input name="emission_color" type="color3" nodegraph="G" output="out" />
+  </surface_unlit>""")
+    path = quad_stage(str(tmp_path), doc)
+    stage = Usd.Stage.Open(path)
+    UsdGeom.SetStageMetersPerUnit(stage, meters_per_unit)
+    stage.Save()
+    img, warnings = render(path)
+    want = (0.1 * 0.025 / meters_per_unit, 0.2, -0.6 + 1.0)
+    np.testing.assert_allclose(img.mean(axis=(0, 1)), want, atol=2e-3)
+    assert not not_supported(warnings), warnings
+
+
+def test_surface_weights_driven_by_a_uniform_network(tmp_path):
+    """syntax_1_22's car paint: ``coat`` and ``coat_color`` (and, there, ``base``, ``specular``...) driven by
+    node graphs of constants. A network that varies nowhere is its value (folded by the shader compiler): the
+    copper's coat 0.5 × 2 and its colour through a constant node give the coated metal's closed form. Before: "coat
+    driven by a network is read as 0", a silver ball."""
+    body = COPPER.replace('<input name="coat" type="float" value="1" />',
+                          '<input name="coat" type="float" nodegraph="W" output="coat" />')
+    body = body.replace('<input name="coat_color" type="color3" value="0.96467984, 0.37626296, 0.25818297" />',
+                        '<input name="coat_color" type="color3" nodegraph="W" output="tint" />')
+    doc = document("""  <nodegraph name="W">
+    <multiply name="m" type="float"><input name="in1" type="float" value="0.5" /><input name="in2" type="float" value="2" /></multiply>
+    <constant name="c" type="color3"><input name="value" type="color3" value="0.96467984, 0.37626296, 0.25818297" /></constant>
+    <output name="coat" type="float" nodename="m" />
+    <output name="tint" type="color3" nodename="c" />
+  </nodegraph>
+""" + body)
+    img, warnings = render(quad_stage(str(tmp_path), doc, light="dome"))
+    want = coated_metal_albedo((0.96467984, 0.37626296, 0.25818297))
+    assert np.abs(img.mean(axis=(0, 1)) - want).max() < 0.02, (img.mean(axis=(0, 1)), want)
+    assert not [w for w in warnings if "driven by a network" in w], warnings
+
+
+# ---------------------------------------------------------------------------------------------- a surface over a medium
+GLASS = """  <dielectric_bsdf name="r" type="BSDF"><input name="ior" type="float" value="1.5" />
+    <input name="roughness" type="vector2" value="0.0001, 0.0001" /><input name="scatter_mode" type="string" value="R" />
+  </dielectric_bsdf>
+  <dielectric_bsdf name="t" type="BSDF"><input name="ior" type="float" value="1.5" />
+    <input name="roughness" type="vector2" value="0.0001, 0.0001" /><input name="scatter_mode" type="string" value="T" />
+  </dielectric_bsdf>
+  <anisotropic_vdf name="medium" type="VDF"><input name="absorption" type="vector3" value="0, 0, 0" /></anisotropic_vdf>
+  <layer name="inside" type="BSDF"><input name="top" type="BSDF" nodename="t" /><input name="base" type="VDF" nodename="medium" /></layer>
+  <layer name="glass" type="BSDF"><input name="top" type="BSDF" nodename="r" /><input name="base" type="BSDF" nodename="inside" /></layer>
+  <conductor_bsdf name="au" type="BSDF">
+    <input name="ior" type="color3" value="0.18, 0.42, 1.37" /><input name="extinction" type="color3" value="3.42, 2.35, 1.77" />
+    <input name="roughness" type="vector2" value="0.0001, 0.0001" />
+  </conductor_bsdf>
+"""
+AU_F0 = ((np.array([0.18, 0.42, 1.37]) - 1) ** 2 + np.array([3.42, 2.35, 1.77]) ** 2) / \
+    ((np.array([0.18, 0.42, 1.37]) + 1) ** 2 + np.array([3.42, 2.35, 1.77]) ** 2)
+
+
+@pytest.mark.parametrize("case", ["glass", "mix", "layer"])
+def test_a_transmissive_dielectric_over_its_medium(tmp_path, case):
+    """Lama's dielectric is layer(dielectric R, layer(dielectric T, anisotropic_vdf)): a surface over its interior
+    medium, whose transmission is rendered (MaterialX: a T dielectric "may be layered over a VDF describing the
+    surface interior"). Closed forms on a quad seen head-on under a uniform white dome:
+
+    - *glass*: a lossless interface reflects F and transmits 1 − F of a uniform world: the pixel is 1. Before: only
+      the reflection, F = 0.04 (the transmission was taken for light feeding a base that was not there).
+    - *mix* (LamaMix) of gold and that glass at ½: ½·(F0(gold) + 1), by linearity.
+    - *layer* (LamaLayer) of the glass over gold: its transmission is what lights the base (the spec's vertical
+      layering), so the layer reflects F + (1 − F)·F0(gold) — at most 1: MaterialX's layer conserves energy when
+      its layers do. (Cycles' reference renders this layer at a mean of 1.66–1.85 under a dome whose brightest
+      radiance is 1: more light than falls on it, which no energy-conserving layer can reflect.)"""
+    f = 0.04
+    bsdf = {"glass": "glass", "mix": "m", "layer": "l"}[case]
+    extra = {"glass": "",
+             "mix": '<mix name="m" type="BSDF"><input name="fg" type="BSDF" nodename="glass" />'
+                    '<input name="bg" type="BSDF" nodename="au" /><input name="mix" type="float" value="0.5" /></mix>',
+             "layer": '<layer name="l" type="BSDF"><input name="top" type="BSDF" nodename="glass" />'
+                      '<input name="base" type="BSDF" nodename="au" /></layer>'}[case]
+    want = {"glass": np.ones(3), "mix": 0.5 * (AU_F0 + 1), "layer": f + (1 - f) * AU_F0}[case]
+    doc = document(GLASS + extra + f'\n  <surface name="SR" type="surfaceshader"><input name="bsdf" type="BSDF" '
+                                   f'nodename="{bsdf}" /></surface>')
+    img, warnings = render(quad_stage(str(tmp_path), doc, light="dome"))
+    assert np.abs(img.mean(axis=(0, 1)) - want).max() < 0.02, (img.mean(axis=(0, 1)), want)
+    assert not [w for w in warnings if "not supported" in w], warnings
+
+
+def test_an_unlit_surface_transmits_its_colour(tmp_path):
+    """surface_unlit's transmission as MaterialX's OSL implementation (the ray-traced one) defines it, t =
+    transmission: (1 − t)·emission·emission_color emitted, t·transmission_color of what is behind passed through.
+    Over a uniform white dome with t = ½, a blue transmission and an orange emission: (0.5, 0.25, 0.5). Before:
+    the transmission was an alpha of its luminance over the full emission, (1, 0.5, 0.04)."""
+    body = """  <surface_unlit name="SR" type="surfaceshader">
+    <input name="emission_color" type="color3" value="1, 0.5, 0" />
+    <input name="transmission" type="float" value="0.5" />
+    <input name="transmission_color" type="color3" value="0, 0, 1" />
+  </surface_unlit>"""
+    img, warnings = render(quad_stage(str(tmp_path), document(body), light="dome"))
+    np.testing.assert_allclose(img.mean(axis=(0, 1)), (0.5, 0.25, 0.5), atol=5e-3)
+    assert not not_supported(warnings), warnings
+
+
+def test_a_uniform_network_with_an_unsupported_node_still_warns(tmp_path):
+    """Folding a uniform network must not swallow what it cannot read: a node the translator does not support
+    (``flake3d``, read as its default 0) inside the network that drives ``coat`` leaves the network unfolded, and
+    so named in a warning (the coat's). Before the check: it folded to 0 without a word."""
+    body = COPPER.replace('<input name="coat" type="float" value="1" />',
+                          '<input name="coat" type="float" nodegraph="W" output="coat" />')
+    doc = document("""  <nodegraph name="W">
+    <flake3d name="f" type="multioutput"><input name="size" type="float" value="0.01" /></flake3d>
+    <output name="coat" type="float" nodename="f" output="presence" />
+  </nodegraph>
+""" + body)
+    _img, warnings = render(quad_stage(str(tmp_path), doc, light="dome"))
+    assert [w for w in warnings if "flake3d" in w or "coat driven by a network" in w], warnings
+
+
+def test_a_tiled_image_of_real_world_sizes(tmp_path):
+    """tiledimage_unit: MaterialX's tiledimage looks up ((uv · uvtiling − uvoffset) / realworldimagesize) ·
+    realworldtilesize (NG_tiledimage); with a 0.5 ft image and 0.5 in tiles (units converted into metres) that is
+    uv / 12, the same picture as uvtiling 1/12. Before: the real-world sizes were ignored (the picture of uvtiling
+    1)."""
+    px = np.zeros((8, 8, 3), np.float32)
+    px[..., 0] = np.linspace(0, 1, 8)[None, :]
+    px[..., 1] = np.linspace(0, 1, 8)[:, None]
+    _write_exr(str(tmp_path / "ramp.exr"), px)
+
+    def doc(inputs):
+        return document(f"""  <nodegraph name="G">
+    <tiledimage name="t" type="color3"><input name="file" type="filename" value="ramp.exr" />{inputs}</tiledimage>
+    <output name="out" type="color3" nodename="t" />
+  </nodegraph>
+  <surface_unlit name="SR" type="surfaceshader"><input name="emission_color" type="color3" nodegraph="G" output="out" />
+  </surface_unlit>""")
+
+    real = doc('<input name="realworldimagesize" type="vector2" value="0.5, 0.5" unit="foot" unittype="distance" />'
+               '<input name="realworldtilesize" type="vector2" value="0.5, 0.5" unit="inch" unittype="distance" />')
+    same = doc('<input name="uvtiling" type="vector2" value="0.0833333, 0.0833333" />')
+    plain = doc("")
+    imgs = []
+    for k, d in enumerate((real, same, plain)):
+        sub = tmp_path / str(k)
+        sub.mkdir()
+        _write_exr(str(sub / "ramp.exr"), px)
+        imgs.append(render(quad_stage(str(sub), d))[0])
+    np.testing.assert_allclose(imgs[0], imgs[1], atol=2e-3)
+    assert np.abs(imgs[0] - imgs[2]).max() > 0.1
+
+
+def test_a_node_instance_reads_its_definitions_default_file(tmp_path):
+    """nodegraph_nodegraph: an instance of a document's own node definition that does not author its ``file``
+    input reads the definition's default file (MaterialX: an unauthored input takes its nodedef's value), here
+    through the implementation's interface. Before: "no file", black."""
+    _write_exr(str(tmp_path / "c.exr"), np.full((4, 4, 3), (0.7, 0.2, 0.4), np.float32))
+    doc = document("""  <nodedef name="ND_pic" node="pic">
+    <input name="f" type="filename" uniform="true" value="c.exr" />
+    <output name="out" type="color3" />
+  </nodedef>
+  <nodegraph name="NG_pic" nodedef="ND_pic">
+    <image name="i" type="color3"><input name="file" type="filename" uniform="true" interfacename="f" /></image>
+    <output name="out" type="color3" nodename="i" />
+  </nodegraph>
+  <nodegraph name="G"><pic name="p" type="color3" /><output name="out" type="color3" nodename="p" /></nodegraph>
+  <surface_unlit name="SR" type="surfaceshader"><input name="emission_color" type="color3" nodegraph="G" output="out" />
+  </surface_unlit>""")
+    img, warnings = render(quad_stage(str(tmp_path), doc))
+    np.testing.assert_allclose(img.mean(axis=(0, 1)), (0.7, 0.2, 0.4), atol=2e-3)
+    assert not [w for w in warnings if "no file" in w], warnings
+
+
+def test_a_surface_shader_inside_a_node_graph_reads_its_interface(tmp_path):
+    """nodegraph_nodegraph: a material's surface shader is the output of a node graph, and the shader reads the
+    graph's interface input. The shader sees that input's value (here an unlit emission colour). Before: the
+    shader was written outside its graph and read its definition's default (white)."""
+    doc = """<?xml version="1.0"?>
+<materialx version="1.39" colorspace="lin_rec709">
+  <nodegraph name="G">
+    <input name="tint" type="color3" value="0.1, 0.6, 0.3" />
+    <surface_unlit name="SR" type="surfaceshader"><input name="emission_color" type="color3" interfacename="tint" />
+    </surface_unlit>
+    <output name="out" type="surfaceshader" nodename="SR" />
+  </nodegraph>
+  <surfacematerial name="M" type="material">
+    <input name="surfaceshader" type="surfaceshader" nodegraph="G" output="out" />
+  </surfacematerial>
+</materialx>
+"""
+    img, warnings = render(quad_stage(str(tmp_path), doc))
+    np.testing.assert_allclose(img.mean(axis=(0, 1)), (0.1, 0.6, 0.3), atol=2e-3)
+    assert not not_supported(warnings), warnings

@@ -224,3 +224,33 @@ def test_distant_light_spec_units(intensity, angle, normalize, irradiance):
     np.testing.assert_allclose(centre(rgb), [A * irradiance / np.pi] * 3, rtol=5e-3)
     if intensity is None:
         assert 1.0 < irradiance < 10.0  # the schema's defaults are a sane sun, not 200 000 W/m²
+
+
+@pytest.mark.parametrize("specular", [1.0, 0.0])
+def test_a_rect_light_is_seen_in_a_mirror_times_its_specular(specular):
+    """A RectLight (emitting along −Z) above a smooth metal plane of base colour 0.8, seen straight down by an
+    orthographic camera: the mirror shows it as 0.8 × its radiance × ``inputs:specular`` (its specular response;
+    Cycles, Karma, Arnold show a rect light in mirrors), and the camera does not see it (UsdLux has no camera
+    visibility; the camera sees its back anyway)."""
+    def mk(s):
+        light = UsdLux.RectLight.Define(s, "/L")
+        light.CreateIntensityAttr(3.0)
+        light.CreateWidthAttr(2.0)
+        light.CreateHeightAttr(2.0)
+        light.CreateSpecularAttr(specular)
+        return light
+
+    def metal(stage):  # the plane's material: a smooth white-ish metal instead of the Lambert
+        sh = UsdShade.Shader.Get(stage, "/Looks/Lambert/S")
+        sh.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set((0.8, 0.8, 0.8))
+        sh.CreateInput("useSpecularWorkflow", Sdf.ValueTypeNames.Int).Set(0)
+        sh.CreateInput("metallic", Sdf.ValueTypeNames.Float).Set(1.0)
+        sh.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(0.0)
+
+    def make(s):
+        metal(s)
+        return mk(s)
+
+    rgb, scene, _ = lit_plane(make)
+    le = scene.lights[0].radiance
+    np.testing.assert_allclose(centre(rgb), 0.8 * le * specular, rtol=1e-3, atol=1e-6)

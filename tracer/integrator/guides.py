@@ -98,7 +98,7 @@ def _lobe_sum(kinds, w, base, prm, i, nl, mu, front, tint, ior):
         if kind == lobes.DIFFUSE or kind == lobes.TRANSLUCENT:
             dl = vec.add(dl, vec.mul(wk, col))
         elif kind == lobes.GLOSSY:
-            dl, sl = _sort(dl, sl, vec.mul(wk, bsdf.glossy(col, r, mu).reflect), r)
+            dl, sl = _sort(dl, sl, vec.mul(wk, bsdf.glossy(col, r, mu, float(prm[i, k, lobes.P_SPEC]) > 0.0).reflect), r)
         elif kind == lobes.GLASS:
             dl, sl = _sort(dl, sl, vec.mul(wk, _glass_albedo(mu, front, ior, col, col)), r)
         elif kind == lobes.REFRACTION:

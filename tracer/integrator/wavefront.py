@@ -43,7 +43,7 @@ from ..geometry.motion import frames_at_time, pack_motion
 from ..geometry.surface import color_at, corner_normals, geometry_of, shading_frame
 from ..jit import kernel
 from ..lights import linking, sky
-from ..lights.emitters import MESH, pack_lights, sample_light
+from ..lights.emitters import MESH, lamp_hit, pack_lights, sample_light
 from ..lights.environment import env_radiance, pack_environment
 from ..sampling import rotated_multijitter, uniform2_1
 from ..scene import Scene
@@ -67,6 +67,9 @@ _REFLECTION_PATH, _TRANSMISSION_PATH = 1, 2
 _STREAM_PIXEL = 0
 _STREAM_LIGHT = 1  # + depth
 _STREAM_SKY = 40  # + depth
+
+# What made a ray, for the lamps it sees (the columns of tracer.lights.linking.Links.seen).
+RAY_CAMERA, RAY_GLOSSY, RAY_TRANSMISSION = 0, 1, 2
 
 # Slots of the kernel's counter array.
 _N_SHADOW, _N_SKY, _N_REFLECTION, _N_TRANSMISSION, _N_TIR = 0, 1, 2, 3, 4
@@ -201,6 +204,10 @@ class RayQueue(NamedTuple):
     time: np.ndarray | None = None  # each ray's time across the shutter (tracer.geometry.motion), None: no motion blur
     feature: np.ndarray | None = None  # (N, 4) the denoising guides each ray still carries
     #                                    (tracer/integrator/guides.py: P·T rgb, P), None: no guides are made
+    kind: np.ndarray | None = None  # (N,) uint8 RAY_CAMERA / RAY_GLOSSY / RAY_TRANSMISSION (which lamps see it:
+    #                                 _lamps_seen); None: camera rays at depth 0
+    lamp: np.ndarray | None = None  # (N,) float32 the share of the ray's weight that sees lamps (a mirror ray of
+    #                                 rough lobes leaves their lamps to the light samples: bsdf.lamp_share); None: 1
 
 
 class SurfaceQueue(NamedTuple):
@@ -233,6 +240,7 @@ class SurfaceQueue(NamedTuple):
     through: np.ndarray  # (N, 3) float32 the colour that passes straight through (lobe hits)
     holdout: np.ndarray  # (N,) float32 the closure's Holdout weight per hit (tracer.integrator.compose reads it; the VM
     #                      writes it for a sum of lobes, tracer.shading.vm.write_lobes; 0 = none)
+    mirror_lamp: np.ndarray  # (N, 3) float32: the part of ``mirror`` that sees lamps (bsdf.lamp_share), written with it
 
     @classmethod
     def empty(cls, n: int) -> "SurfaceQueue":
@@ -243,10 +251,10 @@ class SurfaceQueue(NamedTuple):
                    np.empty(n, np.int32), f3(), f1(), f1(), f1(), f1(), f3(), np.empty(n, np.int32),
                    f3(), f1(), np.empty(n, np.int32), np.empty((n, k), np.int32),
                    np.empty((n, k, 3), np.float32), np.empty((n, k, 3), np.float32), np.empty((n, k, 4), np.float32),
-                   f3(), f1()).reset()
+                   f3(), f1(), f3()).reset()
 
     #: The columns that start at a value (the rest are written before they are read), by field name.
-    START = {"mirror": 0.0, "lobes": -1, "holdout": 0.0}
+    START = {"mirror": 0.0, "lobes": -1, "holdout": 0.0, "mirror_lamp": 0.0}
 
     def reset(self) -> "SurfaceQueue":
         """Set the :data:`START` columns to their start values; returns the queue."""
@@ -318,6 +326,7 @@ class NextQueue(NamedTuple):
     through_t0: np.ndarray  # distance along the eye ray travelled before the pass-through ray
     parent: np.ndarray  # the row of the hit each next ray left (the denoising guides follow it: tracer/integrator/guides.py)
     through_parent: np.ndarray  # the same for the pass-through rays
+    lamp: np.ndarray  # each next ray's share of its weight that sees lamps (RayQueue.lamp)
 
     @classmethod
     def empty(cls, n: int, spawn: bool) -> "NextQueue":
@@ -325,7 +334,7 @@ class NextQueue(NamedTuple):
         return cls(np.empty((m, 3), np.float32), np.empty((m, 3), np.float32), np.empty((m, 3), np.float32),
                    np.empty(m, np.int32), SpawnRecord.empty(0, m), np.empty((n, 3), np.float32),
                    np.empty((n, 3), np.float32), np.empty((n, 3), np.float32), np.empty(n, np.int32),
-                   np.empty(n, np.float32), np.empty(m, np.int32), np.empty(n, np.int32))
+                   np.empty(n, np.float32), np.empty(m, np.int32), np.empty(n, np.int32), np.empty(m, np.float32))
 
 
 class Step(NamedTuple):
@@ -441,7 +450,7 @@ class Integrator:
         return self.settings.max_depth + (1 if self.settings.terminal_rays else 0)
 
     def _shade(self, depth: int, o, d, weight, sample, t0, hits, keys, out: "Tile", counts, spawn: bool,
-               time=None, feature=None, gd: "Guides | None" = None):
+               time=None, feature=None, gd: "Guides | None" = None, kind=None, lamp=None):
         """The stages for one batch of rays and their hits: returns (ShadowQueue, NextQueue, n_refl, n_tran,
         n_through, the catcher's shadow rays, the spawned rays' guide features: None, or (reflections,
         transmissions, pass-through rays))."""
@@ -479,6 +488,9 @@ class Integrator:
         if depth == 0:
             _first_hits(surf, t, prim, inst, self.instances, t0, sample, self.geometry, out)
         _emitted(d, surf, sample, weight, depth, self.options, self.env, out)
+        if self.links.any_seen:  # the lamps' shapes this batch's rays meet before their hits
+            _lamps_seen(o, d, t, surf.hit, weight, sample, kind if kind is not None else np.zeros(n, np.uint8),
+                        lamp if lamp is not None else np.ones(n, np.float32), self.lights, self.links.seen, out)
         shadow = ShadowQueue.empty(n * (self.light_samples + self.sky_side ** 2))
         before = out.color[split] if split is not None else None
         recv = linking.receiver_bits(self.links, prim, inst, self.geometry.object_ids, it.object_ids)
@@ -542,9 +554,11 @@ class Integrator:
         o, d, w, smp, t0, h = rays.o, rays.d, rays.weight, rays.sample, np.zeros(n, np.float32), hits
         feat = rays.feature if gd is not None else None
         feats_refl, feats_tran = [], []
+        kind = rays.kind if rays.kind is not None else np.zeros(n, np.uint8)
+        lamp = rays.lamp if rays.lamp is not None else np.ones(n, np.float32)
         for layer in range(self.settings.max_transparent + 1):
             shadow, nxt, n_refl, n_tran, n_through, c, fs = self._shade(depth, o, d, w, smp, t0, h, keys, out,
-                                                                        counts, spawn, time, feat, gd)
+                                                                        counts, spawn, time, feat, gd, kind, lamp)
             shadows.append(shadow)
             if self.compose.has_catcher:
                 caught.append(c if c is not None else np.zeros(len(shadow.o), np.bool_))
@@ -558,6 +572,8 @@ class Integrator:
             if not n_through or layer == self.settings.max_transparent:
                 break
             o, d = nxt.through_o[:n_through], nxt.through_d[:n_through]
+            kind = kind[nxt.through_parent[:n_through]]  # a ray through alpha stays what it was
+            lamp = lamp[nxt.through_parent[:n_through]]
             w, smp, t0 = nxt.through_weight[:n_through], nxt.through_sample[:n_through], nxt.through_t0[:n_through]
             tm = None
             if rays.t_max is not None:  # eye rays stop at the far plane: what is left of their length
@@ -586,7 +602,10 @@ class Integrator:
         n_reflected = sum(s.stop - s.start for _, s in refl)
         nxt = RayQueue(o=cat(lambda q: q.o), d=cat(lambda q: q.d), weight=cat(lambda q: q.weight),
                        sample=cat(lambda q: q.sample), t_max=None)
-        nxt = nxt._replace(mask=linking.ray_masks(self.links, depth + 1, len(nxt.o), n_reflected))
+        kinds = np.full(len(nxt.o), RAY_TRANSMISSION, np.uint8)
+        kinds[:n_reflected] = RAY_GLOSSY
+        nxt = nxt._replace(mask=linking.ray_masks(self.links, depth + 1, len(nxt.o), n_reflected), kind=kinds,
+                           lamp=cat(lambda q: q.lamp))
         if gd is not None and rays.feature is not None:
             nxt = nxt._replace(feature=np.concatenate(feats_refl + feats_tran))
         if timed:
@@ -941,6 +960,34 @@ def _emitted(d, surf, sample, weight, depth, opt, env, out):
 
 
 @kernel(refcounts=False)
+def _lamps_seen(o, d, t, hit, weight, sample, kind, lamp, lights, seen, out):
+    """Lamps stage: the shapes of the lights (area lights, spheres of point and spot lights with a radius, suns
+    with an angle: tracer.lights.emitters.lamp_hit) each ray meets before its hit, as Cycles shows them in mirrors,
+    through glass and (when a light's camera visibility is on) to the camera. ``kind`` (per ray) picks the column
+    of ``seen`` (Links.seen: the light's factor for camera, glossy, transmission rays; 0: that ray does not see
+    it; ``lamp`` (per ray) the share of its weight that sees lamps). Lights do not block each other here: a ray adds
+    every lamp before its hit (Cycles shows the nearest)."""
+    o_color = out.color
+    n_lights = seen.shape[0]
+    for i in range(o.shape[0]):
+        k = kind[i]
+        share = lamp[i]
+        if share <= 0.0:
+            continue
+        t_max = t[i] if hit[i] else math.inf
+        oi, di = vec.row(o, i), vec.row(d, i)
+        s = sample[i]
+        for j in range(n_lights):
+            f = seen[j, k] * share
+            if f <= 0.0:
+                continue
+            tl, le = lamp_hit(lights, j, oi, di, t_max)
+            if tl < t_max:
+                for c in range(3):
+                    o_color[s, c] += weight[i, c] * f * le[c]
+
+
+@kernel(refcounts=False)
 def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt, out, shadow, n_shadow, counts,
                   links, recv):
     """Direct-light stage: per hit, every light sample's colour (local model × irradiance), written with its shadow
@@ -959,10 +1006,10 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
     l_kind, l_side = lights.kind, lights.side
     q_o, q_d, q_t, q_s, q_c, q_l = shadow.o, shadow.d, shadow.t_max, shadow.sample, shadow.color, shadow.light
     o_color = out.color
-    s_mirror = surf.mirror
+    s_mirror, s_mlamp = surf.mirror, surf.mirror_lamp
     n_lights = l_kind.shape[0]
     linked = recv.shape[0] > 0
-    l_recv, l_diffuse, l_glossy = links.recv_set, links.diffuse, links.glossy
+    l_recv, l_diffuse, l_glossy, l_seen = links.recv_set, links.diffuse, links.glossy, links.seen
     amb = (opt.ambient[0], opt.ambient[1], opt.ambient[2])
     add_ambient = (amb[0] > 0.0 or amb[1] > 0.0 or amb[2] > 0.0) and sky_side == 0
     s_nl = surf.lobes
@@ -978,8 +1025,11 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
             n_new += k_new
             continue
         cl, wl, g = _closure_at(surf, mats, i, n, di, principled, spawn)
+        gl = 0.0
         if g > 0.0:  # what the spawn stage's mirror ray takes of the lobes (zeros where there is no closure)
             s_mirror[i, 0], s_mirror[i, 1], s_mirror[i, 2] = vec.scale(bsdf.specular_albedo(cl), g)
+            gl = bsdf.lamp_share(cl, g)  # ... and of them, for the lamps it sees
+            s_mlamp[i, 0], s_mlamp[i, 1], s_mlamp[i, 2] = vec.scale(bsdf.specular_albedo(cl), gl)
         if wl <= 0.0 or bsdf.is_black(cl):
             continue
         wo = vec.scale(vec.row(weight, i), wl)
@@ -998,8 +1048,9 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
         for j in range(n_lights):
             if linked and not linking.lights_receiver(l_recv[j], recv[i]):
                 continue
-            # a light the mirror ray can see (emissive triangles) gives the mirror share of the lobes to that ray
-            spec_scale = (1.0 - g if l_kind[j] == MESH else 1.0) * l_glossy[j]
+            # a light the mirror ray can see (emissive triangles; a lamp's shape, for the nearly smooth lobes) gives
+            # the mirror share of the lobes to that ray
+            spec_scale = (1.0 - g if l_kind[j] == MESH else 1.0 - gl if l_seen[j, 1] > 0.0 else 1.0) * l_glossy[j]
             for k in range(l_side[j] * l_side[j]):
                 l, dist, e = sample_light(lights, j, k, p, r0, r1)
                 n_l = vec.dot(n, l)
@@ -1038,6 +1089,8 @@ def _lobe_light(surf, d, i, s, weight, keys, depth, spawn, mats, lights, opt, ou
     n, di = vec.row(surf.n, i), vec.row(d, i)
     lb, wl = _lobes_at(surf, mats, i, n, di, spawn)
     s_mirror[i, 0], s_mirror[i, 1], s_mirror[i, 2] = lobes.mirror_weight(lb)
+    s_ml = surf.mirror_lamp
+    s_ml[i, 0], s_ml[i, 1], s_ml[i, 2] = lobes.mirror_lamp_weight(lb)
     if wl <= 0.0 or lobes.is_black(lb):
         return n_shadow, 0
     back = vec.max3(lb.translucent) > 0.0  # lights behind the surface reach its translucent lobes
@@ -1056,7 +1109,7 @@ def _lobe_light(surf, d, i, s, weight, keys, depth, spawn, mats, lights, opt, ou
     for j in range(l_kind.shape[0]):
         if linked and not linking.lights_receiver(l_recv[j], recv[i]):
             continue
-        mesh = l_kind[j] == MESH
+        mesh = 1 if l_kind[j] == MESH else 2 if links.seen[j, 1] > 0.0 else 0  # the mirror ray sees it
         for k in range(l_side[j] * l_side[j]):
             l, dist, e = sample_light(lights, j, k, p, r0, r1)
             n_l = vec.dot(n, l)
@@ -1131,7 +1184,7 @@ def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shado
                 if n_l <= 0.0 or vec.dot(ng, dr) <= 0.0 or pdf <= 0.0:
                     continue
                 if nl >= 0:  # each lobe's specular part less its mirror share g_i (the mirror ray sees the sky)
-                    f = lobes.evaluate(lb, n, wi, dr, n_l, True, 1.0, 1.0)
+                    f = lobes.evaluate(lb, n, wi, dr, n_l, 1, 1.0, 1.0)
                 else:
                     f = bsdf.evaluate(cl, n, wi, dr, n_l, 1.0 - g)
                 c = vec.scale(vec.mul(wo, vec.mul(f, env_radiance(e_data, e_rot, dr))), 1.0 / (pdf * kk))
@@ -1172,7 +1225,8 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
     n_o, n_d, n_w, n_s = nxt.o, nxt.d, nxt.weight, nxt.sample
     th_o, th_d, th_w, th_s, th_t0 = (nxt.through_o, nxt.through_d, nxt.through_weight, nxt.through_sample,
                                      nxt.through_t0)
-    n_par, th_par = nxt.parent, nxt.through_parent
+    n_par, th_par, n_lamp = nxt.parent, nxt.through_parent, nxt.lamp
+    s_mlamp = surf.mirror_lamp
     s_hit, s_mat, s_base, s_metal, s_rough, s_cover, s_p, s_ng, s_n, s_front, s_mirror = (
         surf.hit, surf.mat, surf.base, surf.metallic, surf.roughness, surf.cover, surf.p, surf.ng, surf.n,
         surf.front, surf.mirror)
@@ -1208,25 +1262,34 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
         k_m = float(m_km[mat])
         w_t = float(s_tran[i])
         mirror = vec.scale(vec.row(m_mirror, mat), k_m)
+        mirror_l = mirror  # the part of the mirror weight that sees lamps (k_m: all; lobes: bsdf.lamp_share)
+        glass_l = 1.0  # the share of the glass's reflected and refracted rays that sees lamps (smooth: all)
         # the dielectric split: the mirror ray takes F·glass_r, the refracted ray (1 − F)·glass_t + glass_t0
         glass_t0 = (0.0, 0.0, 0.0)
         if nl >= 0:  # the lobes' mirror share (direct-light stage) and their glass / refraction weights
             mirror = vec.madd(mirror, vec.row(s_mirror, i), 1.0 - k_m)
+            mirror_l = vec.madd(mirror_l, vec.row(s_mlamp, i), 1.0 - k_m)
             glass_r, glass_t, glass_t0 = lobes.refraction_weights(s_lk, s_lw, s_lb, s_lp, i, nl,
                                                                   vec.row(m_stint, mat))
             glass_r, glass_t = vec.scale(glass_r, 1.0 - k_m), vec.scale(glass_t, 1.0 - k_m)
+            glass_l = lobes.glass_lamp_share(s_lk, s_lp, i, nl)
             glass_t0 = vec.scale(glass_t0, 1.0 - k_m)
         else:
             if principled:  # the lobes' mirror share, from the direct-light stage's closure (SurfaceQueue.mirror)
                 glass = (1.0 - k_m) * (1.0 - float(s_metal[i])) * w_t
+                if glass > 0.0:
+                    glass_l = bsdf.lamp_share_of(float(s_rough[i]))
                 mirror = vec.madd(mirror, vec.row(s_mirror, i), 1.0 - k_m)
+                mirror_l = vec.madd(mirror_l, vec.row(s_mlamp, i), 1.0 - k_m)
             else:  # classic: a smooth metal (Principled input) mirrors its base colour, as the notes' k_m·tint
                 glass = (1.0 - k_m) * w_t
                 m = float(s_metal[i])
                 if m > 0.0:
                     g = bsdf.mirror_share(float(s_rough[i]))
                     mirror = vec.madd(mirror, vec.row(s_base, i), (1.0 - k_m) * m * g)
+                mirror_l = mirror
             mirror = vec.scale(mirror, a)
+            mirror_l = vec.scale(mirror_l, a)
             glass *= a
             # the glass part reflects by Fresnel × its specular tint (a Glass BSDF's Color, as Cycles tints it), as
             # the lobes' PRINCIPLED and GLASS slots do (tracer.shading.lobes.refraction_weights)
@@ -1242,6 +1305,7 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
         r_dir = optics.reflect_dir(di, r_n)
         eta_i, eta_r, tir = 1.0, 1.0, False
         w_refl = vec.mul(w, mirror)
+        w_refl_l = vec.mul(w, mirror_l)
         if has_glass:
             ior = float(m_ior[mat])
             eta_i, eta_r = (1.0, ior) if s_front[i] else (ior, 1.0)
@@ -1252,6 +1316,7 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
             else:
                 fr = 1.0 if tir else 0.0
             w_refl = vec.add(w_refl, vec.mul(w, vec.scale(glass_r, fr)))
+            w_refl_l = vec.add(w_refl_l, vec.mul(w, vec.scale(glass_r, fr * glass_l)))
             if tir:
                 n_tir += 1
                 w_tran = (0.0, 0.0, 0.0)
@@ -1268,12 +1333,16 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, spawn, mats, opt, nxt, coun
                 _put_ray(n_o, n_d, n_w, n_s, j, spawn_ray(p, ng, t_dir, eps), t_dir, w_tran, s)
                 _put_spawn(rec_n, rec_eta, rec_tir, j, t_n, eta_i, eta_r, False)
                 n_par[j] = i
+                n_lamp[j] = glass_l
                 n_tran += 1
         if vec.max3(w_refl) > min_weight:
             r_dir = vec.normalize(r_dir)
             _put_ray(n_o, n_d, n_w, n_s, n_refl, spawn_ray(p, ng, r_dir, eps), r_dir, w_refl, s)
             _put_spawn(rec_n, rec_eta, rec_tir, n_refl, r_n, eta_i, eta_r, tir)
             n_par[n_refl] = i
+            total = w_refl[0] + w_refl[1] + w_refl[2]
+            n_lamp[n_refl] = min(max((w_refl_l[0] + w_refl_l[1] + w_refl_l[2]) / total, 0.0), 1.0) if total > 0.0 \
+                else 1.0
             n_refl += 1
     counts[_N_TIR] += n_tir
     counts[_N_REFLECTION] += n_refl

@@ -412,3 +412,82 @@ def sample_light(lights, j, k, p, r0, r1):
         tan_a = math.sqrt(max(1.0 - cos_l * cos_l, 0.0)) / cos_l
         f *= max((lights.spread[j, 0] - tan_a) * norm, 0.0)
     return l, dist, vec.scale(vec.row(lights.color, j), f)
+
+
+def hittable(light) -> bool:
+    """Whether a ray can meet the light's shape (Cycles intersects these with camera, glossy and transmission rays,
+    each as the light's ray visibility allows): an area light, a point or spot light with a radius (a sphere), a
+    sun with an angle (a disk in the sky). Radius- and angle-0 lights are points: only light samples see them."""
+    if isinstance(light, AreaLight):
+        return True
+    if isinstance(light, PointLight):  # SpotLight included
+        return light.radius > 0.0
+    if isinstance(light, DistantLight):
+        return light.angle > 0.0
+    return False
+
+
+@kernel(inline=True)
+def lamp_hit(lights, j, o, d, t_max):
+    """Where the ray o + t·d (d unit) meets light j's shape before ``t_max``, and the radiance it sees there:
+    (t, Le), t = inf when it misses. As Cycles renders a light seen by a ray (measured through bpy, Blender 5.0):
+
+    - area light: one-sided (seen from its emitting side), Le = its radiance P/(π·A) × the Spread attenuation at the
+      ray's angle to the normal (:func:`spread_table`, the same factor as its samples);
+    - point / spot light of radius R: a sphere, Le = I/(π·R²) (I = P/4π: the sphere's intensity), a spot's × its
+      falloff at the direction from the light to the ray's origin;
+    - sun of angle a: a disk of angular radius a/2 in the sky (only for a ray that meets nothing, ``t_max`` = inf;
+      t = 1e30),
+      Le = S/(π·sin²(a/2))."""
+    kd = lights.kind[j]
+    miss = (math.inf, (0.0, 0.0, 0.0))
+    if kd == RECT or kd == DISK:
+        nrm = vec.row(lights.direction, j)
+        cos_l = -vec.dot(d, nrm)
+        if cos_l <= 1e-12:  # parallel, or the back side: area lights emit only along their normal
+            return miss
+        pos = vec.row(lights.position, j)
+        t = vec.dot(vec.sub(pos, o), nrm) / -cos_l
+        if not (t > 0.0 and t < t_max):
+            return miss
+        q = vec.sub(vec.madd(o, d, t), pos)
+        a = vec.dot(q, vec.row(lights.u_axis, j)) / lights.size[j, 0]
+        b = vec.dot(q, vec.row(lights.v_axis, j)) / lights.size[j, 1]
+        if kd == RECT:
+            if abs(a) > 0.5 or abs(b) > 0.5:
+                return miss
+        elif a * a + b * b > 0.25:
+            return miss
+        f = 1.0
+        norm = lights.spread[j, 1]
+        if norm > 0.0:
+            tan_a = math.sqrt(max(1.0 - cos_l * cos_l, 0.0)) / cos_l
+            f = max((lights.spread[j, 0] - tan_a) * norm, 0.0)
+        return t, vec.scale(vec.row(lights.color, j), f)
+    if kd == POINT or kd == SPOT:
+        radius = lights.radius[j]
+        if radius <= 0.0:
+            return miss
+        pos = vec.row(lights.position, j)
+        oc = vec.sub(o, pos)
+        b = vec.dot(oc, d)
+        c = vec.dot(oc, oc) - radius * radius
+        disc = b * b - c
+        if disc < 0.0:
+            return miss
+        sq = math.sqrt(disc)
+        t = -b - sq
+        if t <= 0.0:
+            t = -b + sq
+        if not (t > 0.0 and t < t_max):
+            return miss
+        f = 1.0 / (math.pi * radius * radius)
+        if kd == SPOT:
+            f *= spot_falloff(-vec.dot(d, vec.row(lights.direction, j)), lights.cos_cone[j], lights.blend[j])
+        return t, vec.scale(vec.row(lights.color, j), f)
+    if kd == DISTANT:
+        cm = lights.cos_max[j]
+        if cm >= 1.0 or t_max < math.inf or -vec.dot(d, vec.row(lights.direction, j)) < cm:
+            return miss
+        return 1e30, vec.scale(vec.row(lights.color, j), 1.0 / (math.pi * (1.0 - cm * cm)))
+    return miss

@@ -45,6 +45,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..jit import kernel
+from . import emitters
 
 #: Ray visibility bits of ``Scene.object_visibility`` (and the low bits of the Embree masks).
 CAMERA, GLOSSY, TRANSMISSION, SHADOW = 1, 2, 4, 8
@@ -69,10 +70,15 @@ class LightLink:
     cast_shadow: bool = True
     diffuse: float = 1.0
     glossy: float = 1.0
+    #: factors of the light's shape as camera and refraction rays see it (Blender's ``visible_camera`` /
+    #: ``visible_transmission``: 1 or 0; Cycles' defaults, measured: hidden from the camera, seen through glass). Its
+    #: shape in mirrors is its glossy light: ``glossy``. (Only lights with a shape: tracer.lights.emitters.hittable)
+    camera: float = 0.0
+    transmission: float = 1.0
 
     def is_default(self) -> bool:
         return (self.receivers is None and self.blockers is None and self.cast_shadow and self.diffuse == 1.0
-                and self.glossy == 1.0)
+                and self.glossy == 1.0 and self.camera == 0.0 and self.transmission == 1.0)
 
 
 class Links(NamedTuple):
@@ -82,7 +88,9 @@ class Links(NamedTuple):
     j's shadow rays, the last entry the sky rays' (so ``shadow_mask[light]`` with light -1 reads it);
     ``visibility``: the ray-type masks are needed (some object hidden from some ray type); ``masked``: geometry masks
     are set (visibility or shadow linking); ``object_mask`` (O,) uint32 per object id and ``array_mask`` (the
-    instance array's) when masked."""
+    instance array's) when masked. ``seen`` (L, 3) float64: per light, the factor of its shape as camera, mirror
+    (glossy) and refraction rays see it (0 for lights without a shape and for MESH lights, which are geometry);
+    ``any_seen``: some light's shape is seen by some ray type."""
 
     receivers: bool
     recv_set: np.ndarray
@@ -94,6 +102,8 @@ class Links(NamedTuple):
     masked: bool
     object_mask: np.ndarray
     array_mask: int
+    seen: np.ndarray
+    any_seen: bool
 
 
 def _object_count(scene) -> int:
@@ -204,9 +214,14 @@ def pack(scene, n_lights: int, emitter_object: np.ndarray | None = None) -> Link
                 warnings.warn("ray visibility / shadow linking: the instanced objects differ; all instances of "
                               "the instance array use the union of their settings", stacklevel=2)
             array_mask = int(np.bitwise_or.reduce(m))
+    seen = np.zeros((n_lights, 3), np.float64)  # camera, glossy (mirror), transmission (refraction)
+    for j, light in enumerate(list(scene.lights)[:n_lights]):
+        if emitters.hittable(light):
+            link = entries[row_entry[j]] if row_entry[j] >= 0 else LightLink()
+            seen[j] = (float(link.camera), float(link.glossy), float(link.transmission))
     return Links(receivers=bool(recv_sets), recv_set=recv_set, object_recv=object_recv, diffuse=diffuse,
                  glossy=glossy, shadow_mask=shadow_mask, visibility=hidden, masked=masked,
-                 object_mask=object_mask, array_mask=array_mask)
+                 object_mask=object_mask, array_mask=array_mask, seen=seen, any_seen=bool(np.any(seen > 0)))
 
 
 @kernel(inline=True)

@@ -8,7 +8,8 @@ lowered to the tracer's closure inputs and, where one closure cannot hold it, to
    ============== ===================================================================================
    principled     its inputs (emission = Emission Color × Strength; Alpha mixes with transparency)
    diffuse        base = Color, specular 0, roughness 1                        (slot DIFFUSE)
-   glossy         base = Color, metallic 1, roughness (Anisotropic: isotropic)  (slot GLOSSY)
+   glossy         base = Color, metallic 1, roughness (Anisotropic: isotropic), specular 1 for Multiscatter GGX,
+                  0 for single scattering (GGX, Beckmann, Ashikhmin-Shirley)  (slot GLOSSY)
    glass          transmission 1, reflection and refraction tinted by Color, ior; smooth (slot GLASS)
    refraction     as glass without its reflection                               (slot REFRACTION)
    translucent    as diffuse, lit from behind                                   (slot TRANSLUCENT)
@@ -130,8 +131,10 @@ class ClosureLowering:
             an = self.g.input_value(node, "Anisotropy")
             if isinstance(an, Out) or float(an) != 0.0:
                 self.warn(node.name + "an", f"Glossy BSDF {node.name!r}: anisotropy is rendered isotropic")
+            # P_SPEC: multiscatter GGX (1) or single scattering (0: Cycles' GGX loses the light that scatters twice)
+            multi = (node.params.get("distribution") or "MULTI_GGX") == "MULTI_GGX"
             lb.update(base=self.inp(node, "Color"), metallic=1.0, roughness=self.inp(node, "Roughness"),
-                      specular=0.5, normal=self._normal_in(node))
+                      specular=1.0 if multi else 0.0, normal=self._normal_in(node))
             lb["colour"] = lb["base"]
         elif t in ("glass_bsdf", "refraction_bsdf"):
             r = self.inp(node, "Roughness")

@@ -13,7 +13,8 @@ Kinds and what each contributes (Cycles 5.0, ``kernel/svm/closure.h``):
 PRINCIPLED     :func:`tracer.shading.bsdf.principled` with its inputs; its glass part (1 − metallic)·transmission
                reflects by Fresnel (× specular tint) and refracts tinted by its base colour
 DIFFUSE        Lambert, R_d = colour (:func:`tracer.shading.bsdf.lambertian`)
-GLOSSY         multiscatter GGX with the constant Fresnel ``colour`` (:func:`tracer.shading.bsdf.glossy`)
+GLOSSY         GGX with the constant Fresnel ``colour`` (:func:`tracer.shading.bsdf.glossy`); P_SPEC = 1: multiscatter
+               GGX, 0: single scattering (the node's GGX, Beckmann and Ashikhmin-Shirley distributions)
 GLASS          smooth dielectric: the mirror ray takes F·colour, the refracted ray (1 − F)·colour
 REFRACTION     the refracted ray takes colour (no Fresnel, no reflection)
 TRANSLUCENT    Lambert from behind: colour/π·|n·l| for lights on the other side of the surface
@@ -84,7 +85,7 @@ def _slot(kinds, w, base, prm, i, k, nl, mu, tint, ior, spawn):
     if kind == DIFFUSE:
         return bsdf.lambertian(col, mu), wk, 0.0
     if kind == GLOSSY:
-        return bsdf.glossy(col, r, mu), wk, g
+        return bsdf.glossy(col, r, mu, float(prm[i, k, P_SPEC]) > 0.0), wk, g
     return bsdf.lambertian(zero, mu), wk, 0.0  # glass, refraction, translucent: nothing from the front
 
 
@@ -138,15 +139,21 @@ def none():
 @kernel(inline=True)
 def evaluate(lb, n, wi, l, n_l, mesh, glossy, diffuse):
     """Σᵢ wᵢ·fᵢ(wi, l)·cos θ_l for the unit light direction l (n·l = ``n_l``): the front lobes for n·l > 0, the
-    translucent ones for n·l < 0. ``mesh``: the light is an emitting surface the mirror ray also sees, so each
-    lobe's specular part is scaled by 1 − gᵢ (as :func:`tracer.shading.bsdf.evaluate`'s ``spec_scale``); ``glossy``,
-    ``diffuse``: the light's factors on the specular and diffuse parts (light linking, 1 = all)."""
+    translucent ones for n·l < 0. ``mesh``: the mirror ray also sees the light, so each lobe's specular part is
+    scaled by 1 − its share of that ray (as :func:`tracer.shading.bsdf.evaluate`'s ``spec_scale``): 1 − gᵢ for an
+    emitting surface or the world (``mesh`` 1), 1 − :func:`tracer.shading.bsdf.lamp_share` for a lamp (``mesh`` 2);
+    ``glossy``, ``diffuse``: the light's factors on the specular and diffuse parts (light linking, 1 = all)."""
     c = (0.0, 0.0, 0.0)
     if n_l < 0.0:
         return vec.scale(lb.translucent, -n_l * bsdf.INV_PI * diffuse)
     for k in range(lb.n):
         cl = lb.cl[k]
-        f = bsdf.evaluate(cl, n, wi, l, n_l, (1.0 - lb.g[k] if mesh else 1.0) * glossy)
+        share = 0.0
+        if mesh == 2:
+            share = bsdf.lamp_share(cl, lb.g[k])
+        elif mesh:
+            share = lb.g[k]
+        f = bsdf.evaluate(cl, n, wi, l, n_l, (1.0 - share) * glossy)
         if diffuse != 1.0:  # the diffuse part is the BSDF at spec_scale 0
             f = vec.sub(f, vec.scale(bsdf.evaluate(cl, n, wi, l, n_l, 0.0), 1.0 - diffuse))
         c = vec.add(c, vec.mul(lb.w[k], f))
@@ -161,6 +168,17 @@ def mirror_weight(lb):
     c = (0.0, 0.0, 0.0)
     for k in range(lb.n):
         c = vec.add(c, vec.scale(vec.mul(lb.w[k], bsdf.specular_albedo(lb.cl[k])), lb.g[k]))
+    return c
+
+
+@kernel(inline=True)
+def mirror_lamp_weight(lb):
+    """Σᵢ wᵢ·lamp shareᵢ·(lobe i's specular albedo): what the mirror ray takes of the lobes for the lamps it sees
+    (:func:`tracer.shading.bsdf.lamp_share`)."""
+    c = (0.0, 0.0, 0.0)
+    for k in range(lb.n):
+        cl = lb.cl[k]
+        c = vec.add(c, vec.scale(vec.mul(lb.w[k], bsdf.specular_albedo(cl)), bsdf.lamp_share(cl, lb.g[k])))
     return c
 
 
@@ -203,6 +221,19 @@ def is_black(lb):
         if not bsdf.is_black(lb.cl[k]):
             return False
     return True
+
+
+@kernel(inline=True)
+def glass_lamp_share(kinds, prm, i, nl):
+    """The share of hit i's glass (Glass, Refraction, a Principled's transmission: rendered smooth) whose reflected
+    and refracted rays see lamps: :func:`tracer.shading.bsdf.lamp_share_of` its roughest such lobe (rough glass
+    blurs a lamp over its whole highlight in Cycles; a sharp image of it is further from that than none)."""
+    share = 1.0
+    for k in range(nl):
+        kind = kinds[i, k]
+        if kind == GLASS or kind == REFRACTION or (kind == PRINCIPLED and float(prm[i, k, P_TRANS]) > 0.0):
+            share = min(share, bsdf.lamp_share_of(float(prm[i, k, P_ROUGH])))
+    return share
 
 
 @kernel(inline=True)

@@ -12,8 +12,12 @@ Each Shader's ``info:id`` is the name of the node definition MaterialX resolves 
 ``ND_noise3d_float``, or a document's own ``<nodedef>``); a node with several outputs gets one ``outputs:<name>``
 each. Values keep their MaterialX types; ``filename`` values are resolved as MaterialX resolves them (the
 ``fileprefix`` of the input or of any ancestor element) and made absolute against the file that authored them (an
-XIncluded file's own folder); an input's active colour space (its own or an ancestor's ``colorspace``) becomes the
-attribute's ``colorSpace``. Documents that cannot be parsed stay unresolved (the composition warning names them).
+XIncluded file's own folder); a value with a ``unit`` is converted into the unit its node definition declares,
+else (a distance) into the stage's own (its metres per unit, MaterialX's "scene unit"); an input's active colour
+space (its own or an ancestor's ``colorspace``) becomes the attribute's ``colorSpace``; a node graph input's
+``defaultgeomprop`` its custom data ``mtlx:defaultgeomprop``; an input naming a document-level ``<output>``
+(``output`` alone) a connection to the node that output passes on. Documents that cannot be parsed stay unresolved
+(the composition warning names them).
 
 :func:`nodedef` finds a node definition by name among the standard libraries and the definitions of every document
 read so far (their ``<nodedef>`` s and the ``<nodegraph nodedef=...>`` s implementing them):
@@ -25,7 +29,7 @@ from __future__ import annotations
 import os
 
 import numpy as np
-from pxr import Gf, Sdf, Tf
+from pxr import Gf, Sdf, Tf, UsdGeom
 
 from tracer import colorspace
 
@@ -37,8 +41,10 @@ TYPES = {"float": Sdf.ValueTypeNames.Float, "integer": Sdf.ValueTypeNames.Int, "
          "string": Sdf.ValueTypeNames.String, "surfaceshader": Sdf.ValueTypeNames.Token,
          "matrix33": Sdf.ValueTypeNames.Matrix3d, "matrix44": Sdf.ValueTypeNames.Matrix4d}
 
+#: MaterialX types whose values may carry a unit.
+UNIT_TYPES = ("float", "vector2", "vector3", "vector4")
 #: Translated documents by absolute path (layers must stay alive while stages reference them).
-_LAYERS: dict[str, Sdf.Layer | None] = {}
+_LAYERS: dict[tuple[str, float], Sdf.Layer | None] = {}
 _LIB: dict = {}
 
 
@@ -109,10 +115,14 @@ def _register(doc: mx.Document) -> None:
     defs = definitions()
     for nd in doc.getNodeDefs():
         if not defs.getChild(nd.getName()):
-            defs.addNodeDef(nd.getName(), nd.getType(), nd.getNodeString()).copyContentFrom(nd)
+            copy = defs.addNodeDef(nd.getName(), nd.getType(), nd.getNodeString())
+            copy.copyContentFrom(nd)
+            copy.setSourceUri(nd.getActiveSourceUri())  # relative file names stay relative to their document
     for ng in doc.getNodeGraphs():
         if ng.getNodeDefString() and not defs.getChild(ng.getName()):
-            defs.addNodeGraph(ng.getName()).copyContentFrom(ng)
+            copy = defs.addNodeGraph(ng.getName())
+            copy.copyContentFrom(ng)
+            copy.setSourceUri(ng.getActiveSourceUri())
 
 
 def read_document(path: str) -> mx.Document:
@@ -145,6 +155,15 @@ def _value(mx_type: str, text: str, base_dir: str):
     return nums[0] if len(nums) == 1 else tuple(nums)
 
 
+def file_value(inp) -> Sdf.AssetPath:
+    """A ``filename`` input's value as MaterialX resolves it (its ``fileprefix`` and the ``[token]`` s of its node,
+    of its node graph and of the node definition that graph implements substituted) and made absolute against the
+    document that authored it; resolved when the file exists."""
+    src = inp.getActiveSourceUri()
+    path = _value("filename", inp.getResolvedValueString(), os.path.dirname(src) if src else os.getcwd()).path
+    return Sdf.AssetPath(path, path) if os.path.exists(path) else Sdf.AssetPath(path)
+
+
 def _nodedef_name(node) -> str:
     nd = node.getNodeDef()
     return nd.getName() if nd else f"ND_{node.getCategory()}_{node.getType()}"
@@ -165,9 +184,48 @@ def _out_prop(node, output: str) -> str:
     return f"outputs:{output or 'out'}"
 
 
+def unit_scales(unittype: str) -> dict[str, float]:
+    """The units of a MaterialX unit type (``distance``: metres per unit; ``angle``: degrees per unit), from the
+    standard libraries' ``<unitdef>`` s and the read documents' own."""
+    key = f"units {unittype}"
+    if key not in _LIB:
+        scales = {}
+        for doc in (_library(), definitions()):
+            for ud in doc.getUnitDefs():
+                if ud.getUnitType() == unittype:
+                    for u in ud.getUnits():
+                        try:
+                            scales[u.getName()] = float(u.getAttribute("scale"))
+                        except ValueError:
+                            pass
+        _LIB[key] = scales
+    return _LIB[key]
+
+
+def unit_factor(inp, node, meters_per_unit: float) -> float:
+    """What a value authored in ``inp``'s ``unit`` is multiplied by (MaterialX's "Units"): converted into the
+    unit its node definition declares for that input, else, for a distance, into the scene's unit (the stage's
+    metres per unit). 1 when there is no unit or nothing to convert to."""
+    unit = inp.getUnit()
+    if not unit:
+        return 1.0
+    nd = node.getNodeDef() if node is not None and hasattr(node, "getNodeDef") else None
+    ndi = nd.getActiveInput(inp.getName()) if nd is not None else None
+    unittype = inp.getUnitType() or (ndi.getUnitType() if ndi is not None else "")
+    scales = unit_scales(unittype) if unittype else {}
+    if unit not in scales:
+        return 1.0
+    target = ndi.getUnit() if ndi is not None and ndi.getUnit() in scales else None
+    if target is not None:
+        return scales[unit] / scales[target]
+    if unittype == "distance" and meters_per_unit > 0:
+        return scales[unit] / meters_per_unit
+    return 1.0
+
+
 class _Writer:
-    def __init__(self, doc, base_dir: str):
-        self.doc, self.base_dir = doc, base_dir
+    def __init__(self, doc, base_dir: str, meters_per_unit: float = 1.0):
+        self.doc, self.base_dir, self.meters_per_unit = doc, base_dir, meters_per_unit
         self.layer = Sdf.Layer.CreateAnonymous(".usda")
 
     def prim(self, path: Sdf.Path, type_name: str) -> Sdf.PrimSpec:
@@ -203,12 +261,21 @@ class _Writer:
         space = inp.getActiveColorSpace()
         if space:
             a.SetInfo("colorSpace", space)
+        if inp.getDefaultGeomPropString():  # a node graph's interface input: read where no value is authored
+            a.SetInfo("customData", {"mtlx:defaultgeomprop": inp.getDefaultGeomPropString()})
         scope = inp.getParent().getParent()  # the node's node graph or the document
         up = scope.getNode(inp.getNodeName()) if inp.getNodeName() else None
+        output = inp.getOutputString()
+        if up is None and not inp.getNodeName() and not inp.getNodeGraphString() and output:
+            # output="name" alone: an <output> element of the node's scope (a document-level output), which names
+            # the node (and the node's output) it passes on
+            o = scope.getOutput(output) if hasattr(scope, "getOutput") else None
+            if o is not None and o.getNodeName():
+                up, output = scope.getNode(o.getNodeName()), o.getOutputString()
         if up is not None:
             where = owner.GetParentPath() if graph_path is None else graph_path
             p = self.shader(where, up, graph_path)
-            a.connectionPathList.Prepend(p.AppendProperty(_out_prop(up, inp.getOutputString())))
+            a.connectionPathList.Prepend(p.AppendProperty(_out_prop(up, output)))
             return
         if inp.getNodeGraphString():
             g = self.doc.getNodeGraph(inp.getNodeGraphString())
@@ -220,6 +287,7 @@ class _Writer:
         if inp.getInterfaceName() and graph_path is not None:
             a.connectionPathList.Prepend(graph_path.AppendProperty(f"inputs:{inp.getInterfaceName()}"))
             return
+        spec_node = inp.getParent()  # the node (or node graph) whose input this is: its definition's unit
         if inp.getInterfaceName() and graph_path is None:  # a top-level node reading a document-level input
             top = self.doc.getInput(inp.getInterfaceName())
             if top is not None and top.getValueString():
@@ -229,7 +297,11 @@ class _Writer:
             src = inp.getActiveSourceUri()
             base = os.path.dirname(src) if src and os.path.isabs(src) else self.base_dir
             try:
-                a.default = _value(mx_type, text, base)
+                value = _value(mx_type, text, base)
+                k = unit_factor(inp, spec_node, self.meters_per_unit) if mx_type in UNIT_TYPES else 1.0
+                if k != 1.0:
+                    value = value * k if isinstance(value, float) else tuple(x * k for x in value)
+                a.default = value
             except (ValueError, IndexError, TypeError, Tf.ErrorException):  # a value USD cannot hold: unauthored
                 pass
 
@@ -256,6 +328,12 @@ class _Writer:
             node = inp.getConnectedNode()
             # the front surface only: a backsurfaceshader (two-sided materials) is not one of usdMtlx's outputs
             if inp.getType() == "surfaceshader" and node is not None and inp.getName() == "surfaceshader":
+                g = self.doc.getNodeGraph(inp.getNodeGraphString()) if inp.getNodeGraphString() else None
+                if g is not None and g.getOutput(inp.getOutputString() or "out") is not None:
+                    # a shader inside a node graph: the graph (its interface feeds the shader), its output
+                    gp = self.graph(path, g)
+                    out.connectionPathList.Prepend(gp.AppendProperty(f"outputs:{inp.getOutputString() or 'out'}"))
+                    continue
                 sh = self.shader(path, node, None)
                 out.connectionPathList.Prepend(sh.AppendProperty("outputs:surface"))
 
@@ -267,26 +345,27 @@ class _Writer:
         return self.layer
 
 
-def translate(path: str) -> Sdf.Layer | None:
-    """The in-memory USD layer of a ``.mtlx`` document (cached by path), or None when it cannot be read."""
+def translate(path: str, meters_per_unit: float = 1.0) -> Sdf.Layer | None:
+    """The in-memory USD layer of a ``.mtlx`` document for a stage of ``meters_per_unit`` (the scene unit values
+    with a distance ``unit`` are converted into; cached by both), or None when it cannot be read."""
     import MaterialX as mx
 
-    path = os.path.abspath(path)
-    if path not in _LAYERS:
+    key = (os.path.abspath(path), float(meters_per_unit))
+    if key not in _LAYERS:
         try:
-            _LAYERS[path] = _Writer(read_document(path), os.path.dirname(path)).translate()
+            _LAYERS[key] = _Writer(read_document(key[0]), os.path.dirname(key[0]), key[1]).translate()
         except (mx.Exception, mx.ExceptionFileMissing, mx.ExceptionParseError, mx.ExceptionFoundCycle,
                 mx.ExceptionOrphanedElement, OSError, ValueError):  # a missing .mtlx: USD's own error names it
-            _LAYERS[path] = None
-    return _LAYERS[path]
+            _LAYERS[key] = None
+    return _LAYERS[key]
 
 
-def _mtlx_items(items, layer) -> tuple[list, bool]:
+def _mtlx_items(items, layer, meters_per_unit: float) -> tuple[list, bool]:
     """(the list with every .mtlx reference pointed at its translation, whether anything changed)."""
     out, changed = [], False
     for ref in items:
         if ref.assetPath.lower().endswith(".mtlx"):
-            translated = translate(layer.ComputeAbsolutePath(ref.assetPath))
+            translated = translate(layer.ComputeAbsolutePath(ref.assetPath), meters_per_unit)
             if translated is not None:
                 ref = Sdf.Reference(translated.identifier, ref.primPath, ref.layerOffset, ref.customData)
                 changed = True
@@ -304,6 +383,7 @@ def resolve_mtlx_references(stage) -> int:
         layer.Traverse(Sdf.Path.absoluteRootPath,
                        lambda p, layer=layer: specs.append((layer, p)) if p.IsPrimPath() or p.IsPrimVariantSelectionPath() else None)
     changed = 0
+    mpu = UsdGeom.GetStageMetersPerUnit(stage)  # MaterialX's "scene unit" for distances
     with Sdf.ChangeBlock():
         for layer, p in specs:
             spec = layer.GetPrimAtPath(p)
@@ -311,7 +391,7 @@ def resolve_mtlx_references(stage) -> int:
                 continue
             refs = spec.referenceList
             for which in ("explicitItems", "prependedItems", "appendedItems"):
-                items, hit = _mtlx_items(list(getattr(refs, which)), layer)
+                items, hit = _mtlx_items(list(getattr(refs, which)), layer, mpu)
                 if hit:
                     setattr(refs, which, items)
                     changed += 1

@@ -22,6 +22,9 @@ other warns once and contributes nothing. A closure comes back with an estimate 
     thin film                 not rendered (one warning)
     subsurface_bsdf           Diffuse BSDF of its colour (one warning)
     layer(top, base)          top + base × (1 − albedo(top))                                         combined
+    layer(top, VDF)           a surface over its interior medium: the top whole (its transmission     top's
+                              rendered, unless it is itself a layer's top); the medium's absorption
+                              and scattering are not rendered (one warning when they are not zero)
     mix(fg, bg, mix), add, multiply (by a float or colour)   Mix Shader / Add Shader (a colour factor by its mean)
     uniform_edf               Emission (color); other EDFs: their base or colour (one warning)
     surface(bsdf, edf, opacity)   bsdf + edf, mixed with Transparent by 1 − opacity
@@ -152,12 +155,17 @@ class Closures:
         return self.tr.add("mix_closure", {"Fac": op, "Shader": clear, "Shader_001": out}, "Shader"), alb
 
     def _c_surface_unlit(self, c):
-        """emission · emission_color, and transmission · transmission_color passing through; ``opacity`` mixes
-        the whole with a clear surface (MaterialX's mx_surface_unlit)."""
+        """MaterialX's OSL mx_surface_unlit (the ray-traced implementation): with t = clamp(transmission, 0, 1),
+        (1 − t) · emission · emission_color emitted and t · transmission_color passing through; ``opacity`` mixes
+        the whole with a clear surface."""
         e = self.tr.lanes3(c.i("emission_color"))
-        out = self.tr.add("emission", {"Color": e, "Strength": c.f("emission")}, "Emission")
         tw = c.f("transmission")
-        if hasattr(tw, "node") or float(tw) > 0:
+        varies = hasattr(tw, "node")
+        tw = self.tr.math("MINIMUM", self.tr.math("MAXIMUM", tw, 0.0), 1.0) if varies else \
+            float(np.clip(float(tw), 0.0, 1.0))
+        out = self.tr.add("emission", {"Color": e, "Strength": self.fmul(c.f("emission"), self.one_minus(tw))},
+                          "Emission")
+        if varies or tw > 0:
             col = self.tr.vmath("MULTIPLY", self.tr.lanes3(c.i("transmission_color")), self.tr._splat(tw))
             out = self.add_closures(out, self.tr.add("transparent_bsdf", {"Color": col}, "BSDF"))
         op = c.f("opacity")
@@ -263,7 +271,36 @@ class Closures:
             out = self.tr.add("glossy_bsdf", {"Color": col0, "Roughness": r}, "BSDF")
         return self.scaled(out, w), self.fmul(self.mean3(c0), w)
 
+    def upstream(self, c, name):
+        """(view, output) of the node feeding input ``name`` of ``c`` (through node-graph interfaces), or None."""
+        r = c.view.input(name)
+        while r is not None and r[0] == "outer":
+            r = r[1].input(r[2])
+        return (r[1], r[2]) if r is not None and r[0] == "link" else None
+
+    def _medium(self, c, view) -> None:
+        """A VDF under a transmissive surface (its interior): named in one warning when it absorbs or scatters."""
+        nd = mtlx.nodedef(view.sid)
+        if nd is None:
+            return
+        m = _Ctx(self.tr, view, nd)
+        for name in ("absorption", "scattering"):
+            if m.has(name):
+                v = m.i(name, "vector3").x
+                if hasattr(v, "node") or np.any(np.abs(np.asarray(v, np.float64)) > 0):
+                    self.tr.warn(view.key, f"MaterialX {view.name}: the interior medium ({nd.getNodeString()}, its "
+                                           "absorption and scattering) is not rendered (the surface over it is)")
+                    return
+
     def _c_layer(self, c):
+        up = self.upstream(c, "base")
+        nd = mtlx.nodedef(up[0].sid) if up is not None else None
+        if nd is not None and nd.getType() == "VDF":
+            # a surface over its interior medium (MaterialX: a transmissive dielectric_bsdf layered over a VDF):
+            # the top whole, its transmission included — unless this is itself the top of a layer, whose
+            # transmission is the light that reaches that layer's base
+            self._medium(c, up[0])
+            return self.closure_input(c, "top")
         self.on_top += 1
         try:
             top, a_top = self.closure_input(c, "top")

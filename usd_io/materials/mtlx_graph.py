@@ -37,6 +37,10 @@ import MaterialX as mx
 import numpy as np
 from pxr import Sdf, UsdShade
 
+from tracer.shading.compiler import Compiler
+from tracer.shading.graph import Graph, Out
+from tracer.shading.nodes import FLOAT, VECTOR
+
 from . import mtlx, network as net
 from .arnold_patterns import graph_node as arnold_node
 from .primvars import DEFAULT_UV
@@ -56,6 +60,23 @@ def _py(v):
         return v
 
 
+def _default_geomprop(inp) -> str | None:
+    """The ``defaultgeomprop`` of the node-graph interface input that ``inp`` (a UsdShade input without a value)
+    is connected to, through nested graphs (:mod:`usd_io.materials.mtlx` writes it as custom data)."""
+    seen = 0
+    while inp and seen < 16:
+        seen += 1
+        sources = inp.GetConnectedSources()[0] if inp.HasConnectedSource() else []
+        if not sources or sources[0].sourceType != UsdShade.AttributeType.Input:
+            return None
+        src = sources[0].source.GetInput(sources[0].sourceName)
+        gp = src.GetAttr().GetCustomData().get("mtlx:defaultgeomprop") if src else None
+        if gp:
+            return str(gp)
+        inp = src
+    return None
+
+
 class UsdNode:
     """A node of a UsdShade network (its inputs followed through NodeGraph interfaces)."""
 
@@ -67,11 +88,15 @@ class UsdNode:
     def input(self, name: str):
         a, is_out = net.producer(self.s, name)
         if a is None:
-            return None
+            gp = _default_geomprop(self.s.GetInput(name))
+            return ("geomprop", gp) if gp else None
         if is_out:
             return ("link", UsdNode(UsdShade.Shader(a.GetPrim()), self.time), UsdShade.Output(a).GetBaseName())
         v = a.Get() if self.time is None else a.Get(self.time)
-        return None if v is None else ("const", v, a, a.GetColorSpace())
+        if v is None:  # an interface input with no value
+            gp = a.GetCustomData().get("mtlx:defaultgeomprop") or _default_geomprop(self.s.GetInput(name))
+            return ("geomprop", str(gp)) if gp else None
+        return ("const", v, a, a.GetColorSpace())
 
 
 class MxNode:
@@ -93,7 +118,11 @@ class MxNode:
             return None if up is None else ("link", MxNode(up, self.outer), inp.getOutputString() or "out")
         if inp.getInterfaceName():
             return ("outer", self.outer, inp.getInterfaceName())
-        return ("const", inp.getValue(), None, inp.getActiveColorSpace()) if inp.getValueString() else None
+        if not inp.getValueString():
+            return None
+        if inp.getType() == "filename":  # tokens substituted, relative to its document
+            return ("const", mtlx.file_value(inp), None, inp.getActiveColorSpace())
+        return ("const", inp.getValue(), None, inp.getActiveColorSpace())
 
 
 class Outs:
@@ -324,17 +353,24 @@ class Translator:
         through the interface from the USD shader's input (colour space and layer from that attribute)."""
         r, a = c.view.input("file"), None
         while r is not None and r[0] == "outer":
-            r = r[1].input(r[2])
-        if r is None or r[0] != "const" or r[2] is None or not isinstance(r[1], Sdf.AssetPath):
+            outer, key = r[1], r[2]
+            r = outer.input(key)
+            if r is None:  # the instance does not author it: its definition's default file
+                ond = mtlx.nodedef(outer.sid)
+                d = ond.getActiveInput(key) if ond is not None else None
+                if d is not None and d.getType() == "filename" and d.getValueString():
+                    r = ("const", mtlx.file_value(d), None, d.getActiveColorSpace())
+        if r is None or r[0] != "const" or not isinstance(r[1], Sdf.AssetPath):
             return None
-        a = r[2]
+        a = r[2]  # a USD attribute, or None for a file named inside a node graph implementation or its definition
+        space = a.GetColorSpace() if a is not None else r[3]
         default = self.const(_py(c.uniform("default", 0.0)), "color3").x
         wrap = [net.MX_ADDRESS.get(str(c.uniform(f"{k}addressmode", "periodic")), "repeat") for k in "uv"]
         return net.TextureLookup(node=c.view.name, asset=r[1], channel=0 if WIDTH.get(t, 1) == 1 else -1, uv=None,
                                  transform=np.eye(3), scale=(1.0, 1.0, 1.0, 1.0), bias=(0.0, 0.0, 0.0, 0.0),
                                  fallback=tuple(default) + (1.0,), wrap_s=wrap[0], wrap_t=wrap[1],
-                                 colorspace=mtlx.texture_colorspace(a.GetColorSpace())[0],
-                                 layer=authoring_layer(a))
+                                 colorspace=mtlx.texture_colorspace(space)[0],
+                                 layer=authoring_layer(a) if a is not None else None)
 
     def _n_image(self, c, t, o, tiled=False):
         lk = net.mx_image_lookup(c.view.s) if isinstance(c.view, UsdNode) else self._graph_image_lookup(c, t)
@@ -347,9 +383,14 @@ class Translator:
         if uvl is None:
             return self.const(fallback, t) if WIDTH.get(t, 1) > 1 else V(t, float(fallback[0]))
         st = c.i("texcoord", "vector2")
-        if tiled:
+        if tiled:  # NG_tiledimage: ((uv · uvtiling − uvoffset) / realworldimagesize) · realworldtilesize
             tiling, offset = c.i("uvtiling", "vector2"), c.i("uvoffset", "vector2")
             st = V("vector2", self.vmath("SUBTRACT", self.vmath("MULTIPLY", st.x, tiling.x), offset.x))
+            image, tile = c.i("realworldimagesize", "vector2"), c.i("realworldtilesize", "vector2")
+            if hasattr(image.x, "node") or hasattr(tile.x, "node") or \
+                    not np.allclose(np.asarray(tile.x[:2]) / np.asarray(image.x[:2]), 1.0):
+                size = self.vmath("DIVIDE", self.lanes3(tile), self.vmath("MAXIMUM", self.lanes3(image), (1e-9,) * 3))
+                st = V("vector2", self.vmath("MULTIPLY", st.x, size))
         st_x = st.x
         if not np.allclose(uvl.transform, np.eye(3)):
             st_x = self.add("usd_transform2d", {"in": st_x}, "result", matrix=np.asarray(uvl.transform))
@@ -885,6 +926,8 @@ class _Ctx:
             outer = r[1]
             ond = mtlx.nodedef(outer.sid)
             return self.tr.cast(_Ctx(self.tr, outer, ond).i(r[2]), t) if ond is not None else self.tr.const(0.0, t)
+        if r is not None and r[0] == "geomprop":  # a node graph's input with no value: its defaultgeomprop
+            return self.tr.geomprop(r[1], t)
         if r is not None and r[0] == "const":
             if t in ("color3", "color4") and len(r) > 3 and r[3]:  # a colour in a named colour space
                 return self.tr.const(mtlx.linear_colour(r[1], r[3], self.tr.unknown_space), t)
@@ -898,6 +941,72 @@ class _Ctx:
     def f(self, name: str):
         v = self.i(name)
         return v.x if v.wide == 1 else self.tr.lane(v, 0)
+
+
+class _Varying(Exception):
+    """A network being folded reads something that varies per hit (an image, a UV set)."""
+
+
+class _FoldTable:
+    """The material table as a network being folded sees it: no textures, no UV sets; a warning (a node read as
+    its default, an unknown colour space) stops the folding, so that the network is translated again with it."""
+
+    def __init__(self, table):
+        self.time = table.time
+        self.warned = False
+
+    def warn(self, message: str) -> None:
+        self.warned = True
+
+    def uv_set_index(self, name):
+        raise _Varying
+
+    @property
+    def uv_set_names(self):
+        raise _Varying
+
+    def _texture(self, *args, **kw):
+        raise _Varying
+
+
+class _NoNeeds:
+    def __init__(self):
+        self.uv_sets: set = set()
+        self.color = None
+
+
+def constant_value(table, lookup):
+    """The value of the network ``lookup`` (a :class:`usd_io.materials.network.GraphLookup`) when it varies nowhere
+    — constants, and maths, conversions and switches of constants — folded by the shader compiler exactly as the
+    tracer would evaluate it (a float or a tuple); None when anything in it varies per hit (a texture coordinate, a
+    position, an image, a noise)."""
+    g = Graph("fold")
+    quiet = _FoldTable(table)
+    tr = Translator(quiet, g, "", _NoNeeds(), table.time)
+    try:
+        v = tr.out(UsdNode(lookup.shader, table.time), lookup.output)
+    except _Varying:
+        return None
+    except Exception:  # noqa: BLE001 — whatever the translator cannot fold is translated as a network
+        return None
+    if quiet.warned:
+        return None
+    if v.wide == 1 and not isinstance(v.x, Out) and not hasattr(v.x, "node"):
+        return float(v.x)
+    if v.wide > 1 and not isinstance(v.x, Out) and not hasattr(v.x, "node"):
+        return tuple(float(x) for x in v.x)
+    c = Compiler(g)
+    try:
+        x = c.val(v.x, FLOAT if v.wide == 1 else VECTOR)
+    except Exception:  # noqa: BLE001
+        return None
+    if not c.e.is_const(x):
+        return None
+    if hasattr(x, "r") and hasattr(x, "n"):  # a register of constants
+        vals = [float(c.e.init[k]) for k in range(x.r, x.r + x.n)]
+    else:
+        vals = [float(e) for e in np.ravel(x)]
+    return vals[0] if v.wide == 1 else tuple(vals[:3])
 
 
 class MxProgram:

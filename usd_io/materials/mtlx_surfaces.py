@@ -55,8 +55,9 @@ disney_principled (``NG_disney_principled``)
     (warned): subsurface (rendered as the diffuse),
     anisotropic.
 surface_unlit (``ND_surface_unlit``)
-    emission · emission_color, nothing reflected; transmission · transmission_color passes through (alpha =
-    1 − luminance) and opacity.
+    emission · emission_color, nothing reflected, and opacity; with a transmission (or any network) MaterialX's
+    OSL closure reading (usd_io.materials.mtlx_closures): (1 − t) of the emission, t · transmission_color passing
+    through.
 """
 
 from __future__ import annotations
@@ -67,7 +68,7 @@ from tracer import colorspace
 from tracer.shading.materials import f0_from_ior
 from tracer.shading.principled import PrincipledSurface
 
-from . import mtlx
+from . import mtlx, mtlx_graph
 from . import network as net
 
 #: Node-definition names (or their prefix) of each family.
@@ -107,6 +108,7 @@ class Inputs:
         self.table, self.s, self.label, self.needs, self.family = table, s, label, needs, family
         self.nd = _nodedef_for(net.shader_id(s), family)
         self.time = table.time
+        self._folded: dict = {}
 
     def warn(self, message: str) -> None:
         self.table.warn(f"{self.label}: MaterialX {self.family} {message}")
@@ -124,14 +126,22 @@ class Inputs:
             return v
 
     def connected(self, name: str) -> bool:
+        """Driven by a network that varies (one that folds to a constant reads as that constant)."""
         a, is_out = net.producer(self.s, name)
-        return a is not None and is_out
+        return a is not None and is_out and not isinstance(self.src(name), net.Const)
 
     def src(self, name: str, fallback=None):
         """What drives ``name`` (usd_io.materials.network's sources), a constant colour in its colour space
-        converted."""
+        converted; a network that varies nowhere as the constant it folds to
+        (:func:`usd_io.materials.mtlx_graph.constant_value`)."""
         default = self.default(name, fallback if fallback is not None else 0.0)
         got = net.source(self.s, name, default, self.time)
+        if isinstance(got, net.GraphLookup):
+            key = (name, got.node, got.output)
+            if key not in self._folded:
+                self._folded[key] = mtlx_graph.constant_value(self.table, got)
+            if self._folded[key] is not None:
+                return net.Const(self._folded[key])
         if isinstance(got, net.Const) and got.value is not default:
             a, _o = net.producer(self.s, name)
             if a is not None and str(a.GetTypeName()) in ("color3f", "color4f", "color3d", "color4d"):
@@ -563,9 +573,7 @@ def surface_unlit(inp: Inputs) -> PrincipledSurface:
     t = inp.table.model(base_color=(0.0, 0.0, 0.0), specular=0.0, metallic=0.0)
     em = scaled(inp.src("emission_color"), inp.f("emission", 1.0))
     _colour(t, "emission", inp, em, (1.0, 1.0, 1.0), "emission_color")
-    tr = inp.f("transmission", 0.0) * _lum(inp.c3("transmission_color"))
-    op = inp.f("opacity", 1.0)
-    a = float(np.clip(op * (1 - tr), 0.0, 1.0))
+    a = float(np.clip(inp.f("opacity", 1.0), 0.0, 1.0))  # (a transmission: the closure reading, read())
     if a < 1:
         t.alpha = a
     return t
@@ -592,9 +600,10 @@ def read(table, s, fields: PrincipledSurface | None, label: str, needs,
             table.warn(f"{label}: MaterialX shader {sid!r} is not supported")
         return fields
     inp = Inputs(table, s, label, needs, family)
-    if fields is None and family == "surface_unlit" and any(inp.connected(n) for n in (
-            "emission", "emission_color", "transmission", "transmission_color", "opacity")):
-        from .mtlx_closures import MxClosureProgram  # networks on its weights too: the closure reading
+    if fields is None and family == "surface_unlit" and (any(inp.connected(n) for n in (
+            "emission", "emission_color", "transmission", "transmission_color", "opacity"))
+            or inp.f("transmission", 0.0) > 0):
+        from .mtlx_closures import MxClosureProgram  # networks, a coloured transmission: the closure reading
 
         return table.model(closure=MxClosureProgram(table, s, label, needs))
     if fields is None:
