@@ -429,6 +429,28 @@ def test_missing_images_are_magenta_as_in_cycles(bpy_module, tmp_path):
     H.check_images({"name": "missing_images"}, ours, ref, tmp_path, min_psnr=35.0, max_mae=0.006)
 
 
+def udim_scene_for_cycles():
+    """tests/test_addon_texture.py's UDIM scene (tiles 1001 red, 1002 blue, 1011 green, 1012 absent, UVs over
+    u, v ∈ [0, 2]), its tile files in a folder of the cache directory."""
+    import test_addon_texture as T
+
+    return T.udim_scene(os.path.join(H.CACHE_DIR, "udim-tiles"))
+
+
+@pytest.mark.cycles
+def test_udim_tiles_as_in_cycles(bpy_module, tmp_path):
+    """A tiled image reads each tile where its number puts it, as Cycles does (and the absent tile magenta)."""
+    import test_addon_texture as T
+
+    ref = H.cycles_render("udim_tiles", udim_scene_for_cycles,
+                          source_of(udim_scene_for_cycles, T.udim_scene, T.udim_image, T.udim_expected),
+                          dict(depth=2, samples=16))
+    np.testing.assert_allclose(ref[2:14, 2:14], T.udim_expected()[2:14, 2:14], atol=0.02)  # Cycles: 1011 green
+    ours, warnings = ours_render(udim_scene_for_cycles(), samples=4, depth=2)
+    assert not warnings, warnings
+    H.check_images({"name": "udim_tiles"}, ours, ref, tmp_path, min_psnr=35.0, max_mae=0.006)
+
+
 # ---------------------------------------------------------------------------------------------------- media
 VOLUME_COLOUR = (0.3, 0.6, 0.9)
 VOLUME_DENSITY = 1.5
