@@ -29,7 +29,9 @@ from __future__ import annotations
 import numpy as np
 
 from .bundled import tracer_module
+from .nodes import _read_rgba as read_rgba
 from .nodes import image_rgba
+from .udim import tile_pixels, tiled_atlas
 
 _ir = tracer_module("shading.graph")
 CLOSURE, COLOR, FLOAT, NODE_TYPES, VECTOR = _ir.CLOSURE, _ir.COLOR, _ir.FLOAT, _ir.NODE_TYPES, _ir.VECTOR
@@ -276,14 +278,55 @@ class Translator:
         px = self.images[image.name]
         if px is None:
             return None
-        if getattr(image, "source", "FILE") in ("TILED", "SEQUENCE", "MOVIE"):
-            self.warn(node, f"image {image.name!r} ({image.source}): its first tile/frame is used", "source")
+        source = getattr(image, "source", "FILE")
+        if source in ("SEQUENCE", "MOVIE"):
+            self.warn(node, f"image {image.name!r} ({source}): its first frame is used", "source")
+        elif source == "TILED":  # a projection (Box, Sphere, Tube; a world's) reads uv in [0, 1]: tile 1001
+            first = min((int(t.number) for t in image.tiles), default=1001)
+            if first != 1001:
+                self.warn(node, f"image {image.name!r} (TILED): this projection reads only tile 1001's square, "
+                                f"which the set lacks; its first tile ({first}) is used", "source")
         wrap = WRAP.get(extension, "repeat")
         key = (image.name, wrap, interpolation)
         if key not in self._refs:
             self._refs[key] = ImageRef(pixels=px, wrap_s=wrap, wrap_t=wrap, interpolation=interpolation.lower(),
                                        label=image.name)
         return self._refs[key]
+
+    def tiled_ref(self, node, image, extension: str = "REPEAT", interpolation: str = "Linear"):
+        """(ImageRef of the atlas of a tiled image's tiles (clamped), the coefficients of the tile set -> atlas map
+        (:func:`tracer.shading.udim.udim_atlas_padded`)), or None when no tile could be read (one warning; magenta
+        stands in). :mod:`addon.udim` reads the tiles (once per image) and lays them out (once per Extension)."""
+        key = ("udim", image.name)
+        if key not in self.images:
+            try:
+                tiles, notes = tile_pixels(image, read_rgba)
+                if not tiles:
+                    raise ValueError(f"none of its tiles could be read ({'; '.join(notes) or 'no tiles'})")
+            except Exception as exc:  # noqa: BLE001  (no tile readable)
+                self.images[key] = None
+                self.warn(node, f"tiled image {image.name!r} not loaded ({exc}); magenta stands in, as in Cycles",
+                          "load")
+            else:
+                self.images[key] = tiles
+                for n in notes:
+                    self.warn(node, f"tiled image {image.name!r}: {n}", n)
+        if self.images[key] is None:
+            return None
+        wrap = WRAP.get(extension, "repeat")
+        smooth = interpolation != "Closest"
+        akey = ("udim", image.name, wrap, smooth)
+        if akey not in self.images:
+            atlas, coeffs, notes = tiled_atlas(self.images[key], wrap, smooth)
+            self.images[akey] = (atlas, coeffs)
+            for n in notes:
+                self.warn(node, f"tiled image {image.name!r}: {n}", n)
+        atlas, coeffs = self.images[akey]
+        rkey = (akey, interpolation)
+        if rkey not in self._refs:
+            self._refs[rkey] = ImageRef(pixels=atlas, wrap_s="clamp", wrap_t="clamp",
+                                        interpolation=interpolation.lower(), label=image.name)
+        return self._refs[rkey], coeffs
 
 
 # ---------------------------------------------------------------------------------------------- node handlers
@@ -498,6 +541,9 @@ MISSING_IMAGE = (1.0, 0.0, 1.0)
 
 
 def _image(t: Translator, node, ctx):
+    img = node.image
+    if img is not None and getattr(img, "source", "FILE") == "TILED" and node.projection == "FLAT":
+        return _tiled_image(t, node, ctx)
     ref = t.image_ref(node, node.image, node.extension, node.interpolation)
     if ref is None:
         if node.image is None:
@@ -506,6 +552,40 @@ def _image(t: Translator, node, ctx):
     return t.add(node, ctx, "image_texture", image=ref, projection=node.projection,
                  projection_blend=float(node.projection_blend), interpolation=node.interpolation,
                  extension=node.extension)
+
+
+def _tiled_image(t: Translator, node, ctx):
+    """An Image Texture of a tiled (UDIM) image, Flat projection, as Cycles reads it (kernel_image_udim_map: the
+    tile ⌊u⌋ + 10·⌊v⌋, read at the fraction with the node's Extension; outside the set, magenta): the padded atlas
+    of :func:`tracer.shading.udim.udim_atlas_padded` read at its map of the Vector (the UV map where unlinked),
+    five Vector Math nodes: i = min(⌊max(X, 0)⌋, (U, V)), then X·a + (i·b + c). (Cycles truncates: uv in (−1, 0)
+    reads tile 1001 wrapped where this reads its border and then magenta.)"""
+    got = t.tiled_ref(node, node.image, node.extension, node.interpolation)
+    if got is None:
+        return {"Color": Value(MISSING_IMAGE, COLOR), "Alpha": Value(1.0, FLOAT)}
+    ref, k = got
+    nm = t.name(node, ctx)
+    v = t.value_of(node, ctx, "Vector", VECTOR)
+    if v is UNSET:
+        v = Value(t.g.add("uvmap", name=nm + ".uv")["UV"], VECTOR)
+
+    def vmath(op, a, b, c=None, tag=""):
+        inputs = {"Vector": a, "Vector_001": b}
+        if c is not None:
+            inputs["Vector_002"] = c
+        return t.g.add("vector_math", inputs, name=nm + ".udim_" + tag, operation=op)["Vector"]
+    (n_u, n_v), (a_s, a_t), (b_s, b_t), (c_s, c_t) = k["tiles"], k["scale"], k["tile"], k["offset"]
+    i = vmath("MAXIMUM", v.v, (0.0, 0.0, 0.0), tag="max")
+    i = vmath("FLOOR", i, (0.0, 0.0, 0.0), tag="floor")
+    i = vmath("MINIMUM", i, (float(n_u), float(n_v), 0.0), tag="min")
+    r = vmath("MULTIPLY_ADD", i, (b_s, b_t, 0.0), (c_s, c_t, 0.0), tag="tile")
+    # (the constant first: the lookup then carries no UV set and reads level 0, plain bilinear as Cycles' images;
+    # a UV set's texel density would price the whole atlas, and a coarser level blends the cells' borders)
+    st = vmath("MULTIPLY_ADD", (a_s, a_t, 0.0), v.v, r, tag="st")
+    n = t.g.add("image_texture", {"Vector": st}, name=nm, image=ref, projection="FLAT",
+                projection_blend=float(node.projection_blend), interpolation=node.interpolation,
+                extension="EXTEND")
+    return t.outs(node, n)
 
 
 def _environment(t: Translator, node, ctx):

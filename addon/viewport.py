@@ -249,7 +249,7 @@ class ViewportRender:
                 try:
                     image = session.render(settings, cancelled=lambda g=gen: self._generation != g)
                     if denoise:
-                        denoise = self._denoised(image)
+                        denoise = self._denoised(image, settings.threads)
                 except tracer.RenderCancelled:
                     break
                 except Exception as exc:  # never let the thread die silently: keep the message, show nothing new
@@ -270,12 +270,13 @@ class ViewportRender:
                 except Exception:  # the engine may be gone (viewport closed): nothing to tell
                     pass
 
-    def _denoised(self, image) -> bool:
-        """Denoise a pass in place as Cycles' viewport does (albedo guide, no prefilter, balanced quality); False,
-        with the reason printed once, where no OIDN library loads (the noisy pass is shown)."""
+    def _denoised(self, image, threads: int | None = None) -> bool:
+        """Denoise a pass in place as Cycles' viewport does (albedo guide, no prefilter, balanced quality), on the
+        render's ``threads``; False, with the reason printed once, where no OIDN library loads (the noisy pass is
+        shown)."""
         try:
             image.rgba[:] = tracer.denoise.denoise(image.rgba, image.aovs["denoising_albedo"], prefilter="fast",
-                                               quality="balanced")
+                                                   quality="balanced", threads=threads)
             return True
         except tracer.denoise.DenoiseUnavailable as exc:
             if str(exc) not in self.errors:

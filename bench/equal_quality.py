@@ -1,6 +1,7 @@
 """Equal quality (issue #33): the CPU time each renderer needs to reach a PSNR against a converged Cycles reference.
 
-``python -m bench.equal_quality [--scenes a,b] [--threads 2] [--targets 35,40] [--json out.json] [--svg DIR]``
+``python -m bench.equal_quality [--scenes a,b] [--blend DIR_OR_FILE ...] [--threads 2] [--targets 35,40]
+[--json out.json] [--svg DIR] [--sheet SHEET.jpg]``
 
 Each lab scene is built once in Blender (``blender_kit``: the objects, lights, world and camera the Cycles comparison
 tests use), in this process. Cycles renders it with the Whitted light paths (``blender_kit.cycles``:
@@ -23,10 +24,21 @@ PSNR of the sRGB-encoded image against the reference (as tests/cycles do):
 - Cycles, adaptive + OIDN: as Cycles adaptive with Open Image Denoise (CPU; albedo and normal guides, accurate
   prefilter), Blender's default final-render denoiser.
 
+**Third-party scenes** (``--blend``: .blend files or folders searched for them, as ``tools/blender_fidelity.py``
+takes them; nothing is downloaded, and the lab scenes need none): each file's scene as it is saved, prepared as the
+fidelity survey prepares it (``tools/blender_fidelity.prepare_scene``: :data:`FILE_WIDTH` px wide at the file's
+aspect, Film > Transparent off, a framing camera where the file has none), at depth :data:`FILE_DEPTH`; named by
+its path under the folder given, without ``.blend``. Ours renders what F12 exports: the add-on's export of the
+*render* depsgraph (render modifier levels, objects hidden from renders left out), caught from one F12 with the
+add-on's engine (:func:`ours_scene_f12`), then timed as ``tracer.render`` like the lab scenes. Files with nothing
+to render (material libraries) are skipped. ``--modes`` narrows the sweep (a third-party file takes the same modes).
+
 A mode's curve is its best PSNR for the time (the points sorted by CPU time, each kept when it beats every faster
 one: the best setting of the knobs at that cost); its time to a target is where that curve first reaches it,
 interpolated linearly in PSNR against log time with the point before. ``--svg DIR`` draws one plot per scene
-(PSNR against CPU time, log scale), hand-written SVG (no plotting package in the environment).
+(PSNR against CPU time, log scale), hand-written SVG (no plotting package in the environment); ``--sheet`` a
+contact sheet (JPEG, under 300 KB): per scene the reference, and ours adaptive + OIDN and Cycles adaptive + OIDN at
+the first render of their curves that reaches the first target.
 """
 
 from __future__ import annotations
@@ -54,6 +66,11 @@ MIN_SAMPLES = 4
 CYCLES_SAMPLES = (1, 2, 4, 8, 16, 32, 64, 128, 256, 512, 1024)
 CYCLES_BUDGETS = (16, 32, 64, 128, 256, 512, 1024)
 TARGETS = (35.0, 40.0)
+#: Third-party scenes (``--blend``): width in pixels (the height from the file's aspect) and depth, as the fidelity
+#: survey renders them (tools/blender_fidelity.py).
+FILE_WIDTH, FILE_DEPTH = 160, 8
+#: Third-party scenes by name (their path under the folder given, without ``.blend``): the file's path.
+FILES: dict = {}
 #: The references' seeds: not the sweep's (0), whose first samples a reference of the same seed would share.
 REFERENCE_SEEDS = (101, 102)
 #: A render is repeated (its least CPU time kept: the machine is shared) until REPEAT_SECONDS of CPU are spent,
@@ -150,12 +167,50 @@ SCENES = {"soft_shadow": scene_soft_shadow, "area": scene_area, "sky": scene_sky
 DEPTH = {"glass_mirror": 6, "whitted": 8}
 
 
+def depth_of(name: str) -> int:
+    return FILE_DEPTH if name in FILES else DEPTH.get(name, 4)
+
+
+def size_of(sc) -> tuple:
+    """(width, height) of the scene's render."""
+    r = sc.render
+    return (r.resolution_x * r.resolution_percentage // 100, r.resolution_y * r.resolution_percentage // 100)
+
+
+def _fidelity():
+    """tools/blender_fidelity.py (a script, not a package): its scene preparation is the survey's."""
+    import importlib.util
+
+    mod = sys.modules.get("whitted_blender_fidelity")
+    if mod is None:
+        spec = importlib.util.spec_from_file_location("whitted_blender_fidelity",
+                                                      os.path.join(ROOT, "tools", "blender_fidelity.py"))
+        mod = importlib.util.module_from_spec(spec)
+        sys.modules[spec.name] = mod
+        spec.loader.exec_module(mod)
+    return mod
+
+
+def blend_scenes(inputs: list) -> dict:
+    """{name: path} of the .blend files under ``inputs`` (files or folders), named by their path under the folder
+    given without ``.blend`` (``gltf/04_lights``)."""
+    return {rel[:-len(".blend")] if rel.endswith(".blend") else rel: path
+            for path, rel in _fidelity().blend_files(list(inputs))}
+
+
 def build(name: str):
-    """The Blender scene ``name``, Standard view, WIDTH × HEIGHT; returns bpy.context.scene."""
+    """The Blender scene ``name``, Standard view, WIDTH × HEIGHT (a third-party file: :data:`FILE_WIDTH` wide at its
+    aspect); returns bpy.context.scene."""
     import bpy
 
     from blender_kit import scene as bs
 
+    if name in FILES:
+        bpy.ops.wm.open_mainfile(filepath=FILES[name], load_ui=False)
+        sc = bpy.context.scene
+        _fidelity().prepare_scene(sc, FILE_WIDTH)
+        sc.view_settings.view_transform = "Standard"
+        return sc
     if name == "whitted":
         SCENES[name](bs)
     else:
@@ -218,7 +273,8 @@ def cycles_render(sc) -> tuple[np.ndarray, float, float]:
         path = os.path.join(tmp, "r.exr")
         bpy.data.images["Render Result"].save_render(filepath=path, scene=sc)
         buf = oiio.ImageBuf(path)
-        px = np.asarray(buf.get_pixels(oiio.FLOAT), np.float32).reshape(HEIGHT, WIDTH, -1)[..., :3]
+        spec = buf.spec()
+        px = np.asarray(buf.get_pixels(oiio.FLOAT), np.float32).reshape(spec.height, spec.width, -1)[..., :3]
     return px, cpu, wall
 
 
@@ -228,9 +284,43 @@ def ours_scene(sc):
     from addon import export
 
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    scene, warnings = export.scene_from_depsgraph(depsgraph, width=WIDTH, height=HEIGHT)
+    w, h = size_of(sc)
+    scene, warnings = export.scene_from_depsgraph(depsgraph, width=w, height=h)
     dof = export.camera_dof_on(sc.camera.data)
     return scene, warnings, dof
+
+
+def ours_scene_f12(sc):
+    """What F12 with the add-on's engine exports (the render depsgraph: render modifier levels, objects hidden from
+    renders left out): caught from one F12 at 1 sample whose export is kept, the engine's own trace untimed."""
+    import addon
+    from addon import engine, export
+
+    if not hasattr(sc, "whitted"):
+        addon.register()
+    caught = {}
+    real = export.scene_from_depsgraph
+
+    def catch(depsgraph, **kw):
+        caught["result"] = real(depsgraph, **kw)
+        return caught["result"]
+
+    engine_prev, samples_prev, denoise_prev = sc.render.engine, sc.whitted.samples, sc.whitted.denoise
+    sc.render.engine, sc.whitted.samples = "WHITTED", 1
+    sc.whitted.denoise = False
+    export.scene_from_depsgraph = catch
+    try:
+        import bpy
+
+        bpy.ops.render.render(write_still=False)
+    finally:
+        export.scene_from_depsgraph = real
+        sc.render.engine, sc.whitted.samples, sc.whitted.denoise = engine_prev, samples_prev, denoise_prev
+    if "result" not in caught:
+        report = engine.WhittedRenderEngine.last_render
+        raise RuntimeError(f"F12 exported nothing ({report})")
+    scene, warnings = caught["result"]
+    return scene, warnings, export.camera_dof_on(sc.camera.data)
 
 
 def ours_render(scene, settings) -> tuple[np.ndarray, float, float, float]:
@@ -282,13 +372,14 @@ def reference(name: str, samples: int, threads: int, seed: int) -> np.ndarray:
     """Cycles at ``samples`` without adaptive sampling (cached)."""
     import bpy
 
-    key = hashlib.sha256(json.dumps([name, WIDTH, HEIGHT, samples, seed, DEPTH.get(name, 4),
+    size = (FILE_WIDTH,) if name in FILES else (WIDTH, HEIGHT)
+    key = hashlib.sha256(json.dumps([name, *size, samples, seed, depth_of(name),
                                      bpy.app.version_string, _source_of(name)]).encode()).hexdigest()[:16]
-    path = os.path.join(CACHE, f"{name}-{samples}-{seed}-{key}.npy")
+    path = os.path.join(CACHE, f"{name.replace('/', '__')}-{samples}-{seed}-{key}.npy")
     if os.path.exists(path):
         return np.load(path)
     sc = build(name)
-    cycles_setup(sc, samples=samples, threads=threads, seed=seed, depth=DEPTH.get(name, 4))
+    cycles_setup(sc, samples=samples, threads=threads, seed=seed, depth=depth_of(name))
     px, cpu, _ = cycles_render(sc)
     os.makedirs(CACHE, exist_ok=True)
     np.save(path, px)
@@ -299,6 +390,8 @@ def reference(name: str, samples: int, threads: int, seed: int) -> np.ndarray:
 def _source_of(name: str) -> str:
     import inspect
 
+    if name in FILES:
+        return _fidelity().file_digest(FILES[name]) + inspect.getsource(_fidelity().prepare_scene)
     return inspect.getsource(SCENES[name]) + inspect.getsource(_objects)
 
 
@@ -307,14 +400,16 @@ def sweep(name: str, threads: int, ref_samples: int, targets=TARGETS, modes=MODE
 
     ref = reference(name, ref_samples, threads, REFERENCE_SEEDS[0])
     ref2 = reference(name, ref_samples, threads, REFERENCE_SEEDS[1])
-    depth = DEPTH.get(name, 4)
+    depth = depth_of(name)
     out = {"scene": name, "reference_samples": ref_samples, "reference_psnr": psnr_srgb(ref2, ref),
            "curves": {m: [] for m in modes}}
     sc = build(name)
-    scene, warnings, dof = ours_scene(sc)
-    base = tracer.RenderSettings(width=WIDTH, height=HEIGHT, threads=threads, max_depth=depth, depth_of_field=dof,
+    w, h = size_of(sc)
+    scene, warnings, dof = ours_scene_f12(sc) if name in FILES else ours_scene(sc)
+    base = tracer.RenderSettings(width=w, height=h, threads=threads, max_depth=depth, depth_of_field=dof,
                                  transparent=bool(sc.render.film_transparent))
-    out["warnings"] = warnings
+    out["warnings"], out["size"] = warnings, [w, h]
+    images = {m: [] for m in modes}  # each render's picture, for the contact sheet
     ours_render(scene, base.with_(samples=2))  # kernels loaded before anything is timed
     ours_render(scene, base.with_(samples=3, adaptive_threshold=0.1, adaptive_min_samples=4))
     if "ours adaptive+oidn" in modes:
@@ -333,6 +428,7 @@ def sweep(name: str, threads: int, ref_samples: int, targets=TARGETS, modes=MODE
     for mode, knob, settings in runs:
         px, cpu, wall, spp = ours_render(scene, settings)
         out["curves"][mode].append(dict(knob, cpu=cpu, wall=wall, spp=spp, psnr=psnr_srgb(px, ref)))
+        images[mode].append(px)
         print(f"  {name:13s} {mode:22s} {knob} {cpu:7.2f} s CPU {wall:6.2f} s  {spp:6.1f} spp  "
               f"{out['curves'][mode][-1]['psnr']:.2f} dB", flush=True)
     cyc = []
@@ -349,12 +445,30 @@ def sweep(name: str, threads: int, ref_samples: int, targets=TARGETS, modes=MODE
         cycles_setup(sc, threads=threads, depth=depth, **kw)
         px, cpu, wall = cycles_render(sc)
         out["curves"][mode].append(dict(knob, cpu=cpu, wall=wall, psnr=psnr_srgb(px, ref)))
+        images[mode].append(px)
         print(f"  {name:13s} {mode:22s} {knob} {cpu:7.2f} s CPU {wall:6.2f} s  "
               f"{out['curves'][mode][-1]['psnr']:.2f} dB", flush=True)
     out["time_to"] = {f"{target:g}": {m: time_to([(p["cpu"], p["psnr"]) for p in c], target)
                                       for m, c in out["curves"].items()} for target in targets}
     out["best_psnr"] = {m: max((p["psnr"] for p in c), default=None) for m, c in out["curves"].items()}
+    out["pictures"] = {"reference": ref}  # not written to the JSON: the contact sheet's
+    for m, c in out["curves"].items():
+        i = first_reaching(c, targets[0]) if c else None
+        if i is not None:
+            out["pictures"][m] = images[m][i]
     return out
+
+
+def first_reaching(curve: list, target: float):
+    """Index in ``curve`` of the first render of its :func:`frontier` that reaches ``target`` dB, or None."""
+    order = sorted(range(len(curve)), key=lambda i: (curve[i]["cpu"], curve[i]["psnr"]))
+    best = -math.inf
+    for i in order:
+        if curve[i]["psnr"] > best:
+            best = curve[i]["psnr"]
+            if best >= target:
+                return i
+    return None
 
 
 # ---------------------------------------------------------------------------------------------------- output
@@ -433,36 +547,120 @@ def svg_plot(r: dict, targets, path: str) -> None:
         f.write("\n".join(s))
 
 
+def info_of(a, targets, load, start) -> dict:
+    return {"threads": a.threads, "targets": targets, "loadavg_start": load, "loadavg_end": os.getloadavg(),
+            "seconds": time.perf_counter() - start, "cpus": os.cpu_count(), "reference_samples": a.reference_samples,
+            "modes": a.modes.split(","), "utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime())}
+
+
+def _write_json(path: str, info: dict, results: list) -> None:
+    with open(path, "w") as f:
+        json.dump({"info": info, "results": [{k: v for k, v in r.items() if k != "pictures"} for r in results]},
+                  f, indent=1)
+
+
+def _renderable(name: str) -> bool:
+    import bpy
+
+    build(name)
+    return bool(_fidelity().renderable(bpy.context.scene))
+
+
+SHEET_MODES = ("reference", "ours adaptive+oidn", "cycles adaptive+oidn")
+
+
+def contact_sheet(path: str, results: list, max_bytes: int = 300_000) -> None:
+    """Per scene a row: Cycles' reference | ours adaptive + OIDN | Cycles adaptive + OIDN, each at the first render
+    of its curve that reached the first target (grey where none did), every tile :data:`FILE_WIDTH` wide, sRGB; two
+    scenes a row; a JPEG whose quality drops (a PNG: halved) until it is under ``max_bytes``."""
+    import OpenImageIO as oiio
+
+    from tracer.colorspace import linear_to_srgb
+
+    tw = FILE_WIDTH
+    th = max(round(tw * r["pictures"]["reference"].shape[0] / r["pictures"]["reference"].shape[1]) for r in results)
+    per_row, gap = 2, 6
+    rows = math.ceil(len(results) / per_row)
+    cw = len(SHEET_MODES) * (tw + 2) + gap
+    sheet = np.ones((rows * (th + 2), per_row * cw, 3), np.float32)
+    for k, r in enumerate(results):
+        y0, x0 = (k // per_row) * (th + 2), (k % per_row) * cw
+        for j, m in enumerate(SHEET_MODES):
+            px = r["pictures"].get(m)
+            tile = np.full((th, tw, 3), 0.5, np.float32)
+            if px is not None:
+                h, w = px.shape[:2]
+                ys = (np.arange(th) * h / th).astype(int)
+                xs = (np.arange(tw) * w / tw).astype(int)
+                img = np.asarray(linear_to_srgb(np.clip(px, 0, 1)), np.float32)[ys][:, xs]
+                tile[:] = 0.0
+                hh = min(th, round(tw * h / w))
+                tile[:hh] = img[:hh]
+            sheet[y0:y0 + th, x0 + j * (tw + 2):x0 + j * (tw + 2) + tw] = tile
+    img = (np.clip(sheet, 0, 1) * 255 + 0.5).astype(np.uint8)
+    jpeg = path.lower().endswith((".jpg", ".jpeg"))
+    for step in range(6):  # a JPEG loses quality, a PNG size, until the file is under max_bytes
+        quality, k = 90 - 10 * step, (1 if jpeg else 2 ** step)
+        px = np.ascontiguousarray(img[::k, ::k])
+        spec = oiio.ImageSpec(px.shape[1], px.shape[0], 3, oiio.UINT8)
+        if jpeg:
+            spec.attribute("compression", f"jpeg:{quality}")
+        out = oiio.ImageOutput.create(path)
+        out.open(path, spec)
+        out.write_image(px)
+        out.close()
+        if os.path.getsize(path) <= max_bytes:
+            break
+    print(f"contact sheet: {path} ({os.path.getsize(path) // 1024} KB): " +
+          ", ".join(f"{i + 1}={r['scene']}" for i, r in enumerate(results)))
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scenes", default=",".join(SCENES), help="comma-separated: " + ", ".join(SCENES))
+    ap.add_argument("--scenes", default=None, help="comma-separated: " + ", ".join(SCENES) + " and the names of "
+                    "--blend's files (default: every lab scene and every file)")
+    ap.add_argument("--blend", nargs="*", default=[], help="third-party .blend files or folders searched for them")
+    ap.add_argument("--lab", action=argparse.BooleanOptionalAction, default=True,
+                    help="with --blend and no --scenes: the lab scenes too (default)")
     ap.add_argument("--modes", default=",".join(MODES))
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--targets", default=",".join(f"{t:g}" for t in TARGETS), help="PSNR targets in dB")
     ap.add_argument("--reference-samples", type=int, default=4096)
     ap.add_argument("--json")
     ap.add_argument("--svg", help="directory for one PSNR-vs-time plot per scene")
+    ap.add_argument("--sheet", help="contact sheet (JPEG): reference | ours adaptive+oidn | Cycles adaptive+oidn")
     a = ap.parse_args(argv)
     sys.path.insert(0, ROOT)
+    FILES.update(blend_scenes(a.blend))
+    names = (a.scenes.split(",") if a.scenes else (list(SCENES) if a.lab or not FILES else []) + list(FILES))
+    unknown = [n for n in names if n not in SCENES and n not in FILES]
+    if unknown:
+        ap.error(f"unknown scenes: {', '.join(unknown)}")
     targets = tuple(float(t) for t in a.targets.split(","))
     load = os.getloadavg()
     start = time.perf_counter()
-    results = [sweep(n, a.threads, a.reference_samples, targets, tuple(a.modes.split(",")))
-               for n in a.scenes.split(",")]
-    info = {"threads": a.threads, "targets": targets, "loadavg_start": load, "loadavg_end": os.getloadavg(),
-            "seconds": time.perf_counter() - start, "cpus": os.cpu_count()}
+    results = []
+    for n in names:
+        if n in FILES and not _renderable(n):
+            print(f"  {n}: nothing to render (a material library?): skipped", flush=True)
+            continue
+        results.append(sweep(n, a.threads, a.reference_samples, targets, tuple(a.modes.split(","))))
+        if a.json:  # after every scene: a long run interrupted keeps what it measured
+            _write_json(a.json, info_of(a, targets, load, start), results)
+    info = info_of(a, targets, load, start)
     print(f"\nload average {load[0]:.2f} at the start, {info['loadavg_end'][0]:.2f} at the end "
           f"({os.cpu_count()} CPUs)")
     for target in targets:
         print(f"\ntime to {target:g} dB (CPU seconds):\n")
         print(table(results, target))
     if a.json:
-        with open(a.json, "w") as f:
-            json.dump({"info": info, "results": results}, f, indent=1)
+        _write_json(a.json, info, results)
+    if a.sheet:
+        contact_sheet(a.sheet, results)
     if a.svg:
         os.makedirs(a.svg, exist_ok=True)
         for r in results:
-            svg_plot(r, targets, os.path.join(a.svg, f"{r['scene']}.svg"))
+            svg_plot(r, targets, os.path.join(a.svg, r["scene"].replace("/", "__") + ".svg"))
 
 
 if __name__ == "__main__":

@@ -255,3 +255,67 @@ def test_equal_quality_time_to_a_target_reads_the_best_curve(tmp_path):
     eq.svg_plot({"scene": "x", "curves": curves}, (35.0, 40.0), str(tmp_path / "x.svg"))
     svg = (tmp_path / "x.svg").read_text()
     assert svg.startswith("<svg") and svg.count("<polyline") == len(eq.MODES)
+
+
+def test_equal_quality_takes_third_party_files_by_folder_and_picks_the_sheets_renders(tmp_path):
+    """bench/equal_quality.py --blend: files under a folder are named by their path in it (nothing downloaded);
+    the contact sheet shows, per mode, the first render of its curve that reaches the target, under 300 KB."""
+    from bench import equal_quality as eq
+
+    (tmp_path / "corpus" / "gltf").mkdir(parents=True)
+    for name in ("gltf/a.blend", "gltf/b.blend", "notes.txt"):
+        (tmp_path / "corpus" / name).write_bytes(b"")
+    assert eq.blend_scenes([str(tmp_path / "corpus")]) == {
+        "corpus/gltf/a": str(tmp_path / "corpus" / "gltf" / "a.blend"),
+        "corpus/gltf/b": str(tmp_path / "corpus" / "gltf" / "b.blend")}
+    curve = [dict(cpu=1.0, psnr=30.0), dict(cpu=4.0, psnr=36.0), dict(cpu=2.0, psnr=35.5), dict(cpu=3.0, psnr=20.0)]
+    assert eq.first_reaching(curve, 35.0) == 2 and eq.first_reaching(curve, 37.0) is None
+    rng = np.random.default_rng(0)
+    results = [{"scene": f"s{k}", "pictures": {"reference": rng.uniform(0, 1, (90, 160, 3)),
+                                                "ours adaptive+oidn": rng.uniform(0, 1, (90, 160, 3))}}
+               for k in range(5)]
+    for ext in ("png", "jpg"):
+        path = tmp_path / f"sheet.{ext}"
+        eq.contact_sheet(str(path), results, max_bytes=300_000)
+        assert 0 < path.stat().st_size <= 300_000
+
+
+@pytest.mark.blender
+def test_equal_quality_renders_a_third_party_file_as_f12_exports_it(tmp_path):
+    """bench/equal_quality.py: a --blend file is prepared as the fidelity survey prepares it (160 px wide at its
+    aspect) and ours renders the render depsgraph F12 exports (render subdivision levels, objects hidden from renders
+    left out), not the viewport's."""
+    pytest.importorskip("bpy")
+    import bpy
+
+    from bench import equal_quality as eq
+    from blender_kit import scene as bs
+
+    bs.reset((320, 240))
+    cube = bs.add_cube((0, 0, 1), 2.0, material=bs.principled_material("Grey", base_color=(0.8, 0.8, 0.8)))
+    sub = cube.modifiers.new("Subdivision", "SUBSURF")
+    sub.levels, sub.render_levels = 0, 2
+    hidden = bs.add_cube((3, 0, 1), 1.0, name="Hidden")
+    hidden.hide_render = True
+    bs.add_point_light((3.0, -4.0, 5.0), 1000.0)
+    bs.add_camera((0.0, -8.0, 3.0), (0.0, 0.0, 1.0), lens=35.0)
+    (tmp_path / "corpus").mkdir()
+    path = str(tmp_path / "corpus" / "subdivided.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    eq.FILES.clear()
+    eq.FILES.update(eq.blend_scenes([str(tmp_path / "corpus")]))
+    registered = hasattr(bpy.types.Scene, "whitted")  # ours_scene_f12 registers the add-on where it is not
+    try:
+        sc = eq.build("corpus/subdivided")
+        assert eq.size_of(sc) == (160, 120) and eq.depth_of("corpus/subdivided") == eq.FILE_DEPTH
+        viewport, _, _ = eq.ours_scene(sc)
+        f12, _, _ = eq.ours_scene_f12(sc)
+        assert len(viewport.triangles) == 12 + 12  # level 0, and the cube hidden from renders
+        assert len(f12.triangles) == 12 * 16  # render level 2, the hidden cube left out
+        assert sc.render.engine != "WHITTED"  # the scene is left as it was for Cycles
+    finally:
+        eq.FILES.clear()
+        if not registered and hasattr(bpy.types.Scene, "whitted"):  # as it was, for the tests after this one
+            import addon
+
+            addon.unregister()

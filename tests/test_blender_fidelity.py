@@ -429,6 +429,28 @@ def test_missing_images_are_magenta_as_in_cycles(bpy_module, tmp_path):
     H.check_images({"name": "missing_images"}, ours, ref, tmp_path, min_psnr=35.0, max_mae=0.006)
 
 
+def udim_scene_for_cycles():
+    """tests/test_addon_texture.py's UDIM scene (tiles 1001 red, 1002 blue, 1011 green, 1012 absent, UVs over
+    u, v ∈ [0, 2]), its tile files in a folder of the cache directory."""
+    import test_addon_texture as T
+
+    return T.udim_scene(os.path.join(H.CACHE_DIR, "udim-tiles"))
+
+
+@pytest.mark.cycles
+def test_udim_tiles_as_in_cycles(bpy_module, tmp_path):
+    """A tiled image reads each tile where its number puts it, as Cycles does (and the absent tile magenta)."""
+    import test_addon_texture as T
+
+    ref = H.cycles_render("udim_tiles", udim_scene_for_cycles,
+                          source_of(udim_scene_for_cycles, T.udim_scene, T.udim_image, T.udim_expected),
+                          dict(depth=2, samples=16))
+    np.testing.assert_allclose(ref[2:14, 2:14], T.udim_expected()[2:14, 2:14], atol=0.02)  # Cycles: 1011 green
+    ours, warnings = ours_render(udim_scene_for_cycles(), samples=4, depth=2)
+    assert not warnings, warnings
+    H.check_images({"name": "udim_tiles"}, ours, ref, tmp_path, min_psnr=35.0, max_mae=0.006)
+
+
 # ---------------------------------------------------------------------------------------------------- media
 VOLUME_COLOUR = (0.3, 0.6, 0.9)
 VOLUME_DENSITY = 1.5
@@ -813,3 +835,35 @@ def test_the_survey_tool_measures_a_scene_and_a_material_library(bpy_module, tmp
     assert [r["name"] for r in rows] == ["library.blend::Blue", "library.blend::Green", "scene.blend"]
     assert all(r["psnr"] > 25 and os.path.exists(r["png"]) for r in rows), rows
     assert os.path.getsize(tmp_path / "sheet.png") < 300_000
+
+
+def test_a_coloured_glass_bsdf_tints_its_reflection_too():
+    """Cycles' Glass BSDF weighs both its Fresnel reflection and its refraction by Color. A red glass ball (Color
+    (1, 0.1, 0.1), IOR 1.45) in a uniform green world, seen head-on: the centre's green is the world's 0.6 × (the
+    tinted reflection c·F₀ + the tinted way through, c²(1 − F₀)², + the internal bounces), 0.0076 (Cycles 256
+    samples: 0.0076). Ours reflected the world white (0.026, 3.4×) before: found by the equal-quality bench's
+    third-party dice (coloured glass, 35.4 dB → docs/benchmarks.md)."""
+    import bpy
+
+    bs.reset((48, 48))
+    mat = bpy.data.materials.new("Red glass")
+    nt = mat.node_tree
+    for n in list(nt.nodes):
+        if n.type != "OUTPUT_MATERIAL":
+            nt.nodes.remove(n)
+    glass = nt.nodes.new("ShaderNodeBsdfGlass")
+    glass.inputs["Color"].default_value = (1.0, 0.1, 0.1, 1.0)
+    glass.inputs["Roughness"].default_value = 0.0
+    glass.inputs["IOR"].default_value = 1.45
+    nt.links.new(glass.outputs[0], next(n for n in nt.nodes if n.type == "OUTPUT_MATERIAL").inputs["Surface"])
+    bs.add_uv_sphere((0, 0, 0), 1.0, segments=64, rings=32, material=mat)
+    bs.set_world((0.2, 0.6, 0.2), 1.0)
+    bs.add_camera((0, -4, 0), (0, 0, 0), lens=50)
+    img, _ = ours_render(bpy.context.scene, samples=2, depth=8)
+    f0 = ((1.45 - 1.0) / (1.45 + 1.0)) ** 2
+    c = 0.1
+    through = c * c * (1 - f0) ** 2 / (1 - (c * f0) ** 2)  # in, out, and the light bouncing inside (tinted each time)
+    expected = 0.6 * (c * f0 + through)
+    centre = img[22:26, 22:26, 1].mean()
+    assert centre == pytest.approx(expected, rel=0.05), (centre, expected)
+    assert img[22:26, 22:26, 0].mean() == pytest.approx(0.2, rel=0.02)  # red passes: (F₀ + (1 − F₀)²…) × 0.2

@@ -85,6 +85,42 @@ def test_the_library_is_oidn_2_and_says_where_it_came_from():
     assert os.path.isfile(lib.path) or lib.path.startswith("lib")
 
 
+def _filter_devices(monkeypatch) -> list:
+    """The OIDN devices every RT filter is made on from now (a spy on ``oidnNewFilter``)."""
+    lib = dn.library()
+    real, used = lib.lib.oidnNewFilter, []
+
+    def spy(device, kind):
+        used.append(device)
+        return real(device, kind)
+
+    monkeypatch.setattr(lib.lib, "oidnNewFilter", spy)
+    return used
+
+
+@pytest.mark.skipif("OIDN_NUM_THREADS" in os.environ, reason="OIDN's own variable overrides numThreads")
+def test_the_filter_runs_on_the_thread_count_it_is_given(monkeypatch):
+    """OIDN's device parameter ``numThreads`` reaches the device every filter runs on (read back from OIDN after
+    the device is committed), for the function and for a render's ``threads`` (``--threads``)."""
+    lib = dn.library()
+    every = lib.threads_of(None)  # OIDN's default: every core it may use
+    assert every >= 1
+    used = _filter_devices(monkeypatch)
+    rgb = np.random.default_rng(2).exponential(0.5, (24, 32, 3)).astype(np.float32)
+    guide = np.full((24, 32, 3), 0.5, np.float32)
+    dn.denoise(rgb, guide, guide, threads=1)  # accurate: three filters, all on the one-thread device
+    assert len(used) == 3
+    assert {int(lib.lib.oidnGetDeviceInt(d, b"numThreads")) for d in used} == {1}
+    used.clear()
+    dn.denoise(rgb, guide, guide, prefilter="none")  # no count: OIDN's default device
+    assert [int(lib.lib.oidnGetDeviceInt(d, b"numThreads")) for d in used] == [every]
+    used.clear()
+    image = render(soft_shadow_scene(), RenderSettings(width=16, height=12, samples=1, threads=1, denoise=True))
+    assert used and {int(lib.lib.oidnGetDeviceInt(d, b"numThreads")) for d in used} == {1}
+    assert image.stats["denoise"]["threads"] == 1
+    assert lib.device_for(1) == lib.device_for(1)  # one device per count, made once
+
+
 def test_a_missing_library_is_one_clear_exception(monkeypatch):
     monkeypatch.setattr(dn, "_LIBRARY", None)
     monkeypatch.setenv(dn.LIBRARY_ENV, "/nonexistent/libOpenImageDenoise.so.2")

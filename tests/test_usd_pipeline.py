@@ -309,12 +309,12 @@ def _centre(stage, w=24, h=16):
 
 
 def test_arnold_lambert_is_lambertian_with_kd_times_colour():
-    """Closed form: a distant light of intensity 2 head-on on albedo Kd·Kd_color gives radiance albedo·2 in
-    Arnold's units (the stage is Arnold's: E = π·I, usd_io.exporters; tests/test_usd_arnold_fidelity.py)."""
+    """Closed form: a distant light of intensity 2 head-on on albedo Kd·Kd_color gives radiance albedo·2/π (E = I
+    in Arnold's units too, usd_io.exporters; tests/test_usd_arnold_fidelity.py)."""
     c = (0.2, 0.4, 0.8)
     px, info = _centre(st.lit_quad_with("arnold:lambert", {"Kd": (F, 0.5), "Kd_color": (C3, Gf.Vec3f(*c))},
                                         output="arnold:surface"))
-    np.testing.assert_allclose(px, 0.5 * np.asarray(c) * 2, rtol=0.02)
+    np.testing.assert_allclose(px, 0.5 * np.asarray(c) * 2 / np.pi, rtol=0.02)
     assert not any("not supported" in w for w in info.warnings), info.warnings
 
 
@@ -339,7 +339,7 @@ def test_arnold_user_data_rgb_reads_the_primvar():
     ud.CreateInput("attribute", Sdf.ValueTypeNames.String).Set("displayColor")
     UsdShade.Shader(s.GetPrimAtPath("/M/S")).CreateInput("base_color", C3).ConnectToSource(ud.ConnectableAPI(), "out")
     px, _ = _centre(s)
-    np.testing.assert_allclose(px, np.asarray((0.9, 0.1, 0.1)) * 2, rtol=0.03)  # Arnold's units: E = π·I
+    np.testing.assert_allclose(px, np.asarray((0.9, 0.1, 0.1)) * 2 / np.pi, rtol=0.03)  # E = I (Arnold's too)
 
 
 def test_omnipbr_constant_inputs_without_the_mdl_file():
@@ -906,13 +906,14 @@ RED, BLUE = (0.9, 0.1, 0.1), (0.1, 0.2, 0.8)
 
 
 def test_arnold_checkerboard_as_the_surface_is_unlit_with_color1_at_the_uv_origin():
-    """u, v frequency 2 on a quad whose st runs 0..1: four cells; the one at the UV origin (lower left) and its
-    diagonal are color1 (Arnold's references: a [0, 1) UV square is color1), the others color2."""
+    """u, v frequency 1 on a quad whose st runs 0..1: four cells, two per period (arnold-usd's references:
+    test_1590's frequency 4 on a 0..1 plane shows 8 × 8 cells, test_0055's frequency 1 shows 2 × 2); the one at
+    the UV origin (lower left) and its diagonal are color2 (both references), the others color1."""
     img, info = _image(st.arnold_uv_quad("arnold:checkerboard", {
-        "color1": (C3, Gf.Vec3f(*RED)), "color2": (C3, Gf.Vec3f(*BLUE)), "u_frequency": (F, 2.0),
-        "v_frequency": (F, 2.0)}))
+        "color1": (C3, Gf.Vec3f(*RED)), "color2": (C3, Gf.Vec3f(*BLUE)), "u_frequency": (F, 1.0),
+        "v_frequency": (F, 1.0)}))
     lower_left, lower_right, upper_left, upper_right = img[30, 10], img[30, 30], img[10, 10], img[10, 30]
-    for px, want in ((lower_left, RED), (upper_right, RED), (lower_right, BLUE), (upper_left, BLUE)):
+    for px, want in ((lower_left, BLUE), (upper_right, BLUE), (lower_right, RED), (upper_left, RED)):
         np.testing.assert_allclose(px, want, atol=0.01)
     assert not any("not supported" in w for w in info.warnings), info.warnings
 
@@ -998,11 +999,11 @@ def test_a_dome_arnold_hides_from_the_camera_lights_but_is_not_seen():
 @pytest.mark.parametrize("interpolation", ["uniform", "vertex"])
 def test_curves_read_their_st_per_curve_and_per_point(interpolation):
     """Curves' texture coordinates (arnold-usd test_0189: a ramp over hair by per-curve st): the left curve's
-    u = 0.25 falls in the checkerboard's first cell (color1), the right one's 0.75 in the second (color2)."""
+    u = 0.25 falls in the checkerboard's first cell (color2), the right one's 0.75 in the second (color1)."""
     img, info = _image(st.curves_with_st(interpolation), w=48, h=32)
     left, right = img[16, 24 - 8], img[16, 24 + 8]  # x = ∓1 seen through the 3.6-wide aperture at 5 mm, 10 away
-    np.testing.assert_allclose(left, (0.9, 0.1, 0.1), atol=0.02)
-    np.testing.assert_allclose(right, (0.1, 0.2, 0.8), atol=0.02)
+    np.testing.assert_allclose(left, (0.1, 0.2, 0.8), atol=0.02)
+    np.testing.assert_allclose(right, (0.9, 0.1, 0.1), atol=0.02)
 
 
 def test_a_missing_mtlx_reference_is_one_warning_not_a_crash(tmp_path):

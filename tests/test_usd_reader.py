@@ -515,8 +515,9 @@ def test_zero_scale_instances_are_dropped():
 
 def test_per_instance_primvars_of_a_point_instancer_are_named_not_dropped_silently():
     """Hydra gives each instance its element of a PointInstancer's vertex/varying primvar (Arnold's user_data
-    reads them too); the tracer's instances share their prototype's values: one warning names them. A constant
-    primvar is inherited by the prototypes below (no warning)."""
+    reads them too). A colour a material reads (displayColor here) is drawn per instance
+    (tests/test_usd_arnold_fidelity.py); one warning names the others. A constant primvar is inherited by the
+    prototypes below (no warning)."""
     s = new_stage()
     add_camera(s)
     inst = UsdGeom.PointInstancer.Define(s, "/Inst")
@@ -528,6 +529,8 @@ def test_per_instance_primvars_of_a_point_instancer_are_named_not_dropped_silent
     api.CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.varying).Set(
         [(1, 0, 0), (0, 0, 1)])
     api.CreatePrimvar("weight", Sdf.ValueTypeNames.Float, UsdGeom.Tokens.constant).Set(0.5)
+    api.CreatePrimvar("age", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.varying).Set([1.0, 2.0])
     _scene, info = load_stage(s, width=16)
     said = [w for w in info.warnings if "per-instance primvars" in w]
-    assert len(said) == 1 and "displayColor" in said[0] and "weight" not in said[0], info.warnings
+    assert len(said) == 1 and "age" in said[0], info.warnings
+    assert "displayColor" not in said[0] and "weight" not in said[0], info.warnings

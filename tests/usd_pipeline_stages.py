@@ -433,9 +433,10 @@ def arnold_render_globals_stage():
 
 
 def curves_with_st(interpolation="uniform"):
-    """Two vertical linear BasisCurves (width 0.6) at x = −1 and x = +1 whose ``st`` is (0.25, 0.5) on the left
-    curve and (0.75, 0.5) on the right one (per curve, or the same on each of its points), seen head-on, bound to
-    an Arnold checkerboard surface of u frequency 2: the left curve in color1, the right one in color2."""
+    """Two vertical linear BasisCurves (width 0.6) at x = −1 and x = +1 whose ``st`` is (0.25, 0.25) on the left
+    curve and (0.75, 0.25) on the right one (per curve, or the same on each of its points), seen head-on, bound to
+    an Arnold checkerboard surface of frequency 1 (two cells per unit, color2 at the UV origin): the left curve in
+    color2, the right one in color1."""
     s = new_stage()
     add_camera(s, eye=(0, 0, 10))
     c = UsdGeom.BasisCurves.Define(s, "/C")
@@ -445,13 +446,13 @@ def curves_with_st(interpolation="uniform"):
     c.CreateWidthsAttr([0.6])
     c.SetWidthsInterpolation(UsdGeom.Tokens.constant)
     st = UsdGeom.PrimvarsAPI(c.GetPrim()).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray, interpolation)
-    st.Set([(0.25, 0.5), (0.75, 0.5)] if interpolation == "uniform" else [(0.25, 0.5)] * 2 + [(0.75, 0.5)] * 2)
+    st.Set([(0.25, 0.25), (0.75, 0.25)] if interpolation == "uniform" else [(0.25, 0.25)] * 2 + [(0.75, 0.25)] * 2)
     mat = UsdShade.Material.Define(s, "/M")
     sh = UsdShade.Shader.Define(s, "/M/S")
     sh.CreateIdAttr("arnold:checkerboard")
     sh.CreateInput("color1", Sdf.ValueTypeNames.Color3f).Set((0.9, 0.1, 0.1))
     sh.CreateInput("color2", Sdf.ValueTypeNames.Color3f).Set((0.1, 0.2, 0.8))
-    sh.CreateInput("u_frequency", Sdf.ValueTypeNames.Float).Set(2.0)
+    sh.CreateInput("u_frequency", Sdf.ValueTypeNames.Float).Set(1.0)
     mat.CreateSurfaceOutput("arnold").ConnectToSource(sh.ConnectableAPI(), "out")
     bind(c, mat)
     return s

@@ -1,8 +1,9 @@
 """Fidelity against references (issue #32), the Arnold corpus: arnold-usd's test suite (``testsuite/test_NNNN``)
-against the reference images Arnold rendered (``ref/reference.tif``, linear values; 8-bit for most tests).
+against the reference images Arnold rendered (``ref/reference.tif``: 8-bit, sRGB-encoded, for most tests).
 
     python tools/fidelity.py arnold ARNOLD_USD_CHECKOUT [--out /tmp/fidelity-arnold] [--only test_0200,...]
                                     [--aa 3] [--jsonl OUT.jsonl] [--sheet SHEET.png] [--list]
+                                    [--rendering-space arnold|rec709]
 
 Nothing is downloaded: ARNOLD_USD_CHECKOUT is a checkout (or extracted copy) of Autodesk/arnold-usd holding
 ``testsuite/``. A test is a candidate when its README's ``PARAMS`` name a USD ``scene`` (the suite's CMake
@@ -10,17 +11,24 @@ Nothing is downloaded: ARNOLD_USD_CHECKOUT is a checkout (or extracted copy) of 
 without a ``scene`` render ``test.ass``, an Arnold scene this tracer does not read), the scene and a reference
 image exist, and the stage has a camera (kick's ``-c`` when given, else a RenderSettings' camera, else the first
 camera: the one Arnold's USD reader creates first). Each is rendered in-process (``usd_io.load_stage`` +
-``tracer.render``) at the reference's size, at kick's ``-frame`` (else the stage's default time), through that
+``tracer.render``, the stage opened from a mirror of kick's run directory: :func:`kick_layout`) at the
+reference's size, at kick's ``-frame`` (else the stage's default time), through that
 camera conformed as Arnold conforms it (its ``fov`` is horizontal: the horizontal aperture is kept, UsdRender's
 adjustApertureHeight, written on a RenderSettings on the session layer), with no default light (Arnold adds none),
 a black background (Arnold's) and the lights in Arnold's units (``light_units="arnold"``, usd_io.exporters; the
-spec's where the RenderSettings set ``arnold:global:usdlux_version``), and compared with the reference:
+spec's where the RenderSettings set ``arnold:global:usdlux_version``) and Arnold's default shader on unbound
+geometry (kick gives every stage arnold-usd's ``_default_arnold_shader``, Arnold content or not), and compared
+with the reference read as Arnold wrote it (:func:`reference_linear`: float outputs linear; integer outputs in
+the narrow colour space, sRGB-encoded unless the stage names a linear one; ``reference_encoding`` in the JSONL
+says which and why). Our colour numbers are read as Arnold's rendering space (:func:`rendering_space`: ACEScg,
+Arnold's default, unless the stage sets one; colour textures converted into it), so an integer reference is
+compared with our render converted to Rec.709 primaries (``--rendering-space rec709`` compares the numbers as they
+are):
 
-    psnr      10·log10(1 / MSE) over R, G, B of both images' **linear** values clamped to [0, 1] (the 8-bit
-              references hold min(linear, 1); float references are clamped the same way). No tone curve.
+    psnr      10·log10(1 / MSE) over R, G, B of both images' **linear** values clamped to [0, 1] (an 8-bit
+              reference decoded from sRGB holds min(linear, 1); float references are clamped the same way).
     psnr_srgb the same after the sRGB transfer function (how a viewer sees the pair; for reference only)
-    psnr_ref_decoded  ours against the reference read as sRGB-encoded (diagnostic: a reference whose driver wrote
-              sRGB instead of linear values scores higher here)
+    psnr_other_reading  ours against the reference read the other way (sRGB-encoded <-> linear), a diagnostic
     de        ΔE2000 between the mean colours (linear, clamped, as sRGB-primaries Lab) of the pixels either image
               covers (reference alpha ≥ 0.5 or our object id; only ours where the reference is opaque everywhere,
               as it is where a dome is seen): a missing environment does not hide a wrong albedo
@@ -146,6 +154,119 @@ def read_rgba(path: str) -> np.ndarray:
     return px[..., :4]
 
 
+#: Colour spaces of Arnold's OCIO config (and raw names) that are linear: an integer output in one of them holds
+#: linear values. In Arnold's config "sRGB" names the linear Rec.709 space (kick says so for test_1459, which sets
+#: color_space_narrow = "sRGB": 'narrow color space "sRGB" is linear, and will cause banding').
+LINEAR_SPACES = ("srgb", "linear", "raw", "acescg", "aces2065-1", "scene-linear rec.709-srgb", "lin_srgb",
+                 "lin_rec709", "linear rec.709 (srgb)", "utility - linear - srgb")
+
+
+def narrow_color_space(stage) -> tuple[str | None, str]:
+    """(the colour space Arnold writes integer outputs in when the stage says, or None: the default, why): a
+    RenderProduct's ``arnold:color_space`` / ``arnold:driver_*:color_space`` other than "" and "auto", else the
+    colour manager's ``color_space_narrow`` set on a RenderSettings (``arnold:color_manager:color_space_narrow``,
+    ``arnold:global:color_space_narrow``). A colour manager prim that no RenderSettings names is not Arnold's
+    options.color_manager and changes nothing."""
+    from pxr import Usd
+
+    for prim in stage.Traverse(Usd.TraverseInstanceProxies()):
+        for attr in prim.GetAttributes():
+            name = attr.GetName()
+            if not attr.HasAuthoredValue():
+                continue
+            value = attr.Get()
+            if not isinstance(value, str) or value.strip().lower() in ("", "auto"):
+                continue
+            driver_space = name.startswith("arnold:driver") and name.endswith(":color_space")
+            if prim.GetTypeName() == "RenderProduct" and (name == "arnold:color_space" or driver_space):
+                return value, f"{prim.GetPath()}.{name}"
+            if prim.GetTypeName() == "RenderSettings" and name in ("arnold:color_manager:color_space_narrow",
+                                                                   "arnold:global:color_space_narrow"):
+                return value, f"{prim.GetPath()}.{name}"
+    return None, ""
+
+
+def image_format(path: str):
+    """The OpenImageIO TypeDesc of an image file's pixels (None: unreadable)."""
+    import OpenImageIO as oiio
+
+    inp = oiio.ImageInput.open(path)
+    if not inp:
+        return None
+    fmt = inp.spec().format
+    inp.close()
+    return fmt
+
+
+def is_float(fmt) -> bool:
+    import OpenImageIO as oiio
+
+    return fmt is not None and fmt.basetype in (oiio.HALF, oiio.FLOAT, oiio.DOUBLE)
+
+
+def reference_linear(path: str, stage_path: str) -> tuple[np.ndarray, str, str]:
+    """(the reference's linear RGBA, "linear" or "srgb": how Arnold encoded it, why). Arnold's colour manager (the
+    logs of every reference: color_manager_ocio with Arnold's own config) writes **float** outputs (EXR, float
+    TIFF) linear and **integer** ones (the 8-bit TIFFs of kick's ``-o testrender.tif``, JPEG) in its narrow colour
+    space, sRGB-encoded by default; a stage whose render product or colour manager names a linear space
+    (:data:`LINEAR_SPACES`) gets linear integers. A rule from the file's format and the stage's settings: never
+    "whichever matches better"."""
+    import OpenImageIO as oiio
+    from pxr import Usd
+
+    rgba = read_rgba(path)
+    fmt = image_format(path)
+    if is_float(fmt):
+        return rgba, "linear", f"a {fmt} image: Arnold writes float outputs linear"
+    space, where = narrow_color_space(Usd.Stage.Open(stage_path))
+    if space is not None and space.strip().lower() in LINEAR_SPACES:
+        return rgba, "linear", f"integer output in {space!r}, a linear space ({where})"
+    rgba[..., :3] = srgb_decode(np.clip(rgba[..., :3], 0.0, 1.0))
+    return rgba, "srgb", (f"integer ({fmt}) output in {space!r} ({where})" if space else
+                          f"integer ({fmt}) output: Arnold's default narrow colour space, sRGB")
+
+
+#: Names of linear Rec.709 in Arnold's OCIO config (and the raw names): a rendering space that needs no conversion.
+REC709_SPACES = ("srgb", "lin_srgb", "lin_rec709", "linear rec.709 (srgb)", "scene-linear rec.709-srgb",
+                 "utility - linear - srgb", "raw")
+
+
+def rendering_space(stage) -> tuple[str, str]:
+    """("acescg" or "rec709", why): the colour space Arnold shaded the test in. Arnold's default colour manager
+    (color_manager_ocio with Arnold's own config) renders in ACEScg: every reference log says 'rendering color
+    space is "ACEScg"'. Colour constants (shader inputs, light colours, displayColor, user data) are ACEScg numbers
+    there (load_stage(rendering_space="acescg") reads them so and converts colour textures into ACEScg, as
+    Arnold does), and an integer output is converted to Rec.709 primaries before its sRGB encoding, so a saturated
+    constant comes out more saturated than the same numbers read as Rec.709. A stage whose RenderSettings set the
+    colour manager's ``color_space_linear`` renders in that space: "sRGB" is linear Rec.709 in Arnold's config
+    (test_1459), and a name the config lacks ("linear", test_1868) makes kick ignore colour spaces."""
+    from pxr import Usd
+
+    for prim in stage.Traverse(Usd.TraverseInstanceProxies()):
+        if prim.GetTypeName() != "RenderSettings":
+            continue
+        for name in ("arnold:color_manager:color_space_linear", "arnold:global:color_space_linear"):
+            attr = prim.GetAttribute(name)
+            value = attr.Get() if attr and attr.HasAuthoredValue() else None
+            if isinstance(value, str) and value.strip():
+                space = "acescg" if value.strip().lower() == "acescg" else "rec709"
+                return space, f"{prim.GetPath()}.{name} = {value!r}"
+    return "acescg", "Arnold's default colour manager renders in ACEScg"
+
+
+def to_output_space(rgba: np.ndarray, space: str, integer: bool) -> np.ndarray:
+    """Our render (its colour numbers read as Arnold's rendering space) in the reference's space: an integer output
+    of an ACEScg render is converted to Rec.709 primaries (tracer.colorspace.AP1_TO_REC709); a float output stays in
+    the rendering space (its driver's "auto" colour space), as does a Rec.709 render."""
+    from tracer.colorspace import AP1_TO_REC709
+
+    if space != "acescg" or not integer:
+        return rgba
+    out = np.array(rgba, np.float32, copy=True)
+    out[..., :3] = out[..., :3] @ np.asarray(AP1_TO_REC709, np.float32).T
+    return out
+
+
 def arnold_camera(path: str, camera: str, pixel_aspect: float | None):
     """The stage with a RenderSettings on its session layer: ``camera``, Arnold's conform (the horizontal
     aperture kept), the stage's pixel aspect when its own RenderSettings gives one."""
@@ -172,21 +293,43 @@ def stage_pixel_aspect(stage) -> float | None:
     return None
 
 
-def render_ours(test: dict, size, aa: int):
+def kick_layout(stage_path: str, root: str) -> str:
+    """The stage as kick opens it: the suite runs each test in a directory holding its ``data/`` files, beside the
+    suite's ``common/`` (testsuite/SConscript copies it), so a relative asset ``../common/bricks.png`` names
+    ``testsuite/common``. Mirrored under ``root`` with symbolic links (nothing copied); the mirrored stage path."""
+    data = os.path.dirname(stage_path)
+    test_dir = os.path.dirname(data)
+    suite = os.path.dirname(test_dir)
+    run = os.path.join(root, os.path.basename(test_dir))
+    os.makedirs(run, exist_ok=True)
+    for name in os.listdir(data):
+        link = os.path.join(run, name)
+        if not os.path.lexists(link):
+            os.symlink(os.path.join(data, name), link)
+    common = os.path.join(root, "common")
+    if os.path.isdir(os.path.join(suite, "common")) and not os.path.lexists(common):
+        os.symlink(os.path.join(suite, "common"), common)
+    return os.path.join(run, os.path.basename(stage_path))
+
+
+def render_ours(test: dict, size, aa: int, layout_root: str | None = None, rendering_space: str = "rec709"):
     import tracer
     from pxr import Usd
     from usd_io.exporters import arnold_usdlux_version
     from usd_io.reader import load_stage
 
     h, w = size
-    probe = Usd.Stage.Open(test["stage"])
+    path = kick_layout(test["stage"], layout_root) if layout_root else test["stage"]
+    probe = Usd.Stage.Open(path)
     camera = find_camera(probe, test.get("camera"))
     if camera is None:
         raise NoCamera("the stage has no camera" + (f" {test['camera']}" if test.get("camera") else ""))
-    stage, settings_prim = arnold_camera(test["stage"], camera, stage_pixel_aspect(probe))
+    stage, settings_prim = arnold_camera(path, camera, stage_pixel_aspect(probe))
     units = "spec" if arnold_usdlux_version(probe) else "arnold"  # kick reads every stage in Arnold's units
     scene, info = load_stage(stage, time=test.get("frame"), camera=camera, width=w, height=h,
-                             render_settings_prim=settings_prim, default_light=False, light_units=units)
+                             render_settings_prim=settings_prim, default_light=False, light_units=units,
+                             fallback_surface="arnold",  # kick: Arnold's default shader on unbound geometry
+                             rendering_space=rendering_space)
     settings = tracer.RenderSettings(width=w, height=h, samples=aa, transparent=False, light_samples=4,
                                      sky_samples=8, max_depth=6, aovs=("objectid",))
     image = tracer.render(scene, settings)
@@ -218,7 +361,6 @@ def compare(ref: np.ndarray, ours: np.ndarray, covered: np.ndarray) -> dict:
     a, b = ref[..., 3] >= 0.5, covered
     union = (a | b) if not a.all() else b  # an opaque reference (a background Arnold sees): our objects
     out = dict(psnr=round(psnr(r, o), 2), psnr_srgb=round(psnr(srgb(r), srgb(o)), 2),
-               psnr_ref_decoded=round(psnr(srgb_decode(r), o), 2),
                iou=round(float(np.count_nonzero(a & b) / max(np.count_nonzero(union), 1)), 4) if union.any() else 1.0)
     if union.any():
         mr, mo = r[union].mean(axis=0), o[union].mean(axis=0)
@@ -296,6 +438,9 @@ def main(argv=None) -> int:
     p.add_argument("--jsonl", default=None)
     p.add_argument("--sheet", default=None, help="contact sheet PNG (reference | ours, worst first)")
     p.add_argument("--sheet-limit", type=int, default=0, help="only the worst N pairs on the sheet")
+    p.add_argument("--rendering-space", choices=("arnold", "rec709"), default="arnold",
+                   help="arnold: our colour numbers read as Arnold's rendering space (ACEScg unless the stage sets "
+                        "one: rendering_space()); rec709: as Rec.709 (no conversion)")
     p.add_argument("--list", action="store_true")
     p.add_argument("--summary-of", default=None, metavar="JSONL", help="print the summary of an earlier run's JSONL")
     args = p.parse_args(argv)
@@ -320,10 +465,20 @@ def main(argv=None) -> int:
         try:
             if "skip" in test:
                 raise NoCamera(test["skip"])
-            ref = read_rgba(test["reference"])
-            ours, covered, info, camera = render_ours(test, ref.shape[:2], args.aa)
+            ref, encoding, why = reference_linear(test["reference"], test["stage"])
+            other = srgb(ref[..., :3]) if encoding == "srgb" else srgb_decode(np.clip(ref[..., :3], 0, 1))
+            from pxr import Usd
+            space, space_why = (rendering_space(Usd.Stage.Open(test["stage"])) if args.rendering_space == "arnold"
+                                else ("rec709", "--rendering-space rec709"))
+            ours, covered, info, camera = render_ours(test, ref.shape[:2], args.aa,
+                                                      layout_root=os.path.join(args.out, "kick-layout"),
+                                                      rendering_space=space)
+            ours = to_output_space(ours, space, integer=not is_float(image_format(test["reference"])))
             row.update(camera=camera, frame=test.get("frame"), size=[ref.shape[1], ref.shape[0]],
-                       **compare(ref, ours, covered), warnings=list(info.warnings))
+                       reference_encoding=encoding, reference_encoding_why=why, rendering_space=space,
+                       rendering_space_why=space_why,
+                       **compare(ref, ours, covered), warnings=list(info.warnings),
+                       psnr_other_reading=round(psnr(np.clip(other, 0, 1), np.clip(ours[..., :3], 0, 1)), 2))
             side_by_side(os.path.join(args.out, test["name"] + ".png"), ref, ours)
             row["_ref"], row["_ours"] = ref, ours
         except NoCamera as why:

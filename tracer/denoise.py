@@ -164,17 +164,45 @@ class _Library:
                 raise DenoiseUnavailable(f"{path} is not Open Image Denoise {REQUIRED_MAJOR}.x (no {name})") from None
             fn.restype, fn.argtypes = res, args
         self.lib, self.path = lib, path
-        self.device = lib.oidnNewDevice(_DEVICE_TYPE_CPU)
-        if not self.device:
-            raise DenoiseUnavailable(f"Open Image Denoise ({path}) made no CPU device: {self._error(None)}")
-        lib.oidnSetDeviceBool(self.device, b"setAffinity", False)  # as Cycles: do not pin threads (Blender's own)
-        lib.oidnCommitDevice(self.device)
-        self.check("making the CPU device")
+        #: CPU devices by thread count (None: OIDN's own count, all cores), each made on first use: OIDN fixes a
+        #: device's ``numThreads`` when it is committed, so a render on N threads denoises on a device of N.
+        self.devices: dict = {}
+        self._devices_lock = threading.Lock()
+        self.device = self.device_for(None)
         self.version = int(lib.oidnGetDeviceInt(self.device, b"version"))  # e.g. 20303 for 2.3.3
         if self.version // 10000 != REQUIRED_MAJOR:
             raise DenoiseUnavailable(f"{path} is Open Image Denoise {self.version_string}, not {REQUIRED_MAJOR}.x")
         self.load_seconds = time.perf_counter() - t0
         self.lock = threading.Lock()
+
+    def device_for(self, threads: int | None):
+        """The CPU device that runs OIDN's filters on ``threads`` threads (None or 0: OIDN's default, every core;
+        ``$OIDN_NUM_THREADS``, where set, still wins as OIDN has it), made and committed once per count."""
+        key = int(threads) if threads and threads > 0 else None
+        with self._devices_lock:
+            device = self.devices.get(key)
+            if device is None:
+                device = self.devices[key] = self._new_device(key)
+        return device
+
+    def _new_device(self, key: int | None):
+        lib = self.lib
+        device = lib.oidnNewDevice(_DEVICE_TYPE_CPU)
+        if not device:
+            raise DenoiseUnavailable(f"Open Image Denoise ({self.path}) made no CPU device: {self._error(None)}")
+        lib.oidnSetDeviceBool(device, b"setAffinity", False)  # as Cycles: do not pin threads (Blender's own)
+        if key is not None:
+            lib.oidnSetDeviceInt(device, b"numThreads", key)  # as Cycles' denoiser does with the render's threads
+        lib.oidnCommitDevice(device)
+        err = self._error(device)
+        if err:
+            lib.oidnReleaseDevice(device)
+            raise DenoiseError(f"Open Image Denoise failed making the CPU device ({err})")
+        return device
+
+    def threads_of(self, threads: int | None = None) -> int:
+        """The thread count the device for ``threads`` runs on, as OIDN reports it after committing it."""
+        return int(self.lib.oidnGetDeviceInt(self.device_for(threads), b"numThreads"))
 
     @property
     def version_string(self) -> str:
@@ -186,18 +214,21 @@ class _Library:
         text = msg.value.decode("utf-8", "replace") if msg.value else ""
         return f"{_ERROR_NAMES[code] if 0 <= code < len(_ERROR_NAMES) else code}: {text}" if code else ""
 
-    def check(self, what: str) -> None:
-        err = self._error(self.device)
+    def check(self, what: str, device=None) -> None:
+        err = self._error(device or self.device)
         if err:
             raise DenoiseError(f"Open Image Denoise failed {what} ({err})")
 
-    def run(self, inputs: dict, output: np.ndarray, *, hdr: bool, clean_aux: bool, quality: int) -> None:
-        """One RT filter over shared (H, W, 3) float32 images (``inputs`` by OIDN name, ``output`` written)."""
+    def run(self, inputs: dict, output: np.ndarray, *, hdr: bool, clean_aux: bool, quality: int,
+            threads: int | None = None) -> None:
+        """One RT filter over shared (H, W, 3) float32 images (``inputs`` by OIDN name, ``output`` written), on the
+        device of ``threads`` threads (:meth:`device_for`)."""
         lib = self.lib
         h, w = output.shape[:2]
-        filt = lib.oidnNewFilter(self.device, b"RT")
+        device = self.device_for(threads)
+        filt = lib.oidnNewFilter(device, b"RT")
         if not filt:
-            self.check("making a filter")
+            self.check("making a filter", device)
             raise DenoiseError("Open Image Denoise made no RT filter")
         try:
             for name, img in list(inputs.items()) + [("output", output)]:
@@ -209,9 +240,9 @@ class _Library:
             if quality:
                 lib.oidnSetFilterInt(filt, b"quality", int(quality))
             lib.oidnCommitFilter(filt)
-            self.check("setting up the filter")
+            self.check("setting up the filter", device)
             lib.oidnExecuteFilter(filt)
-            self.check("filtering")
+            self.check("filtering", device)
         finally:
             lib.oidnReleaseFilter(filt)
 
@@ -261,13 +292,14 @@ def _plane(a, shape, name: str, lo=None, hi=None) -> np.ndarray:
 
 
 def denoise(color, albedo=None, normal=None, hdr: bool = True, *, prefilter: str = "accurate",
-            quality: str = "high") -> np.ndarray:
+            quality: str = "high", threads: int | None = None) -> np.ndarray:
     """The denoised picture: ``color`` (H, W, 3) or (H, W, 4) scene-linear, guided by ``albedo`` (H, W, 3, values
     clipped to [0, 1]) and ``normal`` (H, W, 3, any space, [-1, 1]) when given, as Cycles feeds OIDN. Returns
     float32 of the same shape; a fourth (alpha) channel passes through unchanged; no NaN or Inf in the result
     (non-finite inputs count as 0). ``hdr``: the colour is HDR (True for rendered scene-linear light; False for
     [0, 1] values). ``prefilter`` (:data:`PREFILTERS`) and ``quality`` (:data:`QUALITIES`) as Cycles' Denoise
-    panel. Raises :class:`DenoiseUnavailable` without a library."""
+    panel. ``threads``: the filter's thread count (OIDN's ``numThreads``; None: every core), as a render's
+    ``--threads``. Raises :class:`DenoiseUnavailable` without a library."""
     if prefilter not in PREFILTERS:
         raise ValueError(f"denoise: prefilter must be one of {', '.join(PREFILTERS)}, got {prefilter!r}")
     if quality not in QUALITIES:
@@ -295,8 +327,8 @@ def denoise(color, albedo=None, normal=None, hdr: bool = True, *, prefilter: str
             for name in ("albedo", "normal"):
                 if name in inputs:
                     guide = inputs[name]
-                    lib.run({name: guide}, guide, hdr=False, clean_aux=False, quality=q)
-        lib.run(inputs, result, hdr=hdr, clean_aux=prefilter != "fast", quality=q)
+                    lib.run({name: guide}, guide, hdr=False, clean_aux=False, quality=q, threads=threads)
+        lib.run(inputs, result, hdr=hdr, clean_aux=prefilter != "fast", quality=q, threads=threads)
     out[..., :3] = np.nan_to_num(result, nan=0.0, posinf=0.0, neginf=0.0)
     return out
 
@@ -304,17 +336,20 @@ def denoise(color, albedo=None, normal=None, hdr: bool = True, *, prefilter: str
 def denoise_image(image, settings, *, prefilter: str = "accurate", quality: str = "high") -> None:
     """Denoise a rendered image in place, guided by its ``denoising_albedo`` / ``denoising_normal`` AOVs: the
     render region (``settings.region``) or the whole frame, never tile by tile. The guides stay among the AOVs
-    only where ``settings.aovs`` asks for them. ``image.stats["denoise"]`` records the library and the time."""
+    only where ``settings.aovs`` asks for them. The filter runs on ``settings.threads`` threads (all cores when
+    unset), as the render did. ``image.stats["denoise"]`` records the library, its thread count and the time."""
     t0 = time.perf_counter()
     x0, y0, x1, y1 = settings.region or (0, 0, image.rgba.shape[1], image.rgba.shape[0])
     aovs = image.aovs
     albedo, normal = aovs.get("denoising_albedo"), aovs.get("denoising_normal")
     win = (slice(y0, y1), slice(x0, x1))
     image.rgba[win] = denoise(image.rgba[win], None if albedo is None else albedo[win],
-                              None if normal is None else normal[win], prefilter=prefilter, quality=quality)
+                              None if normal is None else normal[win], prefilter=prefilter, quality=quality,
+                              threads=settings.threads)
     for name in GUIDE_AOVS:
         if name not in settings.aovs:
             aovs.pop(name, None)
     lib = library()
     image.stats["denoise"] = {"seconds": time.perf_counter() - t0, "oidn": lib.version_string,
-                              "library": lib.path, "prefilter": prefilter, "quality": quality}
+                              "library": lib.path, "prefilter": prefilter, "quality": quality,
+                              "threads": lib.threads_of(settings.threads)}

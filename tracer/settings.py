@@ -159,7 +159,8 @@ class RenderSettings:
                             flag="--denoise", blender="Denoise", panel="Denoise", blender_default=True)
     tile_size: int = setting(128, "pixel tile edge; memory is bounded by tile size × samples", unit="px", lo=4,
                              flag="--tile-size", metavar="PX", blender_from="the default (Blender shows no tiles)")
-    threads: int | None = setting(None, "worker threads; unset = all cores (images are identical for any count)",
+    threads: int | None = setting(None, "worker threads, the denoiser's too; unset = all cores (images are identical "
+                                  "for any count)",
                                   lo=1, flag="--threads", metavar="N", blender="Threads", panel="Performance",
                                   none_as=0, ui=(("max", 1024),))
     aovs: tuple = setting((), "extra outputs (float32 EXR next to the image): depth, normal, albedo, objectid, and "

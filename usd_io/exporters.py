@@ -21,9 +21,9 @@ and each writer maps to one set of units (:data:`UNITS`), applied by ``usd_io.li
     arnold         a stage written for Arnold (:func:`written_for_arnold`) without ``arnold:global:usdlux_version``
                    on its RenderSettings: Arnold's own light units, which arnold-usd passes through unchanged
                    (intensity, exposure, normalize, radius) and Arnold's core reads as its legacy lights do
-                   unless usdlux_version is set: a distant light of I lights a white diffuse surface facing it to
-                   I (irradiance E = π·I, whatever its angle and normalize), a point (sphere) light of radius 0 or
-                   normalized to I/d² at distance d (radiant intensity π·I; the spec's I/4); the radius is
+                   unless usdlux_version is set: a distant light of I gives irradiance E = I whatever its angle
+                   and normalize (the spec's I·Ω for an unnormalized angle), a point (sphere) light of radius 0 or
+                   normalized E = I/d² at distance d (radiant intensity I; the spec's I/4); the radius is
                    ``primvars:arnold:radius`` when authored (Arnold's parameter wins). Rect, disk and dome
                    lights: as the spec (radiance I, normalized I/A)
     kit            Omniverse Kit: every intensity (and OmniPBR's emissive_intensity) × 2^KIT_EV (−9 EV: Kit's
@@ -157,8 +157,8 @@ def light_units(stage, mode: str = "auto") -> tuple[str, str | None]:
             "blender-nits": "its intensities from nits (× 0.0014641, areas as its exporter computed them)",
             "blender-legacy": "its intensities as power / 100 (P = 100·I) and its sun angle in radians",
             "kit": f"its intensities × 2^{KIT_EV:g} (−9 EV)",
-            "arnold": "distant and point lights × π of the spec's (E = π·I; a point's intensity π·I, not I/4), "
-                      "primvars:arnold:radius"}[w.units]
+            "arnold": "a distant light's E = I whatever its angle, a point light's intensity I (not the spec's "
+                      "I/4), primvars:arnold:radius"}[w.units]
     if w.units == "arnold":
         return w.units, (f"lights read in Arnold's own units (the stage is written for Arnold: {w.name[8:-1]}): "
                          f"{what} (docs/usd.md, \"Two readings\"; --light-units spec reads them as UsdLux says)")

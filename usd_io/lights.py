@@ -10,7 +10,10 @@ light of power P as a SphereLight with I = P/π, normalize = 1; Cycles' radiant 
                  radius -> soft shadows unless treatAsPoint; ShapingAPI cone -> SpotLight(cone_angle =
                  shaping:cone:angle in degrees (half angle), blend = shaping:cone:softness)
     (Arnold's own units, ``units = "arnold"``, usd_io.exporters: a normalized or radius-0 SphereLight has
-    radiant intensity π·I, ``primvars:arnold:radius`` overriding the radius; a DistantLight E = π·I.)
+    radiant intensity I W/sr (four times the spec's), ``primvars:arnold:radius`` overriding the radius; a
+    DistantLight E = I whatever its angle and normalize (UsdLux's fallback intensity read as the spec's).
+    Measured on arnold-usd's references, which are sRGB-encoded 8-bit: one distant light of I = 1 on a cube of
+    albedo 0.4 gives 100/255 = sRGB(0.4/π).)
     DistantLight spec: ``angle`` is the angular diameter of the sun's disk (default 0.53°) and I its radiance, so
                  the irradiance is E = I·Ω with Ω = 2π(1 − cos(angle/2)) the disk's solid angle (the schema
                  default I = 50 000 gives E = 3.36 W/m², a sane sun); ``normalize`` = 1 makes E = I.
@@ -22,7 +25,8 @@ light of power P as a SphereLight with I = P/π, normalize = 1; Cycles' radiant 
     DiskLight    the same with A = π·radius²
     DomeLight    the world: a lat-long texture becomes Scene.environment (usd_io/dome.py: orientation, format);
                  without one, Scene.background = I and Scene.ambient = I · inputs:diffuse; Arnold's
-                 ``primvars:arnold:camera = 0`` (lights the scene, unseen by the camera): background black
+                 ``primvars:arnold:camera = w`` (Arnold's light parameter ``camera``: lights the scene, seen by the
+                 camera × w; 0 unseen): background I·w
 
 Which reading: a stage whose root layer says it was written by Blender (``doc = "Blender v…"``, what
 Blender's exporter writes) takes Blender's sun; every other stage the spec's. For every other light type the two
@@ -160,7 +164,7 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
         r *= float(np.mean(_axis_scales(world)))
         point = bool(_get(lux.GetTreatAsPointAttr(), time, False))
         if units == "arnold" and (_normalized(prim, time) or r <= 0):
-            intensity = rgb * np.pi  # Arnold: a white diffuse facing it at distance d is I/d²
+            intensity = rgb  # Arnold's point light: E = I/d² at distance d (the spec's I/4 W/sr is a quarter)
         elif _normalized(prim, time) or r <= 0:
             intensity = rgb / 4.0
         else:
@@ -190,8 +194,9 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
             diameter = float(np.clip(np.radians(angle), 0, np.pi - 1e-6))
         if not blender and angle <= 0:  # a delta sun: the limit the normalized reading gives
             irradiance = rgb
-        if units == "arnold":  # Arnold's distant light: a white diffuse facing it is I, E = π·I (normalize ignored)
-            irradiance = rgb * np.pi
+        if units == "arnold" and authored(prim, "intensity"):  # Arnold's distant light: E = I whatever its angle
+            irradiance = rgb  # (normalize ignored). UsdLux's fallback 50 000 is read as the spec's (E = 3.36 for
+            # 0.53°): arnold-usd's references of lights without an intensity (test_2254, test_2268) are lit so
         return "distant", DistantLight(direction=down, irradiance=irradiance, angle=diameter, name=name), None
     if t == "CylinderLight":
         # A tube along its local X of `length` and `radius`: emitted as a spherical light of the same power
@@ -289,23 +294,26 @@ def _dome(prim, world, time, rgb, warn):
         if diffuse != 1.0:
             warn(f"{name}: inputs:diffuse = {diffuse} is not supported with a dome texture (1 used)")
     background = colour
-    if _hidden_from_camera(prim, time):  # Arnold's visibility: the dome lights the scene, the camera sees black
+    seen = _camera_weight(prim, time)
+    if seen != 1.0:  # Arnold's light parameter `camera`: the dome lights the scene, the camera sees it × seen
         if env is None:
-            background = np.zeros(3)
+            background = colour * seen
         else:
-            warn(f"{name}: primvars:arnold:camera = 0 (hidden from the camera) is not supported with a dome "
-                 "texture (the dome is seen)")
+            warn(f"{name}: primvars:arnold:camera = {seen:g} (the camera sees the dome × {seen:g}) is not supported "
+                 "with a dome texture (the dome is seen as it lights)")
     return "dome", None, dict(background=background, ambient=colour * diffuse, environment=env)
 
 
-def _hidden_from_camera(prim, time) -> bool:
-    """Whether Arnold's ``primvars:arnold:camera`` (a light's contribution to camera rays) is authored 0."""
+def _camera_weight(prim, time) -> float:
+    """Arnold's ``primvars:arnold:camera``: the weight of a light's contribution to camera rays (a float, 1 when
+    not authored; 0 hides it from the camera, 0.1 shows it at a tenth)."""
     pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("arnold:camera")
     v = pv.Get(time) if pv and pv.HasAuthoredValue() else None
     try:
-        return v is not None and float(v) == 0.0
+        w = float(v) if v is not None else 1.0
     except (TypeError, ValueError):
-        return False
+        return 1.0
+    return max(w, 0.0) if np.isfinite(w) else 1.0
 
 
 #: The default lighting of a stage without lights, as usdview/usdrecord light one: a headlight along the camera's

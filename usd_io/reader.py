@@ -15,6 +15,7 @@ import numpy as np
 from pxr import Sdf, Usd, UsdGeom, UsdLux
 
 from tracer import SceneBuilder
+from tracer.colorspace import AP1_TO_REC709
 from tracer.scene import instance_bounds
 
 from . import camera as cam
@@ -34,6 +35,7 @@ from .layer_metadata import meters_per_unit
 from .lights import convert_light, default_lights, light_links
 from .materials.arnold import render_globals as arnold_render_globals
 from .materials.table import MaterialTable
+from .materials.texture_files import TextureCache
 from .render_settings import CONFORM, DEFAULT_CONFORM, crop_to_data_window, read_render_settings
 from .stage import (DEFAULT_PURPOSES, UsdInputError, captured_stderr, check_purposes, composition_warnings, open_stage,
                     renderable_prims, stage_messages, stage_time)
@@ -65,8 +67,33 @@ class StageInfo:
             self.warnings.append(message)
 
 
+FALLBACK_SURFACES = ("auto", "arnold", "hydra")  # load_stage(fallback_surface=...)
+RENDERING_SPACES = ("rec709", "acescg")  # load_stage(rendering_space=...)
+#: At most this many triangles of prototype copies made to colour a PointInstancer's instances one by one.
+INSTANCE_COLOUR_TRIANGLES = 2_000_000
+
+
+def instance_colour_primvars(prim, time, count: int):
+    """({name: (count, 3) float values} of a PointInstancer's per-instance (vertex/varying) primvars with three
+    numeric components and one element per instance, [names of every per-instance primvar])."""
+    colours, names = {}, []
+    for pv in UsdGeom.PrimvarsAPI(prim).GetPrimvarsWithValues():
+        if pv.GetInterpolation() not in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying):
+            continue
+        name = pv.GetPrimvarName()
+        names.append(name)
+        try:
+            vals = np.asarray(pv.ComputeFlattened(time), np.float64)
+        except (TypeError, ValueError):
+            continue
+        if vals.ndim == 2 and vals.shape == (count, 3) and pv.GetElementSize() == 1 and np.all(np.isfinite(vals)):
+            colours[name] = vals
+    return colours, sorted(names)
+
+
 class _Reader:
-    def __init__(self, stage, time, purposes, segments, info: StageInfo, light_units: str = "auto"):
+    def __init__(self, stage, time, purposes, segments, info: StageInfo, light_units: str = "auto",
+                 fallback_surface: str = "auto", rendering_space: str = "rec709"):
         self.stage, self.time, self.purposes, self.segments, self.info = stage, time, purposes, segments, info
         self.light_units, note = exporter_light_units(stage, light_units)  # usd_io.exporters
         if note:
@@ -74,10 +101,19 @@ class _Reader:
         self.b = SceneBuilder()
         self.xf = Transforms(time)
         self.mats = MaterialTable(self.b, time, info.warn)
+        if fallback_surface not in FALLBACK_SURFACES:
+            raise ValueError(f"fallback surface {fallback_surface!r}: choose one of {', '.join(FALLBACK_SURFACES)}")
+        if fallback_surface != "auto":  # else asked of the stage at the first unbound prim (written_for_arnold)
+            self.mats._arnold_stage = fallback_surface == "arnold"
+        if rendering_space not in RENDERING_SPACES:
+            raise ValueError(f"rendering space {rendering_space!r}: choose one of {', '.join(RENDERING_SPACES)}")
+        if rendering_space == "acescg":  # colour textures into ACEScg; constants are taken as ACEScg numbers
+            self.mats.files = TextureCache(np.linalg.inv(np.asarray(AP1_TO_REC709, np.float64)))
         self.lo = np.full(3, np.inf)
         self.hi = np.full(3, -np.inf)
         self._proto_cache: dict[str, MeshData | None] = {}
         self._proto_ids: dict[tuple, int] = {}  # (prototype prim path, material rows) -> tracer prototype object id
+        self._instance_primvars_read: set = set()  # (instancer path, primvar name) drawn per instance
         self.light_prims: list = []  # the UsdLux prim of each tracer light
         self._grey = None
         self.empty: set = set()  # gprims whose geometry is absent or has no faces at this time
@@ -157,10 +193,16 @@ class _Reader:
 
     def shaded(self, prim, data: MeshData):
         """(data, per-triangle material rows, add_mesh keywords for UV sets and vertex colours)"""
+        return self.shaded_with_needs(prim, data)[:3]
+
+    def shaded_with_needs(self, prim, data: MeshData, display_color_given: bool = False):
+        """:meth:`shaded` and the MeshNeeds of its materials (None when they could not be read)."""
+        needs = None
         try:
-            material, needs = self.mats.for_prim(prim, data.n_faces, data.faces)
+            material, needs = self.mats.for_prim(prim, data.n_faces, data.faces, display_color_given)
             material, extra = self.mats.mesh_inputs(prim, data, material, needs)
         except (TypeError, ValueError, IndexError) as exc:  # a shading input of an unexpected type or shape
+            needs = None
             self.info.warn(f"{prim.GetPath()}: its material could not be read ({type(exc).__name__}: {exc}); "
                            "rendered grey")
             if self._grey is None:
@@ -169,7 +211,7 @@ class _Reader:
             material, extra = self._grey, ({} if data.uvs is None else dict(uvs=data.uvs))
         for w in data.warnings:
             self.info.warn(w)
-        return data, material, extra
+        return data, material, extra, needs
 
     def add_gprim(self, prim):
         data = self.cached_geometry(prim)
@@ -187,11 +229,16 @@ class _Reader:
         if not _usable(m):
             self.info.warn(f"{prim.GetPath()}: transform is singular (zero scale) or not finite (skipped)")
             return
-        data, material, extra = self.shaded(prim, data)
+        data, material, extra, needs = self.shaded_with_needs(prim, data)
+        if prim.HasAPI(UsdLux.MeshLightAPI):
+            self.info.warn(f"{prim.GetPath()}: UsdLux MeshLightAPI is not supported (drawn with its material; it "
+                           "lights nothing)")
         tris = data.triangles
         if prim.IsInstanceProxy() and not Skinning.is_skinned(prim):
-            # native instancing: the prototype's mesh once (object space), this proxy an instance of it
-            key = (str(prim.GetPrimInPrototype().GetPath()), np.asarray(material).tobytes())
+            # native instancing: the prototype's mesh once (object space), this proxy an instance of it; once per
+            # instance-given colour when the colour primvar is inherited from outside the prototype
+            key = (str(prim.GetPrimInPrototype().GetPath()), np.asarray(material).tobytes(),
+                   self.mats.instance_colour_source(prim, needs) if needs is not None else None)
             proto = self._proto_ids.get(key)
             if proto is None:
                 proto = self.b.add_mesh(data.points, tris, material=material, name=key[0], normals=data.normals,
@@ -205,16 +252,20 @@ class _Reader:
         self._grow(transform_points(m, data.points))
         self.info.meshes.append((str(prim.GetPath()), int(len(tris))))
 
-    def add_instancer(self, prim, frames=None, depth=0):
+    def add_instancer(self, prim, frames=None, depth=0, outer=None):
         """A PointInstancer; ``frames`` (F, 4, 4) are the world matrices of the instancer itself when it is nested
-        in another instancer's prototype (one per outer instance), else its own world matrix."""
+        in another instancer's prototype (one per outer instance), else its own world matrix; ``outer`` the
+        per-instance colour primvars of the enclosing instancers, {name: (source path, (F, 3) values)}.
+
+        Per-instance (vertex/varying) primvars give each instance its element, as Hydra and Arnold do (an
+        instancer's value wins over the prototype's own, the innermost instancer's over an outer one's): a
+        3-component primvar that a prototype's material reads as its colour (displayColor, a primvar reader,
+        Arnold's user_data_rgb) is drawn per instance, by one copy of the prototype mesh per distinct value
+        (:data:`INSTANCE_COLOUR_TRIANGLES` at most). Others are named in one warning."""
         mats, idx, protos = instance_matrices(prim, self.time)
         frames = self.xf.world(prim)[None] if frames is None else frames
-        per_instance = sorted(pv.GetPrimvarName() for pv in UsdGeom.PrimvarsAPI(prim).GetPrimvarsWithValues()
-                              if pv.GetInterpolation() in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying))
-        if per_instance:  # Hydra gives each instance its element; the tracer's instances share their prototype's
-            self.info.warn(f"{prim.GetPath()}: per-instance primvars {', '.join(per_instance)} are not read (each "
-                           "instance shows its prototype's own values)")
+        here = str(prim.GetPath())
+        own, per_instance = instance_colour_primvars(prim, self.time, len(idx))
         total = 0
         for p_index, p_path in enumerate(protos):
             sel = np.flatnonzero(idx == p_index)
@@ -223,6 +274,9 @@ class _Reader:
                 continue
             # world matrix of every (outer instance, instance) pair before the piece's own relative transform
             base = (frames[:, None] @ mats[sel][None]).reshape(-1, 4, 4)
+            # the colour primvars of every such pair (row f·S + s), the innermost instancer's winning
+            colours = {name: (src, np.repeat(vals, len(sel), axis=0)) for name, (src, vals) in (outer or {}).items()}
+            colours.update({name: (here, np.tile(vals[sel], (len(frames), 1))) for name, vals in own.items()})
             for piece in renderable_prims(self.stage, self.time, self.purposes, root=root):
                 rel = self.xf.relative(piece, root.GetParent())
                 if piece.IsA(UsdGeom.PointInstancer):
@@ -230,7 +284,7 @@ class _Reader:
                         self.info.warn(f"{piece.GetPath()}: PointInstancers nested more than "
                                        f"{MAX_INSTANCER_DEPTH} deep (a prototype cycle?) (skipped)")
                     else:
-                        total += self.add_instancer(piece, base @ rel[None], depth + 1)
+                        total += self.add_instancer(piece, base @ rel[None], depth + 1, colours)
                     continue
                 if (piece.GetTypeName() not in GPRIM_TYPES and not piece.IsA(UsdGeom.Mesh)
                         and not _is_points_or_curves(piece)):
@@ -241,7 +295,7 @@ class _Reader:
                 data = self.geometry(piece)
                 if data is None or not len(data.triangles):
                     continue
-                data, material, extra = self.shaded(piece, data)
+                data, material, extra, needs = self.shaded_with_needs(piece, data, "displayColor" in colours)
                 full = base @ rel[None]
                 usable = _usable(full)
                 if not usable.all():
@@ -252,15 +306,49 @@ class _Reader:
                     continue
                 # the piece's mesh once, in its own space; one instance per (outer instance, instance) with an
                 # object id of its own (AOV objectid, picking), ids consecutive in instance order
-                proto = self.b.add_mesh(data.points, data.triangles, material=material,
-                                        name=f"{prim.GetPath()}[{piece.GetPath()}]", normals=data.normals,
-                                        **dict(dict(uvs=data.uvs), **extra))
+                label = f"{prim.GetPath()}[{piece.GetPath()}]"
+                name = needs.color[0] if needs is not None and needs.color is not None else None
+                if name in colours and "colors" in extra:
+                    src, values = colours[name]
+                    if self._add_coloured_instances(label, data, material, extra, full, values[usable], src, name):
+                        self._instance_primvars_read.add((src, name))
+                        self._grow_instances(full, data.points)
+                        total += len(data.triangles) * len(full)
+                        continue
+                proto = self.b.add_mesh(data.points, data.triangles, material=material, name=label,
+                                        normals=data.normals, **dict(dict(uvs=data.uvs), **extra))
                 self.b.add_instances(proto, full)
                 self._grow_instances(full, data.points)
                 total += len(data.triangles) * len(full)
+        unread = sorted(set(per_instance) - {n for src, n in self._instance_primvars_read if src == here})
+        if unread:  # Hydra gives each instance its element; these reach no material as a colour here
+            self.info.warn(f"{prim.GetPath()}: per-instance primvars {', '.join(unread)} are not read (each "
+                           "instance shows its prototype's own values)")
         if depth == 0:
             self.info.meshes.append((str(prim.GetPath()), int(total)))
         return total
+
+    def _add_coloured_instances(self, label, data, material, extra, full, values, src, name) -> bool:
+        """The instances ``full`` (K, 4, 4) of one prototype piece, each coloured by its row of ``values`` (K, 3):
+        one copy of the piece's mesh per distinct colour, its vertex colour that colour. False (nothing added)
+        when the copies would pass :data:`INSTANCE_COLOUR_TRIANGLES`."""
+        values = np.asarray(values, np.float32)
+        uniq, inverse = np.unique(values, axis=0, return_inverse=True)
+        inverse = np.asarray(inverse).reshape(-1)
+        if len(uniq) * len(data.triangles) > INSTANCE_COLOUR_TRIANGLES:
+            self.info.warn(f"{src}: per-instance primvar {name} has {len(uniq)} distinct values on {label}'s "
+                           f"{len(data.triangles)} triangles: more than {INSTANCE_COLOUR_TRIANGLES} triangles of "
+                           "copies (not read; each instance shows the prototype's own value)")
+            return False
+        corners = np.asarray(extra["colors"]).shape
+        for u, colour in enumerate(uniq):
+            rows = np.flatnonzero(inverse == u)
+            kw = dict(extra, colors=np.broadcast_to(colour[: corners[-1]], corners).copy())
+            proto = self.b.add_mesh(data.points, data.triangles, material=material, name=label,
+                                    normals=data.normals, **dict(dict(uvs=data.uvs), **kw))
+            # the names an unsplit piece would give (usd_io.geometry.instancing.instancer_motion reads the index)
+            self.b.add_instances(proto, full[rows], names=[f"{label}[{i}]" for i in rows])
+        return True
 
     def _grow_instances(self, matrices, points):
         self._grow(instance_bounds(matrices, points))
@@ -444,7 +532,7 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
                height: int | None = None, purposes=DEFAULT_PURPOSES, segments: int = DEFAULT_SEGMENTS,
                default_light: bool = True, variants=(), complexity: str = DEFAULT_COMPLEXITY,
                render_settings_prim: str | None = None, light_units: str = "auto", depth_of_field: bool = True,
-               motion_blur: bool = True):
+               motion_blur: bool = True, fallback_surface: str = "auto", rendering_space: str = "rec709"):
     """Read a USD stage (a path or an open ``Usd.Stage``) into a render-ready :class:`tracer.Scene`.
 
     time      time code (None: the earliest time, i.e. default values or the first time sample)
@@ -466,6 +554,13 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
               ``disableDepthOfField`` does the same)
     motion_blur  False: nothing moves across the shutter (``--no-motion-blur``; the RenderSettings'
               ``disableMotionBlur`` does the same)
+    fallback_surface  what geometry without a material is drawn with: "auto" Arnold's default standard_surface
+              on a stage written for Arnold (usd_io.exporters.written_for_arnold), else Hydra's displayColor
+              diffuse; "arnold" or "hydra" either whatever the stage (a stage rendered by kick: Arnold's)
+    rendering_space  "rec709": the scene's colour numbers are linear Rec.709 (the tracer's space); "acescg": they
+              are ACEScg numbers, as Arnold's default colour manager takes them, and colour textures decoded from
+              sRGB are converted into ACEScg (the picture is then in ACEScg: convert it to Rec.709 for display,
+              tracer.colorspace.AP1_TO_REC709)
 
     Returns ``(scene, info)``; ``info.warnings`` lists what was skipped or approximated (each message once).
     Raises :class:`UsdInputError` (a ``ValueError``) for input the user can fix.
@@ -492,7 +587,7 @@ def load_stage(path_or_stage, time=None, camera: str | None = None, width: int |
     if complexity not in COMPLEXITY:
         raise UsdInputError(f"complexity {complexity!r}: choose from {', '.join(COMPLEXITY)}")
     try:
-        r = _Reader(stage, tc, purposes, segments, info, light_units)
+        r = _Reader(stage, tc, purposes, segments, info, light_units, fallback_surface, rendering_space)
     except ValueError as exc:  # an unknown --light-units value
         raise UsdInputError(f"{label}: {exc}") from None
     r.subdivision_level = COMPLEXITY[complexity]

@@ -1302,7 +1302,9 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, keys, depth, spawn, mats, o
             mirror = vec.scale(mirror, a)
             mirror_l = vec.scale(mirror_l, a)
             glass *= a
-            glass_r = (glass, glass, glass)
+            # the glass part reflects by Fresnel × its specular tint (a Glass BSDF's Color, as Cycles tints it), as
+            # the lobes' PRINCIPLED and GLASS slots do (tracer.shading.lobes.refraction_weights)
+            glass_r = vec.scale(vec.row(m_stint, mat), glass) if principled else (glass, glass, glass)
             glass_t = vec.scale(vec.row(m_ttint, mat), glass)
         has_glass = vec.max3(glass_r) > 0.0 or vec.max3(glass_t) > 0.0 or vec.max3(glass_t0) > 0.0
         if not has_glass and vec.max3(mirror) <= 0.0:

@@ -10,7 +10,8 @@ lowered to the tracer's closure inputs and, where one closure cannot hold it, to
    diffuse        base = Color, specular 0, roughness 1                        (slot DIFFUSE)
    glossy         base = Color, metallic 1, roughness (Anisotropic: isotropic), specular 1 for Multiscatter GGX,
                   0 for single scattering (GGX, Beckmann, Ashikhmin-Shirley)  (slot GLOSSY)
-   glass          transmission 1, tinted by Color, ior, roughness (GGX sampled)  (slot GLASS)
+   glass          transmission 1, reflection and refraction tinted by Color, ior, roughness (GGX sampled)
+                                                                                (slot GLASS)
    refraction     as glass without its reflection                               (slot REFRACTION)
    translucent    as diffuse, lit from behind                                   (slot TRANSLUCENT)
    sheen          Sheen BSDF (microfiber / Ashikhmin, tracer.shading.sheen)     (slot SHEEN)
@@ -144,6 +145,8 @@ class ClosureLowering:
             colour = vec3(self._estimate_of(node, "Color")) if isinstance(col, Out) else vec3(col)
             lb.update(base=colour, transmission=1.0, roughness=r, specular=0.5, ior=self._const_in(node, "IOR", 1.5),
                       tint=colour, normal=self._normal_in(node), colour=colour)
+            if t == "glass_bsdf":  # Cycles' Glass BSDF tints its Fresnel reflection by Color too (Refraction has none)
+                lb["specular_tint"] = colour
         elif t == "transparent_bsdf":
             lb.update(kind="transparent", through=self.inp(node, "Color"))
         elif t == "emission":

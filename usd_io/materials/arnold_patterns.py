@@ -14,9 +14,10 @@ Inputs take Arnold's defaults when unauthored; an input connected to another nod
 pattern, a MaterialX node); an output named ``r``/``g``/``b``/``a`` (or ``x``/``y``/``z``) is that lane.
 
     arnold:flat          its ``color`` (a flat shader used as a colour: Arnold's shaders are all connectable)
-    arnold:checkerboard  s = u·u_frequency + u_offset, t = v·v_frequency + v_offset (the ``uvset``'s UVs): color1
-                         where ⌊s⌋ + ⌊t⌋ is even, else color2 (as Arnold's references show: the cell at the UV
-                         origin is color1; MaterialX's checkerboard has the opposite phase);
+    arnold:checkerboard  s = 2·(u·u_frequency + u_offset), t = 2·(v·v_frequency + v_offset) (the ``uvset``'s UVs;
+                         two cells per period): color2 where ⌊s⌋ + ⌊t⌋ is even, else color1 (as Arnold's
+                         references show, test_1590 and test_0055: 2f cells per unit, color2 on the cell at the UV
+                         origin; for an even cell count the same as color1 there with v flipped);
                          ``contrast`` c moves both colours towards their mean (c = 0: the mean). Not modelled:
                          ``filter_strength``/``filter_offset`` (Arnold's anti-aliasing of the edges)
     arnold:ramp_rgb      the keys ``position``/``color`` (ramp_float: ``value``) at a coordinate by ``type``: custom
@@ -153,7 +154,11 @@ def _checkerboard(tr, view):
     f = lambda name, d: _input(tr, view, name, "float", d).x  # noqa: E731
     s = tr.math("MULTIPLY_ADD", tr.lane(uv, 0), f("u_frequency", 1.0), f("u_offset", 0.0))
     t = tr.math("MULTIPLY_ADD", tr.lane(uv, 1), f("v_frequency", 1.0), f("v_offset", 0.0))
-    odd = tr.math("FLOORED_MODULO", tr.math("ADD", tr.math("FLOOR", s), tr.math("FLOOR", t)), 2.0)
+    # two cells per period: frequency f draws 2f cells per unit of UV (arnold-usd's test_1590, frequency 4 on a
+    # 0..1 plane: 8 × 8 cells; test_0055, frequency 1: 2 × 2), color2 on the cell at the UV origin (both references)
+    s, t = tr.math("MULTIPLY", s, 2.0), tr.math("MULTIPLY", t, 2.0)
+    odd = tr.math("FLOORED_MODULO", tr.math("ADD", tr.math("ADD", tr.math("FLOOR", s), tr.math("FLOOR", t)), 1.0),
+                  2.0)
     c1 = _input(tr, view, "color1", "color3", (1.0, 1.0, 1.0))
     c2 = _input(tr, view, "color2", "color3", (0.0, 0.0, 0.0))
     contrast = _input(tr, view, "contrast", "float", 1.0)

@@ -29,9 +29,11 @@ from __future__ import annotations
 import os
 
 import numpy as np
-from pxr import Gf, Sdf, Tf, UsdGeom
+from pxr import Gf, Sdf, Tf
 
 from tracer import colorspace
+
+from ..layer_metadata import meters_per_unit as stage_meters_per_unit
 
 #: MaterialX type -> Sdf value type.
 TYPES = {"float": Sdf.ValueTypeNames.Float, "integer": Sdf.ValueTypeNames.Int, "boolean": Sdf.ValueTypeNames.Bool,
@@ -383,7 +385,7 @@ def resolve_mtlx_references(stage) -> int:
         layer.Traverse(Sdf.Path.absoluteRootPath,
                        lambda p, layer=layer: specs.append((layer, p)) if p.IsPrimPath() or p.IsPrimVariantSelectionPath() else None)
     changed = 0
-    mpu = UsdGeom.GetStageMetersPerUnit(stage)  # MaterialX's "scene unit" for distances
+    mpu = stage_meters_per_unit(stage, lambda _msg: None)  # MaterialX's "scene unit"; the reader warns of a bad one
     with Sdf.ChangeBlock():
         for layer, p in specs:
             spec = layer.GetPrimAtPath(p)

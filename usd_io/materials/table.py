@@ -104,6 +104,20 @@ class UVLookup:
         return node, uv
 
 
+@dataclass
+class PrimvarColour:
+    """A lookup (tracer.shading.principled) of the mesh's colour primvar ``name`` (its vertex colour, Scene.colors):
+    what a primvar reader or Arnold's user_data_rgb upstream of a colour input other than the base colour (an
+    arnold:flat's color, an emission) reads."""
+
+    name: str
+
+    def write(self, g, memo: dict):
+        col = g.add("vertex_color", layer_name=self.name)
+        rgb = g.add("separate_color", {"Color": col["Color"]})
+        return dict(rgb=col["Color"], r=rgb["Red"], g=rgb["Green"], b=rgb["Blue"], a=col["Alpha"]), None
+
+
 def ior_from_f0(f0: float) -> float:
     """The inverse of :func:`f0_from_ior`."""
     r = float(np.sqrt(np.clip(f0, 0.0, 0.999)))
@@ -156,10 +170,11 @@ class MaterialTable:
                 return mat
         return None
 
-    def for_prim(self, prim, n_faces: int, faces: np.ndarray):
+    def for_prim(self, prim, n_faces: int, faces: np.ndarray, display_color_given: bool = False):
         """(per-triangle material rows or one row, MeshNeeds) for a gprim whose triangles come from ``faces``.
         GeomSubset bindings win on their faces; the prim's own binding (or displayColor) covers the rest and is
-        not created at all when the subsets cover every face."""
+        not created at all when the subsets cover every face. ``display_color_given``: a PointInstancer gives the
+        prim a displayColor per instance (unbound, it reads one even without its own)."""
         per_face = np.full(n_faces, -1, np.int64)
         needs = MeshNeeds()
         label = str(prim.GetPath())
@@ -180,7 +195,7 @@ class MaterialTable:
         if mat is not None:
             row, pneeds = self.material(mat)
         else:
-            row, pneeds = self.display_color(prim)
+            row, pneeds = self.display_color(prim, display_color_given)
         needs.merge(pneeds, self.warn, label)
         if not np.any(per_face >= 0):
             return row, needs
@@ -191,7 +206,8 @@ class MaterialTable:
         """(per-triangle material rows, add_mesh keywords: UV sets and vertex colours) for one mesh."""
         key = None
         if prim.IsInstanceProxy():  # instances share their prototype's primvars: expand them once
-            key = (str(prim.GetPrimInPrototype().GetPath()), id(data), frozenset(needs.uv_sets), needs.color)
+            key = (str(prim.GetPrimInPrototype().GetPath()), id(data), frozenset(needs.uv_sets), needs.color,
+                   self.instance_colour_source(prim, needs))
         if key is not None and key in self._primvar_cache:
             uv_sets, colors = self._primvar_cache[key]
         else:
@@ -207,6 +223,19 @@ class MaterialTable:
             kw["colors"] = colors
         return rows, kw
 
+    @staticmethod
+    def instance_colour_source(prim, needs: MeshNeeds):
+        """For an instance proxy: the path of the prim outside its prototype that gives it its colour primvar (a
+        constant primvar inherited from the instanceable prim or above it: each native instance its own value, as
+        Hydra and Arnold read it), else None (the prototype's own value, shared by every instance)."""
+        if needs.color is None or not prim.IsInstanceProxy():
+            return None
+        pv = find_primvar(prim, needs.color[0])
+        if pv is None:
+            return None
+        owner = pv.GetAttr().GetPrim()
+        return str(owner.GetPath()) if not owner.IsInstanceProxy() else None
+
     def uv_set_index(self, name: str | None) -> int:
         """Index in Scene.uv_sets of a texture's UV primvar (None and "st" read the mesh's default set 0)."""
         key = DEFAULT_UV if name in (None, "", "st") else name
@@ -215,7 +244,7 @@ class MaterialTable:
         return self.uv_set_names.index(key)
 
     # ------------------------------------------------------------------ displayColor
-    def display_color(self, prim):
+    def display_color(self, prim, given: bool = False):
         """Unbound geometry: displayColor as a vertex colour (any interpolation), on a plain diffuse surface; on a
         stage written for Arnold, Arnold's fallback standard_surface (usd_io.materials.arnold.DEFAULT_SURFACE)."""
         if self._arnold_stage is None:  # asked once per table (one stage)
@@ -223,7 +252,7 @@ class MaterialTable:
         if self._arnold_stage:
             return self._arnold_default(), MeshNeeds(color=("displayColor", (1.0, 1.0, 1.0)))
         pv = find_primvar(prim, "displayColor")  # inherited from ancestors as UsdGeomPrimvarsAPI says
-        if pv is None:
+        if pv is None and not given:
             return self._plain("displayColor(none)", DEFAULT_DISPLAY), MeshNeeds()
         op = UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayOpacity")
         if op and op.HasValue():
@@ -430,6 +459,12 @@ class MaterialTable:
                 return
             c = const[src.channel] if src.channel >= 0 else None
             setattr(t, key, (c, c, c) if c is not None else tuple(const[:3]))
+            return
+        if isinstance(src, net.PrimvarLookup) and (needs.color is None or needs.color[0] == src.name):
+            # the mesh's vertex colour (one colour primvar per mesh: MeshNeeds), its fallback where it has none
+            needs.color = (src.name, net.floats(src.fallback, 3, default) if src.fallback is not None else default)
+            setattr(t, key, (1.0, 1.0, 1.0))
+            t.read(key, PrimvarColour(src.name), -1)
             return
         fb = self._fallback_of(src, default)
         self.warn(f"{label}: {name} driven by {self._what(src)} is not supported (fallback {fb} used)")

@@ -9,7 +9,8 @@ UDIM. ``<UDIM>`` in a path names tiles 1001, 1002, …: tile ``1001 + u + 10·v`
 atlas image, ``U`` tiles wide and ``V`` high (every tile resampled to the first tile's size; a missing tile is the
 lookup's fallback colour), and the lookup's uv transform is followed by ``(s/U, t/V)``, so a texel is read where
 the tile set puts it. Wrap is clamp (UDIM tiles do not repeat). Filtering across a tile seam blends the
-neighbouring tile's edge texel — the same as the tiles' own renderers without padding.
+neighbouring tile's edge texel — the same as the tiles' own renderers without padding. The atlas itself is
+:func:`tracer.shading.udim.udim_atlas`, shared with the Blender add-on's tiled images.
 """
 
 from __future__ import annotations
@@ -19,9 +20,9 @@ import os
 import numpy as np
 from pxr import Sdf, UsdShade
 
-from .texture_files import TextureFile
+from tracer.shading.udim import is_udim_tile, udim_atlas
 
-MAX_TILES = 100  # UDIM's range: 1001..1100 (10 × 10)
+from .texture_files import TextureFile
 
 
 def authoring_layer(attr, time=None):
@@ -56,30 +57,7 @@ def udim_tiles(asset: Sdf.AssetPath, layer) -> list[tuple[str, int]]:
         found = UsdShade.UdimUtils.ResolveUdimTilePaths(path, layer)
     except Exception:  # noqa: BLE001
         found = []
-    return [(str(p), int(t)) for p, t in found if 1001 <= int(t) < 1001 + MAX_TILES]
-
-
-def udim_atlas(tiles: list[tuple[str, int]], read, fallback) -> tuple[np.ndarray, np.ndarray, list]:
-    """(atlas pixels (V·H, U·W, 4), the (3, 3) uv matrix (s/U, t/V), notes) from ``tiles``; ``read(path)``
-    decodes one file (a TextureFile). Row 0 of every image is its top: tile v = 0 goes to the atlas's bottom rows."""
-    notes = []
-    index = np.array([t - 1001 for _p, t in tiles])
-    us, vs = index % 10, index // 10
-    n_u, n_v = int(us.max()) + 1, int(vs.max()) + 1
-    images = [read(p).pixels for p, _t in tiles]
-    h, w = images[0].shape[:2]
-    atlas = np.empty((n_v * h, n_u * w, 4), np.float32)
-    atlas[:] = np.asarray(tuple(fallback)[:4], np.float32)
-    for img, u, v in zip(images, us, vs):
-        if img.shape[:2] != (h, w):
-            notes.append(f"tile {1001 + u + 10 * v} is {img.shape[1]}x{img.shape[0]}, not {w}x{h}: resampled")
-            yi = (np.arange(h) * img.shape[0] // h)[:, None]
-            xi = (np.arange(w) * img.shape[1] // w)[None, :]
-            img = img[yi, xi]
-        row = (n_v - 1 - v) * h
-        atlas[row:row + h, u * w:(u + 1) * w] = img
-    m = np.diag([1.0 / n_u, 1.0 / n_v, 1.0])
-    return atlas, m, notes
+    return [(str(p), int(t)) for p, t in found if is_udim_tile(t)]
 
 
 def open_texture(lk, colorspace: str, files, warn, label: str, name: str):
@@ -95,7 +73,8 @@ def open_texture(lk, colorspace: str, files, warn, label: str, name: str):
                 cache[key] = None
             else:
                 try:
-                    atlas, m, notes = udim_atlas(tiles, lambda p: files.get(p, colorspace, p), lk.fallback)
+                    atlas, m, notes = udim_atlas([(t, files.get(p, colorspace, p).pixels) for p, t in tiles],
+                                                  lk.fallback)
                 except ValueError as exc:
                     warn(f"{label}: {exc}; {name} uses the fallback {lk.fallback}")
                     cache[key] = False

@@ -91,16 +91,25 @@ def resolve_wrap(token: str, meta: str, label: str, warn) -> str:
 
 class TextureCache:
     """Decoded files by (resolved path, colour space), so a file read by several nodes is decoded once and its
-    pixels are one array."""
+    pixels are one array. ``working``: None (the tracer's linear Rec.709), or a 3 × 3 matrix from linear Rec.709
+    into the space the scene's colour numbers are in, applied to the colour textures decoded from sRGB (raw and
+    linear data stay as they are): load_stage(rendering_space="acescg") reads a stage in Arnold's ACEScg, where a
+    colour texture is converted into the rendering space and a constant is taken as it is."""
 
-    def __init__(self):
+    def __init__(self, working: np.ndarray | None = None):
         self._files: dict = {}
+        self.working = None if working is None else np.asarray(working, np.float32)
 
     def get(self, resolved: str, colorspace: str, label: str) -> TextureFile:
         key = (resolved, colorspace)
         if key not in self._files:
             try:
-                self._files[key] = read_texture_file(resolved, colorspace, label)
+                got = read_texture_file(resolved, colorspace, label)
+                if self.working is not None and got.srgb:
+                    px = np.array(got.pixels, np.float32)
+                    px[..., :3] = px[..., :3] @ self.working.T
+                    got = TextureFile(np.ascontiguousarray(px), got.wrap_meta, got.srgb, got.label)
+                self._files[key] = got
             except ValueError as exc:
                 self._files[key] = exc
         hit = self._files[key]
