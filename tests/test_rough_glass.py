@@ -182,3 +182,13 @@ def test_a_rough_glass_sphere_matches_cycles(bpy_module, tmp_path):
     print(f"rough glass vs Cycles: {after:.1f} dB (rendered smooth: {before:.1f} dB)")
     assert before < 25.0, before
     H.check_images({"name": "rough_glass_checker"}, ours, ref, tmp_path, min_psnr=35.0, max_mae=0.015)
+
+
+def test_glass_is_rough_only_where_a_roughness_is_given():
+    """The materials API: a roughness given makes the glass part rough (``rough_glass`` 1); one derived from the
+    classic exponent (the seed's scenes: ``transmission=1`` alone) keeps it smooth, as before."""
+    from tracer.shading.materials import Materials
+
+    m = Materials.from_list([dict(transmission=1.0), dict(transmission=1.0, roughness=0.3),
+                             dict(transmission=1.0, roughness=0.3, rough_glass=0.0)])
+    np.testing.assert_array_equal(m.rough_glass, [0.0, 1.0, 0.0])

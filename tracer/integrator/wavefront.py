@@ -139,6 +139,7 @@ class MaterialArrays(NamedTuple):
     alpha: np.ndarray
     alpha_threshold: np.ndarray
     normal_strength: np.ndarray
+    rough_glass: np.ndarray
     vertex_color: np.ndarray
     base_color_texture: np.ndarray
     roughness_texture: np.ndarray
@@ -1289,7 +1290,7 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, keys, depth, spawn, mats, o
                 glass = (1.0 - k_m) * (1.0 - float(s_metal[i])) * w_t
                 if glass > 0.0:
                     glass_l = bsdf.lamp_share_of(float(s_rough[i]))
-                    g_rough = min(max(float(s_rough[i]), 0.0), 1.0)
+                    g_rough = min(max(float(s_rough[i]), 0.0), 1.0) * float(mats.rough_glass[mat])
                 mirror = vec.madd(mirror, vec.row(s_mirror, i), 1.0 - k_m)
                 mirror_l = vec.madd(mirror_l, vec.row(s_mlamp, i), 1.0 - k_m)
             else:  # classic: a smooth metal (Principled input) mirrors its base colour, as the notes' k_m·tint
@@ -1327,8 +1328,9 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, keys, depth, spawn, mats, o
             if tir:
                 n_tir += 1
             # energy compensation (Multiscatter GGX): the interface's weights over its albedo E(μ, r, η)
-            comp = 1.0 / max(bsdf.glass_albedo(g_rough, -vec.dot(di, n), eta_r / eta_i), 0.05)
-            g_r, g_t = g_r * comp, g_t * comp
+            if fresnel:  # (the notes' weights, F = 0 but under TIR, are no such interface: left as they are)
+                comp = 1.0 / max(bsdf.glass_albedo(g_rough, -vec.dot(di, n), eta_r / eta_i), 0.05)
+                g_r, g_t = g_r * comp, g_t * comp
             w_tran = vec.mul(w, vec.madd(vec.scale(glass_t, (1.0 - fr) * g_t), glass_t0, g_t))
             if vec.max3(w_tran) > min_weight:
                 j = n_rays + n_tran

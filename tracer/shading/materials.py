@@ -17,6 +17,9 @@ Columns (N = number of materials):
 - ``specular_color`` (N, 3) R_s of the classic model (derived as F0·2·specular·tint when not given)
 - ``roughness``      (N,) Principled roughness r (GGX α = r²)
 - ``exponent``       (N,) the Blinn-Phong e of the classic model (derived from roughness when not given)
+- ``rough_glass``    (N,) 1: the glass part (transmission) is rough by ``roughness`` ("principled" shading: one
+  sampled GGX microfacet normal per ray, tracer.optics.rough_dielectric); 0: smooth. Default: 1 where
+  ``roughness`` is given, 0 where it is derived from ``exponent`` (the seed's glass stays smooth)
 - ``metallic``       (N,) metal weight: a GGX lobe with the base colour as F0 (F82-tint Fresnel)
 - ``k_m``            the notes' mirror weight: (1 − k_m)·c + k_m·mirror_tint·RayColor(reflected)
 - ``mirror_tint``    colour the k_m reflected RayColor is multiplied by
@@ -108,7 +111,7 @@ def _scalar_column(values, n, name, dtype=np.float32):
 
 _RGB = ("diffuse", "specular_color", "specular_tint", "mirror_tint", "transmission_tint", "emission")
 _FLOAT = ("specular", "roughness", "exponent", "metallic", "k_m", "transmission", "ior", "alpha", "alpha_threshold",
-          "normal_strength")
+          "normal_strength", "rough_glass")
 _INT = tuple(f"{p}_texture" for p in TEXTURE_PARAMS if p != "base_color") + ("diffuse_texture",) + \
     tuple(f"{p}_channel" for p in TEXTURE_PARAMS)
 
@@ -149,6 +152,7 @@ class Materials:
     alpha_channel: np.ndarray | None = None
     emission_channel: np.ndarray | None = None
     normal_channel: np.ndarray | None = None
+    rough_glass: np.ndarray | None = None
     #: per row: None, or the material's graph (:class:`tracer.shading.compiler.BoundGraph`) when something in it
     #: varies per hit; the kernels run it compiled (tracer.shading.vm), the columns hold its constants
     programs: list | None = None
@@ -171,6 +175,8 @@ class Materials:
     def _fill_defaults(self) -> None:
         """Columns left None take their defaults, derived from the classic columns where the meaning overlaps."""
         n = len(self)
+        if self.rough_glass is None:  # a given roughness makes the glass rough; one derived from e does not
+            self.rough_glass = np.full(n, 0.0 if self.roughness is None else 1.0, np.float32)
         if self.roughness is None:
             self.roughness = exponent_to_roughness(self.exponent)
         if self.specular_tint is None:
@@ -240,7 +246,8 @@ class Materials:
                     tint = np.broadcast_to(rs, (3,)) / mx
             elif "specular_color" not in row:  # the classic rendition of a Principled row
                 merged["specular_color"] = tuple(float(f0_from_ior(ior)) * 2.0 * float(level) * tint)
-            opt = dict(_OPTIONAL, roughness=rough, specular=level, specular_tint=tuple(tint))
+            opt = dict(_OPTIONAL, roughness=rough, specular=level, specular_tint=tuple(tint),
+                       rough_glass=0.0 if row.get("roughness") is None else 1.0)
             opt.update({k: v for k, v in row.items() if k in _OPTIONAL and k not in ("roughness", "specular",
                                                                                       "specular_tint")})
             for k in DEFAULT_MATERIAL:
@@ -350,6 +357,7 @@ _OPTIONAL = {
     "alpha": 1.0,
     "alpha_threshold": 0.0,
     "normal_strength": 1.0,
+    "rough_glass": 0.0,
     "vertex_color": False,
     **{f"{p}_texture": -1 for p in TEXTURE_PARAMS if p != "base_color"},
     **{f"{p}_channel": -1 for p in TEXTURE_PARAMS},
