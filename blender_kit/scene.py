@@ -209,6 +209,28 @@ def principled_material(name: str = "Material", **inputs):
     return mat
 
 
+def shader_material(name: str, node_type: str, **inputs):
+    """A node material whose surface is one shader node of ``node_type`` (e.g. "ShaderNodeBsdfGlass") with the
+    given inputs by socket name (RGB triples get alpha 1); returns (material, node)."""
+    import bpy
+
+    mat = bpy.data.materials.new(name)
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True
+    nt = mat.node_tree
+    for n in list(nt.nodes):
+        if n.type != "OUTPUT_MATERIAL":
+            nt.nodes.remove(n)
+    node = nt.nodes.new(node_type)
+    for key, value in inputs.items():
+        sock = node.inputs[key]
+        if isinstance(value, (tuple, list)) and len(value) == 3 and len(sock.default_value) == 4:
+            value = tuple(value) + (1.0,)
+        sock.default_value = value
+    nt.links.new(node.outputs[0], next(n for n in nt.nodes if n.type == "OUTPUT_MATERIAL").inputs["Surface"])
+    return mat, node
+
+
 def principled_node(material):
     """The material's Principled BSDF node."""
     for node in material.node_tree.nodes:

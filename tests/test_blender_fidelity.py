@@ -745,16 +745,8 @@ def glossy_furnace_scene(distribution: str, roughness: float = 1.0, size=(16, 16
     scene = bs.reset(size)
     bs.add_camera((0.0, 0.0, 5.0), target=(0.0, 0.0, 0.0), ortho_scale=1.0)
     bs.set_world((1.0, 1.0, 1.0))
-    mat = bpy.data.materials.new("Glossy")
-    nt = mat.node_tree
-    for n in list(nt.nodes):
-        if n.type != "OUTPUT_MATERIAL":
-            nt.nodes.remove(n)
-    g = nt.nodes.new("ShaderNodeBsdfGlossy")
+    mat, g = bs.shader_material("Glossy", "ShaderNodeBsdfGlossy", Color=(1.0, 1.0, 1.0), Roughness=roughness)
     g.distribution = distribution
-    g.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-    g.inputs["Roughness"].default_value = roughness
-    nt.links.new(g.outputs[0], next(n for n in nt.nodes if n.type == "OUTPUT_MATERIAL").inputs["Surface"])
     bs.add_plane((0.0, 0.0, 0.0), 40.0, material=mat)
     bpy.context.view_layer.update()
     return scene
@@ -846,16 +838,8 @@ def test_a_coloured_glass_bsdf_tints_its_reflection_too():
     import bpy
 
     bs.reset((48, 48))
-    mat = bpy.data.materials.new("Red glass")
-    nt = mat.node_tree
-    for n in list(nt.nodes):
-        if n.type != "OUTPUT_MATERIAL":
-            nt.nodes.remove(n)
-    glass = nt.nodes.new("ShaderNodeBsdfGlass")
-    glass.inputs["Color"].default_value = (1.0, 0.1, 0.1, 1.0)
-    glass.inputs["Roughness"].default_value = 0.0
-    glass.inputs["IOR"].default_value = 1.45
-    nt.links.new(glass.outputs[0], next(n for n in nt.nodes if n.type == "OUTPUT_MATERIAL").inputs["Surface"])
+    mat, _glass = bs.shader_material("Red glass", "ShaderNodeBsdfGlass", Color=(1.0, 0.1, 0.1), Roughness=0.0,
+                                     IOR=1.45)
     bs.add_uv_sphere((0, 0, 0), 1.0, segments=64, rings=32, material=mat)
     bs.set_world((0.2, 0.6, 0.2), 1.0)
     bs.add_camera((0, -4, 0), (0, 0, 0), lens=50)

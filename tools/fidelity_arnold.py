@@ -54,7 +54,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from fidelity_mtlx import delta_e2000, srgb_linear_to_lab  # noqa: E402
+from fidelity_mtlx import delta_e2000, read_rgba, srgb_linear_to_lab  # noqa: E402
 
 USD_EXT = (".usd", ".usda", ".usdc", ".usdz")
 TARGET_DB = 25.0
@@ -137,21 +137,6 @@ def find_camera(stage, wanted: str | None):
         if first is None and prim.IsA(UsdGeom.Camera):
             first = str(prim.GetPath())
     return first
-
-
-def read_rgba(path: str) -> np.ndarray:
-    import OpenImageIO as oiio
-
-    buf = oiio.ImageBuf(path)
-    if buf.spec().deep:  # a deep EXR (test_1306): its samples composited front to back
-        buf = oiio.ImageBufAlgo.flatten(buf)
-    px = buf.get_pixels(oiio.FLOAT)
-    if px is None or px.size == 0:
-        raise ValueError(f"{path}: unreadable ({oiio.geterror()})")
-    px = np.asarray(px, np.float32)
-    if px.shape[2] == 3:
-        px = np.concatenate([px, np.ones(px.shape[:2] + (1,), np.float32)], axis=2)
-    return px[..., :4]
 
 
 #: Colour spaces of Arnold's OCIO config (and raw names) that are linear: an integer output in one of them holds

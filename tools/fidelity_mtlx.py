@@ -585,16 +585,20 @@ def compare(ref_rgba: np.ndarray, ours_rgba: np.ndarray) -> dict:
 
 
 def read_rgba(path: str) -> np.ndarray:
+    """An image as (H, W, 4) float32 values as stored (no colour conversion); RGB gets alpha 1, a deep EXR
+    (arnold-usd's test_1306) its samples composited front to back."""
     import OpenImageIO as oiio
 
     buf = oiio.ImageBuf(path)
+    if buf.spec().deep:
+        buf = oiio.ImageBufAlgo.flatten(buf)
     px = buf.get_pixels(oiio.FLOAT)
     if px is None or px.size == 0:
-        raise ValueError(f"{path}: unreadable")
+        raise ValueError(f"{path}: unreadable ({oiio.geterror()})")
     px = np.asarray(px, np.float32)
     if px.shape[2] == 3:
         px = np.concatenate([px, np.ones(px.shape[:2] + (1,), np.float32)], axis=2)
-    return px
+    return px[..., :4]
 
 
 def render_ours(stage_path: str, size: int, aa: int):
