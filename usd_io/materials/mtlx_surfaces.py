@@ -285,6 +285,17 @@ def _sheen(t, inp: Inputs, weight: str, colour: str, rough: str, rough_default: 
              sheen_roughness=float(np.clip(inp.f(rough, rough_default), 0.0, 1.0)))
 
 
+def _coat(t: PrincipledSurface, inp: Inputs, weight: float, roughness: tuple, ior: tuple, normal: str) -> None:
+    """A coat of ``weight`` > 0 as a dielectric layer over the surface (``roughness``, ``ior``: (input name,
+    its default)), the tint under it white (:func:`white_tint_under_coat`); its own normal input is warned."""
+    if weight <= 0:
+        return
+    t.layers = [dict(kind="dielectric", weight=weight, roughness=inp.f(*roughness), ior=inp.f(*ior) or ior[1])]
+    white_tint_under_coat(t)
+    if inp.differs(normal):
+        inp.warn(f"input {normal} is not rendered (the coat uses the surface's normal)")
+
+
 def white_tint_under_coat(t: PrincipledSurface) -> None:
     """A coat's lobe shares the material's specular tint (the tracer's lobes have one tint and one IOR per
     material), and a coat reflects white: under a coat the tint is white, a dielectric base's tint kept as its
@@ -370,12 +381,7 @@ def standard_surface(inp: Inputs) -> PrincipledSurface:
     _opacity(t, inp, "opacity")
     inp.table._normal_input(t, net.source(inp.s, "normal", None, inp.time), inp.label, "normal", inp.needs,
                             (0.0, 0.0, 0.0))
-    if coat > 0:
-        t.layers = [dict(kind="dielectric", weight=coat, roughness=inp.f("coat_roughness", 0.1),
-                            ior=inp.f("coat_IOR", 1.5) or 1.5)]
-        white_tint_under_coat(t)
-        if inp.differs("coat_normal"):
-            inp.warn("input coat_normal is not rendered (the coat uses the surface's normal)")
+    _coat(t, inp, coat, ("coat_roughness", 0.1), ("coat_IOR", 1.5), "coat_normal")
     _sheen(t, inp, "sheen", "sheen_color", "sheen_roughness", 0.3)
     inp.dropped(["thin_film_thickness"], "is not rendered (no thin-film interference)")
     inp.dropped(["specular_anisotropy", "coat_anisotropy"], "is rendered isotropic")
@@ -471,12 +477,7 @@ def open_pbr_surface(inp: Inputs) -> PrincipledSurface:
     _opacity(t, inp, "geometry_opacity", scalar=True)
     inp.table._normal_input(t, net.source(inp.s, "geometry_normal", None, inp.time), inp.label, "geometry_normal",
                             inp.needs, (0.0, 0.0, 0.0))
-    if coat > 0:
-        t.layers = [dict(kind="dielectric", weight=coat, roughness=inp.f("coat_roughness", 0.0),
-                            ior=inp.f("coat_ior", 1.6) or 1.6)]
-        white_tint_under_coat(t)
-        if inp.differs("geometry_coat_normal"):
-            inp.warn("input geometry_coat_normal is not rendered (the coat uses the surface's normal)")
+    _coat(t, inp, coat, ("coat_roughness", 0.0), ("coat_ior", 1.6), "geometry_coat_normal")
     _sheen(t, inp, "fuzz_weight", "fuzz_color", "fuzz_roughness", 0.5)
     inp.dropped(["thin_film_weight"], "is not rendered (no thin-film interference)")
     inp.dropped(["specular_roughness_anisotropy", "coat_roughness_anisotropy"], "is rendered isotropic")
