@@ -188,6 +188,69 @@ def rough_dielectric(d, n, ng, alpha, eta_i, eta_r, u1, u2, fresnel):
     return m, r, g_r, t, g_t, fr, tir
 
 
+@kernel(inline=True)
+def ggx_d(alpha2, cos_m):
+    """The isotropic GGX distribution of microfacet normals at cos θ_m to the macro normal: α²/(π(cos²θ_m(α² − 1)
+    + 1)²) (per steradian of m, projected area normalised: ∫D(m)(m·n)dω_m = 1)."""
+    if cos_m <= 0.0:
+        return 0.0
+    c2 = cos_m * cos_m
+    k = c2 * (alpha2 - 1.0) + 1.0
+    return alpha2 / (math.pi * k * k)
+
+
+@kernel(inline=True)
+def rough_dielectric_eval(d, o, n, ng, alpha, eta_i, eta_r, fresnel):
+    """The rough dielectric interface of :func:`rough_dielectric` evaluated for a given outgoing direction o (unit; a
+    light sample): (side, value, F) with side 1 where o is reflected (o·n > 0 and o·ng > 0), −1 where it is
+    refracted (o·n < 0 and o·ng < 0), 0 otherwise (value 0). ``value`` is the BSDF × |o·n| without its Fresnel
+    split: reflection D(m)·G2(wi, o)/(4|wi·n|) (m = the half vector), refraction
+    D(m)·G2·η_r²·|wi·m||o·m|/(|wi·n|·(η_i(wi·m) + η_r(o·m))²) (m = −(η_i·wi + η_r·o), towards n); F is the
+    Fresnel reflectance at wi·m. A light of irradiance E adds F·value·E (reflection) or (1 − F)·value·E
+    (refraction): the same BSDF whose samples :func:`rough_dielectric` weights F·G2/G1 and (1 − F)·G2/G1, so that a
+    light seen by light samples and one seen by the sampled rays have one expected value. ``fresnel`` False: F = 0
+    (a refraction exists only without total internal reflection about m, where F = 1)."""
+    wi = vec.scale(d, -1.0)
+    cos_i = vec.dot(wi, n)
+    o_n = vec.dot(o, n)
+    o_g = vec.dot(o, ng)
+    if cos_i <= 0.0:
+        return 0, 0.0, 0.0
+    alpha2 = alpha * alpha
+    if o_n > 0.0 and o_g > 0.0:
+        h = vec.add(wi, o)
+        lh = vec.length(h)
+        if lh <= 1e-12:
+            return 0, 0.0, 0.0
+        m = vec.scale(h, 1.0 / lh)
+        cos_im = vec.dot(wi, m)
+        if cos_im <= 0.0:
+            return 0, 0.0, 0.0
+        g2 = 1.0 / (1.0 + ggx_lambda(alpha2, cos_i) + ggx_lambda(alpha2, o_n))
+        fr = fresnel_dielectric_1(cos_im, eta_i, eta_r) if fresnel else 0.0
+        return 1, ggx_d(alpha2, vec.dot(m, n)) * g2 / (4.0 * cos_i), fr
+    if o_n < 0.0 and o_g < 0.0:
+        h = vec.scale(vec.add(vec.scale(wi, eta_i), vec.scale(o, eta_r)), -1.0)
+        lh = vec.length(h)
+        if lh <= 1e-12:
+            return 0, 0.0, 0.0
+        m = vec.scale(h, 1.0 / lh)
+        if vec.dot(m, n) < 0.0:
+            m = vec.scale(m, -1.0)
+        cos_im = vec.dot(wi, m)
+        cos_om = vec.dot(o, m)
+        if cos_im <= 0.0 or cos_om >= 0.0:
+            return 0, 0.0, 0.0
+        den = eta_i * cos_im + eta_r * cos_om
+        if den * den <= 1e-20:
+            return 0, 0.0, 0.0
+        g2 = 1.0 / (1.0 + ggx_lambda(alpha2, cos_i) + ggx_lambda(alpha2, o_n))
+        fr = fresnel_dielectric_1(cos_im, eta_i, eta_r) if fresnel else 0.0
+        value = ggx_d(alpha2, vec.dot(m, n)) * g2 * eta_r * eta_r * cos_im * (-cos_om) / (cos_i * den * den)
+        return -1, value, fr
+    return 0, 0.0, 0.0
+
+
 # ---------------------------------------------------------------------- array forms
 @kernel
 def _reflect_rows(d, n, out):

@@ -43,7 +43,7 @@ from ..geometry.motion import frames_at_time, pack_motion
 from ..geometry.surface import color_at, corner_normals, geometry_of, shading_frame
 from ..jit import kernel
 from ..lights import linking, sky
-from ..lights.emitters import MESH, lamp_hit, pack_lights, sample_light
+from ..lights.emitters import DISTANT, MESH, POINT, SPOT, lamp_hit, pack_lights, sample_light
 from ..lights.environment import env_radiance, pack_environment
 from ..sampling import rotated_multijitter, uniform1, uniform2_1
 from ..scene import Scene
@@ -69,6 +69,10 @@ _STREAM_LIGHT = 1  # + depth
 _STREAM_SKY = 40  # + depth
 _STREAM_GLASS = 200  # + depth: the microfacet normal of rough glass (uniform2_1)
 _STREAM_GLASS_PICK = 1000  # + depth: mirror or rough glass for the one reflected ray (uniform1)
+#: What the spawn stage writes per rough-glass hit for its light samples (:func:`_glass_light`): α, η_i, η_r, the
+#: energy compensation 1/E, the light samples' share of the lamps, the reflected tint (3), the refracted tint (3,
+#: × (1 − F)) and the Refraction BSDF's tint (3, no Fresnel).
+GLASS_COLUMNS = 14
 
 # What made a ray, for the lamps it sees (the columns of tracer.lights.linking.Links.seen).
 RAY_CAMERA, RAY_GLOSSY, RAY_TRANSMISSION = 0, 1, 2
@@ -415,6 +419,7 @@ class Integrator:
         #: light and shadow linking, ray visibility (tracer.lights.linking); inactive tables when the scene has none
         self.links = linking.pack(scene, len(self.lights.kind), self.lights.emitter_object)
         self.light_samples = int(np.sum(self.lights.side ** 2))  # shadow rays per shading point, at most
+        self.lights_lamps = bool(np.any(self.lights.kind != MESH))  # lights that rough glass samples (_glass_light)
         self.env = pack_environment(scene.environment)
         ambient = scene.ambient
         if scene.environment is not None and not np.any(ambient > 0):
@@ -503,8 +508,24 @@ class Integrator:
             n_shadow = _sky(surf, d, sample, weight, keys, depth, spawn, self.materials, self.env, self.options,
                             out, shadow, n_shadow, counts)
         nxt = NextQueue.empty(n, spawn)
+        held = self._held()
+        glass = held.get("glass")
+        if glass is None or len(glass) < n:
+            glass = held["glass"] = np.zeros((n, GLASS_COLUMNS), np.float64)
+        glass = glass[:n]
+        glass[:, 0] = 0.0
         n_refl, n_tran, n_through = _spawn_secondary(surf, d, t, t0, sample, weight, keys, depth, spawn,
-                                                     self.materials, self.options, nxt, counts)
+                                                     self.materials, self.options, nxt, counts, glass,
+                                                     int(self.settings.samples))
+        if self.light_samples and self.lights_lamps:  # rough glass: its light samples of the lamps
+            rows = np.flatnonzero(glass[:, 0] > 0.0)
+            if len(rows):
+                q = ShadowQueue.empty(len(rows) * self.light_samples)
+                k = _glass_light(rows, surf, d, sample, weight, keys, depth, glass, self.lights, self.links.seen,
+                                 self.links.recv_set, recv, self.options, out, q, counts)
+                if k:
+                    shadow = ShadowQueue(*(np.concatenate((a[:n_shadow], b[:k])) for a, b in zip(shadow, q)))
+                    n_shadow += k
         feats = None
         if feature is not None and gd is not None and np.any(feature[:, 3] > 0):  # the denoising guides
             carry = np.empty((n, 3), np.float32)
@@ -1212,8 +1233,26 @@ def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shado
     return n_shadow
 
 
+@kernel(inline=True)
+def _glass_random(key, depth, side, seed):
+    """The (u1, u2) of a rough-glass hit's microfacet normal. At the first hit (depth 0) a pixel's side² eye samples
+    (key = pixel·side² + sample, :func:`tracer.integrator.tiles.pixel_sample`) take the side² points of one
+    multi-jittered pattern turned per pixel (:func:`tracer.sampling.rotated_multijitter`), in an order decorrelated
+    from their film strata and lens cells: they meet nearly one point of the glass from nearly one direction, and
+    stratified microfacet normals spread their rays over the lobe evenly (each point stays uniform: unbiased).
+    Deeper hits, where the samples' paths have parted, take the sample's own random pair."""
+    nn = side * side
+    if depth > 0 or nn <= 1:
+        return uniform2_1(key, _STREAM_GLASS + depth, seed)
+    r0, r1 = uniform2_1((key // nn) & 0xFFFFFFFF, _STREAM_GLASS, seed)
+    k = (nn * 3) // 8 + 1
+    while math.gcd(k, nn) != 1:
+        k += 1
+    return rotated_multijitter(((key % nn) * k) % nn, side, r0, r1)
+
+
 @kernel(refcounts=False)
-def _spawn_secondary(surf, d, t, t0, sample, weight, keys, depth, spawn, mats, opt, nxt, counts):
+def _spawn_secondary(surf, d, t, t0, sample, weight, keys, depth, spawn, mats, opt, nxt, counts, g_rec, side):
     """Spawn stage: per hit, the reflected ray (k_m·mirror_tint + the Principled lobes' mirror share + glass·F),
     the transmitted ray (glass·(1 − F)) and, where alpha < 1, the ray that passes straight through (weight
     1 − alpha, same depth). A sum of lobes (``SurfaceQueue.lobes`` ≥ 0) gives its mirror share, its glass and
@@ -1224,7 +1263,10 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, keys, depth, spawn, mats, o
     reflected and refracted rays are mirrored and refracted about one GGX microfacet normal drawn from the
     visible normals with the eye sample's key (stream _STREAM_GLASS + depth) and weighted by
     :func:`tracer.optics.rough_dielectric`; where a smooth mirror part also reflects, the one reflected ray is
-    either (chosen by their weights' sums, divided by the choice's probability)."""
+    either (chosen by their weights' sums, divided by the choice's probability). Lamps: the sampled rays see the
+    lamps' shapes with :func:`tracer.shading.bsdf.lamp_share_of` the roughness (nearly smooth glass); the rest of
+    the lamps' light is the light samples of :func:`_glass_light`, for which each such hit's interface is written
+    to row i of ``g_rec`` (:data:`GLASS_COLUMNS`; column 0, α, stays 0 elsewhere)."""
     n_rays = surf.hit.shape[0]
     eps = opt.eps
     n_refl = 0
@@ -1322,15 +1364,26 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, keys, depth, spawn, mats, o
         if has_glass and g_alpha * g_alpha > bsdf.SINGULAR_ALPHA2:  # rough glass: one sampled microfacet normal
             ior = float(m_ior[mat])
             eta_i, eta_r = (1.0, ior) if s_front[i] else (ior, 1.0)
-            u1, u2 = uniform2_1(keys[s], _STREAM_GLASS + depth, opt.seed)
+            u1, u2 = _glass_random(keys[s], depth, side, opt.seed)
             m_n, g_dir, g_r, t_dir, g_t, fr, tir = optics.rough_dielectric(di, n, ng, g_alpha, eta_i, eta_r, u1, u2,
                                                                            fresnel)
             if tir:
                 n_tir += 1
             # energy compensation (Multiscatter GGX): the interface's weights over its albedo E(μ, r, η)
+            comp = 1.0
             if fresnel:  # (the notes' weights, F = 0 but under TIR, are no such interface: left as they are)
                 comp = 1.0 / max(bsdf.glass_albedo(g_rough, -vec.dot(di, n), eta_r / eta_i), 0.05)
                 g_r, g_t = g_r * comp, g_t * comp
+            seen_l = bsdf.lamp_share_of(g_rough)  # the share of the lamps the sampled rays see
+            if seen_l > 0.9999:  # (roughness 0.1 in float32: no light samples for a share of 1e-13)
+                seen_l = 1.0
+            if seen_l < 1.0:  # the rest: light samples through the interface (_glass_light)
+                g_rec[i, 0], g_rec[i, 1], g_rec[i, 2], g_rec[i, 3], g_rec[i, 4] = g_alpha, eta_i, eta_r, comp, \
+                    1.0 - seen_l
+                for ch in range(3):
+                    g_rec[i, 5 + ch] = glass_r[ch]
+                    g_rec[i, 8 + ch] = glass_t[ch]
+                    g_rec[i, 11 + ch] = glass_t0[ch]
             w_tran = vec.mul(w, vec.madd(vec.scale(glass_t, (1.0 - fr) * g_t), glass_t0, g_t))
             if vec.max3(w_tran) > min_weight:
                 j = n_rays + n_tran
@@ -1338,7 +1391,7 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, keys, depth, spawn, mats, o
                 _put_ray(n_o, n_d, n_w, n_s, j, spawn_ray(p, ng, t_dir, eps), t_dir, w_tran, s)
                 _put_spawn(rec_n, rec_eta, rec_tir, j, m_n, eta_i, eta_r, False)
                 n_par[j] = i
-                n_lamp[j] = 1.0  # sampled: it sees lamps as Cycles' rough glass does (blurred over its highlight)
+                n_lamp[j] = seen_l  # sampled: nearly smooth glass sees lamps so (blurred over its highlight)
                 n_tran += 1
             w_glass = vec.mul(w, vec.scale(glass_r, fr * g_r))
             sum_m = w_refl[0] + w_refl[1] + w_refl[2]
@@ -1355,7 +1408,7 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, keys, depth, spawn, mats, o
                         w_refl = vec.scale(w_refl, 1.0 / (1.0 - p_g))
                         w_refl_l = vec.scale(w_refl_l, 1.0 / (1.0 - p_g))
                 if pick_glass:
-                    w_refl, w_refl_l, r_dir, r_n = w_glass, w_glass, g_dir, m_n
+                    w_refl, w_refl_l, r_dir, r_n = w_glass, vec.scale(w_glass, seen_l), g_dir, m_n
             tir = tir and pick_glass  # the reflected ray is the glass's total internal reflection
         elif has_glass:
             ior = float(m_ior[mat])
@@ -1399,6 +1452,68 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, keys, depth, spawn, mats, o
     counts[_N_REFLECTION] += n_refl
     counts[_N_TRANSMISSION] += n_tran
     return n_refl, n_tran, n_through
+
+
+@kernel(refcounts=False)
+def _glass_light(rows, surf, d, sample, weight, keys, depth, glass, lights, seen, l_recv, recv, opt, out, shadow,
+                 counts):
+    """Rough glass's light stage: at each hit of ``rows`` (rough glass the spawn stage recorded in ``glass``,
+    :data:`GLASS_COLUMNS`), every lamp's light samples (not emitting meshes, which the sampled rays see) weighted by
+    the interface's BSDF (:func:`tracer.optics.rough_dielectric_eval`: reflected on the incident side by the
+    reflected tint × F, refracted to the far side by the refracted tint × (1 − F) + the Refraction BSDF's tint), its
+    energy compensation, the lamp's glossy / transmission visibility (``seen``) and the light samples' share (the
+    sampled rays see the rest). A point or spot light without radius or a sun without angle, which no ray can see, is all light samples.
+    Written to ``shadow`` (0 when shadows are off: added to ``out`` directly); returns how many. The same light as
+    the sampled rays would find, in expectation, with far less variance: a small bright lamp seen through rough
+    glass is a few of 16 samples' sampled rays, and speckle, but every light sample."""
+    eps = opt.eps
+    q_o, q_d, q_t, q_s, q_c, q_l = shadow.o, shadow.d, shadow.t_max, shadow.sample, shadow.color, shadow.light
+    l_kind = lights.kind
+    linked = recv.shape[0] > 0
+    o_color = out.color
+    fresnel = opt.fresnel
+    n_shadow = 0
+    for ii in range(rows.shape[0]):
+        i = rows[ii]
+        s = sample[i]
+        alpha, eta_i, eta_r, comp, share = glass[i, 0], glass[i, 1], glass[i, 2], glass[i, 3], glass[i, 4]
+        g_r = (glass[i, 5], glass[i, 6], glass[i, 7])
+        g_t = (glass[i, 8], glass[i, 9], glass[i, 10])
+        g_t0 = (glass[i, 11], glass[i, 12], glass[i, 13])
+        w = vec.scale(vec.row(weight, i), comp)
+        n, ng, di = vec.row(surf.n, i), vec.row(surf.ng, i), vec.row(d, i)
+        p = (surf.p[i, 0], surf.p[i, 1], surf.p[i, 2])
+        r0, r1 = 0.0, 0.0
+        if opt.needs_light_random:
+            r0, r1 = uniform2_1(keys[s], _STREAM_LIGHT + depth, opt.seed)
+        for j in range(l_kind.shape[0]):
+            kd = l_kind[j]
+            if kd == MESH or (linked and not linking.lights_receiver(l_recv[j], recv[i])):
+                continue
+            f_j = share
+            if ((kd == POINT or kd == SPOT) and lights.radius[j] <= 0.0) or (kd == DISTANT and lights.cos_max[j] >= 1.0):
+                f_j = 1.0
+            for k in range(lights.side[j] * lights.side[j]):
+                l, dist, e = sample_light(lights, j, k, p, r0, r1)
+                side, value, fr = optics.rough_dielectric_eval(di, l, n, ng, alpha, eta_i, eta_r, fresnel)
+                if side == 0 or value <= 0.0:
+                    continue
+                if side > 0:
+                    tint = vec.scale(g_r, fr * value * seen[j, 1] * f_j)
+                else:
+                    tint = vec.scale(vec.madd(g_t0, g_t, 1.0 - fr), value * seen[j, 2] * f_j)
+                c = vec.mul(w, vec.mul(tint, e))
+                if c[0] <= 0.0 and c[1] <= 0.0 and c[2] <= 0.0:
+                    continue
+                if opt.shadows:
+                    so, sd, st = shadow_ray(p, ng, l, dist, eps)
+                    _put(q_o, q_d, q_t, q_s, q_c, q_l, n_shadow, so, sd, st, s, c, j)
+                    n_shadow += 1
+                else:
+                    for ch in range(3):
+                        o_color[s, ch] += c[ch]
+    counts[_N_SHADOW] += n_shadow
+    return n_shadow
 
 
 @kernel(refcounts=False)
