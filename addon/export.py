@@ -572,6 +572,7 @@ def scene_from_depsgraph(depsgraph, *, width: int | None = None, height: int | N
     b.object_pass_indices = pass_indices
     scene = b.build()
     scene.material_volumes = material_volumes(writer, len(scene.materials.names))
+    scene.material_volume_carried = material_volume_carried(writer, len(scene.materials.names))
     scene.object_visibility, scene.light_links, scene.emitter_links = links_from_blender(
         depsgraph, exported, scene.lights, len(b.object_names), warnings)
     scene.object_holdout, scene.object_shadow_catcher = compose_flags(depsgraph, exported, len(b.object_names))
@@ -590,6 +591,17 @@ def material_volumes(writer: MaterialWriter, n_materials: int) -> np.ndarray | N
     for row, v in rows.items():
         vols[row] = v
     return vols
+
+
+def material_volume_carried(writer: MaterialWriter, n_materials: int) -> np.ndarray | None:
+    """``Scene.material_volume_carried``: the media on inside-out closed meshes (addon.model, ``_open_media``), or
+    None."""
+    rows = [r for r in writer.carried_media if r in writer.volumes and r not in writer.open_media]
+    if not rows:
+        return None
+    out = np.zeros(n_materials, np.bool_)
+    out[rows] = True
+    return out
 
 
 def links_from_blender(depsgraph, exported: list, lights: list, n_objects: int, warnings: list) -> tuple:

@@ -74,6 +74,7 @@ class MaterialWriter:
         self._rows: dict[str, int] = {}
         self.volumes: dict[int, np.ndarray] = {}  # row -> (σ RGB, E RGB) of its Volume output (addon/volume.py)
         self.open_media: set = set()  # rows whose medium is on a mesh that is not closed (dropped)
+        self.carried_media: set = set()  # rows whose medium is on an inside-out closed mesh (carried by the rays)
         self._said: set = set()
         self.default_row = self._add("__default__", default_surface())
 
@@ -135,19 +136,25 @@ class MaterialWriter:
         return rows, Corners(sets, colors)
 
     def _open_media(self, label: str, rows, g: dict) -> None:
-        """A medium needs a closed mesh with outward normals (Cycles: "volumes need closed meshes"): a mesh with open
-        edges (a water plane) or turned inside out (a water box whose normals point in: Cycles' rays then enter it
-        on the way out) has no inside the tracer's rule (a back-face hit leaves the medium) can find; its
-        material's medium is dropped, one warning."""
+        """A medium needs a closed mesh (Cycles: "volumes need closed meshes"): a mesh with open edges (a water
+        plane) has no inside; its material's medium is dropped, one warning. A closed mesh turned inside out (a
+        water box whose normals point in) is what Cycles' volume stack makes of it, measured through bpy: a ray
+        enters the medium where it crosses a face against its normal, i.e. on its way *out* of the box, and
+        carries it until it crosses one of the mesh's faces again (the box's inside stays clear): the material's
+        medium is carried by the rays (``tracer.Scene.material_volume_carried``)."""
         media = set(int(r) for r in np.unique(rows)) & self.volumes.keys()
         media -= self.open_media
-        if not media or closed_mesh(g):
+        if not media:
+            return
+        if closed_mesh(g):
+            return
+        if closed_mesh(g, inside_out=True):
+            self.carried_media.update(media)
             return
         for row in media:
             self.open_media.add(row)
             self.warn(f"material {self.fields.get(row, ('?',))[0]!r}: its Volume output is on {label!r}, a mesh "
-                      "that is not closed (or whose normals point inwards); the medium is not rendered (a volume "
-                      "needs a closed mesh)")
+                      "that is not closed; the medium is not rendered (a volume needs a closed mesh)")
 
     def attribute_names(self, rows) -> frozenset:
         """The attribute names the materials of ``rows`` read by name (Attribute and Color Attribute nodes; '' =
@@ -202,9 +209,12 @@ class MaterialWriter:
         return False
 
 
-def closed_mesh(g: dict) -> bool:
+def closed_mesh(g: dict, inside_out: bool = False) -> bool:
     """The mesh bounds a volume with its normals outwards: every edge of its triangles (vertices welded by position:
-    importers split them at seams) is shared by exactly two, and the signed volume is positive. Cached in ``g``."""
+    importers split them at seams) is shared by exactly two, and the signed volume is positive (``inside_out``:
+    negative, the normals inwards). Cached in ``g``."""
+    if inside_out:
+        return closed_mesh(g, False) is False and g.get("closed_edges", False)
     if "closed" not in g:
         v = np.asarray(g["vertices"], np.float64)
         t = np.asarray(g["triangles"], np.int64)
@@ -216,6 +226,7 @@ def closed_mesh(g: dict) -> bool:
             e = np.sort(np.concatenate([w[:, [0, 1]], w[:, [1, 2]], w[:, [2, 0]]]), axis=1)
             _, counts = np.unique(e[:, 0] * (int(w.max()) + 1) + e[:, 1], return_counts=True)
             ok = bool(np.all(counts == 2))
+            g["closed_edges"] = ok
             if ok:
                 a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
                 ok = float(np.einsum("ij,ij->", a, np.cross(b, c))) > 0.0

@@ -345,7 +345,8 @@ def _principled(t: Translator, node, ctx):
         s = node.inputs.get(name)
         if s is not None and (s.is_linked or abs(float(s.default_value) - neutral) > 1e-6):
             t.warn(node, f"Principled BSDF {node.name!r}: {name} is not supported (ignored)", name)
-    return t.add(node, ctx, "principled_bsdf")
+    # its glass: Multiscatter GGX (the default) keeps the energy, GGX loses what scatters twice (Cycles, measured)
+    return t.add(node, ctx, "principled_bsdf", distribution=node.distribution)
 
 
 def _bsdf(ir_type, distribution=False):

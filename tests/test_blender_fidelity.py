@@ -26,6 +26,7 @@ here with bpy (no third-party file is read) and held to a closed form where one 
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import sys
@@ -789,6 +790,86 @@ def test_a_medium_on_an_open_mesh_is_dropped(bpy_module):
     ts, warnings = export.scene_from_depsgraph(bpy.context.evaluated_depsgraph_get())
     assert ts.material_volumes is None
     assert any("not closed" in w and "'Water'" in w for w in warnings), warnings
+
+
+def inside_out_medium_scene(emission: bool = False, flip: bool = True, world: float = 0.0, backdrop: bool = True,
+                             size=(48, 48)):
+    """The juice glass of :func:`medium_scene` (IOR 1, Volume Absorption (+ Emission)) on a cube of side 2 at the
+    origin whose normals point inwards (``flip``; the water file's box), seen by a 50 mm camera from 8 m, the
+    emissive backdrop 3 m behind the cube's far face (``backdrop``), a world of ``world``."""
+    import bmesh
+    import bpy
+
+    scene = medium_scene(emission=emission, size=size)
+    sphere = next(o for o in scene.objects if o.type == "MESH" and o.name != "Backdrop")
+    glass = sphere.data.materials[0]
+    bpy.data.objects.remove(sphere)
+    back = bpy.data.objects["Backdrop"]
+    if backdrop:
+        back.location, back.scale = (0.0, 4.0, 0.0), (3.0, 3.0, 3.0)
+    else:
+        bpy.data.objects.remove(back)
+    bs.set_world((world, world, world))
+    cube = bs.add_cube((0.0, 0.0, 0.0), 2.0, material=glass, name="Water box")
+    if flip:
+        bm = bmesh.new()
+        bm.from_mesh(cube.data)
+        bmesh.ops.reverse_faces(bm, faces=bm.faces[:])
+        bm.to_mesh(cube.data)
+        bm.free()
+    cam = scene.camera
+    cam.location = (0.0, -8.0, 0.0)
+    cam.data.type, cam.data.lens = "PERSP", 50.0
+    bpy.context.view_layer.update()
+    return scene
+
+
+def inside_out_closed_form(emission: bool, length: float) -> np.ndarray:
+    """The backdrop seen through a medium over ``length``: backdrop·exp(−σL) (+ E/σ·(1 − exp(−σL)))."""
+    sigma = (1 - np.array(VOLUME_COLOUR)) * VOLUME_DENSITY
+    att = np.exp(-sigma * length)
+    out = BACKDROP * att
+    return out + np.array(VOLUME_EMISSION) / sigma * (1 - att) if emission else out
+
+
+#: Cycles through bpy (Blender 5.0, 16 samples; the cube of side 2, the backdrop 3 behind it): an inside-out cube
+#: attenuates over the 3 m behind it (its inside stays clear), a cube with outward normals over its 2 m inside.
+INSIDE_OUT_LENGTH, OUTWARD_LENGTH = 3.0, 2.0
+
+
+@pytest.mark.parametrize("emission", [False, True])
+def test_a_medium_on_an_inside_out_mesh_is_carried_out_of_it(bpy_module, emission):
+    """The water file's inside-out box: Cycles' volume stack enters the medium where a ray crosses a face against
+    its normal, on the way out of the box, and keeps it to the backdrop (measured: exp(−3σ)·0.8 to 4 digits, with
+    emission + E·3 when σ = 0; an outward box exp(−2σ)). Ours dropped the medium (warned): the plain backdrop."""
+    ours, warnings = ours_render(inside_out_medium_scene(emission), samples=2)
+    assert not warnings, warnings
+    centre = ours[20:28, 20:28].reshape(-1, 3)
+    expected = inside_out_closed_form(emission, INSIDE_OUT_LENGTH)
+    np.testing.assert_allclose(centre.mean(0), expected, rtol=0.01)
+    np.testing.assert_allclose(ours[1:3, 1:3].reshape(-1, 3).mean(0), BACKDROP, rtol=0.01)  # beside the box: clear
+    outward, _ = ours_render(inside_out_medium_scene(emission, flip=False), samples=2)
+    np.testing.assert_allclose(outward[20:28, 20:28].reshape(-1, 3).mean(0),
+                               inside_out_closed_form(emission, OUTWARD_LENGTH), rtol=0.01)
+
+
+def test_a_carried_medium_leaves_the_world_unchanged(bpy_module):
+    """A ray that leaves the scene in a carried medium (no backdrop, a white world) keeps its weight: Cycles
+    (measured) integrates no medium over an infinite segment: the world, 1.0, through the box."""
+    ours, warnings = ours_render(inside_out_medium_scene(False, world=1.0, backdrop=False), samples=2)
+    np.testing.assert_allclose(ours[20:28, 20:28].reshape(-1, 3).mean(0), 1.0, rtol=0.01)
+
+
+@pytest.mark.cycles
+def test_cycles_carries_an_inside_out_mesh_medium_out_of_it(bpy_module):
+    """Cycles' side of the closed forms above (the measurement the rule rests on)."""
+    for emission, flip, length in ((False, True, INSIDE_OUT_LENGTH), (True, True, INSIDE_OUT_LENGTH),
+                                   (False, False, OUTWARD_LENGTH)):
+        build = functools.partial(inside_out_medium_scene, emission, flip)
+        ref = H.cycles_render(f"inside_out_medium_{emission}_{flip}", build,
+                              source_of(inside_out_medium_scene, medium_scene, node_material), dict(depth=8, samples=16))
+        np.testing.assert_allclose(ref[20:28, 20:28].reshape(-1, 3).mean(0), inside_out_closed_form(emission, length),
+                                   rtol=0.01)
 
 
 # ---------------------------------------------------------------------------------------------------- the survey tool

@@ -238,6 +238,12 @@ class Scene:
     #: back face after travelling t inside is attenuated by exp(−σ·t) and gains E/σ·(1 − exp(−σ·t)) (E·t where σ =
     #: 0): Beer–Lambert with emission (a Blender material's Volume output; tracer.integrator). None: no media.
     material_volumes: np.ndarray | None = None
+    #: Optional (M,) bool per material: its medium (``material_volumes``) is carried by the rays, as Cycles' volume
+    #: stack carries it (an inside-out closed mesh's: Blender files): a ray enters it where it crosses a front face
+    #: of the material's surface (against the face's winding normal), leaves it where it crosses a back face, keeps
+    #: it through reflections and other surfaces, and is attenuated (and gains its emission) over every segment it
+    #: travels in it that ends at a hit; its shadow rays are attenuated too. None / False: the back-face rule above.
+    material_volume_carried: np.ndarray | None = None
 
     def __post_init__(self):
         self.validate()

@@ -144,6 +144,7 @@ class MaterialArrays(NamedTuple):
     alpha_threshold: np.ndarray
     normal_strength: np.ndarray
     rough_glass: np.ndarray
+    glass_multiscatter: np.ndarray
     vertex_color: np.ndarray
     base_color_texture: np.ndarray
     roughness_texture: np.ndarray
@@ -215,6 +216,8 @@ class RayQueue(NamedTuple):
     #                                 _lamps_seen); None: camera rays at depth 0
     lamp: np.ndarray | None = None  # (N,) float32 the share of the ray's weight that sees lamps (a mirror ray of
     #                                 rough lobes leaves their lamps to the light samples: bsdf.lamp_share); None: 1
+    medium: np.ndarray | None = None  # (N,) int32 the carried medium each ray travels in (the material row of
+    #                                   Scene.material_volume_carried, -1: none; _carried_media); None: none
 
 
 class SurfaceQueue(NamedTuple):
@@ -442,6 +445,12 @@ class Integrator:
         #: Holdouts and shadow catchers (tracer.integrator.compose)
         self.compose = compose.pack(scene)
         self.volumes = _pack_volumes(getattr(scene, "material_volumes", None), len(m.names))
+        self.carried = None  # (M,) bool: media the rays carry (Scene.material_volume_carried), None: none
+        carried = getattr(scene, "material_volume_carried", None)
+        if self.volumes is not None and carried is not None and np.any(carried):
+            self.carried = np.zeros(len(self.volumes), np.bool_)
+            c = np.asarray(carried, np.bool_)[:len(self.volumes)]
+            self.carried[:len(c)] = c
         self._local = threading.local()
         self._camera_lock = threading.Lock()
 
@@ -458,10 +467,11 @@ class Integrator:
         return self.settings.max_depth + (1 if self.settings.terminal_rays else 0)
 
     def _shade(self, depth: int, o, d, weight, sample, t0, hits, keys, out: "Tile", counts, spawn: bool,
-               time=None, feature=None, gd: "Guides | None" = None, kind=None, lamp=None):
+               time=None, feature=None, gd: "Guides | None" = None, kind=None, lamp=None, medium=None):
         """The stages for one batch of rays and their hits: returns (ShadowQueue, NextQueue, n_refl, n_tran,
         n_through, the catcher's shadow rays, the spawned rays' guide features: None, or (reflections,
-        transmissions, pass-through rays))."""
+        transmissions, pass-through rays)), and the spawned rays' carried media (None when no ray carries one:
+        reflections, transmissions, pass-through rays)."""
         n = len(o)
         t, prim, u, v, inst = hits
         surf = SurfaceQueue.scratch(self._held(), n)
@@ -484,7 +494,9 @@ class Integrator:
                            g.triangles, g.face_normals, g.object_ids, self.spaces, x.data, x.params, it.linear,
                            it.mirrored, it.object_ids, eye, spread, flat, pt.lobes, surf.lobe_arrays)
         if self.volumes is not None:  # rays leaving a medium: Beer–Lambert and its emission over their length
-            weight = _through_media(self.volumes, surf, t, sample, weight, out.color, n)
+            weight = _through_media(self.volumes, surf, t, sample, weight, out.color, n, self.carried)
+        if medium is not None:  # rays travelling in a carried medium (an inside-out mesh's: _carried_media)
+            weight = _in_carried_medium(self.volumes, medium, surf, t, sample, weight, out.color, n)
         split = None  # the eye samples whose first catcher hit is in this batch (tracer.integrator.compose)
         cp = self.compose
         if depth == 0 and (cp.has_holdout or cp.has_catcher):
@@ -538,7 +550,12 @@ class Integrator:
         caught = None  # the shadow rays of split hits (their catcher-only light is added with the occlusion)
         if split is not None:
             caught = self._catcher_rays(out, split, before, sample, shadow, nxt, n, n_refl, n_tran, n_through)
-        return shadow, nxt, n_refl, n_tran, n_through, caught, feats
+        media = None
+        if self.carried is not None:
+            media = _carried_media(self.carried, medium, surf, nxt, n, n_refl, n_tran, n_through)
+            if medium is not None and len(shadow.o):
+                _shadows_in_medium(self.volumes, medium, sample, shadow)
+        return shadow, nxt, n_refl, n_tran, n_through, caught, feats, media
 
     def _catcher_rays(self, out, split, before, sample, shadow, nxt, n, n_refl, n_tran, n_through):
         """The catcher-only light of split hits that the stages added directly, and the world along the rays
@@ -580,10 +597,20 @@ class Integrator:
         feats_refl, feats_tran = [], []
         kind = rays.kind if rays.kind is not None else np.zeros(n, np.uint8)
         lamp = rays.lamp if rays.lamp is not None else np.ones(n, np.float32)
+        med = rays.medium
+        med_refl, med_tran = [], []
         for layer in range(self.settings.max_transparent + 1):
-            shadow, nxt, n_refl, n_tran, n_through, c, fs = self._shade(depth, o, d, w, smp, t0, h, keys, out,
-                                                                        counts, spawn, time, feat, gd, kind, lamp)
+            shadow, nxt, n_refl, n_tran, n_through, c, fs, media = self._shade(
+                depth, o, d, w, smp, t0, h, keys, out, counts, spawn, time, feat, gd, kind, lamp, med)
             shadows.append(shadow)
+            if media is not None:
+                med_refl.append(media[0])
+                med_tran.append(media[1])
+                med = media[2]
+            else:
+                med_refl.append(np.full(n_refl, -1, np.int32))
+                med_tran.append(np.full(n_tran, -1, np.int32))
+                med = None
             if self.compose.has_catcher:
                 caught.append(c if c is not None else np.zeros(len(shadow.o), np.bool_))
             m = len(o)
@@ -632,6 +659,9 @@ class Integrator:
                            lamp=cat(lambda q: q.lamp))
         if gd is not None and rays.feature is not None:
             nxt = nxt._replace(feature=np.concatenate(feats_refl + feats_tran))
+        if self.carried is not None:
+            media = np.concatenate(med_refl + med_tran).astype(np.int32)
+            nxt = nxt._replace(medium=media if np.any(media >= 0) else None)
         if timed:
             nxt = nxt._replace(time=sample_time[nxt.sample])
         spawned = SpawnRecord(light=shadow.light[:0], normal=cat(lambda q: q.spawned.normal),
@@ -750,10 +780,11 @@ def _pack_volumes(vol, n_materials: int):
     return out if out.any() else None
 
 
-def _through_media(volumes, surf, t, sample, weight, color, n):
+def _through_media(volumes, surf, t, sample, weight, color, n, carried=None):
     """Rays that hit the back face of an object whose material holds a medium (:attr:`Scene.material_volumes`)
     travelled the length t inside it: their weight × exp(−σ·t), and the medium's emission along that length,
-    weight·E/σ·(1 − exp(−σ·t)) (E·t where σ = 0), added to their samples. Returns the new weights."""
+    weight·E/σ·(1 − exp(−σ·t)) (E·t where σ = 0), added to their samples. Returns the new weights. Media the rays
+    carry (``carried``: :func:`_in_carried_medium`) are not this rule's."""
     back = surf.hit[:n] & ~surf.front[:n]
     rows = np.flatnonzero(back)
     if not len(rows):
@@ -761,6 +792,8 @@ def _through_media(volumes, surf, t, sample, weight, color, n):
     mats = surf.mat[rows]
     v = volumes[np.minimum(mats, len(volumes) - 1)]
     live = (mats < len(volumes)) & (v > 0).any(axis=1)
+    if carried is not None:
+        live &= ~carried[np.minimum(mats, len(carried) - 1)]
     rows, v = rows[live], v[live]
     if not len(rows):
         return weight
@@ -773,6 +806,77 @@ def _through_media(volumes, surf, t, sample, weight, color, n):
     weight = weight.copy()
     weight[rows] = (w * att).astype(weight.dtype)
     return weight
+
+
+def _segment(volumes, mats, tt, w):
+    """Beer–Lambert with emission over lengths ``tt`` ((R, 1)) in the media of material rows ``mats``, for weights
+    ``w`` ((R, 3) float64): (attenuated weights, emission added)."""
+    v = volumes[mats]
+    sigma, em = v[:, :3], v[:, 3:]
+    att = np.exp(-sigma * tt)
+    glow = np.where(sigma > 0, em / np.maximum(sigma, 1e-30) * (1.0 - att), em * tt)
+    return w * att, w * glow
+
+
+def _in_carried_medium(volumes, medium, surf, t, sample, weight, color, n):
+    """Rays travelling in a carried medium (``medium`` ≥ 0) that hit something after t: weight × exp(−σ·t) and the
+    medium's emission over t added, as :func:`_through_media`. A ray that leaves the scene in one is not changed:
+    Cycles, measured through bpy (an inside-out cube's medium, a white world behind: 1.0; an emitting one, a black
+    world: 0), integrates no medium over an infinite segment."""
+    med = np.asarray(medium[:n])
+    rows = np.flatnonzero((med >= 0) & surf.hit[:n])
+    if not len(rows):
+        return weight
+    tt = np.asarray(t, np.float64)[rows][:, None]
+    w, glow = _segment(volumes, med[rows], tt, np.asarray(weight, np.float64)[rows])
+    np.add.at(color, sample[rows], glow.astype(color.dtype))
+    weight = weight.copy()
+    weight[rows] = w.astype(weight.dtype)
+    return weight
+
+
+def _carried_media(carried, medium, surf, nxt, n, n_refl, n_tran, n_through):
+    """The carried medium of each spawned ray, as Cycles' volume stack (measured through bpy: an inside-out closed
+    cube of Volume Absorption, seen from outside, attenuates the backdrop by exp(−σ·L) over the length L *behind*
+    it, and leaves the inside clear; emission: + E·L): a reflected ray keeps its parent's medium; a ray that crosses
+    a surface whose material's medium is carried (transmitted, or through alpha) enters it where it crossed the
+    front face (against the face's winding normal: for an inside-out mesh, on the way out) and leaves it through a
+    back face; other surfaces keep it. Returns (reflections, transmissions, pass-through rays) int32 arrays."""
+    med = np.full(n, -1, np.int32) if medium is None else np.asarray(medium[:n], np.int32)
+    mats = surf.mat[:n]
+    crossed = med.copy()
+    hit = surf.hit[:n]
+    here = hit & carried[np.clip(mats, 0, len(carried) - 1)] & (mats >= 0) & (mats < len(carried))
+    crossed[here & surf.front[:n]] = mats[here & surf.front[:n]]
+    crossed[here & ~surf.front[:n]] = -1
+    refl = med[nxt.parent[:n_refl]]
+    tran = crossed[nxt.parent[n:n + n_tran]] if n_tran else np.zeros(0, np.int32)
+    through = crossed[nxt.through_parent[:n_through]]
+    return refl, tran, through
+
+
+def _shadows_in_medium(volumes, medium, sample, shadow):
+    """Shadow rays that start in a carried medium: colour × exp(−σ·length) (Cycles' shadow rays are attenuated by
+    the volumes they are in, and gather no emission). A shadow ray is matched to its hit's medium by its eye
+    sample: where one sample's rays of this batch are in different media, none of its shadow rays is attenuated."""
+    n = len(medium)
+    med = np.asarray(medium, np.int32)
+    if not np.any(med >= 0):
+        return
+    top = int(max(sample[:n].max(), shadow.sample.max())) + 1
+    lo = np.full(top, np.iinfo(np.int32).max, np.int64)
+    hi = np.full(top, -2, np.int64)
+    np.minimum.at(lo, sample[:n], med)
+    np.maximum.at(hi, sample[:n], med)
+    one = np.where(lo == hi, hi, -1)
+    sm = one[shadow.sample]
+    rows = np.flatnonzero(sm >= 0)
+    if not len(rows):
+        return
+    tt = np.asarray(shadow.t_max, np.float64)[rows][:, None]
+    tt = np.where(np.isfinite(tt), tt, 0.0)
+    w, _ = _segment(volumes, sm[rows], tt, np.asarray(shadow.color, np.float64)[rows])
+    shadow.color[rows] = w.astype(shadow.color.dtype)
 
 
 @kernel(inline=True)
@@ -1371,7 +1475,8 @@ def _spawn_secondary(surf, d, t, t0, sample, weight, keys, depth, spawn, mats, o
                 n_tir += 1
             # energy compensation (Multiscatter GGX): the interface's weights over its albedo E(μ, r, η)
             comp = 1.0
-            if fresnel:  # (the notes' weights, F = 0 but under TIR, are no such interface: left as they are)
+            # (the notes' weights, F = 0 but under TIR, are no such interface; nor is single-scattering glass)
+            if fresnel and mats.glass_multiscatter[mat] > 0.0:
                 comp = 1.0 / max(bsdf.glass_albedo(g_rough, -vec.dot(di, n), eta_r / eta_i), 0.05)
                 g_r, g_t = g_r * comp, g_t * comp
             seen_l = bsdf.lamp_share_of(g_rough)  # the share of the lamps the sampled rays see

@@ -121,6 +121,7 @@ class ClosureLowering:
             tint = node.params.get("transmission_tint")
             if tint is not None:
                 lb["tint"] = vec3(tint)
+            lb["multiscatter"] = (node.params.get("distribution") or "MULTI_GGX") == "MULTI_GGX"
         elif t == "sheen_bsdf":
             dist = _SHEEN_DIST.get(node.params.get("distribution") or "MICROFIBER", _sheen.MICROFIBER)
             lb.update(self._sheen_lobe(self.inp(node, "Color"), self.inp(node, "Roughness"), dist, layer=False),
@@ -147,6 +148,8 @@ class ClosureLowering:
                       tint=colour, normal=self._normal_in(node), colour=colour)
             if t == "glass_bsdf":  # Cycles' Glass BSDF tints its Fresnel reflection by Color too (Refraction has none)
                 lb["specular_tint"] = colour
+            # Multiscatter GGX keeps the energy; GGX, Beckmann and the Refraction BSDF are single scattering
+            lb["multiscatter"] = (node.params.get("distribution") or "MULTI_GGX") == "MULTI_GGX"
         elif t == "transparent_bsdf":
             lb.update(kind="transparent", through=self.inp(node, "Color"))
         elif t == "emission":
@@ -241,6 +244,7 @@ class ClosureLowering:
             extras["ior"] = glass[0][1]["ior"]
             tints = [lb["tint"] for _w, lb in glass]
             extras["transmission_tint"] = tints[0]
+            extras["glass_multiscatter"] = glass[0][1].get("multiscatter", True)
         elif surf:
             extras["ior"] = surf[0][1]["ior"]
         normals = [lb["normal"] for _w, lb in surf if lb["normal"] is not None]

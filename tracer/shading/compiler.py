@@ -517,6 +517,8 @@ def _row(vals: dict, extras: dict) -> dict:
                transmission=min(max(f(vals["transmission"]), 0.0), 1.0), ior=float(extras["ior"]) if
                extras["ior"] > 0 else 1.5, specular_tint=tuple(extras["specular_tint"]),
                alpha_threshold=float(extras["alpha_threshold"]))
+    if not extras.get("glass_multiscatter", True):  # single-scattering rough glass (Cycles' GGX, Beckmann)
+        row["glass_multiscatter"] = 0.0
     if row["transmission"] > 0 or extras["transmission_tint"] is not None:
         row["transmission_tint"] = tuple(extras["transmission_tint"] or row["base_color"])
     return row

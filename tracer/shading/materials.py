@@ -20,6 +20,9 @@ Columns (N = number of materials):
 - ``rough_glass``    (N,) 1: the glass part (transmission) is rough by ``roughness`` ("principled" shading: one
   sampled GGX microfacet normal per ray, tracer.optics.rough_dielectric); 0: smooth. Default: 1 where
   ``roughness`` is given, 0 where it is derived from ``exponent`` (the seed's glass stays smooth)
+- ``glass_multiscatter`` (N,) 1: rough glass keeps the light its microfacets scatter more than once (Cycles'
+  Multiscatter GGX, the default: the interface's weights over its albedo, tracer.shading.ggx_glass); 0: single
+  scattering, which loses it (Cycles' GGX and Beckmann glass, and every Refraction BSDF)
 - ``metallic``       (N,) metal weight: a GGX lobe with the base colour as F0 (F82-tint Fresnel)
 - ``k_m``            the notes' mirror weight: (1 − k_m)·c + k_m·mirror_tint·RayColor(reflected)
 - ``mirror_tint``    colour the k_m reflected RayColor is multiplied by
@@ -111,7 +114,7 @@ def _scalar_column(values, n, name, dtype=np.float32):
 
 _RGB = ("diffuse", "specular_color", "specular_tint", "mirror_tint", "transmission_tint", "emission")
 _FLOAT = ("specular", "roughness", "exponent", "metallic", "k_m", "transmission", "ior", "alpha", "alpha_threshold",
-          "normal_strength", "rough_glass")
+          "normal_strength", "rough_glass", "glass_multiscatter")
 _INT = tuple(f"{p}_texture" for p in TEXTURE_PARAMS if p != "base_color") + ("diffuse_texture",) + \
     tuple(f"{p}_channel" for p in TEXTURE_PARAMS)
 
@@ -153,6 +156,7 @@ class Materials:
     emission_channel: np.ndarray | None = None
     normal_channel: np.ndarray | None = None
     rough_glass: np.ndarray | None = None
+    glass_multiscatter: np.ndarray | None = None
     #: per row: None, or the material's graph (:class:`tracer.shading.compiler.BoundGraph`) when something in it
     #: varies per hit; the kernels run it compiled (tracer.shading.vm), the columns hold its constants
     programs: list | None = None
@@ -177,6 +181,8 @@ class Materials:
         n = len(self)
         if self.rough_glass is None:  # a given roughness makes the glass rough; one derived from e does not
             self.rough_glass = np.full(n, 0.0 if self.roughness is None else 1.0, np.float32)
+        if self.glass_multiscatter is None:
+            self.glass_multiscatter = np.ones(n, np.float32)
         if self.roughness is None:
             self.roughness = exponent_to_roughness(self.exponent)
         if self.specular_tint is None:
@@ -358,6 +364,7 @@ _OPTIONAL = {
     "alpha_threshold": 0.0,
     "normal_strength": 1.0,
     "rough_glass": 0.0,
+    "glass_multiscatter": 1.0,
     "vertex_color": False,
     **{f"{p}_texture": -1 for p in TEXTURE_PARAMS if p != "base_color"},
     **{f"{p}_channel": -1 for p in TEXTURE_PARAMS},

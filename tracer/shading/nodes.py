@@ -477,7 +477,8 @@ define('principled_bsdf', [(_c if np.ndim(d) else _f)(k, d) for k, d in PRINCIPL
       _N, _f("Coat Weight"), _f("Sheen Weight"), _f("Sheen Roughness", 0.5), _c("Sheen Tint", (1, 1, 1)),
       _f("Subsurface Weight"), _f("Anisotropic"),
       _f("Alpha Threshold")],  # Alpha Threshold: USD's opacityThreshold (not in Blender)
-      [_s("BSDF")], transmission_tint=None, proof='tests/cycles/test_cycles_addon_materials.py, tests/cycles/test_cycles_usd_materials.py')
+      [_s("BSDF")], transmission_tint=None, distribution="MULTI_GGX",
+      proof='tests/cycles/test_cycles_addon_materials.py, tests/cycles/test_cycles_usd_materials.py')
 
 
 define('diffuse_bsdf', [_c("Color"), _f("Roughness"), _N], [_s("BSDF")], proof='tests/cycles/test_cycles_nodes.py (closures)')
