@@ -533,7 +533,7 @@ class Integrator:
             rows = np.flatnonzero(glass[:, 0] > 0.0)
             if len(rows):
                 q = ShadowQueue.empty(len(rows) * self.light_samples)
-                k = _glass_light(rows, surf, d, sample, weight, keys, depth, glass, self.lights, self.links.seen,
+                k = _glass_light(rows, surf, d, sample, weight, keys, depth, glass, self.lights, self.links.visible,
                                  self.links.recv_set, recv, self.options, out, q, counts)
                 if k:
                     shadow = ShadowQueue(*(np.concatenate((a[:n_shadow], b[:k])) for a, b in zip(shadow, q)))
@@ -1566,7 +1566,8 @@ def _glass_light(rows, surf, d, sample, weight, keys, depth, glass, lights, seen
     :data:`GLASS_COLUMNS`), every lamp's light samples (not emitting meshes, which the sampled rays see) weighted by
     the interface's BSDF (:func:`tracer.optics.rough_dielectric_eval`: reflected on the incident side by the
     reflected tint × F, refracted to the far side by the refracted tint × (1 − F) + the Refraction BSDF's tint), its
-    energy compensation, the lamp's glossy / transmission visibility (``seen``) and the light samples' share (the
+    energy compensation, the lamp's glossy / transmission visibility (``seen``: Links.visible, shape or not) and
+    the light samples' share (the
     sampled rays see the rest). A point or spot light without radius or a sun without angle, which no ray can see, is all light samples.
     Written to ``shadow`` (0 when shadows are off: added to ``out`` directly); returns how many. The same light as
     the sampled rays would find, in expectation, with far less variance: a small bright lamp seen through rough

@@ -90,7 +90,8 @@ class Links(NamedTuple):
     are set (visibility or shadow linking); ``object_mask`` (O,) uint32 per object id and ``array_mask`` (the
     instance array's) when masked. ``seen`` (L, 3) float64: per light, the factor of its shape as camera, mirror
     (glossy) and refraction rays see it (0 for lights without a shape and for MESH lights, which are geometry);
-    ``any_seen``: some light's shape is seen by some ray type."""
+    ``any_seen``: some light's shape is seen by some ray type. ``visible`` (L, 3): the same factors for every light,
+    shape or not (what rough glass's light samples of a lamp take: tracer.integrator.wavefront._glass_light)."""
 
     receivers: bool
     recv_set: np.ndarray
@@ -104,6 +105,7 @@ class Links(NamedTuple):
     array_mask: int
     seen: np.ndarray
     any_seen: bool
+    visible: np.ndarray
 
 
 def _object_count(scene) -> int:
@@ -215,13 +217,16 @@ def pack(scene, n_lights: int, emitter_object: np.ndarray | None = None) -> Link
                               "the instance array use the union of their settings", stacklevel=2)
             array_mask = int(np.bitwise_or.reduce(m))
     seen = np.zeros((n_lights, 3), np.float64)  # camera, glossy (mirror), transmission (refraction)
+    visible = np.zeros((n_lights, 3), np.float64)
     for j, light in enumerate(list(scene.lights)[:n_lights]):
+        link = entries[row_entry[j]] if row_entry[j] >= 0 else LightLink()
+        visible[j] = (float(link.camera), float(link.glossy), float(link.transmission))
         if emitters.hittable(light):
-            link = entries[row_entry[j]] if row_entry[j] >= 0 else LightLink()
-            seen[j] = (float(link.camera), float(link.glossy), float(link.transmission))
+            seen[j] = visible[j]
     return Links(receivers=bool(recv_sets), recv_set=recv_set, object_recv=object_recv, diffuse=diffuse,
                  glossy=glossy, shadow_mask=shadow_mask, visibility=hidden, masked=masked,
-                 object_mask=object_mask, array_mask=array_mask, seen=seen, any_seen=bool(np.any(seen > 0)))
+                 object_mask=object_mask, array_mask=array_mask, seen=seen, any_seen=bool(np.any(seen > 0)),
+                 visible=visible)
 
 
 @kernel(inline=True)
