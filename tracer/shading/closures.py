@@ -7,6 +7,7 @@ lowered to the tracer's closure inputs and, where one closure cannot hold it, to
 
    ============== ===================================================================================
    principled     its inputs (emission = Emission Color × Strength; Alpha mixes with transparency)
+                  Coat Weight > 0: two lobes, the BSDF under its coat (:meth:`ClosureLowering._coated`)
    diffuse        base = Color, specular 0, roughness 1                        (slot DIFFUSE)
    glossy         base = Color, metallic 1, roughness (Anisotropic: isotropic), specular 1 for Multiscatter GGX,
                   0 for single scattering (GGX, Beckmann, Ashikhmin-Shirley)  (slot GLOSSY)
@@ -42,7 +43,7 @@ import numpy as np
 from . import lobes as L, ops
 from . import sheen as _sheen
 from .graph import Node, Out
-from .nodes import FLOAT, IN_NORMAL, VECTOR, is_const, vec3
+from .nodes import FLOAT, IN_INCOMING, IN_NORMAL, VECTOR, is_const, vec3
 
 _KIND = {"principled_bsdf": L.PRINCIPLED, "diffuse_bsdf": L.DIFFUSE, "glossy_bsdf": L.GLOSSY, "glass_bsdf": L.GLASS,
          "refraction_bsdf": L.REFRACTION, "translucent_bsdf": L.TRANSLUCENT, "sheen_bsdf": L.SHEEN}
@@ -82,7 +83,54 @@ class ClosureLowering:
             return out
         if node.type == "add_closure":
             return sum((self.closure(self.g.input_value(node, s), weight) for s in ("Shader", "Shader_001")), [])
+        if node.type == "principled_bsdf":
+            cw = self.inp(node, "Coat Weight")
+            if not (is_const(cw) and float(cw) <= 0.0):
+                return self._coated(node, weight, cw)
         return [(weight, node)]
+
+    def _coated(self, node: Node, weight, cw) -> list:
+        """A Principled BSDF with a coat, as Cycles' ``principled_bsdf_emission`` layers it: the BSDF (weight
+        W·(1 − c·F_coat(μ)), its colour × mix(1, Coat Tint^(1/cos θ_t), c)) under a dielectric GGX lobe of weight
+        W·c (Coat Roughness, Coat IOR: a Principled lobe with a black base whose Specular IOR Level gives the coat's
+        F0 against the BSDF's IOR, as :func:`tracer.shading.principled._layered` writes MaterialX coats). F_coat is
+        the smooth Fresnel of Coat IOR at the view direction (Cycles reads its rough-GGX albedo table: the same to
+        within a few per cent below Coat Roughness 0.3). The lobes share one normal: a linked Coat Normal is used
+        only where Normal is not linked (else the warning of differing normals)."""
+        m = self.math
+        cw = self.math(ops.M_MINIMUM, cw, 1.0) if not is_const(cw) else min(float(cw), 1.0)
+        lb = self.lobe(node)
+        cior = max(self._const_in(node, "Coat IOR", 1.5), 1.0)
+        cn = self._normal_in_named(node, "Coat Normal")
+        normal = cn if cn is not None else lb["normal"]
+        nrm = normal if normal is not None else self.hit(IN_NORMAL)
+        if self.estimate:
+            fr = ((cior - 1.0) / (cior + 1.0)) ** 2
+        else:
+            fr = self.op("fresnel", [(cior, 1), (nrm, 3)])
+        base_w = m(ops.M_MULTIPLY, weight, m(ops.M_SUBTRACT, 1.0, m(ops.M_MULTIPLY, cw, fr)))
+        tint = self.inp(node, "Coat Tint")
+        if not (is_const(tint) and vec3(tint) == (1.0, 1.0, 1.0)):
+            if self.estimate:
+                cos_t = 1.0
+            else:
+                cos_i = self.vmath(ops.V_DOT_PRODUCT, self.hit(IN_INCOMING), nrm)[1]
+                sin2 = m(ops.M_MULTIPLY, m(ops.M_SUBTRACT, 1.0, m(ops.M_MULTIPLY, cos_i, cos_i)), 1.0 / (cior * cior))
+                cos_t = m(ops.M_SQRT, m(ops.M_MAXIMUM, m(ops.M_SUBTRACT, 1.0, sin2), 1e-6))
+            depth = m(ops.M_DIVIDE, 1.0, cos_t)
+            t = self.vmath(ops.V_MAXIMUM, tint)[0]
+            t = self.vmath(ops.V_POWER, t, self.convert(depth, FLOAT, VECTOR))[0]
+            t = self.lerp3((1.0, 1.0, 1.0), t, cw)
+            lb = dict(lb, base=self.mul3(lb["base"], t), colour=self.mul3(lb["colour"], t))
+        if lb["normal"] is None and cn is not None:
+            lb["normal"] = cn
+        ior = float(lb["ior"]) if is_const(lb["ior"]) else 1.5
+        f0 = ((ior - 1.0) / (ior + 1.0)) ** 2
+        level = 0.5 * ((cior - 1.0) / (cior + 1.0)) ** 2 / max(f0, 1e-9)
+        coat = dict(lb, base=(0.0, 0.0, 0.0), colour=(0.0, 0.0, 0.0), metallic=0.0, transmission=0.0,
+                    roughness=self.inp(node, "Coat Roughness"), specular=level, emission=(0.0, 0.0, 0.0),
+                    normal=normal, sheen=None, lk=L.PRINCIPLED, tint=None)
+        return [(base_w, lb), (m(ops.M_MULTIPLY, weight, cw), coat)]
 
     def lobe(self, node: Node) -> dict:
         """The Principled set of one lobe: base, roughness, metallic, specular, transmission, alpha, emission,
@@ -107,9 +155,6 @@ class ClosureLowering:
                 self.warn(node.name + "st", f"Principled BSDF {node.name!r}: a linked Specular Tint is read as white")
             else:
                 lb["specular_tint"] = vec3(st)
-            w = self.g.input_value(node, "Coat Weight")
-            if isinstance(w, Out) or float(w) > 0:
-                self.warn(node.name + "Coat", f"Principled BSDF {node.name!r}: Coat Weight is not supported (ignored)")
             w = self.g.input_value(node, "Subsurface Weight")
             if isinstance(w, Out) or float(w) > 0:  # Blender 4+: subsurface replaces the diffuse, same colour
                 self.warn(node.name + "Subsurface", f"Principled BSDF {node.name!r}: subsurface scattering is "
@@ -179,7 +224,10 @@ class ClosureLowering:
         return float(x)
 
     def _normal_in(self, node):
-        x = self.g.input_value(node, "Normal")
+        return self._normal_in_named(node, "Normal")
+
+    def _normal_in_named(self, node, name):
+        x = self.g.input_value(node, name)
         if isinstance(x, Out):
             return self.val(x, VECTOR)
         return None
@@ -191,7 +239,7 @@ class ClosureLowering:
         disp = self.g.input_value(out, "Displacement") if out is not None else None
         lobes = []
         for w, n in self.closure(surface):
-            lb = self.lobe(n)
+            lb = n if isinstance(n, dict) else self.lobe(n)  # a coat's two lobes come as dicts (_coated)
             lobes.append((w, lb))
             if lb.get("sheen") is not None:  # the Principled sheen: a layer lobe right after its own
                 sw, tint, rough = lb["sheen"]

@@ -474,8 +474,9 @@ define('material_output', [_s("Surface"), _v("Displacement")], [])
 
 
 define('principled_bsdf', [(_c if np.ndim(d) else _f)(k, d) for k, d in PRINCIPLED_DEFAULTS.items()] + [
-      _N, _f("Coat Weight"), _f("Sheen Weight"), _f("Sheen Roughness", 0.5), _c("Sheen Tint", (1, 1, 1)),
-      _f("Subsurface Weight"), _f("Anisotropic"),
+      _N, _f("Coat Weight"), _f("Coat Roughness", 0.03), _f("Coat IOR", 1.5), _c("Coat Tint", (1, 1, 1)),
+      _v("Coat Normal", NORMAL), _f("Sheen Weight"), _f("Sheen Roughness", 0.5), _c("Sheen Tint", (1, 1, 1)),
+      _f("Subsurface Weight"), _f("Anisotropic"), _f("Anisotropic Rotation"), _v("Tangent", TANGENT),
       _f("Alpha Threshold")],  # Alpha Threshold: USD's opacityThreshold (not in Blender)
       [_s("BSDF")], transmission_tint=None, proof='tests/cycles/test_cycles_addon_materials.py, tests/cycles/test_cycles_usd_materials.py')
 
