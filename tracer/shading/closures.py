@@ -9,7 +9,7 @@ lowered to the tracer's closure inputs and, where one closure cannot hold it, to
    principled     its inputs (emission = Emission Color × Strength; Alpha mixes with transparency)
                   Coat Weight > 0: two lobes, the BSDF under its coat (:meth:`ClosureLowering._coated`)
    diffuse        base = Color, specular 0, roughness 1                        (slot DIFFUSE)
-   glossy         base = Color, metallic 1, roughness (Anisotropic: isotropic), specular 1 for Multiscatter GGX,
+   glossy         base = Color, metallic 1, roughness (Anisotropy: the hit's ``aniso``), specular 1 for Multiscatter GGX,
                   0 for single scattering (GGX, Beckmann, Ashikhmin-Shirley)  (slot GLOSSY)
    glass          transmission 1, reflection and refraction tinted by Color, ior, roughness (GGX sampled)
                                                                                 (slot GLASS)
@@ -43,7 +43,7 @@ import numpy as np
 from . import lobes as L, ops
 from . import sheen as _sheen
 from .graph import Node, Out
-from .nodes import FLOAT, IN_INCOMING, IN_NORMAL, VECTOR, is_const, vec3
+from .nodes import FLOAT, IN_GENERATED, IN_INCOMING, IN_NORMAL, VECTOR, is_const, vec3
 
 _KIND = {"principled_bsdf": L.PRINCIPLED, "diffuse_bsdf": L.DIFFUSE, "glossy_bsdf": L.GLOSSY, "glass_bsdf": L.GLASS,
          "refraction_bsdf": L.REFRACTION, "translucent_bsdf": L.TRANSLUCENT, "sheen_bsdf": L.SHEEN}
@@ -166,6 +166,7 @@ class ClosureLowering:
             tint = node.params.get("transmission_tint")
             if tint is not None:
                 lb["tint"] = vec3(tint)
+            lb["aniso"] = self.anisotropy(node, "Anisotropic", "Anisotropic Rotation", lb["normal"], glossy=False)
         elif t == "sheen_bsdf":
             dist = _SHEEN_DIST.get(node.params.get("distribution") or "MICROFIBER", _sheen.MICROFIBER)
             lb.update(self._sheen_lobe(self.inp(node, "Color"), self.inp(node, "Roughness"), dist, layer=False),
@@ -174,14 +175,12 @@ class ClosureLowering:
             lb.update(base=self.inp(node, "Color"), roughness=1.0, normal=self._normal_in(node))
             lb["colour"] = lb["base"]
         elif t == "glossy_bsdf":
-            an = self.g.input_value(node, "Anisotropy")
-            if isinstance(an, Out) or float(an) != 0.0:
-                self.warn(node.name + "an", f"Glossy BSDF {node.name!r}: anisotropy is rendered isotropic")
             # P_SPEC: multiscatter GGX (1) or single scattering (0: Cycles' GGX loses the light that scatters twice)
             multi = (node.params.get("distribution") or "MULTI_GGX") == "MULTI_GGX"
             lb.update(base=self.inp(node, "Color"), metallic=1.0, roughness=self.inp(node, "Roughness"),
                       specular=1.0 if multi else 0.0, normal=self._normal_in(node))
             lb["colour"] = lb["base"]
+            lb["aniso"] = self.anisotropy(node, "Anisotropy", "Rotation", lb["normal"], glossy=True)
         elif t in ("glass_bsdf", "refraction_bsdf"):
             r = self.inp(node, "Roughness")  # rough: microfacets sampled per ray (tracer.optics.rough_dielectric)
             col = self.g.input_value(node, "Color")
@@ -202,6 +201,43 @@ class ClosureLowering:
             self.warn(node.name, f"shader {node.name!r} ({t}) is not supported; a grey diffuse surface is used")
             lb.update(base=(0.8, 0.8, 0.8), roughness=1.0, lk=L.DIFFUSE, colour=(0.8, 0.8, 0.8))
         return lb
+
+    def anisotropy(self, node: Node, amount: str, rotation: str, normal, glossy: bool):
+        """The ``aniso`` output of a Principled (``glossy`` False) or Glossy BSDF: the axis its GGX lobe is stretched
+        along × (1 − aspect) (:func:`tracer.shading.bsdf.anisotropic`), or None (isotropic). As Cycles' closure.h:
+        the Tangent input turned by 2π·rotation about the normal; the Principled BSDF stretches α by
+        1/aspect along it, aspect = √(1 − 0.9·Anisotropic); the Glossy BSDF (Anisotropy in [−0.99, 0.99]) by
+        1/(1 + Anisotropy) along it where negative, by 1/(1 − Anisotropy) across it where positive. An unlinked
+        Tangent is Cycles' default: the radial tangent about the object's Z axis from Generated coordinates."""
+        an = self.inp(node, amount)
+        if self.estimate or (is_const(an) and float(an) == 0.0) or (not glossy and is_const(an) and float(an) < 0):
+            return None
+        m = self.math
+        nrm = normal if normal is not None else self.hit(IN_NORMAL)
+        t = self.g.input_value(node, "Tangent")
+        if isinstance(t, Out):
+            t = self.val(t, VECTOR)
+        else:  # Geometry ▸ Tangent: cross(N, normalize(cross(radial, N))), radial = (−(y − ½), x − ½, 0) of Generated
+            g = self.vmath(ops.V_SUBTRACT, self.hit(IN_GENERATED), (0.5, 0.5, 0.5))[0]
+            radial = self.vmath(ops.V_CROSS_PRODUCT, (0.0, 0.0, 1.0), g)[0]
+            t = self.op("vtransform", [(radial, 3)], imm=2 | 1 << 2)  # a normal, object to world
+        rot = self.inp(node, rotation)
+        if not (is_const(rot) and float(rot) == 0.0):
+            angle = m(ops.M_MULTIPLY, rot, 2.0 * np.pi)
+            t = self.op("vrotate", [(t, 3), ((0.0, 0.0, 0.0), 3), (nrm, 3), (angle, 1), ((0.0, 0.0, 0.0), 3)], imm=0)
+        if glossy:  # |Anisotropy| ≤ 0.99; positive: the lobe is stretched across the tangent
+            an = m(ops.M_MINIMUM, m(ops.M_MAXIMUM, an, -0.99), 0.99) if not is_const(an) else \
+                min(max(float(an), -0.99), 0.99)
+            across = self.vmath(ops.V_CROSS_PRODUCT, nrm, t)[0]
+            pos = m(ops.M_GREATER_THAN, an, 0.0) if not is_const(an) else float(float(an) > 0)
+            axis = self.lerp3(t, across, pos)
+            k = m(ops.M_ABSOLUTE, an) if not is_const(an) else abs(float(an))
+        else:  # 1 − aspect, aspect = √(1 − 0.9·Anisotropic)
+            an = m(ops.M_MINIMUM, m(ops.M_MAXIMUM, an, 0.0), 1.0) if not is_const(an) else min(float(an), 1.0)
+            k = m(ops.M_SUBTRACT, 1.0, m(ops.M_SQRT, m(ops.M_SUBTRACT, 1.0, m(ops.M_MULTIPLY, an, 0.9))))
+            axis = t
+        unit = self.vmath(ops.V_NORMALIZE, axis)[0]
+        return self.scale3(unit, k)
 
     def _sheen_lobe(self, colour, roughness, dist: int, layer: bool) -> dict:
         """A SHEEN lobe's fields: in the slots its colour, roughness, distribution (P_METAL) and layer flag (P_SPEC);
@@ -250,8 +286,20 @@ class ClosureLowering:
             self.warn("displacement", "Displacement is rendered as bump (the surface is not moved)")
             lobes = [(w, dict(lb, normal=self._displacement_bump(disp, lb["normal"]))) for w, lb in lobes]
         vals, extras = self.combine(lobes)
+        vals["aniso"] = self._aniso(lobes)
         self.lobe_slots = self.slots(lobes)
         return vals, extras
+
+    def _aniso(self, lobes: list):
+        """The hit's anisotropy: the first anisotropic lobe's (every GGX lobe of the hit takes it; one warning when
+        another lobe is isotropic or differs)."""
+        found = [lb["aniso"] for _w, lb in lobes if lb.get("aniso") is not None]
+        if not found:
+            return None
+        glossy = [lb for _w, lb in lobes if lb["kind"] == "surface" and lb["lk"] in (L.PRINCIPLED, L.GLOSSY)]
+        if len(found) < len(glossy) or len({id(x) for x in found}) > 1:
+            self.warn("aniso", "GGX lobes of different anisotropy: the first anisotropic lobe's is used for all")
+        return found[0]
 
     def _displacement_bump(self, disp: Out, normal):
         nrm = normal if normal is not None else self.hit(IN_NORMAL)

@@ -330,10 +330,10 @@ assert all(globals()[f"OP_{op.name.upper()}"] == k for k, op in enumerate(OPS)),
 #: The closure inputs a program writes (its row of ``outs``) and their widths: base colour, roughness, metallic,
 #: specular level, alpha, emission, shading normal, transmission.
 OUTPUTS = (("base", 3), ("roughness", 1), ("metallic", 1), ("specular", 1), ("alpha", 1), ("emission", 3),
-           ("normal", 3), ("transmission", 1))
+           ("normal", 3), ("transmission", 1), ("aniso", 3))
 OUT_SLOTS = tuple(name for name, _n in OUTPUTS)
 OUT_WIDTH = dict(OUTPUTS)
-OUT_BASE, OUT_ROUGH, OUT_METAL, OUT_SPEC, OUT_ALPHA, OUT_EMIT, OUT_NORMAL, OUT_TRANS = range(len(OUTPUTS))
+OUT_BASE, OUT_ROUGH, OUT_METAL, OUT_SPEC, OUT_ALPHA, OUT_EMIT, OUT_NORMAL, OUT_TRANS, OUT_ANISO = range(len(OUTPUTS))
 
 
 # ============================================================================================== node types
@@ -484,7 +484,8 @@ define('principled_bsdf', [(_c if np.ndim(d) else _f)(k, d) for k, d in PRINCIPL
 define('diffuse_bsdf', [_c("Color"), _f("Roughness"), _N], [_s("BSDF")], proof='tests/cycles/test_cycles_nodes.py (closures)')
 
 
-define('glossy_bsdf', [_c("Color"), _f("Roughness", 0.5), _f("Anisotropy"), _f("Rotation"), _N],
+define('glossy_bsdf', [_c("Color"), _f("Roughness", 0.5), _f("Anisotropy"), _f("Rotation"), _N,
+                       _v("Tangent", TANGENT)],
       [_s("BSDF")], distribution="MULTI_GGX", proof='tests/cycles/test_cycles_nodes.py (closures)')
 
 
