@@ -147,3 +147,49 @@ def test_coat_and_anisotropy_spheres_match_cycles(bpy_module, tmp_path, kind):
     print(f"[cycles] layered_{kind}: {m['psnr']:.2f} dB, mean ours/Cycles {m['mean_ours'] / m['mean_cycles']:.3f}")
     assert not [w for w in warnings if "Coat" in w or "anisotrop" in w.lower()], warnings
     H.check_images({"name": f"layered_{kind}"}, ours, ref, tmp_path, min_psnr=SPHERE_BARS[kind], max_mae=SPHERE_MAE)
+
+
+# ---------------------------------------------------------------------------------------------------- tangents
+def tangent_probe_scene(size=(96, 48)):
+    """Four UV spheres (one turned and stretched) emitting ½·Tangent + ½ of a Tangent node, Radial about X, Y and
+    Z, and of Geometry ▸ Tangent (Cycles' default tangent of an anisotropic BSDF): the tangent frames the anisotropic
+    lobes turn about, seen directly."""
+    import bpy
+
+    scene = bs.reset(size)
+    bs.add_camera((0.0, -9.0, 0.0), target=(0.0, 0.0, 0.0), lens=50.0)
+    bs.set_world((0.0, 0.0, 0.0))
+    for k, what in enumerate(("X", "Y", "Z", "GEOMETRY")):
+        mat, nt, out = node_material(f"tangent_{what}")
+        if what == "GEOMETRY":
+            src = nt.nodes.new("ShaderNodeNewGeometry").outputs["Tangent"]
+        else:
+            tn = nt.nodes.new("ShaderNodeTangent")
+            tn.direction_type = "RADIAL"
+            tn.axis = what
+            src = tn.outputs["Tangent"]
+        vm = nt.nodes.new("ShaderNodeVectorMath")
+        vm.operation = "MULTIPLY_ADD"
+        vm.inputs[1].default_value = (0.5, 0.5, 0.5)
+        vm.inputs[2].default_value = (0.5, 0.5, 0.5)
+        em = nt.nodes.new("ShaderNodeEmission")
+        nt.links.new(src, vm.inputs[0])
+        nt.links.new(vm.outputs[0], em.inputs["Color"])
+        nt.links.new(em.outputs[0], out.inputs["Surface"])
+        ob = bs.add_uv_sphere((-3.3 + 2.2 * k, 0.0, 0.0), 0.9, segments=64, rings=32, material=mat)
+        if k == 1:
+            ob.rotation_euler = (0.4, 0.3, 0.7)
+            ob.scale = (1.0, 0.7, 1.2)
+    bpy.context.view_layer.update()
+    return scene
+
+
+@pytest.mark.cycles
+def test_radial_tangents_match_cycles(bpy_module, tmp_path):
+    """The Tangent node's Radial X / Y / Z and the Geometry node's Tangent (before: the UV tangent, with a warning
+    for Radial)."""
+    ref = H.cycles_render("tangent_probes", tangent_probe_scene, source_of(tangent_probe_scene, node_material),
+                          dict(depth=0, samples=16))
+    ours, warnings = ours_render(tangent_probe_scene(), depth=0)
+    assert not warnings, warnings
+    H.check_images({"name": "tangent_probes"}, ours, ref, tmp_path, min_psnr=35.0, max_mae=0.01)

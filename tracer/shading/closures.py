@@ -43,7 +43,7 @@ import numpy as np
 from . import lobes as L, ops
 from . import sheen as _sheen
 from .graph import Node, Out
-from .nodes import FLOAT, IN_GENERATED, IN_INCOMING, IN_NORMAL, VECTOR, is_const, vec3
+from .nodes import FLOAT, IN_INCOMING, IN_NORMAL, VECTOR, is_const, radial_tangent, vec3
 
 _KIND = {"principled_bsdf": L.PRINCIPLED, "diffuse_bsdf": L.DIFFUSE, "glossy_bsdf": L.GLOSSY, "glass_bsdf": L.GLASS,
          "refraction_bsdf": L.REFRACTION, "translucent_bsdf": L.TRANSLUCENT, "sheen_bsdf": L.SHEEN}
@@ -217,10 +217,8 @@ class ClosureLowering:
         t = self.g.input_value(node, "Tangent")
         if isinstance(t, Out):
             t = self.val(t, VECTOR)
-        else:  # Geometry ▸ Tangent: cross(N, normalize(cross(radial, N))), radial = (−(y − ½), x − ½, 0) of Generated
-            g = self.vmath(ops.V_SUBTRACT, self.hit(IN_GENERATED), (0.5, 0.5, 0.5))[0]
-            radial = self.vmath(ops.V_CROSS_PRODUCT, (0.0, 0.0, 1.0), g)[0]
-            t = self.op("vtransform", [(radial, 3)], imm=2 | 1 << 2)  # a normal, object to world
+        else:  # Cycles links an unlinked Tangent to Geometry ▸ Tangent: the radial tangent about Z
+            t = radial_tangent(self)
         rot = self.inp(node, rotation)
         if not (is_const(rot) and float(rot) == 0.0):
             angle = m(ops.M_MULTIPLY, rot, 2.0 * np.pi)

@@ -548,7 +548,7 @@ def _geometry(cx, node, var):
     def one(what):
         return lambda: Reg(cx.hit(what).r, 1) if not cx.estimate else 0.0
     out = {"Position": lambda: cx.hit(IN_POSITION, variant=var), "Normal": lambda: cx.hit(IN_NORMAL),
-           "Tangent": lambda: cx.hit(IN_TANGENT, arg=0), "True Normal": lambda: cx.hit(IN_TRUE_NORMAL),
+           "Tangent": lambda: radial_tangent(cx, "Z", var), "True Normal": lambda: cx.hit(IN_TRUE_NORMAL),
            "Incoming": lambda: cx.hit(IN_INCOMING), "Parametric": lambda: cx.hit(IN_PARAMETRIC, variant=var),
            "Backfacing": one(IN_BACKFACING), "Pointiness": lambda: cx._stand_in(node, "Pointiness", 0.5),
            "Random Per Island": lambda: cx._stand_in(node, "Random Per Island", 0.0)}
@@ -633,8 +633,24 @@ def _layer_weight(cx, node, var):
     return {"Fresnel": Reg(r.r, 1), "Facing": Reg(r.r + 1, 1)}
 
 
-@node('tangent', [], [_v("Tangent")], direction_type="UV_MAP", uv_map="")
+def radial_tangent(cx, axis: str = "Z", var: int = 0):
+    """Cycles' radial tangent about the object's ``axis`` (``svm_node_tangent``; Z: ``primitive_tangent``, the
+    Geometry node's Tangent and the default of a BSDF's Tangent input): axis × (Generated − ½) taken to world space
+    as a normal, then made normal to N: N × normalize(T × N)."""
+    if cx.estimate:
+        return (1.0, 0.0, 0.0)
+    g = cx.vmath(ops.V_SUBTRACT, cx.hit(IN_GENERATED, variant=var), (0.5, 0.5, 0.5))[0]
+    a = {"X": (1.0, 0.0, 0.0), "Y": (0.0, -1.0, 0.0)}.get(str(axis).upper(), (0.0, 0.0, 1.0))
+    t = cx.vmath(ops.V_CROSS_PRODUCT, a, g)[0]  # X: (0, −z, y), Y: (−z, 0, x), Z: (−y, x, 0) of Generated − ½
+    t = cx.op("vtransform", [(t, 3)], imm=2 | 1 << 2)  # a normal, object to world
+    n = cx.hit(IN_NORMAL)
+    return cx.vmath(ops.V_CROSS_PRODUCT, n, cx.vmath(ops.V_NORMALIZE, cx.vmath(ops.V_CROSS_PRODUCT, t, n)[0])[0])[0]
+
+
+@node('tangent', [], [_v("Tangent")], direction_type="UV_MAP", uv_map="", axis="Z")
 def _tangent(cx, node, var):
+    if str(node.param("direction_type") or "UV_MAP").upper() == "RADIAL":
+        return {"Tangent": radial_tangent(cx, node.param("axis") or "Z", var)}
     k = cx.uv_index(node.param("uv_map") or "") or 0
     return {"Tangent": cx.hit(IN_TANGENT, arg=k)}
 
