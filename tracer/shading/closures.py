@@ -94,9 +94,9 @@ class ClosureLowering:
         W·(1 − c·F_coat(μ)), its colour × mix(1, Coat Tint^(1/cos θ_t), c)) under a dielectric GGX lobe of weight
         W·c (Coat Roughness, Coat IOR: a Principled lobe with a black base whose Specular IOR Level gives the coat's
         F0 against the BSDF's IOR, as :func:`tracer.shading.principled._layered` writes MaterialX coats). F_coat is
-        the smooth Fresnel of Coat IOR at the view direction (Cycles reads its rough-GGX albedo table: the same to
-        within a few per cent below Coat Roughness 0.3). The lobes share one normal: a linked Coat Normal is used
-        only where Normal is not linked (else the warning of differing normals)."""
+        Cycles' estimate of the coat's albedo at the view angle (:func:`tracer.shading.bsdf.dielectric_albedo`, on
+        the valid specular-reflection normal). The lobes share one normal: a linked Coat Normal is used only where
+        Normal is not linked (else the warning of differing normals)."""
         m = self.math
         cw = self.math(ops.M_MINIMUM, cw, 1.0) if not is_const(cw) else min(float(cw), 1.0)
         lb = self.lobe(node)
@@ -107,7 +107,7 @@ class ClosureLowering:
         if self.estimate:
             fr = ((cior - 1.0) / (cior + 1.0)) ** 2
         else:
-            fr = self.op("fresnel", [(cior, 1), (nrm, 3)])
+            fr = self.op("fresnel", [(cior, 1), (nrm, 3), (self.inp(node, "Coat Roughness"), 1)], imm=2)
         base_w = m(ops.M_MULTIPLY, weight, m(ops.M_SUBTRACT, 1.0, m(ops.M_MULTIPLY, cw, fr)))
         tint = self.inp(node, "Coat Tint")
         if not (is_const(tint) and vec3(tint) == (1.0, 1.0, 1.0)):

@@ -279,7 +279,7 @@ OPS: tuple[Op, ...] = (
     Op("comb_color", 3, _fold_comb_color, "Combine Color: a, b, c; imm = mode (RGB, HSV, HSL)"),
     Op("map_range", 1, _fold_map_range, "Map Range: value a, from b…c, to d…e, steps f; imm = type | 256·clamp"),
     Op("clamp", 1, _fold_clamp, "Clamp: value a, min b, max c; imm = type"),
-    Op("fresnel", 1, None, "Fresnel: IOR a, normal b"),
+    Op("fresnel", 1, None, "Fresnel: IOR a, normal b; imm 2: a coat's albedo (IOR a, normal b, roughness c)"),
     Op("layer_weight", 2, None, "Layer Weight: blend a, normal b -> Fresnel, Facing"),
     Op("vrotate", 3, lambda R, o, a, b, c, d, e, f, imm: ops.vrotate(R, o, a, b, c, d, e, imm),
        "Vector Rotate: vector a, centre b, axis c, angle d, rotation e; imm = type | 8·invert"),

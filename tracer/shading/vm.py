@@ -29,6 +29,8 @@ from ..colorspace import REC709_LUMINANCE
 from ..geometry.instances import mat3_apply, mat3_apply_transposed
 from ..geometry.surface import areas_at, tangent_at, uv_at
 from ..jit import kernel
+from ..optics import valid_reflection_normal
+from .bsdf import dielectric_albedo
 from . import ops
 
 # Opcodes, hit inputs and closure outputs: the node table's (tracer.shading.nodes; numba reads these globals as
@@ -321,7 +323,11 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
                 lo, hi = hi, lo
             R[o] = min(max(R[a], lo), hi)
         elif op == OP_FRESNEL:
-            R[o] = _fresnel(R[a], (R[b], R[b + 1], R[b + 2]), d, front)
+            if imm == 2:  # a coat's albedo, roughness c (Cycles: on the valid specular reflection normal)
+                nf = valid_reflection_normal(d, (R[b], R[b + 1], R[b + 2]), ng)
+                R[o] = dielectric_albedo(R[c], abs(vec.dot(d, nf)), max(R[a], 1.0))
+            else:
+                R[o] = _fresnel(R[a], (R[b], R[b + 1], R[b + 2]), d, front)
         elif op == OP_LAYER_WEIGHT:
             _layer_weight(R, o, R[a], (R[b], R[b + 1], R[b + 2]), d, front)
         elif op == OP_VROTATE:
