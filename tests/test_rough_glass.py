@@ -319,3 +319,56 @@ def test_a_point_light_without_radius_lights_rough_glass_as_in_cycles(bpy_module
     print(f"  on the highlight (Cycles' brightest 5 %): {ratio:.3f}")
     H.check_images({"name": "rough_glass_point_lamp"}, ours, ref, tmp_path, min_psnr=34.0, max_mae=0.01)
     assert abs(ratio - 1.0) < 0.05, ratio
+
+
+TINT = (0.25, 0.5, 1.0)
+
+
+def tinted_glass_scene(roughness=0.0, mix=False):
+    """:func:`checker_scene` with a uniform backdrop of 1 and a Principled glass sphere (transmission 1, IOR 1.01: no
+    bending to speak of, Fresnel ≈ 0) of Base Color ``TINT``; ``mix``: the Principled mixed half and half with a
+    Transparent BSDF (the lobes' path)."""
+    import bpy
+
+    scene = checker_scene(roughness, size=(32, 32))
+    nt = bpy.data.materials["Checker backdrop"].node_tree
+    next(n for n in nt.nodes if n.type == "TEX_CHECKER").inputs["Color2"].default_value = (1.0, 1.0, 1.0, 1.0)
+    nt = bpy.data.materials["Rough glass"].node_tree
+    out = next(n for n in nt.nodes if n.type == "OUTPUT_MATERIAL")
+    p = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    p.inputs["Base Color"].default_value = TINT + (1.0,)
+    p.inputs["Roughness"].default_value = roughness
+    p.inputs["IOR"].default_value = 1.01
+    p.inputs["Transmission Weight"].default_value = 1.0
+    shader = p.outputs[0]
+    if mix:
+        tr = nt.nodes.new("ShaderNodeBsdfTransparent")
+        mx = nt.nodes.new("ShaderNodeMixShader")
+        mx.inputs["Fac"].default_value = 0.5
+        nt.links.new(p.outputs[0], mx.inputs[1])
+        nt.links.new(tr.outputs[0], mx.inputs[2])
+        shader = mx.outputs[0]
+    nt.links.new(shader, out.inputs["Surface"])
+    bpy.context.view_layer.update()
+    return scene
+
+
+@pytest.mark.blender
+@pytest.mark.cycles
+@pytest.mark.parametrize("roughness, mix", [(0.0, False), (0.4, False), (0.0, True)])
+def test_principled_glass_tints_by_the_square_root_of_its_base_colour(bpy_module, roughness, mix):
+    """Cycles' Principled glass tints each refraction by √(Base Color): through a sphere (in and out) the backdrop is
+    × Base Color (measured through bpy: (0.25, 0.5, 1.0) smooth, (0.254, 0.507, 1.015) at roughness 0.4), where a
+    Glass BSDF tints by Color each time (× Color²: 0.0625, 0.25, 1). Ours tinted the Principled by its base colour
+    each time (0.0625, 0.25, 1). Mixed half and half with a Transparent BSDF (the lobes' path) against Cycles too."""
+    build = functools.partial(tinted_glass_scene, roughness, mix)
+    ref = H.cycles_render(f"principled_glass_tint_{roughness}_{mix}", build,
+                          _source(tinted_glass_scene, checker_scene, _node_material, _glass),
+                          dict(depth=8, samples=256))
+    ours, _ = ours_render(build(), samples=4)
+    c = slice(12, 20)
+    theirs, mine = ref[c, c].mean((0, 1)), ours[c, c].mean((0, 1))
+    print(f"tinted Principled glass (roughness {roughness}, mix {mix}): ours {mine.round(3)}, Cycles {theirs.round(3)}")
+    if not mix:
+        np.testing.assert_allclose(theirs, TINT, rtol=0.03)
+    np.testing.assert_allclose(mine, theirs, rtol=0.03)

@@ -520,7 +520,8 @@ def _row(vals: dict, extras: dict) -> dict:
     if not extras.get("glass_multiscatter", True):  # single-scattering rough glass (Cycles' GGX, Beckmann)
         row["glass_multiscatter"] = 0.0
     if row["transmission"] > 0 or extras["transmission_tint"] is not None:
-        row["transmission_tint"] = tuple(extras["transmission_tint"] or row["base_color"])
+        # a Principled's glass tints each refraction by √(base colour), as Cycles' does (in and out: the base colour)
+        row["transmission_tint"] = tuple(extras["transmission_tint"] or (x ** 0.5 for x in row["base_color"]))
     return row
 
 

@@ -34,6 +34,7 @@ and refraction lobes (:func:`refraction_weights`).
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -272,7 +273,9 @@ def glass_lamp_share(kinds, prm, i, nl):
 def refraction_weights(kinds, w, base, prm, i, nl, tint):
     """(R, T, T₀) of hit i's lobes for the spawn stage: the reflected ray takes R·F and the refracted ray T·(1 − F)
     + T₀, F the dielectric Fresnel factor of the material's IOR. Glass: R = T = w·colour; Refraction: T₀ = w·colour;
-    Principled: its glass part s = (1 − metallic)·transmission, R = w·s·specular tint, T = w·s·base colour."""
+    Principled: its glass part s = (1 − metallic)·transmission, R = w·s·specular tint, T = w·s·√(base colour) (Cycles'
+    Principled tints each refraction by the square root, so that in and out of an object give the base colour:
+    measured through bpy, a Principled sphere of IOR 1.01 shows the backdrop × base colour, a Glass BSDF's × Color²)."""
     r = (0.0, 0.0, 0.0)
     t = (0.0, 0.0, 0.0)
     t0 = (0.0, 0.0, 0.0)
@@ -290,5 +293,7 @@ def refraction_weights(kinds, w, base, prm, i, nl, tint):
             if s > 0.0:
                 wk = (float(w[i, k, 0]), float(w[i, k, 1]), float(w[i, k, 2]))
                 r = vec.add(r, vec.scale(vec.mul(wk, tint), s))
-                t = vec.add(t, vec.scale(wc, s))
+                rt = (math.sqrt(max(float(base[i, k, 0]), 0.0)), math.sqrt(max(float(base[i, k, 1]), 0.0)),
+                      math.sqrt(max(float(base[i, k, 2]), 0.0)))
+                t = vec.add(t, vec.scale(vec.mul(wk, rt), s))
     return r, t, t0
