@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from pxr import Sdf, Usd, UsdGeom, UsdLux
+from pxr import Sdf, Usd, UsdGeom, UsdLux, UsdSkel
 
 from tracer import SceneBuilder
 from tracer.colorspace import AP1_TO_REC709
@@ -24,11 +24,12 @@ from .dome import environment
 from .exporters import light_units as exporter_light_units
 from .geometry.curves import read_curves, read_points
 from .geometry.gprims import DEFAULT_SEGMENTS, GPRIM_TYPES, read_gprim
-from .geometry.instancing import instance_matrices
-from .geometry.mesh import COMPLEXITY, DEFAULT_COMPLEXITY, SUBDIVIDED, MeshData, read_mesh, read_subdivided
+from .geometry.instancing import instance_matrices, missing_required_input
+from .geometry.mesh import (COMPLEXITY, DEFAULT_COMPLEXITY, SUBDIVIDED, MeshData, read_mesh, read_subdivided,
+                            smooth_normals)
 from .geometry.motion import stage_motion
 from .geometry.nurbs import read_nurbs_curves, read_nurbs_patch, read_tet_mesh
-from .geometry.skel import Skinning
+from .geometry.skel import Skinning, bone_mesh, skeleton_purpose
 from .geometry.xform import Transforms, transform_points
 from .holdout import holdout_flags
 from .layer_metadata import meters_per_unit
@@ -117,6 +118,7 @@ class _Reader:
         self.light_prims: list = []  # the UsdLux prim of each tracer light
         self._grey = None
         self.empty: set = set()  # gprims whose geometry is absent or has no faces at this time
+        self.invalid: set = set()  # PointInstancers without a required input (named in a warning; not drawn)
         self.skinning = Skinning(time, self.xf.world)
         self.subdivision_level = COMPLEXITY[DEFAULT_COMPLEXITY]
         self._refined: dict = {}  # prim path -> MeshData refined ahead (prefetch_subdivided)
@@ -252,6 +254,37 @@ class _Reader:
         self._grow(transform_points(m, data.points))
         self.info.meshes.append((str(prim.GetPath()), int(len(tris))))
 
+    def add_skeleton(self, prim):
+        """A Skeleton drawn as Storm draws it: UsdSkelImaging's bone mesh (usd_io.geometry.skel.bone_mesh), posed
+        at the time code, in the skeleton's space and colour (its displayColor), when its purpose (a guide unless
+        authored: skeleton_purpose) is one the render shows."""
+        if skeleton_purpose(prim) not in self.purposes or prim.IsInstanceProxy():
+            return
+        label = str(prim.GetPath())
+        got = bone_mesh(UsdSkel.Skeleton(prim), self.time, self.skinning.cache)
+        if got is None:
+            self.info.warn(f"{label}: skeleton cannot be posed: its bones are not drawn")
+            return
+        points, tris = got
+        if not len(tris):
+            return
+        if not np.all(np.isfinite(points)):
+            self.info.warn(f"{label}: skeleton posed at non-finite joints: its bones are not drawn")
+            return
+        n = len(tris)
+        data = MeshData(points=points, triangles=tris, faces=np.arange(n), n_faces=n,
+                        normals=smooth_normals(points, tris), corners=np.arange(3 * n).reshape(n, 3),
+                        n_face_vertices=3 * n)
+        m = self.xf.world(prim)
+        if not _usable(m):
+            self.info.warn(f"{label}: transform is singular (zero scale) or not finite (skipped)")
+            return
+        data, material, extra, _needs = self.shaded_with_needs(prim, data)
+        self.b.add_mesh(data.points, tris, material=material, name=label, transform=m, normals=data.normals,
+                        **dict(dict(uvs=data.uvs), **extra))
+        self._grow(transform_points(m, data.points))
+        self.info.meshes.append((label, n))
+
     def add_instancer(self, prim, frames=None, depth=0, outer=None):
         """A PointInstancer; ``frames`` (F, 4, 4) are the world matrices of the instancer itself when it is nested
         in another instancer's prototype (one per outer instance), else its own world matrix; ``outer`` the
@@ -262,6 +295,12 @@ class _Reader:
         3-component primvar that a prototype's material reads as its colour (displayColor, a primvar reader,
         Arnold's user_data_rgb) is drawn per instance, by one copy of the prototype mesh per distinct value
         (:data:`INSTANCE_COLOUR_TRIANGLES` at most). Others are named in one warning."""
+        missing = missing_required_input(prim)
+        if missing is not None:  # Storm leaves it out of the render index and draws the rest
+            self.info.warn(f"{prim.GetPath()}: PointInstancer without a value for its required '{missing}' (not "
+                           "drawn, as Storm does not draw it)")
+            self.invalid.add(str(prim.GetPath()))
+            return 0
         mats, idx, protos = instance_matrices(prim, self.time)
         frames = self.xf.world(prim)[None] if frames is None else frames
         here = str(prim.GetPath())
@@ -426,9 +465,11 @@ def _say_if_empty(r, info) -> None:
     if sum(n for _p, n in info.meshes):
         return
     gprims = [p for p in r.prims if (p.IsA(UsdGeom.Gprim) or p.IsA(UsdGeom.PointInstancer))
-              and str(p.GetPath()) not in r.empty]
+              and str(p.GetPath()) not in r.empty and str(p.GetPath()) not in r.invalid]
     if not gprims:
         empty = f" ({len(r.empty)} gprim(s) without points or faces at this time)" if r.empty else ""
+        if r.invalid:
+            empty += f" ({len(r.invalid)} PointInstancer(s) without a required input)"
         info.warn(f"the stage has no visible gprims with geometry{empty}: the frame shows only the background")
         return
     kinds = sorted({p.GetTypeName() for p in gprims})
@@ -510,6 +551,8 @@ def _read_prims(r: _Reader, stage, tc, purposes, info: StageInfo) -> None:
             r.add_instancer(prim)
         elif t in GPRIM_TYPES or prim.IsA(UsdGeom.Mesh) or _is_points_or_curves(prim):
             r.add_gprim(prim)
+        elif prim.IsA(UsdSkel.Skeleton):
+            r.add_skeleton(prim)
         elif prim.HasAPI(UsdLux.LightAPI):
             r.add_light(prim)
         elif prim.IsA(UsdGeom.Camera):

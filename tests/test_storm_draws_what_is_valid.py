@@ -1,0 +1,167 @@
+"""Storm draws what is valid (issue #32, OpenUSD's imaging tests rebuilt as small stages written here):
+
+- a PointInstancer without one of its required inputs (``prototypes`` targets, ``protoIndices``, ``positions``) is
+  not added to Storm's render index, with one warning naming it (UsdImagingPointInstancerAdapter); the rest of the
+  stage is drawn (testUsdImagingGLPointInstancer_pi_bad_schema_input: Storm's baseline is the empty frame). Before,
+  the stage was refused ("gave 0 triangles: nothing is drawn", exit 2) and two of the three got no warning;
+- a Skeleton is drawn as UsdSkelImaging's bone mesh (UsdSkelImagingComputeBonePoints: per bone a four-sided
+  pyramid, tip at the child joint, base at the parent joint 0.1 × the bone's length out along the parent's two
+  axes least aligned with the bone) when its purpose is shown; unauthored it is a guide
+  (UsdSkelImagingSkeletonAdapter::GetPurpose) (testUsdImagingGLSkeleton, ``-guidesPurpose show``: before, nothing
+  was drawn and the frame was the background).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
+
+import tracer
+from usd_io.reader import load_stage
+
+
+def _cube(stage, path):
+    cube = UsdGeom.Mesh.Define(stage, path)
+    cube.CreatePointsAttr([(-0.5, -0.5, 0.5), (0.5, -0.5, 0.5), (-0.5, 0.5, 0.5), (0.5, 0.5, 0.5),
+                           (-0.5, 0.5, -0.5), (0.5, 0.5, -0.5), (-0.5, -0.5, -0.5), (0.5, -0.5, -0.5)])
+    cube.CreateFaceVertexCountsAttr([4] * 6)
+    cube.CreateFaceVertexIndicesAttr([0, 1, 3, 2, 2, 3, 5, 4, 4, 5, 7, 6, 6, 7, 1, 0, 1, 7, 5, 3, 6, 0, 2, 4])
+    cube.CreateSubdivisionSchemeAttr("none")
+    return cube
+
+
+def _bad_instancers(stage):
+    """pi_bad_schema_input's three cases: each PointInstancer lacks one required input."""
+    _cube(stage, "/prototypes/Cube")
+    stage.GetPrimAtPath("/prototypes").SetActive(False)
+    for name, missing in (("NoPrototypes", "prototypes"), ("NoProtoIndices", "protoIndices"),
+                          ("NoPositions", "positions")):
+        pi = UsdGeom.PointInstancer.Define(stage, f"/Bad{name}")
+        proto = stage.DefinePrim(f"/Bad{name}/protos/proto1")
+        proto.GetReferences().AddInternalReference("/prototypes")
+        proto.SetActive(True)
+        if missing != "prototypes":
+            pi.CreatePrototypesRel().SetTargets([proto.GetPath()])
+        if missing != "protoIndices":
+            pi.CreateProtoIndicesAttr([0, 0])
+        if missing != "positions":
+            pi.CreatePositionsAttr([(-2, 0, 0), (2, 0, 0)])
+
+
+@pytest.mark.parametrize("with_valid_prim", [False, True])
+def test_a_point_instancer_missing_a_required_input_is_named_once_and_the_rest_is_drawn(with_valid_prim):
+    stage = Usd.Stage.CreateInMemory()
+    _bad_instancers(stage)
+    if with_valid_prim:
+        _cube(stage, "/Valid")
+    _scene, info = load_stage(stage, width=32, height=24)
+    assert info.nothing_drawn is None  # not refused: Storm draws the empty frame (or the valid cube)
+    for name, missing in (("NoPrototypes", "prototypes"), ("NoProtoIndices", "protoIndices"),
+                          ("NoPositions", "positions")):
+        said = [w for w in info.warnings if f"/Bad{name}" in w]
+        assert len(said) == 1 and f"'{missing}'" in said[0] and "not drawn" in said[0], info.warnings
+    drawn = dict(info.meshes)
+    assert drawn.get("/Valid", 0) == (12 if with_valid_prim else 0)
+    assert not any(drawn.get(f"/Bad{n}") for n in ("NoPrototypes", "NoProtoIndices", "NoPositions"))
+
+
+def test_an_empty_but_authored_input_is_valid():
+    """Storm only checks that the inputs have a value: authored empty arrays (or time samples) are valid, and
+    draw nothing without a warning about the schema."""
+    stage = Usd.Stage.CreateInMemory()
+    _cube(stage, "/prototypes/Cube")
+    pi = UsdGeom.PointInstancer.Define(stage, "/Empty")
+    pi.CreatePrototypesRel().SetTargets(["/prototypes/Cube"])
+    pi.CreateProtoIndicesAttr([])
+    pi.CreatePositionsAttr([])
+    _scene, info = load_stage(stage, width=16, height=16)
+    assert not [w for w in info.warnings if "required" in w], info.warnings
+
+
+def _skeleton(stage, purpose=None, colour=(1, 0, 0)):
+    """A three-joint chain: A at the origin, B 2 up (+Y), C 1 along +X from B; the SkelRoot 10 back along −Z."""
+    root = UsdSkel.Root.Define(stage, "/Char")
+    skel = UsdSkel.Skeleton.Define(stage, "/Char/Skel")
+    skel.CreateJointsAttr(["A", "A/B", "A/B/C"])
+    rest = [Gf.Matrix4d(1).SetTranslate(Gf.Vec3d(0, 0, 0)), Gf.Matrix4d(1).SetTranslate(Gf.Vec3d(0, 2, 0)),
+            Gf.Matrix4d(1).SetTranslate(Gf.Vec3d(1, 0, 0))]
+    skel.CreateRestTransformsAttr(Vt.Matrix4dArray(rest))
+    skel.CreateBindTransformsAttr(Vt.Matrix4dArray([Gf.Matrix4d(1), Gf.Matrix4d(1).SetTranslate(Gf.Vec3d(0, 2, 0)),
+                                                    Gf.Matrix4d(1).SetTranslate(Gf.Vec3d(1, 2, 0))]))
+    UsdGeom.Xformable(root).AddTranslateOp().Set(Gf.Vec3d(0, 0, -10))
+    if colour is not None:
+        UsdGeom.PrimvarsAPI(skel).CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray,
+                                                UsdGeom.Tokens.constant).Set([colour])
+    if purpose:
+        skel.CreatePurposeAttr(purpose)
+    return skel
+
+
+def test_a_skeleton_is_drawn_as_storms_bone_mesh_when_guides_are_shown():
+    from usd_io.geometry.skel import bone_mesh
+
+    stage = Usd.Stage.CreateInMemory()
+    skel = _skeleton(stage)
+    _scene, info = load_stage(stage, width=32, height=32, purposes=("default", "proxy", "guide"))
+    assert dict(info.meshes).get("/Char/Skel") == 8  # two bones, four triangles each (the base is open)
+    points, triangles = bone_mesh(skel, Usd.TimeCode.Default())
+    # bone A->B: length 2 along +Y, so the base is out along A's X and Z axes by 0.2; tip at B (skeleton space)
+    np.testing.assert_allclose(points[:5], [(0, 2, 0), (0.2, 0, 0.2), (0.2, 0, -0.2), (-0.2, 0, -0.2),
+                                            (-0.2, 0, 0.2)], atol=1e-6)
+    # bone B->C: length 1 along +X from B, so the base is out along B's Y and Z axes by 0.1; tip at C
+    np.testing.assert_allclose(points[5:], [(1, 2, 0), (0, 2.1, 0.1), (0, 2.1, -0.1), (0, 1.9, -0.1),
+                                            (0, 1.9, 0.1)], atol=1e-6)
+    np.testing.assert_array_equal(triangles, [(0, 2, 1), (0, 3, 2), (0, 4, 3), (0, 1, 4),
+                                              (5, 7, 6), (5, 8, 7), (5, 9, 8), (5, 6, 9)])
+
+
+def test_a_skeleton_is_a_guide_unless_its_purpose_says_otherwise():
+    stage = Usd.Stage.CreateInMemory()
+    _skeleton(stage)
+    _scene, info = load_stage(stage, width=16, height=16)  # default and render: no guides
+    assert "/Char/Skel" not in dict(info.meshes)
+    stage = Usd.Stage.CreateInMemory()
+    _skeleton(stage, purpose="default")
+    _scene, info = load_stage(stage, width=16, height=16)
+    assert dict(info.meshes).get("/Char/Skel") == 8
+
+
+def test_the_bone_mesh_is_drawn_in_the_skeletons_display_colour():
+    """Seen head-on from the stage's default framing, the bones are red (the skeleton's displayColor)."""
+    stage = Usd.Stage.CreateInMemory()
+    _skeleton(stage, purpose="default", colour=(1, 0, 0))
+    scene, info = load_stage(stage, width=48, height=48)
+    img = tracer.render(scene, tracer.RenderSettings(width=48, height=48, samples=1, transparent=True)).rgba
+    img = np.asarray(img)
+    covered = img[..., 3] > 0.99
+    assert covered.sum() > 20
+    rgb = img[covered][:, :3]
+    assert np.all(rgb[:, 0] > 4 * np.maximum(rgb[:, 1], rgb[:, 2]) + 1e-3)
+
+
+@pytest.mark.parametrize("kind", ["Sphere", "Mesh", "SubdivMesh", "Skeleton"])
+def test_a_display_colour_authored_as_one_colour_not_an_array_colours_the_prim(kind):
+    """``color3f primvars:displayColor = (1, 0, 0)`` (a single value: skeleton.usda writes its bones' colour so;
+    on an ancestor Xform it is inherited by the gprims below) is drawn red by Storm. Before, its three numbers were
+    read as three colours and the first, (1, 1, 1), drawn: a white surface, no warning."""
+    stage = Usd.Stage.CreateInMemory()
+    holder = UsdGeom.Xform.Define(stage, "/X")
+    if kind == "Sphere":
+        UsdGeom.Sphere.Define(stage, "/X/G")
+    elif kind == "Skeleton":
+        holder = _skeleton(stage, purpose="default", colour=None)
+    else:
+        mesh = UsdGeom.Mesh.Define(stage, "/X/G")
+        mesh.CreatePointsAttr([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)])
+        mesh.CreateFaceVertexCountsAttr([4])
+        mesh.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
+        mesh.CreateSubdivisionSchemeAttr("catmullClark" if kind == "SubdivMesh" else "none")
+    UsdGeom.PrimvarsAPI(holder).CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3f,
+                                              UsdGeom.Tokens.constant).Set(Gf.Vec3f(1, 0, 0))
+    scene, _info = load_stage(stage, width=32, height=32)
+    img = np.asarray(tracer.render(scene, tracer.RenderSettings(width=32, height=32, samples=1,
+                                                                 transparent=True)).rgba)
+    rgb = img[img[..., 3] > 0.99][:, :3]
+    assert len(rgb) > 4
+    assert np.all(rgb[:, 0] > 4 * np.maximum(rgb[:, 1], rgb[:, 2]) + 1e-3), rgb[:4]
