@@ -137,3 +137,18 @@ def test_frame_all_frames_as_the_test_app_does(up):
     assert (window.GetMax()[0] - window.GetMin()[0]) / (window.GetMax()[1] - window.GetMin()[1]) == \
         pytest.approx(64 / 48)
     assert (frustum.GetNearFar().min, frustum.GetNearFar().max) == pytest.approx((1.0, 100000.0))
+
+
+def test_a_test_without_times_is_drawn_at_the_default_time():
+    """The test app draws a test without -times at UsdTimeCode::Default(): an attribute with only time samples
+    reads its fallback there (implicits.usda's animated row: radius 1, not its first sample 0.25). Before, the
+    harness read the earliest time and drew that row 4x smaller."""
+    from pxr import Usd, UsdGeom
+
+    from usd_io.reader import load_stage
+
+    stage = Usd.Stage.CreateInMemory()
+    UsdGeom.Sphere.Define(stage, "/S").GetRadiusAttr().Set(0.25, 1.0)
+    assert fidelity.app_time(None) == Usd.TimeCode.Default() and fidelity.app_time(3) == Usd.TimeCode(3.0)
+    scene, _info = load_stage(stage, time=fidelity.app_time(None), width=8, height=8)
+    assert np.abs(np.asarray(scene.vertices)).max() == pytest.approx(1.0, rel=1e-3)

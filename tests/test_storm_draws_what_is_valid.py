@@ -165,3 +165,52 @@ def test_a_display_colour_authored_as_one_colour_not_an_array_colours_the_prim(k
     rgb = img[img[..., 3] > 0.99][:, :3]
     assert len(rgb) > 4
     assert np.all(rgb[:, 0] > 4 * np.maximum(rgb[:, 1], rgb[:, 2]) + 1e-3), rgb[:4]
+
+
+def test_a_directly_instanced_gprim_is_not_drawn_and_named_once():
+    """A gprim that is itself instanceable (``def "pCube1" (instanceable = true references = </Cube>)`` with
+    ``/Cube`` a Cube: instancedCubes2NoInstancing.usda) is skipped by UsdImaging's instance adapter with a warning
+    ("put the prim under an Xform, and instance the Xform parent"); Storm's baseline draws only the uninstanced
+    /Cube. Before, each instance was drawn (IoU 0.08 against the baseline)."""
+    stage = Usd.Stage.CreateInMemory()
+    UsdGeom.Cube.Define(stage, "/Cube")
+    for i in range(2):
+        inst = stage.DefinePrim(f"/Cubes/pCube{i}")
+        inst.GetReferences().AddInternalReference("/Cube")
+        inst.SetInstanceable(True)
+        UsdGeom.Xformable(inst).AddTranslateOp().Set(Gf.Vec3d(3 * (i + 1), 0, 0))
+    _scene, info = load_stage(stage, width=16, height=16)
+    assert list(dict(info.meshes)) == ["/Cube"]
+    for i in range(2):
+        said = [w for w in info.warnings if f"/Cubes/pCube{i}" in w]
+        assert len(said) == 1 and "directly instanced" in said[0], info.warnings
+    # only such instances: not refused, the empty frame
+    stage.GetPrimAtPath("/Cube").SetActive(False)
+    stage2 = Usd.Stage.CreateInMemory()
+    UsdGeom.Cube.Define(stage2, "/Proto").GetPrim().SetSpecifier(Sdf.SpecifierClass)
+    inst = stage2.DefinePrim("/Inst")
+    inst.GetReferences().AddInternalReference("/Proto")
+    inst.SetInstanceable(True)
+    _scene, info = load_stage(stage2, width=16, height=16)
+    assert info.nothing_drawn is None and not info.meshes
+
+
+def test_a_model_draw_mode_storm_would_apply_is_named_in_one_warning():
+    """``model:drawMode = "cards"`` (or bounds, origin) on a component model, or on any model with
+    ``model:applyDrawMode = true``, makes Storm draw a stand-in (testUsdImagingGLCards); the tracer draws the full
+    geometry, and says so in one warning naming the mode and the models. Before: silence."""
+    stage = Usd.Stage.CreateInMemory()
+    UsdGeom.Xform.Define(stage, "/World")
+    Usd.ModelAPI(stage.GetPrimAtPath("/World")).SetKind("group")
+    for name, kind, apply in (("A", "component", False), ("B", "assembly", True), ("C", "assembly", False)):
+        s = UsdGeom.Sphere.Define(stage, f"/World/{name}")
+        Usd.ModelAPI(s.GetPrim()).SetKind(kind)
+        model = UsdGeom.ModelAPI.Apply(s.GetPrim())
+        model.CreateModelDrawModeAttr("cards")
+        if apply:
+            model.CreateModelApplyDrawModeAttr(True)
+    _scene, info = load_stage(stage, width=16, height=16)
+    said = [w for w in info.warnings if "drawMode" in w]
+    assert len(said) == 1 and "cards" in said[0] and "/World/A" in said[0] and "/World/B" in said[0], said
+    assert "/World/C" not in said[0]
+    assert sorted(dict(info.meshes)) == ["/World/A", "/World/B", "/World/C"]  # still drawn in full

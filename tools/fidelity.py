@@ -52,15 +52,20 @@ THRESHOLD = 0.5 / 255  # 8-bit: any other value
 UNMEASURED = {"visible dome": "a textured DomeLight fills Storm's background: no clear colour, no silhouette",
               "-presentComposite": "the test composites its -times into one image (frames accumulate)",
               "-clipPlane": "an OpenGL clip plane of the test app (-clipPlane), not in the stage",
-              "points": "-shading points: Storm draws each vertex as a point, no surface"}
+              "points": "-shading points: Storm draws each vertex as a point, no surface",
+              "-unloadedAsBounds": "the test app opens the stage unloaded and draws payloads as boxes"}
 
 
 def unmeasured(test: dict) -> str | None:
+    if not os.path.exists(test["stage"]):
+        return "the test's stage is not in the snapshot (its TESTENV folder is absent)"
     if "-presentComposite" in test["cmd"]:
         return UNMEASURED["-presentComposite"]
     argv = test["cmd"].split()
     if "-clipPlane" in argv:
         return UNMEASURED["-clipPlane"]
+    if "-unloadedAsBounds" in argv:
+        return UNMEASURED["-unloadedAsBounds"]
     if "-shading" in argv and argv[argv.index("-shading") + 1:][:1] == ["points"]:
         return UNMEASURED["points"]
     text = open(test["stage"], errors="replace").read() if test["stage"].endswith(".usda") else ""
@@ -287,6 +292,14 @@ def nurbs_as_hulls(stage, time) -> None:
             prim.SetActive(False)
 
 
+def app_time(t):
+    """The time code the test app draws at: each ``-times`` value, else ``UsdTimeCode::Default()`` (the app's -999),
+    where an attribute with only time samples reads its fallback, not its first sample."""
+    from pxr import Usd
+
+    return Usd.TimeCode.Default() if t is None else Usd.TimeCode(float(t))
+
+
 def render_one(test: dict, t, size, aa: int, dof: bool, segments=None, hulls=False):
     import tracer
     from usd_io.reader import load_stage
@@ -302,7 +315,7 @@ def render_one(test: dict, t, size, aa: int, dof: bool, segments=None, hulls=Fal
     stage, settings_prim = reference_camera(stage, camera, test["window_policy"])
     if hulls:
         nurbs_as_hulls(stage, t)
-    kw = dict(time=t, camera=camera, width=w, height=h, complexity=_complexity(test["complexity"]),
+    kw = dict(time=app_time(t), camera=camera, width=w, height=h, complexity=_complexity(test["complexity"]),
               render_settings_prim=settings_prim, purposes=purposes)
     if not dof:
         kw["depth_of_field"] = False
@@ -393,6 +406,8 @@ def main(argv=None) -> int:
                 row.update(iou=round(iou(a, b), 4), ours_px=int(a.sum()), storm_px=int(b.sum()),
                            size=list(storm.shape[:2][::-1]), warnings=len(info.warnings),
                            blank_ours=bool(uniform(rgba)), blank_storm=bool(not b.any()))
+                if info.nothing_drawn:  # `whitted render` exits 2 on this stage (usd_io.reader._say_if_empty)
+                    row["refused"] = info.nothing_drawn
                 if "-shading wire " in test["cmd"] + " ":
                     row["shading"] = "wire"  # Storm draws the edges only: its silhouette is lines
                 side_by_side(os.path.join(args.out, os.path.splitext(row["baseline"])[0] + ".png"), storm, rgba, a, b)

@@ -547,6 +547,13 @@ def _read_prims(r: _Reader, stage, tc, purposes, info: StageInfo) -> None:
     r.prefetch_subdivided(r.prims)
     for prim in r.prims:
         t = prim.GetTypeName()
+        if prim.IsInstance() and (prim.IsA(UsdGeom.Gprim) or prim.IsA(UsdGeom.PointInstancer)):
+            # UsdImaging's instance adapter skips the prototype's root when it is imageable (its attributes could
+            # differ per instance); Storm draws nothing for it, with this warning
+            info.warn(f"{prim.GetPath()}: a {t} directly instanced (instanceable = true on the {t} itself) is not "
+                      "drawn, as Storm does not draw it: put the prim under an Xform and instance the Xform")
+            r.invalid.add(str(prim.GetPath()))
+            continue
         if prim.IsA(UsdGeom.PointInstancer):
             r.add_instancer(prim)
         elif t in GPRIM_TYPES or prim.IsA(UsdGeom.Mesh) or _is_points_or_curves(prim):
@@ -559,6 +566,27 @@ def _read_prims(r: _Reader, stage, tc, purposes, info: StageInfo) -> None:
             info.cameras.append(str(prim.GetPath()))
         elif prim.IsA(UsdGeom.Gprim):
             info.warn(f"{prim.GetPath()}: {t} is not supported (skipped)")
+    _say_draw_modes(r.prims, info.warn)
+
+
+def _say_draw_modes(prims, warn) -> None:
+    """One warning naming the models whose ``model:drawMode`` Storm applies (a component model always, any other
+    model with ``model:applyDrawMode = true``: UsdImaging's draw-mode rule) and that are drawn here in full: the
+    stand-ins (cards, bounds, origin) are a viewer's, not drawn by the tracer."""
+    found: dict = {}
+    for prim in prims:
+        if not prim.IsModel() or not prim.HasAPI(UsdGeom.ModelAPI):
+            continue
+        model = UsdGeom.ModelAPI(prim)
+        mode = str(model.ComputeModelDrawMode())
+        if mode in ("default", "inherited", ""):
+            continue
+        if Usd.ModelAPI(prim).IsKind("component") or model.GetModelApplyDrawModeAttr().Get():
+            found.setdefault(mode, []).append(str(prim.GetPath()))
+    for mode, paths in sorted(found.items()):
+        names = ", ".join(paths[:3]) + (", ..." if len(paths) > 3 else "")
+        warn(f"model:drawMode {mode!r} on {len(paths)} model(s) ({names}): Storm draws their {mode} stand-in; the "
+             "tracer draws the full geometry")
 
 
 def stage_up_axis(stage, warn) -> str:
