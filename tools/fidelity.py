@@ -405,6 +405,7 @@ def main(argv=None) -> int:
                 a, b = rgba[..., 3] >= 0.5, storm_mask(storm, test["clear"])
                 row.update(iou=round(iou(a, b), 4), ours_px=int(a.sum()), storm_px=int(b.sum()),
                            size=list(storm.shape[:2][::-1]), warnings=len(info.warnings),
+                           warning_texts=[w[:200] for w in info.warnings[:8]],
                            blank_ours=bool(uniform(rgba)), blank_storm=bool(not b.any()))
                 if info.nothing_drawn:  # `whitted render` exits 2 on this stage (usd_io.reader._say_if_empty)
                     row["refused"] = info.nothing_drawn
