@@ -152,3 +152,33 @@ def test_a_test_without_times_is_drawn_at_the_default_time():
     assert fidelity.app_time(None) == Usd.TimeCode.Default() and fidelity.app_time(3) == Usd.TimeCode(3.0)
     scene, _info = load_stage(stage, time=fidelity.app_time(None), width=8, height=8)
     assert np.abs(np.asarray(scene.vertices)).max() == pytest.approx(1.0, rel=1e-3)
+
+
+def test_half_coverage_is_decided_by_the_pixel_centre_not_a_jittered_estimate(tmp_path):
+    """A plane whose side edges end 0.48 px into a pixel (Mipmap_017's edges: 7 / 0.42474 = 16.48 px from the
+    centre): covered 48 %, so out at half coverage. N×N jittered samples thresholded at 0.5 call such a pixel in
+    whenever the stratum holding the edge has all its samples inside (0.923⁴ = 73 % of the time at 4×4): the
+    estimate's noise, not a tie. The pixel-centre sample (the harness's default, --aa 1) decides exactly for an
+    edge straight across the pixel. 40 × 30 px, 0.1 units per pixel: the plane x ∈ ±1.048 (pixels 9.52–30.48),
+    y ∈ ±0.5 (rows 10–19): 20 × 10 pixels."""
+    from pxr import Gf, Usd, UsdGeom
+
+    path = str(tmp_path / "edge.usda")
+    stage = Usd.Stage.CreateNew(path)
+    cam = UsdGeom.Camera.Define(stage, "/cam")
+    cam.AddTranslateOp().Set(Gf.Vec3d(0, 0, 10))
+    cam.CreateFocalLengthAttr(50.0)
+    cam.CreateHorizontalApertureAttr(20.0)
+    cam.CreateVerticalApertureAttr(15.0)
+    plane = UsdGeom.Mesh.Define(stage, "/Plane")
+    plane.CreatePointsAttr([(-1.048, -0.5, 0), (1.048, -0.5, 0), (1.048, 0.5, 0), (-1.048, 0.5, 0)])
+    plane.CreateFaceVertexCountsAttr([4])
+    plane.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
+    plane.CreateSubdivisionSchemeAttr("none")
+    stage.GetRootLayer().Save()
+    test = dict(stage=path, camera="/cam", window_policy="matchVertically", complexity=1.0)
+    rgba, _info = fidelity.render_one(test, None, (30, 40), fidelity.DEFAULT_AA, dof=False)
+    ours = rgba[..., 3] >= 0.5
+    expected = np.zeros((30, 40), bool)
+    expected[10:20, 10:30] = True
+    np.testing.assert_array_equal(ours, expected)

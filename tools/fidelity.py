@@ -14,9 +14,10 @@ AOV visualisations and the display/data-window framing tests are left out (:func
 in-process (``usd_io.load_stage`` + ``tracer.render``) at each of its ``-times`` with its camera conformed to the
 baseline's aspect as the test app conforms it (``-windowPolicy``, default matchVertically: the vertical aperture
 kept; passed to the reader as a RenderSettings' aspectRatioConformPolicy on the session layer), at the size of its
-baseline image, with a transparent film, and compared:
+baseline image, with a transparent film, one sample through each pixel centre (:data:`DEFAULT_AA`), at the test's
+``-times`` (else the default time, as the app draws), with the purposes the app shows, and compared:
 
-    silhouette  at half coverage: ours alpha >= 0.5; Storm's: pixels other than the test's clear colour
+    silhouette  at half coverage: ours alpha >= 0.5 (the pixel centre covered); Storm's: pixels other than the test's clear colour
                 (``-clear``, else testUsdImagingGLBasicDrawing's default orange (1, 0.5, 0.1)) as the PNG stores it,
                 and at least half as far from it as the furthest pixel within 2 px (:func:`storm_mask`: Storm's
                 multisampled edges)
@@ -25,7 +26,8 @@ baseline image, with a transparent film, and compared:
 and a side-by-side PNG is written to ``OUT`` (Storm's baseline | ours | the masks: white both, red ours only,
 green Storm's only). One JSON line per image goes to ``--jsonl``; the summary prints one row per image.
 
-``--no-dof`` renders without depth of field (Storm draws none). ``--storm-approximations`` explains misses that are
+``--frame-all`` measures the ``-frameAll`` tests without a camera instead, each seen as the test app frames it
+(:func:`frame_all_camera`), a separate table. ``--no-dof`` renders without depth of field (Storm draws none). ``--storm-approximations`` explains misses that are
 Storm's: it draws implicit gprims with Storm's 10 segments around and each NurbsPatch as its control hull. Pointed at main's checkout on PYTHONPATH, the same
 tool gives the "before" figures.
 """
@@ -45,6 +47,12 @@ import numpy as np
 #: testUsdImagingGLBasicDrawing's clear colour when the test gives no ``-clear`` (UsdImagingGL_UnitTestGLDrawing).
 DEFAULT_CLEAR = (1.0, 0.5, 0.1)
 THRESHOLD = 0.5 / 255  # 8-bit: any other value
+#: Samples per pixel side of our render. One sample, through the pixel centre (tracer.integrator.tiles.pixel_sample
+#: with N = 1), answers "is this pixel at least half covered?" exactly for an edge straight across the pixel: the
+#: centre is covered iff the edge leaves at least half of the pixel on the surface's side. N×N jittered samples
+#: thresholded at 0.5 answer it with their noise: an edge 0.48 px into a pixel (Mipmap_017) reads ≥ 0.5 whenever the
+#: stratum holding it has all its samples inside (0.923⁴ = 73 % of such pixels at 4×4, 32 % at 5×5).
+DEFAULT_AA = 1
 
 
 #: Exact-camera tests whose baseline has no silhouette to compare (listed in the summary with the reason, not
@@ -367,7 +375,8 @@ def main(argv=None) -> int:
     p.add_argument("--out", default="/tmp/fidelity")
     p.add_argument("--only", default="", help="comma-separated test names or stage file names")
     p.add_argument("--no-dof", action="store_true", help="render without depth of field (Storm draws none)")
-    p.add_argument("--aa", type=int, default=4, help="N×N samples per pixel (16: coverage to 1/16 at the edges)")
+    p.add_argument("--aa", type=int, default=DEFAULT_AA,
+                   help="N×N samples per pixel (default 1: the pixel centre decides half coverage; see DEFAULT_AA)")
     p.add_argument("--storm-approximations", action="store_true",
                    help="draw as Storm approximates (an explanatory run, not the figures): implicit gprims with 10 "
                    "segments around (Storm's at complexity 1.0) and each NurbsPatch as its control hull")
