@@ -214,3 +214,19 @@ def test_a_model_draw_mode_storm_would_apply_is_named_in_one_warning():
     assert len(said) == 1 and "cards" in said[0] and "/World/A" in said[0] and "/World/B" in said[0], said
     assert "/World/C" not in said[0]
     assert sorted(dict(info.meshes)) == ["/World/A", "/World/B", "/World/C"]  # still drawn in full
+
+
+def test_arnold_shape_prims_are_named_in_one_warning():
+    """Arnold's own shape schemas (``def ArnoldSphere``, ``ArnoldBox``, an ``ArnoldUsd`` procedural: arnold-usd
+    test_0173, 0055, 1718) are not USD geometry and are not drawn; one warning names them (before: nothing said,
+    and test_0173's frame was blank with only "no visible gprims")."""
+    stage = Usd.Stage.CreateInMemory()
+    stage.DefinePrim("/a", "ArnoldSphere").CreateAttribute("arnold:radius", Sdf.ValueTypeNames.FloatArray).Set([1])
+    stage.DefinePrim("/b", "ArnoldBox")
+    stage.DefinePrim("/c", "ArnoldUsd")
+    stage.DefinePrim("/graph", "ArnoldNodeGraph")  # not a shape: read by the material reader, not named here
+    UsdGeom.Cube.Define(stage, "/Cube")
+    _scene, info = load_stage(stage, width=16, height=16)
+    said = [w for w in info.warnings if "ArnoldSphere" in w or "ArnoldBox" in w or "ArnoldUsd" in w]
+    assert len(said) == 1 and all(p in said[0] for p in ("/a", "/b", "/c")) and "/graph" not in said[0], said
+    assert dict(info.meshes) == {"/Cube": 12}

@@ -567,6 +567,23 @@ def _read_prims(r: _Reader, stage, tc, purposes, info: StageInfo) -> None:
         elif prim.IsA(UsdGeom.Gprim):
             info.warn(f"{prim.GetPath()}: {t} is not supported (skipped)")
     _say_draw_modes(r.prims, info.warn)
+    _say_arnold_shapes(r.prims, info.warn)
+
+
+#: Arnold's own shape schemas (arnold-usd's schemas: Arnold nodes as prims), which are not USD geometry.
+ARNOLD_SHAPES = ("ArnoldSphere", "ArnoldBox", "ArnoldCone", "ArnoldCylinder", "ArnoldDisk", "ArnoldPlane",
+                 "ArnoldPolymesh", "ArnoldCurves", "ArnoldPoints", "ArnoldNurbs", "ArnoldImplicit", "ArnoldGinstance",
+                 "ArnoldUsd", "ArnoldProcedural", "ArnoldProceduralCustom", "ArnoldAlembic", "ArnoldVolume",
+                 "ArnoldVolumeImplicit")
+
+
+def _say_arnold_shapes(prims, warn) -> None:
+    """One warning naming the Arnold shape prims (:data:`ARNOLD_SHAPES`) of the stage: kick draws them, the tracer
+    reads USD geometry only."""
+    found = [p for p in prims if p.GetTypeName() in ARNOLD_SHAPES]
+    if found:
+        names = ", ".join(f"{p.GetTypeName()} {p.GetPath()}" for p in found[:4]) + (", ..." if len(found) > 4 else "")
+        warn(f"{len(found)} Arnold shape prim(s) ({names}): Arnold's own schema, not USD geometry; not drawn")
 
 
 def _say_draw_modes(prims, warn) -> None:
