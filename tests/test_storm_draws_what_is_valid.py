@@ -230,3 +230,19 @@ def test_arnold_shape_prims_are_named_in_one_warning():
     said = [w for w in info.warnings if "ArnoldSphere" in w or "ArnoldBox" in w or "ArnoldUsd" in w]
     assert len(said) == 1 and all(p in said[0] for p in ("/a", "/b", "/c")) and "/graph" not in said[0], said
     assert dict(info.meshes) == {"/Cube": 12}
+
+
+def test_arnold_aov_shaders_are_named_in_one_warning():
+    """``arnold:global:aov_shaders`` on a RenderSettings (arnold-usd test_0236: an aov_write_rgba of a utility shader
+    that overwrites the beauty) runs Arnold shaders on every surface; the tracer does not, and says so once. Before:
+    silence, and a grey picture where Arnold's is coloured."""
+    from pxr import UsdRender
+
+    stage = Usd.Stage.CreateInMemory()
+    UsdGeom.Cube.Define(stage, "/Cube")
+    stage.DefinePrim("/materials/aov_shaders", "ArnoldNodeGraph")
+    rs = UsdRender.Settings.Define(stage, "/Render/settings")
+    rs.GetPrim().CreateAttribute("arnold:global:aov_shaders", Sdf.ValueTypeNames.String).Set("/materials/aov_shaders")
+    _scene, info = load_stage(stage, width=16, height=16)
+    said = [w for w in info.warnings if "aov_shaders" in w]
+    assert len(said) == 1 and "/materials/aov_shaders" in said[0], info.warnings

@@ -93,6 +93,11 @@ def render_globals(stage, prims, warn) -> None:
     for prim in prims:
         if prim.GetTypeName() != "RenderSettings":
             continue
+        a = prim.GetAttribute("arnold:global:aov_shaders")
+        shaders = a.Get() if a else None
+        if shaders:  # Arnold runs these on every surface (they may overwrite the beauty): not run here
+            warn(f"{prim.GetPath()}: Arnold aov_shaders {shaders} are not run: the AOVs they write (and a beauty "
+                 "they overwrite) show the surfaces' own shading")
         for name, instead in RENDER_GLOBALS.items():
             a = prim.GetAttribute(f"arnold:global:{name}")
             path = a.Get() if a else None
