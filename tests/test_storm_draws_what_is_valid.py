@@ -217,17 +217,17 @@ def test_a_model_draw_mode_storm_would_apply_is_named_in_one_warning():
 
 
 def test_arnold_shape_prims_are_named_in_one_warning():
-    """Arnold's own shape schemas (``def ArnoldSphere``, ``ArnoldBox``, an ``ArnoldUsd`` procedural: arnold-usd
-    test_0173, 0055, 1718) are not USD geometry and are not drawn; one warning names them (before: nothing said,
-    and test_0173's frame was blank with only "no visible gprims")."""
+    """Arnold's own shape schemas other than its sphere and box (``def ArnoldCurves``, ``ArnoldPolymesh``, an
+    ``ArnoldUsd`` procedural: arnold-usd's ArnoldUsd tests) are not USD geometry and are not drawn; one warning
+    names them (before: nothing said)."""
     stage = Usd.Stage.CreateInMemory()
-    stage.DefinePrim("/a", "ArnoldSphere").CreateAttribute("arnold:radius", Sdf.ValueTypeNames.FloatArray).Set([1])
-    stage.DefinePrim("/b", "ArnoldBox")
+    stage.DefinePrim("/a", "ArnoldCurves")
+    stage.DefinePrim("/b", "ArnoldPolymesh")
     stage.DefinePrim("/c", "ArnoldUsd")
     stage.DefinePrim("/graph", "ArnoldNodeGraph")  # not a shape: read by the material reader, not named here
     UsdGeom.Cube.Define(stage, "/Cube")
     _scene, info = load_stage(stage, width=16, height=16)
-    said = [w for w in info.warnings if "ArnoldSphere" in w or "ArnoldBox" in w or "ArnoldUsd" in w]
+    said = [w for w in info.warnings if "ArnoldCurves" in w or "ArnoldPolymesh" in w or "ArnoldUsd" in w]
     assert len(said) == 1 and all(p in said[0] for p in ("/a", "/b", "/c")) and "/graph" not in said[0], said
     assert dict(info.meshes) == {"/Cube": 12}
 
@@ -246,3 +246,26 @@ def test_arnold_aov_shaders_are_named_in_one_warning():
     _scene, info = load_stage(stage, width=16, height=16)
     said = [w for w in info.warnings if "aov_shaders" in w]
     assert len(said) == 1 and "/materials/aov_shaders" in said[0], info.warnings
+
+
+def test_arnold_sphere_and_box_are_drawn_with_arnolds_defaults_and_their_xform_ops():
+    """``ArnoldSphere`` (arnold:radius, a float or arnold-usd's one-element array; Arnold's default 0.5;
+    arnold:center) and ``ArnoldBox`` (arnold:min/max, default ±0.5) are Arnold's own implicit shapes (arnold-usd
+    test_0149 "Read usdGeom xformops on Arnold schemas", 0173, 1718): drawn as their USD counterparts, placed by
+    their xformOps (USD's XformCache skips the ops of a prim whose type it does not know). Before: not drawn,
+    nothing said, a blank frame."""
+    stage = Usd.Stage.CreateInMemory()
+    UsdGeom.Xform.Define(stage, "/X").AddTranslateOp().Set(Gf.Vec3d(0, 0, 5))
+    a = stage.DefinePrim("/X/a", "ArnoldSphere")
+    a.CreateAttribute("arnold:radius", Sdf.ValueTypeNames.FloatArray).Set([2])
+    a.CreateAttribute("xformOp:translate", Sdf.ValueTypeNames.Double3).Set(Gf.Vec3d(10, 0, 0))
+    a.CreateAttribute("xformOpOrder", Sdf.ValueTypeNames.TokenArray).Set(["xformOp:translate"])
+    stage.DefinePrim("/b", "ArnoldBox")
+    scene, info = load_stage(stage, width=16, height=16)
+    assert sorted(dict(info.meshes)) == ["/X/a", "/b"]
+    assert not [w for w in info.warnings if "Arnold shape" in w]
+    v = np.asarray(scene.vertices)
+    far = v[v[:, 0] > 5]
+    np.testing.assert_allclose([far.min(axis=0), far.max(axis=0)], [(8, -2, 3), (12, 2, 7)], atol=1e-6)
+    near = v[v[:, 0] <= 5]
+    np.testing.assert_allclose([near.min(axis=0), near.max(axis=0)], [(-0.5,) * 3, (0.5,) * 3], atol=1e-6)

@@ -570,8 +570,9 @@ def _read_prims(r: _Reader, stage, tc, purposes, info: StageInfo) -> None:
     _say_arnold_shapes(r.prims, info.warn)
 
 
-#: Arnold's own shape schemas (arnold-usd's schemas: Arnold nodes as prims), which are not USD geometry.
-ARNOLD_SHAPES = ("ArnoldSphere", "ArnoldBox", "ArnoldCone", "ArnoldCylinder", "ArnoldDisk", "ArnoldPlane",
+#: Arnold's own shape schemas (arnold-usd's schemas: Arnold nodes as prims) other than the sphere and box that
+#: usd_io.geometry.gprims draws: not USD geometry, not drawn.
+ARNOLD_SHAPES = ("ArnoldCone", "ArnoldCylinder", "ArnoldDisk", "ArnoldPlane",
                  "ArnoldPolymesh", "ArnoldCurves", "ArnoldPoints", "ArnoldNurbs", "ArnoldImplicit", "ArnoldGinstance",
                  "ArnoldUsd", "ArnoldProcedural", "ArnoldProceduralCustom", "ArnoldAlembic", "ArnoldVolume",
                  "ArnoldVolumeImplicit")
