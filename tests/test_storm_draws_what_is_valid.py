@@ -269,3 +269,26 @@ def test_arnold_sphere_and_box_are_drawn_with_arnolds_defaults_and_their_xform_o
     np.testing.assert_allclose([far.min(axis=0), far.max(axis=0)], [(8, -2, 3), (12, 2, 7)], atol=1e-6)
     near = v[v[:, 0] <= 5]
     np.testing.assert_allclose([near.min(axis=0), near.max(axis=0)], [(-0.5,) * 3, (0.5,) * 3], atol=1e-6)
+
+
+@pytest.mark.parametrize("emission,colour,expected", [(1.0, (1, 0, 0), (1, 0, 0)), (0.5, (0, 1, 0), (0, 0.5, 0)),
+                                                      (0.0, (1, 0, 0), (0, 0, 0))])
+def test_arnolds_legacy_standard_shader_emits(emission, colour, expected):
+    """Arnold 4's ``arnold:standard`` emits ``emission`` × ``emission_color`` (arnold-usd test_0050 "Kick USD file":
+    a red emitting sphere, no light). Before: its Kd/Ks were read and its emission dropped without a word, a black
+    frame. Seen unlit (no light, black world), the sphere is its emission."""
+    from pxr import UsdShade
+
+    stage = Usd.Stage.CreateInMemory()
+    sphere = UsdGeom.Sphere.Define(stage, "/S")
+    mat = UsdShade.Material.Define(stage, "/M")
+    sh = UsdShade.Shader.Define(stage, "/M/std")
+    sh.CreateIdAttr("arnold:standard")
+    sh.CreateInput("emission", Sdf.ValueTypeNames.Float).Set(emission)
+    sh.CreateInput("emission_color", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(*colour))
+    sh.CreateInput("Kd", Sdf.ValueTypeNames.Float).Set(0.0)
+    mat.CreateSurfaceOutput("arnold").ConnectToSource(sh.ConnectableAPI(), "surface")
+    UsdShade.MaterialBindingAPI.Apply(sphere.GetPrim()).Bind(mat)
+    scene, _info = load_stage(stage, width=16, height=16, default_light=False)
+    img = np.asarray(tracer.render(scene, tracer.RenderSettings(width=16, height=16, samples=1)).rgba)
+    np.testing.assert_allclose(img[8, 8, :3], expected, atol=1e-3)
