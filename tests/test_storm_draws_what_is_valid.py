@@ -292,3 +292,38 @@ def test_arnolds_legacy_standard_shader_emits(emission, colour, expected):
     scene, _info = load_stage(stage, width=16, height=16, default_light=False)
     img = np.asarray(tracer.render(scene, tracer.RenderSettings(width=16, height=16, samples=1)).rgba)
     np.testing.assert_allclose(img[8, 8, :3], expected, atol=1e-3)
+
+
+def test_an_emission_colour_read_from_a_primvar_emits_the_primvar():
+    """Standard Surface's ``emission_color`` from a primvar (Arnold's ``user_data_rgb`` of ``Pref``: arnold-usd
+    test_1625, a rainbow torus, no light) emits the primvar's colour. Before, a primvar on any input but the base
+    colour set that input to its default (emission black) and coloured the base instead: a black frame, silently.
+    Unlit, the quad is its primvar colour: red at one corner, green at another."""
+    from pxr import UsdShade
+
+    stage = Usd.Stage.CreateInMemory()
+    mesh = UsdGeom.Mesh.Define(stage, "/Q")
+    mesh.CreatePointsAttr([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)])
+    mesh.CreateFaceVertexCountsAttr([4])
+    mesh.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
+    mesh.CreateSubdivisionSchemeAttr("none")
+    UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("Pref", Sdf.ValueTypeNames.Float3Array, UsdGeom.Tokens.vertex).Set(
+        [(1, 0, 0), (1, 0, 0), (0, 1, 0), (0, 1, 0)])
+    mat = UsdShade.Material.Define(stage, "/M")
+    ss = UsdShade.Shader.Define(stage, "/M/ss")
+    ss.CreateIdAttr("arnold:standard_surface")
+    ss.CreateInput("base", Sdf.ValueTypeNames.Float).Set(0.0)
+    ss.CreateInput("specular", Sdf.ValueTypeNames.Float).Set(0.0)
+    ss.CreateInput("emission", Sdf.ValueTypeNames.Float).Set(1.0)
+    ud = UsdShade.Shader.Define(stage, "/M/ud")
+    ud.CreateIdAttr("arnold:user_data_rgb")
+    ud.CreateInput("attribute", Sdf.ValueTypeNames.String).Set("Pref")
+    ss.CreateInput("emission_color", Sdf.ValueTypeNames.Color3f).ConnectToSource(ud.ConnectableAPI(), "rgb")
+    mat.CreateSurfaceOutput("arnold").ConnectToSource(ss.ConnectableAPI(), "shader")
+    UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(mat)
+    scene, _info = load_stage(stage, width=32, height=32, default_light=False)
+    img = np.asarray(tracer.render(scene, tracer.RenderSettings(width=32, height=32, samples=1)).rgba)[..., :3]
+    covered = img[img.max(axis=-1) > 0.05]
+    assert len(covered) > 100
+    bottom, top = img[img.shape[0] * 3 // 4, 16], img[img.shape[0] // 4, 16]  # y = -0.5 (red side), y = 0.5
+    assert bottom[0] > 0.5 and bottom[1] < 0.5 and top[1] > 0.5 and top[0] < 0.5, (bottom, top)
