@@ -327,3 +327,24 @@ def test_an_emission_colour_read_from_a_primvar_emits_the_primvar():
     assert len(covered) > 100
     bottom, top = img[img.shape[0] * 3 // 4, 16], img[img.shape[0] // 4, 16]  # y = -0.5 (red side), y = 0.5
     assert bottom[0] > 0.5 and bottom[1] < 0.5 and top[1] > 0.5 and top[0] < 0.5, (bottom, top)
+
+
+def test_lights_and_arnold_shapes_in_instancer_prototypes_are_named_not_refused():
+    """A PointInstancer whose prototypes are lights (arnold-usd test_1705 "Light instances", 2641) or Arnold
+    procedurals (1588, 2064) draws nothing here; one warning per instancer names them. Before: silence, and a stage
+    with nothing else was refused ("gave 0 triangles", exit 2)."""
+    from pxr import UsdLux
+
+    stage = Usd.Stage.CreateInMemory()
+    for name, make in (("Lights", lambda p: UsdLux.SphereLight.Define(stage, p)),
+                       ("Procs", lambda p: stage.DefinePrim(p, "ArnoldUsd"))):
+        pi = UsdGeom.PointInstancer.Define(stage, f"/{name}")
+        make(f"/{name}/protos/p")
+        pi.CreatePrototypesRel().SetTargets([f"/{name}/protos/p"])
+        pi.CreateProtoIndicesAttr([0, 0])
+        pi.CreatePositionsAttr([(0, 0, 0), (2, 0, 0)])
+    _scene, info = load_stage(stage, width=16, height=16)
+    assert info.nothing_drawn is None
+    for name, what in (("Lights", "SphereLight"), ("Procs", "ArnoldUsd")):
+        said = [w for w in info.warnings if w.startswith(f"/{name}:")]
+        assert len(said) == 1 and what in said[0] and "not drawn" in said[0], info.warnings

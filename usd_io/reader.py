@@ -306,6 +306,7 @@ class _Reader:
         here = str(prim.GetPath())
         own, per_instance = instance_colour_primvars(prim, self.time, len(idx))
         total = 0
+        undrawn: list = []  # prototype lights (not instanced) and Arnold shapes (not USD geometry)
         for p_index, p_path in enumerate(protos):
             sel = np.flatnonzero(idx == p_index)
             root = self.stage.GetPrimAtPath(p_path)
@@ -330,6 +331,8 @@ class _Reader:
                     if piece.IsA(UsdGeom.Gprim):
                         self.info.warn(f"{piece.GetPath()}: {piece.GetTypeName()} is not supported (a prototype of "
                                        f"{prim.GetPath()}; skipped)")
+                    elif piece.HasAPI(UsdLux.LightAPI) or piece.GetTypeName() in ARNOLD_SHAPES:
+                        undrawn.append(piece)
                     continue
                 data = self.geometry(piece)
                 if data is None or not len(data.triangles):
@@ -359,6 +362,13 @@ class _Reader:
                 self.b.add_instances(proto, full)
                 self._grow_instances(full, data.points)
                 total += len(data.triangles) * len(full)
+        if undrawn:
+            names = ", ".join(f"{q.GetTypeName()} {q.GetPath()}" for q in undrawn[:3]) + (", ..." if len(undrawn) > 3
+                                                                                            else "")
+            self.info.warn(f"{here}: prototype(s) not drawn: {names} (lights in prototypes are not instanced; "
+                           "Arnold shapes are not USD geometry)")
+            if not total:
+                self.invalid.add(here)  # said: not a stage refused for drawing nothing
         unread = sorted(set(per_instance) - {n for src, n in self._instance_primvars_read if src == here})
         if unread:  # Hydra gives each instance its element; these reach no material as a colour here
             self.info.warn(f"{prim.GetPath()}: per-instance primvars {', '.join(unread)} are not read (each "
