@@ -34,3 +34,12 @@ def test_a_grey_surface_where_the_reference_is_coloured_is_grey():
     assert sweep.judge(ref, ours)["grey"] == 1.0
     ours[4:12, 4:12] = (0.6, 0.1, 0.1)
     assert sweep.judge(ref, ours)["grey"] == 0.0
+
+
+def test_a_white_line_blended_with_the_background_is_not_grey():
+    """Storm's one-pixel white curves on its orange clear colour are orange-tinted: not a coloured surface."""
+    ref, ours = _panels()
+    ref[:] = (1.0, 0.5, 0.1)
+    ref[8, 2:14] = (1.0, 0.8, 0.6)  # a white line blended with orange
+    ours[7:10, 2:14] = 1.0  # our white ribbon
+    assert not (sweep.judge(ref, ours)["grey"] or 0)

@@ -9,7 +9,8 @@ Per frame (the side-by-side split in thirds; both panels sRGB-encoded 8-bit):
 
     blank  ours is one colour (every pixel within 2/255 of the first) and the reference is not
     grey   of the pixels where ours and the reference both show something other than their own background (the
-           most frequent colour of each panel), at least 25 % are neutral in ours (max − min of R, G, B < 0.03)
+           most frequent colour of each panel; eroded by a pixel, so that edges and one-pixel lines blended with the
+           background do not count), at least 25 % are neutral in ours (max − min of R, G, B < 0.03)
            and coloured in the reference (> 0.15): a surface drawn in a fallback grey where the reference has a
            colour. Listed with the row's warnings, so a grey that was announced is told from a silent one.
 
@@ -52,6 +53,13 @@ def background_mask(img: np.ndarray) -> np.ndarray:
     return keys != values[np.argmax(counts)]
 
 
+def erode(mask: np.ndarray) -> np.ndarray:
+    """``mask`` without the pixels that have a neighbour (8-connected) outside it."""
+    h, w = mask.shape
+    pad = np.pad(mask, 1, constant_values=False)
+    return np.all([pad[y:y + h, x:x + w] for y in range(3) for x in range(3)], axis=0)
+
+
 def chroma(img: np.ndarray) -> np.ndarray:
     return img.max(axis=-1) - img.min(axis=-1)
 
@@ -59,7 +67,8 @@ def chroma(img: np.ndarray) -> np.ndarray:
 def judge(ref: np.ndarray, ours: np.ndarray) -> dict:
     """{"blank": bool, "grey": share or None} of one pair of panels (sRGB-encoded, same size)."""
     out = {"blank": uniform(ours) and not uniform(ref), "grey": None}
-    both = background_mask(ref) & background_mask(ours)
+    both = erode(background_mask(ref)) & erode(background_mask(ours))  # interiors: not edges blended with the
+    # background (Storm's one-pixel curves on its orange clear colour are orange-tinted white)
     if both.sum() >= 16:
         share = float(np.mean((chroma(ours[both]) < NEUTRAL) & (chroma(ref[both]) > COLOURED)))
         out["grey"] = round(share, 3)
