@@ -348,3 +348,30 @@ def test_lights_and_arnold_shapes_in_instancer_prototypes_are_named_not_refused(
     for name, what in (("Lights", "SphereLight"), ("Procs", "ArnoldUsd")):
         said = [w for w in info.warnings if w.startswith(f"/{name}:")]
         assert len(said) == 1 and what in said[0] and "not drawn" in said[0], info.warnings
+
+
+def test_a_prim_type_usd_does_not_know_is_drawn_as_its_fallback_prim_type():
+    """The layer's ``fallbackPrimTypes`` (``UnknownSphere = ["Sphere"]``: OpenUSD's fallbacks1.usda) makes USD read
+    a prim of an unknown type as its fallback schema, which Storm draws. Before: "UnknownSphere is not supported
+    (skipped)"."""
+    layer = Sdf.Layer.CreateAnonymous(".usda")
+    layer.ImportFromString('''#usda 1.0
+(
+    fallbackPrimTypes = {
+        token[] UnknownSphere = ["Sphere"]
+        token[] UnknownCone = ["Cone"]
+    }
+)
+def UnknownSphere "S"
+{
+    double radius = 2
+}
+def UnknownCone "C"
+{
+}
+''')
+    stage = Usd.Stage.Open(layer)
+    scene, info = load_stage(stage, width=16, height=16)
+    drawn = dict(info.meshes)
+    assert set(drawn) == {"/S", "/C"} and not [w for w in info.warnings if "not supported" in w], info.warnings
+    assert np.abs(np.asarray(scene.vertices)).max() == pytest.approx(2.0, rel=1e-3)

@@ -23,7 +23,7 @@ from .diagnostics import summarize
 from .dome import environment
 from .exporters import light_units as exporter_light_units
 from .geometry.curves import read_curves, read_points
-from .geometry.gprims import DEFAULT_SEGMENTS, GPRIM_TYPES, read_gprim
+from .geometry.gprims import DEFAULT_SEGMENTS, GPRIM_TYPES, geom_type, read_gprim
 from .geometry.instancing import instance_matrices, missing_required_input
 from .geometry.mesh import (COMPLEXITY, DEFAULT_COMPLEXITY, SUBDIVIDED, MeshData, read_mesh, read_subdivided,
                             smooth_normals)
@@ -326,7 +326,7 @@ class _Reader:
                     else:
                         total += self.add_instancer(piece, base @ rel[None], depth + 1, colours)
                     continue
-                if (piece.GetTypeName() not in GPRIM_TYPES and not piece.IsA(UsdGeom.Mesh)
+                if (geom_type(piece) not in GPRIM_TYPES and not piece.IsA(UsdGeom.Mesh)
                         and not _is_points_or_curves(piece)):
                     if piece.IsA(UsdGeom.Gprim):
                         self.info.warn(f"{piece.GetPath()}: {piece.GetTypeName()} is not supported (a prototype of "
@@ -502,7 +502,7 @@ def _undrawn(prim) -> list:
     instancer's prototypes hold only; [] when it has anything drawable."""
     kids = [q for q in Usd.PrimRange(prim) if q != prim and q.IsA(UsdGeom.Gprim)] \
         if prim.IsA(UsdGeom.PointInstancer) else [prim]
-    drawn = any(q.IsA(UsdGeom.PointInstancer) or q.GetTypeName() in GPRIM_TYPES or q.IsA(UsdGeom.Mesh)
+    drawn = any(q.IsA(UsdGeom.PointInstancer) or geom_type(q) in GPRIM_TYPES or q.IsA(UsdGeom.Mesh)
                 or _is_points_or_curves(q) for q in kids)
     return [] if drawn else kids
 
@@ -556,7 +556,7 @@ def _read_prims(r: _Reader, stage, tc, purposes, info: StageInfo) -> None:
     r.prims = list(renderable_prims(stage, tc, purposes))
     r.prefetch_subdivided(r.prims)
     for prim in r.prims:
-        t = prim.GetTypeName()
+        t = geom_type(prim)
         if prim.IsInstance() and (prim.IsA(UsdGeom.Gprim) or prim.IsA(UsdGeom.PointInstancer)):
             # UsdImaging's instance adapter skips the prototype's root when it is imageable (its attributes could
             # differ per instance); Storm draws nothing for it, with this warning

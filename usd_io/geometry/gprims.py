@@ -158,10 +158,16 @@ def plane(width, length):
     return pts, np.array([[0, 1, 2], [0, 2, 3]]), np.tile([0.0, 0.0, 1.0], (4, 1))
 
 
+def geom_type(prim) -> str:
+    """The prim's type as USD reads it: its schema type, which for a type the stage's plugins do not know is the
+    first known entry of the layer's ``fallbackPrimTypes`` (as Storm draws it), else its authored type name."""
+    return str(prim.GetPrimTypeInfo().GetSchemaTypeName()) or prim.GetTypeName()
+
+
 def read_gprim(prim, time, segments=DEFAULT_SEGMENTS) -> MeshData | None:
     """Tessellate a gprim in its object space, or None if the prim is not one of :data:`GPRIM_TYPES`.
     Raises ValueError for a size that is zero, negative or not finite."""
-    t = prim.GetTypeName()
+    t = geom_type(prim)
 
     def g(schema, attr):
         v = getattr(schema(prim), f"Get{attr}Attr")().Get(time)
