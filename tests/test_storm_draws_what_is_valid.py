@@ -375,3 +375,22 @@ def UnknownCone "C"
     drawn = dict(info.meshes)
     assert set(drawn) == {"/S", "/C"} and not [w for w in info.warnings if "not supported" in w], info.warnings
     assert np.abs(np.asarray(scene.vertices)).max() == pytest.approx(2.0, rel=1e-3)
+
+
+def test_an_authored_purpose_below_a_hidden_purpose_is_its_own():
+    """A prim's purpose is its authored one, else its nearest ancestor's authored one (UsdGeomImageable's
+    ComputePurpose); a child that authors ``default`` under a ``render`` Xform is drawn when render is hidden, as
+    Storm draws it (OpenUSD's InheritedPurposes.usd). Before: the subtree was pruned at the render Xform (IoU 0.54
+    against the baseline)."""
+    stage = Usd.Stage.CreateInMemory()
+    UsdGeom.Xform.Define(stage, "/R").CreatePurposeAttr("render")
+    UsdGeom.Sphere.Define(stage, "/R/Inherits")  # render, inherited
+    UsdGeom.Sphere.Define(stage, "/R/Own").CreatePurposeAttr("default")
+    UsdGeom.Xform.Define(stage, "/R/Scope")
+    UsdGeom.Sphere.Define(stage, "/R/Scope/Proxy").CreatePurposeAttr("proxy")
+    UsdGeom.Xform.Define(stage, "/G").CreatePurposeAttr("guide")
+    UsdGeom.Cube.Define(stage, "/G/Default").CreatePurposeAttr("default")
+    _scene, info = load_stage(stage, width=16, height=16, purposes=("default", "proxy"))
+    assert sorted(dict(info.meshes)) == ["/G/Default", "/R/Own", "/R/Scope/Proxy"]
+    _scene, info = load_stage(stage, width=16, height=16, purposes=("default", "render"))
+    assert sorted(dict(info.meshes)) == ["/G/Default", "/R/Inherits", "/R/Own"]
