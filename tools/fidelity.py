@@ -61,7 +61,8 @@ UNMEASURED = {"visible dome": "a textured DomeLight fills Storm's background: no
               "-presentComposite": "the test composites its -times into one image (frames accumulate)",
               "-clipPlane": "an OpenGL clip plane of the test app (-clipPlane), not in the stage",
               "points": "-shading points: Storm draws each vertex as a point, no surface",
-              "-unloadedAsBounds": "the test app opens the stage unloaded and draws payloads as boxes"}
+              "-unloadedAsBounds": "the test app opens the stage unloaded and draws payloads as boxes",
+              "-presentDisabled": "the test app presents nothing (-presentDisabled): the baseline is black"}
 
 
 def unmeasured(test: dict) -> str | None:
@@ -74,6 +75,8 @@ def unmeasured(test: dict) -> str | None:
         return UNMEASURED["-clipPlane"]
     if "-unloadedAsBounds" in argv:
         return UNMEASURED["-unloadedAsBounds"]
+    if "-presentDisabled" in argv:
+        return UNMEASURED["-presentDisabled"]
     if "-shading" in argv and argv[argv.index("-shading") + 1:][:1] == ["points"]:
         return UNMEASURED["points"]
     text = open(test["stage"], errors="replace").read() if test["stage"].endswith(".usda") else ""
