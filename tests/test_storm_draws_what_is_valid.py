@@ -394,3 +394,18 @@ def test_an_authored_purpose_below_a_hidden_purpose_is_its_own():
     assert sorted(dict(info.meshes)) == ["/G/Default", "/R/Own", "/R/Scope/Proxy"]
     _scene, info = load_stage(stage, width=16, height=16, purposes=("default", "render"))
     assert sorted(dict(info.meshes)) == ["/G/Default", "/R/Inherits", "/R/Own"]
+
+
+def test_arnold_camera_shaders_are_named_in_one_warning():
+    """``primvars:arnold:filtermap`` / ``uv_remap`` on a camera (arnold-usd test_1499: a checkerboard filter map
+    darkens Arnold's picture) are Arnold camera shaders the tracer does not run; one warning names them. Before:
+    silence."""
+    stage = Usd.Stage.CreateInMemory()
+    UsdGeom.Cube.Define(stage, "/Cube")
+    cam = UsdGeom.Camera.Define(stage, "/cam")
+    cam.AddTranslateOp().Set(Gf.Vec3d(0, 0, 10))
+    for name in ("filtermap", "uv_remap"):
+        cam.GetPrim().CreateAttribute(f"primvars:arnold:{name}", Sdf.ValueTypeNames.String).Set("/materials/graph")
+    _scene, info = load_stage(stage, camera="/cam", width=16, height=16)
+    said = [w for w in info.warnings if "filtermap" in w]
+    assert len(said) == 1 and "uv_remap" in said[0] and "/cam" in said[0], info.warnings

@@ -453,6 +453,10 @@ def _camera(stage, r, info, tc, camera, width, height, settings_prim, depth_of_f
     policy = CONFORM[spec.conform] if spec else CONFORM[DEFAULT_CONFORM]
     if cam_prim is not None:
         raw = cam.fold_arnold_camera(cam.read_camera(cam_prim, tc), cam_prim, tc, info.notes.append)
+        shaders = [n for n in ("filtermap", "uv_remap") if (cam_prim.GetAttribute(f"primvars:arnold:{n}")
+                                                           and cam_prim.GetAttribute(f"primvars:arnold:{n}").Get())]
+        if shaders:  # Arnold camera shaders: not run by the tracer
+            info.warn(f"{cam_prim.GetPath()}: Arnold camera {' and '.join(shaders)} are not applied")
         lens = depth_of_field and (spec is None or spec.depth_of_field)  # --no-dof, disableDepthOfField
         raw = cam.fold_depth_of_field(cam.fold_clipping_planes(raw, info.warn), info.warn, lens, info.notes.append)
         info.width, info.height = cam.image_size(raw, width, height, par)
