@@ -409,3 +409,47 @@ def test_arnold_camera_shaders_are_named_in_one_warning():
     _scene, info = load_stage(stage, camera="/cam", width=16, height=16)
     said = [w for w in info.warnings if "filtermap" in w]
     assert len(said) == 1 and "uv_remap" in said[0] and "/cam" in said[0], info.warnings
+
+
+def test_a_texture_with_authored_mip_levels_is_named_once(tmp_path):
+    """A texture file whose MIP levels are authored (OpenUSD's testUsdImagingGLMipmap: authoredMips.tex, each level
+    its own colour) shows Storm the level its screen footprint selects; the tracer reads level 0, and now says so
+    once per file. Before: silence (the sweep's Mipmap_010/014/017 "grey" frames: level 0 where Storm shows the
+    coloured coarse levels)."""
+    import OpenImageIO as oiio
+    from pxr import UsdShade
+
+    def image(name, size, value):
+        buf = oiio.ImageBuf(oiio.ImageSpec(size, size, 3, oiio.UINT8))
+        buf.set_pixels(oiio.ROI(0, size, 0, size), np.full((size, size, 3), value, np.uint8))
+        return buf
+
+    for name, size in (("l1.png", 2), ("l2.png", 1)):
+        image(name, size, 50).write(str(tmp_path / name))
+    path = str(tmp_path / "mips.tif")  # levels 4, 2 and 1 px: 200/255 grey, then authored 50/255 ones (maketx)
+    config = oiio.ImageSpec()
+    config.attribute("maketx:mipimages", f"{tmp_path / 'l1.png'};{tmp_path / 'l2.png'}")
+    assert oiio.ImageBufAlgo.make_texture(oiio.MakeTxTexture, image("l0", 4, 200), path, config)
+    plain = str(tmp_path / "plain.tif")  # a pyramid filtered from its level 0: no warning
+    assert oiio.ImageBufAlgo.make_texture(oiio.MakeTxTexture, image("l0", 4, 200), plain)
+    from usd_io.materials.texture_files import authored_mip_levels
+    assert authored_mip_levels(plain) == 1 and authored_mip_levels(path) == 3
+    stage = Usd.Stage.CreateInMemory()
+    mesh = UsdGeom.Mesh.Define(stage, "/Q")
+    mesh.CreatePointsAttr([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)])
+    mesh.CreateFaceVertexCountsAttr([4])
+    mesh.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
+    UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.vertex).Set(
+        [(0, 0), (1, 0), (1, 1), (0, 1)])
+    mat = UsdShade.Material.Define(stage, "/M")
+    ps = UsdShade.Shader.Define(stage, "/M/ps")
+    ps.CreateIdAttr("UsdPreviewSurface")
+    tex = UsdShade.Shader.Define(stage, "/M/tex")
+    tex.CreateIdAttr("UsdUVTexture")
+    tex.CreateInput("file", Sdf.ValueTypeNames.Asset).Set(path)
+    ps.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).ConnectToSource(tex.ConnectableAPI(), "rgb")
+    mat.CreateSurfaceOutput().ConnectToSource(ps.ConnectableAPI(), "surface")
+    UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(mat)
+    _scene, info = load_stage(stage, width=16, height=16)
+    said = [w for w in info.warnings if "MIP" in w]
+    assert len(said) == 1 and "mips.tif" in said[0] and "3" in said[0], info.warnings
