@@ -118,7 +118,8 @@ class _Reader:
         self.light_prims: list = []  # the UsdLux prim of each tracer light
         self._grey = None
         self.empty: set = set()  # gprims whose geometry is absent or has no faces at this time
-        self.invalid: set = set()  # PointInstancers without a required input (named in a warning; not drawn)
+        self.invalid: set = set()  # prims left out as Storm leaves them out, or whose prototypes draw nothing here
+        # (each named in a warning; a stage of only these is not refused)
         self.skinning = Skinning(time, self.xf.world)
         self.subdivision_level = COMPLEXITY[DEFAULT_COMPLEXITY]
         self._refined: dict = {}  # prim path -> MeshData refined ahead (prefetch_subdivided)
@@ -483,7 +484,7 @@ def _say_if_empty(r, info) -> None:
     if not gprims:
         empty = f" ({len(r.empty)} gprim(s) without points or faces at this time)" if r.empty else ""
         if r.invalid:
-            empty += f" ({len(r.invalid)} PointInstancer(s) without a required input)"
+            empty += f" ({len(r.invalid)} instancer(s) or instance(s) left out: see the warnings above)"
         info.warn(f"the stage has no visible gprims with geometry{empty}: the frame shows only the background")
         return
     kinds = sorted({p.GetTypeName() for p in gprims})
