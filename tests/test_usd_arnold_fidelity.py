@@ -331,6 +331,32 @@ def test_a_dome_with_a_fractional_arnold_camera_weight_is_seen_at_that_weight():
     np.testing.assert_allclose(tenth[8, 12], full[8, 12], rtol=0.05)
 
 
+def test_an_area_light_with_an_arnold_camera_weight_is_seen_by_the_camera():
+    """UsdLux has no camera visibility (our USD lights stay unseen by the camera), but Arnold's ``camera`` parameter
+    (``primvars:arnold:camera``, authored by arnold-usd's test_0241 on a cylinder light) shows the light's shape to
+    camera rays × w, unless ``primvars:arnold:visibility:camera`` is off (test_2439's lights)."""
+    def frame(weight=None, visible=None):
+        s = new_stage()
+        add_camera(s, eye=(0, 0, 10))
+        rect = UsdLux.RectLight.Define(s, "/Rect")  # facing the camera (+Z) at the origin, radiance 3
+        rect.CreateWidthAttr(2.0)
+        rect.CreateHeightAttr(2.0)
+        rect.CreateIntensityAttr(3.0)
+        rect.AddRotateXOp().Set(180.0)
+        pv = UsdGeom.PrimvarsAPI(rect.GetPrim())
+        if weight is not None:
+            pv.CreatePrimvar("arnold:camera", F).Set(weight)
+        if visible is not None:
+            pv.CreatePrimvar("arnold:visibility:camera", Sdf.ValueTypeNames.Bool).Set(visible)
+        scene, info = load_stage(s, width=24, height=16, light_units="arnold")
+        return render(scene, RenderSettings(width=24, height=16, samples=1)).rgb[8, 12]
+
+    np.testing.assert_allclose(frame(), 0.0, atol=1e-6)  # UsdLux alone: unseen, as before
+    np.testing.assert_allclose(frame(weight=1.0), 3.0, rtol=1e-5)
+    np.testing.assert_allclose(frame(weight=0.5), 1.5, rtol=1e-5)
+    np.testing.assert_allclose(frame(weight=1.0, visible=False), 0.0, atol=1e-6)
+
+
 # ---------------------------------------------------------------- the harness: how Arnold wrote its references
 def _write_image(path, values, fmt):
     import OpenImageIO as oiio

@@ -164,10 +164,116 @@ def test_spot_light_cone():
         sh.CreateShapingConeSoftnessAttr(0.0)
         return l
     rgb, scene, _ = lit_plane(mk)
-    assert type(scene.lights[0]).__name__ == "SpotLight"
-    assert scene.lights[0].cone_angle == pytest.approx(np.radians(20))
+    assert scene.lights[0].shaping.cone_angle == pytest.approx(np.radians(20))  # UsdLux's ShapingAPI, as the spec
     np.testing.assert_allclose(centre(rgb), [A * 40 / (4 * np.pi * H**2)] * 3, rtol=2e-3)
     assert np.all(rgb[0, 0] == 0) and np.all(rgb[SIZE // 2, 0] == 0)  # outside the 20° cone
+
+
+def _pixel_x(i):
+    """The plane's x under pixel column i (the orthographic camera spans 4 units over SIZE pixels)."""
+    return (i + 0.5) / SIZE * 4.0 - 2.0
+
+
+def _shaped_point(cone=None, softness=None, focus=None, tint=None):
+    def mk(s):
+        l = UsdLux.SphereLight.Define(s, "/Shaped")
+        l.CreateIntensityAttr(40.0)
+        l.CreateNormalizeAttr(True)
+        l.CreateRadiusAttr(0.0)
+        sh = UsdLux.ShapingAPI.Apply(l.GetPrim())
+        for name, v in (("ConeAngle", cone), ("ConeSoftness", softness), ("Focus", focus), ("FocusTint", tint)):
+            if v is not None:
+                getattr(sh, f"CreateShaping{name}Attr")(v)
+        return l
+    return mk
+
+
+def _unshaped_row(rgb_row):
+    """What a point light of I = 40/4 W/sr at height H gives the plane's row through its foot: a/π·I·cos/d²."""
+    x = np.array([_pixel_x(i) for i in range(SIZE)])
+    d2 = x * x + H * H
+    return A / np.pi * 10.0 * (H / np.sqrt(d2)) / d2, np.degrees(np.arctan(np.abs(x) / H))
+
+
+def test_shaping_cone_softness_is_usdlux_smoothstep_in_angle():
+    # UsdLux (ShapingAPI): θ₀ = θc·(1 − softness); × 1 − smoothstep(θ₀, θc, θ); 0 beyond θc
+    rgb, scene, _ = lit_plane(_shaped_point(cone=30.0, softness=0.5))
+    row = rgb[SIZE // 2, :, 0]
+    plain, theta = _unshaped_row(row)
+    x = np.clip((theta - 15.0) / 15.0, 0, 1)
+    expected = plain * np.where(theta > 30.0, 0.0, 1 - x * x * (3 - 2 * x))
+    assert 15 < theta[6] < 30  # one pixel in the soft edge, one inside, one outside
+    np.testing.assert_allclose(row, expected, rtol=2e-3, atol=1e-7)
+
+
+def test_shaping_focus_and_focus_tint():
+    # × lerp(|cos θ|^focus, tint, 1): red (tint 1) keeps its light, green and blue fall off as cos²
+    rgb, _, _ = lit_plane(_shaped_point(focus=2.0, tint=(1.0, 0.0, 0.0)))
+    row = rgb[SIZE // 2]
+    plain, theta = _unshaped_row(row)
+    cos2 = np.cos(np.radians(theta)) ** 2
+    np.testing.assert_allclose(row[:, 0], plain, rtol=2e-3)
+    np.testing.assert_allclose(row[:, 1], plain * cos2, rtol=2e-3)
+    np.testing.assert_allclose(row[:, 2], plain * cos2, rtol=2e-3)
+
+
+def test_shaping_on_a_rect_light():
+    def mk(s):
+        l = UsdLux.RectLight.Define(s, "/Rect")
+        l.CreateWidthAttr(0.05)
+        l.CreateHeightAttr(0.05)
+        l.CreateIntensityAttr(1000.0)
+        sh = UsdLux.ShapingAPI.Apply(l.GetPrim())
+        sh.CreateShapingFocusAttr(4.0)
+        sh.CreateShapingConeAngleAttr(30.0)
+        return l
+    rgb, scene, _ = lit_plane(mk)
+    row = rgb[SIZE // 2, :, 0]
+    x = np.array([_pixel_x(i) for i in range(SIZE)])
+    d2 = x * x + H * H
+    cos = H / np.sqrt(d2)
+    # far field: E = Le·A·cos_l·cos_r/d², cos_l = cos_r = cos; × cos⁴ (focus); 0 beyond 30°
+    expected = A / np.pi * 1000 * 0.0025 * cos * cos / d2 * cos ** 4 * (np.degrees(np.arccos(cos)) < 30)
+    np.testing.assert_allclose(row, expected, rtol=5e-3, atol=1e-7)
+
+
+def test_cylinder_light_is_a_tube_that_emits_from_its_side():
+    def mk(axis_down):
+        def make(s):
+            rig = UsdGeom.Xform.Define(s, "/Rig")  # lit_plane raises it to H
+            l = UsdLux.CylinderLight.Define(s, "/Rig/Tube")
+            l.CreateLengthAttr(0.1)
+            l.CreateRadiusAttr(0.02)
+            l.CreateIntensityAttr(500.0)
+            if axis_down:  # its axis (local X) along Z: the plane below sees only its end cap, which is dark
+                UsdGeom.Xformable(l).AddRotateYOp().Set(90.0)
+            return rig
+        return make
+    rgb, scene, info = lit_plane(mk(False))
+    light = scene.lights[0]
+    assert light.shape == "cylinder" and light.size == pytest.approx((0.1, 0.04))
+    assert not any("CylinderLight" in w for w in info.warnings)
+    # E = Le·∫ cos θ_l·cos θ_r / d² dA over the tube's side (radius r, along X at height H), by quadrature
+    r, length = 0.02, 0.1
+    phi, z = np.meshgrid(np.linspace(-np.pi, np.pi, 4001)[:-1], np.linspace(-length / 2, length / 2, 201))
+    q = np.stack([z, r * np.cos(phi), H + r * np.sin(phi)], -1)  # surface points, seen from the plane's origin
+    n = np.stack([np.zeros_like(phi), np.cos(phi), np.sin(phi)], -1)
+    d = np.linalg.norm(q, axis=-1)
+    cos_l = np.clip(-(q * n).sum(-1) / d, 0, None)
+    e = 500 * np.mean(cos_l * (q[..., 2] / d) / d**2) * 2 * np.pi * r * length
+    np.testing.assert_allclose(centre(rgb), [A / np.pi * e] * 3, rtol=1e-2)  # 64 stratified samples of the half
+    rgb, _, _ = lit_plane(mk(True))
+    assert np.all(centre(rgb) == 0)
+
+
+def test_an_empty_texture_or_ies_path_is_no_warning():
+    def mk(s):
+        l = UsdLux.RectLight.Define(s, "/Rect")
+        l.CreateTextureFileAttr(Sdf.AssetPath(""))
+        UsdLux.ShapingAPI.Apply(l.GetPrim()).CreateShapingIesFileAttr(Sdf.AssetPath(""))
+        return l
+    _, _, info = lit_plane(mk)
+    assert not any("texture" in w or "IES" in w for w in info.warnings), info.warnings
 
 
 def test_dome_light_ambient_and_background():

@@ -57,6 +57,7 @@ import numpy as np
 from pxr import Sdf, UsdGeom, UsdLux
 
 from tracer import AreaLight, DistantLight, PointLight, SpotLight
+from tracer.lights.emitters import LightShaping
 from tracer.lights.linking import LightLink
 
 from .dome import dome_texture
@@ -170,14 +171,15 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
         else:
             intensity = rgb * np.pi * r * r
         radius = 0.0 if point else r
+        if units not in ("arnold", "blender"):  # the spec's ShapingAPI (cone, softness, focus, focus tint)
+            return "point", PointLight(position=pos, intensity=intensity, radius=radius, name=name,
+                                       shaping=_light_shaping(prim, time, down, warn)), None
         shaping = UsdLux.ShapingAPI(prim)
         cone = shaping.GetShapingConeAngleAttr() if prim.HasAPI(UsdLux.ShapingAPI) else None
         focus = shaping.GetShapingFocusAttr() if prim.HasAPI(UsdLux.ShapingAPI) else None
         if focus and focus.HasAuthoredValue() and float(focus.Get(time) or 0) != 0:
-            warn(f"{name}: ShapingAPI shaping:focus is not supported (ignored)")
-        ies = shaping.GetShapingIesFileAttr() if prim.HasAPI(UsdLux.ShapingAPI) else None
-        if ies and ies.HasAuthoredValue():
-            warn(f"{name}: ShapingAPI IES profile is not supported (ignored)")
+            warn(f"{name}: ShapingAPI shaping:focus is not supported on this exporter's spot lights (ignored)")
+        _warn_ies(prim, time, warn)
         if cone and cone.HasAuthoredValue():
             angle = _finite(cone.Get(time), "shaping:cone:angle")
             soft = _finite(_get(shaping.GetShapingConeSoftnessAttr(), time, 0.0), "shaping:cone:softness")
@@ -199,25 +201,28 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
             # 0.53°): arnold-usd's references of lights without an intensity (test_2254, test_2268) are lit so
         return "distant", DistantLight(direction=down, irradiance=irradiance, angle=diameter, name=name), None
     if t == "CylinderLight":
-        # A tube along its local X of `length` and `radius`: emitted as a spherical light of the same power
-        # at its centre (Φ = L·π·A for a Lambertian surface of area A = 2πrl; normalize divides by A).
+        # A tube along its local X of `length` and `radius`, emitting from its side (UsdLux: not its end caps) with
+        # radiance I (normalize: I over the side's area 2πrl).
         lux = UsdLux.CylinderLight(prim)
         sx, sy, sz = _axis_scales(world)
         length = _finite(_get(lux.GetLengthAttr(), time, 1.0), "length") * sx
         r = _finite(_get(lux.GetRadiusAttr(), time, 0.5), "radius") * float(np.sqrt(sy * sz))
-        if _normalized(prim, time) or r <= 0 or length <= 0:
-            power = rgb * np.pi
-        else:
-            power = rgb * np.pi * 2 * np.pi * r * length
-        warn(f"{name}: CylinderLight rendered as a point light of the same power")
-        return "point", PointLight(position=pos, intensity=power / (4 * np.pi), radius=max(r, 0.0), name=name), None
+        if not (length > 0 and r > 0):
+            warn(f"{name}: CylinderLight of zero length or radius skipped")
+            return "area", None, None
+        size = (length, 2 * r)
+        radiance = rgb / AreaLight.area_of(size, "cylinder") if _normalized(prim, time) else rgb
+        shaping = None if units == "blender" else _light_shaping(prim, time, down, warn)
+        return "area", AreaLight(position=pos, u_axis=world[:3, 0], v_axis=world[:3, 1], normal=down, size=size,
+                                 radiance=radiance, shape="cylinder", name=name, shaping=shaping), None
     if t in ("RectLight", "DiskLight"):
         sx, sy, _ = _axis_scales(world)
         if t == "RectLight":
             lux = UsdLux.RectLight(prim)
             size = (float(_get(lux.GetWidthAttr(), time, 1.0)) * sx, float(_get(lux.GetHeightAttr(), time, 1.0)) * sy)
             shape = "rect"
-            if lux.GetTextureFileAttr().HasAuthoredValue():
+            tex = lux.GetTextureFileAttr().Get(time) if lux.GetTextureFileAttr().HasAuthoredValue() else None
+            if tex is not None and tex.path:
                 warn(f"{name}: RectLight texture:file is not supported (uniform colour used)")
         else:
             r = float(_get(UsdLux.DiskLight(prim).GetRadiusAttr(), time, 0.5))
@@ -227,12 +232,46 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
             return "area", None, None
         area = AreaLight.area_of(size, shape)
         radiance = rgb / area if _normalized(prim, time) else rgb
+        shaping = None if units == "blender" else _light_shaping(prim, time, down, warn)
         return "area", AreaLight(position=pos, u_axis=world[:3, 0], v_axis=world[:3, 1], normal=down,
-                                 size=size, radiance=radiance, shape=shape, name=name), None
+                                 size=size, radiance=radiance, shape=shape, name=name, shaping=shaping), None
     if t in ("DomeLight", "DomeLight_1"):
         return _dome(prim, world, time, rgb, warn)
     warn(f"{name}: light type {t} is not supported (skipped)")
     return "unsupported", None, None
+
+
+def _warn_ies(prim, time, warn):
+    """One warning for an IES profile (``shaping:ies:file`` naming a file; an empty path is no profile)."""
+    if not prim.HasAPI(UsdLux.ShapingAPI):
+        return
+    ies = UsdLux.ShapingAPI(prim).GetShapingIesFileAttr()
+    v = ies.Get(time) if ies.HasAuthoredValue() else None
+    if v is not None and v.path:
+        warn(f"{prim.GetPath()}: ShapingAPI IES profile {v.path} is not supported (ignored)")
+
+
+def _light_shaping(prim, time, axis, warn) -> LightShaping | None:
+    """The light's ShapingAPI as a :class:`tracer.lights.emitters.LightShaping` about ``axis`` (the light's −Z), or
+    None: the cone only where ``shaping:cone:angle`` is authored (arnold-usd reads it so; the schema's fallback 90°
+    would cut a sphere light's back half), softness, focus and focus tint as OpenUSD documents them."""
+    if not prim.HasAPI(UsdLux.ShapingAPI):
+        return None
+    api = UsdLux.ShapingAPI(prim)
+    _warn_ies(prim, time, warn)
+    cone = api.GetShapingConeAngleAttr()
+    if not cone.HasAuthoredValue() and prim.GetAttribute("shaping:cone:angle").HasAuthoredValue():
+        cone = prim.GetAttribute("shaping:cone:angle")  # the pre-21.02 name (see _get)
+    angle = _finite(cone.Get(time), "shaping:cone:angle") if cone.HasAuthoredValue() else 180.0
+    soft = _finite(_get(api.GetShapingConeSoftnessAttr(), time, 0.0), "shaping:cone:softness")
+    focus = _finite(_get(api.GetShapingFocusAttr(), time, 0.0), "shaping:focus")
+    tint = np.asarray(_get(api.GetShapingFocusTintAttr(), time, (0.0, 0.0, 0.0)), np.float64)
+    if angle <= 0:
+        warn(f"{prim.GetPath()}: shaping:cone:angle {angle:g} <= 0 ignored")
+        angle = 180.0
+    shaping = LightShaping(axis=axis, cone_angle=np.radians(min(angle, 180.0)), softness=soft, focus=max(focus, 0.0),
+                           focus_tint=tint)
+    return None if shaping.is_identity() else shaping
 
 
 def _old_blender(t, prim, world, time, rgb, units, warn):
@@ -316,6 +355,17 @@ def _camera_weight(prim, time) -> float:
     return max(w, 0.0) if np.isfinite(w) else 1.0
 
 
+def _arnold_camera_visibility(prim, time) -> float:
+    """How the camera sees a light's shape: UsdLux has no camera visibility (0, as before), but Arnold's light
+    parameter ``camera`` (``primvars:arnold:camera = w``: its contribution to camera rays, × w) shows it, unless
+    ``primvars:arnold:visibility:camera`` is off (arnold-usd reads both when authored)."""
+    vis = UsdGeom.PrimvarsAPI(prim).GetPrimvar("arnold:visibility:camera")
+    if vis and vis.HasAuthoredValue() and not vis.Get(time):
+        return 0.0
+    pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("arnold:camera")
+    return _camera_weight(prim, time) if pv and pv.HasAuthoredValue() else 0.0
+
+
 #: The default lighting of a stage without lights, as usdview/usdrecord light one: a headlight along the camera's
 #: view (irradiance π: a white Lambertian surface facing the camera shows its albedo) and a dim dome (ambient).
 DEFAULT_HEADLIGHT_IRRADIANCE = np.pi
@@ -358,5 +408,6 @@ def light_links(prims: list, object_names: list, time) -> list:
             link.cast_shadow = bool(_get(UsdLux.ShadowAPI(prim).GetShadowEnableAttr(), time, True))
             link.diffuse = _finite(float(_get(lux.GetDiffuseAttr(), time, 1.0)), "inputs:diffuse")
             link.glossy = _finite(float(_get(lux.GetSpecularAttr(), time, 1.0)), "inputs:specular")
+            link.camera = _arnold_camera_visibility(prim, time)
         links.append(link)
     return [] if all(k.is_default() for k in links) else links

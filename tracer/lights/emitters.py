@@ -51,13 +51,52 @@ def _normalize(v, name):
 
 
 @dataclass
+class LightShaping:
+    """UsdLux's ShapingAPI as OpenUSD documents it (user guide, "ShapingAPI"), on the emission of any light with a
+    position (point, area, cylinder): for an emission direction ω (unit, from the light towards the receiver) at
+    θ = acos(ω·axis) off the light's primary ``axis`` (its −Z),
+
+    - cone: 0 beyond ``cone_angle`` (half angle, radians; ≥ π: no cone); inside, × 1 − smoothstep(θ₀, θc, θ) with
+      θ₀ = θc·(1 − softness), softness clamped to [0, 1] (0: a hard edge);
+    - focus: × lerp(|ω·axis|^focus, focus_tint, 1), per channel (focus ≤ 0: no change; the default tint black
+      makes it a cosine-power falloff)."""
+
+    axis: np.ndarray
+    cone_angle: float = math.pi
+    softness: float = 0.0
+    focus: float = 0.0
+    focus_tint: np.ndarray = (0.0, 0.0, 0.0)
+
+    def __post_init__(self):
+        self.axis = _normalize(self.axis, "shaping axis")
+        self.focus_tint = _vec3(self.focus_tint, "focus tint")
+        self.cone_angle = float(self.cone_angle)
+        self.softness = float(np.clip(self.softness, 0.0, 1.0))
+        self.focus = float(self.focus)
+        if not (self.cone_angle > 0 and np.isfinite(self.cone_angle)) or not np.isfinite(self.focus):
+            raise ValueError(f"light shaping: cone_angle must be > 0 and focus finite, got {self.cone_angle}, "
+                             f"{self.focus}")
+
+    def is_identity(self) -> bool:
+        return self.cone_angle >= math.pi and self.focus <= 0.0
+
+
+def _shaping(shaping, name):
+    if shaping is not None and not isinstance(shaping, LightShaping):
+        raise ValueError(f"light {name}: shaping must be a LightShaping or None, got {shaping!r}")
+    return None if shaping is None or shaping.is_identity() else shaping
+
+
+@dataclass
 class PointLight:
     position: np.ndarray
     intensity: np.ndarray
     radius: float = 0.0
     name: str = "point"
+    shaping: LightShaping | None = None
 
     def __post_init__(self):
+        self.shaping = _shaping(self.shaping, self.name)
         self.position = _vec3(self.position, "position")
         self.intensity = _vec3(self.intensity, "intensity")
         self.radius = float(self.radius)
@@ -115,7 +154,10 @@ class DistantLight:
 @dataclass
 class AreaLight:
     """A one-sided Lambertian emitter centred at ``position``, spanning ``size`` along ``u_axis`` and ``v_axis``,
-    emitting along ``normal`` (Blender: the light's −Z). ``shape`` is "rect" or "disk" (an ellipse for unequal sizes).
+    emitting along ``normal`` (Blender: the light's −Z). ``shape`` is "rect" or "disk" (an ellipse for unequal sizes),
+    or "cylinder": UsdLux's CylinderLight, a tube of length ``size[0]`` along ``u_axis`` and diameter ``size[1]``
+    emitting outwards from its side (not its end caps), Lambertian at every point of its surface. ``shaping``: an
+    optional :class:`LightShaping` (UsdLux's ShapingAPI).
     ``spread`` (radians, π = none) narrows the emission as Blender's Spread does (Cycles' soft-box grid,
     :func:`spread_table`): radiance × max((tan(spread/2) − tan θ)·N, 0) at θ from the normal, N keeping the power."""
 
@@ -128,8 +170,10 @@ class AreaLight:
     shape: str = "rect"
     name: str = "area"
     spread: float = math.pi
+    shaping: LightShaping | None = None
 
     def __post_init__(self):
+        self.shaping = _shaping(self.shaping, self.name)
         self.position = _vec3(self.position, "position")
         self.spread = float(self.spread)
         if not (0.0 <= self.spread <= math.pi + 1e-6):
@@ -143,8 +187,8 @@ class AreaLight:
         if self.radiance is None:
             raise ValueError(f"light {self.name}: an area light needs a radiance")
         self.radiance = _vec3(self.radiance, "radiance")
-        if self.shape not in ("rect", "disk"):
-            raise ValueError(f"light {self.name}: shape must be 'rect' or 'disk', got {self.shape!r}")
+        if self.shape not in ("rect", "disk", "cylinder"):
+            raise ValueError(f"light {self.name}: shape must be 'rect', 'disk' or 'cylinder', got {self.shape!r}")
 
     @property
     def area(self) -> float:
@@ -152,9 +196,12 @@ class AreaLight:
 
     @staticmethod
     def area_of(size, shape: str = "rect") -> float:
-        """The emitting area of a ``size`` (sx, sy) light: a rectangle sx·sy, a disk (ellipse) π/4·sx·sy. The one
-        place this is written (the add-on's power conversion and its unnormalized lights use it)."""
+        """The emitting area of a ``size`` (sx, sy) light: a rectangle sx·sy, a disk (ellipse) π/4·sx·sy, a cylinder's
+        side π·sy·sx (length sx, diameter sy). The one place this is written (the add-on's power conversion and its
+        unnormalized lights use it)."""
         sx, sy = size
+        if shape == "cylinder":
+            return np.pi * sy * sx
         return sx * sy if shape == "rect" else np.pi / 4 * sx * sy
 
     def sample_count(self, requested: int) -> int:
@@ -180,7 +227,7 @@ def spread_table(spread: float) -> tuple[float, float]:
 
 # ---------------------------------------------------------------------- the packed light tables
 #: Light kinds in the packed tables.
-POINT, SPOT, DISTANT, RECT, DISK, MESH = 0, 1, 2, 3, 4, 5
+POINT, SPOT, DISTANT, RECT, DISK, MESH, CYLINDER = 0, 1, 2, 3, 4, 5, 6
 
 
 class LightTables(NamedTuple):
@@ -188,20 +235,25 @@ class LightTables(NamedTuple):
     stay 0); the emissive triangles of the MESH lights (if any: the last rows, each a slice tri_start:tri_end) as
     vertices, radiance and the cumulative distribution of their power within each slice."""
 
-    kind: np.ndarray  # (L,) int64: POINT, SPOT, DISTANT, RECT, DISK or MESH
+    kind: np.ndarray  # (L,) int64: POINT, SPOT, DISTANT, RECT, DISK, MESH or CYLINDER
     side: np.ndarray  # (L,) int64: √ of the light's sample count
     position: np.ndarray  # (L, 3) float64: point, spot, area centre
     color: np.ndarray  # (L, 3) float64: intensity (W/sr), irradiance (W/m²) or radiance (W/m²/sr)
-    radius: np.ndarray  # (L,) float64: point and spot radius
+    radius: np.ndarray  # (L,) float64: point and spot radius, cylinder radius
     direction: np.ndarray  # (L, 3) float64: spot axis, sun direction (travel), area normal (emitting side)
     cos_cone: np.ndarray  # (L,) float64: spot, cos(size/2)
     blend: np.ndarray  # (L,) float64: spot blend
     cos_max: np.ndarray  # (L,) float64: sun, cos(angle/2)
-    u_axis: np.ndarray  # (L, 3) float64: area, unit edge directions
+    u_axis: np.ndarray  # (L, 3) float64: area, unit edge directions (cylinder: its axis)
     v_axis: np.ndarray  # (L, 3) float64
-    size: np.ndarray  # (L, 2) float64: area, extents along u and v
+    size: np.ndarray  # (L, 2) float64: area, extents along u and v (cylinder: length, diameter)
     area: np.ndarray  # (L,) float64: area, its area
     spread: np.ndarray  # (L, 2) float64: area, (tan(spread/2), N) of :func:`spread_table`; N = 0: no spread
+    shaped: np.ndarray  # (L,) int64: 1 where the light has a LightShaping (the four rows below)
+    shape_axis: np.ndarray  # (L, 3) float64: its primary axis
+    shape_cone: np.ndarray  # (L, 2) float64: (θ₀, θc) of its cone, radians (θc ≥ π: no cone)
+    focus: np.ndarray  # (L,) float64: its focus exponent (≤ 0: none)
+    focus_tint: np.ndarray  # (L, 3) float64
     tri: np.ndarray  # (N, 3, 3) float64 emitting triangles, world space
     tri_le: np.ndarray  # (N, 3) float64 their radiance
     tri_cdf: np.ndarray  # (N,) float64 cumulative pick probability (power-proportional) within each light's slice
@@ -276,7 +328,8 @@ def pack_lights(lights: list, light_samples: int, emitters=None, linked=()) -> L
     f1, f2, f3 = (lambda: np.zeros(n, np.float64)), (lambda: np.zeros((n, 2))), (lambda: np.zeros((n, 3)))
     t = LightTables(kind=np.zeros(n, np.int64), side=np.ones(n, np.int64), position=f3(), color=f3(), radius=f1(),
                     direction=f3(), cos_cone=f1(), blend=f1(), cos_max=f1(), u_axis=f3(), v_axis=f3(), size=f2(),
-                    area=f1(), spread=f2(), tri=tri, tri_le=tri_le, tri_cdf=cdf, tri_start=np.zeros(n, np.int64),
+                    area=f1(), spread=f2(), shaped=np.zeros(n, np.int64), shape_axis=f3(), shape_cone=f2(),
+                    focus=f1(), focus_tint=f3(), tri=tri, tri_le=tri_le, tri_cdf=cdf, tri_start=np.zeros(n, np.int64),
                     tri_end=np.zeros(n, np.int64), emitter_object=np.full(n, -1, np.int64))
     for i, (obj, start, end) in enumerate(groups, start=len(lights)):
         t.kind[i] = MESH
@@ -293,10 +346,16 @@ def pack_lights(lights: list, light_samples: int, emitters=None, linked=()) -> L
             t.kind[i] = DISTANT
             t.direction[i], t.color[i], t.cos_max[i] = light.direction, light.irradiance, np.cos(light.angle / 2)
         else:
-            t.kind[i] = RECT if light.shape == "rect" else DISK
+            t.kind[i] = {"rect": RECT, "disk": DISK, "cylinder": CYLINDER}[light.shape]
             t.position[i], t.color[i], t.direction[i] = light.position, light.radiance, light.normal
             t.u_axis[i], t.v_axis[i], t.size[i], t.area[i] = light.u_axis, light.v_axis, light.size, light.area
             t.spread[i] = spread_table(light.spread)
+            if light.shape == "cylinder":
+                t.radius[i] = light.size[1] / 2
+        sh = getattr(light, "shaping", None)
+        if sh is not None:
+            t.shaped[i], t.shape_axis[i], t.focus[i], t.focus_tint[i] = 1, sh.axis, sh.focus, sh.focus_tint
+            t.shape_cone[i] = (sh.cone_angle * (1.0 - sh.softness), sh.cone_angle)
     return t
 
 
@@ -344,7 +403,69 @@ def spot_falloff(cos_a, cos_cone, blend):
 
 
 @kernel(inline=True)
+def shaping_factor(lights, j, w):
+    """Light j's :class:`LightShaping` for the unit emission direction ``w`` (from the light towards the receiver),
+    per channel: (1, 1, 1) for an unshaped light."""
+    if lights.shaped[j] == 0:
+        return (1.0, 1.0, 1.0)
+    c = vec.dot(w, vec.row(lights.shape_axis, j))
+    f = 1.0
+    start, cut = lights.shape_cone[j, 0], lights.shape_cone[j, 1]
+    if cut < math.pi:
+        theta = math.acos(min(max(c, -1.0), 1.0))
+        if theta > cut:
+            return (0.0, 0.0, 0.0)
+        if theta > start:
+            x = (theta - start) / (cut - start)
+            f = 1.0 - x * x * (3.0 - 2.0 * x)
+    focus = lights.focus[j]
+    if focus <= 0.0:
+        return (f, f, f)
+    g = abs(c) ** focus
+    return (f * (lights.focus_tint[j, 0] + g * (1.0 - lights.focus_tint[j, 0])),
+            f * (lights.focus_tint[j, 1] + g * (1.0 - lights.focus_tint[j, 1])),
+            f * (lights.focus_tint[j, 2] + g * (1.0 - lights.focus_tint[j, 2])))
+
+
+@kernel(inline=True)
+def _sample_cylinder(lights, j, k, sd, kk, p, r0, r1):
+    """Stratum k of cylinder light j's side seen from p: a point uniform in area on the half of the tube that faces p
+    (every point of the tube p can see lies in it), E = Le·cos θ_l·(π·r·length)/r²/K."""
+    pos = vec.row(lights.position, j)
+    ax = vec.row(lights.u_axis, j)
+    radius, length = lights.radius[j], lights.size[j, 0]
+    to_p = vec.sub(p, pos)
+    perp = vec.madd(to_p, ax, -vec.dot(to_p, ax))
+    pl = vec.length(perp)
+    if pl > 1e-9 * (vec.length(to_p) + radius):  # (rounding leaves a near-zero perp that is not perpendicular)
+        e1 = vec.scale(perp, 1.0 / pl)
+    else:
+        e1 = vec.orthonormal_basis(ax)[0]
+    e2 = vec.cross(ax, e1)
+    s0, s1 = stratum(k, sd, r0, r1)
+    phi = (s1 - 0.5) * math.pi
+    nrm = vec.madd(vec.scale(e1, math.cos(phi)), e2, math.sin(phi))
+    pt = vec.madd(vec.madd(pos, ax, (s0 - 0.5) * length), nrm, radius)
+    to_l = vec.sub(pt, p)
+    d2 = max(vec.dot(to_l, to_l), 1e-30)
+    dist = math.sqrt(d2)
+    l = vec.scale(to_l, 1.0 / dist)
+    cos_l = max(0.0, -vec.dot(l, nrm))
+    f = cos_l * math.pi * radius * length / d2 / kk
+    return l, dist, vec.scale(vec.row(lights.color, j), f)
+
+
+@kernel(inline=True)
 def sample_light(lights, j, k, p, r0, r1):
+    """:func:`_sample_light_unshaped` × the light's :func:`shaping_factor` (UsdLux's ShapingAPI)."""
+    l, dist, e = _sample_light_unshaped(lights, j, k, p, r0, r1)
+    if lights.shaped[j] != 0:
+        e = vec.mul(e, shaping_factor(lights, j, vec.scale(l, -1.0)))
+    return l, dist, e
+
+
+@kernel(inline=True)
+def _sample_light_unshaped(lights, j, k, p, r0, r1):
     """Sample ``k`` (of side²) of light ``j`` of a :class:`LightTables` seen from point p: (l, dist, E) with l the
     unit direction to the light, dist the shadow ray's length and E the irradiance on a surface facing the light,
     divided by side². (r0, r1) in [0,1)² rotate the stratified pattern of lights with an extent. (Called from
@@ -356,6 +477,8 @@ def sample_light(lights, j, k, p, r0, r1):
     if kd == MESH:
         return _sample_emitters(lights.tri, lights.tri_le, lights.tri_cdf, lights.tri_start[j], lights.tri_end[j],
                                 k, sd, kk, p, r0, r1)
+    if kd == CYLINDER:
+        return _sample_cylinder(lights, j, k, sd, kk, p, r0, r1)
     if kd == POINT or kd == SPOT:
         pos = vec.row(lights.position, j)
         radius = lights.radius[j]
@@ -429,6 +552,38 @@ def hittable(light) -> bool:
 
 @kernel(inline=True)
 def lamp_hit(lights, j, o, d, t_max):
+    """:func:`_lamp_hit_unshaped` × the light's :func:`shaping_factor` towards the ray's origin."""
+    t, le = _lamp_hit_unshaped(lights, j, o, d, t_max)
+    if lights.shaped[j] != 0 and t < t_max:
+        le = vec.mul(le, shaping_factor(lights, j, vec.scale(d, -1.0)))
+    return t, le
+
+
+@kernel(inline=True)
+def _lamp_hit_cylinder(lights, j, o, d, t_max):
+    """(t, Le) where the ray meets cylinder light j's side from outside (its end caps and inside emit nothing)."""
+    pos = vec.row(lights.position, j)
+    ax = vec.row(lights.u_axis, j)
+    radius, length = lights.radius[j], lights.size[j, 0]
+    oc = vec.sub(o, pos)
+    dp = vec.madd(d, ax, -vec.dot(d, ax))
+    op = vec.madd(oc, ax, -vec.dot(oc, ax))
+    a = vec.dot(dp, dp)
+    if a <= 1e-24:
+        return math.inf, (0.0, 0.0, 0.0)
+    b = vec.dot(op, dp)
+    c = vec.dot(op, op) - radius * radius
+    disc = b * b - a * c
+    if disc < 0.0 or c <= 0.0:  # misses, or starts inside the tube (its inside does not emit)
+        return math.inf, (0.0, 0.0, 0.0)
+    t = (-b - math.sqrt(disc)) / a
+    if not (t > 0.0 and t < t_max) or abs(vec.dot(vec.madd(oc, d, t), ax)) > 0.5 * length:
+        return math.inf, (0.0, 0.0, 0.0)
+    return t, vec.row(lights.color, j)
+
+
+@kernel(inline=True)
+def _lamp_hit_unshaped(lights, j, o, d, t_max):
     """Where the ray o + t·d (d unit) meets light j's shape before ``t_max``, and the radiance it sees there:
     (t, Le), t = inf when it misses. As Cycles renders a light seen by a ray (measured through bpy, Blender 5.0):
 
@@ -441,6 +596,8 @@ def lamp_hit(lights, j, o, d, t_max):
       Le = S/(π·sin²(a/2))."""
     kd = lights.kind[j]
     miss = (math.inf, (0.0, 0.0, 0.0))
+    if kd == CYLINDER:
+        return _lamp_hit_cylinder(lights, j, o, d, t_max)
     if kd == RECT or kd == DISK:
         nrm = vec.row(lights.direction, j)
         cos_l = -vec.dot(d, nrm)
