@@ -357,6 +357,47 @@ def test_an_area_light_with_an_arnold_camera_weight_is_seen_by_the_camera():
     np.testing.assert_allclose(frame(weight=1.0, visible=False), 0.0, atol=1e-6)
 
 
+def _textured_rect_frame(tmp_path, usdlux_version=None):
+    """A 2 × 1 texture (left texel red, right texel blue) on a 2 × 2 RectLight of intensity 3 facing the camera
+    (turned 180° about Y: its −Z towards +Z), shown to the camera by Arnold's ``camera`` primvar; the frame's left
+    and right thirds."""
+    import OpenImageIO as oiio
+
+    path = str(tmp_path / "lr.exr")
+    out = oiio.ImageOutput.create(path)
+    out.open(path, oiio.ImageSpec(2, 1, 3, oiio.FLOAT))
+    out.write_image(np.array([[[1, 0, 0], [0, 0, 1]]], np.float32))
+    out.close()
+    s = new_stage()
+    add_camera(s, eye=(0, 0, 10))
+    if usdlux_version is not None:
+        rs = s.DefinePrim("/Render/Settings", "RenderSettings")
+        rs.CreateAttribute("arnold:global:usdlux_version", Sdf.ValueTypeNames.String).Set(usdlux_version)
+    rect = UsdLux.RectLight.Define(s, "/Rect")
+    rect.CreateWidthAttr(2.0)
+    rect.CreateHeightAttr(2.0)
+    rect.CreateIntensityAttr(3.0)
+    rect.CreateTextureFileAttr(Sdf.AssetPath(path))
+    rect.AddRotateYOp().Set(180.0)
+    UsdGeom.PrimvarsAPI(rect.GetPrim()).CreatePrimvar("arnold:camera", F).Set(1.0)
+    scene, info = load_stage(s, width=24, height=16)
+    rgb = render(scene, RenderSettings(width=24, height=16, samples=1)).rgb
+    return rgb[8, 9], rgb[8, 14], info
+
+
+def test_a_rect_light_texture_is_unmirrored_to_an_eye_facing_it_as_usdlux_says(tmp_path):
+    """UsdLux (Arnold's usdlux_version 25.05): the texture reads as an image to an eye facing the emitting side
+    (arnold-usd's test_2434.1); radiance = texel × intensity. Arnold's own reading mirrors it (test_2434.2, whose
+    RenderSettings say usdlux_version "None")."""
+    left, right, info = _textured_rect_frame(tmp_path, "25.05")
+    assert not any("texture" in w for w in info.warnings), info.warnings
+    np.testing.assert_allclose(left, (3, 0, 0), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(right, (0, 0, 3), rtol=1e-5, atol=1e-6)
+    left, right, _ = _textured_rect_frame(tmp_path, "None")
+    np.testing.assert_allclose(left, (0, 0, 3), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(right, (3, 0, 0), rtol=1e-5, atol=1e-6)
+
+
 # ---------------------------------------------------------------- the harness: how Arnold wrote its references
 def _write_image(path, values, fmt):
     import OpenImageIO as oiio

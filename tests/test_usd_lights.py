@@ -266,6 +266,33 @@ def test_cylinder_light_is_a_tube_that_emits_from_its_side():
     assert np.all(centre(rgb) == 0)
 
 
+def test_a_textured_rect_light_lights_with_its_texture(tmp_path):
+    import OpenImageIO as oiio
+
+    path = str(tmp_path / "two.exr")  # one red texel, one blue: the light's mean radiance is (0.5, 0, 0.5)·I
+    out = oiio.ImageOutput.create(path)
+    out.open(path, oiio.ImageSpec(2, 1, 3, oiio.FLOAT))
+    out.write_image(np.array([[[1, 0, 0], [0, 0, 1]]], np.float32))
+    out.close()
+
+    def mk(s):
+        l = UsdLux.RectLight.Define(s, "/Rect")
+        l.CreateWidthAttr(0.05)
+        l.CreateHeightAttr(0.05)
+        l.CreateIntensityAttr(1000.0)
+        l.CreateTextureFileAttr(Sdf.AssetPath(path))
+        return l
+    rgb, scene, info = lit_plane(mk)
+    assert not any("texture" in w for w in info.warnings), info.warnings
+    assert scene.lights[0].texture.shape == (1, 2, 3)
+    # far field: E = mean(Le)·A/h²: the total exactly (red + blue = I everywhere on the light); each half within
+    # the stratification's error (8 strata across the red-to-blue ramp, shifted by one random offset per pixel)
+    c = centre(rgb)
+    e = A / np.pi * 1000 * 0.0025 / H**2
+    np.testing.assert_allclose(c[0] + c[2], e, rtol=5e-3)
+    assert c[1] == 0 and abs(c[0] - c[2]) < 0.1 * e
+
+
 def test_an_empty_texture_or_ies_path_is_no_warning():
     def mk(s):
         l = UsdLux.RectLight.Define(s, "/Rect")

@@ -61,6 +61,7 @@ from tracer.lights.emitters import LightShaping
 from tracer.lights.linking import LightLink
 
 from .dome import dome_texture
+from .materials.texture_files import read_texture_file
 from .exporters import KIT_EV, NITS_TO_W_PER_M2, detect
 
 LIGHT_TYPES = ("SphereLight", "DistantLight", "RectLight", "DiskLight", "DomeLight", "DomeLight_1", "CylinderLight")
@@ -138,9 +139,11 @@ def sun_irradiance(rgb, angle_deg: float, normalize: bool, blender: bool):
     return rgb * omega, diameter
 
 
-def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, units: str | None = None):
+def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, units: str | None = None,
+                  textures=None):
     """(kind, tracer light or None, world dict or None) for one UsdLux prim in ``units`` (usd_io.exporters.UNITS:
-    the writer's light units; None: "blender" when ``blender`` else "spec")."""
+    the writer's light units; None: "blender" when ``blender`` else "spec"). ``textures``: the reader's
+    ``TextureCache`` (a RectLight's texture:file read in the stage's rendering space), or None."""
     units = units or ("blender" if blender else "spec")
     if units not in ("spec", "arnold") and not authored(prim, "intensity"):
         units = "spec"  # the writer's units are about the numbers it wrote: a fallback intensity is UsdLux's
@@ -221,24 +224,46 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
             lux = UsdLux.RectLight(prim)
             size = (float(_get(lux.GetWidthAttr(), time, 1.0)) * sx, float(_get(lux.GetHeightAttr(), time, 1.0)) * sy)
             shape = "rect"
-            tex = lux.GetTextureFileAttr().Get(time) if lux.GetTextureFileAttr().HasAuthoredValue() else None
-            if tex is not None and tex.path:
-                warn(f"{name}: RectLight texture:file is not supported (uniform colour used)")
+            texture = _rect_texture(prim, lux, time, warn, textures)
         else:
             r = float(_get(UsdLux.DiskLight(prim).GetRadiusAttr(), time, 0.5))
-            size, shape = (2 * r * sx, 2 * r * sy), "disk"
+            size, shape, texture = (2 * r * sx, 2 * r * sy), "disk", None
         if not (np.all(np.isfinite(size)) and min(size) > 0):
             warn(f"{name}: {t} of zero or non-finite size {size} skipped")
             return "area", None, None
         area = AreaLight.area_of(size, shape)
         radiance = rgb / area if _normalized(prim, time) else rgb
         shaping = None if units == "blender" else _light_shaping(prim, time, down, warn)
-        return "area", AreaLight(position=pos, u_axis=world[:3, 0], v_axis=world[:3, 1], normal=down,
-                                 size=size, radiance=radiance, shape=shape, name=name, shaping=shaping), None
+        # The texture's u: UsdLux (OpenUSD 25.05, Arnold's usdlux_version 25.05) shows the image unmirrored to an
+        # eye facing the light's emitting side, whose right is the light's −X; Arnold's own reading mirrors it
+        # (arnold-usd's test_2434.1 / .2, "Rect-lights display in (non-)mirror-image").
+        u_axis = world[:3, 0] if texture is None or units == "arnold" else -world[:3, 0]
+        return "area", AreaLight(position=pos, u_axis=u_axis, v_axis=world[:3, 1], normal=down, size=size,
+                                 radiance=radiance, shape=shape, name=name, shaping=shaping, texture=texture), None
     if t in ("DomeLight", "DomeLight_1"):
         return _dome(prim, world, time, rgb, warn)
     warn(f"{name}: light type {t} is not supported (skipped)")
     return "unsupported", None, None
+
+
+def _rect_texture(prim, lux, time, warn, textures):
+    """A RectLight's ``texture:file`` as an (H, W, 3) linear image (the tracer multiplies the radiance by it), or
+    None: no file (an empty path), or one that cannot be read (one warning; the light's uniform colour is used)."""
+    attr = lux.GetTextureFileAttr()
+    asset = attr.Get(time) if attr.HasAuthoredValue() else None
+    if not isinstance(asset, Sdf.AssetPath) or not asset.path:
+        return None
+    name = str(prim.GetPath())
+    if not asset.resolvedPath:
+        warn(f"{name}: RectLight texture {asset.path!r} not found (uniform colour used)")
+        return None
+    try:
+        got = (textures.get(asset.resolvedPath, "auto", asset.path) if textures is not None
+               else read_texture_file(asset.resolvedPath, "auto", asset.path))
+    except ValueError as exc:
+        warn(f"{name}: {exc} (uniform colour used)")
+        return None
+    return np.ascontiguousarray(got.pixels[..., :3], np.float32)
 
 
 def _warn_ies(prim, time, warn):

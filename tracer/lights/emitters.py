@@ -157,7 +157,10 @@ class AreaLight:
     emitting along ``normal`` (Blender: the light's −Z). ``shape`` is "rect" or "disk" (an ellipse for unequal sizes),
     or "cylinder": UsdLux's CylinderLight, a tube of length ``size[0]`` along ``u_axis`` and diameter ``size[1]``
     emitting outwards from its side (not its end caps), Lambertian at every point of its surface. ``shaping``: an
-    optional :class:`LightShaping` (UsdLux's ShapingAPI).
+    optional :class:`LightShaping` (UsdLux's ShapingAPI). ``texture``: an optional (H, W, 3) linear image multiplying a
+    rect light's radiance per point (UsdLux's ``texture:file``): u runs from 0 to 1 along ``u_axis``, v along
+    ``v_axis``, image row 0 at v = 1 (the top), filtered bilinearly; its light samples and the rays that see it read
+    the texture where they meet the light.
     ``spread`` (radians, π = none) narrows the emission as Blender's Spread does (Cycles' soft-box grid,
     :func:`spread_table`): radiance × max((tan(spread/2) − tan θ)·N, 0) at θ from the normal, N keeping the power."""
 
@@ -171,9 +174,17 @@ class AreaLight:
     name: str = "area"
     spread: float = math.pi
     shaping: LightShaping | None = None
+    texture: np.ndarray | None = None
 
     def __post_init__(self):
         self.shaping = _shaping(self.shaping, self.name)
+        if self.texture is not None:
+            tex = np.asarray(self.texture, np.float32)
+            if tex.ndim != 3 or tex.shape[2] != 3 or min(tex.shape[:2]) < 1 or not np.all(np.isfinite(tex)):
+                raise ValueError(f"light {self.name}: texture must be a finite (H, W, 3) image, got {tex.shape}")
+            if self.shape != "rect":
+                raise ValueError(f"light {self.name}: only a rect light takes a texture")
+            self.texture = np.ascontiguousarray(tex)
         self.position = _vec3(self.position, "position")
         self.spread = float(self.spread)
         if not (0.0 <= self.spread <= math.pi + 1e-6):
@@ -254,6 +265,9 @@ class LightTables(NamedTuple):
     shape_cone: np.ndarray  # (L, 2) float64: (θ₀, θc) of its cone, radians (θc ≥ π: no cone)
     focus: np.ndarray  # (L,) float64: its focus exponent (≤ 0: none)
     focus_tint: np.ndarray  # (L, 3) float64
+    tex: np.ndarray  # (M, 3) float32: the textured rect lights' texels, each light's image row-major from the top
+    tex_start: np.ndarray  # (L,) int64: a textured light's first row in tex
+    tex_size: np.ndarray  # (L, 2) int64: its image's (width, height); (0, 0): not textured
     tri: np.ndarray  # (N, 3, 3) float64 emitting triangles, world space
     tri_le: np.ndarray  # (N, 3) float64 their radiance
     tri_cdf: np.ndarray  # (N,) float64 cumulative pick probability (power-proportional) within each light's slice
@@ -325,11 +339,15 @@ def pack_lights(lights: list, light_samples: int, emitters=None, linked=()) -> L
             np.ascontiguousarray(emitters[0], np.float64), np.ascontiguousarray(emitters[1], np.float64),
             emitters[2] if len(emitters) > 2 else None, linked)
     n = len(lights) + len(groups)
+    images = [getattr(lt, "texture", None) for lt in lights]
+    tex = np.concatenate([im.reshape(-1, 3) for im in images if im is not None] or [np.zeros((1, 3))])
+    tex = np.ascontiguousarray(tex, np.float32)
     f1, f2, f3 = (lambda: np.zeros(n, np.float64)), (lambda: np.zeros((n, 2))), (lambda: np.zeros((n, 3)))
     t = LightTables(kind=np.zeros(n, np.int64), side=np.ones(n, np.int64), position=f3(), color=f3(), radius=f1(),
                     direction=f3(), cos_cone=f1(), blend=f1(), cos_max=f1(), u_axis=f3(), v_axis=f3(), size=f2(),
                     area=f1(), spread=f2(), shaped=np.zeros(n, np.int64), shape_axis=f3(), shape_cone=f2(),
-                    focus=f1(), focus_tint=f3(), tri=tri, tri_le=tri_le, tri_cdf=cdf, tri_start=np.zeros(n, np.int64),
+                    focus=f1(), focus_tint=f3(), tex=tex, tex_start=np.zeros(n, np.int64),
+                    tex_size=np.zeros((n, 2), np.int64), tri=tri, tri_le=tri_le, tri_cdf=cdf, tri_start=np.zeros(n, np.int64),
                     tri_end=np.zeros(n, np.int64), emitter_object=np.full(n, -1, np.int64))
     for i, (obj, start, end) in enumerate(groups, start=len(lights)):
         t.kind[i] = MESH
@@ -352,6 +370,9 @@ def pack_lights(lights: list, light_samples: int, emitters=None, linked=()) -> L
             t.spread[i] = spread_table(light.spread)
             if light.shape == "cylinder":
                 t.radius[i] = light.size[1] / 2
+        if images[i] is not None:
+            t.tex_start[i] = sum(im.shape[0] * im.shape[1] for im in images[:i] if im is not None)
+            t.tex_size[i] = (images[i].shape[1], images[i].shape[0])
         sh = getattr(light, "shaping", None)
         if sh is not None:
             t.shaped[i], t.shape_axis[i], t.focus[i], t.focus_tint[i] = 1, sh.axis, sh.focus, sh.focus_tint
@@ -400,6 +421,29 @@ def spot_falloff(cos_a, cos_cone, blend):
         return 1.0 if cos_a > cos_cone else 0.0
     x = min(max((cos_a - cos_cone) / ((1.0 - cos_cone) * blend), 0.0), 1.0)
     return x * x * (3.0 - 2.0 * x)
+
+
+@kernel(inline=True)
+def light_texel(lights, j, u, v):
+    """Light j's texture at (u, v) in [0, 1]² (v = 1 the image's top row), bilinear with the edges clamped; (1, 1, 1)
+    for a light without one."""
+    w, h = lights.tex_size[j, 0], lights.tex_size[j, 1]
+    if w == 0:
+        return (1.0, 1.0, 1.0)
+    x = min(max(u * w - 0.5, 0.0), w - 1.0)
+    y = min(max((1.0 - v) * h - 0.5, 0.0), h - 1.0)
+    x0, y0 = int(x), int(y)
+    x1, y1 = min(x0 + 1, w - 1), min(y0 + 1, h - 1)
+    fx, fy = x - x0, y - y0
+    tex = lights.tex
+    i00 = lights.tex_start[j] + y0 * w + x0
+    i01 = lights.tex_start[j] + y0 * w + x1
+    i10 = lights.tex_start[j] + y1 * w + x0
+    i11 = lights.tex_start[j] + y1 * w + x1
+    w00, w01, w10, w11 = (1.0 - fx) * (1.0 - fy), fx * (1.0 - fy), (1.0 - fx) * fy, fx * fy
+    return (w00 * tex[i00, 0] + w01 * tex[i01, 0] + w10 * tex[i10, 0] + w11 * tex[i11, 0],
+            w00 * tex[i00, 1] + w01 * tex[i01, 1] + w10 * tex[i10, 1] + w11 * tex[i11, 1],
+            w00 * tex[i00, 2] + w01 * tex[i01, 2] + w10 * tex[i10, 2] + w11 * tex[i11, 2])
 
 
 @kernel(inline=True)
@@ -534,7 +578,10 @@ def _sample_light_unshaped(lights, j, k, p, r0, r1):
     if norm > 0.0 and cos_l > 0.0:  # Blender's Spread: the soft box's grid hides light at angle θ > spread/2
         tan_a = math.sqrt(max(1.0 - cos_l * cos_l, 0.0)) / cos_l
         f *= max((lights.spread[j, 0] - tan_a) * norm, 0.0)
-    return l, dist, vec.scale(vec.row(lights.color, j), f)
+    le = vec.row(lights.color, j)
+    if lights.tex_size[j, 0] > 0:  # a textured rect light: its radiance where the sample lies
+        le = vec.mul(le, light_texel(lights, j, a + 0.5, b + 0.5))
+    return l, dist, vec.scale(le, f)
 
 
 def hittable(light) -> bool:
@@ -620,7 +667,10 @@ def _lamp_hit_unshaped(lights, j, o, d, t_max):
         if norm > 0.0:
             tan_a = math.sqrt(max(1.0 - cos_l * cos_l, 0.0)) / cos_l
             f = max((lights.spread[j, 0] - tan_a) * norm, 0.0)
-        return t, vec.scale(vec.row(lights.color, j), f)
+        le = vec.row(lights.color, j)
+        if lights.tex_size[j, 0] > 0:
+            le = vec.mul(le, light_texel(lights, j, a + 0.5, b + 0.5))
+        return t, vec.scale(le, f)
     if kd == POINT or kd == SPOT:
         radius = lights.radius[j]
         if radius <= 0.0:
