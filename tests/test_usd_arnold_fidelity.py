@@ -5,6 +5,7 @@ documented behaviour, never a downloaded file."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade
 
 from tracer import RenderSettings, render
@@ -89,6 +90,23 @@ def test_arnold_radius_primvar_wins_over_the_usd_radius():
     shadow), however the light is normalized: the same I W/sr, even with normalize off."""
     _px, info = _centre(_point_lit(radius_prim=0.0, normalize=False))
     lamp = [lt for _k, _n, lt in info.lights][0]
+    assert lamp.radius == 0.0
+    np.testing.assert_allclose(lamp.intensity, 8.0, rtol=1e-6)
+
+
+def test_a_treat_as_point_sphere_is_arnolds_default_point_light_normalized():
+    """arnold-usd reads inputs:radius and inputs:normalize only when treatAsPoint is off; with it on, the light is
+    Arnold's point_light at its defaults (normalize on), so an unnormalized sphere of Arnold radius 1.32 still
+    gives I W/sr (arnold-usd's test_0190: 19.4 dB read as I·πr², 39.6 dB so)."""
+    s = _point_lit(radius_prim=1.32, normalize=False)
+    UsdLux.SphereLight(s.GetPrimAtPath("/Lamp")).CreateTreatAsPointAttr(True)
+    _px, info = _centre(s)
+    lamp = [lt for _k, _n, lt in info.lights][0]
+    np.testing.assert_allclose(lamp.intensity, 8.0, rtol=1e-6)
+    assert lamp.radius == pytest.approx(1.32)
+    s = _point_lit(normalize=False)  # treatAsPoint on, no Arnold radius: a point (the USD radius is not read)
+    UsdLux.SphereLight(s.GetPrimAtPath("/Lamp")).CreateTreatAsPointAttr(True)
+    lamp = [lt for _k, _n, lt in _centre(s)[1].lights][0]
     assert lamp.radius == 0.0
     np.testing.assert_allclose(lamp.intensity, 8.0, rtol=1e-6)
 

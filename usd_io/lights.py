@@ -162,14 +162,19 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
     if t == "SphereLight":
         lux = UsdLux.SphereLight(prim)
         r = _finite(_get(lux.GetRadiusAttr(), time, 0.5), "radius")
+        point = bool(_get(lux.GetTreatAsPointAttr(), time, False))
+        normalized = _normalized(prim, time)
+        if units == "arnold" and point:
+            # arnold-usd reads inputs:radius and inputs:normalize only when treatAsPoint is off: a treatAsPoint
+            # light is Arnold's point_light with its defaults, radius 0 and normalize on (unless the primvar below)
+            r, normalized, point = 0.0, True, False
         arnold_r = prim.GetAttribute("primvars:arnold:radius") if units == "arnold" else None
         if arnold_r and arnold_r.HasAuthoredValue():  # Arnold's own parameter wins (arnold-usd reads it last)
             r = _finite(arnold_r.Get(time), "primvars:arnold:radius")
         r *= float(np.mean(_axis_scales(world)))
-        point = bool(_get(lux.GetTreatAsPointAttr(), time, False))
-        if units == "arnold" and (_normalized(prim, time) or r <= 0):
+        if units == "arnold" and (normalized or r <= 0):
             intensity = rgb  # Arnold's point light: E = I/d² at distance d (the spec's I/4 W/sr is a quarter)
-        elif _normalized(prim, time) or r <= 0:
+        elif normalized or r <= 0:
             intensity = rgb / 4.0
         else:
             intensity = rgb * np.pi * r * r
