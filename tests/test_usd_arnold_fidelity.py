@@ -111,6 +111,26 @@ def test_a_treat_as_point_sphere_is_arnolds_default_point_light_normalized():
     np.testing.assert_allclose(lamp.intensity, 8.0, rtol=1e-6)
 
 
+def test_an_ies_sphere_light_is_arnolds_photometric_light_aimed_down_its_y(tmp_path):
+    """arnold-usd makes a SphereLight with an IES file a photometric_light (its cone ignored: test_1316), whose
+    nadir is its local −Y (test_0140's beam lands where −Y points, not −Z), the candela values in W/sr (÷ 683)."""
+    path = tmp_path / "down.ies"
+    path.write_text("IESNA:LM-63-2002\nTILT=NONE\n1 1000 1 3 1 1 2 0 0 0\n1 1 10\n0 90 180\n0\n683 0 0\n")
+    s = _point_lit(radius_prim=0.0)
+    lamp = s.GetPrimAtPath("/Lamp")
+    UsdGeom.Xformable(lamp).AddRotateXOp().Set(90.0)  # its −Y now points along −Z, at the floor
+    sh = UsdLux.ShapingAPI.Apply(lamp)
+    sh.CreateShapingIesFileAttr(Sdf.AssetPath(str(path)))
+    sh.CreateShapingConeAngleAttr(10.0)
+    px, info = _centre(s, samples=4)
+    light = [lt for _k, _n, lt in info.lights][0]
+    assert type(light).__name__ == "PointLight" and light.shaping is None  # no cone
+    np.testing.assert_allclose(light.profile_axes[2], (0, 0, -1), atol=1e-9)
+    # the centre pixel sees (0.15, 0.15, 0): θ = atan(0.212/2) from the nadir, I = 8·(1 − θ/90°)
+    theta = np.degrees(np.arctan(np.hypot(0.15, 0.15) / 2))
+    np.testing.assert_allclose(px, 0.5 * 8 * (1 - theta / 90) * 2 / (np.pi * 4.045 ** 1.5), rtol=0.02)
+
+
 def test_arnold_usdlux_version_reads_the_lights_as_the_spec():
     """With arnold:global:usdlux_version set, Arnold follows UsdLux: the normalized sphere is I/4 W/sr."""
     _px, info = _centre(_point_lit(usdlux_version="25.05"))

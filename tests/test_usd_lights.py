@@ -293,6 +293,62 @@ def test_a_textured_rect_light_lights_with_its_texture(tmp_path):
     assert c[1] == 0 and abs(c[0] - c[2]) < 0.1 * e
 
 
+def _ies_file(tmp_path, horizontal, candela, vertical=(0, 90, 180), name="p.ies"):
+    """An LM-63-2002 file: one lamp, candela multiplier 1, type C, watts; ``candela`` one row per horizontal angle."""
+    rows = "\n".join(" ".join(str(c) for c in row) for row in candela)
+    text = (f"IESNA:LM-63-2002\n[TEST] whitted\nTILT=NONE\n1 1000 1 {len(vertical)} {len(horizontal)} 1 2 0 0 0\n"
+            f"1 1 10\n{' '.join(map(str, vertical))}\n{' '.join(map(str, horizontal))}\n{rows}\n")
+    path = tmp_path / name
+    path.write_text(text)
+    return str(path)
+
+
+def _ies_light(path, normalize=False):
+    def mk(s):
+        l = UsdLux.SphereLight.Define(s, "/Ies")
+        l.CreateIntensityAttr(40.0)  # a normalized sphere: 10 W/sr as the spec reads it
+        l.CreateNormalizeAttr(True)
+        l.CreateRadiusAttr(0.0)
+        sh = UsdLux.ShapingAPI.Apply(l.GetPrim())
+        sh.CreateShapingIesFileAttr(Sdf.AssetPath(path))
+        if normalize:
+            sh.CreateShapingIesNormalizeAttr(True)
+        return l
+    return mk
+
+
+def test_an_ies_profile_multiplies_the_intensity_by_its_candela_in_watts_per_steradian(tmp_path):
+    # 683 cd at the nadir falling linearly to 0 at 90°: × (683/683)·(1 − θ/90°) = 1 − θ/90°
+    path = _ies_file(tmp_path, [0], [[683, 0, 0]])
+    rgb, scene, info = lit_plane(_ies_light(path))
+    assert not any("IES" in w for w in info.warnings), info.warnings
+    row = rgb[SIZE // 2, :, 0]
+    plain, theta = _unshaped_row(row)
+    np.testing.assert_allclose(row, plain * np.clip(1 - theta / 90.0, 0, None), rtol=2e-3, atol=1e-7)
+
+
+def test_an_ies_profile_keeps_its_horizontal_angles_and_symmetry(tmp_path):
+    # quadrant symmetry (0..90°): lit in the C0 plane (the light's ±X), dark in C90 (±Y), cos² between
+    path = _ies_file(tmp_path, [0, 45, 90], [[683, 683, 683], [341.5, 341.5, 341.5], [0, 0, 0]])
+    rgb, _, _ = lit_plane(_ies_light(path))
+    plain, _ = _unshaped_row(rgb[SIZE // 2, :, 0])
+    np.testing.assert_allclose(rgb[SIZE // 2, 6, 0], plain[6], rtol=2e-3)  # +X
+    np.testing.assert_allclose(rgb[SIZE // 2, 2, 0], plain[2], rtol=2e-3)  # −X (the mirrored quadrant)
+    assert rgb[2, SIZE // 2, 0] < 1e-6 and rgb[6, SIZE // 2, 0] < 1e-6  # ±Y: the C90 plane is dark
+
+
+def test_ies_normalize_keeps_the_lights_power(tmp_path):
+    # a profile of 683 cd to 90° from the nadir, falling linearly to 0 at 100°: normalized by its mean on the
+    # sphere, ½∫ I(θ) sin θ dθ (a fine quadrature here), the light's power is that of the unshaped light
+    path = _ies_file(tmp_path, [0], [[683] * 10 + [0] * 9], vertical=list(range(0, 181, 10)))
+    rgb, scene, _ = lit_plane(_ies_light(path, normalize=True))
+    plain, _ = _unshaped_row(rgb[SIZE // 2, :, 0])
+    t = np.linspace(0, np.pi, 200001)
+    f = np.clip(1 - (np.degrees(t) - 90) / 10, 0, 1) * np.sin(t)
+    mean = np.sum((f[1:] + f[:-1]) * np.diff(t)) / 4
+    np.testing.assert_allclose(centre(rgb)[0], plain[SIZE // 2] / mean, rtol=2e-3)
+
+
 def test_an_empty_texture_or_ies_path_is_no_warning():
     def mk(s):
         l = UsdLux.RectLight.Define(s, "/Rect")

@@ -61,6 +61,7 @@ from tracer.lights.emitters import LightShaping
 from tracer.lights.linking import LightLink
 
 from .dome import dome_texture
+from .ies import read_ies, solid_angle_mean
 from .materials.texture_files import read_texture_file
 from .exporters import KIT_EV, NITS_TO_W_PER_M2, detect
 
@@ -179,15 +180,21 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
         else:
             intensity = rgb * np.pi * r * r
         radius = 0.0 if point else r
+        profile, axes = _ies_profile(prim, world, time, warn) if units != "blender" else (None, None)
+        if profile is not None and units == "arnold":  # arnold-usd: a photometric_light, whatever the cone says,
+            # whose nadir is its local −Y (as Arnold's photometric_light aims, a ceiling fixture: test_0140's beam)
+            axes = np.stack([world[:3, 0], -world[:3, 2], -world[:3, 1]])
+            return "point", PointLight(position=pos, intensity=intensity, radius=radius, name=name, profile=profile,
+                                       profile_axes=axes), None
         if units not in ("arnold", "blender"):  # the spec's ShapingAPI (cone, softness, focus, focus tint)
             return "point", PointLight(position=pos, intensity=intensity, radius=radius, name=name,
-                                       shaping=_light_shaping(prim, time, down, warn)), None
+                                       shaping=_light_shaping(prim, time, down, warn, ies_read=True),
+                                       profile=profile, profile_axes=axes), None
         shaping = UsdLux.ShapingAPI(prim)
         cone = shaping.GetShapingConeAngleAttr() if prim.HasAPI(UsdLux.ShapingAPI) else None
         focus = shaping.GetShapingFocusAttr() if prim.HasAPI(UsdLux.ShapingAPI) else None
         if focus and focus.HasAuthoredValue() and float(focus.Get(time) or 0) != 0:
             warn(f"{name}: ShapingAPI shaping:focus is not supported on this exporter's spot lights (ignored)")
-        _warn_ies(prim, time, warn)
         if cone and cone.HasAuthoredValue():
             angle = _finite(cone.Get(time), "shaping:cone:angle")
             soft = _finite(_get(shaping.GetShapingConeSoftnessAttr(), time, 0.0), "shaping:cone:softness")
@@ -278,17 +285,52 @@ def _warn_ies(prim, time, warn):
     ies = UsdLux.ShapingAPI(prim).GetShapingIesFileAttr()
     v = ies.Get(time) if ies.HasAuthoredValue() else None
     if v is not None and v.path:
-        warn(f"{prim.GetPath()}: ShapingAPI IES profile {v.path} is not supported (ignored)")
+        warn(f"{prim.GetPath()}: ShapingAPI IES profile {v.path} is not supported on a {prim.GetTypeName()} "
+             "(ignored; point lights read it)")
 
 
-def _light_shaping(prim, time, axis, warn) -> LightShaping | None:
+def _ies_profile(prim, world, time, warn):
+    """(table, axes) of the light's IES profile (``shaping:ies:file``; usd_io/ies.py) for a point light, or
+    (None, None). The table is the file's candela values in W/sr (÷ 683 lm/W), multiplying the light's intensity,
+    or with ``shaping:ies:normalize`` over their mean on the sphere (the light's power kept). Evidence for the
+    first: arnold-usd's test_0140 and test_1316 (photometric lights, peaks 31 325 cd and 159 cd) match their
+    references where neither is clipped at reference/ours = 1.48e-3 and 1.46e-3 × the peak candela (1/683 =
+    1.464e-3); the second: test_2477.1 (38 → 40 dB). The axes are the light's +X (C0), +Y (C90) and −Z (nadir)."""
+    if not prim.HasAPI(UsdLux.ShapingAPI):
+        return None, None
+    api = UsdLux.ShapingAPI(prim)
+    attr = api.GetShapingIesFileAttr()
+    asset = attr.Get(time) if attr.HasAuthoredValue() else None
+    if not isinstance(asset, Sdf.AssetPath) or not asset.path:
+        return None, None
+    name = str(prim.GetPath())
+    if not asset.resolvedPath:
+        warn(f"{name}: IES profile {asset.path!r} not found (the light is unshaped)")
+        return None, None
+    try:
+        table = read_ies(asset.resolvedPath)
+    except ValueError as exc:
+        warn(f"{name}: IES profile {asset.path!r}: {exc} (the light is unshaped)")
+        return None, None
+    scale = float(_get(api.GetShapingIesAngleScaleAttr(), time, 0.0))
+    if scale != 0.0:
+        warn(f"{name}: shaping:ies:angleScale {scale:g} is not supported (the profile's own angles used)")
+    if bool(_get(api.GetShapingIesNormalizeAttr(), time, False)):
+        table = table / solid_angle_mean(table)
+    else:
+        table = table * NITS_TO_W_PER_M2
+    return table, np.stack([world[:3, 0], world[:3, 1], -world[:3, 2]])
+
+
+def _light_shaping(prim, time, axis, warn, ies_read=False) -> LightShaping | None:
     """The light's ShapingAPI as a :class:`tracer.lights.emitters.LightShaping` about ``axis`` (the light's −Z), or
     None: the cone only where ``shaping:cone:angle`` is authored (arnold-usd reads it so; the schema's fallback 90°
     would cut a sphere light's back half), softness, focus and focus tint as OpenUSD documents them."""
     if not prim.HasAPI(UsdLux.ShapingAPI):
         return None
     api = UsdLux.ShapingAPI(prim)
-    _warn_ies(prim, time, warn)
+    if not ies_read:
+        _warn_ies(prim, time, warn)
     cone = api.GetShapingConeAngleAttr()
     if not cone.HasAuthoredValue() and prim.GetAttribute("shaping:cone:angle").HasAuthoredValue():
         cone = prim.GetAttribute("shaping:cone:angle")  # the pre-21.02 name (see _get)

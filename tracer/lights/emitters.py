@@ -94,9 +94,21 @@ class PointLight:
     radius: float = 0.0
     name: str = "point"
     shaping: LightShaping | None = None
+    #: An angular intensity table (an IES profile, usd_io/ies.py): (P, T) factors on a regular grid of φ = 0..2π
+    #: (rows) and θ = 0..π (columns), θ from ``profile_axes[2]`` (the nadir), φ from ``profile_axes[0]`` towards
+    #: ``profile_axes[1]``; the intensity in direction ω is ``intensity`` × the table's bilinear value there.
+    profile: np.ndarray | None = None
+    profile_axes: np.ndarray | None = None
 
     def __post_init__(self):
         self.shaping = _shaping(self.shaping, self.name)
+        if self.profile is not None:
+            prof = np.asarray(self.profile, np.float32)
+            if prof.ndim != 2 or min(prof.shape) < 2 or not np.all(np.isfinite(prof)) or prof.min() < 0:
+                raise ValueError(f"light {self.name}: profile must be a finite, non-negative (P, T) table")
+            axes = np.asarray(self.profile_axes, np.float64).reshape(3, 3)
+            axes = axes / np.linalg.norm(axes, axis=1, keepdims=True)
+            self.profile, self.profile_axes = np.ascontiguousarray(prof), axes
         self.position = _vec3(self.position, "position")
         self.intensity = _vec3(self.intensity, "intensity")
         self.radius = float(self.radius)
@@ -268,6 +280,10 @@ class LightTables(NamedTuple):
     tex: np.ndarray  # (M, 3) float32: the textured rect lights' texels, each light's image row-major from the top
     tex_start: np.ndarray  # (L,) int64: a textured light's first row in tex
     tex_size: np.ndarray  # (L, 2) int64: its image's (width, height); (0, 0): not textured
+    prof: np.ndarray  # (M,) float32: the profiled lights' tables, each row-major (φ rows, θ columns)
+    prof_start: np.ndarray  # (L,) int64: a profiled light's first entry in prof
+    prof_size: np.ndarray  # (L, 2) int64: its table's (P, T); (0, 0): no profile
+    prof_axes: np.ndarray  # (L, 3, 3) float64: its C0, C90 and nadir axes
     tri: np.ndarray  # (N, 3, 3) float64 emitting triangles, world space
     tri_le: np.ndarray  # (N, 3) float64 their radiance
     tri_cdf: np.ndarray  # (N,) float64 cumulative pick probability (power-proportional) within each light's slice
@@ -342,12 +358,16 @@ def pack_lights(lights: list, light_samples: int, emitters=None, linked=()) -> L
     images = [getattr(lt, "texture", None) for lt in lights]
     tex = np.concatenate([im.reshape(-1, 3) for im in images if im is not None] or [np.zeros((1, 3))])
     tex = np.ascontiguousarray(tex, np.float32)
+    profiles = [getattr(lt, "profile", None) for lt in lights]
+    prof = np.concatenate([p.reshape(-1) for p in profiles if p is not None] or [np.zeros(1)])
+    prof = np.ascontiguousarray(prof, np.float32)
     f1, f2, f3 = (lambda: np.zeros(n, np.float64)), (lambda: np.zeros((n, 2))), (lambda: np.zeros((n, 3)))
     t = LightTables(kind=np.zeros(n, np.int64), side=np.ones(n, np.int64), position=f3(), color=f3(), radius=f1(),
                     direction=f3(), cos_cone=f1(), blend=f1(), cos_max=f1(), u_axis=f3(), v_axis=f3(), size=f2(),
                     area=f1(), spread=f2(), shaped=np.zeros(n, np.int64), shape_axis=f3(), shape_cone=f2(),
                     focus=f1(), focus_tint=f3(), tex=tex, tex_start=np.zeros(n, np.int64),
-                    tex_size=np.zeros((n, 2), np.int64), tri=tri, tri_le=tri_le, tri_cdf=cdf, tri_start=np.zeros(n, np.int64),
+                    tex_size=np.zeros((n, 2), np.int64), prof=prof, prof_start=np.zeros(n, np.int64),
+                    prof_size=np.zeros((n, 2), np.int64), prof_axes=np.zeros((n, 3, 3)), tri=tri, tri_le=tri_le, tri_cdf=cdf, tri_start=np.zeros(n, np.int64),
                     tri_end=np.zeros(n, np.int64), emitter_object=np.full(n, -1, np.int64))
     for i, (obj, start, end) in enumerate(groups, start=len(lights)):
         t.kind[i] = MESH
@@ -370,6 +390,10 @@ def pack_lights(lights: list, light_samples: int, emitters=None, linked=()) -> L
             t.spread[i] = spread_table(light.spread)
             if light.shape == "cylinder":
                 t.radius[i] = light.size[1] / 2
+        if profiles[i] is not None:
+            t.prof_start[i] = sum(p.size for p in profiles[:i] if p is not None)
+            t.prof_size[i] = profiles[i].shape
+            t.prof_axes[i] = light.profile_axes
         if images[i] is not None:
             t.tex_start[i] = sum(im.shape[0] * im.shape[1] for im in images[:i] if im is not None)
             t.tex_size[i] = (images[i].shape[1], images[i].shape[0])
@@ -447,6 +471,29 @@ def light_texel(lights, j, u, v):
 
 
 @kernel(inline=True)
+def profile_factor(lights, j, w):
+    """Light j's angular intensity table (an IES profile) in the unit emission direction ``w``, bilinear; 1 for a
+    light without one."""
+    n_p, n_t = lights.prof_size[j, 0], lights.prof_size[j, 1]
+    if n_t == 0:
+        return 1.0
+    cx = w[0] * lights.prof_axes[j, 0, 0] + w[1] * lights.prof_axes[j, 0, 1] + w[2] * lights.prof_axes[j, 0, 2]
+    cy = w[0] * lights.prof_axes[j, 1, 0] + w[1] * lights.prof_axes[j, 1, 1] + w[2] * lights.prof_axes[j, 1, 2]
+    cz = w[0] * lights.prof_axes[j, 2, 0] + w[1] * lights.prof_axes[j, 2, 1] + w[2] * lights.prof_axes[j, 2, 2]
+    t = math.acos(min(max(cz, -1.0), 1.0)) / math.pi * (n_t - 1)
+    ph = math.atan2(cy, cx)
+    if ph < 0.0:
+        ph += 2.0 * math.pi
+    p = min(ph / (2.0 * math.pi) * (n_p - 1), n_p - 1.0)
+    t0, p0 = min(int(t), n_t - 2), min(int(p), n_p - 2)
+    ft, fp = t - t0, p - p0
+    base = lights.prof_start[j]
+    a = lights.prof[base + p0 * n_t + t0] * (1.0 - ft) + lights.prof[base + p0 * n_t + t0 + 1] * ft
+    b = lights.prof[base + (p0 + 1) * n_t + t0] * (1.0 - ft) + lights.prof[base + (p0 + 1) * n_t + t0 + 1] * ft
+    return a * (1.0 - fp) + b * fp
+
+
+@kernel(inline=True)
 def shaping_factor(lights, j, w):
     """Light j's :class:`LightShaping` for the unit emission direction ``w`` (from the light towards the receiver),
     per channel: (1, 1, 1) for an unshaped light."""
@@ -501,10 +548,13 @@ def _sample_cylinder(lights, j, k, sd, kk, p, r0, r1):
 
 @kernel(inline=True)
 def sample_light(lights, j, k, p, r0, r1):
-    """:func:`_sample_light_unshaped` × the light's :func:`shaping_factor` (UsdLux's ShapingAPI)."""
+    """:func:`_sample_light_unshaped` × the light's :func:`shaping_factor` (UsdLux's ShapingAPI) and
+    :func:`profile_factor` (its IES profile)."""
     l, dist, e = _sample_light_unshaped(lights, j, k, p, r0, r1)
     if lights.shaped[j] != 0:
         e = vec.mul(e, shaping_factor(lights, j, vec.scale(l, -1.0)))
+    if lights.prof_size[j, 1] != 0:  # an IES profile, towards p from the light's centre
+        e = vec.scale(e, profile_factor(lights, j, vec.normalize(vec.sub(p, vec.row(lights.position, j)))))
     return l, dist, e
 
 
@@ -603,6 +653,8 @@ def lamp_hit(lights, j, o, d, t_max):
     t, le = _lamp_hit_unshaped(lights, j, o, d, t_max)
     if lights.shaped[j] != 0 and t < t_max:
         le = vec.mul(le, shaping_factor(lights, j, vec.scale(d, -1.0)))
+    if lights.prof_size[j, 1] != 0 and t < t_max:
+        le = vec.scale(le, profile_factor(lights, j, vec.scale(d, -1.0)))
     return t, le
 
 
