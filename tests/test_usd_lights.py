@@ -337,6 +337,30 @@ def test_an_ies_profile_keeps_its_horizontal_angles_and_symmetry(tmp_path):
     assert rgb[2, SIZE // 2, 0] < 1e-6 and rgb[6, SIZE // 2, 0] < 1e-6  # ±Y: the C90 plane is dark
 
 
+def test_an_ies_profile_on_a_rect_light_shapes_every_point_of_it(tmp_path):
+    path = _ies_file(tmp_path, [0], [[683, 0, 0]])
+
+    def mk(s):
+        l = UsdLux.RectLight.Define(s, "/Rect")
+        l.CreateWidthAttr(0.05)
+        l.CreateHeightAttr(0.05)
+        l.CreateIntensityAttr(1000.0)
+        UsdLux.ShapingAPI.Apply(l.GetPrim()).CreateShapingIesFileAttr(Sdf.AssetPath(path))
+        return l
+    rgb, _, info = lit_plane(mk)
+    assert not any("IES" in w for w in info.warnings), info.warnings
+    row = rgb[SIZE // 2, :, 0]
+    # E = Le·∫ cos θ·cos θ_r·(1 − θ/90°)/d² dA over the light (θ at each of its points; a quadrature here)
+    u, v = np.meshgrid(np.linspace(-0.025, 0.025, 101), np.linspace(-0.025, 0.025, 101))
+    expected = []
+    for i in range(SIZE):
+        q = np.stack([_pixel_x(i) - u, -v, -np.full_like(u, H)], -1)  # from the light's points to the receiver
+        d = np.linalg.norm(q, axis=-1)
+        cos = H / d
+        expected.append(A / np.pi * 1000 * 0.0025 * np.mean(cos * cos / d**2 * (1 - np.degrees(np.arccos(cos)) / 90)))
+    np.testing.assert_allclose(row, expected, rtol=5e-3)
+
+
 def test_ies_normalize_keeps_the_lights_power(tmp_path):
     # a profile of 683 cd to 90° from the nadir, falling linearly to 0 at 100°: normalized by its mean on the
     # sphere, ½∫ I(θ) sin θ dθ (a fine quadrature here), the light's power is that of the unshaped light

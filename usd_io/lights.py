@@ -195,6 +195,8 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
         focus = shaping.GetShapingFocusAttr() if prim.HasAPI(UsdLux.ShapingAPI) else None
         if focus and focus.HasAuthoredValue() and float(focus.Get(time) or 0) != 0:
             warn(f"{name}: ShapingAPI shaping:focus is not supported on this exporter's spot lights (ignored)")
+        if units == "blender":
+            _warn_ies(prim, time, warn)
         if cone and cone.HasAuthoredValue():
             angle = _finite(cone.Get(time), "shaping:cone:angle")
             soft = _finite(_get(shaping.GetShapingConeSoftnessAttr(), time, 0.0), "shaping:cone:softness")
@@ -227,9 +229,13 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
             return "area", None, None
         size = (length, 2 * r)
         radiance = rgb / AreaLight.area_of(size, "cylinder") if _normalized(prim, time) else rgb
-        shaping = None if units == "blender" else _light_shaping(prim, time, down, warn)
+        shaping = None if units == "blender" else _light_shaping(prim, time, down, warn, ies_read=True)
+        profile, axes = _ies_profile(prim, world, time, warn) if units != "blender" else (None, None)
+        if units == "blender":
+            _warn_ies(prim, time, warn)
         return "area", AreaLight(position=pos, u_axis=world[:3, 0], v_axis=world[:3, 1], normal=down, size=size,
-                                 radiance=radiance, shape="cylinder", name=name, shaping=shaping), None
+                                 radiance=radiance, shape="cylinder", name=name, shaping=shaping, profile=profile,
+                                 profile_axes=axes), None
     if t in ("RectLight", "DiskLight"):
         sx, sy, _ = _axis_scales(world)
         if t == "RectLight":
@@ -245,13 +251,21 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
             return "area", None, None
         area = AreaLight.area_of(size, shape)
         radiance = rgb / area if _normalized(prim, time) else rgb
-        shaping = None if units == "blender" else _light_shaping(prim, time, down, warn)
+        shaping = None if units == "blender" else _light_shaping(prim, time, down, warn, ies_read=True)
+        profile, axes = _ies_profile(prim, world, time, warn) if units != "blender" else (None, None)
+        if units == "blender":
+            _warn_ies(prim, time, warn)
+        if units == "arnold":
+            spread = prim.GetAttribute("primvars:arnold:spread")
+            if spread and spread.HasAuthoredValue() and float(spread.Get(time)) != 1.0:
+                warn(f"{name}: Arnold's spread {float(spread.Get(time)):g} is not supported (a Lambertian emitter)")
         # The texture's u: UsdLux (OpenUSD 25.05, Arnold's usdlux_version 25.05) shows the image unmirrored to an
         # eye facing the light's emitting side, whose right is the light's −X; Arnold's own reading mirrors it
         # (arnold-usd's test_2434.1 / .2, "Rect-lights display in (non-)mirror-image").
         u_axis = world[:3, 0] if texture is None or units == "arnold" else -world[:3, 0]
         return "area", AreaLight(position=pos, u_axis=u_axis, v_axis=world[:3, 1], normal=down, size=size,
-                                 radiance=radiance, shape=shape, name=name, shaping=shaping, texture=texture), None
+                                 radiance=radiance, shape=shape, name=name, shaping=shaping, texture=texture,
+                                 profile=profile, profile_axes=axes), None
     if t in ("DomeLight", "DomeLight_1"):
         return _dome(prim, world, time, rgb, warn)
     warn(f"{name}: light type {t} is not supported (skipped)")
@@ -279,14 +293,14 @@ def _rect_texture(prim, lux, time, warn, textures):
 
 
 def _warn_ies(prim, time, warn):
-    """One warning for an IES profile (``shaping:ies:file`` naming a file; an empty path is no profile)."""
+    """One warning for an IES profile (``shaping:ies:file`` naming a file; an empty path is no profile) on a light
+    that does not read it (Blender's exporter units)."""
     if not prim.HasAPI(UsdLux.ShapingAPI):
         return
     ies = UsdLux.ShapingAPI(prim).GetShapingIesFileAttr()
     v = ies.Get(time) if ies.HasAuthoredValue() else None
     if v is not None and v.path:
-        warn(f"{prim.GetPath()}: ShapingAPI IES profile {v.path} is not supported on a {prim.GetTypeName()} "
-             "(ignored; point lights read it)")
+        warn(f"{prim.GetPath()}: ShapingAPI IES profile {v.path} is not read in this exporter's units (ignored)")
 
 
 def _ies_profile(prim, world, time, warn):

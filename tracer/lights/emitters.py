@@ -87,6 +87,16 @@ def _shaping(shaping, name):
     return None if shaping is None or shaping.is_identity() else shaping
 
 
+def _profile(profile, axes, name):
+    if profile is None:
+        return None, None
+    prof = np.asarray(profile, np.float32)
+    if prof.ndim != 2 or min(prof.shape) < 2 or not np.all(np.isfinite(prof)) or prof.min() < 0:
+        raise ValueError(f"light {name}: profile must be a finite, non-negative (P, T) table")
+    axes = np.asarray(axes, np.float64).reshape(3, 3)
+    return np.ascontiguousarray(prof), axes / np.linalg.norm(axes, axis=1, keepdims=True)
+
+
 @dataclass
 class PointLight:
     position: np.ndarray
@@ -102,13 +112,7 @@ class PointLight:
 
     def __post_init__(self):
         self.shaping = _shaping(self.shaping, self.name)
-        if self.profile is not None:
-            prof = np.asarray(self.profile, np.float32)
-            if prof.ndim != 2 or min(prof.shape) < 2 or not np.all(np.isfinite(prof)) or prof.min() < 0:
-                raise ValueError(f"light {self.name}: profile must be a finite, non-negative (P, T) table")
-            axes = np.asarray(self.profile_axes, np.float64).reshape(3, 3)
-            axes = axes / np.linalg.norm(axes, axis=1, keepdims=True)
-            self.profile, self.profile_axes = np.ascontiguousarray(prof), axes
+        self.profile, self.profile_axes = _profile(self.profile, self.profile_axes, self.name)
         self.position = _vec3(self.position, "position")
         self.intensity = _vec3(self.intensity, "intensity")
         self.radius = float(self.radius)
@@ -187,9 +191,12 @@ class AreaLight:
     spread: float = math.pi
     shaping: LightShaping | None = None
     texture: np.ndarray | None = None
+    profile: np.ndarray | None = None  # an IES table, as PointLight's, at every point of the emitter
+    profile_axes: np.ndarray | None = None
 
     def __post_init__(self):
         self.shaping = _shaping(self.shaping, self.name)
+        self.profile, self.profile_axes = _profile(self.profile, self.profile_axes, self.name)
         if self.texture is not None:
             tex = np.asarray(self.texture, np.float32)
             if tex.ndim != 3 or tex.shape[2] != 3 or min(tex.shape[:2]) < 1 or not np.all(np.isfinite(tex)):
@@ -553,8 +560,10 @@ def sample_light(lights, j, k, p, r0, r1):
     l, dist, e = _sample_light_unshaped(lights, j, k, p, r0, r1)
     if lights.shaped[j] != 0:
         e = vec.mul(e, shaping_factor(lights, j, vec.scale(l, -1.0)))
-    if lights.prof_size[j, 1] != 0:  # an IES profile, towards p from the light's centre
-        e = vec.scale(e, profile_factor(lights, j, vec.normalize(vec.sub(p, vec.row(lights.position, j)))))
+    if lights.prof_size[j, 1] != 0:  # an IES profile: from a point light's photometric centre (its centre), from
+        kd = lights.kind[j]  # the sample on an area light (each of its points emits with the profile)
+        w = vec.normalize(vec.sub(p, vec.row(lights.position, j))) if kd == POINT or kd == SPOT else vec.scale(l, -1.0)
+        e = vec.scale(e, profile_factor(lights, j, w))
     return l, dist, e
 
 
