@@ -131,6 +131,29 @@ def test_an_ies_sphere_light_is_arnolds_photometric_light_aimed_down_its_y(tmp_p
     np.testing.assert_allclose(px, 0.5 * 8 * (1 - theta / 90) * 2 / (np.pi * 4.045 ** 1.5), rtol=0.02)
 
 
+def test_an_orthographic_camera_is_framed_by_its_arnold_screen_window():
+    """arnold-usd's ortho_camera ignores the USD aperture and shows x from screen_window_min.x to max.x in scene
+    units (test_0055, ±0.80: 10.0 -> 31.6 dB): a 2 × 2 quad seen through ±0.5 fills the frame, through USD's
+    default aperture (2.1 units) it does not."""
+    def frame(window):
+        s = new_stage()
+        cam = UsdGeom.Camera.Define(s, "/Cam")
+        cam.CreateProjectionAttr("orthographic")
+        cam.AddTranslateOp().Set(Gf.Vec3d(0, 0, 10))
+        if window is not None:
+            pv = UsdGeom.PrimvarsAPI(cam.GetPrim())
+            pv.CreatePrimvar("arnold:screen_window_min", Sdf.ValueTypeNames.Float2Array).Set([(-window, -window)])
+            pv.CreatePrimvar("arnold:screen_window_max", Sdf.ValueTypeNames.Float2Array).Set([(window, window)])
+        quad(s, "/Q", half=0.6)
+        scene, info = load_stage(s, width=16, height=16)
+        return render(scene, RenderSettings(width=16, height=16, samples=1)).rgb
+
+    windowed, usd = frame(0.5), frame(None)
+    np.testing.assert_allclose(windowed[0, 0], windowed[8, 8], rtol=1e-4)  # the quad reaches the corners
+    np.testing.assert_allclose(windowed[15, 15], windowed[8, 8], rtol=1e-4)
+    assert np.abs(usd[0, 0] - usd[8, 8]).max() > 0.1  # USD's aperture (2.1 units): wider than the quad
+
+
 def test_arnold_usdlux_version_reads_the_lights_as_the_spec():
     """With arnold:global:usdlux_version set, Arnold follows UsdLux: the normalized sphere is I/4 W/sr."""
     _px, info = _centre(_point_lit(usdlux_version="25.05"))
