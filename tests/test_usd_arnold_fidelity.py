@@ -559,6 +559,32 @@ def test_arnold_flat_shows_the_primvar_its_user_data_rgb_reads():
     assert not any("not supported" in w for w in info.warnings), info.warnings
 
 
+def test_the_harness_renders_the_stages_data_window_as_kick_does(tmp_path):
+    """kick renders the region of the stage's resolution that its RenderSettings' dataWindowNDC names (arnold-usd's
+    test_0233/0234, 4.5/4.8 dB when the whole frame was squeezed into the region's size): the harness keeps the
+    stage's resolution and window (fidelity_arnold.stage_data_window) on its own settings prim."""
+    import sys as _sys
+    import os as _os
+
+    _sys.path.insert(0, _os.path.join(_os.path.dirname(_os.path.dirname(_os.path.abspath(__file__))), "tools"))
+    import fidelity_arnold as fa
+    from pxr import UsdRender
+
+    s = new_stage()
+    add_camera(s, eye=(0, 0, 10))
+    quad(s, "/Q")
+    rs = UsdRender.Settings.Define(s, "/Render/Settings")
+    rs.CreateResolutionAttr(Gf.Vec2i(160, 120))
+    rs.CreateDataWindowNDCAttr(Gf.Vec4f(0.4, 0.1, 0.6, 1.2))
+    path = str(tmp_path / "dw.usda")
+    s.GetRootLayer().Export(path)
+    window = fa.stage_data_window(Usd.Stage.Open(path))
+    assert window == ((160, 120), pytest.approx((0.4, 0.1, 0.6, 1.2)))
+    stage, prim = fa.arnold_camera(path, "/Cam", None, window)
+    _scene, info = load_stage(stage, render_settings_prim=prim)
+    assert (info.width, info.height) == (32, 132)
+
+
 def test_the_harness_opens_a_stage_where_kick_runs_it(tmp_path):
     """arnold-usd's suite runs kick in a directory holding the test's data files beside the suite's common/:
     a stage's ../common/bricks.png names testsuite/common/bricks.png there (fidelity_arnold.kick_layout); read
