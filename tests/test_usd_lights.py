@@ -153,6 +153,25 @@ def test_area_lights(kind, normalize):
     np.testing.assert_allclose(centre(rgb), [A / np.pi * le * area / H**2] * 3, rtol=0.01)
 
 
+def test_a_large_rect_light_close_by_is_sampled_in_its_solid_angle():
+    """A 4 × 4 light 2 above the plane: every pixel of the row under it within 4 % of the quadrature of
+    E = Le·∫ cos θ_l·cos θ_r / d² dA at 64 light samples (its points drawn uniformly in the solid angle the
+    rectangle subtends, Ureña et al. 2013: at most 2.7 % off, 0.75 % at 1024 samples; uniform in its area, 8 %)."""
+    def mk(s):
+        l = UsdLux.RectLight.Define(s, "/Rect")
+        l.CreateWidthAttr(4.0)
+        l.CreateHeightAttr(4.0)
+        l.CreateIntensityAttr(1.0)
+        return l
+    rgb, _, _ = lit_plane(mk)
+    u, v = np.meshgrid(np.linspace(-2, 2, 801), np.linspace(-2, 2, 801))
+    expected = []
+    for i in range(SIZE):
+        d2 = (_pixel_x(i) - u) ** 2 + v ** 2 + H * H
+        expected.append(A / np.pi * np.mean(H * H / d2 ** 2) * 16.0)  # cos θ_l = cos θ_r = H/d
+    np.testing.assert_allclose(rgb[SIZE // 2, :, 0], expected, rtol=0.04)
+
+
 def test_spot_light_cone():
     def mk(s):
         l = UsdLux.SphereLight.Define(s, "/Spot")

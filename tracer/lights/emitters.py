@@ -554,6 +554,51 @@ def _sample_cylinder(lights, j, k, sd, kk, p, r0, r1):
 
 
 @kernel(inline=True)
+def _rect_solid_angle_sample(lights, j, p, s0, s1):
+    """(a, b, Ω): a point of rect light j, (a, b) ∈ [−½, ½]² along its u and v axes, uniform in the solid angle Ω
+    the rectangle subtends at p (Ureña, Fajardo and King 2013, "An area-preserving parametrization for spherical
+    rectangles"), for (s0, s1) ∈ [0, 1)². Ω = 0 (and a point uniform in area) where p is (nearly) in its plane."""
+    w, h = lights.size[j, 0], lights.size[j, 1]
+    ux, vy = vec.row(lights.u_axis, j), vec.row(lights.v_axis, j)
+    corner = vec.madd(vec.madd(vec.row(lights.position, j), ux, -0.5 * w), vy, -0.5 * h)
+    dd = vec.sub(corner, p)
+    x0, y0 = vec.dot(dd, ux), vec.dot(dd, vy)
+    z0 = -abs(vec.dot(dd, vec.cross(ux, vy)))
+    x1, y1 = x0 + w, y0 + h
+    if z0 > -1e-7 * (w + h):
+        return s0 - 0.5, s1 - 0.5, 0.0
+    n0z = -y0 / math.sqrt(z0 * z0 + y0 * y0)
+    n1z = x1 / math.sqrt(z0 * z0 + x1 * x1)
+    n2z = y1 / math.sqrt(z0 * z0 + y1 * y1)
+    n3z = -x0 / math.sqrt(z0 * z0 + x0 * x0)
+    g0 = math.acos(min(max(-n0z * n1z, -1.0), 1.0))
+    g1 = math.acos(min(max(-n1z * n2z, -1.0), 1.0))
+    g2 = math.acos(min(max(-n2z * n3z, -1.0), 1.0))
+    g3 = math.acos(min(max(-n3z * n0z, -1.0), 1.0))
+    solid = g0 + g1 + g2 + g3 - 2.0 * math.pi
+    if not (solid > 1e-9):
+        return s0 - 0.5, s1 - 0.5, 0.0
+    au = s0 * solid + 2.0 * math.pi - g2 - g3
+    sa = math.sin(au)
+    if abs(sa) < 1e-12:
+        sa = 1e-12
+    fu = (math.cos(au) * n0z - n2z) / sa
+    cu = 1.0 / math.sqrt(fu * fu + n0z * n0z)
+    if fu < 0.0:
+        cu = -cu
+    cu = min(max(cu, -1.0), 1.0)
+    xu = -(cu * z0) / math.sqrt(max(1.0 - cu * cu, 1e-30))
+    xu = min(max(xu, x0), x1)
+    d = math.sqrt(xu * xu + z0 * z0)
+    h0 = y0 / math.sqrt(d * d + y0 * y0)
+    h1 = y1 / math.sqrt(d * d + y1 * y1)
+    hv = h0 + s1 * (h1 - h0)
+    yv = hv * d / math.sqrt(1.0 - hv * hv) if hv * hv < 1.0 - 1e-9 else y1
+    yv = min(max(yv, y0), y1)
+    return (xu - x0) / w - 0.5, (yv - y0) / h - 0.5, solid
+
+
+@kernel(inline=True)
 def sample_light(lights, j, k, p, r0, r1):
     """:func:`_sample_light_unshaped` × the light's :func:`shaping_factor` (UsdLux's ShapingAPI) and
     :func:`profile_factor` (its IES profile)."""
@@ -617,10 +662,12 @@ def _sample_light_unshaped(lights, j, k, p, r0, r1):
         phi = 2.0 * math.pi * s1
         l = vec.madd(vec.madd(vec.scale(to_light, cos_t), u, sin_t * math.cos(phi)), v, sin_t * math.sin(phi))
         return l, math.inf, e
-    # Area light: a point on the rectangle, or on the (elliptical) disk by a polar mapping.
+    # Area light: a point on the rectangle (uniform in the solid angle it subtends, else in its area), or on the
+    # (elliptical) disk by a polar mapping.
     s0, s1 = stratum(k, sd, r0, r1)
+    solid = 0.0
     if kd == RECT:
-        a, b = s0 - 0.5, s1 - 0.5
+        a, b, solid = _rect_solid_angle_sample(lights, j, p, s0, s1)
     else:
         r = 0.5 * math.sqrt(s0)
         a, b = r * math.cos(2.0 * math.pi * s1), r * math.sin(2.0 * math.pi * s1)
@@ -631,8 +678,12 @@ def _sample_light_unshaped(lights, j, k, p, r0, r1):
     dist = math.sqrt(d2)
     l = vec.scale(to_l, 1.0 / dist)
     cos_l = max(0.0, -vec.dot(l, vec.row(lights.direction, j)))
-    # E from a sample of a Lambertian emitter: Le · cosθ_l · A / r², averaged over the K samples.
-    f = cos_l * lights.area[j] / d2 / kk
+    # E from a sample of a Lambertian emitter: Le · cosθ_l · A / r² for a point uniform in area, Le · Ω for one
+    # uniform in the solid angle Ω (0 from its back), averaged over the K samples.
+    if solid > 0.0:
+        f = (solid if cos_l > 0.0 else 0.0) / kk
+    else:
+        f = cos_l * lights.area[j] / d2 / kk
     norm = lights.spread[j, 1]
     if norm > 0.0 and cos_l > 0.0:  # Blender's Spread: the soft box's grid hides light at angle θ > spread/2
         tan_a = math.sqrt(max(1.0 - cos_l * cos_l, 0.0)) / cos_l
