@@ -57,7 +57,7 @@ import numpy as np
 from pxr import Sdf, UsdGeom, UsdLux
 
 from tracer import AreaLight, DistantLight, PointLight, SpotLight
-from tracer.lights.emitters import LightShaping
+from tracer import LightShaping
 from tracer.lights.linking import LightLink
 
 from .dome import dome_texture
