@@ -56,8 +56,7 @@ from __future__ import annotations
 import numpy as np
 from pxr import Sdf, UsdGeom, UsdLux
 
-from tracer import AreaLight, DistantLight, PointLight, SpotLight
-from tracer import LightShaping
+from tracer import AreaLight, DistantLight, LightShaping, PointLight, SpotLight
 from tracer.lights.linking import LightLink
 
 from .dome import dome_texture
