@@ -412,7 +412,7 @@ class _Reader:
     def add_light(self, prim):
         try:
             kind, light, world = convert_light(prim, self.xf.world(prim), self.time, self.info.warn,
-                                               units=self.light_units)
+                                               units=self.light_units, textures=self.mats.files)
         except ValueError as exc:  # the tracer's light validation (NaN/Inf intensity, zero-length axes, ...)
             self.info.warn(f"{prim.GetPath()}: {exc} (light skipped)")
             return
