@@ -35,7 +35,10 @@ material links to a UV Map node and a UV-map Tangent node (a script's ``getattri
 Cycles was not asked to load); GGX closures use Cycles' ``multi_ggx`` (MaterialX's GLSL/MSL implementations
 compensate GGX's multiple-scattering energy loss, Cycles' OSL closures only for that distribution name; a white
 conductor at roughness 0.9 reflects 0.47 of a white furnace with plain ``ggx``); and ``layer(bsdf, vdf)`` is the
-bsdf alone (Cycles renders MaterialX's surface-over-medium layering black; neither renderer measures the medium).
+bsdf alone (Cycles renders MaterialX's surface-over-medium layering black: 5.0 registers no ``anisotropic_vdf``;
+neither renderer measures the medium); ``subsurface_bssrdf`` is weighted by its albedo and its radius × 4π, and
+``translucent_bsdf`` is ``albedo * translucent(N)`` (:func:`cycles_closures`: Blender 5.0's Cycles renders the first
+white and lacks the second; ``tools/fidelity_mtlx_sss_check.py`` holds both against Cycles' own nodes).
 Inside the generated functions (out of the parameters' scope) the UV and tangent are the sphere's own
 parameterisation. Image lookups are flipped vertically as MaterialX's OSL renders do (``fileTextureVerticalFlip``).
 References are cached by the hash of the shader source and the scene (``--refs``).
