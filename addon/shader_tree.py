@@ -465,10 +465,7 @@ def _uvmap(t, node, ctx):
 
 
 def _tangent(t, node, ctx):
-    if node.direction_type != "UV_MAP":
-        t.warn(node, f"Tangent {node.name!r}: Radial ({node.axis}) tangents are not supported; the UV tangent is "
-                     "used", "radial")
-    return t.add(node, ctx, "tangent", direction_type="UV_MAP", uv_map=node.uv_map)
+    return t.add(node, ctx, "tangent", direction_type=node.direction_type, uv_map=node.uv_map, axis=node.axis)
 
 
 def _ambient_occlusion(t, node, ctx):

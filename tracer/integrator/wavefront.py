@@ -244,6 +244,7 @@ class SurfaceQueue(NamedTuple):
     holdout: np.ndarray  # (N,) float32 the closure's Holdout weight per hit (tracer.integrator.compose reads it; the VM
     #                      writes it for a sum of lobes, tracer.shading.vm.write_lobes; 0 = none)
     mirror_lamp: np.ndarray  # (N, 3) float32: the part of ``mirror`` that sees lamps (bsdf.lamp_share), written with it
+    aniso: np.ndarray  # (N, 3) float32: the lobes' anisotropy (tracer.shading.bsdf.anisotropic; 0: isotropic)
 
     @classmethod
     def empty(cls, n: int) -> "SurfaceQueue":
@@ -254,10 +255,10 @@ class SurfaceQueue(NamedTuple):
                    np.empty(n, np.int32), f3(), f1(), f1(), f1(), f1(), f3(), np.empty(n, np.int32),
                    f3(), f1(), np.empty(n, np.int32), np.empty((n, k), np.int32),
                    np.empty((n, k, 3), np.float32), np.empty((n, k, 3), np.float32), np.empty((n, k, 4), np.float32),
-                   f3(), f1(), f3()).reset()
+                   f3(), f1(), f3(), f3()).reset()
 
     #: The columns that start at a value (the rest are written before they are read), by field name.
-    START = {"mirror": 0.0, "lobes": -1, "holdout": 0.0, "mirror_lamp": 0.0}
+    START = {"mirror": 0.0, "lobes": -1, "holdout": 0.0, "mirror_lamp": 0.0, "aniso": 0.0}
 
     def reset(self) -> "SurfaceQueue":
         """Set the :data:`START` columns to their start values; returns the queue."""
@@ -477,7 +478,7 @@ class Integrator:
                            surf.base, surf.roughness, surf.metallic, surf.specular, surf.cover, surf.emission,
                            surf.transmission, m.alpha_threshold, g.uv_sets, g.colors, g.has_colors, g.vertices,
                            g.triangles, g.face_normals, g.object_ids, self.spaces, x.data, x.params, it.linear,
-                           it.mirrored, it.object_ids, eye, spread, flat, pt.lobes, surf.lobe_arrays)
+                           it.mirrored, it.object_ids, eye, spread, flat, pt.lobes, surf.lobe_arrays, surf.aniso)
         if self.volumes is not None:  # rays leaving a medium: Beer–Lambert and its emission over their length
             weight = _through_media(self.volumes, surf, t, sample, weight, out.color, n)
         split = None  # the eye samples whose first catcher hit is in this batch (tracer.integrator.compose)
@@ -837,7 +838,7 @@ def _lobes_at(surf, mats, i, n, di, spawn):
     and the weight their light is added with (1 − k_m)."""
     mat = surf.mat[i]
     lb = lobes.setup(surf.lobe_kind, surf.lobe_w, surf.lobe_base, surf.lobe_param, i, surf.lobes[i], n, di,
-                     vec.row(mats.specular_tint, mat), float(mats.ior[mat]), spawn)
+                     vec.row(mats.specular_tint, mat), float(mats.ior[mat]), spawn, vec.row(surf.aniso, i))
     return lb, 1.0 - float(mats.k_m[mat])
 
 
@@ -846,10 +847,11 @@ def _closure_at(surf, mats, i, n, di, principled, spawn):
     """:func:`_local_model` at hit i of a :class:`SurfaceQueue` seen along di, shading normal n (the direct-light and
     sky stages; kernels without reference counting may hand it the NamedTuples)."""
     mat = surf.mat[i]
-    return _local_model(principled, vec.row(surf.base, i), float(surf.metallic[i]), float(surf.roughness[i]),
-                        float(surf.specular[i]), vec.row(mats.specular_tint, mat), float(mats.ior[mat]),
-                        float(surf.transmission[i]), float(mats.k_m[mat]), float(surf.cover[i]),
-                        vec.row(mats.specular_color, mat), float(mats.exponent[mat]), n, di, spawn)
+    cl, wl, g = _local_model(principled, vec.row(surf.base, i), float(surf.metallic[i]), float(surf.roughness[i]),
+                             float(surf.specular[i]), vec.row(mats.specular_tint, mat), float(mats.ior[mat]),
+                             float(surf.transmission[i]), float(mats.k_m[mat]), float(surf.cover[i]),
+                             vec.row(mats.specular_color, mat), float(mats.exponent[mat]), n, di, spawn)
+    return bsdf.anisotropic(cl, vec.row(surf.aniso, i), n), wl, g
 
 
 @kernel(refcounts=False)

@@ -7,8 +7,9 @@ lowered to the tracer's closure inputs and, where one closure cannot hold it, to
 
    ============== ===================================================================================
    principled     its inputs (emission = Emission Color × Strength; Alpha mixes with transparency)
+                  Coat Weight > 0: two lobes, the BSDF under its coat (:meth:`ClosureLowering._coated`)
    diffuse        base = Color, specular 0, roughness 1                        (slot DIFFUSE)
-   glossy         base = Color, metallic 1, roughness (Anisotropic: isotropic), specular 1 for Multiscatter GGX,
+   glossy         base = Color, metallic 1, roughness (Anisotropy: the hit's ``aniso``), specular 1 for Multiscatter GGX,
                   0 for single scattering (GGX, Beckmann, Ashikhmin-Shirley)  (slot GLOSSY)
    glass          transmission 1, reflection and refraction tinted by Color, ior, roughness (GGX sampled)
                                                                                 (slot GLASS)
@@ -42,7 +43,7 @@ import numpy as np
 from . import lobes as L, ops
 from . import sheen as _sheen
 from .graph import Node, Out
-from .nodes import FLOAT, IN_NORMAL, VECTOR, is_const, vec3
+from .nodes import FLOAT, IN_INCOMING, IN_NORMAL, VECTOR, is_const, radial_tangent, vec3
 
 _KIND = {"principled_bsdf": L.PRINCIPLED, "diffuse_bsdf": L.DIFFUSE, "glossy_bsdf": L.GLOSSY, "glass_bsdf": L.GLASS,
          "refraction_bsdf": L.REFRACTION, "translucent_bsdf": L.TRANSLUCENT, "sheen_bsdf": L.SHEEN}
@@ -82,7 +83,54 @@ class ClosureLowering:
             return out
         if node.type == "add_closure":
             return sum((self.closure(self.g.input_value(node, s), weight) for s in ("Shader", "Shader_001")), [])
+        if node.type == "principled_bsdf":
+            cw = self.inp(node, "Coat Weight")
+            if not (is_const(cw) and float(cw) <= 0.0):
+                return self._coated(node, weight, cw)
         return [(weight, node)]
+
+    def _coated(self, node: Node, weight, cw) -> list:
+        """A Principled BSDF with a coat, as Cycles' ``principled_bsdf_emission`` layers it: the BSDF (weight
+        W·(1 − c·F_coat(μ)), its colour × mix(1, Coat Tint^(1/cos θ_t), c)) under a dielectric GGX lobe of weight
+        W·c (Coat Roughness, Coat IOR: a Principled lobe with a black base whose Specular IOR Level gives the coat's
+        F0 against the BSDF's IOR, as :func:`tracer.shading.principled._layered` writes MaterialX coats). F_coat is
+        Cycles' estimate of the coat's albedo at the view angle (:func:`tracer.shading.bsdf.dielectric_albedo`, on
+        the valid specular-reflection normal). The lobes share one normal: a linked Coat Normal is used only where
+        Normal is not linked (else the warning of differing normals)."""
+        m = self.math
+        cw = self.math(ops.M_MINIMUM, cw, 1.0) if not is_const(cw) else min(float(cw), 1.0)
+        lb = self.lobe(node)
+        cior = max(self._const_in(node, "Coat IOR", 1.5), 1.0)
+        cn = self._normal_in_named(node, "Coat Normal")
+        normal = cn if cn is not None else lb["normal"]
+        nrm = normal if normal is not None else self.hit(IN_NORMAL)
+        if self.estimate:
+            fr = ((cior - 1.0) / (cior + 1.0)) ** 2
+        else:
+            fr = self.op("fresnel", [(cior, 1), (nrm, 3), (self.inp(node, "Coat Roughness"), 1)], imm=2)
+        base_w = m(ops.M_MULTIPLY, weight, m(ops.M_SUBTRACT, 1.0, m(ops.M_MULTIPLY, cw, fr)))
+        tint = self.inp(node, "Coat Tint")
+        if not (is_const(tint) and vec3(tint) == (1.0, 1.0, 1.0)):
+            if self.estimate:
+                cos_t = 1.0
+            else:
+                cos_i = self.vmath(ops.V_DOT_PRODUCT, self.hit(IN_INCOMING), nrm)[1]
+                sin2 = m(ops.M_MULTIPLY, m(ops.M_SUBTRACT, 1.0, m(ops.M_MULTIPLY, cos_i, cos_i)), 1.0 / (cior * cior))
+                cos_t = m(ops.M_SQRT, m(ops.M_MAXIMUM, m(ops.M_SUBTRACT, 1.0, sin2), 1e-6))
+            depth = m(ops.M_DIVIDE, 1.0, cos_t)
+            t = self.vmath(ops.V_MAXIMUM, tint)[0]
+            t = self.vmath(ops.V_POWER, t, self.convert(depth, FLOAT, VECTOR))[0]
+            t = self.lerp3((1.0, 1.0, 1.0), t, cw)
+            lb = dict(lb, base=self.mul3(lb["base"], t), colour=self.mul3(lb["colour"], t))
+        if lb["normal"] is None and cn is not None:
+            lb["normal"] = cn
+        ior = float(lb["ior"]) if is_const(lb["ior"]) else 1.5
+        f0 = ((ior - 1.0) / (ior + 1.0)) ** 2
+        level = 0.5 * ((cior - 1.0) / (cior + 1.0)) ** 2 / max(f0, 1e-9)
+        coat = dict(lb, base=(0.0, 0.0, 0.0), colour=(0.0, 0.0, 0.0), metallic=0.0, transmission=0.0,
+                    roughness=self.inp(node, "Coat Roughness"), specular=level, emission=(0.0, 0.0, 0.0),
+                    normal=normal, sheen=None, lk=L.PRINCIPLED, tint=None)
+        return [(base_w, lb), (m(ops.M_MULTIPLY, weight, cw), coat)]
 
     def lobe(self, node: Node) -> dict:
         """The Principled set of one lobe: base, roughness, metallic, specular, transmission, alpha, emission,
@@ -107,9 +155,6 @@ class ClosureLowering:
                 self.warn(node.name + "st", f"Principled BSDF {node.name!r}: a linked Specular Tint is read as white")
             else:
                 lb["specular_tint"] = vec3(st)
-            w = self.g.input_value(node, "Coat Weight")
-            if isinstance(w, Out) or float(w) > 0:
-                self.warn(node.name + "Coat", f"Principled BSDF {node.name!r}: Coat Weight is not supported (ignored)")
             w = self.g.input_value(node, "Subsurface Weight")
             if isinstance(w, Out) or float(w) > 0:  # Blender 4+: subsurface replaces the diffuse, same colour
                 self.warn(node.name + "Subsurface", f"Principled BSDF {node.name!r}: subsurface scattering is "
@@ -121,6 +166,7 @@ class ClosureLowering:
             tint = node.params.get("transmission_tint")
             if tint is not None:
                 lb["tint"] = vec3(tint)
+            lb["aniso"] = self.anisotropy(node, "Anisotropic", "Anisotropic Rotation", lb["normal"], glossy=False)
         elif t == "sheen_bsdf":
             dist = _SHEEN_DIST.get(node.params.get("distribution") or "MICROFIBER", _sheen.MICROFIBER)
             lb.update(self._sheen_lobe(self.inp(node, "Color"), self.inp(node, "Roughness"), dist, layer=False),
@@ -129,14 +175,12 @@ class ClosureLowering:
             lb.update(base=self.inp(node, "Color"), roughness=1.0, normal=self._normal_in(node))
             lb["colour"] = lb["base"]
         elif t == "glossy_bsdf":
-            an = self.g.input_value(node, "Anisotropy")
-            if isinstance(an, Out) or float(an) != 0.0:
-                self.warn(node.name + "an", f"Glossy BSDF {node.name!r}: anisotropy is rendered isotropic")
             # P_SPEC: multiscatter GGX (1) or single scattering (0: Cycles' GGX loses the light that scatters twice)
             multi = (node.params.get("distribution") or "MULTI_GGX") == "MULTI_GGX"
             lb.update(base=self.inp(node, "Color"), metallic=1.0, roughness=self.inp(node, "Roughness"),
                       specular=1.0 if multi else 0.0, normal=self._normal_in(node))
             lb["colour"] = lb["base"]
+            lb["aniso"] = self.anisotropy(node, "Anisotropy", "Rotation", lb["normal"], glossy=True)
         elif t in ("glass_bsdf", "refraction_bsdf"):
             r = self.inp(node, "Roughness")  # rough: microfacets sampled per ray (tracer.optics.rough_dielectric)
             col = self.g.input_value(node, "Color")
@@ -157,6 +201,41 @@ class ClosureLowering:
             self.warn(node.name, f"shader {node.name!r} ({t}) is not supported; a grey diffuse surface is used")
             lb.update(base=(0.8, 0.8, 0.8), roughness=1.0, lk=L.DIFFUSE, colour=(0.8, 0.8, 0.8))
         return lb
+
+    def anisotropy(self, node: Node, amount: str, rotation: str, normal, glossy: bool):
+        """The ``aniso`` output of a Principled (``glossy`` False) or Glossy BSDF: the axis its GGX lobe is stretched
+        along × (1 − aspect) (:func:`tracer.shading.bsdf.anisotropic`), or None (isotropic). As Cycles' closure.h:
+        the Tangent input turned by 2π·rotation about the normal; the Principled BSDF stretches α by
+        1/aspect along it, aspect = √(1 − 0.9·Anisotropic); the Glossy BSDF (Anisotropy in [−0.99, 0.99]) by
+        1/(1 + Anisotropy) along it where negative, by 1/(1 − Anisotropy) across it where positive. An unlinked
+        Tangent is Cycles' default: the radial tangent about the object's Z axis from Generated coordinates."""
+        an = self.inp(node, amount)
+        if self.estimate or (is_const(an) and float(an) == 0.0) or (not glossy and is_const(an) and float(an) < 0):
+            return None
+        m = self.math
+        nrm = normal if normal is not None else self.hit(IN_NORMAL)
+        t = self.g.input_value(node, "Tangent")
+        if isinstance(t, Out):
+            t = self.val(t, VECTOR)
+        else:  # Cycles links an unlinked Tangent to Geometry ▸ Tangent: the radial tangent about Z
+            t = radial_tangent(self)
+        rot = self.inp(node, rotation)
+        if not (is_const(rot) and float(rot) == 0.0):
+            angle = m(ops.M_MULTIPLY, rot, 2.0 * np.pi)
+            t = self.op("vrotate", [(t, 3), ((0.0, 0.0, 0.0), 3), (nrm, 3), (angle, 1), ((0.0, 0.0, 0.0), 3)], imm=0)
+        if glossy:  # |Anisotropy| ≤ 0.99; positive: the lobe is stretched across the tangent
+            an = m(ops.M_MINIMUM, m(ops.M_MAXIMUM, an, -0.99), 0.99) if not is_const(an) else \
+                min(max(float(an), -0.99), 0.99)
+            across = self.vmath(ops.V_CROSS_PRODUCT, nrm, t)[0]
+            pos = m(ops.M_GREATER_THAN, an, 0.0) if not is_const(an) else float(float(an) > 0)
+            axis = self.lerp3(t, across, pos)
+            k = m(ops.M_ABSOLUTE, an) if not is_const(an) else abs(float(an))
+        else:  # 1 − aspect, aspect = √(1 − 0.9·Anisotropic)
+            an = m(ops.M_MINIMUM, m(ops.M_MAXIMUM, an, 0.0), 1.0) if not is_const(an) else min(float(an), 1.0)
+            k = m(ops.M_SUBTRACT, 1.0, m(ops.M_SQRT, m(ops.M_SUBTRACT, 1.0, m(ops.M_MULTIPLY, an, 0.9))))
+            axis = t
+        unit = self.vmath(ops.V_NORMALIZE, axis)[0]
+        return self.scale3(unit, k)
 
     def _sheen_lobe(self, colour, roughness, dist: int, layer: bool) -> dict:
         """A SHEEN lobe's fields: in the slots its colour, roughness, distribution (P_METAL) and layer flag (P_SPEC);
@@ -179,7 +258,10 @@ class ClosureLowering:
         return float(x)
 
     def _normal_in(self, node):
-        x = self.g.input_value(node, "Normal")
+        return self._normal_in_named(node, "Normal")
+
+    def _normal_in_named(self, node, name):
+        x = self.g.input_value(node, name)
         if isinstance(x, Out):
             return self.val(x, VECTOR)
         return None
@@ -191,7 +273,7 @@ class ClosureLowering:
         disp = self.g.input_value(out, "Displacement") if out is not None else None
         lobes = []
         for w, n in self.closure(surface):
-            lb = self.lobe(n)
+            lb = n if isinstance(n, dict) else self.lobe(n)  # a coat's two lobes come as dicts (_coated)
             lobes.append((w, lb))
             if lb.get("sheen") is not None:  # the Principled sheen: a layer lobe right after its own
                 sw, tint, rough = lb["sheen"]
@@ -202,8 +284,20 @@ class ClosureLowering:
             self.warn("displacement", "Displacement is rendered as bump (the surface is not moved)")
             lobes = [(w, dict(lb, normal=self._displacement_bump(disp, lb["normal"]))) for w, lb in lobes]
         vals, extras = self.combine(lobes)
+        vals["aniso"] = self._aniso(lobes)
         self.lobe_slots = self.slots(lobes)
         return vals, extras
+
+    def _aniso(self, lobes: list):
+        """The hit's anisotropy: the first anisotropic lobe's (every GGX lobe of the hit takes it; one warning when
+        another lobe is isotropic or differs)."""
+        found = [lb["aniso"] for _w, lb in lobes if lb.get("aniso") is not None]
+        if not found:
+            return None
+        glossy = [lb for _w, lb in lobes if lb["kind"] == "surface" and lb["lk"] in (L.PRINCIPLED, L.GLOSSY)]
+        if len(found) < len(glossy) or len({id(x) for x in found}) > 1:
+            self.warn("aniso", "GGX lobes of different anisotropy: the first anisotropic lobe's is used for all")
+        return found[0]
 
     def _displacement_bump(self, disp: Out, normal):
         nrm = normal if normal is not None else self.hit(IN_NORMAL)

@@ -91,14 +91,19 @@ def _slot(kinds, w, base, prm, i, k, nl, mu, tint, ior, spawn):
 
 
 @kernel(inline=True)
-def setup(kinds, w, base, prm, i, nl, n, d, tint, ior, spawn):
+def setup(kinds, w, base, prm, i, nl, n, d, tint, ior, spawn, aniso):
     """The :class:`Lobes` of hit i (``nl`` slots of the SurfaceQueue's lobe arrays) seen along d, normal n;
-    ``tint``, ``ior``: the material's specular tint and IOR (its Principled lobes')."""
+    ``tint``, ``ior``: the material's specular tint and IOR (its Principled lobes'); ``aniso``: the hit's
+    anisotropy, which every GGX lobe takes (:func:`tracer.shading.bsdf.anisotropic`)."""
     mu = -vec.dot(n, d)
     c0, w0, g0 = _slot(kinds, w, base, prm, i, 0, nl, mu, tint, ior, spawn)
+    c0 = bsdf.anisotropic(c0, aniso, n)
     c1, w1, g1 = _slot(kinds, w, base, prm, i, 1, nl, mu, tint, ior, spawn)
+    c1 = bsdf.anisotropic(c1, aniso, n)
     c2, w2, g2 = _slot(kinds, w, base, prm, i, 2, nl, mu, tint, ior, spawn)
+    c2 = bsdf.anisotropic(c2, aniso, n)
     c3, w3, g3 = _slot(kinds, w, base, prm, i, 3, nl, mu, tint, ior, spawn)
+    c3 = bsdf.anisotropic(c3, aniso, n)
     tr = (0.0, 0.0, 0.0)
     sh = (0.0, 0.0, 0.0)
     sh_kind, sh_rough, sh_albedo, found = 0, 0.5, 0.0, False

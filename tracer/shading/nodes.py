@@ -279,7 +279,7 @@ OPS: tuple[Op, ...] = (
     Op("comb_color", 3, _fold_comb_color, "Combine Color: a, b, c; imm = mode (RGB, HSV, HSL)"),
     Op("map_range", 1, _fold_map_range, "Map Range: value a, from b…c, to d…e, steps f; imm = type | 256·clamp"),
     Op("clamp", 1, _fold_clamp, "Clamp: value a, min b, max c; imm = type"),
-    Op("fresnel", 1, None, "Fresnel: IOR a, normal b"),
+    Op("fresnel", 1, None, "Fresnel: IOR a, normal b; imm 2: a coat's albedo (IOR a, normal b, roughness c)"),
     Op("layer_weight", 2, None, "Layer Weight: blend a, normal b -> Fresnel, Facing"),
     Op("vrotate", 3, lambda R, o, a, b, c, d, e, f, imm: ops.vrotate(R, o, a, b, c, d, e, imm),
        "Vector Rotate: vector a, centre b, axis c, angle d, rotation e; imm = type | 8·invert"),
@@ -330,10 +330,10 @@ assert all(globals()[f"OP_{op.name.upper()}"] == k for k, op in enumerate(OPS)),
 #: The closure inputs a program writes (its row of ``outs``) and their widths: base colour, roughness, metallic,
 #: specular level, alpha, emission, shading normal, transmission.
 OUTPUTS = (("base", 3), ("roughness", 1), ("metallic", 1), ("specular", 1), ("alpha", 1), ("emission", 3),
-           ("normal", 3), ("transmission", 1))
+           ("normal", 3), ("transmission", 1), ("aniso", 3))
 OUT_SLOTS = tuple(name for name, _n in OUTPUTS)
 OUT_WIDTH = dict(OUTPUTS)
-OUT_BASE, OUT_ROUGH, OUT_METAL, OUT_SPEC, OUT_ALPHA, OUT_EMIT, OUT_NORMAL, OUT_TRANS = range(len(OUTPUTS))
+OUT_BASE, OUT_ROUGH, OUT_METAL, OUT_SPEC, OUT_ALPHA, OUT_EMIT, OUT_NORMAL, OUT_TRANS, OUT_ANISO = range(len(OUTPUTS))
 
 
 # ============================================================================================== node types
@@ -474,8 +474,9 @@ define('material_output', [_s("Surface"), _v("Displacement")], [])
 
 
 define('principled_bsdf', [(_c if np.ndim(d) else _f)(k, d) for k, d in PRINCIPLED_DEFAULTS.items()] + [
-      _N, _f("Coat Weight"), _f("Sheen Weight"), _f("Sheen Roughness", 0.5), _c("Sheen Tint", (1, 1, 1)),
-      _f("Subsurface Weight"), _f("Anisotropic"),
+      _N, _f("Coat Weight"), _f("Coat Roughness", 0.03), _f("Coat IOR", 1.5), _c("Coat Tint", (1, 1, 1)),
+      _v("Coat Normal", NORMAL), _f("Sheen Weight"), _f("Sheen Roughness", 0.5), _c("Sheen Tint", (1, 1, 1)),
+      _f("Subsurface Weight"), _f("Anisotropic"), _f("Anisotropic Rotation"), _v("Tangent", TANGENT),
       _f("Alpha Threshold")],  # Alpha Threshold: USD's opacityThreshold (not in Blender)
       [_s("BSDF")], transmission_tint=None, proof='tests/cycles/test_cycles_addon_materials.py, tests/cycles/test_cycles_usd_materials.py')
 
@@ -483,7 +484,8 @@ define('principled_bsdf', [(_c if np.ndim(d) else _f)(k, d) for k, d in PRINCIPL
 define('diffuse_bsdf', [_c("Color"), _f("Roughness"), _N], [_s("BSDF")], proof='tests/cycles/test_cycles_nodes.py (closures)')
 
 
-define('glossy_bsdf', [_c("Color"), _f("Roughness", 0.5), _f("Anisotropy"), _f("Rotation"), _N],
+define('glossy_bsdf', [_c("Color"), _f("Roughness", 0.5), _f("Anisotropy"), _f("Rotation"), _N,
+                       _v("Tangent", TANGENT)],
       [_s("BSDF")], distribution="MULTI_GGX", proof='tests/cycles/test_cycles_nodes.py (closures)')
 
 
@@ -546,7 +548,7 @@ def _geometry(cx, node, var):
     def one(what):
         return lambda: Reg(cx.hit(what).r, 1) if not cx.estimate else 0.0
     out = {"Position": lambda: cx.hit(IN_POSITION, variant=var), "Normal": lambda: cx.hit(IN_NORMAL),
-           "Tangent": lambda: cx.hit(IN_TANGENT, arg=0), "True Normal": lambda: cx.hit(IN_TRUE_NORMAL),
+           "Tangent": lambda: radial_tangent(cx, "Z", var), "True Normal": lambda: cx.hit(IN_TRUE_NORMAL),
            "Incoming": lambda: cx.hit(IN_INCOMING), "Parametric": lambda: cx.hit(IN_PARAMETRIC, variant=var),
            "Backfacing": one(IN_BACKFACING), "Pointiness": lambda: cx._stand_in(node, "Pointiness", 0.5),
            "Random Per Island": lambda: cx._stand_in(node, "Random Per Island", 0.0)}
@@ -631,8 +633,24 @@ def _layer_weight(cx, node, var):
     return {"Fresnel": Reg(r.r, 1), "Facing": Reg(r.r + 1, 1)}
 
 
-@node('tangent', [], [_v("Tangent")], direction_type="UV_MAP", uv_map="")
+def radial_tangent(cx, axis: str = "Z", var: int = 0):
+    """Cycles' radial tangent about the object's ``axis`` (``svm_node_tangent``; Z: ``primitive_tangent``, the
+    Geometry node's Tangent and the default of a BSDF's Tangent input): axis × (Generated − ½) taken to world space
+    as a normal, then made normal to N: N × normalize(T × N)."""
+    if cx.estimate:
+        return (1.0, 0.0, 0.0)
+    g = cx.vmath(ops.V_SUBTRACT, cx.hit(IN_GENERATED, variant=var), (0.5, 0.5, 0.5))[0]
+    a = {"X": (1.0, 0.0, 0.0), "Y": (0.0, -1.0, 0.0)}.get(str(axis).upper(), (0.0, 0.0, 1.0))
+    t = cx.vmath(ops.V_CROSS_PRODUCT, a, g)[0]  # X: (0, −z, y), Y: (−z, 0, x), Z: (−y, x, 0) of Generated − ½
+    t = cx.op("vtransform", [(t, 3)], imm=2 | 1 << 2)  # a normal, object to world
+    n = cx.hit(IN_NORMAL)
+    return cx.vmath(ops.V_CROSS_PRODUCT, n, cx.vmath(ops.V_NORMALIZE, cx.vmath(ops.V_CROSS_PRODUCT, t, n)[0])[0])[0]
+
+
+@node('tangent', [], [_v("Tangent")], direction_type="UV_MAP", uv_map="", axis="Z")
 def _tangent(cx, node, var):
+    if str(node.param("direction_type") or "UV_MAP").upper() == "RADIAL":
+        return {"Tangent": radial_tangent(cx, node.param("axis") or "Z", var)}
     k = cx.uv_index(node.param("uv_map") or "") or 0
     return {"Tangent": cx.hit(IN_TANGENT, arg=k)}
 

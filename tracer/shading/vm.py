@@ -29,6 +29,8 @@ from ..colorspace import REC709_LUMINANCE
 from ..geometry.instances import mat3_apply, mat3_apply_transposed
 from ..geometry.surface import areas_at, tangent_at, uv_at
 from ..jit import kernel
+from ..optics import valid_reflection_normal
+from .bsdf import dielectric_albedo
 from . import ops
 
 # Opcodes, hit inputs and closure outputs: the node table's (tracer.shading.nodes; numba reads these globals as
@@ -42,7 +44,7 @@ from .nodes import (IN_BACKFACING, IN_CAMERA, IN_COLOR, IN_COLOR_ALPHA, IN_GENER
                     OP_MAGIC, OP_MAP_RANGE, OP_MAP_RANGE_V, OP_MAPPING, OP_MATH, OP_MIX_C, OP_MIX_F, OP_MIX_V,
                     OP_MIX_VN, OP_MX_NOISE, OP_NAMES, OP_NOISE, OP_NOP, OP_NORMAL_MAP, OP_NORMALIZE_N, OP_RAMP,
                     OP_SELECT, OP_SEP_COLOR, OP_VMATH, OP_VORONOI, OP_VROTATE, OP_VTRANSFORM, OP_WAVE, OP_WAVELENGTH,
-                    OP_WHITE_NOISE, OUT_ALPHA, OUT_BASE, OUT_EMIT, OUT_METAL, OUT_NORMAL, OUT_ROUGH, OUT_SLOTS,
+                    OP_WHITE_NOISE, OUT_ALPHA, OUT_ANISO, OUT_BASE, OUT_EMIT, OUT_METAL, OUT_NORMAL, OUT_ROUGH, OUT_SLOTS,
                     OUT_SPEC, OUT_TRANS, WIDTH)
 from .procedural import color as pcolor, mx_noise as pmx, noise as pnoise, patterns as ppat, voronoi as pvor
 from .spaces import CAM_FILM, CAM_LENS, CAM_XF, HI, LO, LOC, NRM, XF
@@ -321,7 +323,11 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
                 lo, hi = hi, lo
             R[o] = min(max(R[a], lo), hi)
         elif op == OP_FRESNEL:
-            R[o] = _fresnel(R[a], (R[b], R[b + 1], R[b + 2]), d, front)
+            if imm == 2:  # a coat's albedo, roughness c (Cycles: on the valid specular reflection normal)
+                nf = valid_reflection_normal(d, (R[b], R[b + 1], R[b + 2]), ng)
+                R[o] = dielectric_albedo(R[c], abs(vec.dot(d, nf)), max(R[a], 1.0))
+            else:
+                R[o] = _fresnel(R[a], (R[b], R[b + 1], R[b + 2]), d, front)
         elif op == OP_LAYER_WEIGHT:
             _layer_weight(R, o, R[a], (R[b], R[b + 1], R[b + 2]), d, front)
         elif op == OP_VROTATE:
@@ -736,7 +742,7 @@ def _layer_weight(R, o, blend, nrm, d, front):
 def shade_programs(rays, prim, u, v, t, inst, d, depth, code, pstart, pbase, outs, R0, R, s_mat, s_p, s_ng, s_n,
                    s_front, s_base, s_rough, s_metal, s_spec, s_cover, s_e, s_tran, threshold, uv_sets, colors,
                    has_colors, vertices, triangles, face_normals, object_ids, spaces, tdata, tparams, linear,
-                   mirrored, inst_ids, eye, spread, flat, lobe_prog, lobe_surf):
+                   mirrored, inst_ids, eye, spread, flat, lobe_prog, lobe_surf, s_aniso):
     """The textures stage: for the listed rays (their material has a program), run it and write its outputs over
     the constants the surfaces stage wrote. ``R`` is this call's register file (``R0`` copied in once).
     ``lobe_prog`` = (kinds (M, MAX_LOBES), slot registers (M, MAX_LOBES, 6), (through, holdout) registers (M, 2))
@@ -791,6 +797,9 @@ def shade_programs(rays, prim, u, v, t, inst, d, depth, code, pstart, pbase, out
         r = outs[mat, OUT_TRANS]
         if r >= 0:
             s_tran[i] = min(max(R[rb + r], 0.0), 1.0)
+        r = outs[mat, OUT_ANISO]
+        if r >= 0:
+            s_aniso[i, 0], s_aniso[i, 1], s_aniso[i, 2] = R[rb + r], R[rb + r + 1], R[rb + r + 2]
         if lobe_prog[2][mat, 0] >= 0:
             write_lobes(R, rb, mat, i, lobe_prog, lobe_surf)
 
