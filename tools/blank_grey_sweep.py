@@ -26,18 +26,10 @@ import sys
 
 import numpy as np
 
+from tools.fidelity import read_rgb
+
 UNIFORM = 2 / 255
 NEUTRAL, COLOURED, GREY_SHARE = 0.03, 0.15, 0.25
-
-
-def read_png(path: str) -> np.ndarray:
-    import OpenImageIO as oiio
-
-    buf = oiio.ImageBuf(path)
-    px = buf.get_pixels(oiio.FLOAT)
-    if px is None or px.size == 0:
-        raise ValueError(f"{path}: unreadable")
-    return np.asarray(px, np.float32)[..., :3]
 
 
 def uniform(img: np.ndarray) -> bool:
@@ -76,7 +68,7 @@ def judge(ref: np.ndarray, ours: np.ndarray) -> dict:
 
 
 def panels(path: str):
-    img = read_png(path)
+    img = read_rgb(path)
     w = img.shape[1] // 3
     return img[:, :w], img[:, w:2 * w]
 
@@ -113,7 +105,7 @@ def sweep_usdwg(folder: str) -> list[dict]:
         flags = list(r.get("flags") or [])
         if r.get("exit") == 2:
             flags.append("refused")  # exit 2: the CLI's one error line (bad input, or nothing drawn)
-        blank = bool(png and os.path.exists(png) and uniform(read_png(png)))
+        blank = bool(png and os.path.exists(png) and uniform(read_rgb(png)))
         if blank or flags:
             listed.append(dict(name=r.get("file"), blank=blank, flags=flags, warnings=len(r.get("stderr", [])),
                                texts=[ln for ln in r.get("stderr", []) if "warning" in ln or "error" in ln][:6]))
