@@ -11,6 +11,7 @@ inputs written here (no third-party file is read; MaterialX's own code generator
 from __future__ import annotations
 
 import os
+import re
 import sys
 
 import numpy as np
@@ -80,3 +81,20 @@ def test_the_osl_is_adapted_to_cycles(tmp_path):
     assert "vector mx_uvmap" in body and "mx_uvmap[0]" in body  # the linked UV map in the shader body
     assert "vector2(u,v)" not in src.replace(" ", "") and '"ggx"' not in src and '"multi_ggx"' in src
     assert "#include" not in src and "#pragma once" not in src
+
+
+def test_the_reference_renders_subsurface_and_translucency_as_cycles_nodes_do(tmp_path):
+    """Blender 5.0's Cycles renders MaterialX's subsurface_bssrdf white (the albedo weight is missing) with its radius
+    scaled by 1/(4π), and has no translucent_bsdf (black): the adapted code is what its own nodes render."""
+    path = str(tmp_path / "m.mtlx")
+    with open(path, "w") as f:
+        f.write("""<?xml version="1.0"?><materialx version="1.39">
+  <standard_surface name="SR" type="surfaceshader">
+    <input name="subsurface" type="float" value="1" /><input name="thin_walled" type="boolean" value="false" />
+    <input name="subsurface_color" type="color3" value="0.8, 0.1, 0.1" />
+  </standard_surface>
+  <surfacematerial name="M" type="material"><input name="surfaceshader" type="surfaceshader" nodename="SR" />
+  </surfacematerial></materialx>""")
+    src = F.osl_source(path, "M")
+    assert "albedo * subsurface_bssrdf(N, albedo, radius * (4.0 * M_PI), anisotropy)" in src
+    assert re.search(r"\btranslucent_bsdf\(", src) is None and "* translucent(" in src

@@ -519,6 +519,34 @@ def test_a_switch_driven_by_a_network_selects_per_hit(tmp_path):
     assert not not_supported(warnings), warnings
 
 
+@pytest.mark.parametrize("low, high", [(0.2, 0.8), (0.6, 0.4)])
+def test_smoothstep_rises_from_low_to_high(tmp_path, low, high):
+    """smoothstep(u, low, high) across a quad, as MaterialX's GLSL writes it (mx_smoothstep_float): 1 where u ≥ high,
+    else 0 where u ≤ low, else the Hermite. With low > high (nprlib's toon shade: its rim is smoothstep(x, 0.71,
+    0.69)) a rising step at high; before, Blender's Map Range made it a falling one (the toon shade's rim lit the
+    whole sphere)."""
+    body = f"""  <nodegraph name="NG">
+    <texcoord name="uv" type="vector2" />
+    <extract name="s" type="float"><input name="in" type="vector2" nodename="uv" /><input name="index" type="integer" value="0" /></extract>
+    <smoothstep name="f" type="float"><input name="in" type="float" nodename="s" />
+      <input name="low" type="float" value="{low}" /><input name="high" type="float" value="{high}" /></smoothstep>
+    <convert name="x" type="color3"><input name="in" type="float" nodename="f" /></convert>
+    <output name="out" type="color3" nodename="x" />
+  </nodegraph>
+  <surface_unlit name="SR" type="surfaceshader"><input name="emission_color" type="color3" nodegraph="NG" output="out" />
+  </surface_unlit>"""
+    img, warnings = render(quad_stage(str(tmp_path), document(body)))
+    u = (np.arange(N) + 0.5) / N
+    want = np.where(u >= high, 1.0, np.where(u <= low, 0.0, np.clip((u - low) / (high - low), 0, 1)))
+    if low < high:
+        t = np.clip((u - low) / (high - low), 0, 1)
+        want = t * t * (3 - 2 * t)
+    row = img[N // 2, :, 0]
+    keep = np.abs(u - high) > 2.0 / N  # away from the step's own pixel
+    np.testing.assert_allclose(row[keep], want[keep], atol=0.02)
+    assert not not_supported(warnings), warnings
+
+
 def test_a_top_level_node_reads_a_document_input(tmp_path):
     """A node outside any node graph whose input names a document-level ``<input>`` (interfacename): its value.
     Before: the input was dropped and the definition's default (white) shown."""

@@ -35,7 +35,10 @@ material links to a UV Map node and a UV-map Tangent node (a script's ``getattri
 Cycles was not asked to load); GGX closures use Cycles' ``multi_ggx`` (MaterialX's GLSL/MSL implementations
 compensate GGX's multiple-scattering energy loss, Cycles' OSL closures only for that distribution name; a white
 conductor at roughness 0.9 reflects 0.47 of a white furnace with plain ``ggx``); and ``layer(bsdf, vdf)`` is the
-bsdf alone (Cycles renders MaterialX's surface-over-medium layering black; neither renderer measures the medium).
+bsdf alone (Cycles renders MaterialX's surface-over-medium layering black: 5.0 registers no ``anisotropic_vdf``;
+neither renderer measures the medium); ``subsurface_bssrdf`` is weighted by its albedo and its radius × 4π, and
+``translucent_bsdf`` is ``albedo * translucent(N)`` (:func:`cycles_closures`: Blender 5.0's Cycles renders the first
+white and lacks the second; ``tools/fidelity_mtlx_sss_check.py`` holds both against Cycles' own nodes).
 Inside the generated functions (out of the parameters' scope) the UV and tangent are the sphere's own
 parameterisation. Image lookups are flipped vertically as MaterialX's OSL renders do (``fileTextureVerticalFlip``).
 References are cached by the hash of the shader source and the scene (``--refs``).
@@ -458,7 +461,22 @@ def osl_source(path: str, material: str) -> str:
     # alone is what both renderers can draw (the medium's absorption is measured by neither)
     for vdf in re.findall(r"\bVDF\s+(\w+)\s*=", src):
         src = re.sub(r"layer\(\s*(\w+)\s*,\s*" + vdf + r"\s*\)", r"\1", src)
-    return src
+    return cycles_closures(src)
+
+
+def cycles_closures(src: str) -> str:
+    """MaterialX's subsurface and translucent closures as Blender 5.0's Cycles renders them right.
+
+    Its ``subsurface_bssrdf`` set-up neither weights the closure by its albedo (its random walk divides the albedo
+    out again: every colour rendered white) nor reads the radius as the mean free path (the random walk scales it
+    by 1/(4π)); Cycles fixed both after 5.0 (commit e5f4164, "Removing legacy scaling of the subsurface radius to
+    match MaterialX", which also weights by the albedo). Here: ``albedo * subsurface_bssrdf(N, albedo, radius·4π,
+    …)``, which renders as Cycles' own Subsurface Scattering node (random walk, IOR 1.4, roughness 1) of that
+    colour and radius·4π. ``translucent_bsdf`` is not registered in 5.0 (black): ``albedo * translucent(N)``, the
+    same Lambertian transmission."""
+    src = re.sub(r"\bsubsurface_bssrdf\(\s*N\s*,\s*albedo\s*,\s*radius\s*,",
+                 "albedo * subsurface_bssrdf(N, albedo, radius * (4.0 * M_PI),", src)
+    return re.sub(r"\btranslucent_bsdf\(\s*(\w+)\s*,\s*(\w+)\s*\)", r"(\2) * translucent(\1)", src)
 
 
 def reference_jobs(rows, spec, refs_dir, spp: int, spp_unlit: int):

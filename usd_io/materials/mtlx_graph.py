@@ -547,12 +547,21 @@ class Translator:
 
     def _n_smoothstep(self, c, t, o):
         x, lo, hi = c.i("in"), c.i("low"), c.i("high")
-        parts = [self.add("map_range", {"Value": self.lane(x, i) if x.wide > 1 else x.x,
-                                        "From Min": self.lane(lo, i) if lo.wide > 1 else lo.x,
-                                        "From Max": self.lane(hi, i) if hi.wide > 1 else hi.x},
-                          "Result", interpolation_type="SMOOTHSTEP", clamp=False)
+        parts = [self._smoothstep(self.lane(x, i) if x.wide > 1 else x.x, self.lane(lo, i) if lo.wide > 1 else lo.x,
+                                  self.lane(hi, i) if hi.wide > 1 else hi.x)
                  for i in range(WIDTH.get(t, 1))]
         return self.pack(t, parts)
+
+    def _smoothstep(self, x, lo, hi):
+        """MaterialX's smoothstep as its GLSL implementation writes it (mx_smoothstep_float): 1 where x ≥ high, else
+        0 where x ≤ low, else the Hermite of (x − low)/(high − low). With low > high that is a rising step at high
+        (OSL's built-in rises too, at low); Blender's Map Range, on its own, would fall there."""
+        mid = self.add("map_range", {"Value": x, "From Min": lo, "From Max": hi}, "Result",
+                       interpolation_type="SMOOTHSTEP", clamp=False)
+        at_hi = self.math("SUBTRACT", 1.0, self.math("LESS_THAN", x, hi))  # x ≥ high
+        above_lo = self.math("GREATER_THAN", x, lo)  # x > low
+        return self.math("ADD", at_hi, self.math("MULTIPLY", self.math("SUBTRACT", 1.0, at_hi),
+                                                 self.math("MULTIPLY", above_lo, mid)))
 
     # ---- vectors
     def _n_dotproduct(self, c, t, o):
