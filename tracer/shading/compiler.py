@@ -481,11 +481,11 @@ def compile_graph(graph: Graph, warn=None, uv_index=None, scene_textures=None, r
     outs = np.full(len(N.OUT_SLOTS), -1, np.int32)
     live = []
     for k, slot in enumerate(N.OUT_SLOTS):
-        x = vals[slot]
+        x = vals.get(slot)
         if x is None or _is_const(x):
             continue
         n = N.OUT_WIDTH[slot]
-        if slot == "normal":
+        if slot in ("normal", "smooth"):
             x = c.op("normalize_n", [(x, 3)])
         outs[k] = x.r
         live.append((x.r, n))

@@ -328,12 +328,14 @@ assert all(globals()[f"OP_{op.name.upper()}"] == k for k, op in enumerate(OPS)),
  IN_MAT_INDEX, IN_ZERO) = range(26)
 
 #: The closure inputs a program writes (its row of ``outs``) and their widths: base colour, roughness, metallic,
-#: specular level, alpha, emission, shading normal, transmission.
+#: specular level, alpha, emission, shading normal, transmission, anisotropy, and the smooth normal the Displacement
+#: output's bump sets (Cycles' SetNormal: the sd->N the light stages' bump shadowing measures a bump from).
 OUTPUTS = (("base", 3), ("roughness", 1), ("metallic", 1), ("specular", 1), ("alpha", 1), ("emission", 3),
-           ("normal", 3), ("transmission", 1), ("aniso", 3))
+           ("normal", 3), ("transmission", 1), ("aniso", 3), ("smooth", 3))
 OUT_SLOTS = tuple(name for name, _n in OUTPUTS)
 OUT_WIDTH = dict(OUTPUTS)
-OUT_BASE, OUT_ROUGH, OUT_METAL, OUT_SPEC, OUT_ALPHA, OUT_EMIT, OUT_NORMAL, OUT_TRANS, OUT_ANISO = range(len(OUTPUTS))
+(OUT_BASE, OUT_ROUGH, OUT_METAL, OUT_SPEC, OUT_ALPHA, OUT_EMIT, OUT_NORMAL, OUT_TRANS, OUT_ANISO,
+ OUT_SMOOTH) = range(len(OUTPUTS))
 
 
 # ============================================================================================== node types

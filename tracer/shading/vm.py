@@ -45,7 +45,7 @@ from .nodes import (IN_BACKFACING, IN_CAMERA, IN_COLOR, IN_COLOR_ALPHA, IN_GENER
                     OP_MIX_VN, OP_MX_NOISE, OP_NAMES, OP_NOISE, OP_NOP, OP_NORMAL_MAP, OP_NORMALIZE_N, OP_RAMP,
                     OP_SELECT, OP_SEP_COLOR, OP_VMATH, OP_VORONOI, OP_VROTATE, OP_VTRANSFORM, OP_WAVE, OP_WAVELENGTH,
                     OP_WHITE_NOISE, OUT_ALPHA, OUT_ANISO, OUT_BASE, OUT_EMIT, OUT_METAL, OUT_NORMAL, OUT_ROUGH, OUT_SLOTS,
-                    OUT_SPEC, OUT_TRANS, WIDTH)
+                    OUT_SMOOTH, OUT_SPEC, OUT_TRANS, WIDTH)
 from .procedural import color as pcolor, mx_noise as pmx, noise as pnoise, patterns as ppat, voronoi as pvor
 from .spaces import CAM_FILM, CAM_LENS, CAM_XF, HI, LO, LOC, NRM, XF
 from .texture import lookup_at, texel_density
@@ -742,7 +742,7 @@ def _layer_weight(R, o, blend, nrm, d, front):
 def shade_programs(rays, prim, u, v, t, inst, d, depth, code, pstart, pbase, outs, R0, R, s_mat, s_p, s_ng, s_n,
                    s_front, s_base, s_rough, s_metal, s_spec, s_cover, s_e, s_tran, threshold, uv_sets, colors,
                    has_colors, vertices, triangles, face_normals, object_ids, spaces, tdata, tparams, linear,
-                   mirrored, inst_ids, eye, spread, flat, lobe_prog, lobe_surf, s_aniso):
+                   mirrored, inst_ids, eye, spread, flat, lobe_prog, lobe_surf, s_aniso, s_ns):
     """The textures stage: for the listed rays (their material has a program), run it and write its outputs over
     the constants the surfaces stage wrote. ``R`` is this call's register file (``R0`` copied in once).
     ``lobe_prog`` = (kinds (M, MAX_LOBES), slot registers (M, MAX_LOBES, 6), (through, holdout) registers (M, 2))
@@ -800,6 +800,9 @@ def shade_programs(rays, prim, u, v, t, inst, d, depth, code, pstart, pbase, out
         r = outs[mat, OUT_ANISO]
         if r >= 0:
             s_aniso[i, 0], s_aniso[i, 1], s_aniso[i, 2] = R[rb + r], R[rb + r + 1], R[rb + r + 2]
+        r = outs[mat, OUT_SMOOTH]
+        if r >= 0:  # the Displacement output's bump: the smooth normal (Cycles' SetNormal), s_ns
+            s_ns[i, 0], s_ns[i, 1], s_ns[i, 2] = R[rb + r], R[rb + r + 1], R[rb + r + 2]
         if lobe_prog[2][mat, 0] >= 0:
             write_lobes(R, rb, mat, i, lobe_prog, lobe_surf)
 
