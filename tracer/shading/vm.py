@@ -556,7 +556,8 @@ def _normal_map(col, strength, space, k_uv, hit, geo):
     """Blender's Normal Map node (Cycles' ``svm_node_normal_map``): the colour as 2·c − 1 in tangent space (x along
     the UV tangent, y along sign·(N × T), z along the front-face shading normal, all in object space, then to world
     by the normal matrix), object space (by the normal matrix), world space, or Blender's object / world convention
-    (y and z negated); flipped for a back face; Strength blends from the shading normal. The value itself, as Cycles gives it: a normal facing away from the viewer is
+    (y and z negated); flipped for a back face; Strength scales the tangent-space x, y (z = mix(1, z, saturate(s)))
+    or, in the other spaces, blends linearly from the shading normal. The value itself, as Cycles gives it: a normal facing away from the viewer is
     left to the closure input (OP_NORMALIZE_N)."""
     tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye = hit
     uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids = geo
@@ -578,7 +579,10 @@ def _normal_map(col, strength, space, k_uv, hit, geo):
             return n
         tg = vec.normalize(tg)
         b = vec.scale(vec.cross(no, tg), sign)
-        # not normalised before Strength blends it (Blender 5.0's Cycles, measured: tests/cycles/test_cycles_nodes.py)
+        # Strength in the tangent frame, as Cycles: x, y scaled, z = mix(1, z, saturate(strength)) (for a strength
+        # above 1 not the linear blend from the normal, which tips the normal below the surface)
+        st = min(max(strength, 0.0), 1.0)
+        c = (c[0] * strength, c[1] * strength, 1.0 + (c[2] - 1.0) * st)
         x = ops.rot_t(mi, vec.madd(vec.madd(vec.scale(tg, c[0]), b, c[1]), no, c[2]))
         x = vec.scale(x, side)
     else:
@@ -592,7 +596,7 @@ def _normal_map(col, strength, space, k_uv, hit, geo):
         if ln == 0.0:
             return n
         x = vec.scale(x, side / ln)
-    if strength != 1.0:
+    if space != 0 and strength != 1.0:  # object / world space: the linear blend from the normal
         x = vec.madd(n, vec.sub(x, n), max(strength, 0.0))
     ln = math.sqrt(vec.dot(x, x))
     return vec.scale(x, 1.0 / ln) if ln > 0.0 else n
