@@ -860,7 +860,9 @@ def bumped_scene(kind: str, size=(64, 64)):
     roughness 0.5, a Normal Map of colours mixed by the Wave bands: a striped normal map, as glTF's clearcoat test
     scene), "bump_sphere" (a smooth sphere under the same bump: the smooth normal is not the face's) or
     "displacement_bump" (the Diffuse plane with the Wave bands as its Displacement output, method Bump) or
-    "normal_map_strength_2" (the normal-mapped Principled plane at Strength 2, as glTF's clearcoat scene)."""
+    "normal_map_strength_2" (the normal-mapped Principled plane at Strength 2, as glTF's clearcoat scene) or
+    "noise_filter_width_1" (the Diffuse plane bumped by a Noise finer than a pixel, Distance 0.1, Filter Width 1: the
+    library's Concrete)."""
     import bpy
 
     scene = bs.reset(size)
@@ -879,6 +881,9 @@ def bumped_scene(kind: str, size=(64, 64)):
     nt.links.new(shader.outputs[0], out.inputs["Surface"])
     wave = nt.nodes.new("ShaderNodeTexWave")
     wave.inputs["Scale"].default_value = 2.0
+    if kind == "noise_filter_width_1":
+        wave = nt.nodes.new("ShaderNodeTexNoise")  # (its Fac is the height below)
+        wave.inputs["Scale"].default_value = 60.0
     if kind == "displacement_bump":
         disp = nt.nodes.new("ShaderNodeDisplacement")
         disp.inputs["Scale"].default_value = 1.0  # (the node's default is 0.1: a faint bump)
@@ -898,6 +903,9 @@ def bumped_scene(kind: str, size=(64, 64)):
     else:
         bump = nt.nodes.new("ShaderNodeBump")
         bump.inputs["Distance"].default_value = 1.0
+        if kind == "noise_filter_width_1":
+            bump.inputs["Distance"].default_value = 0.1
+            bump.inputs["Filter Width"].default_value = 1.0
         nt.links.new(wave.outputs["Fac"], bump.inputs["Height"])
         nt.links.new(bump.outputs[0], shader.inputs["Normal"])
     if kind == "bump_sphere":
@@ -911,11 +919,13 @@ def bumped_scene(kind: str, size=(64, 64)):
 #: (PSNR bar, mean ours / Cycles within, MAE bar) of the bumped scenes. Measured 2026-12-05: 35.5, 45.3, 38.8 dB (means
 #: 0.997, 1.006, 1.001); without the bump shadowing 20.7, 22.1, 27.1 dB (1.41, 1.32, 1.14×). A tangent-space normal
 #: map at Strength 2: 39.0 dB, 1.029 (3.56× with Strength as a linear blend from the normal, which tips it below).
+#: The bump offsets are Filter Width × the pixel's footprint (Cycles' × dP), not one eye sample's: the wave plane and
+#: sphere 43.8, 43.5 dB (35.5, 38.8 before); a sub-pixel Noise at Filter Width 1: 26.8 dB, 1.004 (24.7 dB, 0.912×).
 #: The Displacement output's bump sets Cycles' smooth normal (SetNormal: sd->N), so no bump shadowing follows from it:
 #: 29.7 dB, 1.114× (measured with it: 24.0 dB, 0.786×). What keeps it 11 % bright is not known (issue #32).
 BUMP_BARS = {"bump_diffuse": (32.0, 0.03, 0.015), "normal_map_principled": (40.0, 0.03, 0.01),
              "bump_sphere": (34.0, 0.03, 0.01), "displacement_bump": (28.0, 0.13, 0.03),
-             "normal_map_strength_2": (36.0, 0.045, 0.01)}
+             "normal_map_strength_2": (36.0, 0.045, 0.01), "noise_filter_width_1": (25.5, 0.05, 0.05)}
 
 
 @pytest.mark.cycles

@@ -481,7 +481,8 @@ class Integrator:
                            surf.base, surf.roughness, surf.metallic, surf.specular, surf.cover, surf.emission,
                            surf.transmission, m.alpha_threshold, g.uv_sets, g.colors, g.has_colors, g.vertices,
                            g.triangles, g.face_normals, g.object_ids, self.spaces, x.data, x.params, it.linear,
-                           it.mirrored, it.object_ids, eye, spread, flat, pt.lobes, surf.lobe_arrays, surf.aniso, surf.ns)
+                           it.mirrored, it.object_ids, eye, spread, flat, pt.lobes, surf.lobe_arrays, surf.aniso, surf.ns,
+                           float(max(1, int(self.settings.samples))))
         if self.volumes is not None:  # rays leaving a medium: Beer–Lambert and its emission over their length
             weight = _through_media(self.volumes, surf, t, sample, weight, out.color, n)
         split = None  # the eye samples whose first catcher hit is in this batch (tracer.integrator.compose)
