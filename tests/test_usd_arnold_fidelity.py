@@ -5,6 +5,7 @@ documented behaviour, never a downloaded file."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade
 
 from tracer import RenderSettings, render
@@ -91,6 +92,66 @@ def test_arnold_radius_primvar_wins_over_the_usd_radius():
     lamp = [lt for _k, _n, lt in info.lights][0]
     assert lamp.radius == 0.0
     np.testing.assert_allclose(lamp.intensity, 8.0, rtol=1e-6)
+
+
+def test_a_treat_as_point_sphere_is_arnolds_default_point_light_normalized():
+    """arnold-usd reads inputs:radius and inputs:normalize only when treatAsPoint is off; with it on, the light is
+    Arnold's point_light at its defaults (normalize on), so an unnormalized sphere of Arnold radius 1.32 still
+    gives I W/sr (arnold-usd's test_0190: 19.4 dB read as I·πr², 39.6 dB so)."""
+    s = _point_lit(radius_prim=1.32, normalize=False)
+    UsdLux.SphereLight(s.GetPrimAtPath("/Lamp")).CreateTreatAsPointAttr(True)
+    _px, info = _centre(s)
+    lamp = [lt for _k, _n, lt in info.lights][0]
+    np.testing.assert_allclose(lamp.intensity, 8.0, rtol=1e-6)
+    assert lamp.radius == pytest.approx(1.32)
+    s = _point_lit(normalize=False)  # treatAsPoint on, no Arnold radius: a point (the USD radius is not read)
+    UsdLux.SphereLight(s.GetPrimAtPath("/Lamp")).CreateTreatAsPointAttr(True)
+    lamp = [lt for _k, _n, lt in _centre(s)[1].lights][0]
+    assert lamp.radius == 0.0
+    np.testing.assert_allclose(lamp.intensity, 8.0, rtol=1e-6)
+
+
+def test_an_ies_sphere_light_is_arnolds_photometric_light_aimed_down_its_y(tmp_path):
+    """arnold-usd makes a SphereLight with an IES file a photometric_light (its cone ignored: test_1316), whose
+    nadir is its local −Y (test_0140's beam lands where −Y points, not −Z), the candela values in W/sr (÷ 683)."""
+    path = tmp_path / "down.ies"
+    path.write_text("IESNA:LM-63-2002\nTILT=NONE\n1 1000 1 3 1 1 2 0 0 0\n1 1 10\n0 90 180\n0\n683 0 0\n")
+    s = _point_lit(radius_prim=0.0)
+    lamp = s.GetPrimAtPath("/Lamp")
+    UsdGeom.Xformable(lamp).AddRotateXOp().Set(90.0)  # its −Y now points along −Z, at the floor
+    sh = UsdLux.ShapingAPI.Apply(lamp)
+    sh.CreateShapingIesFileAttr(Sdf.AssetPath(str(path)))
+    sh.CreateShapingConeAngleAttr(10.0)
+    px, info = _centre(s, samples=4)
+    light = [lt for _k, _n, lt in info.lights][0]
+    assert type(light).__name__ == "PointLight" and light.shaping is None  # no cone
+    np.testing.assert_allclose(light.profile_axes[2], (0, 0, -1), atol=1e-9)
+    # the centre pixel sees (0.15, 0.15, 0): θ = atan(0.212/2) from the nadir, I = 8·(1 − θ/90°)
+    theta = np.degrees(np.arctan(np.hypot(0.15, 0.15) / 2))
+    np.testing.assert_allclose(px, 0.5 * 8 * (1 - theta / 90) * 2 / (np.pi * 4.045 ** 1.5), rtol=0.02)
+
+
+def test_an_orthographic_camera_is_framed_by_its_arnold_screen_window():
+    """arnold-usd's ortho_camera ignores the USD aperture and shows x from screen_window_min.x to max.x in scene
+    units (test_0055, ±0.80: 10.0 -> 31.6 dB): a 2 × 2 quad seen through ±0.5 fills the frame, through USD's
+    default aperture (2.1 units) it does not."""
+    def frame(window):
+        s = new_stage()
+        cam = UsdGeom.Camera.Define(s, "/Cam")
+        cam.CreateProjectionAttr("orthographic")
+        cam.AddTranslateOp().Set(Gf.Vec3d(0, 0, 10))
+        if window is not None:
+            pv = UsdGeom.PrimvarsAPI(cam.GetPrim())
+            pv.CreatePrimvar("arnold:screen_window_min", Sdf.ValueTypeNames.Float2Array).Set([(-window, -window)])
+            pv.CreatePrimvar("arnold:screen_window_max", Sdf.ValueTypeNames.Float2Array).Set([(window, window)])
+        quad(s, "/Q", half=0.6)
+        scene, info = load_stage(s, width=16, height=16)
+        return render(scene, RenderSettings(width=16, height=16, samples=1)).rgb
+
+    windowed, usd = frame(0.5), frame(None)
+    np.testing.assert_allclose(windowed[0, 0], windowed[8, 8], rtol=1e-4)  # the quad reaches the corners
+    np.testing.assert_allclose(windowed[15, 15], windowed[8, 8], rtol=1e-4)
+    assert np.abs(usd[0, 0] - usd[8, 8]).max() > 0.1  # USD's aperture (2.1 units): wider than the quad
 
 
 def test_arnold_usdlux_version_reads_the_lights_as_the_spec():
@@ -331,6 +392,73 @@ def test_a_dome_with_a_fractional_arnold_camera_weight_is_seen_at_that_weight():
     np.testing.assert_allclose(tenth[8, 12], full[8, 12], rtol=0.05)
 
 
+def test_an_area_light_with_an_arnold_camera_weight_is_seen_by_the_camera():
+    """UsdLux has no camera visibility (our USD lights stay unseen by the camera), but Arnold's ``camera`` parameter
+    (``primvars:arnold:camera``, authored by arnold-usd's test_0241 on a cylinder light) shows the light's shape to
+    camera rays × w, unless ``primvars:arnold:visibility:camera`` is off (test_2439's lights)."""
+    def frame(weight=None, visible=None):
+        s = new_stage()
+        add_camera(s, eye=(0, 0, 10))
+        rect = UsdLux.RectLight.Define(s, "/Rect")  # facing the camera (+Z) at the origin, radiance 3
+        rect.CreateWidthAttr(2.0)
+        rect.CreateHeightAttr(2.0)
+        rect.CreateIntensityAttr(3.0)
+        rect.AddRotateXOp().Set(180.0)
+        pv = UsdGeom.PrimvarsAPI(rect.GetPrim())
+        if weight is not None:
+            pv.CreatePrimvar("arnold:camera", F).Set(weight)
+        if visible is not None:
+            pv.CreatePrimvar("arnold:visibility:camera", Sdf.ValueTypeNames.Bool).Set(visible)
+        scene, info = load_stage(s, width=24, height=16, light_units="arnold")
+        return render(scene, RenderSettings(width=24, height=16, samples=1)).rgb[8, 12]
+
+    np.testing.assert_allclose(frame(), 0.0, atol=1e-6)  # UsdLux alone: unseen, as before
+    np.testing.assert_allclose(frame(weight=1.0), 3.0, rtol=1e-5)
+    np.testing.assert_allclose(frame(weight=0.5), 1.5, rtol=1e-5)
+    np.testing.assert_allclose(frame(weight=1.0, visible=False), 0.0, atol=1e-6)
+
+
+def _textured_rect_frame(tmp_path, usdlux_version=None):
+    """A 2 × 1 texture (left texel red, right texel blue) on a 2 × 2 RectLight of intensity 3 facing the camera
+    (turned 180° about Y: its −Z towards +Z), shown to the camera by Arnold's ``camera`` primvar; the frame's left
+    and right thirds."""
+    import OpenImageIO as oiio
+
+    path = str(tmp_path / "lr.exr")
+    out = oiio.ImageOutput.create(path)
+    out.open(path, oiio.ImageSpec(2, 1, 3, oiio.FLOAT))
+    out.write_image(np.array([[[1, 0, 0], [0, 0, 1]]], np.float32))
+    out.close()
+    s = new_stage()
+    add_camera(s, eye=(0, 0, 10))
+    if usdlux_version is not None:
+        rs = s.DefinePrim("/Render/Settings", "RenderSettings")
+        rs.CreateAttribute("arnold:global:usdlux_version", Sdf.ValueTypeNames.String).Set(usdlux_version)
+    rect = UsdLux.RectLight.Define(s, "/Rect")
+    rect.CreateWidthAttr(2.0)
+    rect.CreateHeightAttr(2.0)
+    rect.CreateIntensityAttr(3.0)
+    rect.CreateTextureFileAttr(Sdf.AssetPath(path))
+    rect.AddRotateYOp().Set(180.0)
+    UsdGeom.PrimvarsAPI(rect.GetPrim()).CreatePrimvar("arnold:camera", F).Set(1.0)
+    scene, info = load_stage(s, width=24, height=16)
+    rgb = render(scene, RenderSettings(width=24, height=16, samples=1)).rgb
+    return rgb[8, 9], rgb[8, 14], info
+
+
+def test_a_rect_light_texture_is_unmirrored_to_an_eye_facing_it_as_usdlux_says(tmp_path):
+    """UsdLux (Arnold's usdlux_version 25.05): the texture reads as an image to an eye facing the emitting side
+    (arnold-usd's test_2434.1); radiance = texel × intensity. Arnold's own reading mirrors it (test_2434.2, whose
+    RenderSettings say usdlux_version "None")."""
+    left, right, info = _textured_rect_frame(tmp_path, "25.05")
+    assert not any("texture" in w for w in info.warnings), info.warnings
+    np.testing.assert_allclose(left, (3, 0, 0), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(right, (0, 0, 3), rtol=1e-5, atol=1e-6)
+    left, right, _ = _textured_rect_frame(tmp_path, "None")
+    np.testing.assert_allclose(left, (0, 0, 3), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(right, (3, 0, 0), rtol=1e-5, atol=1e-6)
+
+
 # ---------------------------------------------------------------- the harness: how Arnold wrote its references
 def _write_image(path, values, fmt):
     import OpenImageIO as oiio
@@ -429,6 +557,32 @@ def test_arnold_flat_shows_the_primvar_its_user_data_rgb_reads():
     np.testing.assert_allclose(img[8, 6], (0.2, 0.6, 0.9), atol=2e-3)
     np.testing.assert_allclose(img[8, 18], (0.9, 0.3, 0.1), atol=2e-3)
     assert not any("not supported" in w for w in info.warnings), info.warnings
+
+
+def test_the_harness_renders_the_stages_data_window_as_kick_does(tmp_path):
+    """kick renders the region of the stage's resolution that its RenderSettings' dataWindowNDC names (arnold-usd's
+    test_0233/0234, 4.5/4.8 dB when the whole frame was squeezed into the region's size): the harness keeps the
+    stage's resolution and window (fidelity_arnold.stage_data_window) on its own settings prim."""
+    import sys as _sys
+    import os as _os
+
+    _sys.path.insert(0, _os.path.join(_os.path.dirname(_os.path.dirname(_os.path.abspath(__file__))), "tools"))
+    import fidelity_arnold as fa
+    from pxr import UsdRender
+
+    s = new_stage()
+    add_camera(s, eye=(0, 0, 10))
+    quad(s, "/Q")
+    rs = UsdRender.Settings.Define(s, "/Render/Settings")
+    rs.CreateResolutionAttr(Gf.Vec2i(160, 120))
+    rs.CreateDataWindowNDCAttr(Gf.Vec4f(0.4, 0.1, 0.6, 1.2))
+    path = str(tmp_path / "dw.usda")
+    s.GetRootLayer().Export(path)
+    window = fa.stage_data_window(Usd.Stage.Open(path))
+    assert window == ((160, 120), pytest.approx((0.4, 0.1, 0.6, 1.2)))
+    stage, prim = fa.arnold_camera(path, "/Cam", None, window)
+    _scene, info = load_stage(stage, render_settings_prim=prim)
+    assert (info.width, info.height) == (32, 132)
 
 
 def test_the_harness_opens_a_stage_where_kick_runs_it(tmp_path):

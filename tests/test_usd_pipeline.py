@@ -509,6 +509,17 @@ def test_render_settings_data_window_renders_that_part():
     assert np.abs(full[:50, 50:] - part).mean() < 0.01 and part.max() > 0.2  # the ball is up and right
 
 
+def test_render_settings_data_window_beyond_the_frame_renders_the_overscan():
+    """UsdRender's dataWindowNDC may reach past 0..1 (overscan; arnold-usd's test_0233): (0.5, 0.5, 1.25, 1) is
+    the upper-right quarter of the frame and a quarter of its width more, 75 × 50 pixels."""
+    full_scene, _ = load_stage(_render_settings_stage())
+    part_scene, info = load_stage(_render_settings_stage(window=(0.5, 0.5, 1.25, 1.0)))
+    assert (info.width, info.height) == (75, 50) and not any("dataWindowNDC" in w for w in info.warnings)
+    full = render(full_scene, RenderSettings(width=100, height=100, samples=2)).rgb
+    part = render(part_scene, RenderSettings(width=75, height=50, samples=2)).rgb
+    assert np.abs(full[:50, 50:] - part[:, :50]).mean() < 0.01 and part.max() > 0.2
+
+
 def test_camera_without_render_settings_expands_its_aperture():
     """A 16:9 aperture rendered at 4:3 keeps its whole width (Arnold's expandAperture), not a 1.33x zoom."""
     s = new_stage()

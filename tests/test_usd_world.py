@@ -188,7 +188,7 @@ def test_info_on_rect_disk_and_cylinder_lights(tmp_path):
     res = whitted("info", path)
     assert res.returncode == 0, res.stderr
     assert "/Rect: area -> AreaLight(" in res.stdout and "shape=rect" in res.stdout and "shape=disk" in res.stdout
-    assert "/Tube: point" in res.stdout
+    assert "/Tube: area" in res.stdout and "shape=cylinder" in res.stdout
 
 
 def test_malformed_schema_values_warn_not_traceback(tmp_path):

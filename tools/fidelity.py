@@ -14,9 +14,10 @@ AOV visualisations and the display/data-window framing tests are left out (:func
 in-process (``usd_io.load_stage`` + ``tracer.render``) at each of its ``-times`` with its camera conformed to the
 baseline's aspect as the test app conforms it (``-windowPolicy``, default matchVertically: the vertical aperture
 kept; passed to the reader as a RenderSettings' aspectRatioConformPolicy on the session layer), at the size of its
-baseline image, with a transparent film, and compared:
+baseline image, with a transparent film, one sample through each pixel centre (:data:`DEFAULT_AA`), at the test's
+``-times`` (else the default time, as the app draws), with the purposes the app shows, and compared:
 
-    silhouette  at half coverage: ours alpha >= 0.5; Storm's: pixels other than the test's clear colour
+    silhouette  at half coverage: ours alpha >= 0.5 (the pixel centre covered); Storm's: pixels other than the test's clear colour
                 (``-clear``, else testUsdImagingGLBasicDrawing's default orange (1, 0.5, 0.1)) as the PNG stores it,
                 and at least half as far from it as the furthest pixel within 2 px (:func:`storm_mask`: Storm's
                 multisampled edges)
@@ -25,7 +26,8 @@ baseline image, with a transparent film, and compared:
 and a side-by-side PNG is written to ``OUT`` (Storm's baseline | ours | the masks: white both, red ours only,
 green Storm's only). One JSON line per image goes to ``--jsonl``; the summary prints one row per image.
 
-``--no-dof`` renders without depth of field (Storm draws none). ``--storm-approximations`` explains misses that are
+``--frame-all`` measures the ``-frameAll`` tests without a camera instead, each seen as the test app frames it
+(:func:`frame_all_camera`), a separate table. ``--no-dof`` renders without depth of field (Storm draws none). ``--storm-approximations`` explains misses that are
 Storm's: it draws implicit gprims with Storm's 10 segments around and each NurbsPatch as its control hull. Pointed at main's checkout on PYTHONPATH, the same
 tool gives the "before" figures.
 """
@@ -45,37 +47,79 @@ import numpy as np
 #: testUsdImagingGLBasicDrawing's clear colour when the test gives no ``-clear`` (UsdImagingGL_UnitTestGLDrawing).
 DEFAULT_CLEAR = (1.0, 0.5, 0.1)
 THRESHOLD = 0.5 / 255  # 8-bit: any other value
+#: Samples per pixel side of our render. One sample, through the pixel centre (tracer.integrator.tiles.pixel_sample
+#: with N = 1), answers "is this pixel at least half covered?" exactly for an edge straight across the pixel: the
+#: centre is covered iff the edge leaves at least half of the pixel on the surface's side. N×N jittered samples
+#: thresholded at 0.5 answer it with their noise: an edge 0.48 px into a pixel (Mipmap_017) reads ≥ 0.5 whenever the
+#: stratum holding it has all its samples inside (0.923⁴ = 73 % of such pixels at 4×4, 32 % at 5×5).
+DEFAULT_AA = 1
 
 
 #: Exact-camera tests whose baseline has no silhouette to compare (listed in the summary with the reason, not
 #: rendered): a visible DomeLight fills Storm's background, or the test composites several frames into one image.
 UNMEASURED = {"visible dome": "a textured DomeLight fills Storm's background: no clear colour, no silhouette",
-              "-presentComposite": "the test composites its -times into one image (frames accumulate)"}
+              "-presentComposite": "the test composites its -times into one image (frames accumulate)",
+              "-clipPlane": "an OpenGL clip plane of the test app (-clipPlane), not in the stage",
+              "points": "-shading points: Storm draws each vertex as a point, no surface",
+              "-unloadedAsBounds": "the test app opens the stage unloaded and draws payloads as boxes",
+              "-presentDisabled": "the test app presents nothing (-presentDisabled): the baseline is black"}
 
 
 def unmeasured(test: dict) -> str | None:
+    if not os.path.exists(test["stage"]):
+        return "the test's stage is not in the snapshot (its TESTENV folder is absent)"
     if "-presentComposite" in test["cmd"]:
         return UNMEASURED["-presentComposite"]
+    argv = test["cmd"].split()
+    if "-clipPlane" in argv:
+        return UNMEASURED["-clipPlane"]
+    if "-unloadedAsBounds" in argv:
+        return UNMEASURED["-unloadedAsBounds"]
+    if "-presentDisabled" in argv:
+        return UNMEASURED["-presentDisabled"]
+    if "-shading" in argv and argv[argv.index("-shading") + 1:][:1] == ["points"]:
+        return UNMEASURED["points"]
     text = open(test["stage"], errors="replace").read() if test["stage"].endswith(".usda") else ""
     if re.search(r"def DomeLight\b", text) and "inputs:texture:file" in text:
         return UNMEASURED["visible dome"]
     return None
 
 
-def wanted(name: str, cmd: str) -> bool:
-    if "-camera" not in cmd or "SceneIndex" in name or "testUsdImagingGLBasicDrawing" not in cmd:
+def wanted(name: str, cmd: str, frame_all: bool = False) -> bool:
+    """An exact-camera test (``-camera``), or with ``frame_all`` a ``-frameAll`` test without one (the test app
+    frames the stage itself: :func:`frame_all_camera`)."""
+    argv = cmd.split()
+    if "SceneIndex" in name or "testUsdImagingGLBasicDrawing" not in cmd:
+        return False
+    if ("-camera" in argv) == frame_all or (frame_all and "-frameAll" not in argv):
         return False
     return not any(k in cmd for k in ("volumeRaymarching", "-rendererAov depth", "-dataWindow", "-displayWindow"))
 
 
-def tests_of(root: str) -> list[dict]:
-    """The exact-camera tests of usdImagingGL's CMakeLists.txt (commented-out ones too: their baselines exist)."""
+def _purposes(opt: dict) -> tuple:
+    """The purposes the test app draws (UsdImagingGLRenderParams: guides hidden, proxy shown, render hidden unless
+    ``-guidesPurpose``/``-proxyPurpose``/``-renderPurpose`` say otherwise), as load_stage's purposes."""
+    shown = {"guide": False, "proxy": True, "render": False}
+    for flag, purpose in (("-guidesPurpose", "guide"), ("-proxyPurpose", "proxy"), ("-renderPurpose", "render")):
+        if flag in opt:
+            shown[purpose] = opt[flag][:1] == ["show"]
+    return ("default",) + tuple(p for p in ("render", "proxy", "guide") if shown[p])
+
+
+def _complexity_suffix(c: float) -> str:
+    """``-complexities``' baseline suffix: C++ ``std::stringstream << float`` (1.0 -> "1", 1.1 -> "1.1")."""
+    return format(c, "g")
+
+
+def tests_of(root: str, frame_all: bool = False) -> list[dict]:
+    """The exact-camera tests of usdImagingGL's CMakeLists.txt (commented-out ones too: their baselines exist);
+    with ``frame_all`` the ``-frameAll`` tests without a camera instead (one entry per ``-complexities`` value)."""
     gl = os.path.join(root, "pxr", "usdImaging", "usdImagingGL")
     text = open(os.path.join(gl, "CMakeLists.txt")).read()
     text = re.sub(r"^#", "", text, flags=re.M)
     out = []
     for name, cmd, rest in re.findall(r'pxr_register_test\((\S+)\s+COMMAND\s+"([^"]*)"(.*?)\n\)', text, re.S):
-        if not wanted(name, cmd):
+        if not wanted(name, cmd, frame_all):
             continue
         argv = shlex.split(cmd)
         opt = {}
@@ -98,14 +142,18 @@ def tests_of(root: str) -> list[dict]:
         write = opt["-write"][0]
         times = [float(t) for t in opt.get("-times", [])]
         clear = tuple(float(c) for c in opt["-clear"][:3]) if "-clear" in opt else DEFAULT_CLEAR
-        stem, ext = os.path.splitext(write)
-        images = []
-        for t in (list(dict.fromkeys(times)) or [None]):
-            base = os.path.join(testenv, "baseline", write if t is None else f"{stem}_{int(t):03d}{ext}")
-            images.append((t, base))
-        out.append(dict(name=name, stage=stage, camera=opt["-camera"][0], images=images, clear=clear,
-                        complexity=float(opt.get("-complexity", ["1.0"])[0]),
-                        window_policy=opt.get("-windowPolicy", ["matchVertically"])[0], cmd=cmd))
+        complexities = [(float(c), "_" + _complexity_suffix(float(c))) for c in opt.get("-complexities", [])] or \
+            [(float(opt.get("-complexity", ["1.0"])[0]), "")]
+        for complexity, suffix in complexities:
+            stem, ext = os.path.splitext(write)
+            stem += suffix
+            images = []
+            for t in (list(dict.fromkeys(times)) or [None]):
+                base = os.path.join(testenv, "baseline", stem + ext if t is None else f"{stem}_{int(t):03d}{ext}")
+                images.append((t, base))
+            out.append(dict(name=name + suffix, stage=stage, camera=opt["-camera"][0] if "-camera" in opt else None,
+                            images=images, clear=clear, complexity=complexity, purposes=_purposes(opt),
+                            window_policy=opt.get("-windowPolicy", ["matchVertically"])[0], cmd=cmd))
     seen, unique = set(), []
     for t in out:  # one row per (stage, camera, baseline)
         key = (t["stage"], t["camera"], tuple(b for _t, b in t["images"]))
@@ -156,6 +204,12 @@ def storm_mask(rgb: np.ndarray, clear) -> np.ndarray:
     return drawn & (~edge | (d >= 0.5 * near))
 
 
+def uniform(rgba: np.ndarray) -> bool:
+    """A blank frame: every pixel the same colour and alpha (nothing drawn, or a surface filling it flat)."""
+    flat = np.asarray(rgba).reshape(-1, rgba.shape[-1])
+    return bool(np.all(np.abs(flat - flat[0]).max(axis=0) <= THRESHOLD))
+
+
 def iou(a: np.ndarray, b: np.ndarray) -> float:
     union = np.count_nonzero(a | b)
     return 1.0 if union == 0 else np.count_nonzero(a & b) / union
@@ -171,18 +225,57 @@ WINDOW_POLICY = {"matchVertically": "adjustApertureWidth", "matchHorizontally": 
                  "fit": "expandAperture", "crop": "cropAperture", "dontConform": "adjustPixelAspectRatio"}
 
 
-def reference_camera(path: str, camera: str, policy: str):
-    """The stage at ``path`` with a RenderSettings on its session layer that conforms ``camera`` as the test app
-    does (its window policy, :data:`WINDOW_POLICY`): (stage, settings prim path). The stage's own layers are not
-    touched."""
+def reference_camera(path, camera: str, policy: str):
+    """The stage at ``path`` (or an open stage) with a RenderSettings on its session layer that conforms ``camera``
+    as the test app does (its window policy, :data:`WINDOW_POLICY`): (stage, settings prim path). The stage's own
+    layers are not touched."""
     from pxr import Sdf, Usd, UsdRender
 
-    stage = Usd.Stage.Open(path)
+    stage = Usd.Stage.Open(path) if isinstance(path, str) else path
     with Usd.EditContext(stage, stage.GetSessionLayer()):
         rs = UsdRender.Settings.Define(stage, "/FidelityReference")
         rs.CreateCameraRel().SetTargets([Sdf.Path(camera)])
         rs.CreateAspectRatioConformPolicyAttr(WINDOW_POLICY[policy])
     return stage, "/FidelityReference"
+
+
+#: testUsdImagingGLBasicDrawing's -frameAll view: GfFrustum::SetPerspective(60, width / height, 1, 100000).
+FRAME_ALL_FOV = 60.0
+FRAME_ALL_CLIPPING = (1.0, 100000.0)
+
+
+def frame_all_camera(stage, purposes, width: int, height: int, path: str = "/FidelityFrameAll") -> str:
+    """The test app's ``-frameAll`` view as a camera on the session layer (testUsdImagingGLBasicDrawing.cpp,
+    InitTest and DrawTest): the world bound of the pseudo-root by ``UsdGeomBBoxCache(UsdTimeCode::Default(),
+    purposes, useExtentHints=true)``, aligned; the view translated by −centre and pushed back by the bound's
+    diagonal; for a Z-up stage the translation's y and z swapped (−cx, −cz, −cy − size) after a −90° turn about
+    X, exactly as the app does (so a Z-up stage whose centre is off y = 0 is seen from 2·cy + size away, not
+    size); a 60° vertical field of view at the image's aspect, clipping 1–100000. Returns the camera's path."""
+    from pxr import Gf, Usd, UsdGeom
+
+    bound = UsdGeom.BBoxCache(Usd.TimeCode.Default(), list(purposes), True).ComputeWorldBound(
+        stage.GetPseudoRoot()).ComputeAlignedRange()
+    lo, hi = bound.GetMin(), bound.GetMax()
+    centre = (lo + hi) / 2.0
+    size = (hi - lo).GetLength()
+    if UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z:
+        translate = Gf.Vec3d(-centre[0], -centre[2], -centre[1] - size)
+    else:
+        translate = Gf.Vec3d(-centre[0], -centre[1], -centre[2] - size)
+    translate = Gf.Vec3d(*(float(np.float32(v)) for v in translate))  # the app keeps it in a float[3]
+    view = Gf.Matrix4d(1.0).SetTranslate(translate)  # rotations 0: the app's _rotate stays 0
+    if UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z:
+        view = Gf.Matrix4d().SetRotate(Gf.Rotation(Gf.Vec3d(1, 0, 0), -90.0)) * view
+    vertical = 20.0
+    focal = vertical / 2 / np.tan(np.radians(FRAME_ALL_FOV) / 2)
+    with Usd.EditContext(stage, stage.GetSessionLayer()):
+        cam = UsdGeom.Camera.Define(stage, path)
+        cam.AddTransformOp().Set(view.GetInverse())
+        cam.CreateFocalLengthAttr(float(focal))
+        cam.CreateVerticalApertureAttr(vertical)
+        cam.CreateHorizontalApertureAttr(vertical * width / height)
+        cam.CreateClippingRangeAttr(Gf.Vec2f(*FRAME_ALL_CLIPPING))
+    return path
 
 
 def nurbs_as_hulls(stage, time) -> None:
@@ -210,16 +303,31 @@ def nurbs_as_hulls(stage, time) -> None:
             prim.SetActive(False)
 
 
+def app_time(t):
+    """The time code the test app draws at: each ``-times`` value, else ``UsdTimeCode::Default()`` (the app's -999),
+    where an attribute with only time samples reads its fallback, not its first sample."""
+    from pxr import Usd
+
+    return Usd.TimeCode.Default() if t is None else Usd.TimeCode(float(t))
+
+
 def render_one(test: dict, t, size, aa: int, dof: bool, segments=None, hulls=False):
     import tracer
     from usd_io.reader import load_stage
 
+    from pxr import Usd
+
     h, w = size
-    stage, settings_prim = reference_camera(test["stage"], test["camera"], test["window_policy"])
+    purposes = test.get("purposes", ("default", "proxy"))
+    camera = test["camera"]
+    stage = Usd.Stage.Open(test["stage"])
+    if camera is None:  # -frameAll: the test app's own view
+        camera = frame_all_camera(stage, purposes, w, h)
+    stage, settings_prim = reference_camera(stage, camera, test["window_policy"])
     if hulls:
         nurbs_as_hulls(stage, t)
-    kw = dict(time=t, camera=test["camera"], width=w, height=h, complexity=_complexity(test["complexity"]),
-              render_settings_prim=settings_prim)
+    kw = dict(time=app_time(t), camera=camera, width=w, height=h, complexity=_complexity(test["complexity"]),
+              render_settings_prim=settings_prim, purposes=purposes)
     if not dof:
         kw["depth_of_field"] = False
     if segments:
@@ -270,14 +378,18 @@ def main(argv=None) -> int:
     p.add_argument("--out", default="/tmp/fidelity")
     p.add_argument("--only", default="", help="comma-separated test names or stage file names")
     p.add_argument("--no-dof", action="store_true", help="render without depth of field (Storm draws none)")
-    p.add_argument("--aa", type=int, default=4, help="N×N samples per pixel (16: coverage to 1/16 at the edges)")
+    p.add_argument("--aa", type=int, default=DEFAULT_AA,
+                   help="N×N samples per pixel (default 1: the pixel centre decides half coverage; see DEFAULT_AA)")
     p.add_argument("--storm-approximations", action="store_true",
                    help="draw as Storm approximates (an explanatory run, not the figures): implicit gprims with 10 "
                    "segments around (Storm's at complexity 1.0) and each NurbsPatch as its control hull")
+    p.add_argument("--frame-all", action="store_true",
+                   help="the -frameAll tests without a camera (the test app's own view: frame_all_camera) instead "
+                   "of the exact-camera ones")
     p.add_argument("--jsonl", default=None)
     p.add_argument("--list", action="store_true")
     args = p.parse_args(argv)
-    tests = tests_of(args.openusd)
+    tests = tests_of(args.openusd, args.frame_all)
     if args.only:
         keep = set(args.only.split(","))
         tests = [t for t in tests if t["name"] in keep or os.path.basename(t["stage"]) in keep]
@@ -291,18 +403,26 @@ def main(argv=None) -> int:
         skip = unmeasured(test)
         for t, base in test["images"]:
             row = dict(test=test["name"], stage=os.path.basename(test["stage"]), time=t,
-                       baseline=os.path.basename(base))
+                       baseline=os.path.basename(base), table="frameAll" if test["camera"] is None else "camera")
             start = time.perf_counter()
             try:
                 if skip:
                     raise Unmeasured(skip)
+                if not os.path.exists(base):
+                    raise Unmeasured("no baseline image in the snapshot")
                 storm = read_rgb(base)
                 approx = args.storm_approximations
                 rgba, info = render_one(test, t, storm.shape[:2], args.aa, not args.no_dof, 10 if approx else None,
                                         approx)
                 a, b = rgba[..., 3] >= 0.5, storm_mask(storm, test["clear"])
                 row.update(iou=round(iou(a, b), 4), ours_px=int(a.sum()), storm_px=int(b.sum()),
-                           size=list(storm.shape[:2][::-1]), warnings=len(info.warnings))
+                           size=list(storm.shape[:2][::-1]), warnings=len(info.warnings),
+                           warning_texts=[w[:200] for w in info.warnings[:8]],
+                           blank_ours=bool(uniform(rgba)), blank_storm=bool(not b.any()))
+                if info.nothing_drawn:  # `whitted render` exits 2 on this stage (usd_io.reader._say_if_empty)
+                    row["refused"] = info.nothing_drawn
+                if "-shading wire " in test["cmd"] + " ":
+                    row["shading"] = "wire"  # Storm draws the edges only: its silhouette is lines
                 side_by_side(os.path.join(args.out, os.path.splitext(row["baseline"])[0] + ".png"), storm, rgba, a, b)
             except Unmeasured as why:
                 row.update(iou=None, unmeasured=str(why))

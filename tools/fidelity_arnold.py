@@ -252,10 +252,11 @@ def to_output_space(rgba: np.ndarray, space: str, integer: bool) -> np.ndarray:
     return out
 
 
-def arnold_camera(path: str, camera: str, pixel_aspect: float | None):
+def arnold_camera(path: str, camera: str, pixel_aspect: float | None, data_window=None):
     """The stage with a RenderSettings on its session layer: ``camera``, Arnold's conform (the horizontal
-    aperture kept), the stage's pixel aspect when its own RenderSettings gives one."""
-    from pxr import Sdf, Usd, UsdRender
+    aperture kept), the stage's pixel aspect when its own RenderSettings gives one, and its data window
+    (:func:`stage_data_window`: (resolution, dataWindowNDC), which kick renders as a region of that resolution)."""
+    from pxr import Gf, Sdf, Usd, UsdRender
 
     stage = Usd.Stage.Open(path)
     with Usd.EditContext(stage, stage.GetSessionLayer()):
@@ -264,7 +265,24 @@ def arnold_camera(path: str, camera: str, pixel_aspect: float | None):
         rs.CreateAspectRatioConformPolicyAttr("adjustApertureHeight")
         if pixel_aspect:
             rs.CreatePixelAspectRatioAttr(float(pixel_aspect))
+        if data_window is not None:
+            rs.CreateResolutionAttr(Gf.Vec2i(*data_window[0]))
+            rs.CreateDataWindowNDCAttr(Gf.Vec4f(*data_window[1]))
     return stage, "/FidelityArnold"
+
+
+def stage_data_window(stage):
+    """((width, height), dataWindowNDC) of the stage's RenderSettings when it authors a data window other than the
+    whole image, else None."""
+    from pxr import UsdRender
+
+    for prim in stage.Traverse():
+        if prim.IsA(UsdRender.Settings):
+            rs = UsdRender.Settings(prim)
+            dw, res = rs.GetDataWindowNDCAttr(), rs.GetResolutionAttr()
+            if dw and dw.HasAuthoredValue() and tuple(dw.Get()) != (0.0, 0.0, 1.0, 1.0) and res.Get() is not None:
+                return tuple(int(x) for x in res.Get()), tuple(float(x) for x in dw.Get())
+    return None
 
 
 def stage_pixel_aspect(stage) -> float | None:
@@ -309,12 +327,16 @@ def render_ours(test: dict, size, aa: int, layout_root: str | None = None, rende
     camera = find_camera(probe, test.get("camera"))
     if camera is None:
         raise NoCamera("the stage has no camera" + (f" {test['camera']}" if test.get("camera") else ""))
-    stage, settings_prim = arnold_camera(path, camera, stage_pixel_aspect(probe))
+    window = stage_data_window(probe)  # kick renders the region of the stage's resolution its data window says
+    stage, settings_prim = arnold_camera(path, camera, stage_pixel_aspect(probe), window)
     units = "spec" if arnold_usdlux_version(probe) else "arnold"  # kick reads every stage in Arnold's units
-    scene, info = load_stage(stage, time=test.get("frame"), camera=camera, width=w, height=h,
+    size_args = dict(width=w, height=h) if window is None else {}
+    scene, info = load_stage(stage, time=test.get("frame"), camera=camera, **size_args,
                              render_settings_prim=settings_prim, default_light=False, light_units=units,
                              fallback_surface="arnold",  # kick: Arnold's default shader on unbound geometry
                              rendering_space=rendering_space)
+    if (info.height, info.width) != (h, w):
+        raise ValueError(f"the data window {window} renders {info.width}x{info.height}, the reference is {w}x{h}")
     settings = tracer.RenderSettings(width=w, height=h, samples=aa, transparent=False, light_samples=4,
                                      sky_samples=8, max_depth=6, aovs=("objectid",))
     image = tracer.render(scene, settings)

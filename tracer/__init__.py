@@ -25,7 +25,7 @@ _EXPORTS = {
     "Image": "film", "read_image": "film", "write_image": "film",
     "RAY_TYPES": "integrator.wavefront",
     "AreaLight": "lights.emitters", "DistantLight": "lights.emitters", "PointLight": "lights.emitters",
-    "SpotLight": "lights.emitters",
+    "SpotLight": "lights.emitters", "LightShaping": "lights.emitters",
     "DEFAULT_MATERIAL": "shading.materials", "Materials": "shading.materials",
     "roughness_to_exponent": "shading.materials",
     "render": "render", "RenderCancelled": "integrator.tiles", "RenderTooLarge": "integrator.tiles",

@@ -128,6 +128,8 @@ def fold_arnold_camera(raw: dict, prim, time, note) -> dict:
     placement (:func:`arnold_placement`) is placed as Arnold places it, with its ``fov`` (horizontal) setting the
     focal length against the horizontal aperture; ``note`` receives one line saying so. Any other camera is as
     USD says."""
+    if raw["projection"] == ORTHOGRAPHIC:
+        return _arnold_screen_window(raw, prim, time, note)
     if not np.allclose(raw["camera_to_world"], np.eye(4)) or raw["projection"] != PERSPECTIVE:
         return raw
     placed = arnold_placement(prim, time)
@@ -139,6 +141,23 @@ def fold_arnold_camera(raw: dict, prim, time, note) -> dict:
         out["focal_length"] = raw["horizontal_aperture"] / 2 / np.tan(np.radians(placed[1]) / 2)
         said += f" and its fov {placed[1]:g}°"
     note(f"{raw['path']}: the USD camera has no transform; placed by its Arnold {said}")
+    return out
+
+
+def _arnold_screen_window(raw: dict, prim, time, note) -> dict:
+    """An orthographic camera with Arnold's ``screen_window_min``/``max`` (``primvars:arnold:*``, read by arnold-usd
+    after the USD camera, whose aperture its ortho_camera ignores): Arnold's ortho_camera shows x from min.x to max.x
+    in scene units (the y extent follows the image's aspect), so the horizontal aperture is (max.x − min.x) and its
+    offset (max.x + min.x)/2, in USD's tenths of a unit (the vertical ones scaled alike)."""
+    lo, hi = _arnold_primvar(prim, "screen_window_min", time), _arnold_primvar(prim, "screen_window_max", time)
+    if lo is None or hi is None:
+        return raw
+    lo, hi = np.asarray(tuple(lo), np.float64), np.asarray(tuple(hi), np.float64)
+    if lo.shape != (2,) or hi.shape != (2,) or not np.all(np.isfinite(lo) & np.isfinite(hi)) or np.any(hi <= lo):
+        return raw
+    out = dict(raw, horizontal_aperture=10.0 * (hi[0] - lo[0]), horizontal_aperture_offset=5.0 * (hi[0] + lo[0]),
+               vertical_aperture=10.0 * (hi[1] - lo[1]), vertical_aperture_offset=5.0 * (hi[1] + lo[1]))
+    note(f"{raw['path']}: orthographic, framed by its Arnold screen window x {lo[0]:g}..{hi[0]:g}")
     return out
 
 

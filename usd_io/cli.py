@@ -462,6 +462,13 @@ def cmd_info(args) -> int:
 def _value(v) -> str:
     if isinstance(v, str):
         return v
+    if v is None:
+        return "none"
+    if hasattr(v, "cone_angle"):  # a LightShaping
+        return (f"(cone {np.degrees(v.cone_angle):.4g}°, softness {v.softness:.4g}, focus {v.focus:.4g}, "
+                f"tint {_value(v.focus_tint)})")
+    if isinstance(v, np.ndarray) and v.ndim == 3:  # a light's texture
+        return f"{v.shape[1]}x{v.shape[0]} image"
     try:
         return str(np.round(np.asarray(v, float), 4).tolist())
     except (TypeError, ValueError):  # anything else a light may carry (shape names, tuples of mixed types)

@@ -129,7 +129,7 @@ def arnold_usdlux_version(stage) -> str | None:
         if prim.GetTypeName() == "RenderSettings":
             a = prim.GetAttribute("arnold:global:usdlux_version")
             v = a.Get() if a and a.HasAuthoredValue() else None
-            if v not in (None, "", 0, "0"):
+            if v not in (None, "", 0, "0") and str(v).strip().lower() != "none":  # "None": Arnold's own reading
                 return str(v)
     return None
 

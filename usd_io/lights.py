@@ -56,10 +56,12 @@ from __future__ import annotations
 import numpy as np
 from pxr import Sdf, UsdGeom, UsdLux
 
-from tracer import AreaLight, DistantLight, PointLight, SpotLight
+from tracer import AreaLight, DistantLight, LightShaping, PointLight, SpotLight
 from tracer.lights.linking import LightLink
 
 from .dome import dome_texture
+from .ies import read_ies, solid_angle_mean
+from .materials.texture_files import read_texture_file
 from .exporters import KIT_EV, NITS_TO_W_PER_M2, detect
 
 LIGHT_TYPES = ("SphereLight", "DistantLight", "RectLight", "DiskLight", "DomeLight", "DomeLight_1", "CylinderLight")
@@ -137,9 +139,11 @@ def sun_irradiance(rgb, angle_deg: float, normalize: bool, blender: bool):
     return rgb * omega, diameter
 
 
-def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, units: str | None = None):
+def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, units: str | None = None,
+                  textures=None):
     """(kind, tracer light or None, world dict or None) for one UsdLux prim in ``units`` (usd_io.exporters.UNITS:
-    the writer's light units; None: "blender" when ``blender`` else "spec")."""
+    the writer's light units; None: "blender" when ``blender`` else "spec"). ``textures``: the reader's
+    ``TextureCache`` (a RectLight's texture:file read in the stage's rendering space), or None."""
     units = units or ("blender" if blender else "spec")
     if units not in ("spec", "arnold") and not authored(prim, "intensity"):
         units = "spec"  # the writer's units are about the numbers it wrote: a fallback intensity is UsdLux's
@@ -158,26 +162,40 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
     if t == "SphereLight":
         lux = UsdLux.SphereLight(prim)
         r = _finite(_get(lux.GetRadiusAttr(), time, 0.5), "radius")
+        point = bool(_get(lux.GetTreatAsPointAttr(), time, False))
+        normalized = _normalized(prim, time)
+        if units == "arnold" and point:
+            # arnold-usd reads inputs:radius and inputs:normalize only when treatAsPoint is off: a treatAsPoint
+            # light is Arnold's point_light with its defaults, radius 0 and normalize on (unless the primvar below)
+            r, normalized, point = 0.0, True, False
         arnold_r = prim.GetAttribute("primvars:arnold:radius") if units == "arnold" else None
         if arnold_r and arnold_r.HasAuthoredValue():  # Arnold's own parameter wins (arnold-usd reads it last)
             r = _finite(arnold_r.Get(time), "primvars:arnold:radius")
         r *= float(np.mean(_axis_scales(world)))
-        point = bool(_get(lux.GetTreatAsPointAttr(), time, False))
-        if units == "arnold" and (_normalized(prim, time) or r <= 0):
+        if units == "arnold" and (normalized or r <= 0):
             intensity = rgb  # Arnold's point light: E = I/d² at distance d (the spec's I/4 W/sr is a quarter)
-        elif _normalized(prim, time) or r <= 0:
+        elif normalized or r <= 0:
             intensity = rgb / 4.0
         else:
             intensity = rgb * np.pi * r * r
         radius = 0.0 if point else r
+        profile, axes = _ies_profile(prim, world, time, warn) if units != "blender" else (None, None)
+        if profile is not None and units == "arnold":  # arnold-usd: a photometric_light, whatever the cone says,
+            # whose nadir is its local −Y (as Arnold's photometric_light aims, a ceiling fixture: test_0140's beam)
+            axes = np.stack([world[:3, 0], -world[:3, 2], -world[:3, 1]])
+            return "point", PointLight(position=pos, intensity=intensity, radius=radius, name=name, profile=profile,
+                                       profile_axes=axes), None
+        if units not in ("arnold", "blender"):  # the spec's ShapingAPI (cone, softness, focus, focus tint)
+            return "point", PointLight(position=pos, intensity=intensity, radius=radius, name=name,
+                                       shaping=_light_shaping(prim, time, down, warn, ies_read=True),
+                                       profile=profile, profile_axes=axes), None
         shaping = UsdLux.ShapingAPI(prim)
         cone = shaping.GetShapingConeAngleAttr() if prim.HasAPI(UsdLux.ShapingAPI) else None
         focus = shaping.GetShapingFocusAttr() if prim.HasAPI(UsdLux.ShapingAPI) else None
         if focus and focus.HasAuthoredValue() and float(focus.Get(time) or 0) != 0:
-            warn(f"{name}: ShapingAPI shaping:focus is not supported (ignored)")
-        ies = shaping.GetShapingIesFileAttr() if prim.HasAPI(UsdLux.ShapingAPI) else None
-        if ies and ies.HasAuthoredValue():
-            warn(f"{name}: ShapingAPI IES profile is not supported (ignored)")
+            warn(f"{name}: ShapingAPI shaping:focus is not supported on this exporter's spot lights (ignored)")
+        if units == "blender":
+            _warn_ies(prim, time, warn)
         if cone and cone.HasAuthoredValue():
             angle = _finite(cone.Get(time), "shaping:cone:angle")
             soft = _finite(_get(shaping.GetShapingConeSoftnessAttr(), time, 0.0), "shaping:cone:softness")
@@ -199,40 +217,146 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
             # 0.53°): arnold-usd's references of lights without an intensity (test_2254, test_2268) are lit so
         return "distant", DistantLight(direction=down, irradiance=irradiance, angle=diameter, name=name), None
     if t == "CylinderLight":
-        # A tube along its local X of `length` and `radius`: emitted as a spherical light of the same power
-        # at its centre (Φ = L·π·A for a Lambertian surface of area A = 2πrl; normalize divides by A).
+        # A tube along its local X of `length` and `radius`, emitting from its side (UsdLux: not its end caps) with
+        # radiance I (normalize: I over the side's area 2πrl).
         lux = UsdLux.CylinderLight(prim)
         sx, sy, sz = _axis_scales(world)
         length = _finite(_get(lux.GetLengthAttr(), time, 1.0), "length") * sx
         r = _finite(_get(lux.GetRadiusAttr(), time, 0.5), "radius") * float(np.sqrt(sy * sz))
-        if _normalized(prim, time) or r <= 0 or length <= 0:
-            power = rgb * np.pi
-        else:
-            power = rgb * np.pi * 2 * np.pi * r * length
-        warn(f"{name}: CylinderLight rendered as a point light of the same power")
-        return "point", PointLight(position=pos, intensity=power / (4 * np.pi), radius=max(r, 0.0), name=name), None
+        if not (length > 0 and r > 0):
+            warn(f"{name}: CylinderLight of zero length or radius skipped")
+            return "area", None, None
+        size = (length, 2 * r)
+        radiance = rgb / AreaLight.area_of(size, "cylinder") if _normalized(prim, time) else rgb
+        shaping = None if units == "blender" else _light_shaping(prim, time, down, warn, ies_read=True)
+        profile, axes = _ies_profile(prim, world, time, warn) if units != "blender" else (None, None)
+        if units == "blender":
+            _warn_ies(prim, time, warn)
+        return "area", AreaLight(position=pos, u_axis=world[:3, 0], v_axis=world[:3, 1], normal=down, size=size,
+                                 radiance=radiance, shape="cylinder", name=name, shaping=shaping, profile=profile,
+                                 profile_axes=axes), None
     if t in ("RectLight", "DiskLight"):
         sx, sy, _ = _axis_scales(world)
         if t == "RectLight":
             lux = UsdLux.RectLight(prim)
             size = (float(_get(lux.GetWidthAttr(), time, 1.0)) * sx, float(_get(lux.GetHeightAttr(), time, 1.0)) * sy)
             shape = "rect"
-            if lux.GetTextureFileAttr().HasAuthoredValue():
-                warn(f"{name}: RectLight texture:file is not supported (uniform colour used)")
+            texture = _rect_texture(prim, lux, time, warn, textures)
         else:
             r = float(_get(UsdLux.DiskLight(prim).GetRadiusAttr(), time, 0.5))
-            size, shape = (2 * r * sx, 2 * r * sy), "disk"
+            size, shape, texture = (2 * r * sx, 2 * r * sy), "disk", None
         if not (np.all(np.isfinite(size)) and min(size) > 0):
             warn(f"{name}: {t} of zero or non-finite size {size} skipped")
             return "area", None, None
         area = AreaLight.area_of(size, shape)
         radiance = rgb / area if _normalized(prim, time) else rgb
-        return "area", AreaLight(position=pos, u_axis=world[:3, 0], v_axis=world[:3, 1], normal=down,
-                                 size=size, radiance=radiance, shape=shape, name=name), None
+        shaping = None if units == "blender" else _light_shaping(prim, time, down, warn, ies_read=True)
+        profile, axes = _ies_profile(prim, world, time, warn) if units != "blender" else (None, None)
+        if units == "blender":
+            _warn_ies(prim, time, warn)
+        if units == "arnold":
+            spread = prim.GetAttribute("primvars:arnold:spread")
+            if spread and spread.HasAuthoredValue() and float(spread.Get(time)) != 1.0:
+                warn(f"{name}: Arnold's spread {float(spread.Get(time)):g} is not supported (a Lambertian emitter)")
+        # The texture's u: UsdLux (OpenUSD 25.05, Arnold's usdlux_version 25.05) shows the image unmirrored to an
+        # eye facing the light's emitting side, whose right is the light's −X; Arnold's own reading mirrors it
+        # (arnold-usd's test_2434.1 / .2, "Rect-lights display in (non-)mirror-image").
+        u_axis = world[:3, 0] if texture is None or units == "arnold" else -world[:3, 0]
+        return "area", AreaLight(position=pos, u_axis=u_axis, v_axis=world[:3, 1], normal=down, size=size,
+                                 radiance=radiance, shape=shape, name=name, shaping=shaping, texture=texture,
+                                 profile=profile, profile_axes=axes), None
     if t in ("DomeLight", "DomeLight_1"):
         return _dome(prim, world, time, rgb, warn)
     warn(f"{name}: light type {t} is not supported (skipped)")
     return "unsupported", None, None
+
+
+def _rect_texture(prim, lux, time, warn, textures):
+    """A RectLight's ``texture:file`` as an (H, W, 3) linear image (the tracer multiplies the radiance by it), or
+    None: no file (an empty path), or one that cannot be read (one warning; the light's uniform colour is used)."""
+    attr = lux.GetTextureFileAttr()
+    asset = attr.Get(time) if attr.HasAuthoredValue() else None
+    if not isinstance(asset, Sdf.AssetPath) or not asset.path:
+        return None
+    name = str(prim.GetPath())
+    if not asset.resolvedPath:
+        warn(f"{name}: RectLight texture {asset.path!r} not found (uniform colour used)")
+        return None
+    try:
+        got = (textures.get(asset.resolvedPath, "auto", asset.path) if textures is not None
+               else read_texture_file(asset.resolvedPath, "auto", asset.path))
+    except ValueError as exc:
+        warn(f"{name}: {exc} (uniform colour used)")
+        return None
+    return np.ascontiguousarray(got.pixels[..., :3], np.float32)
+
+
+def _warn_ies(prim, time, warn):
+    """One warning for an IES profile (``shaping:ies:file`` naming a file; an empty path is no profile) on a light
+    that does not read it (Blender's exporter units)."""
+    if not prim.HasAPI(UsdLux.ShapingAPI):
+        return
+    ies = UsdLux.ShapingAPI(prim).GetShapingIesFileAttr()
+    v = ies.Get(time) if ies.HasAuthoredValue() else None
+    if v is not None and v.path:
+        warn(f"{prim.GetPath()}: ShapingAPI IES profile {v.path} is not read in this exporter's units (ignored)")
+
+
+def _ies_profile(prim, world, time, warn):
+    """(table, axes) of the light's IES profile (``shaping:ies:file``; usd_io/ies.py) for a point light, or
+    (None, None). The table is the file's candela values in W/sr (÷ 683 lm/W), multiplying the light's intensity,
+    or with ``shaping:ies:normalize`` over their mean on the sphere (the light's power kept). Evidence for the
+    first: arnold-usd's test_0140 and test_1316 (photometric lights, peaks 31 325 cd and 159 cd) match their
+    references where neither is clipped at reference/ours = 1.48e-3 and 1.46e-3 × the peak candela (1/683 =
+    1.464e-3); the second: test_2477.1 (38 → 40 dB). The axes are the light's +X (C0), +Y (C90) and −Z (nadir)."""
+    if not prim.HasAPI(UsdLux.ShapingAPI):
+        return None, None
+    api = UsdLux.ShapingAPI(prim)
+    attr = api.GetShapingIesFileAttr()
+    asset = attr.Get(time) if attr.HasAuthoredValue() else None
+    if not isinstance(asset, Sdf.AssetPath) or not asset.path:
+        return None, None
+    name = str(prim.GetPath())
+    if not asset.resolvedPath:
+        warn(f"{name}: IES profile {asset.path!r} not found (the light is unshaped)")
+        return None, None
+    try:
+        table = read_ies(asset.resolvedPath)
+    except ValueError as exc:
+        warn(f"{name}: IES profile {asset.path!r}: {exc} (the light is unshaped)")
+        return None, None
+    scale = float(_get(api.GetShapingIesAngleScaleAttr(), time, 0.0))
+    if scale != 0.0:
+        warn(f"{name}: shaping:ies:angleScale {scale:g} is not supported (the profile's own angles used)")
+    if bool(_get(api.GetShapingIesNormalizeAttr(), time, False)):
+        table = table / solid_angle_mean(table)
+    else:
+        table = table * NITS_TO_W_PER_M2
+    return table, np.stack([world[:3, 0], world[:3, 1], -world[:3, 2]])
+
+
+def _light_shaping(prim, time, axis, warn, ies_read=False) -> LightShaping | None:
+    """The light's ShapingAPI as a :class:`tracer.lights.emitters.LightShaping` about ``axis`` (the light's −Z), or
+    None: the cone only where ``shaping:cone:angle`` is authored (arnold-usd reads it so; the schema's fallback 90°
+    would cut a sphere light's back half), softness, focus and focus tint as OpenUSD documents them."""
+    if not prim.HasAPI(UsdLux.ShapingAPI):
+        return None
+    api = UsdLux.ShapingAPI(prim)
+    if not ies_read:
+        _warn_ies(prim, time, warn)
+    cone = api.GetShapingConeAngleAttr()
+    if not cone.HasAuthoredValue() and prim.GetAttribute("shaping:cone:angle").HasAuthoredValue():
+        cone = prim.GetAttribute("shaping:cone:angle")  # the pre-21.02 name (see _get)
+    angle = _finite(cone.Get(time), "shaping:cone:angle") if cone.HasAuthoredValue() else 180.0
+    soft = _finite(_get(api.GetShapingConeSoftnessAttr(), time, 0.0), "shaping:cone:softness")
+    focus = _finite(_get(api.GetShapingFocusAttr(), time, 0.0), "shaping:focus")
+    tint = np.asarray(_get(api.GetShapingFocusTintAttr(), time, (0.0, 0.0, 0.0)), np.float64)
+    if angle <= 0:
+        warn(f"{prim.GetPath()}: shaping:cone:angle {angle:g} <= 0 ignored")
+        angle = 180.0
+    shaping = LightShaping(axis=axis, cone_angle=np.radians(min(angle, 180.0)), softness=soft, focus=max(focus, 0.0),
+                           focus_tint=tint)
+    return None if shaping.is_identity() else shaping
 
 
 def _old_blender(t, prim, world, time, rgb, units, warn):
@@ -316,6 +440,17 @@ def _camera_weight(prim, time) -> float:
     return max(w, 0.0) if np.isfinite(w) else 1.0
 
 
+def _arnold_camera_visibility(prim, time) -> float:
+    """How the camera sees a light's shape: UsdLux has no camera visibility (0, as before), but Arnold's light
+    parameter ``camera`` (``primvars:arnold:camera = w``: its contribution to camera rays, × w) shows it, unless
+    ``primvars:arnold:visibility:camera`` is off (arnold-usd reads both when authored)."""
+    vis = UsdGeom.PrimvarsAPI(prim).GetPrimvar("arnold:visibility:camera")
+    if vis and vis.HasAuthoredValue() and not vis.Get(time):
+        return 0.0
+    pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("arnold:camera")
+    return _camera_weight(prim, time) if pv and pv.HasAuthoredValue() else 0.0
+
+
 #: The default lighting of a stage without lights, as usdview/usdrecord light one: a headlight along the camera's
 #: view (irradiance π: a white Lambertian surface facing the camera shows its albedo) and a dim dome (ambient).
 DEFAULT_HEADLIGHT_IRRADIANCE = np.pi
@@ -358,5 +493,6 @@ def light_links(prims: list, object_names: list, time) -> list:
             link.cast_shadow = bool(_get(UsdLux.ShadowAPI(prim).GetShadowEnableAttr(), time, True))
             link.diffuse = _finite(float(_get(lux.GetDiffuseAttr(), time, 1.0)), "inputs:diffuse")
             link.glossy = _finite(float(_get(lux.GetSpecularAttr(), time, 1.0)), "inputs:specular")
+            link.camera = _arnold_camera_visibility(prim, time)
         links.append(link)
     return [] if all(k.is_default() for k in links) else links

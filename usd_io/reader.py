@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from pxr import Sdf, Usd, UsdGeom, UsdLux
+from pxr import Sdf, Usd, UsdGeom, UsdLux, UsdSkel
 
 from tracer import SceneBuilder
 from tracer.colorspace import AP1_TO_REC709
@@ -23,12 +23,13 @@ from .diagnostics import summarize
 from .dome import environment
 from .exporters import light_units as exporter_light_units
 from .geometry.curves import read_curves, read_points
-from .geometry.gprims import DEFAULT_SEGMENTS, GPRIM_TYPES, read_gprim
-from .geometry.instancing import instance_matrices
-from .geometry.mesh import COMPLEXITY, DEFAULT_COMPLEXITY, SUBDIVIDED, MeshData, read_mesh, read_subdivided
+from .geometry.gprims import DEFAULT_SEGMENTS, GPRIM_TYPES, geom_type, read_gprim
+from .geometry.instancing import instance_matrices, missing_required_input
+from .geometry.mesh import (COMPLEXITY, DEFAULT_COMPLEXITY, SUBDIVIDED, MeshData, read_mesh, read_subdivided,
+                            smooth_normals)
 from .geometry.motion import stage_motion
 from .geometry.nurbs import read_nurbs_curves, read_nurbs_patch, read_tet_mesh
-from .geometry.skel import Skinning
+from .geometry.skel import Skinning, bone_mesh, skeleton_purpose
 from .geometry.xform import Transforms, transform_points
 from .holdout import holdout_flags
 from .layer_metadata import meters_per_unit
@@ -117,6 +118,8 @@ class _Reader:
         self.light_prims: list = []  # the UsdLux prim of each tracer light
         self._grey = None
         self.empty: set = set()  # gprims whose geometry is absent or has no faces at this time
+        self.invalid: set = set()  # prims left out as Storm leaves them out, or whose prototypes draw nothing here
+        # (each named in a warning; a stage of only these is not refused)
         self.skinning = Skinning(time, self.xf.world)
         self.subdivision_level = COMPLEXITY[DEFAULT_COMPLEXITY]
         self._refined: dict = {}  # prim path -> MeshData refined ahead (prefetch_subdivided)
@@ -252,6 +255,37 @@ class _Reader:
         self._grow(transform_points(m, data.points))
         self.info.meshes.append((str(prim.GetPath()), int(len(tris))))
 
+    def add_skeleton(self, prim):
+        """A Skeleton drawn as Storm draws it: UsdSkelImaging's bone mesh (usd_io.geometry.skel.bone_mesh), posed
+        at the time code, in the skeleton's space and colour (its displayColor), when its purpose (a guide unless
+        authored: skeleton_purpose) is one the render shows."""
+        if skeleton_purpose(prim) not in self.purposes or prim.IsInstanceProxy():
+            return
+        label = str(prim.GetPath())
+        got = bone_mesh(UsdSkel.Skeleton(prim), self.time, self.skinning.cache)
+        if got is None:
+            self.info.warn(f"{label}: skeleton cannot be posed: its bones are not drawn")
+            return
+        points, tris = got
+        if not len(tris):
+            return
+        if not np.all(np.isfinite(points)):
+            self.info.warn(f"{label}: skeleton posed at non-finite joints: its bones are not drawn")
+            return
+        n = len(tris)
+        data = MeshData(points=points, triangles=tris, faces=np.arange(n), n_faces=n,
+                        normals=smooth_normals(points, tris), corners=np.arange(3 * n).reshape(n, 3),
+                        n_face_vertices=3 * n)
+        m = self.xf.world(prim)
+        if not _usable(m):
+            self.info.warn(f"{label}: transform is singular (zero scale) or not finite (skipped)")
+            return
+        data, material, extra, _needs = self.shaded_with_needs(prim, data)
+        self.b.add_mesh(data.points, tris, material=material, name=label, transform=m, normals=data.normals,
+                        **dict(dict(uvs=data.uvs), **extra))
+        self._grow(transform_points(m, data.points))
+        self.info.meshes.append((label, n))
+
     def add_instancer(self, prim, frames=None, depth=0, outer=None):
         """A PointInstancer; ``frames`` (F, 4, 4) are the world matrices of the instancer itself when it is nested
         in another instancer's prototype (one per outer instance), else its own world matrix; ``outer`` the
@@ -262,11 +296,18 @@ class _Reader:
         3-component primvar that a prototype's material reads as its colour (displayColor, a primvar reader,
         Arnold's user_data_rgb) is drawn per instance, by one copy of the prototype mesh per distinct value
         (:data:`INSTANCE_COLOUR_TRIANGLES` at most). Others are named in one warning."""
+        missing = missing_required_input(prim)
+        if missing is not None:  # Storm leaves it out of the render index and draws the rest
+            self.info.warn(f"{prim.GetPath()}: PointInstancer without a value for its required '{missing}' (not "
+                           "drawn, as Storm does not draw it)")
+            self.invalid.add(str(prim.GetPath()))
+            return 0
         mats, idx, protos = instance_matrices(prim, self.time)
         frames = self.xf.world(prim)[None] if frames is None else frames
         here = str(prim.GetPath())
         own, per_instance = instance_colour_primvars(prim, self.time, len(idx))
         total = 0
+        undrawn: list = []  # prototype lights (not instanced) and Arnold shapes (not USD geometry)
         for p_index, p_path in enumerate(protos):
             sel = np.flatnonzero(idx == p_index)
             root = self.stage.GetPrimAtPath(p_path)
@@ -286,11 +327,13 @@ class _Reader:
                     else:
                         total += self.add_instancer(piece, base @ rel[None], depth + 1, colours)
                     continue
-                if (piece.GetTypeName() not in GPRIM_TYPES and not piece.IsA(UsdGeom.Mesh)
+                if (geom_type(piece) not in GPRIM_TYPES and not piece.IsA(UsdGeom.Mesh)
                         and not _is_points_or_curves(piece)):
                     if piece.IsA(UsdGeom.Gprim):
                         self.info.warn(f"{piece.GetPath()}: {piece.GetTypeName()} is not supported (a prototype of "
                                        f"{prim.GetPath()}; skipped)")
+                    elif piece.HasAPI(UsdLux.LightAPI) or piece.GetTypeName() in ARNOLD_SHAPES:
+                        undrawn.append(piece)
                     continue
                 data = self.geometry(piece)
                 if data is None or not len(data.triangles):
@@ -320,6 +363,13 @@ class _Reader:
                 self.b.add_instances(proto, full)
                 self._grow_instances(full, data.points)
                 total += len(data.triangles) * len(full)
+        if undrawn:
+            names = ", ".join(f"{q.GetTypeName()} {q.GetPath()}" for q in undrawn[:3]) + (", ..." if len(undrawn) > 3
+                                                                                            else "")
+            self.info.warn(f"{here}: prototype(s) not drawn: {names} (lights in prototypes are not instanced; "
+                           "Arnold shapes are not USD geometry)")
+            if not total:
+                self.invalid.add(here)  # said: not a stage refused for drawing nothing
         unread = sorted(set(per_instance) - {n for src, n in self._instance_primvars_read if src == here})
         if unread:  # Hydra gives each instance its element; these reach no material as a colour here
             self.info.warn(f"{prim.GetPath()}: per-instance primvars {', '.join(unread)} are not read (each "
@@ -362,7 +412,7 @@ class _Reader:
     def add_light(self, prim):
         try:
             kind, light, world = convert_light(prim, self.xf.world(prim), self.time, self.info.warn,
-                                               units=self.light_units)
+                                               units=self.light_units, textures=self.mats.files)
         except ValueError as exc:  # the tracer's light validation (NaN/Inf intensity, zero-length axes, ...)
             self.info.warn(f"{prim.GetPath()}: {exc} (light skipped)")
             return
@@ -404,6 +454,10 @@ def _camera(stage, r, info, tc, camera, width, height, settings_prim, depth_of_f
     policy = CONFORM[spec.conform] if spec else CONFORM[DEFAULT_CONFORM]
     if cam_prim is not None:
         raw = cam.fold_arnold_camera(cam.read_camera(cam_prim, tc), cam_prim, tc, info.notes.append)
+        shaders = [n for n in ("filtermap", "uv_remap") if (cam_prim.GetAttribute(f"primvars:arnold:{n}")
+                                                           and cam_prim.GetAttribute(f"primvars:arnold:{n}").Get())]
+        if shaders:  # Arnold camera shaders: not run by the tracer
+            info.warn(f"{cam_prim.GetPath()}: Arnold camera {' and '.join(shaders)} are not applied")
         lens = depth_of_field and (spec is None or spec.depth_of_field)  # --no-dof, disableDepthOfField
         raw = cam.fold_depth_of_field(cam.fold_clipping_planes(raw, info.warn), info.warn, lens, info.notes.append)
         info.width, info.height = cam.image_size(raw, width, height, par)
@@ -426,9 +480,11 @@ def _say_if_empty(r, info) -> None:
     if sum(n for _p, n in info.meshes):
         return
     gprims = [p for p in r.prims if (p.IsA(UsdGeom.Gprim) or p.IsA(UsdGeom.PointInstancer))
-              and str(p.GetPath()) not in r.empty]
+              and str(p.GetPath()) not in r.empty and str(p.GetPath()) not in r.invalid]
     if not gprims:
         empty = f" ({len(r.empty)} gprim(s) without points or faces at this time)" if r.empty else ""
+        if r.invalid:
+            empty += f" ({len(r.invalid)} instancer(s) or instance(s) left out: see the warnings above)"
         info.warn(f"the stage has no visible gprims with geometry{empty}: the frame shows only the background")
         return
     kinds = sorted({p.GetTypeName() for p in gprims})
@@ -451,7 +507,7 @@ def _undrawn(prim) -> list:
     instancer's prototypes hold only; [] when it has anything drawable."""
     kids = [q for q in Usd.PrimRange(prim) if q != prim and q.IsA(UsdGeom.Gprim)] \
         if prim.IsA(UsdGeom.PointInstancer) else [prim]
-    drawn = any(q.IsA(UsdGeom.PointInstancer) or q.GetTypeName() in GPRIM_TYPES or q.IsA(UsdGeom.Mesh)
+    drawn = any(q.IsA(UsdGeom.PointInstancer) or geom_type(q) in GPRIM_TYPES or q.IsA(UsdGeom.Mesh)
                 or _is_points_or_curves(q) for q in kids)
     return [] if drawn else kids
 
@@ -505,17 +561,65 @@ def _read_prims(r: _Reader, stage, tc, purposes, info: StageInfo) -> None:
     r.prims = list(renderable_prims(stage, tc, purposes))
     r.prefetch_subdivided(r.prims)
     for prim in r.prims:
-        t = prim.GetTypeName()
+        t = geom_type(prim)
+        if prim.IsInstance() and (prim.IsA(UsdGeom.Gprim) or prim.IsA(UsdGeom.PointInstancer)):
+            # UsdImaging's instance adapter skips the prototype's root when it is imageable (its attributes could
+            # differ per instance); Storm draws nothing for it, with this warning
+            info.warn(f"{prim.GetPath()}: a {t} directly instanced (instanceable = true on the {t} itself) is not "
+                      "drawn, as Storm does not draw it: put the prim under an Xform and instance the Xform")
+            r.invalid.add(str(prim.GetPath()))
+            continue
         if prim.IsA(UsdGeom.PointInstancer):
             r.add_instancer(prim)
         elif t in GPRIM_TYPES or prim.IsA(UsdGeom.Mesh) or _is_points_or_curves(prim):
             r.add_gprim(prim)
+        elif prim.IsA(UsdSkel.Skeleton):
+            r.add_skeleton(prim)
         elif prim.HasAPI(UsdLux.LightAPI):
             r.add_light(prim)
         elif prim.IsA(UsdGeom.Camera):
             info.cameras.append(str(prim.GetPath()))
         elif prim.IsA(UsdGeom.Gprim):
             info.warn(f"{prim.GetPath()}: {t} is not supported (skipped)")
+    _say_draw_modes(r.prims, info.warn)
+    _say_arnold_shapes(r.prims, info.warn)
+
+
+#: Arnold's own shape schemas (arnold-usd's schemas: Arnold nodes as prims) other than the sphere and box that
+#: usd_io.geometry.gprims draws: not USD geometry, not drawn.
+ARNOLD_SHAPES = ("ArnoldCone", "ArnoldCylinder", "ArnoldDisk", "ArnoldPlane",
+                 "ArnoldPolymesh", "ArnoldCurves", "ArnoldPoints", "ArnoldNurbs", "ArnoldImplicit", "ArnoldGinstance",
+                 "ArnoldUsd", "ArnoldProcedural", "ArnoldProceduralCustom", "ArnoldAlembic", "ArnoldVolume",
+                 "ArnoldVolumeImplicit")
+
+
+def _say_arnold_shapes(prims, warn) -> None:
+    """One warning naming the Arnold shape prims (:data:`ARNOLD_SHAPES`) of the stage: kick draws them, the tracer
+    reads USD geometry only."""
+    found = [p for p in prims if p.GetTypeName() in ARNOLD_SHAPES]
+    if found:
+        names = ", ".join(f"{p.GetTypeName()} {p.GetPath()}" for p in found[:4]) + (", ..." if len(found) > 4 else "")
+        warn(f"{len(found)} Arnold shape prim(s) ({names}): Arnold's own schema, not USD geometry; not drawn")
+
+
+def _say_draw_modes(prims, warn) -> None:
+    """One warning naming the models whose ``model:drawMode`` Storm applies (a component model always, any other
+    model with ``model:applyDrawMode = true``: UsdImaging's draw-mode rule) and that are drawn here in full: the
+    stand-ins (cards, bounds, origin) are a viewer's, not drawn by the tracer."""
+    found: dict = {}
+    for prim in prims:
+        if not prim.IsModel() or not prim.HasAPI(UsdGeom.ModelAPI):
+            continue
+        model = UsdGeom.ModelAPI(prim)
+        mode = str(model.ComputeModelDrawMode())
+        if mode in ("default", "inherited", ""):
+            continue
+        if Usd.ModelAPI(prim).IsKind("component") or model.GetModelApplyDrawModeAttr().Get():
+            found.setdefault(mode, []).append(str(prim.GetPath()))
+    for mode, paths in sorted(found.items()):
+        names = ", ".join(paths[:3]) + (", ..." if len(paths) > 3 else "")
+        warn(f"model:drawMode {mode!r} on {len(paths)} model(s) ({names}): Storm draws their {mode} stand-in; the "
+             "tracer draws the full geometry")
 
 
 def stage_up_axis(stage, warn) -> str:

@@ -18,7 +18,8 @@ camera, size and RenderVars and written to its productName (``RenderSpec.product
         adjustApertureHeight  keep the horizontal aperture, derive the vertical
         adjustPixelAspectRatio  keep both; the pixels stretch (non-square) to fit
     dataWindowNDC           (xmin, ymin, xmax, ymax) of the image in NDC (0, 0 lower left): only that part is
-                            rendered, as an image of that part's size (the aperture and offsets cropped to it)
+                            rendered, as an image of that part's size (the aperture and offsets cropped to it);
+                            a window reaching beyond 0..1 renders the overscan (the aperture widened alike)
     disableDepthOfField     every camera a pinhole (as ``--no-dof``: ``RenderSpec.depth_of_field``)
     disableMotionBlur       no motion blur (as ``--no-motion-blur``; also the deprecated ``instantaneousShutter``:
                             ``RenderSpec.motion_blur``)
@@ -129,8 +130,8 @@ def read_render_settings(stage, path, time, warn) -> RenderSpec | None:
              f"({', '.join(CONFORM)}): {DEFAULT_CONFORM} used")
         spec.conform = DEFAULT_CONFORM
     x0, y0, x1, y1 = spec.data_window
-    if not (0 <= x0 < x1 <= 1 and 0 <= y0 < y1 <= 1):
-        warn(f"{spec.path}: dataWindowNDC {spec.data_window} is not a window inside (0, 0, 1, 1) "
+    if not (np.all(np.isfinite(spec.data_window)) and x0 < x1 and y0 < y1):  # beyond 0..1: overscan (UsdRender)
+        warn(f"{spec.path}: dataWindowNDC {spec.data_window} is not a window (xmin < xmax, ymin < ymax) "
              "(the whole image is rendered)")
         spec.data_window = (0.0, 0.0, 1.0, 1.0)
     if not (np.isfinite(spec.pixel_aspect) and spec.pixel_aspect > 0):

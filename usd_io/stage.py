@@ -120,14 +120,18 @@ def check_purposes(purposes) -> tuple[str, ...]:
 def renderable_prims(stage: Usd.Stage, time: Usd.TimeCode, purposes=DEFAULT_PURPOSES, root=None):
     """Yield prims (of the stage, or of the subtree at ``root``, root included) to convert: active, defined, non-abstract, visible at ``time``, of a wanted purpose.
 
-    Subtrees are pruned at the first invisible prim, at prims of an unwanted purpose and below PointInstancers
-    (their prototypes are drawn only through the instancer). Instance proxies are included. Under a ``root`` (a
+    Subtrees are pruned at the first invisible prim and below PointInstancers (their prototypes are drawn only
+    through the instancer). A prim's purpose is its own authored one, else its nearest ancestor's
+    (UsdGeomImageable's ComputePurpose, as Storm draws them): a prim of an unwanted purpose is left out, but its
+    descendants that author a wanted purpose are not. A Skeleton is yielded whatever its purpose (its bones'
+    purpose is a guide unless authored: usd_io.geometry.skel.skeleton_purpose). Instance proxies are included. Under a ``root`` (a
     PointInstancer's prototype) a ``def`` counts even when an ancestor is an ``over``: prototypes kept under an
     ``over`` so that they do not render on their own are drawn through their instancer, as Hydra draws them.
     """
     defined = Usd.PrimIsDefined if root is None else Usd.PrimHasDefiningSpecifier
     predicate = Usd.TraverseInstanceProxies(Usd.PrimIsActive & defined & ~Usd.PrimIsAbstract)
     it = iter(Usd.PrimRange(root if root is not None else stage.GetPseudoRoot(), predicate))
+    infos: dict = {}  # prim path -> UsdGeom purpose info (its children's inheritance)
     if root is None:
         next(it)  # the pseudo-root
     for prim in it:
@@ -137,20 +141,17 @@ def renderable_prims(stage: Usd.Stage, time: Usd.TimeCode, purposes=DEFAULT_PURP
             if vis == UsdGeom.Tokens.invisible:
                 it.PruneChildren()
                 continue
-            purpose = img.GetPurposeAttr()
-            if purpose.HasAuthoredValue() and purpose.Get() not in purposes:
-                it.PruneChildren()
-                continue
-            if "default" not in purposes and not _explicit_purpose(prim):
-                # An unauthored purpose inherits; with "default" excluded only explicitly-purposed subtrees render.
+            parent = infos.get(prim.GetParent().GetPath())
+            info = img.ComputePurposeInfo(parent) if parent is not None else img.ComputePurposeInfo()
+            infos[prim.GetPath()] = info
+            if info.purpose not in purposes and prim.GetTypeName() != "Skeleton":
+                if prim.IsA(UsdGeom.PointInstancer):
+                    it.PruneChildren()
                 continue
         yield prim
         if prim.IsA(UsdGeom.PointInstancer):
             it.PruneChildren()
 
-
-def _explicit_purpose(prim) -> bool:
-    return UsdGeom.Imageable(prim).ComputePurpose() != UsdGeom.Tokens.default_
 
 
 def stage_time(stage: Usd.Stage, time) -> Usd.TimeCode:

@@ -51,13 +51,68 @@ def _normalize(v, name):
 
 
 @dataclass
+class LightShaping:
+    """UsdLux's ShapingAPI as OpenUSD documents it (user guide, "ShapingAPI"), on the emission of any light with a
+    position (point, area, cylinder): for an emission direction ω (unit, from the light towards the receiver) at
+    θ = acos(ω·axis) off the light's primary ``axis`` (its −Z),
+
+    - cone: 0 beyond ``cone_angle`` (half angle, radians; ≥ π: no cone); inside, × 1 − smoothstep(θ₀, θc, θ) with
+      θ₀ = θc·(1 − softness), softness clamped to [0, 1] (0: a hard edge);
+    - focus: × lerp(|ω·axis|^focus, focus_tint, 1), per channel (focus ≤ 0: no change; the default tint black
+      makes it a cosine-power falloff)."""
+
+    axis: np.ndarray
+    cone_angle: float = math.pi
+    softness: float = 0.0
+    focus: float = 0.0
+    focus_tint: np.ndarray = (0.0, 0.0, 0.0)
+
+    def __post_init__(self):
+        self.axis = _normalize(self.axis, "shaping axis")
+        self.focus_tint = _vec3(self.focus_tint, "focus tint")
+        self.cone_angle = float(self.cone_angle)
+        self.softness = float(np.clip(self.softness, 0.0, 1.0))
+        self.focus = float(self.focus)
+        if not (self.cone_angle > 0 and np.isfinite(self.cone_angle)) or not np.isfinite(self.focus):
+            raise ValueError(f"light shaping: cone_angle must be > 0 and focus finite, got {self.cone_angle}, "
+                             f"{self.focus}")
+
+    def is_identity(self) -> bool:
+        return self.cone_angle >= math.pi and self.focus <= 0.0
+
+
+def _shaping(shaping, name):
+    if shaping is not None and not isinstance(shaping, LightShaping):
+        raise ValueError(f"light {name}: shaping must be a LightShaping or None, got {shaping!r}")
+    return None if shaping is None or shaping.is_identity() else shaping
+
+
+def _profile(profile, axes, name):
+    if profile is None:
+        return None, None
+    prof = np.asarray(profile, np.float32)
+    if prof.ndim != 2 or min(prof.shape) < 2 or not np.all(np.isfinite(prof)) or prof.min() < 0:
+        raise ValueError(f"light {name}: profile must be a finite, non-negative (P, T) table")
+    axes = np.asarray(axes, np.float64).reshape(3, 3)
+    return np.ascontiguousarray(prof), axes / np.linalg.norm(axes, axis=1, keepdims=True)
+
+
+@dataclass
 class PointLight:
     position: np.ndarray
     intensity: np.ndarray
     radius: float = 0.0
     name: str = "point"
+    shaping: LightShaping | None = None
+    #: An angular intensity table (an IES profile, usd_io/ies.py): (P, T) factors on a regular grid of φ = 0..2π
+    #: (rows) and θ = 0..π (columns), θ from ``profile_axes[2]`` (the nadir), φ from ``profile_axes[0]`` towards
+    #: ``profile_axes[1]``; the intensity in direction ω is ``intensity`` × the table's bilinear value there.
+    profile: np.ndarray | None = None
+    profile_axes: np.ndarray | None = None
 
     def __post_init__(self):
+        self.shaping = _shaping(self.shaping, self.name)
+        self.profile, self.profile_axes = _profile(self.profile, self.profile_axes, self.name)
         self.position = _vec3(self.position, "position")
         self.intensity = _vec3(self.intensity, "intensity")
         self.radius = float(self.radius)
@@ -115,7 +170,13 @@ class DistantLight:
 @dataclass
 class AreaLight:
     """A one-sided Lambertian emitter centred at ``position``, spanning ``size`` along ``u_axis`` and ``v_axis``,
-    emitting along ``normal`` (Blender: the light's −Z). ``shape`` is "rect" or "disk" (an ellipse for unequal sizes).
+    emitting along ``normal`` (Blender: the light's −Z). ``shape`` is "rect" or "disk" (an ellipse for unequal sizes),
+    or "cylinder": UsdLux's CylinderLight, a tube of length ``size[0]`` along ``u_axis`` and diameter ``size[1]``
+    emitting outwards from its side (not its end caps), Lambertian at every point of its surface. ``shaping``: an
+    optional :class:`LightShaping` (UsdLux's ShapingAPI). ``texture``: an optional (H, W, 3) linear image multiplying a
+    rect light's radiance per point (UsdLux's ``texture:file``): u runs from 0 to 1 along ``u_axis``, v along
+    ``v_axis``, image row 0 at v = 1 (the top), filtered bilinearly; its light samples and the rays that see it read
+    the texture where they meet the light.
     ``spread`` (radians, π = none) narrows the emission as Blender's Spread does (Cycles' soft-box grid,
     :func:`spread_table`): radiance × max((tan(spread/2) − tan θ)·N, 0) at θ from the normal, N keeping the power."""
 
@@ -128,8 +189,21 @@ class AreaLight:
     shape: str = "rect"
     name: str = "area"
     spread: float = math.pi
+    shaping: LightShaping | None = None
+    texture: np.ndarray | None = None
+    profile: np.ndarray | None = None  # an IES table, as PointLight's, at every point of the emitter
+    profile_axes: np.ndarray | None = None
 
     def __post_init__(self):
+        self.shaping = _shaping(self.shaping, self.name)
+        self.profile, self.profile_axes = _profile(self.profile, self.profile_axes, self.name)
+        if self.texture is not None:
+            tex = np.asarray(self.texture, np.float32)
+            if tex.ndim != 3 or tex.shape[2] != 3 or min(tex.shape[:2]) < 1 or not np.all(np.isfinite(tex)):
+                raise ValueError(f"light {self.name}: texture must be a finite (H, W, 3) image, got {tex.shape}")
+            if self.shape != "rect":
+                raise ValueError(f"light {self.name}: only a rect light takes a texture")
+            self.texture = np.ascontiguousarray(tex)
         self.position = _vec3(self.position, "position")
         self.spread = float(self.spread)
         if not (0.0 <= self.spread <= math.pi + 1e-6):
@@ -143,8 +217,8 @@ class AreaLight:
         if self.radiance is None:
             raise ValueError(f"light {self.name}: an area light needs a radiance")
         self.radiance = _vec3(self.radiance, "radiance")
-        if self.shape not in ("rect", "disk"):
-            raise ValueError(f"light {self.name}: shape must be 'rect' or 'disk', got {self.shape!r}")
+        if self.shape not in ("rect", "disk", "cylinder"):
+            raise ValueError(f"light {self.name}: shape must be 'rect', 'disk' or 'cylinder', got {self.shape!r}")
 
     @property
     def area(self) -> float:
@@ -152,9 +226,12 @@ class AreaLight:
 
     @staticmethod
     def area_of(size, shape: str = "rect") -> float:
-        """The emitting area of a ``size`` (sx, sy) light: a rectangle sx·sy, a disk (ellipse) π/4·sx·sy. The one
-        place this is written (the add-on's power conversion and its unnormalized lights use it)."""
+        """The emitting area of a ``size`` (sx, sy) light: a rectangle sx·sy, a disk (ellipse) π/4·sx·sy, a cylinder's
+        side π·sy·sx (length sx, diameter sy). The one place this is written (the add-on's power conversion and its
+        unnormalized lights use it)."""
         sx, sy = size
+        if shape == "cylinder":
+            return np.pi * sy * sx
         return sx * sy if shape == "rect" else np.pi / 4 * sx * sy
 
     def sample_count(self, requested: int) -> int:
@@ -180,7 +257,7 @@ def spread_table(spread: float) -> tuple[float, float]:
 
 # ---------------------------------------------------------------------- the packed light tables
 #: Light kinds in the packed tables.
-POINT, SPOT, DISTANT, RECT, DISK, MESH = 0, 1, 2, 3, 4, 5
+POINT, SPOT, DISTANT, RECT, DISK, MESH, CYLINDER = 0, 1, 2, 3, 4, 5, 6
 
 
 class LightTables(NamedTuple):
@@ -188,20 +265,32 @@ class LightTables(NamedTuple):
     stay 0); the emissive triangles of the MESH lights (if any: the last rows, each a slice tri_start:tri_end) as
     vertices, radiance and the cumulative distribution of their power within each slice."""
 
-    kind: np.ndarray  # (L,) int64: POINT, SPOT, DISTANT, RECT, DISK or MESH
+    kind: np.ndarray  # (L,) int64: POINT, SPOT, DISTANT, RECT, DISK, MESH or CYLINDER
     side: np.ndarray  # (L,) int64: √ of the light's sample count
     position: np.ndarray  # (L, 3) float64: point, spot, area centre
     color: np.ndarray  # (L, 3) float64: intensity (W/sr), irradiance (W/m²) or radiance (W/m²/sr)
-    radius: np.ndarray  # (L,) float64: point and spot radius
+    radius: np.ndarray  # (L,) float64: point and spot radius, cylinder radius
     direction: np.ndarray  # (L, 3) float64: spot axis, sun direction (travel), area normal (emitting side)
     cos_cone: np.ndarray  # (L,) float64: spot, cos(size/2)
     blend: np.ndarray  # (L,) float64: spot blend
     cos_max: np.ndarray  # (L,) float64: sun, cos(angle/2)
-    u_axis: np.ndarray  # (L, 3) float64: area, unit edge directions
+    u_axis: np.ndarray  # (L, 3) float64: area, unit edge directions (cylinder: its axis)
     v_axis: np.ndarray  # (L, 3) float64
-    size: np.ndarray  # (L, 2) float64: area, extents along u and v
+    size: np.ndarray  # (L, 2) float64: area, extents along u and v (cylinder: length, diameter)
     area: np.ndarray  # (L,) float64: area, its area
     spread: np.ndarray  # (L, 2) float64: area, (tan(spread/2), N) of :func:`spread_table`; N = 0: no spread
+    shaped: np.ndarray  # (L,) int64: 1 where the light has a LightShaping (the four rows below)
+    shape_axis: np.ndarray  # (L, 3) float64: its primary axis
+    shape_cone: np.ndarray  # (L, 2) float64: (θ₀, θc) of its cone, radians (θc ≥ π: no cone)
+    focus: np.ndarray  # (L,) float64: its focus exponent (≤ 0: none)
+    focus_tint: np.ndarray  # (L, 3) float64
+    tex: np.ndarray  # (M, 3) float32: the textured rect lights' texels, each light's image row-major from the top
+    tex_start: np.ndarray  # (L,) int64: a textured light's first row in tex
+    tex_size: np.ndarray  # (L, 2) int64: its image's (width, height); (0, 0): not textured
+    prof: np.ndarray  # (M,) float32: the profiled lights' tables, each row-major (φ rows, θ columns)
+    prof_start: np.ndarray  # (L,) int64: a profiled light's first entry in prof
+    prof_size: np.ndarray  # (L, 2) int64: its table's (P, T); (0, 0): no profile
+    prof_axes: np.ndarray  # (L, 3, 3) float64: its C0, C90 and nadir axes
     tri: np.ndarray  # (N, 3, 3) float64 emitting triangles, world space
     tri_le: np.ndarray  # (N, 3) float64 their radiance
     tri_cdf: np.ndarray  # (N,) float64 cumulative pick probability (power-proportional) within each light's slice
@@ -273,10 +362,19 @@ def pack_lights(lights: list, light_samples: int, emitters=None, linked=()) -> L
             np.ascontiguousarray(emitters[0], np.float64), np.ascontiguousarray(emitters[1], np.float64),
             emitters[2] if len(emitters) > 2 else None, linked)
     n = len(lights) + len(groups)
+    images = [getattr(lt, "texture", None) for lt in lights]
+    tex = np.concatenate([im.reshape(-1, 3) for im in images if im is not None] or [np.zeros((1, 3))])
+    tex = np.ascontiguousarray(tex, np.float32)
+    profiles = [getattr(lt, "profile", None) for lt in lights]
+    prof = np.concatenate([p.reshape(-1) for p in profiles if p is not None] or [np.zeros(1)])
+    prof = np.ascontiguousarray(prof, np.float32)
     f1, f2, f3 = (lambda: np.zeros(n, np.float64)), (lambda: np.zeros((n, 2))), (lambda: np.zeros((n, 3)))
     t = LightTables(kind=np.zeros(n, np.int64), side=np.ones(n, np.int64), position=f3(), color=f3(), radius=f1(),
                     direction=f3(), cos_cone=f1(), blend=f1(), cos_max=f1(), u_axis=f3(), v_axis=f3(), size=f2(),
-                    area=f1(), spread=f2(), tri=tri, tri_le=tri_le, tri_cdf=cdf, tri_start=np.zeros(n, np.int64),
+                    area=f1(), spread=f2(), shaped=np.zeros(n, np.int64), shape_axis=f3(), shape_cone=f2(),
+                    focus=f1(), focus_tint=f3(), tex=tex, tex_start=np.zeros(n, np.int64),
+                    tex_size=np.zeros((n, 2), np.int64), prof=prof, prof_start=np.zeros(n, np.int64),
+                    prof_size=np.zeros((n, 2), np.int64), prof_axes=np.zeros((n, 3, 3)), tri=tri, tri_le=tri_le, tri_cdf=cdf, tri_start=np.zeros(n, np.int64),
                     tri_end=np.zeros(n, np.int64), emitter_object=np.full(n, -1, np.int64))
     for i, (obj, start, end) in enumerate(groups, start=len(lights)):
         t.kind[i] = MESH
@@ -293,10 +391,23 @@ def pack_lights(lights: list, light_samples: int, emitters=None, linked=()) -> L
             t.kind[i] = DISTANT
             t.direction[i], t.color[i], t.cos_max[i] = light.direction, light.irradiance, np.cos(light.angle / 2)
         else:
-            t.kind[i] = RECT if light.shape == "rect" else DISK
+            t.kind[i] = {"rect": RECT, "disk": DISK, "cylinder": CYLINDER}[light.shape]
             t.position[i], t.color[i], t.direction[i] = light.position, light.radiance, light.normal
             t.u_axis[i], t.v_axis[i], t.size[i], t.area[i] = light.u_axis, light.v_axis, light.size, light.area
             t.spread[i] = spread_table(light.spread)
+            if light.shape == "cylinder":
+                t.radius[i] = light.size[1] / 2
+        if profiles[i] is not None:
+            t.prof_start[i] = sum(p.size for p in profiles[:i] if p is not None)
+            t.prof_size[i] = profiles[i].shape
+            t.prof_axes[i] = light.profile_axes
+        if images[i] is not None:
+            t.tex_start[i] = sum(im.shape[0] * im.shape[1] for im in images[:i] if im is not None)
+            t.tex_size[i] = (images[i].shape[1], images[i].shape[0])
+        sh = getattr(light, "shaping", None)
+        if sh is not None:
+            t.shaped[i], t.shape_axis[i], t.focus[i], t.focus_tint[i] = 1, sh.axis, sh.focus, sh.focus_tint
+            t.shape_cone[i] = (sh.cone_angle * (1.0 - sh.softness), sh.cone_angle)
     return t
 
 
@@ -344,7 +455,165 @@ def spot_falloff(cos_a, cos_cone, blend):
 
 
 @kernel(inline=True)
+def light_texel(lights, j, u, v):
+    """Light j's texture at (u, v) in [0, 1]² (v = 1 the image's top row), bilinear with the edges clamped; (1, 1, 1)
+    for a light without one."""
+    w, h = lights.tex_size[j, 0], lights.tex_size[j, 1]
+    if w == 0:
+        return (1.0, 1.0, 1.0)
+    x = min(max(u * w - 0.5, 0.0), w - 1.0)
+    y = min(max((1.0 - v) * h - 0.5, 0.0), h - 1.0)
+    x0, y0 = int(x), int(y)
+    x1, y1 = min(x0 + 1, w - 1), min(y0 + 1, h - 1)
+    fx, fy = x - x0, y - y0
+    tex = lights.tex
+    i00 = lights.tex_start[j] + y0 * w + x0
+    i01 = lights.tex_start[j] + y0 * w + x1
+    i10 = lights.tex_start[j] + y1 * w + x0
+    i11 = lights.tex_start[j] + y1 * w + x1
+    w00, w01, w10, w11 = (1.0 - fx) * (1.0 - fy), fx * (1.0 - fy), (1.0 - fx) * fy, fx * fy
+    return (w00 * tex[i00, 0] + w01 * tex[i01, 0] + w10 * tex[i10, 0] + w11 * tex[i11, 0],
+            w00 * tex[i00, 1] + w01 * tex[i01, 1] + w10 * tex[i10, 1] + w11 * tex[i11, 1],
+            w00 * tex[i00, 2] + w01 * tex[i01, 2] + w10 * tex[i10, 2] + w11 * tex[i11, 2])
+
+
+@kernel(inline=True)
+def profile_factor(lights, j, w):
+    """Light j's angular intensity table (an IES profile) in the unit emission direction ``w``, bilinear; 1 for a
+    light without one."""
+    n_p, n_t = lights.prof_size[j, 0], lights.prof_size[j, 1]
+    if n_t == 0:
+        return 1.0
+    cx = w[0] * lights.prof_axes[j, 0, 0] + w[1] * lights.prof_axes[j, 0, 1] + w[2] * lights.prof_axes[j, 0, 2]
+    cy = w[0] * lights.prof_axes[j, 1, 0] + w[1] * lights.prof_axes[j, 1, 1] + w[2] * lights.prof_axes[j, 1, 2]
+    cz = w[0] * lights.prof_axes[j, 2, 0] + w[1] * lights.prof_axes[j, 2, 1] + w[2] * lights.prof_axes[j, 2, 2]
+    t = math.acos(min(max(cz, -1.0), 1.0)) / math.pi * (n_t - 1)
+    ph = math.atan2(cy, cx)
+    if ph < 0.0:
+        ph += 2.0 * math.pi
+    p = min(ph / (2.0 * math.pi) * (n_p - 1), n_p - 1.0)
+    t0, p0 = min(int(t), n_t - 2), min(int(p), n_p - 2)
+    ft, fp = t - t0, p - p0
+    base = lights.prof_start[j]
+    a = lights.prof[base + p0 * n_t + t0] * (1.0 - ft) + lights.prof[base + p0 * n_t + t0 + 1] * ft
+    b = lights.prof[base + (p0 + 1) * n_t + t0] * (1.0 - ft) + lights.prof[base + (p0 + 1) * n_t + t0 + 1] * ft
+    return a * (1.0 - fp) + b * fp
+
+
+@kernel(inline=True)
+def shaping_factor(lights, j, w):
+    """Light j's :class:`LightShaping` for the unit emission direction ``w`` (from the light towards the receiver),
+    per channel: (1, 1, 1) for an unshaped light."""
+    if lights.shaped[j] == 0:
+        return (1.0, 1.0, 1.0)
+    c = vec.dot(w, vec.row(lights.shape_axis, j))
+    f = 1.0
+    start, cut = lights.shape_cone[j, 0], lights.shape_cone[j, 1]
+    if cut < math.pi:
+        theta = math.acos(min(max(c, -1.0), 1.0))
+        if theta > cut:
+            return (0.0, 0.0, 0.0)
+        if theta > start:
+            x = (theta - start) / (cut - start)
+            f = 1.0 - x * x * (3.0 - 2.0 * x)
+    focus = lights.focus[j]
+    if focus <= 0.0:
+        return (f, f, f)
+    g = abs(c) ** focus
+    return (f * (lights.focus_tint[j, 0] + g * (1.0 - lights.focus_tint[j, 0])),
+            f * (lights.focus_tint[j, 1] + g * (1.0 - lights.focus_tint[j, 1])),
+            f * (lights.focus_tint[j, 2] + g * (1.0 - lights.focus_tint[j, 2])))
+
+
+@kernel(inline=True)
+def _sample_cylinder(lights, j, k, sd, kk, p, r0, r1):
+    """Stratum k of cylinder light j's side seen from p: a point uniform in area on the half of the tube that faces p
+    (every point of the tube p can see lies in it), E = Le·cos θ_l·(π·r·length)/r²/K."""
+    pos = vec.row(lights.position, j)
+    ax = vec.row(lights.u_axis, j)
+    radius, length = lights.radius[j], lights.size[j, 0]
+    to_p = vec.sub(p, pos)
+    perp = vec.madd(to_p, ax, -vec.dot(to_p, ax))
+    pl = vec.length(perp)
+    if pl > 1e-9 * (vec.length(to_p) + radius):  # (rounding leaves a near-zero perp that is not perpendicular)
+        e1 = vec.scale(perp, 1.0 / pl)
+    else:
+        e1 = vec.orthonormal_basis(ax)[0]
+    e2 = vec.cross(ax, e1)
+    s0, s1 = stratum(k, sd, r0, r1)
+    phi = (s1 - 0.5) * math.pi
+    nrm = vec.madd(vec.scale(e1, math.cos(phi)), e2, math.sin(phi))
+    pt = vec.madd(vec.madd(pos, ax, (s0 - 0.5) * length), nrm, radius)
+    to_l = vec.sub(pt, p)
+    d2 = max(vec.dot(to_l, to_l), 1e-30)
+    dist = math.sqrt(d2)
+    l = vec.scale(to_l, 1.0 / dist)
+    cos_l = max(0.0, -vec.dot(l, nrm))
+    f = cos_l * math.pi * radius * length / d2 / kk
+    return l, dist, vec.scale(vec.row(lights.color, j), f)
+
+
+@kernel(inline=True)
+def _rect_solid_angle_sample(lights, j, p, s0, s1):
+    """(a, b, Ω): a point of rect light j, (a, b) ∈ [−½, ½]² along its u and v axes, uniform in the solid angle Ω
+    the rectangle subtends at p (Ureña, Fajardo and King 2013, "An area-preserving parametrization for spherical
+    rectangles"), for (s0, s1) ∈ [0, 1)². Ω = 0 (and a point uniform in area) where p is (nearly) in its plane."""
+    w, h = lights.size[j, 0], lights.size[j, 1]
+    ux, vy = vec.row(lights.u_axis, j), vec.row(lights.v_axis, j)
+    corner = vec.madd(vec.madd(vec.row(lights.position, j), ux, -0.5 * w), vy, -0.5 * h)
+    dd = vec.sub(corner, p)
+    x0, y0 = vec.dot(dd, ux), vec.dot(dd, vy)
+    z0 = -abs(vec.dot(dd, vec.cross(ux, vy)))
+    x1, y1 = x0 + w, y0 + h
+    if z0 > -1e-7 * (w + h):
+        return s0 - 0.5, s1 - 0.5, 0.0
+    n0z = -y0 / math.sqrt(z0 * z0 + y0 * y0)
+    n1z = x1 / math.sqrt(z0 * z0 + x1 * x1)
+    n2z = y1 / math.sqrt(z0 * z0 + y1 * y1)
+    n3z = -x0 / math.sqrt(z0 * z0 + x0 * x0)
+    g0 = math.acos(min(max(-n0z * n1z, -1.0), 1.0))
+    g1 = math.acos(min(max(-n1z * n2z, -1.0), 1.0))
+    g2 = math.acos(min(max(-n2z * n3z, -1.0), 1.0))
+    g3 = math.acos(min(max(-n3z * n0z, -1.0), 1.0))
+    solid = g0 + g1 + g2 + g3 - 2.0 * math.pi
+    if not (solid > 1e-9):
+        return s0 - 0.5, s1 - 0.5, 0.0
+    au = s0 * solid + 2.0 * math.pi - g2 - g3
+    sa = math.sin(au)
+    if abs(sa) < 1e-12:
+        sa = 1e-12
+    fu = (math.cos(au) * n0z - n2z) / sa
+    cu = 1.0 / math.sqrt(fu * fu + n0z * n0z)
+    if fu < 0.0:
+        cu = -cu
+    cu = min(max(cu, -1.0), 1.0)
+    xu = -(cu * z0) / math.sqrt(max(1.0 - cu * cu, 1e-30))
+    xu = min(max(xu, x0), x1)
+    d = math.sqrt(xu * xu + z0 * z0)
+    h0 = y0 / math.sqrt(d * d + y0 * y0)
+    h1 = y1 / math.sqrt(d * d + y1 * y1)
+    hv = h0 + s1 * (h1 - h0)
+    yv = hv * d / math.sqrt(1.0 - hv * hv) if hv * hv < 1.0 - 1e-9 else y1
+    yv = min(max(yv, y0), y1)
+    return (xu - x0) / w - 0.5, (yv - y0) / h - 0.5, solid
+
+
+@kernel(inline=True)
 def sample_light(lights, j, k, p, r0, r1):
+    """:func:`_sample_light_unshaped` × the light's :func:`shaping_factor` (UsdLux's ShapingAPI) and
+    :func:`profile_factor` (its IES profile)."""
+    l, dist, e = _sample_light_unshaped(lights, j, k, p, r0, r1)
+    if lights.shaped[j] != 0:
+        e = vec.mul(e, shaping_factor(lights, j, vec.scale(l, -1.0)))
+    if lights.prof_size[j, 1] != 0:  # an IES profile: from a point light's photometric centre (its centre), from
+        kd = lights.kind[j]  # the sample on an area light (each of its points emits with the profile)
+        w = vec.normalize(vec.sub(p, vec.row(lights.position, j))) if kd == POINT or kd == SPOT else vec.scale(l, -1.0)
+        e = vec.scale(e, profile_factor(lights, j, w))
+    return l, dist, e
+
+
+@kernel(inline=True)
+def _sample_light_unshaped(lights, j, k, p, r0, r1):
     """Sample ``k`` (of side²) of light ``j`` of a :class:`LightTables` seen from point p: (l, dist, E) with l the
     unit direction to the light, dist the shadow ray's length and E the irradiance on a surface facing the light,
     divided by side². (r0, r1) in [0,1)² rotate the stratified pattern of lights with an extent. (Called from
@@ -356,6 +625,8 @@ def sample_light(lights, j, k, p, r0, r1):
     if kd == MESH:
         return _sample_emitters(lights.tri, lights.tri_le, lights.tri_cdf, lights.tri_start[j], lights.tri_end[j],
                                 k, sd, kk, p, r0, r1)
+    if kd == CYLINDER:
+        return _sample_cylinder(lights, j, k, sd, kk, p, r0, r1)
     if kd == POINT or kd == SPOT:
         pos = vec.row(lights.position, j)
         radius = lights.radius[j]
@@ -391,10 +662,12 @@ def sample_light(lights, j, k, p, r0, r1):
         phi = 2.0 * math.pi * s1
         l = vec.madd(vec.madd(vec.scale(to_light, cos_t), u, sin_t * math.cos(phi)), v, sin_t * math.sin(phi))
         return l, math.inf, e
-    # Area light: a point on the rectangle, or on the (elliptical) disk by a polar mapping.
+    # Area light: a point on the rectangle (uniform in the solid angle it subtends, else in its area), or on the
+    # (elliptical) disk by a polar mapping.
     s0, s1 = stratum(k, sd, r0, r1)
+    solid = 0.0
     if kd == RECT:
-        a, b = s0 - 0.5, s1 - 0.5
+        a, b, solid = _rect_solid_angle_sample(lights, j, p, s0, s1)
     else:
         r = 0.5 * math.sqrt(s0)
         a, b = r * math.cos(2.0 * math.pi * s1), r * math.sin(2.0 * math.pi * s1)
@@ -405,13 +678,20 @@ def sample_light(lights, j, k, p, r0, r1):
     dist = math.sqrt(d2)
     l = vec.scale(to_l, 1.0 / dist)
     cos_l = max(0.0, -vec.dot(l, vec.row(lights.direction, j)))
-    # E from a sample of a Lambertian emitter: Le · cosθ_l · A / r², averaged over the K samples.
-    f = cos_l * lights.area[j] / d2 / kk
+    # E from a sample of a Lambertian emitter: Le · cosθ_l · A / r² for a point uniform in area, Le · Ω for one
+    # uniform in the solid angle Ω (0 from its back), averaged over the K samples.
+    if solid > 0.0:
+        f = (solid if cos_l > 0.0 else 0.0) / kk
+    else:
+        f = cos_l * lights.area[j] / d2 / kk
     norm = lights.spread[j, 1]
     if norm > 0.0 and cos_l > 0.0:  # Blender's Spread: the soft box's grid hides light at angle θ > spread/2
         tan_a = math.sqrt(max(1.0 - cos_l * cos_l, 0.0)) / cos_l
         f *= max((lights.spread[j, 0] - tan_a) * norm, 0.0)
-    return l, dist, vec.scale(vec.row(lights.color, j), f)
+    le = vec.row(lights.color, j)
+    if lights.tex_size[j, 0] > 0:  # a textured rect light: its radiance where the sample lies
+        le = vec.mul(le, light_texel(lights, j, a + 0.5, b + 0.5))
+    return l, dist, vec.scale(le, f)
 
 
 def hittable(light) -> bool:
@@ -429,6 +709,40 @@ def hittable(light) -> bool:
 
 @kernel(inline=True)
 def lamp_hit(lights, j, o, d, t_max):
+    """:func:`_lamp_hit_unshaped` × the light's :func:`shaping_factor` towards the ray's origin."""
+    t, le = _lamp_hit_unshaped(lights, j, o, d, t_max)
+    if lights.shaped[j] != 0 and t < t_max:
+        le = vec.mul(le, shaping_factor(lights, j, vec.scale(d, -1.0)))
+    if lights.prof_size[j, 1] != 0 and t < t_max:
+        le = vec.scale(le, profile_factor(lights, j, vec.scale(d, -1.0)))
+    return t, le
+
+
+@kernel(inline=True)
+def _lamp_hit_cylinder(lights, j, o, d, t_max):
+    """(t, Le) where the ray meets cylinder light j's side from outside (its end caps and inside emit nothing)."""
+    pos = vec.row(lights.position, j)
+    ax = vec.row(lights.u_axis, j)
+    radius, length = lights.radius[j], lights.size[j, 0]
+    oc = vec.sub(o, pos)
+    dp = vec.madd(d, ax, -vec.dot(d, ax))
+    op = vec.madd(oc, ax, -vec.dot(oc, ax))
+    a = vec.dot(dp, dp)
+    if a <= 1e-24:
+        return math.inf, (0.0, 0.0, 0.0)
+    b = vec.dot(op, dp)
+    c = vec.dot(op, op) - radius * radius
+    disc = b * b - a * c
+    if disc < 0.0 or c <= 0.0:  # misses, or starts inside the tube (its inside does not emit)
+        return math.inf, (0.0, 0.0, 0.0)
+    t = (-b - math.sqrt(disc)) / a
+    if not (t > 0.0 and t < t_max) or abs(vec.dot(vec.madd(oc, d, t), ax)) > 0.5 * length:
+        return math.inf, (0.0, 0.0, 0.0)
+    return t, vec.row(lights.color, j)
+
+
+@kernel(inline=True)
+def _lamp_hit_unshaped(lights, j, o, d, t_max):
     """Where the ray o + t·d (d unit) meets light j's shape before ``t_max``, and the radiance it sees there:
     (t, Le), t = inf when it misses. As Cycles renders a light seen by a ray (measured through bpy, Blender 5.0):
 
@@ -441,6 +755,8 @@ def lamp_hit(lights, j, o, d, t_max):
       Le = S/(π·sin²(a/2))."""
     kd = lights.kind[j]
     miss = (math.inf, (0.0, 0.0, 0.0))
+    if kd == CYLINDER:
+        return _lamp_hit_cylinder(lights, j, o, d, t_max)
     if kd == RECT or kd == DISK:
         nrm = vec.row(lights.direction, j)
         cos_l = -vec.dot(d, nrm)
@@ -463,7 +779,10 @@ def lamp_hit(lights, j, o, d, t_max):
         if norm > 0.0:
             tan_a = math.sqrt(max(1.0 - cos_l * cos_l, 0.0)) / cos_l
             f = max((lights.spread[j, 0] - tan_a) * norm, 0.0)
-        return t, vec.scale(vec.row(lights.color, j), f)
+        le = vec.row(lights.color, j)
+        if lights.tex_size[j, 0] > 0:
+            le = vec.mul(le, light_texel(lights, j, a + 0.5, b + 0.5))
+        return t, vec.scale(le, f)
     if kd == POINT or kd == SPOT:
         radius = lights.radius[j]
         if radius <= 0.0:

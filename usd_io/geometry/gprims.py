@@ -15,7 +15,25 @@ from pxr import UsdGeom
 from .mesh import MeshData
 
 DEFAULT_SEGMENTS = 48
-GPRIM_TYPES = ("Sphere", "Cube", "Cylinder", "Cone", "Capsule", "Plane", "Cylinder_1", "Capsule_1")
+GPRIM_TYPES = ("Sphere", "Cube", "Cylinder", "Cone", "Capsule", "Plane", "Cylinder_1", "Capsule_1",
+               "ArnoldSphere", "ArnoldBox")
+#: Arnold's own implicit shapes (arnold-usd's schemas, typed prims USD does not know): drawn as their USD
+#: counterparts with Arnold's node defaults (sphere radius 0.5 about ``center``; box from ``min`` to ``max``, ±0.5).
+ARNOLD_IMPLICITS = ("ArnoldSphere", "ArnoldBox")
+
+
+def _arnold_value(prim, name, default, time):
+    """An ``arnold:`` input as Arnold reads it: a scalar, or the first element of arnold-usd's one-element arrays."""
+    a = prim.GetAttribute(f"arnold:{name}")
+    v = a.Get(time) if a and a.HasValue() else None
+    if v is None:
+        return np.asarray(default, np.float64)
+    v = np.asarray(v, np.float64)
+    if v.ndim and v.shape[0] >= 1 and (v.ndim == 2 or np.ndim(default) == 0):
+        v = v[0]
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"{prim.GetPath()}: {prim.GetTypeName()} arnold:{name} is not finite")
+    return v
 
 
 def _axis_matrix(axis: str) -> np.ndarray:
@@ -140,10 +158,16 @@ def plane(width, length):
     return pts, np.array([[0, 1, 2], [0, 2, 3]]), np.tile([0.0, 0.0, 1.0], (4, 1))
 
 
+def geom_type(prim) -> str:
+    """The prim's type as USD reads it: its schema type, which for a type the stage's plugins do not know is the
+    first known entry of the layer's ``fallbackPrimTypes`` (as Storm draws it), else its authored type name."""
+    return str(prim.GetPrimTypeInfo().GetSchemaTypeName()) or prim.GetTypeName()
+
+
 def read_gprim(prim, time, segments=DEFAULT_SEGMENTS) -> MeshData | None:
     """Tessellate a gprim in its object space, or None if the prim is not one of :data:`GPRIM_TYPES`.
     Raises ValueError for a size that is zero, negative or not finite."""
-    t = prim.GetTypeName()
+    t = geom_type(prim)
 
     def g(schema, attr):
         v = getattr(schema(prim), f"Get{attr}Attr")().Get(time)
@@ -180,6 +204,20 @@ def read_gprim(prim, time, segments=DEFAULT_SEGMENTS) -> MeshData | None:
             raise ValueError(f"{prim.GetPath()}: Capsule_1 radii must be positive, got {rb}, {rt}")
         p, tri, n = capsule((rb + rt) / 2, g(UsdGeom.Capsule_1, "Height"), segments)
         axis = g(UsdGeom.Capsule_1, "Axis")
+    elif t == "ArnoldSphere":
+        radius = float(_arnold_value(prim, "radius", 0.5, time))
+        if not radius > 0:
+            raise ValueError(f"{prim.GetPath()}: ArnoldSphere radius must be a positive number, got {radius}")
+        p, tri, n = sphere(radius, segments)
+        p = p + _arnold_value(prim, "center", (0.0, 0.0, 0.0), time)
+        axis = "Z"
+    elif t == "ArnoldBox":
+        lo = _arnold_value(prim, "min", (-0.5, -0.5, -0.5), time)
+        hi = _arnold_value(prim, "max", (0.5, 0.5, 0.5), time)
+        if not np.all(hi > lo):
+            raise ValueError(f"{prim.GetPath()}: ArnoldBox max must exceed min, got {lo.tolist()}, {hi.tolist()}")
+        p, tri, n = lo + (_CUBE_CORNERS + 1) / 2 * (hi - lo), _CUBE_TRIANGLES.copy(), None
+        axis = "Z"
     elif t == "Plane":
         p, tri, n = plane(g(UsdGeom.Plane, "Width"), g(UsdGeom.Plane, "Length"))
         axis = g(UsdGeom.Plane, "Axis")

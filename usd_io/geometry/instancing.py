@@ -19,6 +19,21 @@ from pxr import Usd, UsdGeom
 from .xform import to_numpy
 
 
+def missing_required_input(prim) -> str | None:
+    """The first of a PointInstancer's required inputs that has no value, as Storm checks them
+    (UsdImagingPointInstancerAdapter: ``prototypes`` targets, then ``protoIndices``, then ``positions``; an authored
+    empty array or time samples count as a value), or None. Storm does not add such an instancer to its render
+    index; the reader skips it the same way, with one warning."""
+    pi = UsdGeom.PointInstancer(prim)
+    if not pi.GetPrototypesRel().GetForwardedTargets():
+        return "prototypes"
+    if not pi.GetProtoIndicesAttr().HasValue():
+        return "protoIndices"
+    if not pi.GetPositionsAttr().HasValue():
+        return "positions"
+    return None
+
+
 def instance_matrices(prim, time) -> tuple[np.ndarray, np.ndarray, list]:
     """(K, 4, 4) column-vector instance matrices (without prototype xforms), (K,) proto indices with masked
     instances set to −1, and the prototype paths."""

@@ -131,8 +131,11 @@ def flattened(pv, time):
     An indexed primvar whose ``elementSize`` does not fit its indices (MtoA writes faceVarying normals and UVs with
     elementSize = a face's corner count and one index per corner: USD's ComputeFlattened refuses it, with a warning
     naming the primvar) is flattened with elementSize 1, one value per index, as Arnold reads it (arnold-usd's
-    reader ignores elementSize)."""
+    reader ignores elementSize). A value authored as a scalar rather than an array (Storm reads it as the one
+    element of a constant primvar) is a one-element list."""
     vals = pv.ComputeFlattened(time)
+    if vals is not None and not pv.GetTypeName().isArray:
+        return [vals]  # one value authored as a scalar (``color3f primvars:displayColor = (1, 0, 0)``): one element
     if (vals is None or len(vals) == 0) and pv.IsIndexed() and pv.GetElementSize() > 1:
         raw, idx = pv.Get(time), pv.GetIndices(time)
         if raw is not None and idx is not None and len(raw) and len(idx):

@@ -115,3 +115,68 @@ def _first_line(exc) -> str:
     lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
     text = lines[-1] if lines else type(exc).__name__
     return text.split(" : ", 1)[-1].strip("'")[:160]
+
+
+#: UsdSkelImaging's bone: a pyramid of five points (the tip at the child joint, a square base at the parent) and
+#: four triangles (the base is open), as ``_boneVerts`` in usdSkelImaging/utils.cpp.
+BONE_TRIANGLES = np.array([(0, 2, 1), (0, 3, 2), (0, 4, 3), (0, 1, 4)], np.int64)
+
+
+def bone_points(parents: np.ndarray, joint_skel: np.ndarray) -> np.ndarray:
+    """The bone mesh's points (B·5, 3) in skeleton space, as ``UsdSkelImagingComputeBonePoints``: one bone per joint
+    with a parent, in joint order; its base square at the parent joint, out by 0.1 × the bone's length along the
+    two axes of the parent's transform (``joint_skel``: (J, 4, 4) row-vector skeleton-space matrices) other than
+    the first one (X, then Y, else Z) whose unnormalised row meets the bone's direction with |dot| > π/4."""
+    parents = np.asarray(parents, np.int64)
+    m = np.asarray(joint_skel, np.float64)
+    child = np.flatnonzero((parents >= 0) & (parents < len(parents)))
+    if not len(child):
+        return np.zeros((0, 3))
+    parent = parents[child]
+    end, start = m[child, 3, :3], m[parent, 3, :3]
+    bone = end - start
+    length = np.linalg.norm(bone, axis=1)
+    direction = bone / np.maximum(length, 1e-10)[:, None]
+    rows = m[parent, :3, :3]
+    aligned = np.abs(np.einsum("bij,bj->bi", rows, direction)) > np.pi / 4
+    principal = np.where(aligned[:, 0], 0, np.where(aligned[:, 1], 1, 2))
+    k = np.arange(len(child))
+    i_axis = rows[k, np.array([1, 0, 0])[principal]]
+    j_axis = rows[k, np.array([2, 2, 1])[principal]]
+    size = (0.1 * length)[:, None]
+    i_axis = i_axis / np.maximum(np.linalg.norm(i_axis, axis=1), 1e-10)[:, None] * size
+    j_axis = j_axis / np.maximum(np.linalg.norm(j_axis, axis=1), 1e-10)[:, None] * size
+    pts = np.stack([end, start + i_axis + j_axis, start + i_axis - j_axis, start - i_axis - j_axis,
+                    start - i_axis + j_axis], axis=1)
+    return pts.reshape(-1, 3)
+
+
+def bone_mesh(skel, time, cache=None):
+    """(points (B·5, 3) in skeleton space, triangles (B·4, 3)) of a ``UsdSkel.Skeleton`` posed at ``time`` (its
+    animation where bound, else its rest pose), or None when it cannot be posed."""
+    cache = cache or UsdSkel.Cache()
+    query = cache.GetSkelQuery(skel)
+    if not query:
+        return None
+    xforms = query.ComputeJointSkelTransforms(time)
+    if xforms is None or len(xforms) != len(query.GetTopology()):
+        return None
+    parents = np.asarray(query.GetTopology().GetParentIndices(), np.int64)
+    points = bone_points(parents, np.asarray(xforms, np.float64).reshape(-1, 4, 4))
+    tris = (BONE_TRIANGLES[None] + 5 * np.arange(len(points) // 5)[:, None, None]).reshape(-1, 3)
+    return points, tris
+
+
+def skeleton_purpose(prim) -> str:
+    """The purpose Storm draws a Skeleton's bone mesh with (UsdSkelImagingSkeletonAdapter::GetPurpose): the
+    skeleton's authored purpose, else the nearest ancestor's authored one, else ``guide`` (not ``default``: bones
+    are not drawn unless asked for)."""
+    from pxr import UsdGeom
+
+    p = prim
+    while p and not p.IsPseudoRoot():
+        img = UsdGeom.Imageable(p)
+        if img and img.GetPurposeAttr().HasAuthoredValue():
+            return str(img.GetPurposeAttr().Get())
+        p = p.GetParent()
+    return "guide"

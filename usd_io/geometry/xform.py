@@ -10,6 +10,9 @@ from __future__ import annotations
 import numpy as np
 from pxr import Gf, Usd, UsdGeom
 
+#: Arnold's implicit shapes the reader draws (usd_io.geometry.gprims.ARNOLD_IMPLICITS), typed prims USD does not know.
+ARNOLD_IMPLICITS = ("ArnoldSphere", "ArnoldBox")
+
 
 def to_numpy(matrix: Gf.Matrix4d) -> np.ndarray:
     """A ``Gf.Matrix4d`` (row vectors) as a 4×4 column-vector matrix."""
@@ -24,6 +27,10 @@ class Transforms:
         self.cache = UsdGeom.XformCache(time)
 
     def world(self, prim) -> np.ndarray:
+        if prim.GetTypeName() in ARNOLD_IMPLICITS:  # a type USD does not know: XformCache skips its own ops
+            local = UsdGeom.Xformable(prim).GetLocalTransformation(self.time)
+            parent = self.cache.GetLocalToWorldTransform(prim.GetParent())
+            return to_numpy(local * parent)
         return to_numpy(self.cache.GetLocalToWorldTransform(prim))
 
     def relative(self, prim, ancestor) -> np.ndarray:

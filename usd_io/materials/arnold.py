@@ -67,6 +67,16 @@ def simple_surface(table, s, label: str, needs):
             t.update(base_color=(kd, kd, kd), vertex_color=True)
         else:
             table._colour_input(t, "base_color", src, (kd, kd, kd), label, "Kd_color", needs)
+        if sid == "arnold:standard" and num("emission", 0.0) != 0.0:  # Arnold 4's standard: emission × colour
+            em = num("emission", 0.0)
+            src = net.source(s, "emission_color", (1.0, 1.0, 1.0), table.time)
+            if isinstance(src, net.Const):
+                src = net.Const(tuple(em * c for c in net.floats(src.value, 3, (1.0, 1.0, 1.0))))
+            elif isinstance(src, net.TextureLookup):
+                src.scale = tuple(em * c for c in src.scale[:3]) + (src.scale[3],)
+            elif em != 1.0:
+                table.warn(f"{label}: emission {em} × a connected emission_color: the colour is read unscaled")
+            table._colour_input(t, "emission", src, (em, em, em), label, "emission_color", needs)
         ks = num("Ks", 0.0) if sid == "arnold:standard" else 0.0
         t.update(specular=float(np.clip(ks, 0.0, 1.0)), roughness=float(np.clip(num("specular_roughness", 0.467),
                                                                                   0.0, 1.0)), metallic=0.0)
@@ -93,6 +103,11 @@ def render_globals(stage, prims, warn) -> None:
     for prim in prims:
         if prim.GetTypeName() != "RenderSettings":
             continue
+        a = prim.GetAttribute("arnold:global:aov_shaders")
+        shaders = a.Get() if a else None
+        if shaders:  # Arnold runs these on every surface (they may overwrite the beauty): not run here
+            warn(f"{prim.GetPath()}: Arnold aov_shaders {shaders} are not run: the AOVs they write (and a beauty "
+                 "they overwrite) show the surfaces' own shading")
         for name, instead in RENDER_GLOBALS.items():
             a = prim.GetAttribute(f"arnold:global:{name}")
             path = a.Get() if a else None

@@ -219,7 +219,8 @@ def scaled(src, k):
 
 
 def _colour(t, key, inputs: Inputs, src, default, name):
-    if isinstance(src, net.PrimvarLookup):  # a primvar read: the vertex colour, the constant part as the colour
+    if isinstance(src, net.PrimvarLookup) and key == "base_color":  # the vertex colour times the base colour
+        # (another input, e.g. emission_color, reads the primvar through the table: PrimvarColour on that input)
         inputs.needs.color = (src.name, net.floats(src.fallback, 3, default))
         t.update(**{key: tuple(default)}, vertex_color=True)
         return

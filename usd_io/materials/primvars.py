@@ -18,7 +18,7 @@ faceVarying, indexed), expanded per corner into ``Scene.colors``; without the pr
 from __future__ import annotations
 
 import numpy as np
-from pxr import Sdf, UsdGeom
+from pxr import Sdf, Usd, UsdGeom
 
 from ..geometry.mesh import Triangulation, expand_primvar, flattened
 
@@ -170,7 +170,7 @@ def _refined_primvars(prim, refined: dict, n_triangles: int, needs, uv_set_names
             colors = np.ascontiguousarray(colors, np.float32)
         else:  # not refined: absent, or a constant one inherited from an ancestor
             pv = find_primvar(prim, name)
-            vals = pv.ComputeFlattened() if pv is not None and pv.GetInterpolation() == "constant" else None
+            vals = flattened(pv, Usd.TimeCode.Default()) if pv is not None and pv.GetInterpolation() == "constant" else None
             c = fallback if vals is None or not len(vals) else (tuple(np.ravel(vals[0])) * 3)[:3]
             colors = np.broadcast_to(np.asarray(c, np.float32), (n_triangles, 3, 3)).copy()
     return sets, colors

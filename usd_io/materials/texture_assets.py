@@ -97,7 +97,12 @@ def open_texture(lk, colorspace: str, files, warn, label: str, name: str):
     if not asset.resolvedPath:
         warn(f"{label}: texture {asset.path!r} read as {resolved!r} (Windows backslashes)")
     try:
-        return files.get(resolved, colorspace, asset.path), np.eye(3)
+        got = files.get(resolved, colorspace, asset.path)
+        if got.mip_levels > 1 and not getattr(got, "mips_said", False):
+            got.mips_said = True  # once per file
+            warn(f"{label}: texture {asset.path!r} has {got.mip_levels} authored MIP levels; level 0 is read (a "
+                 "viewer selects the level by screen footprint)")
+        return got, np.eye(3)
     except ValueError as exc:
         warn(f"{label}: {exc}; {name} uses the fallback {lk.fallback}")
         return None

@@ -36,8 +36,32 @@ class TextureFile:
     """One decoded image: ``pixels`` (H, W, 4) float32 linear (row 0 is the top of the image), its wrap metadata and
     whether the ``auto`` colour space found it to be sRGB."""
 
-    def __init__(self, pixels: np.ndarray, wrap_meta: tuple, srgb: bool, label: str):
+    def __init__(self, pixels: np.ndarray, wrap_meta: tuple, srgb: bool, label: str, mip_levels: int = 1):
         self.pixels, self.wrap_meta, self.srgb, self.label = pixels, wrap_meta, srgb, label
+        self.mip_levels = mip_levels  # MIP levels authored in the file (level 0 is the one read)
+
+
+def authored_mip_levels(path: str) -> int:
+    """How many MIP levels the file at ``path`` holds when its coarser levels are authored content of their own
+    (a level's mean colour more than 2/255 from level 0's: testUsdImagingGLMipmap's authoredMips.tex), else 1 (one
+    level, or a pyramid filtered from level 0 as ``maketx`` writes it; also when the file cannot be asked)."""
+    import OpenImageIO as oiio
+
+    inp = oiio.ImageInput.open(path)
+    if inp is None:
+        return 1
+    try:
+        means = []
+        while inp.seek_subimage(0, len(means)):
+            px = inp.read_image(0, len(means), 0, min(3, inp.spec().nchannels), "float")
+            if px is None:
+                return 1
+            means.append(np.asarray(px, np.float64).reshape(-1, np.asarray(px).shape[-1]).mean(axis=0))
+        if len(means) > 1 and max(float(np.abs(m - means[0]).max()) for m in means[1:]) > 2 / 255:
+            return len(means)
+        return 1
+    finally:
+        inp.close()
 
 
 def read_texture_file(resolved: str, colorspace: str = "auto", label: str | None = None) -> TextureFile:
@@ -53,11 +77,12 @@ def read_texture_file(resolved: str, colorspace: str = "auto", label: str | None
         if not os.path.isfile(resolved):
             raise ValueError(f"cannot read texture {label}: no such file")
         image = decode_image(resolved, colorspace, label)
+    mips = 1 if Ar.IsPackageRelativePath(resolved) else authored_mip_levels(resolved)
     rgba = image.rgba
     if mx_space:
         rgba = np.array(rgba, np.float32)
         rgba[..., :3] = to_lin_rec709(rgba[..., :3], mx_space).astype(np.float32)
-    return TextureFile(rgba, image.wrap_meta, image.srgb, label)
+    return TextureFile(rgba, image.wrap_meta, image.srgb, label, mips)
 
 
 def _read_packaged(resolved: str, colorspace: str, label: str):
@@ -108,7 +133,7 @@ class TextureCache:
                 if self.working is not None and got.srgb:
                     px = np.array(got.pixels, np.float32)
                     px[..., :3] = px[..., :3] @ self.working.T
-                    got = TextureFile(np.ascontiguousarray(px), got.wrap_meta, got.srgb, got.label)
+                    got = TextureFile(np.ascontiguousarray(px), got.wrap_meta, got.srgb, got.label, got.mip_levels)
                 self._files[key] = got
             except ValueError as exc:
                 self._files[key] = exc
