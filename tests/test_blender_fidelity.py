@@ -922,7 +922,7 @@ def bumped_scene(kind: str, size=(64, 64)):
 #: The bump offsets are Filter Width × the pixel's footprint (Cycles' × dP), not one eye sample's: the wave plane and
 #: sphere 43.8, 43.5 dB (35.5, 38.8 before); a sub-pixel Noise at Filter Width 1: 26.8 dB, 1.004 (24.7 dB, 0.912×).
 #: The Displacement output's bump sets Cycles' smooth normal (SetNormal: sd->N), so no bump shadowing follows from it:
-#: 29.7 dB, 1.114× (measured with it: 24.0 dB, 0.786×). Under the sun alone (a black world) it is 43.2 dB, 0.998×:
+#: 30.2 dB, 1.115× (measured with it: 24.0 dB, 0.786×). Under the sun alone (a black world) it is 43.2 dB, 0.998×:
 #: the 11 % is the world's light on the steeply tilted normals, not yet traced to its line in Cycles (issue #32).
 BUMP_BARS = {"bump_diffuse": (32.0, 0.03, 0.015), "normal_map_principled": (40.0, 0.03, 0.01),
              "bump_sphere": (34.0, 0.03, 0.01), "displacement_bump": (28.0, 0.13, 0.03),
