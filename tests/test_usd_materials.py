@@ -373,13 +373,17 @@ def _normal_stage(d, name, n_tangent, light_dir, dx_style=False):
 
 @pytest.mark.parametrize("dx_style", [False, True], ids=["opengl", "directx_flipped_green"])
 def test_normal_map_matches_closed_form(tmp_path, dx_style):
-    """Radiance = albedo·E/π·max(0, n·l) with n the decoded tangent-space normal in the quad's frame (T = +X from
+    """Radiance = albedo·E/π·max(0, n·l)·G₁ with n the decoded tangent-space normal in the quad's frame (T = +X from
     ∂P/∂s, B = +Y from ∂P/∂t, N = +Z) and E = π: 0.8·n·l. Tilting towards the light brightens, a map read with the
     wrong handedness (green not flipped back) darkens — the normal leans along ±Y, the light comes from +Y."""
     n_t, light = (0.0, 0.5, 0.85), (0.0, 0.6, 0.8)
     path, n, l = _normal_stage(str(tmp_path), "nm", n_t, light, dx_style)
     img, _, _ = render_stage(path, n=8)
-    expected = 0.8 * max(0.0, float(n @ l))
+    # × Cycles' bump shadowing of a diffuse lobe (tracer.shading.bsdf.bump_shadowing): Smith's G₁ of GGX with
+    # α² = tan²(N, n)/8 at the light's cosine to the quad's normal N (0.996 here)
+    alpha2 = min(0.125 * (1.0 / n[2] ** 2 - 1.0), 1.0)
+    g1 = 1.0 / (1.0 + 0.5 * (math.sqrt(1.0 + alpha2 * (1.0 / l[2] ** 2 - 1.0)) - 1.0))
+    expected = 0.8 * max(0.0, float(n @ l)) * g1
     flat = 0.8 * float(l[2])
     assert abs(expected - flat) > 0.1
     assert np.allclose(img, expected, atol=3e-3), (img.mean(), expected, flat)

@@ -252,6 +252,8 @@ class SurfaceQueue(NamedTuple):
     #                      writes it for a sum of lobes, tracer.shading.vm.write_lobes; 0 = none)
     mirror_lamp: np.ndarray  # (N, 3) float32: the part of ``mirror`` that sees lamps (bsdf.lamp_share), written with it
     aniso: np.ndarray  # (N, 3) float32: the lobes' anisotropy (tracer.shading.bsdf.anisotropic; 0: isotropic)
+    ns: np.ndarray  # (N, 3) float32: the smooth normal before the material's Bump / Normal Map (Cycles' sd->N; the
+    #                 light stages' bsdf.bump_shadowing where n differs from it)
 
     @classmethod
     def empty(cls, n: int) -> "SurfaceQueue":
@@ -262,7 +264,7 @@ class SurfaceQueue(NamedTuple):
                    np.empty(n, np.int32), f3(), f1(), f1(), f1(), f1(), f3(), np.empty(n, np.int32),
                    f3(), f1(), np.empty(n, np.int32), np.empty((n, k), np.int32),
                    np.empty((n, k, 3), np.float32), np.empty((n, k, 3), np.float32), np.empty((n, k, 4), np.float32),
-                   f3(), f1(), f3(), f3()).reset()
+                   f3(), f1(), f3(), f3(), f3()).reset()
 
     #: The columns that start at a value (the rest are written before they are read), by field name.
     START = {"mirror": 0.0, "lobes": -1, "holdout": 0.0, "mirror_lamp": 0.0, "aniso": 0.0}
@@ -481,6 +483,7 @@ class Integrator:
                                self.materials, surf)
         if self.motion is not None and time is not None:  # what moves is shaded where it is at the ray's time
             frames_at_time(d, prim, inst, u, v, time, self.geometry, self.motion, surf.ng, surf.n, surf.front)
+        np.copyto(surf.ns, surf.n)  # the smooth normal, before the programs bump it
         if n_textured:  # the textures stage: the materials' programs (tracer.shading.vm)
             g, m, x, pt = self.geometry, self.materials, self.textures, self.programs
             # one eye sample's footprint, for the mip level of lookups and the bump offsets: read now, as a
@@ -493,7 +496,8 @@ class Integrator:
                            surf.base, surf.roughness, surf.metallic, surf.specular, surf.cover, surf.emission,
                            surf.transmission, m.alpha_threshold, g.uv_sets, g.colors, g.has_colors, g.vertices,
                            g.triangles, g.face_normals, g.object_ids, self.spaces, x.data, x.params, it.linear,
-                           it.mirrored, it.object_ids, eye, spread, flat, pt.lobes, surf.lobe_arrays, surf.aniso)
+                           it.mirrored, it.object_ids, eye, spread, flat, pt.lobes, surf.lobe_arrays, surf.aniso, surf.ns,
+                           float(max(1, int(self.settings.samples))))
         if self.volumes is not None:  # rays leaving a medium: Beer–Lambert and its emission over their length
             weight = _through_media(self.volumes, surf, t, sample, weight, out.color, n, self.carried)
         if medium is not None:  # rays travelling in a carried medium (an inside-out mesh's: _carried_media)
@@ -1132,7 +1136,7 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
     eps = opt.eps
     principled, shadows, sky_side, seed = opt.principled, opt.shadows, opt.sky_side, opt.seed
     needs_random = opt.needs_light_random
-    s_hit, s_p, s_ng, s_n = surf.hit, surf.p, surf.ng, surf.n
+    s_hit, s_p, s_ng, s_n, s_ns = surf.hit, surf.p, surf.ng, surf.n, surf.ns
     l_kind, l_side = lights.kind, lights.side
     q_o, q_d, q_t, q_s, q_c, q_l = shadow.o, shadow.d, shadow.t_max, shadow.sample, shadow.color, shadow.light
     o_color = out.color
@@ -1149,6 +1153,7 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
             continue
         s = sample[i]
         n, di = vec.row(s_n, i), vec.row(d, i)
+        ns = vec.row(s_ns, i)
         if principled and s_nl[i] >= 0:  # a sum of lobes (tracer.shading.lobes): its own loop, off the one-closure path
             n_shadow, k_new = _lobe_light(surf, d, i, s, weight, keys, depth, spawn, mats, lights, opt, out, shadow,
                                           n_shadow, links, recv)
@@ -1186,9 +1191,13 @@ def _direct_light(surf, d, sample, weight, keys, depth, spawn, mats, lights, opt
                 n_l = vec.dot(n, l)
                 if n_l <= 0.0 or vec.dot(ng, l) <= 0.0:
                     continue
+                valid, bump_d = bsdf.bump_shadowing(ns, n, l)
+                if valid == 0.0:
+                    continue
                 f = bsdf.evaluate(cl, n, wi, l, n_l, spec_scale)
-                if l_diffuse[j] != 1.0:  # the light's diffuse factor (the BSDF at spec_scale 0 is its diffuse part)
-                    f = vec.sub(f, vec.scale(bsdf.evaluate(cl, n, wi, l, n_l, 0.0), 1.0 - l_diffuse[j]))
+                dif = l_diffuse[j] * bump_d
+                if dif != 1.0:  # the light's diffuse factor (the BSDF at spec_scale 0 is its diffuse part)
+                    f = vec.sub(f, vec.scale(bsdf.evaluate(cl, n, wi, l, n_l, 0.0), 1.0 - dif))
                 c = vec.mul(wo, vec.mul(f, e))
                 if shadows:  # the shadow ray from p to the light sample: counts only if nothing is in between
                     so, sd, st = shadow_ray(p, ng, l, dist, eps)
@@ -1217,6 +1226,7 @@ def _lobe_light(surf, d, i, s, weight, keys, depth, spawn, mats, lights, opt, ou
     linked = recv.shape[0] > 0
     o_color, s_mirror = out.color, surf.mirror
     n, di = vec.row(surf.n, i), vec.row(d, i)
+    ns = vec.row(surf.ns, i)
     lb, wl = _lobes_at(surf, mats, i, n, di, spawn)
     s_mirror[i, 0], s_mirror[i, 1], s_mirror[i, 2] = lobes.mirror_weight(lb)
     s_ml = surf.mirror_lamp
@@ -1246,7 +1256,10 @@ def _lobe_light(surf, d, i, s, weight, keys, depth, spawn, mats, lights, opt, ou
             n_g = vec.dot(ng, l)
             if not ((n_l > 0.0 and n_g > 0.0) or (back and n_l < 0.0 and n_g < 0.0)):
                 continue
-            c = vec.mul(wo, vec.mul(lobes.evaluate(lb, n, wi, l, n_l, mesh, l_glossy[j], l_diffuse[j]), e))
+            valid, bump_d = bsdf.bump_shadowing(ns, n, l)
+            if valid == 0.0:
+                continue
+            c = vec.mul(wo, vec.mul(lobes.evaluate(lb, n, wi, l, n_l, mesh, l_glossy[j], l_diffuse[j] * bump_d), e))
             if opt.shadows:
                 so, sd, st = shadow_ray(p, ng, l, dist, eps)
                 _put(q_o, q_d, q_t, q_s, q_c, q_l, n_shadow, so, sd, st, s, c, j)
@@ -1271,7 +1284,7 @@ def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shado
     side = opt.sky_side
     amb = (opt.ambient[0], opt.ambient[1], opt.ambient[2])
     has_amb = amb[0] > 0.0 or amb[1] > 0.0 or amb[2] > 0.0
-    s_hit, s_p, s_ng, s_n = surf.hit, surf.p, surf.ng, surf.n
+    s_hit, s_p, s_ng, s_n, s_ns = surf.hit, surf.p, surf.ng, surf.n, surf.ns
     env_present, e_data, e_rot, e_rcdf, e_ccdf, e_rpdf, e_cpdf = (env.present, env.data, env.rot, env.row_cdf,
                                                                  env.col_cdf, env.row_pdf, env.col_pdf)
     q_o, q_d, q_t, q_s, q_c, q_l = shadow.o, shadow.d, shadow.t_max, shadow.sample, shadow.color, shadow.light
@@ -1283,6 +1296,7 @@ def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shado
             continue
         s = sample[i]
         n, di = vec.row(s_n, i), vec.row(d, i)
+        ns = vec.row(s_ns, i)
         cl, wl, g = _closure_at(surf, mats, i, n, di, principled, spawn)
         lb = no_lobes
         nl = surf.lobes[i] if principled else -1
@@ -1313,10 +1327,15 @@ def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shado
                 n_l = vec.dot(n, dr)
                 if n_l <= 0.0 or vec.dot(ng, dr) <= 0.0 or pdf <= 0.0:
                     continue
+                valid, bump_d = bsdf.bump_shadowing(ns, n, dr)
+                if valid == 0.0:
+                    continue
                 if nl >= 0:  # each lobe's specular part less its mirror share g_i (the mirror ray sees the sky)
-                    f = lobes.evaluate(lb, n, wi, dr, n_l, 1, 1.0, 1.0)
+                    f = lobes.evaluate(lb, n, wi, dr, n_l, 1, 1.0, bump_d)
                 else:
                     f = bsdf.evaluate(cl, n, wi, dr, n_l, 1.0 - g)
+                    if bump_d != 1.0:  # the diffuse part (the BSDF at spec_scale 0) under the bump's shadowing
+                        f = vec.sub(f, vec.scale(bsdf.evaluate(cl, n, wi, dr, n_l, 0.0), 1.0 - bump_d))
                 c = vec.scale(vec.mul(wo, vec.mul(f, env_radiance(e_data, e_rot, dr))), 1.0 / (pdf * kk))
                 _put(q_o, q_d, q_t, q_s, q_c, q_l, n_shadow, spawn_ray(p, ng, dr, eps), dr, np.inf, s, c, -1)
                 n_shadow += 1
@@ -1332,7 +1351,9 @@ def _sky(surf, d, sample, weight, keys, depth, spawn, mats, env, opt, out, shado
         for k in range(kk):
             s0, s1 = rotated_multijitter(k, sd, r0, r1)
             dr = sky.cosine_direction(n, tu, tv, s0, s1)
-            _put(q_o, q_d, q_t, q_s, q_c, q_l, n_shadow, spawn_ray(p, ng, dr, eps), dr, np.inf, s, c, -1)
+            valid, bump_d = bsdf.bump_shadowing(ns, n, dr)
+            _put(q_o, q_d, q_t, q_s, q_c, q_l, n_shadow, spawn_ray(p, ng, dr, eps), dr, np.inf, s,
+                 vec.scale(c, valid * bump_d), -1)
             n_shadow += 1
         n_new += kk
     counts[_N_SKY] += n_new

@@ -339,6 +339,29 @@ def _lambda(alpha2, cos):
 
 
 @kernel(inline=True)
+def bump_shadowing(ns, n, l):
+    """Cycles' ``bump_shadowing_term`` (closure/bsdf.h) for a light direction l at a hit whose shading normal n was
+    bumped or normal-mapped away from the smooth normal ns (both on the incident side): (valid, diffuse). valid = 0
+    where l and n lie on different sides of the smooth surface (no closure is lit from there), else 1; diffuse = the
+    factor on the diffuse-type lobes (Diffuse, the Principled diffuse, sheen, translucent): Smith's G₁ of GGX with
+    α² = min(tan²(ns, n)/8, 1) at |ns·l| (Conty Estevez et al., "A Microfacet-Based Shadowing Function to Solve the
+    Bump Terminator Problem"). (1, 1) where n = ns (no bump)."""
+    if n[0] == ns[0] and n[1] == ns[1] and n[2] == ns[2]:
+        return 1.0, 1.0
+    cos_si = vec.dot(ns, l)
+    cos_sn = vec.dot(ns, n)
+    if cos_si * cos_sn * vec.dot(n, l) < 0.0:
+        return 0.0, 0.0
+    cos_i, cos_d = abs(cos_si), abs(cos_sn)
+    if cos_d >= 1.0 or cos_i >= 1.0:
+        return 1.0, 1.0
+    if cos_i < 1e-6:
+        return 1.0, 0.0
+    alpha2 = min(max(0.125 * (1.0 / (cos_d * cos_d) - 1.0), 0.0), 1.0)
+    return 1.0, 1.0 / (1.0 + _lambda(alpha2, cos_i))
+
+
+@kernel(inline=True)
 def _lambda_aniso(ax, ay, x, y, z):
     """Smith's Λ for anisotropic GGX of a direction (x, y, z) in the lobe's frame: (√(1 + (α_x²x² + α_y²y²)/z²) − 1)/2."""
     z2 = max(z * z, 1e-12)

@@ -283,11 +283,15 @@ class ClosureLowering:
                 layer = dict(lb, **self._sheen_lobe(tint, rough, _sheen.MICROFIBER, layer=True))
                 layer.update(sheen=None, emission=(0.0, 0.0, 0.0))
                 lobes.append((self.math(ops.M_MULTIPLY, w, sw), layer))
+        smooth = None
         if isinstance(disp, Out):
             self.warn("displacement", "Displacement is rendered as bump (the surface is not moved)")
-            lobes = [(w, dict(lb, normal=self._displacement_bump(disp, lb["normal"]))) for w, lb in lobes]
+            smooth = self._displacement_bump(disp, None)  # Cycles: the bump of the Geometry normal sets sd->N
+            lobes = [(w, dict(lb, normal=smooth if lb["normal"] is None else
+                              self._displacement_bump(disp, lb["normal"]))) for w, lb in lobes]
         vals, extras = self.combine(lobes)
         vals["aniso"] = self._aniso(lobes)
+        vals["smooth"] = smooth
         self.lobe_slots = self.slots(lobes)
         return vals, extras
 

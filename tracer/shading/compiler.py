@@ -174,6 +174,7 @@ class Compiler(ClosureLowering):
         self.textures: list[TextureUse] = []
         self._tex_index: dict = {}
         self._bump_setup: Reg | None = None
+        self._bump_fw: float | None = None
         self.vertex_colors: list = []
         self.uv_maps: list = []
 
@@ -271,9 +272,20 @@ class Compiler(ClosureLowering):
                 k = 0
         return self.hit(N.IN_UV, arg=k, variant=variant, uv=k)
 
+    def bump_filter_width(self, fw) -> None:
+        """The Filter Width of the program's bump offsets (Cycles': × the pixel's ray differential): the first Bump
+        node's, set before its offset heights are read (one set of offsets per program: a later Bump node of another
+        width is warned about and shares the first's; a linked width reads as Blender's default 0.1)."""
+        w = float(fw) if _is_const(fw) else 0.1
+        if self._bump_fw is None:
+            self._bump_fw = w
+        elif abs(self._bump_fw - w) > 1e-9:
+            self.warn("bump filter width", f"Bump nodes of different Filter Width: {self._bump_fw:g} is used for all")
+
     def bump_setup(self) -> Reg:
         if self._bump_setup is None:
-            self._bump_setup = self.op("bump_setup", [])
+            fw = self._bump_fw if self._bump_fw is not None else 0.1  # the Displacement bump's: Cycles' default
+            self._bump_setup = self.op("bump_setup", [(max(fw, 1e-6), 1)])
         return self._bump_setup
 
     def scalar(self, x) -> tuple:
@@ -481,11 +493,11 @@ def compile_graph(graph: Graph, warn=None, uv_index=None, scene_textures=None, r
     outs = np.full(len(N.OUT_SLOTS), -1, np.int32)
     live = []
     for k, slot in enumerate(N.OUT_SLOTS):
-        x = vals[slot]
+        x = vals.get(slot)
         if x is None or _is_const(x):
             continue
         n = N.OUT_WIDTH[slot]
-        if slot == "normal":
+        if slot in ("normal", "smooth"):
             x = c.op("normalize_n", [(x, 3)])
         outs[k] = x.r
         live.append((x.r, n))

@@ -262,7 +262,7 @@ OPS: tuple[Op, ...] = (
                          "blend; imm = projection -> RGBA"),
     Op("checker", 4, _fold_checker, "Checker: vector a, Color1 b, Color2 c, scale d -> colour, fac"),
     Op("normal_map", 3, None, "Normal Map: colour a, strength b, UV set c (raw); imm = space"),
-    Op("bump_setup", 10, None, "the bump offsets of the hit (du, dv ×2, dPdx, dPdy)"),
+    Op("bump_setup", 10, None, "the bump offsets of the hit (du, dv ×2, dPdx, dPdy), a = Filter Width (× the pixel)"),
     Op("bump", 3, None, "Bump: heights a, b, c, strength d, distance e, normal f; imm = the setup's register"),
     Op("ramp", 4, lambda R, o, a, b, c, d, e, f, imm: ops.ramp(R, o, R[a], b, c, imm),
        "Color Ramp: fac a, table b, c entries (raw); imm = interpolate -> RGBA"),
@@ -328,12 +328,14 @@ assert all(globals()[f"OP_{op.name.upper()}"] == k for k, op in enumerate(OPS)),
  IN_MAT_INDEX, IN_ZERO) = range(26)
 
 #: The closure inputs a program writes (its row of ``outs``) and their widths: base colour, roughness, metallic,
-#: specular level, alpha, emission, shading normal, transmission.
+#: specular level, alpha, emission, shading normal, transmission, anisotropy, and the smooth normal the Displacement
+#: output's bump sets (Cycles' SetNormal: the sd->N the light stages' bump shadowing measures a bump from).
 OUTPUTS = (("base", 3), ("roughness", 1), ("metallic", 1), ("specular", 1), ("alpha", 1), ("emission", 3),
-           ("normal", 3), ("transmission", 1), ("aniso", 3))
+           ("normal", 3), ("transmission", 1), ("aniso", 3), ("smooth", 3))
 OUT_SLOTS = tuple(name for name, _n in OUTPUTS)
 OUT_WIDTH = dict(OUTPUTS)
-OUT_BASE, OUT_ROUGH, OUT_METAL, OUT_SPEC, OUT_ALPHA, OUT_EMIT, OUT_NORMAL, OUT_TRANS, OUT_ANISO = range(len(OUTPUTS))
+(OUT_BASE, OUT_ROUGH, OUT_METAL, OUT_SPEC, OUT_ALPHA, OUT_EMIT, OUT_NORMAL, OUT_TRANS, OUT_ANISO,
+ OUT_SMOOTH) = range(len(OUTPUTS))
 
 
 # ============================================================================================== node types
@@ -1065,6 +1067,7 @@ def _bump(cx, node, var):
     h0 = cx.inp(node, "Height", FLOAT, 0)
     if is_const(h0):
         return {"Normal": nrm}
+    cx.bump_filter_width(cx.inp(node, "Filter Width", FLOAT, 0))  # before the offset heights read the offsets
     hx, hy = cx.inp(node, "Height", FLOAT, 1), cx.inp(node, "Height", FLOAT, 2)
     strength, dist = cx.inp(node, "Strength", FLOAT, var), cx.inp(node, "Distance", FLOAT, var)
     if node.param("invert"):

@@ -45,7 +45,7 @@ from .nodes import (IN_BACKFACING, IN_CAMERA, IN_COLOR, IN_COLOR_ALPHA, IN_GENER
                     OP_MIX_VN, OP_MX_NOISE, OP_NAMES, OP_NOISE, OP_NOP, OP_NORMAL_MAP, OP_NORMALIZE_N, OP_RAMP,
                     OP_SELECT, OP_SEP_COLOR, OP_VMATH, OP_VORONOI, OP_VROTATE, OP_VTRANSFORM, OP_WAVE, OP_WAVELENGTH,
                     OP_WHITE_NOISE, OUT_ALPHA, OUT_ANISO, OUT_BASE, OUT_EMIT, OUT_METAL, OUT_NORMAL, OUT_ROUGH, OUT_SLOTS,
-                    OUT_SPEC, OUT_TRANS, WIDTH)
+                    OUT_SMOOTH, OUT_SPEC, OUT_TRANS, WIDTH)
 from .procedural import color as pcolor, mx_noise as pmx, noise as pnoise, patterns as ppat, voronoi as pvor
 from .spaces import CAM_FILM, CAM_LENS, CAM_XF, HI, LO, LOC, NRM, XF
 from .texture import lookup_at, texel_density
@@ -155,16 +155,18 @@ def _box_lookup(tdata, tparams, ti, co, nrm, blend, lod):
 
 
 @kernel(inline="always")
-def make_hit(tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye):
+def make_hit(tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye, fpx):
     """The ``hit`` tuple :func:`execute` reads, with one set of element types whoever builds it (the surfaces'
     textures stage, shadow rays' alpha, the world), so that ``execute`` is compiled once: int32 triangle and
-    instance, float32 barycentrics, normals, direction and ray length, float64 position, footprint and eye."""
+    instance, float32 barycentrics, normals, direction and ray length, float64 position, footprint and eye, and
+    ``fpx`` = a pixel's footprint over ``footprint`` (the eye samples across a pixel: Cycles' bump offsets are its
+    Filter Width × the pixel's ray differential)."""
     return (np.int32(tri), np.float32(u), np.float32(v), (np.float64(p[0]), np.float64(p[1]), np.float64(p[2])),
             (np.float32(n[0]), np.float32(n[1]), np.float32(n[2])),
             (np.float32(ng[0]), np.float32(ng[1]), np.float32(ng[2])), np.bool_(front),
             (np.float32(d[0]), np.float32(d[1]), np.float32(d[2])), np.float32(t_len), np.int64(depth),
             np.int32(k_inst), np.float64(footprint), np.bool_(shadow),
-            (np.float64(eye[0]), np.float64(eye[1]), np.float64(eye[2])))
+            (np.float64(eye[0]), np.float64(eye[1]), np.float64(eye[2])), np.float64(fpx))
 
 
 @kernel(inline=True)
@@ -174,7 +176,7 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
     vertices, triangles, face_normals, object_ids, spaces (tracer.shading.spaces), linear, mirrored, instance object ids), ``tex`` =
     (texel data, texture params). (Tuples: Python passes a call of more than 30 arguments as *args, which numba
     cannot inline; the callers are compiled without reference counting, so the tuples cost nothing.)"""
-    tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye = hit
+    tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye, fpx = hit
     uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids = geo
     tdata, tparams = tex
     k_read, uv_area, world_area = -1, 0.0, 0.0  # the UV set whose areas were last read (lookups mostly share one)
@@ -271,7 +273,7 @@ def execute(code, pc0, pc1, R, base, hit, geo, tex):
         elif op == OP_NORMAL_MAP:  # imm: space (0 tangent: UV set c; object, world, Blender object / world)
             R[o], R[o + 1], R[o + 2] = _normal_map((R[a], R[a + 1], R[a + 2]), R[b], imm, code[pc, 4], hit, geo)
         elif op == OP_BUMP_SETUP:
-            _bump_setup(R, o, tri, u, v, ng, footprint, k_inst, vertices, triangles, linear)
+            _bump_setup(R, o, tri, u, v, ng, footprint * fpx * R[a], k_inst, vertices, triangles, linear)
         elif op == OP_BUMP:
             _bump(R, o, R[a], R[b], R[c], R[base + code[pc, 5]], R[base + code[pc, 6]], base + code[pc, 7],
                   base + imm, ng)
@@ -412,7 +414,7 @@ def _procedural(R, op, o, a, b, imm):
 @kernel(inline=True)
 def _input(R, o, what, arg, variant, setup, hit, geo):
     """An ``OP_INPUT``: a value of the hit into R[o…] (``hit``, ``geo``: :func:`execute`'s)."""
-    tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye = hit
+    tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye, fpx = hit
     uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids = geo
     if variant > 0:  # the bump offset points: barycentrics and world position moved by the setup's offsets
         j = 2 * (variant - 1)
@@ -538,7 +540,7 @@ def _cols(spaces, k, row):
 @kernel
 def _object_matrices(hit, geo):
     """The hit object's matrix M (object to world, rows), its inverse and its translation."""
-    tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye = hit
+    tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye, fpx = hit
     uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids = geo
     if k_inst >= 0:
         m = ((linear[k_inst, 0, 0], linear[k_inst, 0, 1], linear[k_inst, 0, 2]),
@@ -556,9 +558,10 @@ def _normal_map(col, strength, space, k_uv, hit, geo):
     """Blender's Normal Map node (Cycles' ``svm_node_normal_map``): the colour as 2·c − 1 in tangent space (x along
     the UV tangent, y along sign·(N × T), z along the front-face shading normal, all in object space, then to world
     by the normal matrix), object space (by the normal matrix), world space, or Blender's object / world convention
-    (y and z negated); flipped for a back face; Strength blends from the shading normal. The value itself, as Cycles gives it: a normal facing away from the viewer is
+    (y and z negated); flipped for a back face; Strength scales the tangent-space x, y (z = mix(1, z, saturate(s)))
+    or, in the other spaces, blends linearly from the shading normal. The value itself, as Cycles gives it: a normal facing away from the viewer is
     left to the closure input (OP_NORMALIZE_N)."""
-    tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye = hit
+    tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye, fpx = hit
     uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids = geo
     c = (2.0 * col[0] - 1.0, 2.0 * col[1] - 1.0, 2.0 * col[2] - 1.0)
     side = 1.0 if front else -1.0
@@ -578,7 +581,10 @@ def _normal_map(col, strength, space, k_uv, hit, geo):
             return n
         tg = vec.normalize(tg)
         b = vec.scale(vec.cross(no, tg), sign)
-        # not normalised before Strength blends it (Blender 5.0's Cycles, measured: tests/cycles/test_cycles_nodes.py)
+        # Strength in the tangent frame, as Cycles: x, y scaled, z = mix(1, z, saturate(strength)) (for a strength
+        # above 1 not the linear blend from the normal, which tips the normal below the surface)
+        st = min(max(strength, 0.0), 1.0)
+        c = (c[0] * strength, c[1] * strength, 1.0 + (c[2] - 1.0) * st)
         x = ops.rot_t(mi, vec.madd(vec.madd(vec.scale(tg, c[0]), b, c[1]), no, c[2]))
         x = vec.scale(x, side)
     else:
@@ -592,7 +598,7 @@ def _normal_map(col, strength, space, k_uv, hit, geo):
         if ln == 0.0:
             return n
         x = vec.scale(x, side / ln)
-    if strength != 1.0:
+    if space != 0 and strength != 1.0:  # object / world space: the linear blend from the normal
         x = vec.madd(n, vec.sub(x, n), max(strength, 0.0))
     ln = math.sqrt(vec.dot(x, x))
     return vec.scale(x, 1.0 / ln) if ln > 0.0 else n
@@ -603,7 +609,7 @@ def _vtransform(x, imm, hit, geo):
     """Blender's Vector Transform (Cycles' ``svm_node_vector_transform``): imm = type (0 vector, 1 point, 2 normal)
     + 4·from + 16·to (0 world, 1 object, 2 camera). Points move by the full matrix, vectors by its 3×3 part, normals
     by its inverse transpose (normalised)."""
-    tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye = hit
+    tri, u, v, p, n, ng, front, d, t_len, depth, k_inst, footprint, shadow, eye, fpx = hit
     uv_sets, colors, has_colors, vertices, triangles, face_normals, object_ids, spaces, linear, mirrored, inst_ids = geo
     kind, src, dst = imm & 3, (imm >> 2) & 3, (imm >> 4) & 3
     if src == dst:
@@ -643,7 +649,8 @@ def _vtransform(x, imm, hit, geo):
 
 @kernel(refcounts=False)
 def _bump_setup(R, o, tri, u, v, ng, footprint, k_inst, vertices, triangles, linear):
-    """The two bump offsets: world offsets dPdx, dPdy of length ``footprint`` along an orthonormal tangent pair of
+    """The two bump offsets: world offsets dPdx, dPdy of length ``footprint`` (the caller's: the Bump node's Filter
+    Width × the pixel's footprint, as Cycles' ``bump_filter_width`` × dP) along an orthonormal tangent pair of
     the true normal, and the barycentric shifts (du, dv) that move the hit by them on its triangle. R[o…o+9] =
     du₁, dv₁, du₂, dv₂, dPdx (3), dPdy (3)."""
     a, b, c = triangles[tri, 0], triangles[tri, 1], triangles[tri, 2]
@@ -742,7 +749,7 @@ def _layer_weight(R, o, blend, nrm, d, front):
 def shade_programs(rays, prim, u, v, t, inst, d, depth, code, pstart, pbase, outs, R0, R, s_mat, s_p, s_ng, s_n,
                    s_front, s_base, s_rough, s_metal, s_spec, s_cover, s_e, s_tran, threshold, uv_sets, colors,
                    has_colors, vertices, triangles, face_normals, object_ids, spaces, tdata, tparams, linear,
-                   mirrored, inst_ids, eye, spread, flat, lobe_prog, lobe_surf, s_aniso):
+                   mirrored, inst_ids, eye, spread, flat, lobe_prog, lobe_surf, s_aniso, s_ns, px_samples):
     """The textures stage: for the listed rays (their material has a program), run it and write its outputs over
     the constants the surfaces stage wrote. ``R`` is this call's register file (``R0`` copied in once).
     ``lobe_prog`` = (kinds (M, MAX_LOBES), slot registers (M, MAX_LOBES, 6), (through, holdout) registers (M, 2))
@@ -770,7 +777,7 @@ def shade_programs(rays, prim, u, v, t, inst, d, depth, code, pstart, pbase, out
                       + lk[k_inst, 0, 2] * (lk[k_inst, 1, 0] * lk[k_inst, 2, 1] - lk[k_inst, 1, 1] * lk[k_inst, 2, 0]))
             footprint /= max(det, 1e-30) ** (1.0 / 3.0)
         rb = pbase[mat]
-        hit = make_hit(tri, ui, vi, p, n, ng, s_front[i], di, t[i], depth, k_inst, footprint, False, eye)
+        hit = make_hit(tri, ui, vi, p, n, ng, s_front[i], di, t[i], depth, k_inst, footprint, False, eye, px_samples)
         execute(code, pstart[mat], pstart[mat + 1], R, rb, hit, geo, tex)
         r = outs[mat, OUT_BASE]
         if r >= 0:
@@ -800,6 +807,9 @@ def shade_programs(rays, prim, u, v, t, inst, d, depth, code, pstart, pbase, out
         r = outs[mat, OUT_ANISO]
         if r >= 0:
             s_aniso[i, 0], s_aniso[i, 1], s_aniso[i, 2] = R[rb + r], R[rb + r + 1], R[rb + r + 2]
+        r = outs[mat, OUT_SMOOTH]
+        if r >= 0:  # the Displacement output's bump: the smooth normal (Cycles' SetNormal), s_ns
+            s_ns[i, 0], s_ns[i, 1], s_ns[i, 2] = R[rb + r], R[rb + r + 1], R[rb + r + 2]
         if lobe_prog[2][mat, 0] >= 0:
             write_lobes(R, rb, mat, i, lobe_prog, lobe_surf)
 
@@ -850,7 +860,7 @@ def program_alpha(code, pstart, pbase, outs, R, mat, tri, u, v, p, ng, front, d,
     """The alpha a material's program gives at a hit seen by a shadow ray (Light Path: Is Shadow Ray = 1; ``geo``,
     ``tex``: :func:`execute`'s)."""
     rb = pbase[mat]
-    hit = make_hit(tri, u, v, p, ng, ng, front, d, t_len, 1, k_inst, 0.0, True, p)
+    hit = make_hit(tri, u, v, p, ng, ng, front, d, t_len, 1, k_inst, 0.0, True, p, 1.0)
     execute(code, pstart[mat], pstart[mat + 1], R, rb, hit, geo, tex)
     return R[rb + outs[mat, OUT_ALPHA]]
 
@@ -878,6 +888,6 @@ def shade_directions(code, pstart, pbase, outs, R0, R, mat, dirs, out, tdata, tp
         di = vec.row(dirs, i)  # float32, as a ray's direction
         nb = (-di[0], -di[1], -di[2])  # float32, as the surfaces stage's normals
         p = (np.float64(di[0]), np.float64(di[1]), np.float64(di[2]))  # float64, as its positions
-        hit = make_hit(none, zero, zero, p, nb, nb, front, di, far, depth, none, 0.0, False, eye)
+        hit = make_hit(none, zero, zero, p, nb, nb, front, di, far, depth, none, 0.0, False, eye, 1.0)
         execute(code, pstart[mat], pstart[mat + 1], R, rb, hit, geo, tex)
         out[i, 0], out[i, 1], out[i, 2] = R[rb + r], R[rb + r + 1], R[rb + r + 2]
