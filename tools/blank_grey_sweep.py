@@ -26,7 +26,8 @@ import sys
 
 import numpy as np
 
-from tools.fidelity import read_rgb
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from fidelity import read_rgb  # noqa: E402  (a sibling script, as tools/fidelity.py imports its own)
 
 UNIFORM = 2 / 255
 NEUTRAL, COLOURED, GREY_SHARE = 0.03, 0.15, 0.25
