@@ -486,3 +486,25 @@ def test_a_rect_light_is_seen_in_a_mirror_times_its_specular(specular):
     rgb, scene, _ = lit_plane(make)
     le = scene.lights[0].radiance
     np.testing.assert_allclose(centre(rgb), 0.8 * le * specular, rtol=1e-3, atol=1e-6)
+
+
+def test_light_filters_and_arnold_mesh_lights_are_named_not_dropped_silently():
+    """Light filters (UsdLux ``light:filters``, Arnold's ``primvars:arnold:shaders`` on a light) and Arnold's mesh
+    lights (``primvars:arnold:light`` on a Mesh) are not rendered: each is named in one warning (arnold-usd's
+    test_0230 and test_1294 rendered unfiltered / unlit without a word)."""
+    def make(s):
+        l = UsdLux.SphereLight.Define(s, "/Lamp")
+        l.CreateIntensityAttr(10.0)
+        f = UsdLux.LightFilter.Define(s, "/Gobo")
+        l.GetPrim().CreateRelationship("light:filters").SetTargets([f.GetPath()])
+        l.GetPrim().CreateAttribute("primvars:arnold:shaders", Sdf.ValueTypeNames.String).Set("/Looks/Barndoor")
+        m = UsdGeom.Mesh.Define(s, "/Glow")
+        m.CreatePointsAttr([(-1, -1, 5), (1, -1, 5), (1, 1, 5)])
+        m.CreateFaceVertexCountsAttr([3])
+        m.CreateFaceVertexIndicesAttr([0, 1, 2])
+        m.GetPrim().CreateAttribute("primvars:arnold:light", Sdf.ValueTypeNames.Bool).Set(True)
+        return l
+    _, _, info = lit_plane(make)
+    filters = [w for w in info.warnings if "/Lamp" in w and "not applied" in w]
+    assert len(filters) == 1 and "/Gobo" in filters[0] and "/Looks/Barndoor" in filters[0], info.warnings
+    assert sum("/Glow" in w and "primvars:arnold:light" in w for w in info.warnings) == 1, info.warnings

@@ -192,6 +192,30 @@ def test_missing_texture_uses_fallback_and_warns_once(tmp_path):
     assert len([w for w in info.warnings if "nowhere.png" in w]) == 1, info.warnings
 
 
+@pytest.mark.parametrize("gprim", ["mesh", "sphere"])
+def test_a_texture_on_a_gprim_without_coordinates_reads_st_zero(tmp_path, gprim):
+    """A gprim without ``primvars:st`` (an implicit Sphere; a mesh whose UVs were not exported) under a texture read
+    through UsdPrimvarReader_float2("st"): the reader gives its fallback (0, 0), so the surface shows the image's
+    lower-left texel (spec, 'Texture Coordinate Orientation'), not UsdUVTexture's fallback colour, and one warning
+    names the gprim (arnold-usd test_1593 drew a black sphere without a word)."""
+    blocks = S.block_texture(str(tmp_path / "probe.png"))
+    s = S.new_stage(str(tmp_path / "nost.usda"))
+    S.camera(s)
+    mat, ps = S.preview(s, diffuseColor=(Sdf.ValueTypeNames.Color3f, Gf.Vec3f(0, 0, 0)))
+    tex = S.uv_texture(s, "/Looks/M", "Tex", "./probe.png", st_reader="st", fallback=Gf.Vec4f(1, 0, 1, 1),
+                       wrapS="clamp", wrapT="clamp")  # clamped: (0, 0) is the lower-left texel alone
+    S.connect(ps, "emissiveColor", Sdf.ValueTypeNames.Color3f, tex, "rgb")
+    if gprim == "mesh":
+        g = S.quad(s, uv_name=None).GetPrim()
+    else:
+        g = UsdGeom.Sphere.Define(s, "/Ball").GetPrim()
+    S.bind(g, mat)
+    img, info, _ = render_stage(S.save(s), n=8)
+    middle = img[3:5, 3:5].reshape(-1, 3)  # on the quad and on the ball alike (the corners show the world)
+    np.testing.assert_allclose(middle, np.broadcast_to(blocks[-1, 0], middle.shape), atol=2e-3)
+    assert sum(str(g.GetPath()) in w and "texture coordinates" in w for w in info.warnings) == 1, info.warnings
+
+
 def test_channel_outputs_drive_scalar_inputs(tmp_path):
     """An ARM texture (Teapot): occlusion from r, roughness from g, metallic from b — each scalar input reads its
     own channel (the material table names it), occlusion is ignored with one note."""

@@ -145,6 +145,7 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
     the writer's light units; None: "blender" when ``blender`` else "spec"). ``textures``: the reader's
     ``TextureCache`` (a RectLight's texture:file read in the stage's rendering space), or None."""
     units = units or ("blender" if blender else "spec")
+    _warn_filters(prim, warn)
     if units not in ("spec", "arnold") and not authored(prim, "intensity"):
         units = "spec"  # the writer's units are about the numbers it wrote: a fallback intensity is UsdLux's
     blender = units == "blender"
@@ -269,6 +270,20 @@ def convert_light(prim, world: np.ndarray, time, warn, blender: bool = False, un
         return _dome(prim, world, time, rgb, warn)
     warn(f"{name}: light type {t} is not supported (skipped)")
     return "unsupported", None, None
+
+
+def _warn_filters(prim, warn) -> None:
+    """One warning for what shapes a light beyond UsdLux's own inputs and is not applied: UsdLux light filters
+    (``light:filters``) and Arnold's light shaders (``primvars:arnold:shaders``: filters such as gobos and barn
+    doors, a dome's colour shader such as physical_sky)."""
+    rel = prim.GetRelationship("light:filters") or prim.GetRelationship("filters")
+    targets = rel.GetTargets() if rel else []
+    shaders = prim.GetAttribute("primvars:arnold:shaders")
+    named = [str(t) for t in targets]
+    if shaders and shaders.HasAuthoredValue() and shaders.Get():
+        named.append(f"Arnold light shaders {shaders.Get()} (primvars:arnold:shaders)")
+    if named:
+        warn(f"{prim.GetPath()}: {', '.join(named)} not applied (the light as its UsdLux inputs say)")
 
 
 def _rect_texture(prim, lux, time, warn, textures):

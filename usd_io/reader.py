@@ -233,9 +233,10 @@ class _Reader:
             self.info.warn(f"{prim.GetPath()}: transform is singular (zero scale) or not finite (skipped)")
             return
         data, material, extra, needs = self.shaded_with_needs(prim, data)
-        if prim.HasAPI(UsdLux.MeshLightAPI):
-            self.info.warn(f"{prim.GetPath()}: UsdLux MeshLightAPI is not supported (drawn with its material; it "
-                           "lights nothing)")
+        arnold_light = prim.GetAttribute("primvars:arnold:light")
+        if prim.HasAPI(UsdLux.MeshLightAPI) or (arnold_light and arnold_light.Get(self.time)):
+            kind = "UsdLux MeshLightAPI" if prim.HasAPI(UsdLux.MeshLightAPI) else "Arnold's mesh light (primvars:arnold:light)"
+            self.info.warn(f"{prim.GetPath()}: {kind} is not supported (drawn with its material; it lights nothing)")
         tris = data.triangles
         if prim.IsInstanceProxy() and not Skinning.is_skinned(prim):
             # native instancing: the prototype's mesh once (object space), this proxy an instance of it; once per

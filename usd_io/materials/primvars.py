@@ -126,6 +126,7 @@ def mesh_primvars(prim, data, needs, uv_set_names: list, time, warn):
         name = default_uv_name(prim, warn) if not sets and prim.IsA(UsdGeom.Curves) else None
         if name:  # curves' st per curve (uniform) or per point, the way their colours are read
             sets[0] = gprim_colors(prim, data, name, (0.0, 0.0, 0.0), time, warn)[..., :2].astype(np.float32)
+        _absent_coordinates(prim, sets, needs, uv_set_names, len(data.triangles), warn)
         return sets, colors
     tri = Triangulation(data.triangles, data.corners, data.faces, data.n_faces)
     n_points, n_fv = len(data.points), data.n_face_vertices
@@ -143,6 +144,7 @@ def mesh_primvars(prim, data, needs, uv_set_names: list, time, warn):
             warn(f"{why} (ignored)")
         if uv is not None:
             sets[index] = uv
+    _absent_coordinates(prim, sets, needs, uv_set_names, len(data.triangles), warn)
     if needs.color is not None:
         name, fallback = needs.color
         colors, why = corner_values(prim, name, tri, n_points, n_fv, time, 3)
@@ -151,6 +153,21 @@ def mesh_primvars(prim, data, needs, uv_set_names: list, time, warn):
         if colors is None:
             colors = np.broadcast_to(np.asarray(fallback, np.float32), (len(data.triangles), 3, 3)).copy()
     return sets, colors
+
+
+def _absent_coordinates(prim, sets: dict, needs, uv_set_names: list, n_triangles: int, warn) -> None:
+    """A texture's coordinates the gprim does not have (an implicit Sphere, a mesh without ``primvars:st``) read
+    (0, 0): the value a UsdPrimvarReader_float2 gives for an absent primvar (its fallback) and UsdUVTexture's
+    own ``st`` default — the texel at the image's corner, as Storm shows it, not the texture's fallback colour.
+    Named in one warning."""
+    missing = [name for name in sorted(needs.uv_sets) if uv_set_names.index(name) not in sets]
+    if not missing:
+        return
+    for name in missing:
+        sets[uv_set_names.index(name)] = np.zeros((n_triangles, 3, 2), np.float32)
+    shown = ", ".join("st" if n == DEFAULT_UV else n for n in missing)
+    warn(f"{prim.GetPath()}: no texture coordinates ({shown}) for its material's textures: read at (0, 0), "
+         "a primvar reader's fallback")
 
 
 def _refined_primvars(prim, refined: dict, n_triangles: int, needs, uv_set_names: list, warn):
