@@ -1,8 +1,9 @@
 """A :class:`bench.scenes.BenchScene` as a USD stage (pxr), for the ``whitted`` CLI and other USD renderers.
 
-Z up, metres. Meshes live under ``/Scene/Prototypes`` (inactive as geometry: ``purpose`` guide is not used; they are
-``over``-free plain ``Mesh`` prims made invisible) and every instance is an ``Xform`` with a 4×4 transform that
-references its prototype, ``instanceable = true`` so USD shares them. Materials are ``UsdPreviewSurface``:
+Z up, metres. Meshes live under ``/Scene/Prototypes`` (inactive as geometry: ``purpose`` guide is not used; each is
+a ``Mesh`` inside an ``Xform`` made invisible) and every instance is an ``Xform`` with a 4×4 transform whose child
+references its prototype's ``Xform``, ``instanceable = true`` so USD shares them (a gprim is never itself
+instanceable: Storm and the reader skip such a prim). Materials are ``UsdPreviewSurface``:
 diffuseColor, specularColor (specular workflow; the metallic workflow with metallic = k_m for mirrors), roughness,
 opacity = 1 − transmission, ior.
 Point lights are ``SphereLight`` with ``treatAsPoint``, intensity = 4·I (Blender's export: P/π with P = 4π·I).
@@ -49,7 +50,8 @@ def write_usd(bs: BenchScene, path: str, width: int = 1920, height: int = 1080) 
     protos = []
     for k, mesh in enumerate(bs.meshes):
         p = f"/Scene/Prototypes/{mesh.name}"
-        um = UsdGeom.Mesh.Define(stage, p)
+        proto = UsdGeom.Xform.Define(stage, p)  # instanceable prims hold their gprim: a gprim itself is not instanced
+        um = UsdGeom.Mesh.Define(stage, f"{p}/Mesh")
         um.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(np.asarray(mesh.vertices, np.float32)))
         um.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(mesh.faces), 3, np.int32)))
         um.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(np.asarray(mesh.faces, np.int32).ravel()))
@@ -64,7 +66,7 @@ def write_usd(bs: BenchScene, path: str, width: int = 1920, height: int = 1080) 
                                                       Vt.IntArray.FromNumpy(np.flatnonzero(mats == u).astype(np.int32)),
                                                       UsdShade.Tokens.materialBind)
                 UsdShade.MaterialBindingAPI.Apply(sub.GetPrim()).Bind(looks[int(u)])
-        UsdGeom.Imageable(um).MakeInvisible()
+        UsdGeom.Imageable(proto).MakeInvisible()
         protos.append(p)
 
     for k, inst in enumerate(bs.instances):

@@ -192,13 +192,18 @@ def test_povray_sdl_has_same_triangles(tmp_path):
 
 
 def test_usd_stage_has_same_triangles_and_lights(tmp_path):
-    """bench/usd.py's stage, read back by usd_io, holds the bench scene's triangles, lights, mirror and glass."""
+    """bench/usd.py's stage, read back by usd_io, holds the bench scene's triangles (its instanceable prims read as
+    instances), lights, mirror and glass."""
     from bench import usd
     from usd_io import load_stage
 
     bs = scenes.build("tiny")
     path = usd.write_usd(bs, str(tmp_path / "tiny.usda"), 64, 36)
+    from tracer.scene import flatten
+
     got, _ = load_stage(path, width=64, height=36)
+    assert got.instances is not None and len(got.instances)  # the two balls of one prototype: one shared mesh
+    got = flatten(got)
     ref = scenes.to_tracer(bs, 64, 36)
     assert len(got.triangles) == len(ref.triangles)
     np.testing.assert_allclose(np.sort(got.vertices[got.triangles].reshape(-1, 9), axis=0),
