@@ -62,19 +62,25 @@ def test_storm_silhouette_is_taken_at_half_coverage():
     assert fidelity.storm_mask(black, (0, 0, 0)).sum() == 36
 
 
-def test_exact_camera_tests_are_read_from_the_cmake_file(tmp_path):
-    """Tests with ``-camera`` are kept (once: the scene-index twin and repeated -times drop), with their baselines
-    per time, clear colour and window policy; -frameAll-only tests are not."""
-    gl = tmp_path / "pxr" / "usdImaging" / "usdImagingGL"
+def _cmake_tree(root, tests) -> None:
+    """A stand-in of OpenUSD's usdImagingGL test directory under ``root``: one stage and a CMakeLists.txt
+    registering ``tests`` ((name, the test app's extra arguments), ...) as testUsdImagingGLBasicDrawing runs."""
+    gl = root / "pxr" / "usdImaging" / "usdImagingGL"
     (gl / "testenv" / "testA").mkdir(parents=True)
     (gl / "testenv" / "testA" / "a.usda").write_text("#usda 1.0\n")
     cmd = "${CMAKE_INSTALL_PREFIX}/tests/testUsdImagingGLBasicDrawing -offscreen EXTRA -stage a.usda -write a.png"
     (gl / "CMakeLists.txt").write_text("\n".join(
         f'pxr_register_test({name}\n    COMMAND "{cmd.replace("EXTRA", extra)}"\n    TESTENV testA\n)\n'
-        for name, extra in (("testA", "-camera /cam -times 1 2 1 2 -clear 0 0 0 1"),
-                            ("testA_SceneIndex", "-camera /cam -times 1 2"),
-                            ("testB", "-frameAll"),
-                            ("testC", "-camera /cam -windowPolicy crop"))))
+        for name, extra in tests))
+
+
+def test_exact_camera_tests_are_read_from_the_cmake_file(tmp_path):
+    """Tests with ``-camera`` are kept (once: the scene-index twin and repeated -times drop), with their baselines
+    per time, clear colour and window policy; -frameAll-only tests are not."""
+    _cmake_tree(tmp_path, (("testA", "-camera /cam -times 1 2 1 2 -clear 0 0 0 1"),
+                           ("testA_SceneIndex", "-camera /cam -times 1 2"),
+                           ("testB", "-frameAll"),
+                           ("testC", "-camera /cam -windowPolicy crop")))
     tests = fidelity.tests_of(str(tmp_path))
     assert [t["name"] for t in tests] == ["testA", "testC"]
     a, c = tests
@@ -87,15 +93,9 @@ def test_frame_all_tests_are_read_with_their_purposes_and_complexities(tmp_path)
     """-frameAll tests without -camera are the second table: one entry per -complexities value (the baseline named
     with the C++ stream's float: 1 -> "_1", 1.3 -> "_1.3"), the purposes the test app shows (proxy shown, guides
     and render hidden unless -guidesPurpose / -renderPurpose show them)."""
-    gl = tmp_path / "pxr" / "usdImaging" / "usdImagingGL"
-    (gl / "testenv" / "testA").mkdir(parents=True)
-    (gl / "testenv" / "testA" / "a.usda").write_text("#usda 1.0\n")
-    cmd = "${CMAKE_INSTALL_PREFIX}/tests/testUsdImagingGLBasicDrawing -offscreen EXTRA -stage a.usda -write a.png"
-    (gl / "CMakeLists.txt").write_text("\n".join(
-        f'pxr_register_test({name}\n    COMMAND "{cmd.replace("EXTRA", extra)}"\n    TESTENV testA\n)\n'
-        for name, extra in (("testCam", "-frameAll -camera /cam"),
-                            ("testB", "-frameAll -guidesPurpose show -times 1 2"),
-                            ("testC", "-frameAll -complexities 1.0 1.3 -renderPurpose show -proxyPurpose hide"))))
+    _cmake_tree(tmp_path, (("testCam", "-frameAll -camera /cam"),
+                           ("testB", "-frameAll -guidesPurpose show -times 1 2"),
+                           ("testC", "-frameAll -complexities 1.0 1.3 -renderPurpose show -proxyPurpose hide")))
     tests = fidelity.tests_of(str(tmp_path), frame_all=True)
     assert [t["name"] for t in tests] == ["testB", "testC_1", "testC_1.3"]
     b, c1, c13 = tests
