@@ -17,27 +17,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from .ggx_tables import _coord, _fresnel, _lambda, ior_from_f0, write_tables
+from .ggx_tables import _coord, _fresnel, _lambda, ior_from_f0, visible_normals, write_tables
 
 SAMPLES = 96
 
 
 def _albedo(alpha, mu, eta, n=SAMPLES):
-    wi = np.array([np.sqrt(max(0.0, 1.0 - mu * mu)), 0.0, mu])
-    v = np.array([alpha * wi[0], alpha * wi[1], wi[2]])
-    v /= np.linalg.norm(v)
-    lensq = v[0] ** 2 + v[1] ** 2
-    t1 = np.array([-v[1], v[0], 0.0]) / np.sqrt(lensq) if lensq > 1e-7 else np.array([1.0, 0.0, 0.0])
-    t2 = np.cross(v, t1)
-    g = (np.arange(n) + 0.5) / n
-    u1, u2 = np.meshgrid(g, g, indexing="ij")
-    r, phi = np.sqrt(u1.ravel()), 2 * np.pi * u2.ravel()
-    tx, ty = r * np.cos(phi), r * np.sin(phi)
-    ty = (1 - 0.5 * (1 + v[2])) * np.sqrt(np.maximum(0.0, 1 - tx * tx)) + 0.5 * (1 + v[2]) * ty
-    tz = np.sqrt(np.maximum(0.0, 1 - tx * tx - ty * ty))
-    h_ = tx[:, None] * t1 + ty[:, None] * t2 + tz[:, None] * v
-    h = np.stack([alpha * h_[:, 0], alpha * h_[:, 1], np.maximum(1e-7, h_[:, 2])], axis=1)
-    h /= np.linalg.norm(h, axis=1, keepdims=True)
+    wi, h = visible_normals(alpha, mu, n, floor=1e-7)
     c = np.clip(h @ wi, 0.0, 1.0)
     a2 = alpha * alpha
     lam_i = _lambda(a2, np.array(mu))

@@ -37,8 +37,9 @@ def _lambda(alpha2, cos):
     return 0.5 * (np.sqrt(1.0 + alpha2 * np.maximum(1.0 / cos2 - 1.0, 0.0)) - 1.0)
 
 
-def _vndf(alpha, mu, n=SAMPLES):
-    """Stratified visible normals of a view direction with cosine mu (Heitz 2018): (cos θ_h·i = wi·h, wo_z, wi_z)."""
+def visible_normals(alpha, mu, n=SAMPLES, floor=0.0):
+    """(wi, h): a view direction of cosine mu and n × n stratified GGX visible normals h (N, 3) of it (Heitz 2018);
+    ``floor`` bounds the normals' z from below (the glass tables keep it off 0)."""
     wi = np.array([np.sqrt(max(0.0, 1.0 - mu * mu)), 0.0, mu])
     v = np.array([alpha * wi[0], alpha * wi[1], wi[2]])
     v /= np.linalg.norm(v)
@@ -52,8 +53,14 @@ def _vndf(alpha, mu, n=SAMPLES):
     ty = (1 - 0.5 * (1 + v[2])) * np.sqrt(np.maximum(0.0, 1 - tx * tx)) + 0.5 * (1 + v[2]) * ty
     tz = np.sqrt(np.maximum(0.0, 1 - tx * tx - ty * ty))
     h_ = tx[:, None] * t1 + ty[:, None] * t2 + tz[:, None] * v
-    h = np.stack([alpha * h_[:, 0], alpha * h_[:, 1], np.maximum(0.0, h_[:, 2])], axis=1)
+    h = np.stack([alpha * h_[:, 0], alpha * h_[:, 1], np.maximum(floor, h_[:, 2])], axis=1)
     h /= np.linalg.norm(h, axis=1, keepdims=True)
+    return wi, h
+
+
+def _vndf(alpha, mu, n=SAMPLES):
+    """Stratified visible normals of a view direction with cosine mu (Heitz 2018): (cos θ_h·i = wi·h, wo_z, wi_z)."""
+    wi, h = visible_normals(alpha, mu, n)
     cos_hi = h @ wi
     wo_z = 2 * cos_hi * h[:, 2] - wi[2]
     return cos_hi, wo_z, wi[2]
