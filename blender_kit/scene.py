@@ -209,9 +209,8 @@ def principled_material(name: str = "Material", **inputs):
     return mat
 
 
-def shader_material(name: str, node_type: str, **inputs):
-    """A node material whose surface is one shader node of ``node_type`` (e.g. "ShaderNodeBsdfGlass") with the
-    given inputs by socket name (RGB triples get alpha 1); returns (material, node)."""
+def node_material(name: str):
+    """A node material holding only its Material Output: (material, node tree, output node)."""
     import bpy
 
     mat = bpy.data.materials.new(name)
@@ -221,13 +220,20 @@ def shader_material(name: str, node_type: str, **inputs):
     for n in list(nt.nodes):
         if n.type != "OUTPUT_MATERIAL":
             nt.nodes.remove(n)
+    return mat, nt, next(n for n in nt.nodes if n.type == "OUTPUT_MATERIAL")
+
+
+def shader_material(name: str, node_type: str, **inputs):
+    """A node material whose surface is one shader node of ``node_type`` (e.g. "ShaderNodeBsdfGlass") with the
+    given inputs by socket name (RGB triples get alpha 1); returns (material, node)."""
+    mat, nt, out = node_material(name)
     node = nt.nodes.new(node_type)
     for key, value in inputs.items():
         sock = node.inputs[key]
         if isinstance(value, (tuple, list)) and len(value) == 3 and len(sock.default_value) == 4:
             value = tuple(value) + (1.0,)
         sock.default_value = value
-    nt.links.new(node.outputs[0], next(n for n in nt.nodes if n.type == "OUTPUT_MATERIAL").inputs["Surface"])
+    nt.links.new(node.outputs[0], out.inputs["Surface"])
     return mat, node
 
 

@@ -26,7 +26,7 @@ sys.path.insert(0, HERE)
 import cycles_harness as H  # noqa: E402
 
 from blender_kit import scene as bs  # noqa: E402
-from test_blender_fidelity import node_material, ours_render, source_of  # noqa: E402
+from test_blender_fidelity import ours_render, source_of  # noqa: E402
 
 pytestmark = pytest.mark.blender
 
@@ -121,7 +121,7 @@ def layered_sphere_scene(kind: str, size=(72, 72)):
     bs.set_world((0.05, 0.05, 0.05))
     bs.add_plane((0.0, 0.0, -1.0), 10.0, material=bs.principled_material("Floor", base_color=(0.4, 0.4, 0.4),
                                                                           specular=0.0))
-    mat, nt, out = node_material(kind)
+    mat, nt, out = bs.node_material(kind)
     if kind == "glossy_aniso":
         g = nt.nodes.new("ShaderNodeBsdfGlossy")
         g.inputs["Color"].default_value = (0.9, 0.8, 0.6, 1.0)
@@ -171,7 +171,7 @@ SPHERE_MAE = 0.08
 @pytest.mark.parametrize("kind", list(SPHERE_BARS))
 def test_coat_and_anisotropy_spheres_match_cycles(bpy_module, tmp_path, kind):
     ref = H.cycles_render(f"layered_{kind}", lambda: layered_sphere_scene(kind),
-                          source_of(layered_sphere_scene, node_material) + kind, dict(depth=2, samples=256))
+                          source_of(layered_sphere_scene, bs.node_material) + kind, dict(depth=2, samples=256))
     ours, warnings = ours_render(layered_sphere_scene(kind))
     m = H.metrics(ours, ref)
     print(f"[cycles] layered_{kind}: {m['psnr']:.2f} dB, mean ours/Cycles {m['mean_ours'] / m['mean_cycles']:.3f}")
@@ -190,7 +190,7 @@ def tangent_probe_scene(size=(96, 48)):
     bs.add_camera((0.0, -9.0, 0.0), target=(0.0, 0.0, 0.0), lens=50.0)
     bs.set_world((0.0, 0.0, 0.0))
     for k, what in enumerate(("X", "Y", "Z", "GEOMETRY")):
-        mat, nt, out = node_material(f"tangent_{what}")
+        mat, nt, out = bs.node_material(f"tangent_{what}")
         if what == "GEOMETRY":
             src = nt.nodes.new("ShaderNodeNewGeometry").outputs["Tangent"]
         else:
@@ -218,7 +218,7 @@ def tangent_probe_scene(size=(96, 48)):
 def test_radial_tangents_match_cycles(bpy_module, tmp_path):
     """The Tangent node's Radial X / Y / Z and the Geometry node's Tangent (before: the UV tangent, with a warning
     for Radial)."""
-    ref = H.cycles_render("tangent_probes", tangent_probe_scene, source_of(tangent_probe_scene, node_material),
+    ref = H.cycles_render("tangent_probes", tangent_probe_scene, source_of(tangent_probe_scene, bs.node_material),
                           dict(depth=0, samples=16))
     ours, warnings = ours_render(tangent_probe_scene(), depth=0)
     assert not warnings, warnings

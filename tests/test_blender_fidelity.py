@@ -255,17 +255,6 @@ def test_a_room_under_a_narrow_spread_lamp_matches_cycles(bpy_module, tmp_path):
 
 
 # ---------------------------------------------------------------------------------------------------- attributes
-def node_material(name):
-    import bpy
-
-    mat = bpy.data.materials.new(name)
-    nt = mat.node_tree
-    for n in list(nt.nodes):
-        if n.type != "OUTPUT_MATERIAL":
-            nt.nodes.remove(n)
-    return mat, nt, next(n for n in nt.nodes if n.type == "OUTPUT_MATERIAL")
-
-
 def grid_object(name, location, size=1.8, n=6, material=None):
     import bmesh
 
@@ -290,7 +279,7 @@ def attribute_scene(size=(80, 80)):
     spots = {"Col": (-1.0, 1.0), "speckle": (1.0, 1.0), "UVMap": (-1.0, -1.0), "Gone": (1.0, -1.0)}
     rng = np.random.default_rng(7)
     for attr, (x, y) in spots.items():
-        mat, nt, out = node_material(f"reads {attr}")
+        mat, nt, out = bs.node_material(f"reads {attr}")
         diff = nt.nodes.new("ShaderNodeBsdfDiffuse")
         if attr == "Gone":
             node = nt.nodes.new("ShaderNodeVertexColor")
@@ -332,7 +321,7 @@ def gltf_scene(size=(96, 72)):
                                                                         specular=0.0), name="Floor")
     mats = []
     for i, attr in enumerate(("Color", "Color.001")):
-        mat, nt, out = node_material(f"primitive {i}")
+        mat, nt, out = bs.node_material(f"primitive {i}")
         bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
         bsdf.inputs["Specular IOR Level"].default_value = 0.0
         vc = nt.nodes.new("ShaderNodeVertexColor")
@@ -356,7 +345,7 @@ def gltf_scene(size=(96, 72)):
     c1 = mesh.color_attributes.new("Color.001", "FLOAT_COLOR", "CORNER")
     c1.data.foreach_set("color", np.tile(np.array([0.9, 0.8, 0.1, 1.0], np.float32), len(c1.data)))
     bs._mesh_object("Primitives", mesh, (-1.0, 0.0, 0.0), None, False)
-    mat, nt, out = node_material("vertex alpha")
+    mat, nt, out = bs.node_material("vertex alpha")
     bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
     bsdf.inputs["Specular IOR Level"].default_value = 0.0
     vc = nt.nodes.new("ShaderNodeVertexColor")
@@ -380,7 +369,7 @@ def gltf_scene(size=(96, 72)):
 @pytest.mark.parametrize("name", ["attributes", "gltf_primitives"])
 def test_attribute_scenes_match_cycles(bpy_module, tmp_path, name):
     build = {"attributes": attribute_scene, "gltf_primitives": gltf_scene}[name]
-    ref = H.cycles_render(f"attr_{name}", build, source_of(build, node_material, grid_object),
+    ref = H.cycles_render(f"attr_{name}", build, source_of(build, bs.node_material, grid_object),
                           dict(depth=2, samples=64))
     scene = build()
     ours, warnings = ours_render(scene)
@@ -468,12 +457,12 @@ def medium_scene(emission: bool = False, ior: float = 1.0, size=(64, 64)):
     scene = bs.reset(size)
     bs.add_camera((0.0, -5.0, 0.0), target=(0.0, 0.0, 0.0), ortho_scale=2.4)
     bs.set_world((0.0, 0.0, 0.0))
-    back, nt, out = node_material("Backdrop")
+    back, nt, out = bs.node_material("Backdrop")
     em = nt.nodes.new("ShaderNodeEmission")
     em.inputs["Color"].default_value = (BACKDROP, BACKDROP, BACKDROP, 1.0)
     nt.links.new(em.outputs[0], out.inputs["Surface"])
     bs.add_plane((0.0, 3.0, 0.0), 8.0, material=back, name="Backdrop").rotation_euler = (math.pi / 2, 0, 0)
-    glass, nt, out = node_material("Juice glass")
+    glass, nt, out = bs.node_material("Juice glass")
     g = nt.nodes.new("ShaderNodeBsdfGlass")
     g.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
     g.inputs["Roughness"].default_value = 0.0
@@ -533,7 +522,7 @@ def test_a_medium_in_glass_is_beer_lambert(bpy_module, emission):
 def test_cycles_medium_in_glass_is_the_same_closed_form(bpy_module, emission):
     """Cycles holds the same closed form (its Whitted-limited render: 1 % on the mean, 5 % each with its noise)."""
     ref = H.cycles_render(f"medium_ior1_{'glow' if emission else 'juice'}", lambda: medium_scene(emission),
-                          source_of(medium_scene, node_material) + str(emission), dict(depth=4, samples=128))
+                          source_of(medium_scene, bs.node_material) + str(emission), dict(depth=4, samples=128))
     expected, inside = medium_closed_form(emission)
     ratio = ref[inside] / expected[inside]
     assert np.abs(np.mean(ratio, 0) - 1).max() < 0.01 and np.abs(ratio - 1).max() < 0.05, \
@@ -546,7 +535,7 @@ def test_juice_and_glow_glass_match_cycles(bpy_module, tmp_path, emission):
     """Real glass (IOR 1.45) with the medium: refraction, Fresnel and Beer–Lambert against Cycles (before the
     Volume output was read: 2.3× / 0.5× the luminance in the material library survey)."""
     name = f"medium_ior145_{'glow' if emission else 'juice'}"
-    ref = H.cycles_render(name, lambda: medium_scene(emission, 1.45), source_of(medium_scene, node_material) +
+    ref = H.cycles_render(name, lambda: medium_scene(emission, 1.45), source_of(medium_scene, bs.node_material) +
                           str(emission), dict(depth=8, samples=256))
     ours, _warnings = ours_render(medium_scene(emission, 1.45), depth=8)
     H.check_images({"name": name}, ours, ref, tmp_path, min_psnr=35.0, max_mae=0.01)
@@ -569,7 +558,7 @@ def sheen_scene(kind: str, size=(72, 72)):
     bs.add_plane((0.0, 0.0, -1.0), 10.0, material=bs.principled_material("Floor", base_color=(0.4, 0.4, 0.4),
                                                                           specular=0.0))
     colour = (0.8, 0.3, 0.5, 1.0)
-    mat, nt, out = node_material(kind)
+    mat, nt, out = bs.node_material(kind)
     if kind in ("velvet", "microfiber", "microfiber_mix"):
         sh = nt.nodes.new("ShaderNodeBsdfSheen")
         sh.distribution = "ASHIKHMIN" if kind == "velvet" else "MICROFIBER"
@@ -617,7 +606,7 @@ def test_sheen_and_subsurface_spheres_match_cycles(bpy_module, tmp_path, kind):
     """Velvet is Cycles' analytic lobe (exact up to noise); microfiber is the LTC lobe with our measured table
     (tools/sheen_table.py); subsurface is diffuse of its colour (Cycles' Whitted-limited picture is within a few
     per cent: light carried under the surface towards the shadow side)."""
-    ref = H.cycles_render(f"sheen_{kind}", lambda: sheen_scene(kind), source_of(sheen_scene, node_material) + kind,
+    ref = H.cycles_render(f"sheen_{kind}", lambda: sheen_scene(kind), source_of(sheen_scene, bs.node_material) + kind,
                           dict(depth=2, samples=256))
     ours, _warnings = ours_render(sheen_scene(kind))
     m = H.metrics(ours, ref)
@@ -635,7 +624,7 @@ def world_backdrop_scene(size=(80, 60)):
     bs.add_camera((0.0, -6.0, 1.0), target=(0.0, 0.0, 0.0), lens=50.0)
     bs.set_world((0.2, 0.25, 0.3), 1.5)
     bs.add_sun((0.5, 0.6, -0.6), strength=2.0)
-    mat, nt, out = node_material("Plaster")
+    mat, nt, out = bs.node_material("Plaster")
     bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
     bsdf.inputs["Specular IOR Level"].default_value = 0.0
     noise = nt.nodes.new("ShaderNodeTexNoise")
@@ -645,7 +634,7 @@ def world_backdrop_scene(size=(80, 60)):
     nt.links.new(ramp.outputs["Color"], bsdf.inputs["Base Color"])
     nt.links.new(bsdf.outputs[0], out.inputs["Surface"])
     bs.add_uv_sphere((0.0, 0.0, 0.0), 1.2, material=mat)
-    back, nt, out = node_material("Backdrop")
+    back, nt, out = bs.node_material("Backdrop")
     em = nt.nodes.new("ShaderNodeEmission")
     em.inputs["Color"].default_value = (0.8, 0.1, 0.1, 1.0)
     nt.links.new(em.outputs[0], out.inputs["Surface"])
@@ -671,7 +660,7 @@ def test_world_colour_behind_a_procedural_material_matches_cycles_in_a_render(wh
     viewport's depsgraph would draw the red backdrop: that, not the world colour, was the "background differs"."""
     from addon import engine
 
-    ref = H.cycles_render("world_backdrop", world_backdrop_scene, source_of(world_backdrop_scene, node_material),
+    ref = H.cycles_render("world_backdrop", world_backdrop_scene, source_of(world_backdrop_scene, bs.node_material),
                           dict(depth=2, samples=128))
     scene = world_backdrop_scene()
     scene.whitted.samples = 4
@@ -867,7 +856,7 @@ def test_cycles_carries_an_inside_out_mesh_medium_out_of_it(bpy_module):
                                    (False, False, OUTWARD_LENGTH)):
         build = functools.partial(inside_out_medium_scene, emission, flip)
         ref = H.cycles_render(f"inside_out_medium_{emission}_{flip}", build,
-                              source_of(inside_out_medium_scene, medium_scene, node_material), dict(depth=8, samples=16))
+                              source_of(inside_out_medium_scene, medium_scene, bs.node_material), dict(depth=8, samples=16))
         np.testing.assert_allclose(ref[20:28, 20:28].reshape(-1, 3).mean(0), inside_out_closed_form(emission, length),
                                    rtol=0.01)
 
@@ -951,7 +940,7 @@ def bumped_scene(kind: str, size=(64, 64)):
     e = math.radians(30.0)
     bs.add_sun((0.0, math.cos(e), -math.sin(e)), strength=3.0)
     bs.set_world((0.1, 0.1, 0.1))
-    mat, nt, out = node_material(kind)
+    mat, nt, out = bs.node_material(kind)
     if kind.startswith("normal_map"):
         shader = nt.nodes.new("ShaderNodeBsdfPrincipled")
         shader.inputs["Base Color"].default_value = (0.8, 0.8, 0.8, 1.0)
@@ -1017,7 +1006,7 @@ def test_bumped_surfaces_match_cycles(bpy_module, tmp_path, kind):
     away from the smooth normal Ns, a diffuse lobe's light is × G₁ of GGX at α² = tan²(Ns, N)/8 and |Ns·l|, and no
     closure takes light from the side of the smooth surface that N is not on. Without it the bumped plane under a 30°
     sun was 1.41× Cycles' mean, the normal-mapped one 1.32× (issue #32: rough plaster 1.39×, cobblestone 1.36×)."""
-    ref = H.cycles_render(f"bumped_{kind}", lambda: bumped_scene(kind), source_of(bumped_scene, node_material) + kind,
+    ref = H.cycles_render(f"bumped_{kind}", lambda: bumped_scene(kind), source_of(bumped_scene, bs.node_material) + kind,
                           dict(depth=2, samples=64))
     ours, _warnings = ours_render(bumped_scene(kind))
     m = H.metrics(ours, ref)

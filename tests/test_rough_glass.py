@@ -60,19 +60,8 @@ def test_a_rough_interface_reflects_and_transmits_one_less_its_shadowing(cos_i, 
 
 
 # ------------------------------------------------------------------------------------------- scenes (bpy)
-def _node_material(name):
-    import bpy
-
-    mat = bpy.data.materials.new(name)
-    nt = mat.node_tree
-    for n in list(nt.nodes):
-        if n.type != "OUTPUT_MATERIAL":
-            nt.nodes.remove(n)
-    return mat, nt, next(n for n in nt.nodes if n.type == "OUTPUT_MATERIAL")
-
-
 def _glass(name, roughness, kind="glass"):
-    mat, nt, out = _node_material(name)
+    mat, nt, out = bs.node_material(name)
     if kind == "glass":
         g = nt.nodes.new("ShaderNodeBsdfGlass")
         g.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
@@ -109,7 +98,7 @@ def checker_scene(roughness=0.3, size=(64, 64)):
     scene = bs.reset(size)
     bs.add_camera((0.0, -5.0, 0.0), target=(0.0, 0.0, 0.0), ortho_scale=2.6)
     bs.set_world((0.0, 0.0, 0.0))
-    back, nt, out = _node_material("Checker backdrop")
+    back, nt, out = bs.node_material("Checker backdrop")
     tc = nt.nodes.new("ShaderNodeTexCoord")
     ck = nt.nodes.new("ShaderNodeTexChecker")
     ck.inputs["Scale"].default_value = 8.0
@@ -163,7 +152,7 @@ def test_rough_glass_in_a_white_furnace_is_white(bpy_module, kind):
 def test_cycles_rough_glass_in_a_white_furnace_is_white_too(bpy_module):
     """Cycles' rough glass (Multiscatter GGX, the Glass BSDF's default) keeps the energy as well: what the energy
     compensation (tracer.shading.ggx_glass) is held to."""
-    ref = H.cycles_render("rough_glass_furnace", furnace_scene, _source(furnace_scene, _node_material, _glass),
+    ref = H.cycles_render("rough_glass_furnace", furnace_scene, _source(furnace_scene, bs.node_material, _glass),
                           dict(depth=16, samples=256))
     mean = ref.mean(axis=(0, 1))
     assert np.all(np.abs(mean - 1.0) < 0.02), mean
@@ -174,7 +163,7 @@ def test_cycles_rough_glass_in_a_white_furnace_is_white_too(bpy_module):
 def test_a_rough_glass_sphere_matches_cycles(bpy_module, tmp_path):
     """A rough glass sphere (roughness 0.3) in front of a checker against Cycles: the smooth rendering (the seed's
     refraction, what the tracer did before) is far from it (16 dB), the sampled microfacets close (37.6 dB)."""
-    ref = H.cycles_render("rough_glass_checker", checker_scene, _source(checker_scene, _node_material, _glass),
+    ref = H.cycles_render("rough_glass_checker", checker_scene, _source(checker_scene, bs.node_material, _glass),
                           dict(depth=8, samples=512))
     ours, warnings = ours_render(checker_scene(), samples=16)
     assert not warnings, warnings
@@ -263,7 +252,7 @@ def test_lamps_through_rough_glass_match_cycles(bpy_module, tmp_path):
     the lamps through the interface (tracer.integrator.wavefront._glass_light) against the sampled rays alone
     (before: speckle at 16 samples per pixel). Two seeds of ours differ by their noise only."""
     ref = H.cycles_render("rough_glass_lamps", lamp_glass_scene,
-                          _source(lamp_glass_scene, _node_material, _glass), dict(depth=8, samples=1024))
+                          _source(lamp_glass_scene, bs.node_material, _glass), dict(depth=8, samples=1024))
     ours, warnings = ours_render(lamp_glass_scene(), samples=4)
     assert not warnings, warnings
     m = H.metrics(ours, ref)
@@ -293,7 +282,7 @@ def test_single_scattering_glass_loses_what_cycles_loses(bpy_module, roughness):
     holds Cycles' mean to 2 %."""
     build = functools.partial(_distribution_furnace, roughness, "GGX")
     ref = H.cycles_render(f"glass_furnace_ggx_{roughness}", build,
-                          _source(_distribution_furnace, furnace_scene, _node_material, _glass),
+                          _source(_distribution_furnace, furnace_scene, bs.node_material, _glass),
                           dict(depth=32, samples=256))
     ours, _ = ours_render(build(), samples=8, depth=32)
     print(f"GGX glass furnace, roughness {roughness}: ours {ours.mean():.4f}, Cycles {ref.mean():.4f}")
@@ -307,7 +296,7 @@ def test_a_point_light_without_radius_lights_rough_glass_as_in_cycles(bpy_module
     its highlight on the glass is all light samples; they took the lamp's shape visibility, which is 0 for a light
     without a shape: 32.9 dB, the highlight 0.44 of Cycles' (now 36.0 dB, 0.97)."""
     build = functools.partial(lamp_glass_scene, point=True)
-    ref = H.cycles_render("rough_glass_point_lamp", build, _source(lamp_glass_scene, _node_material, _glass),
+    ref = H.cycles_render("rough_glass_point_lamp", build, _source(lamp_glass_scene, bs.node_material, _glass),
                           dict(depth=8, samples=1024))
     ours, warnings = ours_render(build(), samples=4)
     assert not warnings, warnings
@@ -363,7 +352,7 @@ def test_principled_glass_tints_by_the_square_root_of_its_base_colour(bpy_module
     each time (0.0625, 0.25, 1). Mixed half and half with a Transparent BSDF (the lobes' path) against Cycles too."""
     build = functools.partial(tinted_glass_scene, roughness, mix)
     ref = H.cycles_render(f"principled_glass_tint_{roughness}_{mix}", build,
-                          _source(tinted_glass_scene, checker_scene, _node_material, _glass),
+                          _source(tinted_glass_scene, checker_scene, bs.node_material, _glass),
                           dict(depth=8, samples=256))
     ours, _ = ours_render(build(), samples=4)
     c = slice(12, 20)

@@ -52,18 +52,6 @@ def image_block(name, pixels, *, srgb=False):
     return img
 
 
-def node_material(name):
-    import bpy
-
-    mat = bpy.data.materials.new(name)
-    nt = mat.node_tree
-    for n in list(nt.nodes):
-        if n.type != "OUTPUT_MATERIAL":
-            nt.nodes.remove(n)
-    out = next(n for n in nt.nodes if n.type == "OUTPUT_MATERIAL")
-    return mat, nt, out
-
-
 def grid(name, size=2.0, n=8, material=None, location=(0, 0, 0)):
     """A plane of n×n quads with a UV map, facing +Z."""
     import bmesh
@@ -87,7 +75,7 @@ def scene_texture_mapping():
     map picked by a UV Map node; diffuse only."""
     scene = bs.reset(SIZE)
     top_view(scene)
-    mat, nt, out = node_material("Textured")
+    mat, nt, out = bs.node_material("Textured")
     bsdf = nt.nodes.new("ShaderNodeBsdfDiffuse")
     tex = nt.nodes.new("ShaderNodeTexImage")
     tex.image = image_block("asym", asymmetric_pixels())
@@ -116,7 +104,7 @@ def scene_checker_mix():
     """Checker Texture on UVs (scale 3) in a Mix Shader (factor 0.3) with an Emission shader."""
     scene = bs.reset(SIZE)
     top_view(scene)
-    mat, nt, out = node_material("CheckerMix")
+    mat, nt, out = bs.node_material("CheckerMix")
     diff = nt.nodes.new("ShaderNodeBsdfDiffuse")
     checker = nt.nodes.new("ShaderNodeTexChecker")
     checker.inputs["Scale"].default_value = 3.0
@@ -140,7 +128,7 @@ def scene_color_attribute():
     """A Principled BSDF (specular 0) whose Base Color is a corner-domain Color Attribute, one colour per face."""
     scene = bs.reset(SIZE)
     top_view(scene)
-    mat, nt, out = node_material("VertexColours")
+    mat, nt, out = bs.node_material("VertexColours")
     bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
     bsdf.inputs["Specular IOR Level"].default_value = 0.0
     attr = nt.nodes.new("ShaderNodeVertexColor")
@@ -165,13 +153,13 @@ def scene_glossy_emission():
     scene = bs.reset(SIZE)
     bs.add_camera((0, -5, 3), target=(0, 0, 0.6), lens=40)
     bs.set_world((0.0, 0.0, 0.0))
-    mat, nt, out = node_material("Glossy")
+    mat, nt, out = bs.node_material("Glossy")
     glossy = nt.nodes.new("ShaderNodeBsdfGlossy")
     glossy.inputs["Color"].default_value = (0.9, 0.8, 0.5, 1)
     glossy.inputs["Roughness"].default_value = 0.0
     nt.links.new(glossy.outputs[0], out.inputs["Surface"])
     bs.add_uv_sphere((0.6, 0.6, 0.7), 0.7, material=mat)
-    lamp, nt, out = node_material("Lamp")
+    lamp, nt, out = bs.node_material("Lamp")
     emit = nt.nodes.new("ShaderNodeEmission")
     emit.inputs["Color"].default_value = (1.0, 0.9, 0.7, 1)
     emit.inputs["Strength"].default_value = 1.5
@@ -190,7 +178,7 @@ def mirror_ball_view(world_builder):
 
     scene = bs.reset(SIZE)
     bs.add_camera((0.0, -4.0, 0.6), target=(0.0, 0.0, 0.9), lens=28)
-    mat, nt, out = node_material("Chrome")
+    mat, nt, out = bs.node_material("Chrome")
     glossy = nt.nodes.new("ShaderNodeBsdfGlossy")
     glossy.inputs["Color"].default_value = (0.9, 0.9, 0.9, 1)
     glossy.inputs["Roughness"].default_value = 0.0
@@ -242,7 +230,7 @@ def scene_world_sky_bake():
 
 def textured_principled(name, socket, pixels, *, output="Color", colorspace="Non-Color", via_normal_map=False):
     """A Principled BSDF with an Image Texture on one input (through a Normal Map node if asked)."""
-    mat, nt, out = node_material(name)
+    mat, nt, out = bs.node_material(name)
     bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
     nt.links.new(bsdf.outputs[0], out.inputs["Surface"])
     tex = nt.nodes.new("ShaderNodeTexImage")
@@ -305,7 +293,7 @@ def scene_alpha_cutout():
     yy, xx = np.mgrid[0:32, 0:32]
     px = np.ones((32, 32, 4), np.float32)
     px[..., 3] = ((xx - 15.5) ** 2 + (yy - 15.5) ** 2 < 12 ** 2).astype(np.float32)
-    mat, nt, out = node_material("Leaf")
+    mat, nt, out = bs.node_material("Leaf")
     bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
     bsdf.inputs["Base Color"].default_value = (0.2, 0.7, 0.2, 1)
     bsdf.inputs["Specular IOR Level"].default_value = 0.0
